@@ -1,7 +1,6 @@
 """Gymnasium environments of sb3-affect, installed as ``sb3_affect.envs``."""
 
 from gymnasium.envs.registration import register, registry
-
 from sb3_affect.envs.grid_pursuit import ACTION_NAMES, MOVES, GridPursuitEnv, build_transitions, distances_to
 
 GRID_PURSUIT_ID = "sb3_affect/GridPursuit-v0"

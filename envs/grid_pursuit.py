@@ -135,7 +135,11 @@ class GridPursuitEnv(gym.Env[np.int64, np.int64]):
         if goal_cell in obstacle_cells:
             raise ValueError(f"goal={goal_cell} is on an obstacle")
         for name, value in (("goal_reward", goal_reward), ("step_reward", step_reward)):
-            if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) or not np.isfinite(value):
+            if (
+                isinstance(value, bool)
+                or not isinstance(value, (int, float, np.integer, np.floating))
+                or not np.isfinite(value)
+            ):
                 raise TypeError(f"{name} must be a finite number, got {value!r}")
         if goal_reward <= 0:
             raise ValueError(f"goal_reward={goal_reward} must be > 0 (the goal must be worth reaching)")
@@ -183,7 +187,7 @@ class GridPursuitEnv(gym.Env[np.int64, np.int64]):
         reward = self.goal_reward if terminated else self.step_reward
         return np.int64(t), reward, terminated, False, {"cell": divmod(t, self.size), "moved": t != s}
 
-    def render(self) -> str | np.ndarray | None:  # type: ignore[override]
+    def render(self) -> str | np.ndarray | None:
         if self.render_mode == "ansi":
             return self._render_text()
         if self.render_mode == "rgb_array":

@@ -1,9 +1,38 @@
-"""sb3-affect: affective tabular Q-learning for Stable-Baselines3."""
+"""sb3-affect: affective tabular Q-learning (Badoy & Teknomo, "Q-Learning with Basic Emotions") for Stable-Baselines3."""
 
+from sb3_affect.affectq import AffectQ
+from sb3_affect.appraisal import Appraisal, Appraiser, KnownMap, PowerFit
+from sb3_affect.behaviour import TABLE_III, Behaviour
+from sb3_affect.callbacks import EmotionCallback
+from sb3_affect.emotions import EMOTION_NAMES, Emotion, make_table_ii, table_ii
 from sb3_affect.envs import GRID_PURSUIT_ID, GridPursuitEnv, register_envs
+from sb3_affect.episode_log import EPISODE_COLUMNS
+from sb3_affect.policies import TabularQPolicy
+from sb3_affect.qlearning import QLearning
+from sb3_affect.tabular import TabularQAlgorithm
 
 register_envs()
 
 __version__ = "0.1.0"
 
-__all__ = ["GRID_PURSUIT_ID", "GridPursuitEnv", "__version__"]
+__all__ = [
+    "EMOTION_NAMES",
+    "EPISODE_COLUMNS",
+    "GRID_PURSUIT_ID",
+    "TABLE_III",
+    "AffectQ",
+    "Appraisal",
+    "Appraiser",
+    "Behaviour",
+    "Emotion",
+    "EmotionCallback",
+    "GridPursuitEnv",
+    "KnownMap",
+    "PowerFit",
+    "QLearning",
+    "TabularQAlgorithm",
+    "TabularQPolicy",
+    "__version__",
+    "make_table_ii",
+    "table_ii",
+]

@@ -1,0 +1,161 @@
+"""AffectQ: the paper's affective agent. No epsilon: each decision's emotion sets its direction and speed."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+from stable_baselines3.common.type_aliases import GymEnv, Schedule
+
+from sb3_affect.appraisal import ACT_MODES, UNITS, check_choice
+from sb3_affect.behaviour import TABLE_III, Behaviour, validate_behaviour_table
+from sb3_affect.callbacks import EmotionCallback
+from sb3_affect.emotions import COMPARISONS, Emotion
+from sb3_affect.policies import TabularQPolicy, greedy_action
+from sb3_affect.tabular import TabularQAlgorithm
+
+
+class AffectQ(TabularQAlgorithm):
+    """
+    Q-learning with basic emotions (Badoy & Teknomo 2014).
+
+    Before each decision the agent appraises its progress (``norm``, ``exp1``, ``act``), feels one emotion by
+    Table II, and the emotion's behaviour (Table III) sets the direction (random for joy, greedy otherwise) and the
+    cells moved (joy and anger 1 or 2, sadness and fear 0 or 1). The appraisal and the emotion come from an
+    ``EmotionCallback`` that AffectQ drives through its affect hook (see ``sb3_affect.callbacks``); the first
+    episode, with nothing to appraise, is all joy.
+
+    :param policy: ``"Grid"`` (alias of ``TabularQPolicy``) or a policy class
+    :param env: the environment (a Gymnasium env, a registered id or a one-env DummyVecEnv)
+    :param learning_rate: alpha in Eq. 1, in (0, 1]; a float or a schedule of the remaining progress
+    :param gamma: discount factor, in [0, 1]
+    :param q_init: initial value of every Q-table entry
+    :param comparison: Table II reading: ``"literal"`` (compare step counts) or ``"valence"`` (compare their negations)
+    :param act: ``"episode"`` (act = elapsed + known remaining) or ``"remaining"`` (known remaining only)
+    :param units: ``"cells"`` or ``"decisions"``: what norm, exp1 and act count
+    :param behaviour_table: emotion -> ``Behaviour(random_direction, speeds)``; default Table III
+    :param emotion_callback: an ``EmotionCallback`` (or subclass) to drive instead of one built from the options above
+    :param max_episode_decisions: safety cap: an episode that reaches this many decisions is truncated (and counted)
+    :param stats_window_size: window of the rollout/ep_*_mean logger keys (episodes)
+    :param tensorboard_log: folder for TensorBoard logs (None: none)
+    :param policy_kwargs: extra arguments for the policy
+    :param verbose: 0 silent, 1 training logs on stdout
+    :param seed: seed of every random choice
+    :param device: torch device of the Q-table
+    :param _init_setup_model: build the policy now (SB3 convention)
+    """
+
+    def __init__(
+        self,
+        policy: str | type[TabularQPolicy],
+        env: GymEnv | str | None,
+        learning_rate: float | Schedule = 1.0,
+        gamma: float = 0.8,
+        q_init: float = 0.0,
+        comparison: str = "literal",
+        act: str = "episode",
+        units: str = "cells",
+        behaviour_table: Mapping[Emotion, Behaviour] | None = None,
+        emotion_callback: EmotionCallback | None = None,
+        max_episode_decisions: int = 20_000,
+        stats_window_size: int = 100,
+        tensorboard_log: str | None = None,
+        policy_kwargs: dict[str, Any] | None = None,
+        verbose: int = 0,
+        seed: int | None = None,
+        device: Any = "cpu",
+        _init_setup_model: bool = True,
+    ) -> None:
+        self.comparison = check_choice("comparison", comparison, COMPARISONS)
+        self.act = check_choice("act", act, ACT_MODES)
+        self.units = check_choice("units", units, UNITS)
+        table = TABLE_III if behaviour_table is None else behaviour_table
+        self.behaviour_table: dict[str, list[Any]] = {
+            e.name.lower(): list(b) for e, b in validate_behaviour_table(table).items()
+        }
+        if emotion_callback is not None and not isinstance(emotion_callback, EmotionCallback):
+            raise TypeError(f"emotion_callback must be an EmotionCallback, got {type(emotion_callback).__name__}")
+        self.emotion_callback = emotion_callback
+        self._affect_state: dict[str, Any] | None = None
+        super().__init__(
+            policy,
+            env,
+            learning_rate=learning_rate,
+            gamma=gamma,
+            q_init=q_init,
+            max_episode_decisions=max_episode_decisions,
+            stats_window_size=stats_window_size,
+            tensorboard_log=tensorboard_log,
+            policy_kwargs=policy_kwargs,
+            verbose=verbose,
+            seed=seed,
+            device=device,
+            _init_setup_model=_init_setup_model,
+        )
+
+    def _setup_model(self) -> None:
+        super()._setup_model()
+        if self.emotion_callback is None:
+            self.emotion_callback = EmotionCallback(comparison=self.comparison, act=self.act, units=self.units)
+        self.emotion_callback.bind(int(self.observation_space.n))  # type: ignore[attr-defined]
+        if self._affect_state is not None:
+            assert self.emotion_callback.appraiser is not None
+            self.emotion_callback.appraiser.set_state(self._affect_state)
+        # the behaviour table as a list indexed by emotion, for the hot loop
+        self._behaviour = [
+            Behaviour(bool(r), tuple(int(k) for k in speeds))
+            for r, speeds in (self.behaviour_table[e.name.lower()] for e in Emotion)
+        ]
+        self._last_equivalent_epsilon = math.nan
+
+    def _excluded_save_params(self) -> list[str]:
+        return [*super()._excluded_save_params(), "emotion_callback", "_behaviour"]
+
+    def save(self, path: Any, exclude: Any = None, include: Any = None) -> None:
+        assert self.emotion_callback is not None and self.emotion_callback.appraiser is not None
+        self._affect_state = self.emotion_callback.appraiser.get_state()
+        try:
+            super().save(path, exclude=exclude, include=include)
+        finally:
+            self._affect_state = None
+
+    # -- the affect hook -------------------------------------------------------------------------------------------
+    def learn(self, *args: Any, **kwargs: Any) -> Any:
+        """Learn as ``TabularQAlgorithm.learn``; the emotion callback is bound to this model for logging."""
+        assert self.emotion_callback is not None
+        self.emotion_callback.init_callback(self)
+        return super().learn(*args, **kwargs)
+
+    def _new_run(self) -> None:
+        assert self.emotion_callback is not None and self.emotion_callback.appraiser is not None
+        self.emotion_callback.appraiser.reset_history()
+
+    def _start_episode(self) -> None:
+        assert self.emotion_callback is not None
+        self.emotion_callback.begin_episode()
+
+    def _end_episode(self, reached_goal: bool) -> tuple[list[int], float]:
+        assert self.emotion_callback is not None
+        return self.emotion_callback.end_episode(reached_goal)
+
+    def _transition_hook(self) -> Any:
+        assert self.emotion_callback is not None
+        return self.emotion_callback.observe
+
+    def _decide(self, state: int, q: list[list[float]]) -> tuple[int, int, bool]:
+        rng = self._rng
+        assert self.emotion_callback is not None
+        random_direction, speeds = self._behaviour[self.emotion_callback.feel(state)]
+        cells = speeds[0] if len(speeds) == 1 else speeds[rng.randrange(len(speeds))]
+        if random_direction:
+            return rng.randrange(len(q[state])), cells, True
+        return greedy_action(q[state], rng), cells, False
+
+    def _exploration_value(self) -> float:
+        rows = self._episode_rows
+        return rows[-1][6] / rows[-1][1] if rows else 1.0
+
+    def predict(self, observation: Any, state: Any = None, episode_start: Any = None, deterministic: bool = False) -> Any:
+        """The greedy action (ties at random). Emotions steer learning only: outside ``learn`` there is no appraisal."""
+        return self.policy.predict(observation, state, episode_start, deterministic=True)

@@ -1,0 +1,90 @@
+"""The per-episode record every agent keeps (``model.episode_log``) and the path checks behind its columns."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any, NamedTuple
+
+import pandas as pd
+
+#: Columns of ``model.episode_log`` / ``EmotionCallback.episode_log``, in order.
+EPISODE_COLUMNS: tuple[str, ...] = (
+    "episode",  # 1-based episode number within the run
+    "decisions",  # decisions taken (the paper's "steps"; one unit of time each)
+    "cells",  # one-cell env transitions (a bump into a wall counts: the agent spent the move)
+    "reward",  # sum of rewards
+    "optimal",  # reached the goal in exactly the shortest possible number of cells
+    "truncated",  # ended by the safety cap (or the env's own time limit), not at the goal
+    "random_moves",  # decisions whose direction was drawn at random (NaN when the algorithm does not say)
+    "waits",  # decisions that moved 0 cells
+    "joy",
+    "sadness",
+    "fear",
+    "anger",  # decisions taken in each emotion
+    "greedy_optimal",  # after this episode, every greedy choice from the start walks a shortest path
+    "norm",  # the appraisal norm in force during the episode (NaN when there was none)
+)
+
+
+class Geometry(NamedTuple):
+    """What the path columns need to know about a grid env: its dynamics and true distances."""
+
+    transitions: Sequence[Sequence[int]]
+    distances: Sequence[float]
+    start_state: int
+    shortest_path_length: int
+
+
+def env_geometry(env: Any) -> Geometry | None:
+    """The geometry of an env (possibly wrapped) that exposes it, as GridPursuit does; ``None`` otherwise."""
+    base = getattr(env, "unwrapped", env)
+    try:
+        return Geometry(base.transitions, base.distances, int(base.start_state), int(base.shortest_path_length))
+    except AttributeError:
+        return None
+
+
+def greedy_walks_shortest_path(q: Sequence[Sequence[float]], geometry: Geometry) -> bool:
+    """
+    Whether the greedy policy of ``q`` walks a shortest path from the start whatever way its ties are broken:
+    every action in the arg-max set of every cell it can reach must bring it one cell closer to the goal.
+    """
+    transitions, distances = geometry.transitions, geometry.distances
+    stack = [geometry.start_state]
+    seen: set[int] = set()
+    while stack:
+        s = stack.pop()
+        d = distances[s]
+        if d == 0 or s in seen:
+            continue
+        seen.add(s)
+        row = q[s]
+        best = max(row)
+        for a, value in enumerate(row):
+            if value == best:
+                t = transitions[s][a]
+                if distances[t] != d - 1:
+                    return False
+                stack.append(t)
+    return True
+
+
+def deterministic_walk_is_shortest(actions: Sequence[int], geometry: Geometry) -> bool:
+    """Whether following one fixed action per cell (e.g. a DQN's greedy actions) from the start is a shortest path."""
+    s = geometry.start_state
+    for _ in range(geometry.shortest_path_length):
+        s = geometry.transitions[s][int(actions[s])]
+    return geometry.distances[s] == 0
+
+
+def make_frame(rows: Sequence[Sequence[Any]]) -> pd.DataFrame:
+    """The episode log as a DataFrame with typed columns."""
+    frame = pd.DataFrame(list(rows), columns=list(EPISODE_COLUMNS))
+    for column in ("episode", "decisions", "cells", "waits", "joy", "sadness", "fear", "anger"):
+        frame[column] = frame[column].astype("int64")
+    for column in ("optimal", "truncated", "greedy_optimal"):
+        if frame[column].notna().all():
+            frame[column] = frame[column].astype(bool)
+    for column in ("reward", "random_moves", "norm"):
+        frame[column] = frame[column].astype("float64")
+    return frame

@@ -1,0 +1,101 @@
+"""QLearning: the paper's standard agent, epsilon-greedy tabular Q-learning (Eq. 1), one cell per decision."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from stable_baselines3.common.type_aliases import GymEnv, Schedule
+from stable_baselines3.common.utils import FloatSchedule
+
+from sb3_affect.policies import TabularQPolicy, greedy_action
+from sb3_affect.tabular import TabularQAlgorithm, _check_rate
+
+
+class QLearning(TabularQAlgorithm):
+    """
+    Epsilon-greedy tabular Q-learning (Sutton & Barto; the paper's Eq. 1 and Sec. I).
+
+    Each decision: with probability ``exploration_rate`` a uniformly random action, otherwise the greedy one (ties
+    broken uniformly at random); one cell per decision.
+
+    :param policy: ``"Grid"`` (alias of ``TabularQPolicy``) or a policy class
+    :param env: the environment (a Gymnasium env, a registered id or a one-env DummyVecEnv)
+    :param learning_rate: alpha in Eq. 1, in (0, 1]; a float or a schedule of the remaining progress
+    :param gamma: discount factor, in [0, 1]
+    :param q_init: initial value of every Q-table entry
+    :param exploration_rate: epsilon, in [0, 1]; a float or an SB3-style schedule (``progress_remaining -> epsilon``),
+        evaluated at the start of each episode
+    :param max_episode_decisions: safety cap: an episode that reaches this many decisions is truncated (and counted)
+    :param stats_window_size: window of the rollout/ep_*_mean logger keys (episodes)
+    :param tensorboard_log: folder for TensorBoard logs (None: none)
+    :param policy_kwargs: extra arguments for the policy
+    :param verbose: 0 silent, 1 training logs on stdout
+    :param seed: seed of every random choice
+    :param device: torch device of the Q-table
+    :param _init_setup_model: build the policy now (SB3 convention)
+    """
+
+    def __init__(
+        self,
+        policy: str | type[TabularQPolicy],
+        env: GymEnv | str | None,
+        learning_rate: float | Schedule = 1.0,
+        gamma: float = 0.8,
+        q_init: float = 0.0,
+        exploration_rate: float | Schedule = 0.1,
+        max_episode_decisions: int = 20_000,
+        stats_window_size: int = 100,
+        tensorboard_log: str | None = None,
+        policy_kwargs: dict[str, Any] | None = None,
+        verbose: int = 0,
+        seed: int | None = None,
+        device: Any = "cpu",
+        _init_setup_model: bool = True,
+    ) -> None:
+        _check_rate("exploration_rate", exploration_rate, 0.0, 1.0)
+        self.exploration_rate = exploration_rate
+        super().__init__(
+            policy,
+            env,
+            learning_rate=learning_rate,
+            gamma=gamma,
+            q_init=q_init,
+            max_episode_decisions=max_episode_decisions,
+            stats_window_size=stats_window_size,
+            tensorboard_log=tensorboard_log,
+            policy_kwargs=policy_kwargs,
+            verbose=verbose,
+            seed=seed,
+            device=device,
+            _init_setup_model=_init_setup_model,
+        )
+
+    def _setup_model(self) -> None:
+        super()._setup_model()
+        self.exploration_schedule = FloatSchedule(self.exploration_rate)
+        self._epsilon = float(self.exploration_schedule(1.0))
+
+    def _update_schedules(self) -> None:
+        super()._update_schedules()
+        self._epsilon = float(self.exploration_schedule(self._current_progress_remaining))
+
+    def _exploration_value(self) -> float:
+        return self._epsilon
+
+    def _decide(self, state: int, q: list[list[float]]) -> tuple[int, int, bool]:
+        rng = self._rng
+        if rng.random() < self._epsilon:
+            return rng.randrange(len(q[state])), 1, True
+        return greedy_action(q[state], rng), 1, False
+
+    def predict(self, observation: Any, state: Any = None, episode_start: Any = None, deterministic: bool = False) -> Any:
+        """
+        The greedy action (``deterministic=True``) or, like SB3's DQN, an epsilon-greedy one at the current epsilon.
+        """
+        if not deterministic and self._rng.random() < self._epsilon:
+            obs = np.asarray(observation)
+            n = 1 if obs.ndim == 0 else obs.shape[0]
+            actions = np.array([self.action_space.sample() for _ in range(n)])
+            return (actions[0] if obs.ndim == 0 else actions), state
+        return self.policy.predict(observation, state, episode_start, deterministic)
