@@ -52,7 +52,9 @@ class PowerFit:
         return math.exp(ln_a), b
 
     def predict(self, t: float) -> float:
-        """The fitted value at ``t`` (finite for any positive inputs)."""
+        """The fitted value at ``t`` (finite for any positive inputs); with one point, that point exactly."""
+        if len(self.values) == 1:
+            return self.values[0]
         a, b = self.coefficients()
         value = a * math.exp(b * math.log(t)) if t > 0 else a
         return value if math.isfinite(value) else 1e300
