@@ -1,0 +1,157 @@
+"""Boltzmann (softmax) exploration: actions drawn with probability proportional to exp(Q / temperature)."""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from stable_baselines3.common.type_aliases import GymEnv, Schedule
+from stable_baselines3.common.utils import FloatSchedule
+
+from sb3_affect.appraisal import check_choice
+from sb3_affect.baselines._schedules import DECAYS, check_positive_int, episode_decay
+from sb3_affect.policies import TabularQPolicy
+from sb3_affect.tabular import TabularQAlgorithm, _check_number, _check_rate
+
+
+def softmax_action(row: list[float], inv_temperature: float, u: float) -> int:
+    """
+    Draw an action with probability ``exp((Q - max Q) / T)`` normalised, using the uniform number ``u`` in [0, 1).
+
+    Plain Python (it runs once per decision). At very low temperature every non-maximal weight underflows to 0 and
+    the draw is a uniform choice among the maximal actions, i.e. greedy with random ties.
+    """
+    best = max(row)
+    exp = math.exp
+    weights = [exp((v - best) * inv_temperature) for v in row]
+    x = u * sum(weights)
+    last = 0
+    for a, w in enumerate(weights):
+        if w > 0.0:
+            last = a
+            x -= w
+            if x < 0.0:
+                return a
+    return last  # rounding: u * total landed on the total
+
+
+class Boltzmann(TabularQAlgorithm):
+    """
+    Tabular Q-learning (Eq. 1) with Boltzmann (softmax) exploration, one cell per decision.
+
+    Each decision draws action ``a`` with probability ``exp(Q(s, a) / T) / sum_b exp(Q(s, b) / T)``. ``T -> 0`` is
+    greedy (ties at random), ``T -> inf`` uniform. The temperature is in the units of Q: with the paper's reward of 100
+    and gamma 0.8, Q-values near the start are a few units apart, so T around 1 is already nearly greedy there.
+    A decision counts as a random move (``random_moves`` in the episode log) when the drawn action is not greedy.
+
+    The temperature is fixed (``temperature``), an SB3 schedule of the remaining progress, or decays over the run's
+    episodes from ``temperature`` to ``temperature_final`` (plain data, expressible in YAML).
+
+    :param policy: ``"Grid"`` (alias of ``TabularQPolicy``) or a policy class
+    :param env: the environment (a Gymnasium env, a registered id or a one-env DummyVecEnv)
+    :param learning_rate: alpha in Eq. 1, in (0, 1]; a float or a schedule of the remaining progress
+    :param gamma: discount factor, in [0, 1]
+    :param q_init: initial value of every Q-table entry
+    :param temperature: T > 0 (first-episode value when ``temperature_final`` is given); a float or an SB3-style
+        schedule (``progress_remaining -> T``) evaluated at the start of each episode
+    :param temperature_final: None (no episode decay) or the temperature once the decay is over (> 0)
+    :param temperature_decay_episodes: episodes the decay lasts (>= 1)
+    :param decay: ``"exponential"`` (a constant factor per episode) or ``"linear"``
+    :param max_episode_decisions: safety cap: an episode that reaches this many decisions is truncated (and counted)
+    :param stats_window_size: window of the rollout/ep_*_mean logger keys (episodes)
+    :param tensorboard_log: folder for TensorBoard logs (None: none)
+    :param policy_kwargs: extra arguments for the policy
+    :param verbose: 0 silent, 1 training logs on stdout
+    :param seed: seed of every random choice
+    :param device: torch device of the Q-table
+    :param _init_setup_model: build the policy now (SB3 convention)
+    """
+
+    def __init__(
+        self,
+        policy: str | type[TabularQPolicy],
+        env: GymEnv | str | None,
+        learning_rate: float | Schedule = 1.0,
+        gamma: float = 0.8,
+        q_init: float = 0.0,
+        temperature: float | Schedule = 1.0,
+        temperature_final: float | None = None,
+        temperature_decay_episodes: int = 100,
+        decay: str = "exponential",
+        max_episode_decisions: int = 20_000,
+        stats_window_size: int = 100,
+        tensorboard_log: str | None = None,
+        policy_kwargs: dict[str, Any] | None = None,
+        verbose: int = 0,
+        seed: int | None = None,
+        device: Any = "cpu",
+        _init_setup_model: bool = True,
+    ) -> None:
+        _check_rate("temperature", temperature, 0.0, 1e300, low_open=True)
+        if temperature_final is not None:
+            if callable(temperature):
+                raise ValueError("give either a temperature schedule or temperature_final, not both")
+            temperature_final = _check_number("temperature_final", temperature_final, 0.0, 1e300, low_open=True)
+        self.temperature = temperature
+        self.temperature_final = temperature_final
+        self.temperature_decay_episodes = check_positive_int("temperature_decay_episodes", temperature_decay_episodes)
+        self.decay = check_choice("decay", decay, DECAYS)
+        super().__init__(
+            policy,
+            env,
+            learning_rate=learning_rate,
+            gamma=gamma,
+            q_init=q_init,
+            max_episode_decisions=max_episode_decisions,
+            stats_window_size=stats_window_size,
+            tensorboard_log=tensorboard_log,
+            policy_kwargs=policy_kwargs,
+            verbose=verbose,
+            seed=seed,
+            device=device,
+            _init_setup_model=_init_setup_model,
+        )
+
+    def _setup_model(self) -> None:
+        super()._setup_model()
+        self.temperature_schedule = FloatSchedule(self.temperature)
+        self._set_temperature(float(self.temperature_schedule(1.0)))
+
+    def _set_temperature(self, value: float) -> None:
+        self._temperature = value
+        self._inv_temperature = 1.0 / value
+
+    def temperature_at(self, finished_episodes: int, progress_remaining: float = 1.0) -> float:
+        """The temperature of an episode that starts after ``finished_episodes`` episodes at this progress."""
+        if self.temperature_final is None:
+            return float(self.temperature_schedule(progress_remaining))
+        assert not callable(self.temperature)
+        return episode_decay(
+            float(self.temperature), self.temperature_final, self.temperature_decay_episodes, self.decay, finished_episodes
+        )
+
+    def _update_schedules(self) -> None:
+        super()._update_schedules()
+        self._set_temperature(self.temperature_at(len(self._episode_rows), self._current_progress_remaining))
+
+    def _exploration_value(self) -> float:
+        return self._temperature
+
+    def _decide(self, state: int, q: list[list[float]]) -> tuple[int, int, bool]:
+        row = q[state]
+        action = softmax_action(row, self._inv_temperature, self._rng.random())
+        return action, 1, row[action] != max(row)
+
+    def predict(self, observation: Any, state: Any = None, episode_start: Any = None, deterministic: bool = False) -> Any:
+        """The greedy action (``deterministic=True``) or a softmax draw at the current temperature."""
+        if deterministic:
+            return self.policy.predict(observation, state, episode_start, deterministic)
+        obs = np.asarray(observation)
+        start = int(self.action_space.start)  # type: ignore[attr-defined]
+        rows = [self.policy.q_values(int(s)) for s in obs.reshape(-1)]
+        actions = np.array([softmax_action(row, self._inv_temperature, self._rng.random()) + start for row in rows])
+        return (actions[0] if obs.ndim == 0 else actions), state
+
+
+__all__ = ["Boltzmann", "softmax_action"]
