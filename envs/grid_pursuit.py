@@ -69,7 +69,7 @@ def distances_to(target: int, transitions: Sequence[Sequence[int]]) -> list[floa
     return dist
 
 
-class GridPursuitEnv(gym.Env[np.int64, np.int64]):
+class GridPursuitEnv(gym.Env[Any, Any]):
     """
     A hunter (the agent) pursues a static prey (the goal) on a square grid.
 
@@ -174,18 +174,18 @@ class GridPursuitEnv(gym.Env[np.int64, np.int64]):
         return row, col
 
     # -- gymnasium API ---------------------------------------------------------------------------------------
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[np.int64, dict[str, Any]]:
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[int, dict[str, Any]]:
         super().reset(seed=seed)
         self.state = self.start_state
-        return np.int64(self.state), {"cell": self.start}
+        return self.state, {"cell": self.start}
 
-    def step(self, action: Any) -> tuple[np.int64, SupportsFloat, bool, bool, dict[str, Any]]:
+    def step(self, action: Any) -> tuple[int, SupportsFloat, bool, bool, dict[str, Any]]:
         s = self.state
         t = self.transitions[s][int(action)]
         self.state = t
         terminated = t == self.goal_state
         reward = self.goal_reward if terminated else self.step_reward
-        return np.int64(t), reward, terminated, False, {"cell": divmod(t, self.size), "moved": t != s}
+        return t, reward, terminated, False, {"cell": divmod(t, self.size), "moved": t != s}
 
     def render(self) -> str | np.ndarray | None:
         if self.render_mode == "ansi":

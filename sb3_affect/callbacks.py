@@ -120,7 +120,7 @@ class EmotionCallback(BaseCallback):
         self.appraiser.end_episode(reached_goal)
         counts = self.counts
         total = sum(counts)
-        if total and self.model is not None:
+        if total and self.model is not None and self.logger.output_formats:
             for name, count in zip(EMOTION_NAMES, counts):
                 self.logger.record(f"affect/{name}", count / total)
             self.logger.record("affect/norm", norm if norm == norm else 0.0)

@@ -18,7 +18,8 @@ import pandas as pd
 import torch as th
 from gymnasium import spaces
 from stable_baselines3.common.base_class import BaseAlgorithm
-from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.callbacks import BaseCallback, ConvertCallback
+from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, Schedule
 from stable_baselines3.common.utils import safe_mean
@@ -218,12 +219,20 @@ class TabularQAlgorithm(BaseAlgorithm):
             self._new_run()
         if reset_num_timesteps or self._last_obs is None:
             self._episode_state = None  # SB3 resets the env: a new episode starts
-        total_timesteps, callback = self._setup_learn(
-            total_timesteps, callback, reset_num_timesteps, tb_log_name, progress_bar
-        )
+        silent = not self._custom_logger and self.verbose == 0 and self.tensorboard_log is None
+        if silent:  # SB3 would create an empty /tmp/SB3-<date> folder for a logger that writes nothing
+            self._logger, self._custom_logger = Logger(folder=None, output_formats=[]), True
+        try:
+            total_timesteps, callback = self._setup_learn(
+                total_timesteps, callback, reset_num_timesteps, tb_log_name, progress_bar
+            )
+        finally:
+            if silent:
+                self._custom_logger = False
         callback.on_training_start(locals(), globals())
         env = self._single_env()
         self._geometry: Geometry | None = env_geometry(env)
+        self._greedy_optimal: bool | None = None
         q: list[list[float]] = self.policy.q_table.tolist()
         self._q = q
         self._update_schedules()
@@ -246,6 +255,8 @@ class TabularQAlgorithm(BaseAlgorithm):
         cb_locals: dict[str, Any] = {"self": self, "total_timesteps": total_timesteps, "callback": callback}
         update_locals = callback.update_locals
         on_step = callback.on_step
+        # learn(callback=None) without a progress bar: nothing to call per decision
+        call_back = not (isinstance(callback, ConvertCallback) and callback.callback is None)
 
         # the episode in progress (continued across learn(reset_num_timesteps=False) calls)
         if self._episode_state is None:
@@ -266,7 +277,9 @@ class TabularQAlgorithm(BaseAlgorithm):
         alpha = self._alpha
         s2, reward, terminated, truncated, info, action = s, 0.0, False, False, {}, 0
 
-        while self.num_timesteps < total_timesteps:
+        t = self.num_timesteps
+        changed = True  # whether the Q-table changed since the last greedy-path check
+        while t < total_timesteps:
             # 1. decide: direction and speed (epsilon-greedy, or the emotion's behaviour)
             action, k, explored = decide(s, q)
             # 2. move k cells, one Eq. 1 update per cell
@@ -275,8 +288,11 @@ class TabularQAlgorithm(BaseAlgorithm):
                 s2 = int(obs) - obs_start
                 reward = float(r)
                 row = q[s]
-                target = reward if terminated else reward + gamma * max(q[s2])
-                row[action] += alpha * (target - row[action])
+                old = row[action]
+                new = old + alpha * ((reward if terminated else reward + gamma * max(q[s2])) - old)
+                if new != old:
+                    row[action] = new
+                    changed = True
                 if observe is not None:
                     observe(s, s2, terminated)
                 cells += 1
@@ -289,30 +305,38 @@ class TabularQAlgorithm(BaseAlgorithm):
             if explored:
                 random_moves += 1
             decisions += 1
-            self.num_timesteps += 1
+            t += 1
             # 3. episode end: at the goal, by the env's time limit, or by the safety cap
-            capped = decisions >= cap and not (terminated or truncated)
-            done = terminated or truncated or capped
+            done = terminated or truncated or decisions >= cap
             if done:
+                self.num_timesteps = t
                 self._close_episode(
-                    decisions, cells, reward_sum, random_moves, waits, terminated, truncated or capped, log_interval
+                    decisions, cells, reward_sum, random_moves, waits, terminated, not terminated, changed, log_interval
                 )
-                obs, info = env.reset()
+                changed = False
+                obs, _ = env.reset()
                 s = int(obs) - obs_start
                 decisions = cells = random_moves = waits = 0
                 reward_sum = 0.0
                 terminated = truncated = False
                 self._begin_episode(total_timesteps)
                 alpha = self._alpha
-            # 4. callbacks, once per decision
-            cb_locals["new_obs"] = [s2]
-            cb_locals["rewards"] = [reward]
-            cb_locals["dones"] = _DONE if done else _NOT_DONE
-            cb_locals["infos"] = [info]
-            cb_locals["actions"] = [action + act_start]
-            update_locals(cb_locals)
-            if not on_step():
-                break
+            # 4. callbacks, once per decision, with the locals of a one-env VecEnv step
+            if call_back:
+                self.num_timesteps = t
+                if done:
+                    info = {**info, "terminal_observation": s2 + obs_start}
+                    if not terminated:
+                        info["TimeLimit.truncated"] = True
+                cb_locals["new_obs"] = [s + obs_start]
+                cb_locals["rewards"] = [reward]
+                cb_locals["dones"] = _DONE if done else _NOT_DONE
+                cb_locals["infos"] = [info]
+                cb_locals["actions"] = [action + act_start]
+                update_locals(cb_locals)
+                if not on_step():
+                    break
+        self.num_timesteps = t
 
         self._episode_state = {
             "state": s,
@@ -338,6 +362,7 @@ class TabularQAlgorithm(BaseAlgorithm):
         waits: int,
         terminated: bool,
         truncated: bool,
+        q_changed: bool,
         log_interval: int | None,
     ) -> None:
         counts, norm = self._end_episode(terminated)
@@ -347,7 +372,9 @@ class TabularQAlgorithm(BaseAlgorithm):
             greedy: Any = math.nan
         else:
             optimal = terminated and cells == geometry.shortest_path_length
-            greedy = greedy_walks_shortest_path(self._q, geometry)
+            if q_changed or self._greedy_optimal is None:
+                self._greedy_optimal = greedy_walks_shortest_path(self._q, geometry)
+            greedy = self._greedy_optimal
         self._episode_rows.append(
             [
                 len(self._episode_rows) + 1,
@@ -370,9 +397,10 @@ class TabularQAlgorithm(BaseAlgorithm):
         self.ep_info_buffer.append(
             {"r": reward, "l": decisions, "c": cells, "t": round(time.time() - self.start_time / 1e9, 6)}
         )
-        self.logger.record("affect/equivalent_epsilon", random_moves / decisions)
-        if log_interval is not None and self._episode_num % log_interval == 0:
-            self.dump_logs()
+        if self.logger.output_formats:  # no logger work when nothing would be written
+            self.logger.record("affect/equivalent_epsilon", random_moves / decisions)
+            if log_interval is not None and self._episode_num % log_interval == 0:
+                self.dump_logs()
 
     def dump_logs(self) -> None:
         """Write the logger: the keys SB3's DQN writes, plus rollout/ep_cells_mean and the affect/* keys."""

@@ -1,0 +1,26 @@
+"""The benchmark script runs (it times nothing here: speed targets live in benchmarks/bench.py, not in tests)."""
+
+from __future__ import annotations
+
+import csv
+import subprocess
+import sys
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_benchmark_smoke_run_writes_its_table(tmp_path: Path) -> None:
+    out = tmp_path / "bench.csv"
+    result = subprocess.run(
+        [sys.executable, str(ROOT / "benchmarks" / "bench.py"), "--smoke", "--csv", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=True,
+    )
+    assert "bare pure-Python loop" in result.stdout and "cores" in result.stdout
+    rows = list(csv.DictReader(out.open()))
+    names = [row["measure"] for row in rows]
+    assert any(n.startswith("QLearning.learn") for n in names) and any(n.startswith("AffectQ.learn") for n in names)
+    assert all(float(row["value"]) > 0 for row in rows)
