@@ -12,6 +12,7 @@ from sb3_affect.appraisal import ACT_MODES, UNITS, check_choice
 from sb3_affect.behaviour import TABLE_III, Behaviour, validate_behaviour_table
 from sb3_affect.callbacks import EmotionCallback
 from sb3_affect.emotions import COMPARISONS, Emotion
+from sb3_affect.personalities import PersonalityAppraiser, check_personality
 from sb3_affect.policies import TabularQPolicy, greedy_action
 from sb3_affect.tabular import TabularQAlgorithm
 
@@ -43,6 +44,8 @@ class AffectQ(TabularQAlgorithm):
     :param verbose: 0 silent, 1 training logs on stdout
     :param seed: seed of every random choice
     :param device: torch device of the Q-table
+    :param personality: ``"neutral"`` (the paper), ``"optimistic"`` or ``"pessimistic"``: a bias on the appraisal's
+        norm (``sb3_affect.personalities``); not combinable with ``emotion_callback``
     :param _init_setup_model: build the policy now (SB3 convention)
     """
 
@@ -65,8 +68,12 @@ class AffectQ(TabularQAlgorithm):
         verbose: int = 0,
         seed: int | None = None,
         device: Any = "cpu",
+        personality: str = "neutral",
         _init_setup_model: bool = True,
     ) -> None:
+        self.personality = check_personality(personality)
+        if emotion_callback is not None and personality != "neutral":
+            raise ValueError("give either a personality or an emotion_callback (with its own appraiser), not both")
         self.comparison = check_choice("comparison", comparison, COMPARISONS)
         self.act = check_choice("act", act, ACT_MODES)
         self.units = check_choice("units", units, UNITS)
@@ -97,7 +104,16 @@ class AffectQ(TabularQAlgorithm):
     def _setup_model(self) -> None:
         super()._setup_model()
         if self.emotion_callback is None:
-            self.emotion_callback = EmotionCallback(comparison=self.comparison, act=self.act, units=self.units)
+            if self.personality == "neutral":
+                self.emotion_callback = EmotionCallback(comparison=self.comparison, act=self.act, units=self.units)
+            else:
+                appraiser = PersonalityAppraiser.preset(
+                    self.personality,
+                    int(self.observation_space.n),  # type: ignore[attr-defined]
+                    act=self.act,
+                    units=self.units,
+                )
+                self.emotion_callback = EmotionCallback(comparison=self.comparison, appraiser=appraiser)
         self.emotion_callback.bind(int(self.observation_space.n))  # type: ignore[attr-defined]
         if self._affect_state is not None:
             assert self.emotion_callback.appraiser is not None
