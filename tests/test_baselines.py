@@ -172,3 +172,37 @@ def test_baselines_save_and_load(tmp_path: Any) -> None:
             assert loaded.counts == model.counts
         loaded.learn(10**8, callback=StopTrainingOnMaxEpisodes(3))
         assert len(loaded.episode_log) == 3
+
+
+def test_suite_runs_and_summary_ranks(tmp_path: Any) -> None:
+    from sb3_affect.baselines.suite import agents, execute_to, load_algo, report_configs
+    from sb3_affect.baselines.summary import bootstrap_ci, load_runs, markdown, run_metrics, summarise
+
+    assert load_algo("sb3_affect.baselines:UCBQLearning") is UCBQLearning
+    configs = [c for c in report_configs(("static", "moving-7x7"), range(2)) if c["agent"] in ("affective", "ucb")]
+    assert {c["agent"] for c in configs} == {"affective", "ucb"} and len(configs) == 8
+    assert set(agents()) >= {
+        "epsilon-greedy-best",
+        "epsilon-decay",
+        "boltzmann",
+        "ucb",
+        "optimistic-q100",
+        "speed-epsilon-greedy",
+    }
+    for config in configs:
+        execute_to({**config, "episodes": 15}, str(tmp_path))
+    records = load_runs(tmp_path)
+    assert len(records) == 8
+    moving = next(r for r in records if r["config"]["labels"]["task"] == "moving-7x7")
+    metrics = run_metrics(moving)
+    cells, truncated = moving["episodes"]["cells"], moving["episodes"]["truncated"]
+    flags = [not t and c <= 6 for c, t in zip(cells, truncated)]  # capture distance (0, 0) -> (3, 3)
+    first = flags.index(True) if True in flags else len(cells)
+    assert metrics["steps_before_optimal"] == sum(moving["episodes"]["decisions"][:first])
+    summary = summarise(records)
+    assert len(summary) == 4 and (summary["runs"] == 2).all()
+    assert (summary["decisions_per_episode_low"] <= summary["decisions_per_episode"]).all()
+    assert "ranks" in markdown(summary)
+    mean, low, high = bootstrap_ci([1.0, 2.0, 3.0, 4.0])
+    assert mean == 2.5 and 1.0 <= low < mean < high <= 4.0
+    assert bootstrap_ci([5.0, 5.0]) == (5.0, 5.0, 5.0)
