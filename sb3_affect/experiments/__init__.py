@@ -1,0 +1,18 @@
+"""Experiment sweeps: YAML files, the launcher, the results store, local and Ray backends."""
+
+from sb3_affect.experiments.launcher import SweepSummary, run_sweep
+from sb3_affect.experiments.runner import execute_run
+from sb3_affect.experiments.schema import Sweep, SweepError, load_sweep
+from sb3_affect.experiments.store import ResultsStore, StoreError, run_id
+
+__all__ = [
+    "ResultsStore",
+    "StoreError",
+    "Sweep",
+    "SweepError",
+    "SweepSummary",
+    "execute_run",
+    "load_sweep",
+    "run_id",
+    "run_sweep",
+]

@@ -1,0 +1,257 @@
+"""
+Experiment files: a sweep of agents x parameter grid x seeds, validated before anything runs.
+
+A file names the env, the episode budget, the seeds and the agents; each agent has fixed ``kwargs`` and a ``grid``
+of labels whose Cartesian product it runs. A kwargs value written ``$name`` takes the grid value ``name``; grid
+labels that no kwarg references only replicate the agent (the paper's affective agent "per epsilon")::
+
+    name: paper
+    env: {id: sb3_affect/GridPursuit-v0, kwargs: {}}
+    episodes: 200
+    seeds: 20                       # a count (seeds derived per agent and grid point) or an explicit list
+    agents:
+      - name: epsilon-greedy
+        algo: QLearning
+        grid: {epsilon: [0.1, 0.5, 0.9]}
+        kwargs: {exploration_rate: $epsilon}
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib
+import itertools
+import json
+import re
+from pathlib import Path
+from typing import Any
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+#: Algorithms known by short name; anything else is a dotted path ``package.module:Class``.
+SHORT_NAMES: dict[str, str] = {
+    "QLearning": "sb3_affect:QLearning",
+    "AffectQ": "sb3_affect:AffectQ",
+    "DQN": "stable_baselines3:DQN",
+    "PPO": "stable_baselines3:PPO",
+    "A2C": "stable_baselines3:A2C",
+}
+_REFERENCE = re.compile(r"^\$([A-Za-z_][A-Za-z0-9_]*)$")
+
+
+class SweepError(ValueError):
+    """A sweep file that can not be run; the message names the file, the key path and what is allowed."""
+
+
+def resolve_class(algo: str) -> type:
+    """The class an ``algo`` field names (short name or ``package.module:Class``)."""
+    target = SHORT_NAMES.get(algo, algo)
+    if ":" in target:
+        module_name, _, attr = target.partition(":")
+    else:
+        module_name, _, attr = target.rpartition(".")
+    if not module_name or not attr:
+        raise ValueError(f"{algo!r} is not a known algorithm ({', '.join(SHORT_NAMES)}) nor a 'package.module:Class' path")
+    try:
+        module = importlib.import_module(module_name)
+    except ImportError as error:
+        raise ValueError(f"{algo!r}: module {module_name!r} can not be imported ({error})") from None
+    cls = getattr(module, attr, None)
+    if not isinstance(cls, type):
+        raise ValueError(f"{algo!r}: {module_name} has no class {attr!r}")
+    return cls
+
+
+class EnvSpec(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    id: str = "sb3_affect/GridPursuit-v0"
+    kwargs: dict[str, Any] = Field(default_factory=dict)
+
+    @field_validator("id")
+    @classmethod
+    def _registered(cls, value: str) -> str:
+        import gymnasium as gym
+
+        import sb3_affect  # noqa: F401  (registers the package's envs)
+
+        if value not in gym.registry:
+            known = sorted(k for k in gym.registry if k.startswith("sb3_affect/"))
+            raise ValueError(f"env id {value!r} is not registered; the package registers {', '.join(known)}")
+        return value
+
+
+class AgentSpec(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    name: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.+-]+$")
+    algo: str
+    kwargs: dict[str, Any] = Field(default_factory=dict)
+    grid: dict[str, list[Any]] = Field(default_factory=dict)
+
+    @field_validator("algo")
+    @classmethod
+    def _importable(cls, value: str) -> str:
+        resolve_class(value)
+        return value
+
+    @field_validator("grid")
+    @classmethod
+    def _non_empty(cls, value: dict[str, list[Any]]) -> dict[str, list[Any]]:
+        for key, values in value.items():
+            if not values:
+                raise ValueError(f"grid.{key} is empty: give at least one value")
+        return value
+
+    @model_validator(mode="after")
+    def _references(self) -> AgentSpec:
+        for key, raw in self.kwargs.items():
+            match = _REFERENCE.match(raw) if isinstance(raw, str) else None
+            if match and match.group(1) not in self.grid:
+                raise ValueError(f"kwargs.{key}={raw!r} refers to no grid label; the grid has {sorted(self.grid) or 'none'}")
+        return self
+
+    def points(self) -> list[dict[str, Any]]:
+        keys = list(self.grid)
+        return [dict(zip(keys, values)) for values in itertools.product(*(self.grid[k] for k in keys))]
+
+    def kwargs_at(self, point: dict[str, Any]) -> dict[str, Any]:
+        out = {}
+        for key, raw in self.kwargs.items():
+            match = _REFERENCE.match(raw) if isinstance(raw, str) else None
+            out[key] = point[match.group(1)] if match else raw
+        return out
+
+
+class Sweep(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+    name: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.+-]+$")
+    env: EnvSpec = Field(default_factory=EnvSpec)
+    episodes: int = Field(gt=0)
+    seeds: int | list[int]
+    max_timesteps: int | None = Field(default=None, gt=0)
+    logs: list[str] = Field(default_factory=list, description="per-run SB3 logger formats under DIR/logs: csv, tensorboard")
+    agents: list[AgentSpec] = Field(min_length=1)
+
+    @field_validator("seeds")
+    @classmethod
+    def _some_seeds(cls, value: int | list[int]) -> int | list[int]:
+        if isinstance(value, int) and value <= 0:
+            raise ValueError(f"seeds={value} must be a positive count or a non-empty list of integers")
+        if isinstance(value, list) and (not value or len(set(value)) != len(value)):
+            raise ValueError("seeds must be a non-empty list of distinct integers")
+        return value
+
+    @field_validator("logs")
+    @classmethod
+    def _formats(cls, value: list[str]) -> list[str]:
+        for fmt in value:
+            if fmt not in ("csv", "tensorboard", "stdout", "json", "log"):
+                raise ValueError(f"logs: {fmt!r} is not an SB3 logger format (csv, tensorboard, stdout, json, log)")
+        return value
+
+    @model_validator(mode="after")
+    def _unique_agents(self) -> Sweep:
+        names = [a.name for a in self.agents]
+        if len(set(names)) != len(names):
+            raise ValueError(f"agents: names must be unique, got {names}")
+        return self
+
+    def run_configs(self) -> list[dict[str, Any]]:
+        """Every run of the sweep as a plain-data config (the unit the launcher executes and stores)."""
+        configs = []
+        for agent in self.agents:
+            for point in agent.points():
+                for replicate in range(self.seeds if isinstance(self.seeds, int) else len(self.seeds)):
+                    seed = (
+                        self.seeds[replicate]
+                        if isinstance(self.seeds, list)
+                        else derive_seed(self.name, agent.name, point, replicate)
+                    )
+                    configs.append(
+                        {
+                            "sweep": self.name,
+                            "agent": agent.name,
+                            "algo": agent.algo,
+                            "algo_kwargs": agent.kwargs_at(point),
+                            "env_id": self.env.id,
+                            "env_kwargs": dict(self.env.kwargs),
+                            "seed": seed,
+                            "episodes": self.episodes,
+                            "max_timesteps": self.max_timesteps,
+                            "labels": {**point, "replicate": replicate},
+                        }
+                    )
+        return configs
+
+
+def derive_seed(sweep: str, agent: str, point: dict[str, Any], replicate: int) -> int:
+    """A stable seed (sha256, never Python's ``hash``) for one replicate of one agent at one grid point."""
+    text = json.dumps([sweep, agent, point, replicate], sort_keys=True)
+    return int.from_bytes(hashlib.sha256(text.encode()).digest()[:4], "big") & 0x7FFFFFFF
+
+
+def _apply_override(data: dict[str, Any], assignment: str) -> None:
+    """``key.path=value`` (value parsed as YAML; list items by index, e.g. ``agents.0.kwargs.gamma=0.9``)."""
+    if "=" not in assignment:
+        raise SweepError(f"--set {assignment!r}: use key=value, e.g. --set seeds=5")
+    path, _, raw = assignment.partition("=")
+    keys = path.strip().split(".")
+    target: Any = data
+    for key in keys[:-1]:
+        target = target[int(key)] if isinstance(target, list) else target.setdefault(key, {})
+    last = keys[-1]
+    value = yaml.safe_load(raw)
+    if isinstance(target, list):
+        target[int(last)] = value
+    else:
+        target[last] = value
+
+
+def _key_path(location: tuple[Any, ...], data: dict[str, Any]) -> str:
+    """Render a pydantic error location as a readable key path, naming agents by their name."""
+    parts: list[str] = []
+    node: Any = data
+    for item in location:
+        if isinstance(item, int) and isinstance(node, list) and item < len(node):
+            name = node[item].get("name") if isinstance(node[item], dict) else None
+            parts[-1] = f"{parts[-1]}[{item}]" + (f" ({name})" if name else "") if parts else f"[{item}]"
+            node = node[item]
+        else:
+            parts.append(str(item))
+            node = node.get(item) if isinstance(node, dict) else None
+    return ".".join(parts)
+
+
+def load_sweep(path: str | Path, overrides: tuple[str, ...] | list[str] = ()) -> Sweep:
+    """Read, override and validate a sweep file; every problem is a ``SweepError`` naming the file and the key."""
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as error:
+        raise SweepError(f"{path}: can not read the sweep file ({error.strerror})") from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as error:
+        mark = getattr(error, "problem_mark", None)
+        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
+        problem = getattr(error, "problem", None) or str(error)
+        raise SweepError(f"{path}: malformed YAML{where}: {problem}") from None
+    if not isinstance(data, dict):
+        raise SweepError(f"{path}: a sweep file must be a YAML mapping with name, episodes, seeds and agents")
+    for assignment in overrides:
+        try:
+            _apply_override(data, assignment)
+        except (KeyError, IndexError, ValueError, TypeError, yaml.YAMLError) as error:
+            raise SweepError(f"{path}: --set {assignment!r} does not apply ({error})") from None
+    try:
+        return Sweep.model_validate(data)
+    except ValidationError as error:
+        lines = []
+        for item in error.errors():
+            key = _key_path(tuple(item["loc"]), data) or "(top level)"
+            value = item.get("input")
+            shown = "" if isinstance(value, (dict, list)) or item["type"] == "missing" else f" (got {value!r})"
+            message = item["msg"].removeprefix("Value error, ")
+            lines.append(f"  {key}: {message}{shown}")
+        allowed = "allowed top-level keys: " + ", ".join(Sweep.model_fields)
+        raise SweepError(f"{path}: invalid sweep file\n" + "\n".join(lines) + f"\n  ({allowed})") from None
