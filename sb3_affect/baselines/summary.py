@@ -2,12 +2,12 @@
 Rank the agents of issue 7's comparison: decisions per episode, cells per episode and steps before the optimal path,
 each a mean over runs with a percentile-bootstrap 95% confidence interval.
 
-Reads the launcher's run files (``DIR/runs/*.json``, ``docs/interfaces.md``); groups by ``labels["task"]`` and
-``config["agent"]``. "Optimal" is the episode log's ``optimal`` column (a shortest path from the start) except on
-envs that define ``capture_distance`` (``sb3_affect/MovingPursuit-v0``), where it is an optimal capture: captured
-within ``capture_distance`` cells (see ``MovingPursuitEnv``). Steps before the optimal path: decisions summed over
-the episodes before the first optimal one; a run that never finds it contributes all its decisions and is counted as
-censored.
+Reads the launcher's run files (``DIR/runs/*.json``, ``docs/interfaces.md``); groups by task (``labels["task"]``,
+else the sweep name) and ``config["agent"]``. "Optimal" is the episode log's ``optimal`` column (a shortest path
+from the start) except on envs that define ``capture_distance`` (``sb3_affect/MovingPursuit-v0``), where it is an
+optimal capture: captured within ``capture_distance`` cells (see ``MovingPursuitEnv``). Steps before the optimal
+path: decisions summed over the episodes before the first optimal one; a run that never finds it contributes all
+its decisions and is counted as censored.
 
     python -m sb3_affect.baselines.summary runs/baselines [--markdown report.md]
     python -m sb3_affect.baselines.summary runs/baselines-tuning --tuning
@@ -70,7 +70,7 @@ def run_metrics(record: dict[str, Any]) -> dict[str, Any]:
     first = flags.index(True) if True in flags else None
     greedy = [bool(v) for v in episodes["greedy_optimal"] if v is not None and v == v]
     return {
-        "task": config.get("labels", {}).get("task", config["env_id"]),
+        "task": config.get("labels", {}).get("task") or config.get("sweep") or config["env_id"],
         "agent": config["agent"],
         "seed": config["seed"],
         "episodes": len(decisions),
@@ -81,7 +81,7 @@ def run_metrics(record: dict[str, Any]) -> dict[str, Any]:
         "episodes_to_optimal": math.nan if first is None else first + 1,
         "greedy_optimal_episode": (greedy.index(True) + 1) if True in greedy else math.nan,
         "truncated": int(sum(bool(t) for t in episodes["truncated"])),
-        **{f"label:{k}": v for k, v in config.get("labels", {}).items() if k != "task"},
+        **{f"label:{k}": v for k, v in config.get("labels", {}).items() if k not in ("task", "replicate")},
     }
 
 
