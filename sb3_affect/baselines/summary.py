@@ -154,6 +154,39 @@ def markdown(summary: pd.DataFrame, focus: str = "affective") -> str:
     return "\n".join(lines)
 
 
+def emotion_profile(records: Iterable[dict[str, Any]], prefix: str = "affective") -> pd.DataFrame:
+    """Per task and agent (those whose name starts with ``prefix``): fraction of decisions in each emotion."""
+    rows = []
+    for record in records:
+        config = record["config"]
+        if not config["agent"].startswith(prefix):
+            continue
+        episodes = record["episodes"]
+        row = {"task": run_metrics(record)["task"], "agent": config["agent"], "decisions": sum(episodes["decisions"])}
+        for emotion in ("joy", "sadness", "fear", "anger"):
+            row[emotion] = sum(episodes[emotion])
+        rows.append(row)
+    if not rows:
+        return pd.DataFrame(columns=["task", "agent", "joy", "sadness", "fear", "anger"])
+    totals = pd.DataFrame(rows).groupby(["task", "agent"], sort=False).sum()
+    fractions = totals[["joy", "sadness", "fear", "anger"]].div(totals["decisions"], axis=0)
+    return fractions.reset_index()
+
+
+def profile_markdown(profile: pd.DataFrame) -> str:
+    """The emotion profile as a markdown table."""
+    lines = [
+        "Fraction of decisions per emotion:",
+        "",
+        "| task | agent | joy | sadness | fear | anger |",
+        "|---|---|---|---|---|---|",
+    ]
+    for _, row in profile.iterrows():
+        values = " | ".join(f"{row[e]:.3f}" for e in ("joy", "sadness", "fear", "anger"))
+        lines.append(f"| {row['task']} | {row['agent']} | {values} |")
+    return "\n".join(lines) + "\n"
+
+
 def tuning_choice(records: Iterable[dict[str, Any]]) -> pd.DataFrame:
     """Tuning runs: per agent and grid value, mean decisions per episode; the best value per agent is flagged."""
     frame = pd.DataFrame([run_metrics(r) for r in records])
@@ -176,6 +209,9 @@ def main(argv: Sequence[str] | None = None) -> None:
         print(tuning_choice(records).to_string(index=False))
         return
     text = markdown(summarise(records))
+    profile = emotion_profile(records)
+    if len(profile):
+        text += "\n" + profile_markdown(profile)
     print(text)
     if args.markdown:
         Path(args.markdown).write_text(text)
