@@ -2,6 +2,9 @@
 
 from gymnasium.envs.registration import register, registry
 from sb3_affect.envs.grid_pursuit import ACTION_NAMES, MOVES, GridPursuitEnv, build_transitions, distances_to
+from sb3_affect.envs.maze import Maze, MazeError, load_maze, maze_kwargs, parse_maze, shipped_mazes
+from sb3_affect.envs.maze_pursuit import MazePursuitEnv
+from sb3_affect.envs.moving_pursuit import MovingPursuitEnv
 
 GRID_PURSUIT_ID = "sb3_affect/GridPursuit-v0"
 MOVING_PURSUIT_ID = "sb3_affect/MovingPursuit-v0"
@@ -25,7 +28,15 @@ __all__ = [
     "MOVES",
     "MOVING_PURSUIT_ID",
     "GridPursuitEnv",
+    "Maze",
+    "MazeError",
+    "MazePursuitEnv",
+    "MovingPursuitEnv",
     "build_transitions",
     "distances_to",
+    "load_maze",
+    "maze_kwargs",
+    "parse_maze",
     "register_envs",
+    "shipped_mazes",
 ]
