@@ -1,0 +1,166 @@
+"""The report: the spreadsheet paired t-test, bootstrap statistics, per-run metrics, and the report end to end."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import matplotlib.image as mpimg
+import numpy as np
+import pandas as pd
+import pytest
+from scipy import stats
+
+from sb3_affect.experiments import run_sweep
+from sb3_affect.report import (
+    bootstrap_ci,
+    bootstrap_improvement,
+    build_report,
+    iqm,
+    paired_ttest_table,
+    probability_of_improvement,
+)
+from sb3_affect.report.metrics import run_metrics
+from sb3_affect.report.stats import TTEST_ROWS
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_paired_ttest_matches_scipy_and_a_hand_calculation() -> None:
+    a = [67.0, 60.0, 72.0, 55.0, 80.0]
+    b = [56.0, 58.0, 59.0, 57.0, 55.0]
+    table = paired_ttest_table(a, b)
+    assert list(table.index) == list(TTEST_ROWS)
+    # by hand: d = 11, 2, 13, -2, 25; mean 9.8; sample sd of d; t = 9.8 / (sd / sqrt 5); df 4
+    d = np.array([11, 2, 13, -2, 25], dtype=float)
+    sd = math.sqrt(((d - 9.8) ** 2).sum() / 4)
+    t_hand = 9.8 / (sd / math.sqrt(5))
+    assert table.at["t Stat", "Variable 1"] == pytest.approx(t_hand, rel=1e-12)
+    reference = stats.ttest_rel(a, b)
+    assert table.at["t Stat", "Variable 1"] == pytest.approx(reference.statistic, rel=1e-12)
+    assert table.at["P(T<=t) two-tail", "Variable 1"] == pytest.approx(reference.pvalue, rel=1e-10)
+    assert table.at["P(T<=t) one-tail", "Variable 1"] == pytest.approx(reference.pvalue / 2, rel=1e-10)
+    assert table.at["df", "Variable 1"] == 4
+    assert table.at["Mean", "Variable 1"] == pytest.approx(66.8) and table.at["Mean", "Variable 2"] == pytest.approx(57.0)
+    assert table.at["Variance", "Variable 2"] == pytest.approx(np.var(b, ddof=1))
+    assert table.at["Pearson Correlation", "Variable 1"] == pytest.approx(stats.pearsonr(a, b)[0], rel=1e-12)
+    assert table.at["t Critical one-tail", "Variable 1"] == pytest.approx(2.131846786, rel=1e-8)  # T.INV(0.95, 4)
+    assert table.at["t Critical two-tail", "Variable 1"] == pytest.approx(2.776445105, rel=1e-8)  # T.INV.2T(0.05, 4)
+    assert math.isnan(table.at["t Stat", "Variable 2"])  # the spreadsheet leaves the second column empty
+
+
+def test_paired_ttest_reproduces_the_papers_table_v_statistics() -> None:
+    """Build two samples with the paper's Table V means, variances and correlation: t must come out 2.77."""
+    rng = np.random.default_rng(0)
+    z = rng.standard_normal((2, 9))
+    z -= z.mean(axis=1, keepdims=True)
+    q, _ = np.linalg.qr(z.T)  # two orthonormal, zero-mean columns
+    u, v = q[:, 0] * math.sqrt(8), q[:, 1] * math.sqrt(8)
+    r = -0.0623
+    a = 110190.20 + math.sqrt(76689863) * u
+    b = 99357.56 + math.sqrt(53278480) * (r * u + math.sqrt(1 - r * r) * v)
+    table = paired_ttest_table(a, b)
+    assert table.at["Pearson Correlation", "Variable 1"] == pytest.approx(r, abs=1e-9)
+    assert table.at["t Stat", "Variable 1"] == pytest.approx(2.77, abs=0.005)
+    assert table.at["P(T<=t) one-tail", "Variable 1"] == pytest.approx(0.012, abs=0.002)
+
+
+def test_bootstrap_ci_known_answers() -> None:
+    assert bootstrap_ci([5.0] * 30) == (5.0, 5.0, 5.0)
+    sample = np.random.default_rng(1).normal(10.0, 2.0, size=4000)
+    point, low, high = bootstrap_ci(sample, n_boot=2000, seed=3)
+    half = 1.96 * sample.std(ddof=1) / math.sqrt(len(sample))
+    assert point == pytest.approx(sample.mean())
+    assert low == pytest.approx(sample.mean() - half, abs=0.25 * half)
+    assert high == pytest.approx(sample.mean() + half, abs=0.25 * half)
+    assert bootstrap_ci(sample, seed=3) == bootstrap_ci(sample, seed=3)  # seeded
+
+
+def test_iqm_and_probability_of_improvement_by_hand() -> None:
+    assert iqm([1, 2, 3, 4, 5, 6, 7, 100]) == pytest.approx(4.5)  # middle half: 3, 4, 5, 6
+    # lower is better: pairs (1,2) (1,3) (2,3) better, (2,2) a tie -> (3 + 0.5) / 4
+    assert probability_of_improvement([1, 2], [2, 3]) == pytest.approx(0.875)
+    assert probability_of_improvement([1, 2], [2, 3], lower_is_better=False) == pytest.approx(0.125)
+    point, low, high = bootstrap_improvement([1.0] * 10, [2.0] * 10)
+    assert (point, low, high) == (1.0, 1.0, 1.0)
+
+
+def _episodes(run_id: str, optimal: list[bool], greedy: list[bool], decisions: list[int]) -> pd.DataFrame:
+    n = len(optimal)
+    return pd.DataFrame(
+        {
+            "run_id": run_id,
+            "agent": "a",
+            "seed": 0,
+            "epsilon": 0.1,
+            "replicate": 0,
+            "episode": range(1, n + 1),
+            "decisions": decisions,
+            "cells": decisions,
+            "reward": 100.0,
+            "optimal": optimal,
+            "truncated": False,
+            "random_moves": 0.0,
+            "waits": 0,
+            "joy": decisions,
+            "sadness": 0,
+            "fear": 0,
+            "anger": 0,
+            "greedy_optimal": greedy,
+            "norm": np.nan,
+        }
+    )
+
+
+def test_run_metrics_definitions() -> None:
+    found = _episodes("found", [False, False, True, False], [False, True, False, True], [50, 30, 12, 14])
+    never = _episodes("never", [False, False], [True, True], [40, 20])
+    metrics = run_metrics(pd.concat([found, never])).set_index("run_id")
+    assert metrics.at["found", "first_optimal"] == 3
+    assert metrics.at["found", "decisions_before_optimal"] == 80  # episodes 1 and 2
+    assert metrics.at["found", "greedy_optimal_from"] == 4  # stays optimal from episode 4 to the end
+    assert not metrics.at["found", "censored"]
+    assert metrics.at["never", "censored"] and math.isnan(metrics.at["never", "first_optimal"])
+    assert metrics.at["never", "decisions_before_optimal"] == 60  # censored: all its steps
+    assert metrics.at["never", "greedy_optimal_from"] == 1
+    assert metrics.at["found", "decisions_per_episode"] == pytest.approx(26.5)
+
+
+def test_report_end_to_end_from_the_smoke_sweep(tmp_path: Path) -> None:
+    out = tmp_path / "smoke"
+    run_sweep(ROOT / "experiments" / "smoke.yaml", out, workers=2, progress=False)
+    report = build_report(out)
+    text = report.read_text()
+    for section in (
+        "Table IV",
+        "Table V",
+        "Figures 3 and 4",
+        "Episodes until the optimal path",
+        "Figures 5 and 6",
+        "Learning curves",
+        "Statistics that do not rest on pairing",
+        "Verdict",
+        "Reading ablation",
+        "DQN on the same task",
+        "Definitions",
+        "t-Test: Paired Two Sample for Means",
+        "P(T<=t) one-tail",
+    ):
+        assert section in text, section
+    assert "Supported" in text or "Not supported" in text
+    figures = sorted((out / "figures").glob("*.png"))
+    assert len(figures) >= 5
+    for png in figures:
+        image = mpimg.imread(png)
+        assert image.ndim == 3 and image.shape[0] > 100 and image.shape[1] > 100
+        assert f"figures/{png.name}" in text
+    html = (out / "report.html").read_text()
+    assert html.count("data:image/png;base64,") == len(figures) and "<table>" in html
+    for table in ("table_iv", "table_v", "robust_statistics", "optimal_path", "profile_windows"):
+        frame = pd.read_csv(out / "tables" / f"{table}.csv")
+        assert len(frame) > 0
+
+
+def test_report_refuses_a_folder_without_results(tmp_path: Path) -> None:
+    with pytest.raises(FileNotFoundError, match="holds no results"):
+        build_report(tmp_path)
