@@ -115,7 +115,10 @@ def summarise(records: Iterable[dict[str, Any]], by: Sequence[str] = ("task", "a
         row["truncated"] = int(group["truncated"].sum())
         rows.append(row)
     out = pd.DataFrame(rows)
-    return out.sort_values([*by[:-1], "decisions_per_episode"]).reset_index(drop=True)
+    order = {key: i for i, key in enumerate(dict.fromkeys(map(tuple, out[list(by[:-1])].to_numpy().tolist())))}
+    out["_order"] = [order[tuple(k)] for k in out[list(by[:-1])].to_numpy().tolist()]
+    out = out.sort_values(["_order", "decisions_per_episode"], kind="stable").drop(columns="_order")
+    return out.reset_index(drop=True)
 
 
 def _ci(row: pd.Series, metric: str, digits: int = 1) -> str:
