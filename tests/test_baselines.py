@@ -206,3 +206,19 @@ def test_suite_runs_and_summary_ranks(tmp_path: Any) -> None:
     mean, low, high = bootstrap_ci([1.0, 2.0, 3.0, 4.0])
     assert mean == 2.5 and 1.0 <= low < mean < high <= 4.0
     assert bootstrap_ci([5.0, 5.0]) == (5.0, 5.0, 5.0)
+
+
+@pytest.mark.parametrize("name", ["baselines", "baselines_moving", "baselines_moving7", "baselines_tuning"])
+def test_experiment_files_validate(name: str) -> None:
+    from pathlib import Path
+
+    from sb3_affect.experiments.schema import load_sweep, resolve_class
+
+    sweep = load_sweep(Path(__file__).resolve().parents[1] / "experiments" / f"{name}.yaml")
+    for agent in sweep.agents:
+        resolve_class(agent.algo)
+    if name != "baselines_tuning":
+        names = {a.name for a in sweep.agents}
+        assert {"affective", "epsilon-greedy-paper", "epsilon-greedy-best", "epsilon-decay", "boltzmann", "ucb"} <= names
+        assert {"optimistic-q100", "speed-epsilon-greedy", "affective-optimistic", "affective-pessimistic"} <= names
+        assert sweep.seeds == list(range(20)) and sweep.episodes == 200
