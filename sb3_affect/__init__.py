@@ -5,8 +5,17 @@ from sb3_affect.appraisal import Appraisal, Appraiser, KnownMap, PowerFit
 from sb3_affect.behaviour import TABLE_III, Behaviour
 from sb3_affect.callbacks import EmotionCallback
 from sb3_affect.emotions import EMOTION_NAMES, Emotion, make_table_ii, table_ii
-from sb3_affect.envs import GRID_PURSUIT_ID, GridPursuitEnv, register_envs
+from sb3_affect.envs import (
+    GRID_PURSUIT_ID,
+    MAZE_PURSUIT_ID,
+    MOVING_PURSUIT_ID,
+    GridPursuitEnv,
+    MazePursuitEnv,
+    MovingPursuitEnv,
+    register_envs,
+)
 from sb3_affect.episode_log import EPISODE_COLUMNS
+from sb3_affect.personalities import PERSONALITIES, PersonalityAppraiser
 from sb3_affect.policies import TabularQPolicy
 from sb3_affect.qlearning import QLearning
 from sb3_affect.tabular import TabularQAlgorithm
@@ -19,6 +28,9 @@ __all__ = [
     "EMOTION_NAMES",
     "EPISODE_COLUMNS",
     "GRID_PURSUIT_ID",
+    "MAZE_PURSUIT_ID",
+    "MOVING_PURSUIT_ID",
+    "PERSONALITIES",
     "TABLE_III",
     "AffectQ",
     "Appraisal",
@@ -28,6 +40,9 @@ __all__ = [
     "EmotionCallback",
     "GridPursuitEnv",
     "KnownMap",
+    "MazePursuitEnv",
+    "MovingPursuitEnv",
+    "PersonalityAppraiser",
     "PowerFit",
     "QLearning",
     "TabularQAlgorithm",
