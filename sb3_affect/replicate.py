@@ -10,6 +10,7 @@ PARTS = (
     ("paper", "the paper's protocol (360 runs)"),
     ("dqn", "SB3 DQN subset (20 runs)"),
     ("ablation", "reading ablation (1,440 runs)"),
+    ("baselines", "fair baselines beside both paper agents (issue 7)"),
 )
 
 

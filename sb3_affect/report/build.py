@@ -17,6 +17,8 @@ from sb3_affect.report.verdict import Claim, verdict
 
 STANDARD, AFFECTIVE = "epsilon-greedy", "affective"
 WINDOWS = ((1, 10), (21, 40), (181, 200))
+#: Issue 7 results folders a replicate folder may hold (experiments/baselines*.yaml), shown in their own section.
+BASELINE_FOLDERS = ("baselines", "baselines_moving7", "baselines_moving")
 
 
 def _layout(run_dir: Path) -> tuple[Path, Path | None, Path | None]:
@@ -50,10 +52,11 @@ def build_report(
     (out / "tables").mkdir(parents=True, exist_ok=True)
     (out / "figures").mkdir(parents=True, exist_ok=True)
 
-    episodes = episodes_frame(load_runs(paper_dir))
+    runs = load_runs(paper_dir)
+    episodes = episodes_frame(runs)
     if episodes.empty:
         raise ValueError(f"{paper_dir / 'runs'} holds no finished runs")
-    metrics = run_metrics(episodes)
+    metrics = run_metrics(episodes, runs)
     doc = Document("Q-Learning with Basic Emotions: replication report")
     ctx = _Context(doc, out, episodes, metrics)
     ctx.overview(paper_dir)
@@ -83,6 +86,11 @@ def build_report(
     else:
         doc.h("DQN on the same task")
         doc.p("Skipped: no DQN results (run experiments/dqn.yaml, or `sb3-affect replicate`).")
+    baseline_dirs = [run_dir / name for name in BASELINE_FOLDERS if (run_dir / name / "runs").is_dir()]
+    if baseline_dirs:
+        from sb3_affect.report.baselines import baselines_section
+
+        doc.md(baselines_section(baseline_dirs))
     ctx.definitions()
     md = out / "report.md"
     md.write_text(doc.markdown(out))
@@ -422,7 +430,7 @@ class _Context:
         if episodes.empty:
             self.doc.p(f"Skipped: {dqn_dir} holds no finished runs.")
             return
-        metrics = run_metrics(episodes)
+        metrics = run_metrics(episodes, runs)
         wall = {r["run_id"]: r["timings"]["wall_seconds"] for r in runs}
         metrics["wall_seconds"] = metrics.run_id.map(wall)
         budget = {r["config"]["agent"]: r["config"].get("max_timesteps") for r in runs}

@@ -48,6 +48,10 @@ class Document:
     def table(self, frame: pd.DataFrame, caption: str = "", digits: int = 2) -> None:
         self.blocks.append(("table", frame, caption, digits))
 
+    def md(self, text: str) -> None:
+        """A ready-made Markdown fragment (rendered to HTML with python-markdown's tables extension)."""
+        self.blocks.append(("md", text))
+
     def img(self, path: Path, caption: str) -> None:
         self.blocks.append(("img", Path(path), caption))
 
@@ -65,6 +69,8 @@ class Document:
                 if caption:
                     out += [f"*{caption}*", ""]
                 out += [_md_table(frame, digits), ""]
+            elif kind == "md":
+                out += [block[1], ""]
             elif kind == "img":
                 rel = block[1].relative_to(base) if block[1].is_relative_to(base) else block[1]
                 out += [f"![{block[2]}]({rel.as_posix()})", "", f"*{block[2]}*", ""]
@@ -89,6 +95,10 @@ class Document:
             elif kind == "table":
                 frame, caption, digits = block[1], block[2], block[3]
                 parts.append(_html_table(frame, caption, digits))
+            elif kind == "md":
+                import markdown
+
+                parts.append(markdown.markdown(block[1], extensions=["tables"]))
             elif kind == "img":
                 data = base64.b64encode(block[1].read_bytes()).decode()
                 parts.append(

@@ -50,7 +50,7 @@ def _first_stable(flags: np.ndarray) -> float:
     return float(false_positions[-1] + 2) if len(false_positions) else 1.0
 
 
-def run_metrics(episodes: pd.DataFrame) -> pd.DataFrame:
+def run_metrics(episodes: pd.DataFrame, runs: list[dict[str, Any]] | None = None) -> pd.DataFrame:
     """
     SPEC metrics, one row per run:
 
@@ -59,6 +59,10 @@ def run_metrics(episodes: pd.DataFrame) -> pd.DataFrame:
     - ``decisions_before_optimal`` / ``cells_before_optimal``: summed over the episodes before it (censored: all)
     - ``greedy_optimal_from``: first episode after which the greedy policy from the start always walks a shortest path
     - ``truncated``: episodes ended by the safety cap
+    - ``total_decisions``: every decision of the run, the unfinished last episode included (from the run file)
+
+    ``runs`` (the run files) adds the runs that finished no episode at all (e.g. a DQN that never reached the goal
+    within its step budget): censored, with all their decisions before the optimal path.
     """
     rows = []
     label_columns = [c for c in episodes.columns if c not in _EPISODE_VALUE_COLUMNS and c not in ("run_id",)]
@@ -81,6 +85,33 @@ def run_metrics(episodes: pd.DataFrame) -> pd.DataFrame:
             greedy_optimal_from=_first_stable(run.greedy_optimal.to_numpy()),
             truncated=int(run.truncated.sum()),
             total_decisions=int(run.decisions.sum()),
+        )
+        rows.append(row)
+    totals = {r["run_id"]: r.get("timings", {}).get("decisions") for r in runs or []}
+    for row in rows:
+        if totals.get(row["run_id"]) is not None:
+            row["total_decisions"] = int(totals[row["run_id"]])
+            if row["censored"]:  # the unfinished last episode was spent before the optimal path too
+                row["decisions_before_optimal"] = float(row["total_decisions"])
+    seen = {row["run_id"] for row in rows}
+    for record in runs or []:
+        if record["run_id"] in seen:
+            continue
+        total = float(record.get("timings", {}).get("decisions") or 0)
+        config = record["config"]
+        row = {"agent": config["agent"], "seed": config["seed"], **config["labels"]}
+        row.update(
+            run_id=record["run_id"],
+            episodes=0,
+            decisions_per_episode=math.nan,
+            cells_per_episode=math.nan,
+            first_optimal=math.nan,
+            censored=True,
+            decisions_before_optimal=total,
+            cells_before_optimal=math.nan,
+            greedy_optimal_from=math.nan,
+            truncated=0,
+            total_decisions=int(total),
         )
         rows.append(row)
     return pd.DataFrame(rows)
