@@ -119,6 +119,6 @@ def ablation_bars(ranking: pd.DataFrame, path: Path) -> Path:
     fig, ax = plt.subplots(figsize=(6.4, 3.6))
     labels = [r for r in ranking.reading]
     ax.barh(labels[::-1], ranking.distance.to_numpy()[::-1], color="tab:gray")
-    ax.set_xlabel("distance to the paper's numbers and profile (lower is closer)")
+    ax.set_xlabel("distance to the paper (lower is closer)")
     ax.set_title("Reading ablation")
     return _save(fig, path)
