@@ -119,7 +119,8 @@ class TabularQAlgorithm(BaseAlgorithm):
             seed=seed,
             support_multi_env=False,
         )
-        self._check_spaces(self.observation_space, self.action_space)
+        if self.env is not None:
+            self._check_spaces(self.observation_space, self.action_space)
         # run state (plain data, saved with the model)
         self._episode_rows: list[list[Any]] = []
         self._episode_state: dict[str, Any] | None = None

@@ -251,3 +251,13 @@ def test_save_load_round_trip_and_continue(tmp_path) -> None:
         m.learn(10_000_000, callback=StopTrainingOnMaxEpisodes(5), reset_num_timesteps=False)
     pd.testing.assert_frame_equal(loaded.episode_log, model.episode_log)
     np.testing.assert_array_equal(loaded.q_table, model.q_table)
+
+
+def test_load_without_env_predicts(tmp_path) -> None:
+    model = train(QLearning, episodes=50, seed=1)
+    model.save(tmp_path / "q.zip")
+    loaded = QLearning.load(tmp_path / "q.zip")  # no env: enough to predict
+    assert loaded.get_env() is None
+    np.testing.assert_array_equal(loaded.q_table, model.q_table)
+    action, _ = loaded.predict(0, deterministic=True)
+    assert int(action) in range(4)
