@@ -139,18 +139,24 @@ def run_ray(
     address: str | None = None,
 ) -> None:
     """Run ``tasks`` as Ray core tasks; start (and stop) a local Ray instance unless one is running or given."""
+    os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
+    if not address:
+        # A private single-machine instance: Ray rewrites 127.0.0.1 to the machine's address (and its gRPC servers then
+        # listen on every interface) unless "clusters" are disabled, which Ray reads when it is first imported; with
+        # this every Ray process listens on 127.0.0.1 only (checked with ``ss -ltnp`` in tests/test_experiments_ray.py).
+        os.environ.setdefault("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "0")
     try:
         import ray
     except ImportError:
         raise RuntimeError("the ray backend needs Ray: pip install 'sb3-affect[ray]'") from None
     started = False
     if not ray.is_initialized():
-        os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
         if address:
             ray.init(address=address, log_to_driver=False)
         else:
             ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False, _node_ip_address="127.0.0.1")
         started = True
+    pending: dict[Any, tuple[str, dict[str, Any]]] = {}
     try:
         remote = ray.remote(num_cpus=1, max_retries=1)(_ray_execute)
         pending = {remote.remote(config, log_dir, formats): (rid, config) for rid, config, log_dir in tasks}
@@ -164,7 +170,7 @@ def run_ray(
             else:
                 on_result(rid, config, result)
     except BaseException:
-        for ref in list(locals().get("pending", {})):
+        for ref in list(pending):
             with contextlib.suppress(Exception):
                 ray.cancel(ref, force=True)
         raise

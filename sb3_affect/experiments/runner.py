@@ -52,7 +52,7 @@ def execute_run(config: dict[str, Any], log_dir: str | None = None, log_formats:
     th.set_num_threads(1)
     import gymnasium as gym
     from stable_baselines3.common.callbacks import CallbackList, StopTrainingOnMaxEpisodes
-    from stable_baselines3.common.logger import configure
+    from stable_baselines3.common.logger import Logger, configure
 
     from sb3_affect.callbacks import EmotionCallback
     from sb3_affect.experiments.schema import resolve_class
@@ -77,6 +77,8 @@ def execute_run(config: dict[str, Any], log_dir: str | None = None, log_formats:
     if log_dir is not None:
         Path(log_dir).mkdir(parents=True, exist_ok=True)
         model.set_logger(configure(log_dir, list(log_formats)))
+    else:  # SB3's default logger would leave an empty /tmp/SB3-<date> folder per run
+        model.set_logger(Logger(folder=None, output_formats=[]))
     model.learn(int(budget), callback=callback)
     log = model.episode_log if tabular else emotions.episode_log
     columns = {name: [_plain(v) for v in log[name].tolist()] for name in EPISODE_COLUMNS}
