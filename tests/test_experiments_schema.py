@@ -1,0 +1,163 @@
+"""Experiment YAMLs: every kind of bad input is rejected before anything runs, naming the file and the key."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from sb3_affect.cli import main
+from sb3_affect.experiments import SweepError, load_sweep
+from sb3_affect.experiments.schema import derive_seed
+
+EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
+
+GOOD = """\
+name: tiny
+env: {id: sb3_affect/GridPursuit-v0, kwargs: {size: 5, goal: [2, 2]}}
+episodes: 5
+seeds: 2
+agents:
+  - name: q
+    algo: QLearning
+    grid: {epsilon: [0.1, 0.5]}
+    kwargs: {exploration_rate: $epsilon}
+  - name: affective
+    algo: AffectQ
+    grid: {epsilon: [0.1, 0.5]}
+"""
+
+
+def write(tmp_path: Path, text: str) -> Path:
+    path = tmp_path / "sweep.yaml"
+    path.write_text(text)
+    return path
+
+
+def error_of(tmp_path: Path, text: str, overrides: tuple[str, ...] = ()) -> str:
+    path = write(tmp_path, text)
+    with pytest.raises(SweepError) as info:
+        load_sweep(path, overrides)
+    message = str(info.value)
+    assert str(path) in message, message
+    return message
+
+
+def test_good_file_resolves_runs(tmp_path: Path) -> None:
+    sweep = load_sweep(write(tmp_path, GOOD))
+    configs = sweep.run_configs()
+    assert len(configs) == 8
+    q = [c for c in configs if c["agent"] == "q"]
+    assert sorted({c["algo_kwargs"]["exploration_rate"] for c in q}) == [0.1, 0.5]
+    affective = [c for c in configs if c["agent"] == "affective"]
+    assert all(c["algo_kwargs"] == {} for c in affective)
+    # The affective agent runs once per epsilon label, each with its own seeds; every seed differs.
+    assert sorted(c["labels"]["epsilon"] for c in affective) == [0.1, 0.1, 0.5, 0.5]
+    assert len({c["seed"] for c in configs}) == len(configs)
+    # Seeds are stable (sha256 of sweep, agent, grid point, replicate), not Python's salted hash().
+    assert load_sweep(write(tmp_path, GOOD)).run_configs() == configs
+    assert derive_seed("tiny", "q", {"epsilon": 0.1}, 0) == q[0]["seed"]
+    assert derive_seed("tiny", "q", {"epsilon": 0.1}, 0) == 1565592802
+
+
+@pytest.mark.parametrize(
+    "text, key, hint",
+    [
+        (GOOD.replace("episodes: 5", "episodes: 5\nepisodez: 7"), "episodez", "Extra inputs are not permitted"),
+        (GOOD.replace("    algo: QLearning\n", "    algo: QLearning\n    kwarg: {}\n"), "agents[0] (q).kwarg", "Extra inputs"),
+        (GOOD.replace("kwargs: {size: 5, goal: [2, 2]}}", "kwargs: {}, version: 2}"), "env.version", "Extra inputs"),
+        (GOOD.replace("episodes: 5", "episodes: many"), "episodes", "'many'"),
+        (GOOD.replace("episodes: 5", "episodes: 0"), "episodes", "greater than 0"),
+        (GOOD.replace("episodes: 5", "episodes: -3"), "episodes", "greater than 0"),
+        (GOOD.replace("seeds: 2", "seeds: 0"), "seeds", "positive"),
+        (GOOD.replace("seeds: 2", "seeds: []"), "seeds", "non-empty"),
+        (GOOD.replace("seeds: 2", "seeds: [1, 1]"), "seeds", "distinct"),
+        (GOOD.replace("grid: {epsilon: [0.1, 0.5]}\n    kwargs", "grid: {epsilon: []}\n    kwargs"), "grid", "empty"),
+        (GOOD.replace("algo: QLearning", "algo: QLearnin"), "agents[0] (q).algo", "QLearnin"),
+        (GOOD.replace("algo: QLearning", "algo: nosuchpkg.mod:Agent"), "agents[0] (q).algo", "can not be imported"),
+        (GOOD.replace("algo: QLearning", "algo: sb3_affect:NoSuchAgent"), "agents[0] (q).algo", "no class"),
+        (GOOD.replace("id: sb3_affect/GridPursuit-v0", "id: sb3_affect/GridPursuit-v9"), "env.id", "not registered"),
+        (GOOD.replace("$epsilon", "$eps"), "agents[0] (q)", "refers to no grid label"),
+        (GOOD.replace("name: tiny", "name: 'a b/c'"), "name", "pattern"),
+        (GOOD.replace("  - name: affective", "  - name: q"), "agents", "unique"),
+        (GOOD.replace("max_timesteps", "x") + "max_timesteps: 0\n", "max_timesteps", "greater than 0"),
+        (GOOD + "logs: [csv, excel]\n", "logs", "excel"),
+        ("name: x\nepisodes: 5\nseeds: 1\n", "agents", "Field required"),
+        ("name: x\nepisodes: 5\nseeds: 1\nagents: []\n", "agents", "at least 1"),
+    ],
+)
+def test_schema_errors_name_the_key(tmp_path: Path, text: str, key: str, hint: str) -> None:
+    message = error_of(tmp_path, text)
+    assert key in message, message
+    assert hint in message, message
+
+
+def test_malformed_yaml_reports_the_line(tmp_path: Path) -> None:
+    text = GOOD.replace("seeds: 2", "seeds: [2")
+    message = error_of(tmp_path, text)
+    assert "malformed YAML" in message and "line" in message, message
+    assert "line 5" in message or "line 6" in message, message
+
+
+def test_not_a_mapping_and_unsafe_tags(tmp_path: Path) -> None:
+    assert "mapping" in error_of(tmp_path, "- just\n- a list\n")
+    # The safe loader refuses Python tags: nothing is constructed, nothing executed.
+    message = error_of(tmp_path, "name: !!python/object/apply:os.system ['touch pwned']\n")
+    assert "malformed YAML" in message
+    assert not (tmp_path / "pwned").exists()
+
+
+def test_missing_file(tmp_path: Path) -> None:
+    with pytest.raises(SweepError, match="can not read"):
+        load_sweep(tmp_path / "nope.yaml")
+
+
+def test_overrides(tmp_path: Path) -> None:
+    path = write(tmp_path, GOOD)
+    sweep = load_sweep(path, ("seeds=3", "agents.0.kwargs.gamma=0.9", "env.kwargs.size=6"))
+    configs = sweep.run_configs()
+    assert len(configs) == 12
+    assert all(c["algo_kwargs"]["gamma"] == 0.9 for c in configs if c["agent"] == "q")
+    assert all(c["env_kwargs"]["size"] == 6 for c in configs)
+    # An override is validated like the file.
+    assert "seeds" in error_of(tmp_path, GOOD, ("seeds=0",))
+    assert "key=value" in error_of(tmp_path, GOOD, ("seeds",))
+    assert "does not apply" in error_of(tmp_path, GOOD, ("agents.7.kwargs.gamma=1",))
+
+
+def test_cli_reports_schema_error_without_running(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = write(tmp_path, GOOD.replace("episodes: 5", "episodes: 0"))
+    out = tmp_path / "out"
+    assert main(["run", str(path), "--out", str(out), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "episodes" in err and str(path) in err
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    "name, runs, agents",
+    [
+        ("paper.yaml", 360, {"epsilon-greedy": 180, "affective": 180}),
+        ("smoke.yaml", 8, {"epsilon-greedy": 4, "affective": 4}),
+        ("dqn.yaml", 20, {"dqn-const": 15, "dqn-default": 5}),
+        ("ablation.yaml", 1440, {"affective": 1440}),
+    ],
+)
+def test_shipped_files(name: str, runs: int, agents: dict[str, int]) -> None:
+    sweep = load_sweep(EXPERIMENTS / name)
+    configs = sweep.run_configs()
+    assert len(configs) == runs
+    assert {a: sum(c["agent"] == a for c in configs) for a in agents} == agents
+    assert len({c["seed"] for c in configs}) == runs
+    if name == "dqn.yaml":
+        const = [c for c in configs if c["agent"] == "dqn-const"]
+        assert all(
+            c["algo_kwargs"]["exploration_initial_eps"] == c["algo_kwargs"]["exploration_final_eps"] == c["labels"]["epsilon"]
+            for c in const
+        )
+        assert sorted({c["labels"]["epsilon"] for c in const}) == [0.1, 0.5, 0.9]
+        assert all(c["max_timesteps"] and c["episodes"] == 200 for c in configs)
+    if name == "ablation.yaml":
+        readings = {(c["algo_kwargs"]["comparison"], c["algo_kwargs"]["act"], c["algo_kwargs"]["units"]) for c in configs}
+        assert len(readings) == 8
+        assert sorted({c["labels"]["epsilon"] for c in configs}) == [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9]
