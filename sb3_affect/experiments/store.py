@@ -51,10 +51,12 @@ def _write_atomic(path: Path, payload: dict[str, Any]) -> None:
             handle.flush()
             os.fsync(handle.fileno())
         os.replace(tmp, path)
-    except OSError as error:
+    except BaseException as error:  # a full disk, or Ctrl-C mid-write: never leave a partial file behind
         with contextlib.suppress(OSError):
             os.unlink(tmp)
-        raise _store_error(path.parent, error) from None
+        if isinstance(error, OSError):
+            raise _store_error(path.parent, error) from None
+        raise
 
 
 def _store_error(folder: Path, error: OSError) -> StoreError:

@@ -1,0 +1,339 @@
+"""
+The launcher on the local backend, end to end with the real agents: results store, resume, lock, and faults.
+
+Faults are injected by ``Faulty``, a real ``QLearning`` that misbehaves on request (raise, ``os._exit``, SIGKILL
+itself, or pause) when the environment variable ``SB3_AFFECT_TEST_FAULTS=1`` is set; the sweep file does not change
+between the faulty run and the resume, so the resume is a true resume of the same sweep.
+"""
+
+from __future__ import annotations
+
+import errno
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from sb3_affect import QLearning
+from sb3_affect.cli import main
+from sb3_affect.experiments import StoreError, run_sweep
+
+EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
+TESTS = Path(__file__).resolve().parent
+FAULTS = "SB3_AFFECT_TEST_FAULTS"
+linux_only = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+
+
+class Faulty(QLearning):
+    """``QLearning`` that fails on request: ``fault`` in none|raise|exit|kill, ``pause`` seconds before learning."""
+
+    def __init__(self, policy: Any, env: Any, fault: str = "none", pause: float = 0.0, **kwargs: Any) -> None:
+        self.fault = fault
+        self.pause = pause
+        super().__init__(policy, env, **kwargs)
+
+    def learn(self, *args: Any, **kwargs: Any) -> Any:
+        if os.environ.get(FAULTS) == "1":
+            if self.fault == "raise":
+                raise RuntimeError("injected failure")
+            if self.fault == "exit":
+                os._exit(3)
+            if self.fault == "kill":
+                os.kill(os.getpid(), signal.SIGKILL)
+        time.sleep(self.pause)
+        return super().learn(*args, **kwargs)
+
+
+def sweep_file(tmp_path: Path, faults: list[str], seeds: int = 2, pause: float = 0.0, name: str = "faults") -> Path:
+    path = tmp_path / f"{name}.yaml"
+    path.write_text(
+        f"""\
+name: {name}
+env: {{id: sb3_affect/GridPursuit-v0, kwargs: {{size: 6, goal: [3, 3]}}}}
+episodes: 15
+seeds: {seeds}
+agents:
+  - name: q
+    algo: test_experiments_local:Faulty
+    grid: {{fault: {json.dumps(faults)}}}
+    kwargs: {{fault: $fault, pause: {pause}, exploration_rate: 0.3}}
+  - name: affective
+    algo: AffectQ
+"""
+    )
+    return path
+
+
+def contents(out: Path) -> dict[str, Any]:
+    """Run id -> (config, episodes) of every run file: what must be identical between sweeps (timings excluded)."""
+    found = {}
+    for path in sorted((out / "runs").glob("*.json")):
+        data = json.loads(path.read_text())
+        assert data["status"] == "ok" and data["run_id"] == path.stem
+        found[path.stem] = {"config": data["config"], "episodes": data["episodes"]}
+    return found
+
+
+def no_partial_files(out: Path) -> None:
+    leftovers = [p for p in out.rglob("*") if p.name.startswith(".tmp-")]
+    assert leftovers == []
+    for path in (out / "runs").glob("*.json"):
+        json.loads(path.read_text())  # whole files only
+
+
+def children(pid: int) -> list[int]:
+    """Direct child processes of ``pid`` (from /proc)."""
+    found = []
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            if int(fields[1]) == pid:
+                found.append(int(entry.name))
+    return found
+
+
+def running(pid: int) -> bool:
+    """``pid`` exists and is not a zombie."""
+    try:
+        return (Path("/proc") / str(pid) / "stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+def wait_until(condition: Any, timeout: float, what: str) -> None:
+    deadline = time.monotonic() + timeout
+    while not condition():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"timed out waiting for {what}")
+        time.sleep(0.05)
+
+
+def launcher(sweep: Path, out: Path) -> subprocess.Popen[str]:
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(TESTS), os.environ.get("PYTHONPATH", "")])}
+    env.pop(FAULTS, None)
+    command = [sys.executable, "-m", "sb3_affect", "run", str(sweep), "--out", str(out), "--workers", "2", "--no-progress"]
+    return subprocess.Popen(command, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+
+
+def test_smoke_sweep_end_to_end(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "smoke"
+    assert main(["run", str(EXPERIMENTS / "smoke.yaml"), "--out", str(out), "--workers", "2", "--set", "episodes=10"]) == 0
+    runs = contents(out)
+    assert len(runs) == 8
+    from sb3_affect import EPISODE_COLUMNS
+
+    for run in runs.values():
+        assert list(run["episodes"]) == sorted(EPISODE_COLUMNS)
+        assert run["episodes"]["episode"] == list(range(1, 11))
+        assert all(isinstance(v, int) for v in run["episodes"]["decisions"])
+    one = json.loads(next((out / "runs").glob("affective-*.json")).read_text())
+    assert one["schema"] == 1 and one["timings"]["wall_seconds"] > 0 and "stable_baselines3" in one["versions"]
+    assert any(v > 0 for v in one["episodes"]["joy"])
+    assert json.loads((out / "sweep.json").read_text())["name"] == "smoke"
+    assert not (out / ".lock").exists()
+    no_partial_files(out)
+    # Rerunning skips everything; `status` counts the runs.
+    summary = run_sweep(EXPERIMENTS / "smoke.yaml", out, workers=2, overrides=["episodes=10"], progress=False)
+    assert (summary.total, summary.skipped, summary.finished, summary.failed) == (8, 8, 0, 0)
+    capsys.readouterr()
+    assert main(["status", str(out)]) == 0
+    assert "8/8 runs done" in capsys.readouterr().out
+    # The same seed gives the same records in another process (byte-identical config + episodes).
+    again = tmp_path / "again"
+    run_sweep(EXPERIMENTS / "smoke.yaml", again, workers=1, overrides=["episodes=10"], progress=False)
+    assert contents(again) == runs
+
+
+def test_run_that_raises_is_recorded_and_retried(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    sweep, out = sweep_file(tmp_path, ["none", "raise"]), tmp_path / "out"
+    monkeypatch.setenv(FAULTS, "1")
+    summary = run_sweep(sweep, out, workers=2, progress=False)
+    assert (summary.total, summary.finished, summary.failed) == (6, 4, 2)
+    failed = sorted((out / "failed").glob("*.json"))
+    assert len(failed) == 2
+    record = json.loads(failed[0].read_text())
+    assert record["status"] == "failed" and record["config"]["labels"]["fault"] == "raise"
+    assert "Traceback" in record["error"] and "RuntimeError: injected failure" in record["error"]
+    monkeypatch.delenv(FAULTS)
+    summary = run_sweep(sweep, out, workers=2, progress=False)
+    assert (summary.skipped, summary.finished, summary.failed) == (4, 2, 0)
+    assert len(contents(out)) == 6 and list((out / "failed").glob("*.json")) == []
+
+
+def test_dead_worker_is_recorded_and_others_finish(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    sweep, out = sweep_file(tmp_path, ["none", "exit", "kill"]), tmp_path / "out"
+    monkeypatch.setenv(FAULTS, "1")
+    summary = run_sweep(sweep, out, workers=2, progress=False)
+    assert (summary.total, summary.finished, summary.failed) == (8, 4, 4)
+    errors = {json.loads(p.read_text())["config"]["labels"]["fault"]: json.loads(p.read_text())["error"]
+              for p in (out / "failed").glob("*.json")}
+    assert "died" in errors["exit"] and "exit code 3" in errors["exit"]
+    assert "killed by SIGKILL" in errors["kill"]
+    monkeypatch.delenv(FAULTS)
+    summary = run_sweep(sweep, out, workers=2, progress=False)
+    assert (summary.skipped, summary.finished, summary.failed) == (4, 4, 0)
+    assert len(contents(out)) == 8
+
+
+def test_different_sweep_into_same_dir_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    sweep, out = sweep_file(tmp_path, ["none"], seeds=1), tmp_path / "out"
+    run_sweep(sweep, out, workers=1, progress=False)
+    before = contents(out)
+    with pytest.raises(StoreError, match="different sweep"):
+        run_sweep(sweep, out, workers=1, overrides=["seeds=2"], progress=False)
+    other = sweep_file(tmp_path, ["none"], seeds=1, name="other")
+    assert main(["run", str(other), "--out", str(out), "--no-progress"]) == 2
+    assert "different sweep" in capsys.readouterr().err
+    assert contents(out) == before
+    assert not (out / ".lock").exists()
+
+
+def test_stale_lock_of_dead_launcher_is_taken_over(tmp_path: Path) -> None:
+    sweep, out = sweep_file(tmp_path, ["none"], seeds=1), tmp_path / "out"
+    dead = subprocess.Popen(["true"])
+    dead.wait()
+    out.mkdir()
+    (out / ".lock").write_text(str(dead.pid))
+    summary = run_sweep(sweep, out, workers=1, progress=False)
+    assert summary.finished == 2
+    assert not (out / ".lock").exists()
+
+
+def test_live_lock_is_refused(tmp_path: Path) -> None:
+    sweep, out = sweep_file(tmp_path, ["none"], seeds=1), tmp_path / "out"
+    holder = subprocess.Popen(["sleep", "30"])
+    try:
+        out.mkdir()
+        (out / ".lock").write_text(str(holder.pid))
+        with pytest.raises(StoreError, match=f"in use by another launcher \\(pid {holder.pid}\\)"):
+            run_sweep(sweep, out, workers=1, progress=False)
+        assert (out / ".lock").read_text() == str(holder.pid)
+        assert not (out / "runs").exists()
+    finally:
+        holder.kill()
+        holder.wait()
+
+
+def test_full_disk_gives_clear_error_and_loses_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    sweep, out = sweep_file(tmp_path, ["none"], seeds=4), tmp_path / "out"
+    real_fsync, writes = os.fsync, []
+
+    def fsync(fd: int) -> None:  # sweep.json and 3 runs fit, then the disk is full
+        writes.append(fd)
+        if len(writes) > 4:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        real_fsync(fd)
+
+    monkeypatch.setattr(os, "fsync", fsync)
+    with pytest.raises(StoreError, match="disk is full"):
+        run_sweep(sweep, out, workers=2, progress=False)
+    monkeypatch.setattr(os, "fsync", real_fsync)
+    kept = contents(out)
+    assert len(kept) == 3
+    no_partial_files(out)
+    assert not (out / ".lock").exists()
+    summary = run_sweep(sweep, out, workers=2, progress=False)
+    assert (summary.skipped, summary.finished) == (3, 5)
+    assert {k: v for k, v in contents(out).items() if k in kept} == kept
+
+
+def _read_only(folder: Path) -> Any:
+    """Make ``folder`` read-only for real: chmod for a normal user, a read-only tmpfs mount for root."""
+    if os.geteuid() != 0:
+        folder.chmod(0o555)
+        return lambda: folder.chmod(0o755)
+    if subprocess.run(["mount", "-o", "remount,ro,bind", str(folder)], capture_output=True).returncode != 0:
+        return None
+    return lambda: subprocess.run(["umount", str(folder)], check=False)
+
+
+@linux_only
+def test_read_only_out_folder_gives_clear_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    sweep, out = sweep_file(tmp_path, ["none"], seeds=2), tmp_path / "out"
+    out.mkdir()
+    if os.geteuid() == 0 and subprocess.run(["mount", "--bind", str(out), str(out)], capture_output=True).returncode != 0:
+        pytest.skip("running as root without mount rights: no way to make a folder read-only")
+    try:
+        run_sweep(sweep, out, workers=2, progress=False)
+        (out / "runs" / f"{next(iter(contents(out)))}.json").unlink()  # leave one run to do
+        kept = contents(out)
+        undo = _read_only(out)
+        if undo is None:
+            pytest.skip("could not remount read-only")
+        try:
+            assert main(["run", str(sweep), "--out", str(out), "--workers", "2", "--no-progress"]) == 2
+            err = capsys.readouterr().err
+            assert str(out) in err and "not writable" in err, err
+            assert contents(out) == kept
+        finally:
+            undo()
+    finally:
+        if os.geteuid() == 0:
+            subprocess.run(["umount", str(out)], check=False, capture_output=True)
+    summary = run_sweep(sweep, out, workers=2, progress=False)
+    assert (summary.skipped, summary.finished) == (3, 1)
+
+
+@linux_only
+def test_sigkill_launcher_then_resume_gives_the_uninterrupted_results(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    sweep, out = sweep_file(tmp_path, ["none"], seeds=4, pause=1.5), tmp_path / "out"
+    first = launcher(sweep, out)
+    try:
+        wait_until(lambda: len(list((out / "runs").glob("*.json"))) >= 2 if (out / "runs").exists() else False, 60, "2 runs")
+        # A second launcher on the same folder is refused while the first holds it.
+        assert main(["run", str(sweep), "--out", str(out), "--no-progress"]) == 2
+        assert f"in use by another launcher (pid {first.pid})" in capsys.readouterr().err
+        workers = [pid for pid in children(first.pid) if running(pid)]
+        assert workers, "the launcher has no worker processes"
+        os.kill(first.pid, signal.SIGKILL)
+        first.wait(timeout=10)
+        # Mid-run workers (1.5 s pause) die with their launcher at once instead of finishing as orphans.
+        wait_until(lambda: not any(running(pid) for pid in workers), 0.7, "the workers to die with the launcher")
+    finally:
+        if first.poll() is None:
+            first.kill()
+            first.wait()
+    done_before = len(contents(out))
+    assert 2 <= done_before < 8
+    assert (out / ".lock").read_text() == str(first.pid)  # stale: taken over below
+    summary = run_sweep(sweep, out, workers=2, progress=False)
+    assert summary.skipped == done_before and summary.finished == 8 - done_before and summary.failed == 0
+    no_partial_files(out)
+    reference = tmp_path / "reference"
+    run_sweep(sweep, reference, workers=2, progress=False)
+    assert contents(out) == contents(reference)
+    assert len(contents(out)) == 8
+
+
+@linux_only
+def test_ctrl_c_stops_workers_and_leaves_no_partial_files(tmp_path: Path) -> None:
+    sweep, out = sweep_file(tmp_path, ["none"], seeds=6, pause=1.0), tmp_path / "out"
+    proc = launcher(sweep, out)
+    try:
+        wait_until(lambda: (out / "runs").exists() and len(children(proc.pid)) == 2, 60, "2 workers")
+        workers = children(proc.pid)
+        os.killpg(proc.pid, signal.SIGINT)  # what Ctrl-C in a terminal does: SIGINT to the whole process group
+        start = time.monotonic()
+        _, err = proc.communicate(timeout=15)
+        assert time.monotonic() - start < 10
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 130, err
+    assert "interrupted" in err and "rerun the same command to resume" in err
+    assert not any(running(pid) for pid in workers), "orphan worker processes"
+    assert not (out / ".lock").exists()
+    no_partial_files(out)
+    done = len(contents(out))
+    summary = run_sweep(sweep, out, workers=2, progress=False)
+    assert summary.skipped == done and len(contents(out)) == 12
