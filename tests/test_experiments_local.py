@@ -121,7 +121,8 @@ def launcher(sweep: Path, out: Path) -> subprocess.Popen[str]:
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(TESTS), os.environ.get("PYTHONPATH", "")])}
     env.pop(FAULTS, None)
     command = [sys.executable, "-m", "sb3_affect", "run", str(sweep), "--out", str(out), "--workers", "2", "--no-progress"]
-    return subprocess.Popen(command, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    pipe = subprocess.PIPE
+    return subprocess.Popen(command, env=env, stdout=pipe, stderr=pipe, text=True, start_new_session=True)
 
 
 def test_smoke_sweep_end_to_end(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -284,7 +285,9 @@ def test_read_only_out_folder_gives_clear_error(tmp_path: Path, capsys: pytest.C
 
 
 @linux_only
-def test_sigkill_launcher_then_resume_gives_the_uninterrupted_results(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_sigkill_launcher_then_resume_gives_the_uninterrupted_results(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     sweep, out = sweep_file(tmp_path, ["none"], seeds=4, pause=1.5), tmp_path / "out"
     first = launcher(sweep, out)
     try:
