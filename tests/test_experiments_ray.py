@@ -1,0 +1,152 @@
+"""
+The Ray backend on a real local Ray instance: the same run files as the local backend, every Ray process listening
+on 127.0.0.1 only, and nothing left running afterwards. Skipped when the optional ``ray`` extra is not installed.
+
+Ray rewrites ``_node_ip_address="127.0.0.1"`` to the machine's address (and its gRPC servers then listen on all
+interfaces) unless ``RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER=0``, which Ray reads when it is imported; the launcher sets it
+for the local instance it starts, and this test sets it before importing Ray.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+import os
+import shutil
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from sb3_affect.experiments import run_sweep
+
+pytestmark = [
+    pytest.mark.ray,
+    pytest.mark.skipif(importlib.util.find_spec("ray") is None, reason="the optional ray extra is not installed"),
+    pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc and ss"),
+]
+
+SMOKE = Path(__file__).resolve().parents[1] / "experiments" / "smoke.yaml"
+OVERRIDES = ["episodes=12"]
+
+
+def contents(out: Path) -> dict[str, Any]:
+    found = {}
+    for path in sorted((out / "runs").glob("*.json")):
+        data = json.loads(path.read_text())
+        found[path.stem] = {"config": data["config"], "episodes": data["episodes"]}
+    return found
+
+
+def alive(pid: int) -> bool:
+    try:
+        return (Path("/proc") / str(pid) / "stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return False
+
+
+def descendants(pid: int) -> set[int]:
+    """Every live process below ``pid`` (from /proc)."""
+    parents: dict[int, int] = {}
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                parents[int(entry.name)] = int((entry / "stat").read_text().rsplit(")", 1)[1].split()[1])
+            except OSError:
+                continue
+    found: set[int] = set()
+    frontier = {pid}
+    while frontier:
+        frontier = {child for child, parent in parents.items() if parent in frontier} - found
+        found |= frontier
+    return {p for p in found if alive(p)}
+
+
+def listeners(pids: set[int]) -> list[str]:
+    """``ss -ltnp`` lines of the TCP sockets that ``pids`` listen on."""
+    out = subprocess.run(["ss", "-ltnpH"], capture_output=True, text=True, check=True).stdout
+    return [line for line in out.splitlines() if any(f"pid={pid}," in line for pid in pids)]
+
+
+@pytest.fixture
+def ray_instance(monkeypatch: pytest.MonkeyPatch) -> Iterator[Any]:
+    if shutil.which("ss") is None:
+        pytest.skip("needs ss (iproute2) to check the listening addresses")
+    monkeypatch.setenv("RAY_USAGE_STATS_ENABLED", "0")
+    monkeypatch.setenv("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "0")
+    import ray
+    import ray._private.ray_constants as constants
+
+    monkeypatch.setattr(constants, "ENABLE_RAY_CLUSTER", False)  # in case Ray was imported before the variable was set
+    temp_dir = f"/tmp/ray{os.getpid()}"
+    before = descendants(os.getpid())
+    ray.init(num_cpus=2, include_dashboard=False, _temp_dir=temp_dir, _node_ip_address="127.0.0.1", log_to_driver=False)
+    try:
+        yield ray
+    finally:
+        started = descendants(os.getpid()) - before
+        ray.shutdown()
+        deadline = time.monotonic() + 20
+        while any(alive(pid) for pid in started) and time.monotonic() < deadline:
+            time.sleep(0.2)
+        left = [pid for pid in started if alive(pid)]
+        for pid in left:  # only the processes this test started, by pid
+            os.kill(pid, 9)
+        shutil.rmtree(temp_dir, ignore_errors=True)
+        assert left == [], f"Ray processes still running after ray.shutdown(): {left}"
+
+
+def test_ray_backend_gives_the_local_run_files_and_listens_on_loopback_only(ray_instance: Any, tmp_path: Path) -> None:
+    run_sweep(SMOKE, tmp_path / "local", workers=2, overrides=OVERRIDES, progress=False)
+    summary = run_sweep(SMOKE, tmp_path / "ray", workers=2, backend="ray", overrides=OVERRIDES, progress=False)
+    assert (summary.total, summary.finished, summary.failed) == (8, 8, 0)
+    ours = descendants(os.getpid())
+    lines = listeners(ours)
+    assert lines, "found no listening Ray process"
+    outside = [line for line in lines if not (line.split()[3].startswith(("127.0.0.1:", "[::ffff:127.0.0.1]:", "[::1]:")))]
+    assert outside == [], "Ray listens beyond 127.0.0.1:\n" + "\n".join(outside)
+    assert contents(tmp_path / "ray") == contents(tmp_path / "local")
+    pids = {json.loads(p.read_text())["timings"]["pid"] for p in (tmp_path / "ray" / "runs").glob("*.json")}
+    assert os.getpid() not in pids  # the runs ran in Ray workers, the files were written by the driver
+
+
+def test_cli_ray_backend_starts_and_stops_its_own_instance(tmp_path: Path) -> None:
+    env = {**os.environ, "RAY_USAGE_STATS_ENABLED": "0"}
+    command = [sys.executable, "-m", "sb3_affect", "run", str(SMOKE), "--out", str(tmp_path / "ray"), "--backend", "ray"]
+    command += ["--workers", "2", "--no-progress", "--set", OVERRIDES[0]]
+    pipe = subprocess.PIPE
+    proc = subprocess.Popen(command, env=env, stdout=pipe, stderr=pipe, text=True, start_new_session=True)
+    try:
+        out, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 0, err
+    assert "8 finished now" in out
+    run_sweep(SMOKE, tmp_path / "local", workers=2, overrides=OVERRIDES, progress=False)
+    assert contents(tmp_path / "ray") == contents(tmp_path / "local")
+
+    def session_members() -> list[int]:
+        members = []
+        for entry in Path("/proc").iterdir():
+            if entry.name.isdigit():
+                try:
+                    fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+                except OSError:
+                    continue
+                if int(fields[3]) == proc.pid and fields[0] != "Z":  # session id = the launcher's pid
+                    members.append(int(entry.name))
+        return members
+
+    deadline = time.monotonic() + 15
+    while session_members() and time.monotonic() < deadline:
+        time.sleep(0.2)
+    left = session_members()
+    for pid in left:
+        os.kill(pid, 9)
+    assert left == [], f"processes of the launcher's Ray instance left running: {left}"
