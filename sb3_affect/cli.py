@@ -18,7 +18,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         workers=args.workers,
         backend=args.backend,
         ray_address=args.ray_address,
-        overrides=args.set or (),
+        overrides=[*(args.set or ()), *([f"logs=[{args.logs}]"] if args.logs else [])],
         progress=not args.no_progress,
     )
     print(
@@ -50,7 +50,11 @@ def _cmd_status(args: argparse.Namespace) -> int:
         print(f"  {agent:24s} {done_agent[agent]:5d}/{total:<5d} done  {failed_agent[agent]} failed")
     lock = store.root / ".lock"
     if lock.exists():
-        print(f"  locked by launcher pid {lock.read_text().strip()}")
+        from sb3_affect.experiments.store import _alive
+
+        pid = lock.read_text().strip()
+        state = "running" if pid.isdigit() and _alive(int(pid)) else "gone: stale lock, the next run takes it over"
+        print(f"  locked by launcher pid {pid} ({state})")
     return 0
 
 
@@ -80,6 +84,9 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--ray-address", default=None, help="Ray cluster address (default: start a local instance)")
     run.add_argument("--set", action="append", metavar="KEY=VALUE", help="override one key, e.g. --set seeds=5")
     run.add_argument("--no-progress", action="store_true", help="no progress bar")
+    run.add_argument(
+        "--logs", metavar="FORMATS", default=None, help="per-run SB3 logger output under DIR/logs/: csv, tensorboard or both"
+    )
     run.set_defaults(func=_cmd_run)
     status = sub.add_parser("status", help="show how far a results folder is")
     status.add_argument("dir")

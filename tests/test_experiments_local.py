@@ -148,10 +148,15 @@ def test_smoke_sweep_end_to_end(tmp_path: Path, capsys: pytest.CaptureFixture[st
     capsys.readouterr()
     assert main(["status", str(out)]) == 0
     assert "8/8 runs done" in capsys.readouterr().out
-    # The same seed gives the same records in another process (byte-identical config + episodes).
+    # The same seed gives the same records in another process (byte-identical config + episodes); per-run SB3 csv
+    # logs when asked.
     again = tmp_path / "again"
-    run_sweep(EXPERIMENTS / "smoke.yaml", again, workers=1, overrides=["episodes=10"], progress=False)
+    assert main(["run", str(EXPERIMENTS / "smoke.yaml"), "--out", str(again), "--workers", "1", "--set", "episodes=10",
+                 "--logs", "csv", "--no-progress"]) == 0
     assert contents(again) == runs
+    logs = sorted((again / "logs").glob("*/progress.csv"))
+    assert [p.parent.name for p in logs] == sorted(runs)
+    assert "rollout/ep_len_mean" in logs[0].read_text()
 
 
 def test_run_that_raises_is_recorded_and_retried(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

@@ -204,7 +204,7 @@ def run_sweep(
     """
     if backend not in ("local", "ray"):
         raise ValueError(f"backend={backend!r} is not supported; choose 'local' or 'ray'")
-    workers = workers or os.cpu_count() or 1
+    workers = workers or (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()) or 1
     if workers < 1:
         raise ValueError(f"workers={workers} must be >= 1")
     start = time.perf_counter()
