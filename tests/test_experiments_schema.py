@@ -92,6 +92,22 @@ def test_schema_errors_name_the_key(tmp_path: Path, text: str, key: str, hint: s
     assert hint in message, message
 
 
+@pytest.mark.parametrize(
+    "text, key, hint",
+    [
+        (GOOD.replace("$epsilon}", "$epsilon, exploraton_rate: 0.1}"), "agents[0] (q).kwargs", "exploraton_rate"),
+        (GOOD.replace("[0.1, 0.5]}\n    kwargs", "[0.1, 1.5]}\n    kwargs"), "agents[0] (q).kwargs", "exploration_rate=1.5"),
+        (GOOD + "    kwargs: {comparison: sideways}\n", "agents[1] (affective).kwargs", "'literal', 'valence'"),
+        (GOOD.replace("size: 5", "size: 1"), "env.kwargs", "size"),
+        (GOOD.replace("size: 5", "sise: 5"), "env.kwargs", "sise"),
+    ],
+)
+def test_impossible_kwargs_are_rejected_before_anything_runs(tmp_path: Path, text: str, key: str, hint: str) -> None:
+    message = error_of(tmp_path, text)
+    assert key in message and hint in message, message
+    assert "can not be built" in message, message
+
+
 def test_malformed_yaml_reports_the_line(tmp_path: Path) -> None:
     text = GOOD.replace("seeds: 2", "seeds: [2")
     message = error_of(tmp_path, text)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import platform
@@ -39,6 +40,100 @@ def _plain(value: Any) -> Any:
     return value
 
 
+def build_model(config: dict[str, Any]) -> tuple[Any, bool]:
+    """The env and the algorithm of a run config: ``(model, tabular)`` (``tabular``: keeps its own ``episode_log``)."""
+    import gymnasium as gym
+
+    import sb3_affect  # noqa: F401  (registers the envs)
+    from sb3_affect.experiments.schema import resolve_class
+    from sb3_affect.tabular import TabularQAlgorithm
+
+    cls: Any = resolve_class(config["algo"])
+    env = gym.make(config["env_id"], **config["env_kwargs"])
+    kwargs = dict(config["algo_kwargs"])
+    if issubclass(cls, TabularQAlgorithm):
+        return cls("Grid", env, seed=config["seed"], **kwargs), True
+    policy = kwargs.pop("policy", "MlpPolicy")
+    return cls(policy, env, seed=config["seed"], **kwargs), False
+
+
+def check_configs(configs: list[dict[str, Any]]) -> list[tuple[str, str]]:
+    """
+    Build the env and the algorithm of each distinct (agent, env, kwargs) once, without training.
+
+    :return: ``(agent name, problem)`` for each config that can not be built (an unknown or impossible kwarg); the
+        agent name is empty when the env itself can not be built
+    """
+    problems: list[tuple[str, str]] = []
+    env_checked: set[str] = set()
+    seen: set[str] = set()
+    for config in configs:
+        env_key = json.dumps([config["env_id"], config["env_kwargs"]], sort_keys=True)
+        if env_key not in env_checked:
+            env_checked.add(env_key)
+            import gymnasium as gym
+
+            try:
+                gym.make(config["env_id"], **config["env_kwargs"]).close()
+            except Exception as error:
+                problems.append(("", f"the env can not be built: {type(error).__name__}: {error}"))
+                return problems
+        key = json.dumps([config["agent"], config["algo"], config["algo_kwargs"]], sort_keys=True)
+        if key in seen:
+            continue
+        seen.add(key)
+        try:
+            model, _ = build_model(config)
+            model.get_env().close()
+        except Exception as error:
+            labels = {k: v for k, v in config["labels"].items() if k != "replicate"}
+            where = f" at {labels}" if labels else ""
+            problems.append((config["agent"], f"{config['algo']} can not be built{where}: {type(error).__name__}: {error}"))
+    return problems
+
+
+def check_configs_in_child(configs: list[dict[str, Any]]) -> list[tuple[str, str]]:
+    """
+    ``check_configs`` in a short-lived forked process (where fork exists), so that the launcher itself never runs
+    torch operations before it forks its workers (an OpenMP pool used before ``fork`` can hang the children).
+    """
+    import multiprocessing
+
+    if "fork" not in multiprocessing.get_all_start_methods():  # pragma: no cover - not Linux/macOS
+        return check_configs(configs)
+    context = multiprocessing.get_context("fork")
+    receiver, sender = context.Pipe(duplex=False)
+    process = context.Process(target=_check_child, args=(configs, sender), name="sb3-affect:check")
+    process.start()
+    sender.close()
+    try:
+        problems: list[tuple[str, str]] = receiver.recv()
+    except EOFError:
+        problems = [("", f"the check of the agents died before answering (exit code {process.exitcode})")]
+    finally:
+        receiver.close()
+        process.join(timeout=30)
+        if process.is_alive():  # pragma: no cover
+            process.kill()
+            process.join()
+    return problems
+
+
+def _check_child(configs: list[dict[str, Any]], conn: Any) -> None:
+    import signal
+
+    import torch as th
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    th.set_num_threads(1)
+    try:
+        problems = check_configs(configs)
+    except BaseException as error:  # pragma: no cover - check_configs catches per config
+        problems = [("", f"{type(error).__name__}: {error}")]
+    conn.send(problems)
+    conn.close()
+
+
 def execute_run(config: dict[str, Any], log_dir: str | None = None, log_formats: tuple[str, ...] = ("csv",)) -> dict[str, Any]:
     """
     Train one agent as ``config`` says and return ``{"episodes": {column: [...]}, "timings": ..., "versions": ...}``.
@@ -50,27 +145,18 @@ def execute_run(config: dict[str, Any], log_dir: str | None = None, log_formats:
     import torch as th
 
     th.set_num_threads(1)
-    import gymnasium as gym
     from stable_baselines3.common.callbacks import CallbackList, StopTrainingOnMaxEpisodes
     from stable_baselines3.common.logger import Logger, configure
 
     from sb3_affect.callbacks import EmotionCallback
-    from sb3_affect.experiments.schema import resolve_class
-    from sb3_affect.tabular import TabularQAlgorithm
 
     start = time.perf_counter()
-    cls = resolve_class(config["algo"])
-    env = gym.make(config["env_id"], **config["env_kwargs"])
-    kwargs = dict(config["algo_kwargs"])
+    model, tabular = build_model(config)
     episodes = int(config["episodes"])
-    tabular = issubclass(cls, TabularQAlgorithm)
     if tabular:
-        model = cls("Grid", env, seed=config["seed"], **kwargs)
         budget = config["max_timesteps"] or episodes * model.max_episode_decisions
         callback: Any = StopTrainingOnMaxEpisodes(episodes)
     else:
-        policy = kwargs.pop("policy", "MlpPolicy")
-        model = cls(policy, env, seed=config["seed"], **kwargs)
         budget = config["max_timesteps"] or episodes * 20_000
         emotions = EmotionCallback()
         callback = CallbackList([emotions, StopTrainingOnMaxEpisodes(episodes)])

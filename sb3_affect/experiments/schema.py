@@ -222,8 +222,13 @@ def _key_path(location: tuple[Any, ...], data: dict[str, Any]) -> str:
     return ".".join(parts)
 
 
-def load_sweep(path: str | Path, overrides: tuple[str, ...] | list[str] = ()) -> Sweep:
-    """Read, override and validate a sweep file; every problem is a ``SweepError`` naming the file and the key."""
+def load_sweep(path: str | Path, overrides: tuple[str, ...] | list[str] = (), *, build: bool = True) -> Sweep:
+    """
+    Read, override and validate a sweep file; every problem is a ``SweepError`` naming the file and the key.
+
+    :param build: also build the env and each agent once (without training, in a short-lived child process), so
+        that an unknown or impossible kwarg is reported now rather than by every run of the sweep
+    """
     path = Path(path)
     try:
         text = path.read_text()
@@ -244,7 +249,7 @@ def load_sweep(path: str | Path, overrides: tuple[str, ...] | list[str] = ()) ->
         except (KeyError, IndexError, ValueError, TypeError, yaml.YAMLError) as error:
             raise SweepError(f"{path}: --set {assignment!r} does not apply ({error})") from None
     try:
-        return Sweep.model_validate(data)
+        sweep = Sweep.model_validate(data)
     except ValidationError as error:
         lines = []
         for item in error.errors():
@@ -255,3 +260,15 @@ def load_sweep(path: str | Path, overrides: tuple[str, ...] | list[str] = ()) ->
             lines.append(f"  {key}: {message}{shown}")
         allowed = "allowed top-level keys: " + ", ".join(Sweep.model_fields)
         raise SweepError(f"{path}: invalid sweep file\n" + "\n".join(lines) + f"\n  ({allowed})") from None
+    if build:
+        from sb3_affect.experiments.runner import check_configs_in_child
+
+        index = {agent.name: i for i, agent in enumerate(sweep.agents)}
+        problems = check_configs_in_child(sweep.run_configs())
+        if problems:
+            lines = [
+                f"  {f'agents[{index[agent]}] ({agent}).kwargs' if agent in index else 'env.kwargs'}: {message}"
+                for agent, message in problems
+            ]
+            raise SweepError(f"{path}: invalid sweep file\n" + "\n".join(lines))
+    return sweep
