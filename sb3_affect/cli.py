@@ -50,11 +50,10 @@ def _cmd_status(args: argparse.Namespace) -> int:
         print(f"  {agent:24s} {done_agent[agent]:5d}/{total:<5d} done  {failed_agent[agent]} failed")
     lock = store.root / ".lock"
     if lock.exists():
-        from sb3_affect.experiments.store import _alive
-
-        pid = lock.read_text().strip()
-        state = "running" if pid.isdigit() and _alive(int(pid)) else "gone: stale lock, the next run takes it over"
-        print(f"  locked by launcher pid {pid} ({state})")
+        owner = store.lock_owner()
+        recorded = lock.read_text().split()[:1] or ["?"]
+        state = "running" if owner is not None else "gone: stale lock, the next run takes it over"
+        print(f"  locked by launcher pid {recorded[0]} ({state})")
     return 0
 
 

@@ -214,6 +214,14 @@ def test_stale_lock_of_dead_launcher_is_taken_over(tmp_path: Path) -> None:
     assert not (out / ".lock").exists()
 
 
+@linux_only
+def test_lock_of_a_reused_pid_is_stale(tmp_path: Path) -> None:
+    sweep, out = sweep_file(tmp_path, ["none"], seeds=1), tmp_path / "out"
+    out.mkdir()
+    (out / ".lock").write_text(f"{os.getpid()} 1")  # our pid is alive, but it is not the launcher that started at tick 1
+    assert run_sweep(sweep, out, workers=1, progress=False).finished == 2
+
+
 def test_live_lock_is_refused(tmp_path: Path) -> None:
     sweep, out = sweep_file(tmp_path, ["none"], seeds=1), tmp_path / "out"
     holder = subprocess.Popen(["sleep", "30"])
@@ -312,7 +320,7 @@ def test_sigkill_launcher_then_resume_gives_the_uninterrupted_results(
             first.wait()
     done_before = len(contents(out))
     assert 2 <= done_before < 8
-    assert (out / ".lock").read_text() == str(first.pid)  # stale: taken over below
+    assert (out / ".lock").read_text().split()[0] == str(first.pid)  # stale: taken over below
     summary = run_sweep(sweep, out, workers=2, progress=False)
     assert summary.skipped == done_before and summary.finished == 8 - done_before and summary.failed == 0
     no_partial_files(out)

@@ -7,7 +7,7 @@ Layout of a results folder ``DIR``::
     DIR/runs/<id>.json      one finished run: config, per-episode columns, timings, package versions
     DIR/failed/<id>.json    a run that raised or whose worker died: config and traceback (retried on resume)
     DIR/logs/<id>/          per-run SB3 logger output, when the sweep asks for it
-    DIR/.lock               the pid of the launcher using DIR
+    DIR/.lock               the pid (and start time) of the launcher using DIR
 """
 
 from __future__ import annotations
@@ -109,19 +109,36 @@ class ResultsStore:
         except OSError as error:
             raise _store_error(self.runs, error) from None
 
+    def lock_owner(self) -> int | None:
+        """The pid of the live launcher holding ``DIR/.lock``, or None (no lock, or a stale one)."""
+        try:
+            fields = (self.root / ".lock").read_text().split()
+        except OSError:
+            return None
+        try:
+            pid = int(fields[0])
+        except (IndexError, ValueError):
+            return None
+        if not _alive(pid):
+            return None
+        # A recorded start time that differs: the launcher died and its pid was reused by another process.
+        if len(fields) > 1 and _start_time(pid) not in (None, fields[1]):
+            return None
+        return pid
+
     @contextlib.contextmanager
     def lock(self) -> Iterator[None]:
-        """Hold ``DIR/.lock`` (our pid) while running; a lock whose pid is dead is stale and taken over."""
+        """
+        Hold ``DIR/.lock`` (our pid and start time) while running; a lock whose launcher is gone is stale and taken over.
+        """
         path = self.root / ".lock"
-        for _ in range(2):
+        mine = f"{os.getpid()} {_start_time(os.getpid()) or ''}".strip()
+        for _ in range(3):
             try:
                 fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
             except FileExistsError:
-                try:
-                    pid = int(path.read_text().strip() or 0)
-                except (OSError, ValueError):
-                    pid = 0
-                if pid and _alive(pid):
+                pid = self.lock_owner()
+                if pid is not None:
                     raise StoreError(
                         f"{self.root} is in use by another launcher (pid {pid}); wait for it or stop it first"
                     ) from None
@@ -131,7 +148,7 @@ class ResultsStore:
             except OSError as error:
                 raise _store_error(self.root, error) from None
             with os.fdopen(fd, "w") as handle:
-                handle.write(str(os.getpid()))
+                handle.write(mine)
             break
         else:  # pragma: no cover - a race with another launcher taking the stale lock first
             raise StoreError(f"{self.root} is in use by another launcher")
@@ -139,7 +156,7 @@ class ResultsStore:
             yield
         finally:
             with contextlib.suppress(OSError):
-                if path.read_text().strip() == str(os.getpid()):
+                if path.read_text().strip() == mine:
                     path.unlink()
 
     # -- runs --------------------------------------------------------------------------------------------------
@@ -173,3 +190,11 @@ def _alive(pid: int) -> bool:
     except PermissionError:
         return True
     return True
+
+
+def _start_time(pid: int) -> str | None:
+    """When ``pid`` started (clock ticks since boot, Linux ``/proc``), to tell a reused pid from the launcher's."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[19]
+    except (OSError, IndexError):
+        return None
