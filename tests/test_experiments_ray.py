@@ -13,6 +13,7 @@ import importlib.util
 import json
 import os
 import shutil
+import signal
 import subprocess
 import sys
 import time
@@ -70,6 +71,20 @@ def listeners(pids: set[int]) -> list[str]:
     """``ss -ltnp`` lines of the TCP sockets that ``pids`` listen on."""
     out = subprocess.run(["ss", "-ltnpH"], capture_output=True, text=True, check=True).stdout
     return [line for line in out.splitlines() if any(f"pid={pid}," in line for pid in pids)]
+
+
+def session_members(session: int) -> list[int]:
+    """Live processes of a session (the launcher was started in a new session: session id = its pid)."""
+    members = []
+    for entry in Path("/proc").iterdir():
+        if entry.name.isdigit():
+            try:
+                fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
+            except OSError:
+                continue
+            if int(fields[3]) == session and fields[0] != "Z":
+                members.append(int(entry.name))
+    return members
 
 
 @pytest.fixture
@@ -131,22 +146,43 @@ def test_cli_ray_backend_starts_and_stops_its_own_instance(tmp_path: Path) -> No
     run_sweep(SMOKE, tmp_path / "local", workers=2, overrides=OVERRIDES, progress=False)
     assert contents(tmp_path / "ray") == contents(tmp_path / "local")
 
-    def session_members() -> list[int]:
-        members = []
-        for entry in Path("/proc").iterdir():
-            if entry.name.isdigit():
-                try:
-                    fields = (entry / "stat").read_text().rsplit(")", 1)[1].split()
-                except OSError:
-                    continue
-                if int(fields[3]) == proc.pid and fields[0] != "Z":  # session id = the launcher's pid
-                    members.append(int(entry.name))
-        return members
-
     deadline = time.monotonic() + 15
-    while session_members() and time.monotonic() < deadline:
+    while session_members(proc.pid) and time.monotonic() < deadline:
         time.sleep(0.2)
-    left = session_members()
+    left = session_members(proc.pid)
     for pid in left:
         os.kill(pid, 9)
     assert left == [], f"processes of the launcher's Ray instance left running: {left}"
+
+
+def test_ctrl_c_on_ray_backend_stops_the_instance_and_leaves_no_partial_files(tmp_path: Path) -> None:
+    out = tmp_path / "ray"
+    paper = SMOKE.parent / "paper.yaml"
+    command = [sys.executable, "-m", "sb3_affect", "run", str(paper), "--out", str(out), "--backend", "ray", "--workers", "2"]
+    pipe = subprocess.PIPE
+    env = {**os.environ, "RAY_USAGE_STATS_ENABLED": "0"}
+    proc = subprocess.Popen([*command, "--no-progress"], env=env, stdout=pipe, stderr=pipe, text=True, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 90
+        while not (out / "runs").exists() or len(list((out / "runs").glob("*.json"))) < 5:
+            assert time.monotonic() < deadline and proc.poll() is None, "the sweep did not start"
+            time.sleep(0.1)
+        os.killpg(proc.pid, signal.SIGINT)  # Ctrl-C: SIGINT to the launcher and every process of its group
+        _, err = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 130, err
+    assert "interrupted" in err
+    deadline = time.monotonic() + 15
+    while session_members(proc.pid) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    left = session_members(proc.pid)
+    for pid in left:
+        os.kill(pid, 9)
+    assert left == [], f"processes of the launcher's Ray instance left running: {left}"
+    assert not (out / ".lock").exists()
+    assert [p for p in out.rglob(".tmp-*")] == []
+    done = list((out / "runs").glob("*.json"))
+    assert 5 <= len(done) < 360 and all(json.loads(p.read_text())["status"] == "ok" for p in done)

@@ -22,10 +22,11 @@ import multiprocessing
 import multiprocessing.connection
 import os
 import signal
+import threading
 import time
 import traceback
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -126,6 +127,19 @@ def run_local(tasks: list[Task], workers: int, formats: tuple[str, ...], on_resu
             receiver.close()
 
 
+@contextlib.contextmanager
+def _sigint_ignored() -> Iterator[None]:
+    """Ignore SIGINT while starting child processes (they keep ignoring it); restore our handler afterwards."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
 def _ray_execute(config: dict[str, Any], log_dir: str | None, formats: tuple[str, ...]) -> dict[str, Any]:
     return execute_run(config, log_dir, formats)
 
@@ -154,7 +168,10 @@ def run_ray(
         if address:
             ray.init(address=address, log_to_driver=False)
         else:
-            ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False, _node_ip_address="127.0.0.1")
+            # Ctrl-C in a terminal sends SIGINT to the whole process group: the instance's processes inherit "ignore
+            # SIGINT" from here, so that only this driver reacts (cancels the tasks and shuts the instance down).
+            with _sigint_ignored():
+                ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False, _node_ip_address="127.0.0.1")
         started = True
     pending: dict[Any, tuple[str, dict[str, Any]]] = {}
     try:
@@ -169,12 +186,11 @@ def run_ray(
                 on_failure(rid, config, f"{type(error).__name__}: {error}")
             else:
                 on_result(rid, config, result)
-    except BaseException:
-        for ref in list(pending):
-            with contextlib.suppress(Exception):
-                ray.cancel(ref, force=True)
-        raise
     finally:
+        # Ctrl-C or an error: ``ray.shutdown`` ends this job, and Ray stops the job's tasks with it (and a local
+        # instance we started). No ``ray.cancel(force=True)`` of the pending tasks: racing with tasks that are just
+        # finishing, it crashes the driver inside Ray ("Tried to complete task that was not pending", Ray 2.60).
+        # On an instance the caller started (``ray.init`` before ``run_sweep``), pending tasks finish unobserved.
         if started:
             ray.shutdown()
 
