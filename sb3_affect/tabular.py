@@ -27,6 +27,7 @@ from stable_baselines3.common.vec_env import DummyVecEnv
 
 from sb3_affect.episode_log import Geometry, env_geometry, greedy_walks_shortest_path, make_frame
 from sb3_affect.policies import TabularQPolicy
+from sb3_affect.serialization import add_plain_description, load_safe
 
 SelfTabular = TypeVar("SelfTabular", bound="TabularQAlgorithm")
 
@@ -455,8 +456,53 @@ class TabularQAlgorithm(BaseAlgorithm):
         self._rng_state = [version, list(internal), gauss]
         try:
             super().save(path, exclude=exclude, include=include)
+            add_plain_description(path, self)
         finally:
             self._rng_state = None
+
+    @classmethod
+    def load(
+        cls: type[SelfTabular],
+        path: Any,
+        env: GymEnv | None = None,
+        device: th.device | str = "auto",
+        custom_objects: dict[str, Any] | None = None,
+        print_system_info: bool = False,
+        force_reset: bool = True,
+        safe: bool = True,
+        **kwargs: Any,
+    ) -> SelfTabular:
+        """
+        Load a model saved with ``save``.
+
+        By default (``safe=True``) nothing in the file is unpickled: spaces, schedules and buffers are rebuilt from the
+        file's plain-JSON description and the Q-table is read with ``torch.load(weights_only=True)``; files that need
+        unpickling (saved by other code, custom policies or schedules) are refused with a ``ModelFileError``.
+        ``safe=False`` uses SB3's legacy loader, which runs pickled code: only for files you trust.
+
+        :param path: the model file (``.zip`` may be left out)
+        :param env: the env to continue training on (its spaces must match); None to only predict
+        :param device: torch device
+        :param custom_objects: legacy loader only: objects replacing pickled ones
+        :param print_system_info: legacy loader only: print the saving and the current system info
+        :param force_reset: reset the env before the next ``learn`` (SB3 convention)
+        :param safe: load without unpickling (default); False for SB3's legacy loader
+        :param kwargs: attributes to change on the loaded model
+        :return: the loaded model
+        """
+        if not safe:
+            return super().load(
+                path,
+                env=env,
+                device=device,
+                custom_objects=custom_objects,
+                print_system_info=print_system_info,
+                force_reset=force_reset,
+                **kwargs,
+            )
+        if custom_objects:
+            raise ValueError("custom_objects only applies to the legacy loader: pass safe=False for a file you trust")
+        return load_safe(cls, path, env=env, device=device, force_reset=force_reset, **kwargs)
 
 
 sys_float_epsilon = 1e-9
