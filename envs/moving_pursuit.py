@@ -9,6 +9,7 @@ from typing import Any, SupportsFloat
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
+
 from sb3_affect.envs.grid_pursuit import MOVES, _as_cell, build_transitions, distances_to
 from sb3_affect.envs.maze import load_maze
 

@@ -9,7 +9,6 @@ import gymnasium as gym
 import numpy as np
 import pandas as pd
 import pytest
-from sb3_affect.envs.grid_pursuit import RIGHT
 from stable_baselines3.common.callbacks import StopTrainingOnMaxEpisodes
 from stable_baselines3.common.evaluation import evaluate_policy
 from stable_baselines3.common.logger import configure
@@ -17,6 +16,7 @@ from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.utils import LinearSchedule
 
 from sb3_affect import EPISODE_COLUMNS, TABLE_III, AffectQ, Behaviour, Emotion, EmotionCallback, QLearning
+from sb3_affect.envs.grid_pursuit import RIGHT
 from sb3_affect.policies import greedy_action
 
 ENV_ID = "sb3_affect/GridPursuit-v0"

@@ -7,9 +7,10 @@ import warnings
 import gymnasium as gym
 import numpy as np
 import pytest
+from stable_baselines3.common.env_checker import check_env
+
 from sb3_affect.envs import MOVES, GridPursuitEnv
 from sb3_affect.envs.grid_pursuit import DOWN, LEFT, RIGHT, UP
-from stable_baselines3.common.env_checker import check_env
 
 
 def test_registered_defaults_match_the_paper(grid_env: gym.Env) -> None:

@@ -6,12 +6,12 @@ from pathlib import Path
 
 import gymnasium as gym
 import pytest
-from sb3_affect.envs.maze import MazeError, load_maze, maze_kwargs, parse_maze, shipped_mazes
-from sb3_affect.envs.maze_pursuit import MazePursuitEnv
 from stable_baselines3.common.callbacks import StopTrainingOnMaxEpisodes
 
 import sb3_affect  # noqa: F401  (registers the envs)
 from sb3_affect import QLearning
+from sb3_affect.envs.maze import MazeError, load_maze, maze_kwargs, parse_maze, shipped_mazes
+from sb3_affect.envs.maze_pursuit import MazePursuitEnv
 
 SMALL = """
 ; a comment

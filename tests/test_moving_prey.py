@@ -8,11 +8,11 @@ import math
 import gymnasium as gym
 import numpy as np
 import pytest
-from sb3_affect.envs.moving_pursuit import MovingPursuitEnv
 from stable_baselines3.common.callbacks import StopTrainingOnMaxEpisodes
 
 import sb3_affect  # noqa: F401  (registers the envs)
 from sb3_affect import AffectQ, QLearning
+from sb3_affect.envs.moving_pursuit import MovingPursuitEnv
 
 ENV_ID = "sb3_affect/MovingPursuit-v0"
 
