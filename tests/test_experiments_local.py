@@ -73,7 +73,7 @@ agents:
 def contents(out: Path) -> dict[str, Any]:
     """Run id -> (config, episodes) of every run file: what must be identical between sweeps (timings excluded)."""
     found = {}
-    for path in sorted((out / "runs").glob("*.json")):
+    for path in sorted((out / "runs").glob("[!.]*.json")):
         data = json.loads(path.read_text())
         assert data["status"] == "ok" and data["run_id"] == path.stem
         found[path.stem] = {"config": data["config"], "episodes": data["episodes"]}
@@ -83,7 +83,7 @@ def contents(out: Path) -> dict[str, Any]:
 def no_partial_files(out: Path) -> None:
     leftovers = [p for p in out.rglob("*") if p.name.startswith(".tmp-")]
     assert leftovers == []
-    for path in (out / "runs").glob("*.json"):
+    for path in (out / "runs").glob("[!.]*.json"):
         json.loads(path.read_text())  # whole files only
 
 
@@ -164,7 +164,7 @@ def test_run_that_raises_is_recorded_and_retried(tmp_path: Path, monkeypatch: py
     monkeypatch.setenv(FAULTS, "1")
     summary = run_sweep(sweep, out, workers=2, progress=False)
     assert (summary.total, summary.finished, summary.failed) == (6, 4, 2)
-    failed = sorted((out / "failed").glob("*.json"))
+    failed = sorted((out / "failed").glob("[!.]*.json"))
     assert len(failed) == 2
     record = json.loads(failed[0].read_text())
     assert record["status"] == "failed" and record["config"]["labels"]["fault"] == "raise"
@@ -172,7 +172,7 @@ def test_run_that_raises_is_recorded_and_retried(tmp_path: Path, monkeypatch: py
     monkeypatch.delenv(FAULTS)
     summary = run_sweep(sweep, out, workers=2, progress=False)
     assert (summary.skipped, summary.finished, summary.failed) == (4, 2, 0)
-    assert len(contents(out)) == 6 and list((out / "failed").glob("*.json")) == []
+    assert len(contents(out)) == 6 and list((out / "failed").glob("[!.]*.json")) == []
 
 
 def test_dead_worker_is_recorded_and_others_finish(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -181,7 +181,7 @@ def test_dead_worker_is_recorded_and_others_finish(tmp_path: Path, monkeypatch: 
     summary = run_sweep(sweep, out, workers=2, progress=False)
     assert (summary.total, summary.finished, summary.failed) == (8, 4, 4)
     errors = {json.loads(p.read_text())["config"]["labels"]["fault"]: json.loads(p.read_text())["error"]
-              for p in (out / "failed").glob("*.json")}
+              for p in (out / "failed").glob("[!.]*.json")}
     assert "died" in errors["exit"] and "exit code 3" in errors["exit"]
     assert "killed by SIGKILL" in errors["kill"]
     monkeypatch.delenv(FAULTS)
@@ -304,7 +304,7 @@ def test_sigkill_launcher_then_resume_gives_the_uninterrupted_results(
     sweep, out = sweep_file(tmp_path, ["none"], seeds=4, pause=1.5), tmp_path / "out"
     first = launcher(sweep, out)
     try:
-        wait_until(lambda: len(list((out / "runs").glob("*.json"))) >= 2 if (out / "runs").exists() else False, 60, "2 runs")
+        wait_until(lambda: len(list((out / "runs").glob("[!.]*.json"))) >= 2, 60, "2 runs")
         # A second launcher on the same folder is refused while the first holds it.
         assert main(["run", str(sweep), "--out", str(out), "--no-progress"]) == 2
         assert f"in use by another launcher (pid {first.pid})" in capsys.readouterr().err

@@ -32,12 +32,13 @@ pytestmark = [
 ]
 
 SMOKE = Path(__file__).resolve().parents[1] / "experiments" / "smoke.yaml"
+TESTS = Path(__file__).resolve().parent
 OVERRIDES = ["episodes=12"]
 
 
 def contents(out: Path) -> dict[str, Any]:
     found = {}
-    for path in sorted((out / "runs").glob("*.json")):
+    for path in sorted((out / "runs").glob("[!.]*.json")):
         data = json.loads(path.read_text())
         found[path.stem] = {"config": data["config"], "episodes": data["episodes"]}
     return found
@@ -87,32 +88,37 @@ def session_members(session: int) -> list[int]:
     return members
 
 
-@pytest.fixture
-def ray_instance(monkeypatch: pytest.MonkeyPatch) -> Iterator[Any]:
+@pytest.fixture(scope="module")
+def ray_instance() -> Iterator[Any]:
+    """One local Ray instance for this module's in-process tests; its workers can import the fault-injecting agent."""
     if shutil.which("ss") is None:
         pytest.skip("needs ss (iproute2) to check the listening addresses")
-    monkeypatch.setenv("RAY_USAGE_STATS_ENABLED", "0")
-    monkeypatch.setenv("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "0")
-    import ray
-    import ray._private.ray_constants as constants
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("RAY_USAGE_STATS_ENABLED", "0")
+        patch.setenv("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "0")
+        # Ray workers inherit the environment of ray.init: they can import test_experiments_local:Faulty, armed.
+        patch.setenv("PYTHONPATH", os.pathsep.join([str(TESTS), os.environ.get("PYTHONPATH", "")]))
+        patch.setenv("SB3_AFFECT_TEST_FAULTS", "1")
+        import ray
+        import ray._private.ray_constants as constants
 
-    monkeypatch.setattr(constants, "ENABLE_RAY_CLUSTER", False)  # in case Ray was imported before the variable was set
-    temp_dir = f"/tmp/ray{os.getpid()}"
-    before = descendants(os.getpid())
-    ray.init(num_cpus=2, include_dashboard=False, _temp_dir=temp_dir, _node_ip_address="127.0.0.1", log_to_driver=False)
-    try:
-        yield ray
-    finally:
-        started = descendants(os.getpid()) - before
-        ray.shutdown()
-        deadline = time.monotonic() + 20
-        while any(alive(pid) for pid in started) and time.monotonic() < deadline:
-            time.sleep(0.2)
-        left = [pid for pid in started if alive(pid)]
-        for pid in left:  # only the processes this test started, by pid
-            os.kill(pid, 9)
-        shutil.rmtree(temp_dir, ignore_errors=True)
-        assert left == [], f"Ray processes still running after ray.shutdown(): {left}"
+        patch.setattr(constants, "ENABLE_RAY_CLUSTER", False)  # in case Ray was imported before the variable was set
+        temp_dir = f"/tmp/ray{os.getpid()}"
+        before = descendants(os.getpid())
+        ray.init(num_cpus=2, include_dashboard=False, _temp_dir=temp_dir, _node_ip_address="127.0.0.1", log_to_driver=False)
+        try:
+            yield ray
+        finally:
+            started = descendants(os.getpid()) - before
+            ray.shutdown()
+            deadline = time.monotonic() + 20
+            while any(alive(pid) for pid in started) and time.monotonic() < deadline:
+                time.sleep(0.2)
+            left = [pid for pid in started if alive(pid)]
+            for pid in left:  # only the processes this module started, by pid
+                os.kill(pid, 9)
+            shutil.rmtree(temp_dir, ignore_errors=True)
+            assert left == [], f"Ray processes still running after ray.shutdown(): {left}"
 
 
 def test_ray_backend_gives_the_local_run_files_and_listens_on_loopback_only(ray_instance: Any, tmp_path: Path) -> None:
@@ -125,8 +131,23 @@ def test_ray_backend_gives_the_local_run_files_and_listens_on_loopback_only(ray_
     outside = [line for line in lines if not (line.split()[3].startswith(("127.0.0.1:", "[::ffff:127.0.0.1]:", "[::1]:")))]
     assert outside == [], "Ray listens beyond 127.0.0.1:\n" + "\n".join(outside)
     assert contents(tmp_path / "ray") == contents(tmp_path / "local")
-    pids = {json.loads(p.read_text())["timings"]["pid"] for p in (tmp_path / "ray" / "runs").glob("*.json")}
+    pids = {json.loads(p.read_text())["timings"]["pid"] for p in (tmp_path / "ray" / "runs").glob("[!.]*.json")}
     assert os.getpid() not in pids  # the runs ran in Ray workers, the files were written by the driver
+
+
+def test_ray_backend_records_failed_runs_and_dead_workers(ray_instance: Any, tmp_path: Path) -> None:
+    from test_experiments_local import sweep_file
+
+    sweep, out = sweep_file(tmp_path, ["none", "raise", "exit"], seeds=1), tmp_path / "ray"
+    summary = run_sweep(sweep, out, workers=2, backend="ray", progress=False)
+    assert (summary.total, summary.finished, summary.failed) == (4, 2, 2)
+    errors = {}
+    for path in (out / "failed").glob("[!.]*.json"):
+        record = json.loads(path.read_text())
+        errors[record["config"]["labels"]["fault"]] = record["error"]
+    assert "RuntimeError: injected failure" in errors["raise"] and "Traceback" in errors["raise"]
+    assert "WorkerCrashedError" in errors["exit"] or "died" in errors["exit"], errors["exit"]
+    assert len(list((out / "runs").glob("[!.]*.json"))) == 2
 
 
 def test_cli_ray_backend_starts_and_stops_its_own_instance(tmp_path: Path) -> None:
@@ -164,7 +185,7 @@ def test_ctrl_c_on_ray_backend_stops_the_instance_and_leaves_no_partial_files(tm
     proc = subprocess.Popen([*command, "--no-progress"], env=env, stdout=pipe, stderr=pipe, text=True, start_new_session=True)
     try:
         deadline = time.monotonic() + 90
-        while not (out / "runs").exists() or len(list((out / "runs").glob("*.json"))) < 5:
+        while not (out / "runs").exists() or len(list((out / "runs").glob("[!.]*.json"))) < 5:
             assert time.monotonic() < deadline and proc.poll() is None, "the sweep did not start"
             time.sleep(0.1)
         os.killpg(proc.pid, signal.SIGINT)  # Ctrl-C: SIGINT to the launcher and every process of its group
@@ -184,5 +205,5 @@ def test_ctrl_c_on_ray_backend_stops_the_instance_and_leaves_no_partial_files(tm
     assert left == [], f"processes of the launcher's Ray instance left running: {left}"
     assert not (out / ".lock").exists()
     assert [p for p in out.rglob(".tmp-*")] == []
-    done = list((out / "runs").glob("*.json"))
+    done = list((out / "runs").glob("[!.]*.json"))
     assert 5 <= len(done) < 360 and all(json.loads(p.read_text())["status"] == "ok" for p in done)

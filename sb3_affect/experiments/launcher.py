@@ -21,6 +21,7 @@ import contextlib
 import multiprocessing
 import multiprocessing.connection
 import os
+import re
 import signal
 import threading
 import time
@@ -140,8 +141,12 @@ def _sigint_ignored() -> Iterator[None]:
         signal.signal(signal.SIGINT, previous)
 
 
-def _ray_execute(config: dict[str, Any], log_dir: str | None, formats: tuple[str, ...]) -> dict[str, Any]:
-    return execute_run(config, log_dir, formats)
+def _ray_execute(config: dict[str, Any], log_dir: str | None, formats: tuple[str, ...]) -> tuple[str, Any]:
+    """A Ray task: ``("ok", result)`` or ``("error", traceback)`` (the same failure record as the local backend)."""
+    try:
+        return "ok", execute_run(config, log_dir, formats)
+    except Exception:
+        return "error", traceback.format_exc()
 
 
 def run_ray(
@@ -181,11 +186,14 @@ def run_ray(
             done, _ = ray.wait(list(pending), num_returns=1)
             rid, config = pending.pop(done[0])
             try:
-                result = ray.get(done[0])
-            except Exception as error:  # RayTaskError (the run raised) or a crashed worker
-                on_failure(rid, config, f"{type(error).__name__}: {error}")
+                status, result = ray.get(done[0])
+            except Exception as error:  # the worker died (after Ray's retry), or Ray could not run the task
+                on_failure(rid, config, f"the Ray task failed: {type(error).__name__}: {_plain_text(str(error))}")
             else:
-                on_result(rid, config, result)
+                if status == "ok":
+                    on_result(rid, config, result)
+                else:
+                    on_failure(rid, config, result)
     finally:
         # Ctrl-C or an error: ``ray.shutdown`` ends this job, and Ray stops the job's tasks with it (and a local
         # instance we started). No ``ray.cancel(force=True)`` of the pending tasks: racing with tasks that are just
@@ -193,6 +201,11 @@ def run_ray(
         # On an instance the caller started (``ray.init`` before ``run_sweep``), pending tasks finish unobserved.
         if started:
             ray.shutdown()
+
+
+def _plain_text(text: str) -> str:
+    """Ray's error messages without their terminal colour codes."""
+    return re.sub(r"\x1b\[[0-9;]*m", "", text)
 
 
 def run_sweep(
