@@ -4,14 +4,26 @@ from __future__ import annotations
 
 import argparse
 import json
+import signal
 import sys
+import threading
 from collections import Counter
 from pathlib import Path
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM (``kill``, a batch scheduler): stop like Ctrl-C, workers first, then exit 143."""
+
+
+def _on_sigterm(signum: int, frame: object) -> None:
+    raise Terminated()
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
     from sb3_affect.experiments import run_sweep
 
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGTERM, _on_sigterm)
     summary = run_sweep(
         args.file,
         args.out,
@@ -110,9 +122,10 @@ def main(argv: list[str] | None = None) -> int:
     except (SweepError, StoreError) as error:
         print(f"sb3-affect: error: {error}", file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print("\nsb3-affect: interrupted; finished runs are kept, rerun the same command to resume", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as interrupt:
+        how = "terminated" if isinstance(interrupt, Terminated) else "interrupted"
+        print(f"\nsb3-affect: {how}; finished runs are kept, rerun the same command to resume", file=sys.stderr)
+        return 143 if isinstance(interrupt, Terminated) else 130
 
 
 if __name__ == "__main__":

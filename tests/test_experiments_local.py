@@ -331,13 +331,17 @@ def test_sigkill_launcher_then_resume_gives_the_uninterrupted_results(
 
 
 @linux_only
-def test_ctrl_c_stops_workers_and_leaves_no_partial_files(tmp_path: Path) -> None:
+@pytest.mark.parametrize("stop, code, word", [(signal.SIGINT, 130, "interrupted"), (signal.SIGTERM, 143, "terminated")])
+def test_ctrl_c_stops_workers_and_leaves_no_partial_files(tmp_path: Path, stop: int, code: int, word: str) -> None:
     sweep, out = sweep_file(tmp_path, ["none"], seeds=6, pause=1.0), tmp_path / "out"
     proc = launcher(sweep, out)
     try:
         wait_until(lambda: (out / "runs").exists() and len(children(proc.pid)) == 2, 60, "2 workers")
         workers = children(proc.pid)
-        os.killpg(proc.pid, signal.SIGINT)  # what Ctrl-C in a terminal does: SIGINT to the whole process group
+        if stop == signal.SIGINT:
+            os.killpg(proc.pid, signal.SIGINT)  # what Ctrl-C in a terminal does: SIGINT to the whole process group
+        else:
+            os.kill(proc.pid, signal.SIGTERM)  # `kill PID`: the launcher only
         start = time.monotonic()
         _, err = proc.communicate(timeout=15)
         assert time.monotonic() - start < 10
@@ -345,8 +349,8 @@ def test_ctrl_c_stops_workers_and_leaves_no_partial_files(tmp_path: Path) -> Non
         if proc.poll() is None:
             proc.kill()
             proc.wait()
-    assert proc.returncode == 130, err
-    assert "interrupted" in err and "rerun the same command to resume" in err
+    assert proc.returncode == code, err
+    assert word in err and "rerun the same command to resume" in err
     assert not any(running(pid) for pid in workers), "orphan worker processes"
     assert not (out / ".lock").exists()
     no_partial_files(out)

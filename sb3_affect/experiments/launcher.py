@@ -64,6 +64,7 @@ def _die_with_parent() -> None:
 
 def _worker(config: dict[str, Any], log_dir: str | None, formats: tuple[str, ...], conn: Any) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the launcher decides what Ctrl-C does
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # and stops a worker with SIGTERM (not the launcher's handler)
     _die_with_parent()
     try:
         message: tuple[str, Any] = ("ok", execute_run(config, log_dir, formats))
