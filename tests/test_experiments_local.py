@@ -260,6 +260,29 @@ def test_full_disk_gives_clear_error_and_loses_nothing(tmp_path: Path, monkeypat
     assert {k: v for k, v in contents(out).items() if k in kept} == kept
 
 
+@linux_only
+@pytest.mark.skipif(os.geteuid() != 0, reason="mounting a small tmpfs needs root")
+def test_really_full_disk(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    sweep, out = sweep_file(tmp_path, ["none"], seeds=4), tmp_path / "out"
+    out.mkdir()
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=20k", "tmpfs", str(out)], capture_output=True).returncode != 0:
+        pytest.skip("can not mount a tmpfs here")
+    try:
+        assert main(["run", str(sweep), "--out", str(out), "--workers", "2", "--no-progress"]) == 2
+        err = capsys.readouterr().err
+        assert "the disk is full; finished runs are kept" in err, err
+        kept = contents(out)
+        assert 0 < len(kept) < 8
+        no_partial_files(out)
+        assert not (out / ".lock").exists()
+        subprocess.run(["mount", "-o", "remount,size=4m", str(out)], check=True)
+        summary = run_sweep(sweep, out, workers=2, progress=False)
+        assert (summary.skipped, summary.finished) == (len(kept), 8 - len(kept))
+        assert {k: v for k, v in contents(out).items() if k in kept} == kept
+    finally:
+        subprocess.run(["umount", str(out)], check=False, capture_output=True)
+
+
 def _read_only(folder: Path) -> Any:
     """Make ``folder`` read-only for real: chmod for a normal user, a read-only tmpfs mount for root."""
     if os.geteuid() != 0:
