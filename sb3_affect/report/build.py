@@ -308,7 +308,9 @@ class _Context:
         prof = profile(aff)
         prof.to_csv(self.out / "tables" / "profile_per_episode.csv")
         f5 = figures.emotion_profile(prof, self.figure("fig5_emotion_profile"))
-        self.doc.img(f5, "Fig. 5: fraction of decisions in each emotion, per episode, mean over the affective runs")
+        silent = [e for e in ("joy", "sadness", "fear", "anger") if float(prof[f"{e}_mean"].max()) == 0.0]
+        note = f" ({' and '.join(silent)} never occur: their lines lie on 0)" if silent else ""
+        self.doc.img(f5, f"Fig. 5: fraction of decisions in each emotion, per episode, mean over the affective runs{note}")
         f6 = figures.equivalent_epsilon(prof, self.figure("fig6_equivalent_epsilon"))
         self.doc.img(f6, "Fig. 6: equivalent epsilon (fraction of random-direction decisions) per episode")
         rows = {}
