@@ -62,10 +62,12 @@ def _die_with_parent() -> None:
         ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
 
 
-def _worker(config: dict[str, Any], log_dir: str | None, formats: tuple[str, ...], conn: Any) -> None:
+def _worker(config: dict[str, Any], log_dir: str | None, formats: tuple[str, ...], conn: Any, launcher: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the launcher decides what Ctrl-C does
     signal.signal(signal.SIGTERM, signal.SIG_DFL)  # and stops a worker with SIGTERM (not the launcher's handler)
     _die_with_parent()
+    if os.getppid() != launcher:  # the launcher died before the line above took effect
+        os._exit(1)
     try:
         message: tuple[str, Any] = ("ok", execute_run(config, log_dir, formats))
     except BaseException:
@@ -91,7 +93,8 @@ def run_local(tasks: list[Task], workers: int, formats: tuple[str, ...], on_resu
             while queue and len(running) < workers:
                 rid, config, log_dir = queue.popleft()
                 receiver, sender = context.Pipe(duplex=False)
-                process = context.Process(target=_worker, args=(config, log_dir, formats, sender), name=f"sb3-affect:{rid}")
+                args = (config, log_dir, formats, sender, os.getpid())
+                process = context.Process(target=_worker, args=args, name=f"sb3-affect:{rid}")
                 process.start()
                 sender.close()
                 running[rid] = (process, receiver, config)
