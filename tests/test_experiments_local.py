@@ -157,6 +157,9 @@ def test_smoke_sweep_end_to_end(tmp_path: Path, capsys: pytest.CaptureFixture[st
     logs = sorted((again / "logs").glob("*/progress.csv"))
     assert [p.parent.name for p in logs] == sorted(runs)
     assert "rollout/ep_len_mean" in logs[0].read_text()
+    # Asking for logs (or not) on a resume is the same sweep: logs do not change results.
+    summary = run_sweep(EXPERIMENTS / "smoke.yaml", out, overrides=["episodes=10", "logs=[csv]"], progress=False)
+    assert summary.skipped == 8
 
 
 def test_run_that_raises_is_recorded_and_retried(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:

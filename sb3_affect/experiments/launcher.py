@@ -276,7 +276,9 @@ def run_sweep(
 
         try:
             formats = tuple(sweep.logs) or ("csv",)
-            if backend == "local":
+            if not tasks:
+                pass  # everything is done already: start no workers (nor a Ray instance)
+            elif backend == "local":
                 run_local(tasks, workers, formats, on_result, on_failure)
             else:
                 run_ray(tasks, workers, formats, on_result, on_failure, address=ray_address)

@@ -90,7 +90,7 @@ class ResultsStore:
                 previous = json.loads(saved.read_text())
             except (OSError, ValueError):
                 previous = None
-            if previous != resolved_sweep:
+            if _identity(previous) != _identity(resolved_sweep):
                 name = (previous or {}).get("name", "?")
                 raise StoreError(
                     f"{self.root} already holds the results of a different sweep ({name!r}, or the same file with "
@@ -180,6 +180,13 @@ class ResultsStore:
 
     def load_runs(self) -> list[dict[str, Any]]:
         return [json.loads(p.read_text()) for p in sorted(self.runs.glob("*.json")) if not p.name.startswith(".")]
+
+
+def _identity(resolved: Any) -> Any:
+    """What must match to resume into a folder: the resolved sweep minus settings that do not change results (logs)."""
+    if not isinstance(resolved, dict) or not isinstance(resolved.get("sweep"), dict):
+        return resolved
+    return {**resolved, "sweep": {k: v for k, v in resolved["sweep"].items() if k != "logs"}}
 
 
 def _alive(pid: int) -> bool:
