@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from typing import Any
 
@@ -123,7 +122,6 @@ class AffectQ(TabularQAlgorithm):
             Behaviour(bool(r), tuple(int(k) for k in speeds))
             for r, speeds in (self.behaviour_table[e.name.lower()] for e in Emotion)
         ]
-        self._last_equivalent_epsilon = math.nan
 
     def _excluded_save_params(self) -> list[str]:
         return [*super()._excluded_save_params(), "emotion_callback", "_behaviour"]

@@ -32,7 +32,7 @@ import pandas as pd
 from stable_baselines3.common.callbacks import BaseCallback
 
 from sb3_affect.appraisal import Appraiser
-from sb3_affect.emotions import COMPARISONS, EMOTION_NAMES, Emotion, EmotionRule, make_table_ii
+from sb3_affect.emotions import EMOTION_NAMES, Emotion, EmotionRule, make_table_ii
 from sb3_affect.episode_log import Geometry, deterministic_walk_is_shortest, env_geometry, make_frame
 
 
@@ -63,8 +63,6 @@ class EmotionCallback(BaseCallback):
         self.act = act
         self.units = units
         self.emotion_rule: EmotionRule = emotion_rule if emotion_rule is not None else make_table_ii(comparison)
-        if emotion_rule is None and comparison not in COMPARISONS:  # pragma: no cover - make_table_ii raised already
-            raise ValueError(comparison)
         self.appraiser: Appraiser | None = appraiser
         if appraiser is None:
             Appraiser(1, act=act, units=units)  # validate the options now, with a clear error

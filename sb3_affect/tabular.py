@@ -407,7 +407,7 @@ class TabularQAlgorithm(BaseAlgorithm):
     def dump_logs(self) -> None:
         """Write the logger: the keys SB3's DQN writes, plus rollout/ep_cells_mean and the affect/* keys."""
         assert self.ep_info_buffer is not None
-        time_elapsed = max((time.time_ns() - self.start_time) / 1e9, sys_float_epsilon)
+        time_elapsed = max((time.time_ns() - self.start_time) / 1e9, 1e-9)
         fps = int((self.num_timesteps - self._num_timesteps_at_start) / time_elapsed)
         self.logger.record("time/episodes", self._episode_num, exclude="tensorboard")
         if len(self.ep_info_buffer) > 0:
@@ -503,6 +503,3 @@ class TabularQAlgorithm(BaseAlgorithm):
         if custom_objects:
             raise ValueError("custom_objects only applies to the legacy loader: pass safe=False for a file you trust")
         return load_safe(cls, path, env=env, device=device, force_reset=force_reset, **kwargs)
-
-
-sys_float_epsilon = 1e-9
