@@ -3,17 +3,21 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any
+from typing import Any, TypeVar
 
-from stable_baselines3.common.type_aliases import GymEnv, Schedule
+import numpy as np
+from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, Schedule
 
 from sb3_affect.appraisal import ACT_MODES, UNITS, check_choice
 from sb3_affect.behaviour import TABLE_III, Behaviour, validate_behaviour_table
 from sb3_affect.callbacks import EmotionCallback
 from sb3_affect.emotions import COMPARISONS, Emotion
+from sb3_affect.goals import GoalTest
 from sb3_affect.personalities import PersonalityAppraiser, check_personality
 from sb3_affect.policies import TabularQPolicy, greedy_action
 from sb3_affect.tabular import TabularQAlgorithm
+
+SelfAffectQ = TypeVar("SelfAffectQ", bound="AffectQ")
 
 
 class AffectQ(TabularQAlgorithm):
@@ -84,6 +88,7 @@ class AffectQ(TabularQAlgorithm):
             raise TypeError(f"emotion_callback must be an EmotionCallback, got {type(emotion_callback).__name__}")
         self.emotion_callback = emotion_callback
         self._affect_state: dict[str, Any] | None = None
+        self._emotion_counts: list[int] | None = None
         super().__init__(
             policy,
             env,
@@ -117,6 +122,8 @@ class AffectQ(TabularQAlgorithm):
         if self._affect_state is not None:
             assert self.emotion_callback.appraiser is not None
             self.emotion_callback.appraiser.set_state(self._affect_state)
+        if self._emotion_counts is not None:  # the episode in progress when the model was saved
+            self.emotion_callback.counts = [int(c) for c in self._emotion_counts]
         # the behaviour table as a list indexed by emotion, for the hot loop
         self._behaviour = [
             Behaviour(bool(r), tuple(int(k) for k in speeds))
@@ -129,17 +136,37 @@ class AffectQ(TabularQAlgorithm):
     def save(self, path: Any, exclude: Any = None, include: Any = None) -> None:
         assert self.emotion_callback is not None and self.emotion_callback.appraiser is not None
         self._affect_state = self.emotion_callback.appraiser.get_state()
+        self._emotion_counts = list(self.emotion_callback.counts)
         try:
             super().save(path, exclude=exclude, include=include)
         finally:
             self._affect_state = None
+            self._emotion_counts = None
 
     # -- the affect hook -------------------------------------------------------------------------------------------
-    def learn(self, *args: Any, **kwargs: Any) -> Any:
-        """Learn as ``TabularQAlgorithm.learn``; the emotion callback is bound to this model for logging."""
+    def learn(
+        self: SelfAffectQ,
+        total_timesteps: int,
+        callback: MaybeCallback = None,
+        log_interval: int | None = 4,
+        tb_log_name: str | None = None,
+        reset_num_timesteps: bool = True,
+        progress_bar: bool = False,
+    ) -> SelfAffectQ:
+        """
+        Learn as ``TabularQAlgorithm.learn``; the emotion callback is bound to this model for logging.
+
+        :param total_timesteps: number of decisions to take (0 is allowed and takes none)
+        :param callback: SB3 callback(s) called after every decision
+        :param log_interval: dump the logger every this many episodes (None: never)
+        :param tb_log_name: TensorBoard run name (None: the class name, as ``AffectQ_1``)
+        :param reset_num_timesteps: start counting (and the episode log and the norm's history) from zero
+        :param progress_bar: show a progress bar (tqdm and rich)
+        :return: the trained model
+        """
         assert self.emotion_callback is not None
         self.emotion_callback.init_callback(self)
-        return super().learn(*args, **kwargs)
+        return super().learn(total_timesteps, callback, log_interval, tb_log_name, reset_num_timesteps, progress_bar)
 
     def _new_run(self) -> None:
         assert self.emotion_callback is not None and self.emotion_callback.appraiser is not None
@@ -157,6 +184,10 @@ class AffectQ(TabularQAlgorithm):
         assert self.emotion_callback is not None
         return self.emotion_callback.observe
 
+    def _goal_test(self) -> GoalTest:
+        assert self.emotion_callback is not None
+        return self.emotion_callback.goal
+
     def _decide(self, state: int, q: list[list[float]]) -> tuple[int, int, bool]:
         rng = self._rng
         assert self.emotion_callback is not None
@@ -170,6 +201,15 @@ class AffectQ(TabularQAlgorithm):
         rows = self._episode_rows
         return rows[-1][6] / rows[-1][1] if rows else 1.0
 
-    def predict(self, observation: Any, state: Any = None, episode_start: Any = None, deterministic: bool = False) -> Any:
-        """The greedy action (ties at random). Emotions steer learning only: outside ``learn`` there is no appraisal."""
-        return self.policy.predict(observation, state, episode_start, deterministic=True)
+    def predict(
+        self,
+        observation: Any,
+        state: Any = None,
+        episode_start: Any = None,
+        deterministic: bool = False,
+    ) -> tuple[np.ndarray, Any]:
+        """
+        The greedy action: ties to the first maximal action with ``deterministic=True``, at random otherwise.
+        Emotions steer learning only: outside ``learn`` there is no appraisal, so there is no exploration either.
+        """
+        return super().predict(observation, state, episode_start, deterministic)

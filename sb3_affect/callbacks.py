@@ -34,6 +34,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 from sb3_affect.appraisal import Appraiser
 from sb3_affect.emotions import EMOTION_NAMES, Emotion, EmotionRule, make_table_ii
 from sb3_affect.episode_log import Geometry, deterministic_walk_is_shortest, env_geometry, make_frame
+from sb3_affect.goals import GoalTest, positive_terminal_reward
 
 
 class EmotionCallback(BaseCallback):
@@ -46,6 +47,8 @@ class EmotionCallback(BaseCallback):
     :param appraiser: a ready appraiser to use instead of building one from ``act`` and ``units``
         (it must be created for the env's number of cells)
     :param emotion_rule: ``rule(appraisal_or_None) -> Emotion`` replacing Table II
+    :param goal: ``goal(reward, info) -> bool``, whether a terminating transition reached the goal (default
+        ``sb3_affect.goals.positive_terminal_reward``: ``info["is_success"]`` if the env gives it, else reward > 0)
     :param verbose: verbosity level
     """
 
@@ -56,9 +59,13 @@ class EmotionCallback(BaseCallback):
         units: str = "cells",
         appraiser: Appraiser | None = None,
         emotion_rule: EmotionRule | None = None,
+        goal: GoalTest | None = None,
         verbose: int = 0,
     ) -> None:
         super().__init__(verbose)
+        if goal is not None and not callable(goal):
+            raise TypeError(f"goal must be a callable goal(reward, info) -> bool, got {goal!r}")
+        self.goal: GoalTest = positive_terminal_reward if goal is None else goal
         self.comparison = comparison
         self.act = act
         self.units = units
@@ -107,7 +114,7 @@ class EmotionCallback(BaseCallback):
         return emotion
 
     def observe(self, s: int, s2: int, terminated: bool) -> None:
-        """One one-cell transition ``s -> s2`` (``terminated``: ``s2`` is the goal)."""
+        """One one-cell transition ``s -> s2`` (``terminated``: it ended the episode at the goal, ``s2`` is a goal)."""
         assert self.appraiser is not None
         self.appraiser.observe(s, s2, terminated)
 
@@ -118,7 +125,7 @@ class EmotionCallback(BaseCallback):
         self.appraiser.end_episode(reached_goal)
         counts = self.counts
         total = sum(counts)
-        if total and self.model is not None and self.logger.output_formats:
+        if total and self.model is not None:  # per episode; SB3 records whenever a logger exists
             for name, count in zip(EMOTION_NAMES, counts):
                 self.logger.record(f"affect/{name}", count / total)
             self.logger.record("affect/norm", norm if norm == norm else 0.0)
@@ -155,17 +162,19 @@ class EmotionCallback(BaseCallback):
         new_state = int(np.asarray(self.locals["new_obs"]).reshape(-1)[0])
         truncated = done and bool(info.get("TimeLimit.truncated", False))
         terminated = done and not truncated
+        reward = float(np.asarray(self.locals["rewards"]).reshape(-1)[0])
+        reached_goal = terminated and bool(self.goal(reward, info))
         s2 = (
             int(np.asarray(info["terminal_observation"]).reshape(-1)[0])
             if done and "terminal_observation" in info
             else new_state
         )
-        self.observe(self._state, s2, terminated)
+        self.observe(self._state, s2, reached_goal)
         self._decisions += 1
         self._cells += 1
-        self._reward += float(self.locals["rewards"][0])
+        self._reward += reward
         if done:
-            self._close_observed_episode(terminated, truncated)
+            self._close_observed_episode(terminated, truncated, reached_goal)
             self._decisions = self._cells = 0
             self._reward = 0.0
             self.begin_episode()
@@ -173,8 +182,8 @@ class EmotionCallback(BaseCallback):
         self.feel(new_state)
         return True
 
-    def _close_observed_episode(self, terminated: bool, truncated: bool) -> None:
-        counts, norm = self.end_episode(terminated)
+    def _close_observed_episode(self, terminated: bool, truncated: bool, reached_goal: bool) -> None:
+        counts, norm = self.end_episode(reached_goal)
         geometry = self._geometry
         optimal: Any = math.nan
         greedy: Any = math.nan

@@ -3,12 +3,29 @@
 from __future__ import annotations
 
 import random
+from collections.abc import Callable
 from typing import Any
 
+import numpy as np
 import torch as th
 from gymnasium import spaces
 from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import PyTorchObs
+
+_GYM_TUPLE_ERROR = (
+    "You have passed a tuple to the predict() function instead of a Numpy array or a Dict. "
+    "You are probably mixing Gym API with SB3 VecEnv API: `obs, info = env.reset()` (Gym) "
+    "vs `obs = vec_env.reset()` (SB3 VecEnv). "
+    "See related issue https://github.com/DLR-RM/stable-baselines3/issues/1694 "
+    "and documentation for more information: "
+    "https://stable-baselines3.readthedocs.io/en/master/guide/vec_envs.html#vecenv-api-vs-gym-api"
+)
+
+
+def check_not_gym_tuple(observation: Any) -> None:
+    """Raise SB3's error for ``predict((obs, info))``, the Gym ``reset`` tuple passed as an observation."""
+    if isinstance(observation, tuple) and len(observation) == 2 and isinstance(observation[1], dict):
+        raise ValueError(_GYM_TUPLE_ERROR)
 
 
 def greedy_action(row: list[float], rng: random.Random) -> int:
@@ -23,8 +40,10 @@ class TabularQPolicy(BasePolicy):
     """
     Greedy policy over a Q-table (one row per cell, one column per action).
 
-    The table is a float64 buffer ``q_table`` of shape ``(n_observations, n_actions)``. Greedy ties are broken
-    uniformly at random with ``self.rng``, which the algorithm replaces with its own seeded generator.
+    The table is a float64 buffer ``q_table`` of shape ``(n_observations, n_actions)``. ``predict(deterministic=True)``
+    is deterministic: among tied maximal actions it takes the first (lowest index), on every call. With
+    ``deterministic=False`` ties are broken uniformly at random with ``self.rng``, which the algorithm replaces with
+    its own seeded generator (learning breaks ties at random too, with that generator).
 
     :param observation_space: a ``Discrete`` observation space
     :param action_space: a ``Discrete`` action space
@@ -68,8 +87,28 @@ class TabularQPolicy(BasePolicy):
         assert isinstance(observation, th.Tensor)
         states = (observation.reshape(-1).long() - self.obs_start).tolist()
         rows = self.q_table[states].tolist()
-        actions = [greedy_action(row, self.rng) + self.action_start for row in rows]
+        if deterministic:
+            actions = [row.index(max(row)) + self.action_start for row in rows]
+        else:
+            actions = [greedy_action(row, self.rng) + self.action_start for row in rows]
         return th.tensor(actions, dtype=th.long)
+
+    @property
+    def device(self) -> th.device:
+        """The Q-table's device (the policy has a buffer and no parameter, which SB3's ``device`` looks for)."""
+        return self.q_table.device
+
+    def random_actions(self, observation: Any, pick: Callable[[int], int]) -> np.ndarray:
+        """
+        One ``pick(state)`` per observation, shaped as ``predict`` returns actions: shape ``()`` for a single
+        observation, ``(n,)`` for a batch (SB3's DQN does the same in its exploration branch).
+        """
+        check_not_gym_tuple(observation)
+        obs = np.asarray(observation)
+        states = [int(s) for s in obs.reshape(-1)]
+        if self.is_vectorized_observation(obs):
+            return np.array([pick(s) for s in states])
+        return np.array(pick(states[0]))
 
     def q_values(self, state: int) -> list[float]:
         """The Q-values of one cell, as a list."""

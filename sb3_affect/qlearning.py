@@ -8,7 +8,7 @@ import numpy as np
 from stable_baselines3.common.type_aliases import GymEnv, Schedule
 from stable_baselines3.common.utils import FloatSchedule
 
-from sb3_affect.policies import TabularQPolicy, greedy_action
+from sb3_affect.policies import TabularQPolicy, check_not_gym_tuple, greedy_action
 from sb3_affect.tabular import TabularQAlgorithm, _check_rate
 
 
@@ -74,10 +74,23 @@ class QLearning(TabularQAlgorithm):
     def _setup_model(self) -> None:
         super()._setup_model()
         self.exploration_schedule = FloatSchedule(self.exploration_rate)
+        self._exploration_source = self.exploration_rate
         self._epsilon = float(self.exploration_schedule(1.0))
+
+    def _excluded_save_params(self) -> list[str]:
+        return [*super()._excluded_save_params(), "_exploration_source"]
+
+    def _follow_exploration_rate(self) -> None:
+        """A value the user assigned to ``exploration_rate`` since the schedule was built takes effect now."""
+        if self.exploration_rate is not self._exploration_source:
+            _check_rate("exploration_rate", self.exploration_rate, 0.0, 1.0)
+            self.exploration_schedule = FloatSchedule(self.exploration_rate)
+            self._exploration_source = self.exploration_rate
+            self._epsilon = float(self.exploration_schedule(self._current_progress_remaining))
 
     def _update_schedules(self) -> None:
         super()._update_schedules()
+        self._follow_exploration_rate()
         self._epsilon = float(self.exploration_schedule(self._current_progress_remaining))
 
     def _exploration_value(self) -> float:
@@ -89,13 +102,21 @@ class QLearning(TabularQAlgorithm):
             return rng.randrange(len(q[state])), 1, True
         return greedy_action(q[state], rng), 1, False
 
-    def predict(self, observation: Any, state: Any = None, episode_start: Any = None, deterministic: bool = False) -> Any:
+    def predict(
+        self,
+        observation: Any,
+        state: Any = None,
+        episode_start: Any = None,
+        deterministic: bool = False,
+    ) -> tuple[np.ndarray, Any]:
         """
-        The greedy action (``deterministic=True``) or, like SB3's DQN, an epsilon-greedy one at the current epsilon.
+        The greedy action (``deterministic=True``: ties to the first maximal action) or, like SB3's DQN, an
+        epsilon-greedy one at the current epsilon: with probability epsilon every action of the call is drawn from
+        the action space, otherwise greedy with ties at random. Assigning ``model.exploration_rate`` (a number or a
+        schedule) takes effect at once, here and in the next ``learn``, as for DQN.
         """
+        check_not_gym_tuple(observation)
+        self._follow_exploration_rate()
         if not deterministic and self._rng.random() < self._epsilon:
-            obs = np.asarray(observation)
-            n = 1 if obs.ndim == 0 else obs.shape[0]
-            actions = np.array([self.action_space.sample() for _ in range(n)])
-            return (actions[0] if obs.ndim == 0 else actions), state
-        return self.policy.predict(observation, state, episode_start, deterministic)
+            return self.policy.random_actions(observation, lambda _: self.action_space.sample()), state
+        return super().predict(observation, state, episode_start, deterministic)

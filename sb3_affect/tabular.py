@@ -26,7 +26,8 @@ from stable_baselines3.common.utils import safe_mean
 from stable_baselines3.common.vec_env import DummyVecEnv
 
 from sb3_affect.episode_log import Geometry, env_geometry, greedy_walks_shortest_path, make_frame
-from sb3_affect.policies import TabularQPolicy
+from sb3_affect.goals import GoalTest, positive_terminal_reward
+from sb3_affect.policies import TabularQPolicy, check_not_gym_tuple
 from sb3_affect.serialization import add_plain_description, load_safe
 
 SelfTabular = TypeVar("SelfTabular", bound="TabularQAlgorithm")
@@ -153,9 +154,17 @@ class TabularQAlgorithm(BaseAlgorithm):
             version, internal, gauss = self._rng_state
             self._rng.setstate((version, tuple(internal), gauss))
         self.policy.rng = self._rng
+        self._q: list[list[float]] | None = None  # the loop's table, only while learn runs (files from 0.1 held one)
 
     def _excluded_save_params(self) -> list[str]:
-        return [*super()._excluded_save_params(), "_rng"]
+        return [*super()._excluded_save_params(), "_rng", "_q"]
+
+    def set_random_seed(self, seed: int | None = None) -> None:
+        """Seed Python, NumPy, torch, the action space, the env and the agent's own generator (SB3 convention)."""
+        super().set_random_seed(seed)
+        rng = getattr(self, "_rng", None)
+        if seed is not None and rng is not None:
+            rng.seed(seed)  # in place: the policy shares this generator
 
     # -- what subclasses define ----------------------------------------------------------------------------------
     def _decide(self, state: int, q: list[list[float]]) -> tuple[int, int, bool]:
@@ -170,8 +179,12 @@ class TabularQAlgorithm(BaseAlgorithm):
         return [0, 0, 0, 0], math.nan
 
     def _transition_hook(self) -> Any:
-        """A callable ``(s, s2, terminated)`` run after every one-cell transition, or None."""
+        """A callable ``(s, s2, reached_goal)`` run after every one-cell transition, or None."""
         return None
+
+    def _goal_test(self) -> GoalTest:
+        """What counts as reaching the goal when an episode terminates (see ``sb3_affect.goals``)."""
+        return positive_terminal_reward
 
     def _exploration_value(self) -> float:
         """The value logged as ``rollout/exploration_rate``."""
@@ -194,23 +207,29 @@ class TabularQAlgorithm(BaseAlgorithm):
         self: SelfTabular,
         total_timesteps: int,
         callback: MaybeCallback = None,
-        log_interval: int = 4,
-        tb_log_name: str = "run",
+        log_interval: int | None = 4,
+        tb_log_name: str | None = None,
         reset_num_timesteps: bool = True,
         progress_bar: bool = False,
     ) -> SelfTabular:
         """
         Learn for ``total_timesteps`` decisions (or until a callback stops it, e.g. ``StopTrainingOnMaxEpisodes``).
 
-        Callbacks are called once per decision, after it; their ``locals`` hold ``new_obs``, ``rewards``, ``dones``
-        (a 1-element bool array), ``infos`` and ``actions`` of the decision's last transition, as for a one-env VecEnv.
+        Callbacks are called once per decision, after it, with the ``locals`` of a one-env VecEnv step as SB3's
+        off-policy algorithms pass them: ``new_obs`` (int array, shape (1,)), ``rewards`` (float32 array: the sum of
+        the decision's one-cell rewards), ``dones`` (bool array), ``infos`` (a list of one dict: the info of the
+        decision's last transition, with ``terminal_observation`` and ``TimeLimit.truncated`` at an episode end) and
+        ``actions`` (int array). A wait (a decision that moves 0 cells) makes no env step: it reports reward 0 and
+        the info ``{"wait": True}``. ``is_success`` in an episode's last info feeds ``rollout/success_rate``.
+        While ``learn`` runs the Q-table lives in the loop; ``predict``, ``get_parameters`` and ``save`` called by a
+        callback see it. Outside ``learn`` the policy's ``q_table`` tensor is the only copy.
         ``reset_num_timesteps=True`` starts a new run: the episode log and the appraisal history start afresh, the
         Q-table and the known map are kept.
 
-        :param total_timesteps: number of decisions to take
+        :param total_timesteps: number of decisions to take (0 is allowed and takes none)
         :param callback: SB3 callback(s) called after every decision
         :param log_interval: dump the logger every this many episodes (None: never)
-        :param tb_log_name: TensorBoard run name
+        :param tb_log_name: TensorBoard run name (None: the class name, as ``QLearning_1``)
         :param reset_num_timesteps: start counting (and the episode log) from zero
         :param progress_bar: show a progress bar (tqdm and rich)
         :return: the trained model
@@ -221,6 +240,8 @@ class TabularQAlgorithm(BaseAlgorithm):
             self._new_run()
         if reset_num_timesteps or self._last_obs is None:
             self._episode_state = None  # SB3 resets the env: a new episode starts
+        if tb_log_name is None:
+            tb_log_name = type(self).__name__
         silent = not self._custom_logger and self.verbose == 0 and self.tensorboard_log is None
         if silent:  # SB3 would create an empty /tmp/SB3-<date> folder for a logger that writes nothing
             self._logger, self._custom_logger = Logger(folder=None, output_formats=[]), True
@@ -242,6 +263,7 @@ class TabularQAlgorithm(BaseAlgorithm):
             self._run_loop(env, q, total_timesteps, callback, log_interval)
         finally:
             self._sync_policy()
+            self._q = None  # from now on the policy's tensor is the one truth (set_parameters, edits, save)
         callback.on_training_end()
         return self
 
@@ -252,6 +274,7 @@ class TabularQAlgorithm(BaseAlgorithm):
         cap = self.max_episode_decisions
         decide = self._decide
         observe = self._transition_hook()
+        is_goal = self._goal_test()
         obs_start = int(self.observation_space.start)  # type: ignore[attr-defined]
         act_start = int(self.action_space.start)  # type: ignore[attr-defined]
         cb_locals: dict[str, Any] = {"self": self, "total_timesteps": total_timesteps, "callback": callback}
@@ -284,6 +307,7 @@ class TabularQAlgorithm(BaseAlgorithm):
         while t < total_timesteps:
             # 1. decide: direction and speed (epsilon-greedy, or the emotion's behaviour)
             action, k, explored = decide(s, q)
+            before = reward_sum
             # 2. move k cells, one Eq. 1 update per cell
             for _ in range(k):
                 obs, r, terminated, truncated, info = env.step(action + act_start)
@@ -296,24 +320,37 @@ class TabularQAlgorithm(BaseAlgorithm):
                     row[action] = new
                     changed = True
                 if observe is not None:
-                    observe(s, s2, terminated)
+                    observe(s, s2, terminated and is_goal(reward, info))
                 cells += 1
                 reward_sum += reward
                 s = s2
                 if terminated or truncated:
                     break
-            if k == 0:
+            if k == 0:  # a wait: no env step, nothing of the previous step to report again
                 waits += 1
+                s2, reward, info = s, 0.0, {"wait": True}
             if explored:
                 random_moves += 1
             decisions += 1
             t += 1
             # 3. episode end: at the goal, by the env's time limit, or by the safety cap
             done = terminated or truncated or decisions >= cap
+            if call_back:
+                step_reward = reward if k == 1 else reward_sum - before
             if done:
                 self.num_timesteps = t
                 self._close_episode(
-                    decisions, cells, reward_sum, random_moves, waits, terminated, not terminated, changed, log_interval
+                    decisions,
+                    cells,
+                    reward_sum,
+                    random_moves,
+                    waits,
+                    terminated,
+                    not terminated,
+                    changed,
+                    log_interval,
+                    reached_goal=terminated and is_goal(reward, info),
+                    info=info,
                 )
                 changed = False
                 obs, _ = env.reset()
@@ -330,11 +367,11 @@ class TabularQAlgorithm(BaseAlgorithm):
                     info = {**info, "terminal_observation": s2 + obs_start}
                     if not terminated:
                         info["TimeLimit.truncated"] = True
-                cb_locals["new_obs"] = [s + obs_start]
-                cb_locals["rewards"] = [reward]
+                cb_locals["new_obs"] = np.array([s + obs_start])
+                cb_locals["rewards"] = np.array([step_reward], dtype=np.float32)
                 cb_locals["dones"] = _DONE if done else _NOT_DONE
                 cb_locals["infos"] = [info]
-                cb_locals["actions"] = [action + act_start]
+                cb_locals["actions"] = np.array([action + act_start])
                 update_locals(cb_locals)
                 if not on_step():
                     break
@@ -351,7 +388,8 @@ class TabularQAlgorithm(BaseAlgorithm):
         self._last_obs = np.array([s + obs_start])
 
     def _begin_episode(self, total_timesteps: int) -> None:
-        self._update_current_progress_remaining(self.num_timesteps, total_timesteps)
+        if total_timesteps > 0:  # learn(0) takes no decision: the progress stays where it was
+            self._update_current_progress_remaining(self.num_timesteps, total_timesteps)
         self._update_schedules()
         self._start_episode()
 
@@ -366,8 +404,10 @@ class TabularQAlgorithm(BaseAlgorithm):
         truncated: bool,
         q_changed: bool,
         log_interval: int | None,
+        reached_goal: bool | None = None,
+        info: dict[str, Any] | None = None,
     ) -> None:
-        counts, norm = self._end_episode(terminated)
+        counts, norm = self._end_episode(terminated if reached_goal is None else reached_goal)
         geometry = self._geometry
         if geometry is None:
             optimal: Any = math.nan
@@ -375,6 +415,7 @@ class TabularQAlgorithm(BaseAlgorithm):
         else:
             optimal = terminated and cells == geometry.shortest_path_length
             if q_changed or self._greedy_optimal is None:
+                assert self._q is not None, "_close_episode runs inside learn, on the loop's table"
                 self._greedy_optimal = greedy_walks_shortest_path(self._q, geometry)
             greedy = self._greedy_optimal
         self._episode_rows.append(
@@ -399,10 +440,14 @@ class TabularQAlgorithm(BaseAlgorithm):
         self.ep_info_buffer.append(
             {"r": reward, "l": decisions, "c": cells, "t": round(time.time() - self.start_time / 1e9, 6)}
         )
-        if self.logger.output_formats:  # no logger work when nothing would be written
-            self.logger.record("affect/equivalent_epsilon", random_moves / decisions)
-            if log_interval is not None and self._episode_num % log_interval == 0:
-                self.dump_logs()
+        success = None if info is None else info.get("is_success")
+        if success is not None:
+            assert self.ep_success_buffer is not None
+            self.ep_success_buffer.append(success)
+        # per episode, never per decision: a few dict writes, and a dump every log_interval episodes
+        self.logger.record("affect/equivalent_epsilon", random_moves / decisions)
+        if log_interval is not None and self._episode_num % log_interval == 0:
+            self.dump_logs()
 
     def dump_logs(self) -> None:
         """Write the logger: the keys SB3's DQN writes, plus rollout/ep_cells_mean and the affect/* keys."""
@@ -414,6 +459,8 @@ class TabularQAlgorithm(BaseAlgorithm):
             self.logger.record("rollout/ep_rew_mean", safe_mean([ep["r"] for ep in self.ep_info_buffer]))
             self.logger.record("rollout/ep_len_mean", safe_mean([ep["l"] for ep in self.ep_info_buffer]))
             self.logger.record("rollout/ep_cells_mean", safe_mean([ep["c"] for ep in self.ep_info_buffer]))
+        if self.ep_success_buffer:
+            self.logger.record("rollout/success_rate", safe_mean(list(self.ep_success_buffer)))
         self.logger.record("rollout/exploration_rate", self._exploration_value())
         self.logger.record("rollout/truncated_episodes", self._truncated_episodes)
         self.logger.record("time/fps", fps)
@@ -430,10 +477,34 @@ class TabularQAlgorithm(BaseAlgorithm):
         if q is not None:
             self.policy.q_table.copy_(th.tensor(q, dtype=th.float64))
 
+    def predict(
+        self,
+        observation: Any,
+        state: Any = None,
+        episode_start: Any = None,
+        deterministic: bool = False,
+    ) -> tuple[np.ndarray, Any]:
+        """
+        The policy's action for ``observation`` (an int or an int array), as ``BaseAlgorithm.predict``.
+
+        ``deterministic=True`` is the greedy action, ties going to the first maximal action, the same on every call.
+        ``deterministic=False`` (subclasses: their exploration) breaks greedy ties at random with the agent's
+        generator. Called from a callback during ``learn``, it uses the table being learnt.
+        """
+        check_not_gym_tuple(observation)
+        self._sync_policy()
+        return self.policy.predict(observation, state, episode_start, deterministic)
+
     @property
     def q_table(self) -> np.ndarray:
         """A copy of the Q-table, shape (n_states, n_actions)."""
+        self._sync_policy()
         return self.policy.q_table.cpu().numpy().copy()
+
+    def get_parameters(self) -> dict[str, dict]:
+        """SB3's ``get_parameters``; called from a callback during ``learn``, it holds the table being learnt."""
+        self._sync_policy()
+        return super().get_parameters()
 
     def _new_run(self) -> None:
         """Called by ``learn(reset_num_timesteps=True)`` before anything else (subclasses: forget run history)."""

@@ -11,7 +11,7 @@ from stable_baselines3.common.utils import FloatSchedule
 
 from sb3_affect.appraisal import check_choice
 from sb3_affect.baselines._schedules import DECAYS, check_positive_int, episode_decay
-from sb3_affect.policies import TabularQPolicy
+from sb3_affect.policies import TabularQPolicy, check_not_gym_tuple
 from sb3_affect.tabular import TabularQAlgorithm, _check_number, _check_rate
 
 
@@ -143,15 +143,26 @@ class Boltzmann(TabularQAlgorithm):
         action = softmax_action(row, self._inv_temperature, self._rng.random())
         return action, 1, row[action] != max(row)
 
-    def predict(self, observation: Any, state: Any = None, episode_start: Any = None, deterministic: bool = False) -> Any:
-        """The greedy action (``deterministic=True``) or a softmax draw at the current temperature."""
+    def predict(
+        self,
+        observation: Any,
+        state: Any = None,
+        episode_start: Any = None,
+        deterministic: bool = False,
+    ) -> tuple[np.ndarray, Any]:
+        """The greedy action (``deterministic=True``: ties to the first maximal action) or a softmax draw at the
+        current temperature, one per observation, shaped as SB3's ``predict`` returns actions."""
         if deterministic:
-            return self.policy.predict(observation, state, episode_start, deterministic)
-        obs = np.asarray(observation)
+            return super().predict(observation, state, episode_start, deterministic)
+        check_not_gym_tuple(observation)
+        self._sync_policy()
         start = int(self.action_space.start)  # type: ignore[attr-defined]
-        rows = [self.policy.q_values(int(s)) for s in obs.reshape(-1)]
-        actions = np.array([softmax_action(row, self._inv_temperature, self._rng.random()) + start for row in rows])
-        return (actions[0] if obs.ndim == 0 else actions), state
+        policy = self.policy
+
+        def draw(s: int) -> int:
+            return softmax_action(policy.q_values(s), self._inv_temperature, self._rng.random()) + start
+
+        return policy.random_actions(observation, draw), state
 
 
 __all__ = ["Boltzmann", "softmax_action"]
