@@ -9,6 +9,7 @@ counts decisions (the paper's "steps"). Subclasses say how a decision is taken (
 from __future__ import annotations
 
 import math
+import os
 import random
 import time
 from typing import Any, ClassVar, TypeVar
@@ -244,7 +245,7 @@ class TabularQAlgorithm(BaseAlgorithm):
             tb_log_name = type(self).__name__
         silent = not self._custom_logger and self.verbose == 0 and self.tensorboard_log is None
         if silent:  # SB3 would create an empty /tmp/SB3-<date> folder for a logger that writes nothing
-            self._logger, self._custom_logger = Logger(folder=None, output_formats=[]), True
+            self._logger, self._custom_logger = Logger(folder=os.environ.get("SB3_LOGDIR"), output_formats=[]), True
         try:
             total_timesteps, callback = self._setup_learn(
                 total_timesteps, callback, reset_num_timesteps, tb_log_name, progress_bar
