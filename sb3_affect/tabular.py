@@ -338,6 +338,10 @@ class TabularQAlgorithm(BaseAlgorithm):
             done = terminated or truncated or decisions >= cap
             if call_back:
                 step_reward = reward if k == 1 else reward_sum - before
+                if done:  # what a VecEnv adds to the last info of an episode (before the reset below)
+                    info = {**info, "terminal_observation": s2 + obs_start}
+                    if not terminated:
+                        info["TimeLimit.truncated"] = True
             if done:
                 self.num_timesteps = t
                 self._close_episode(
@@ -364,10 +368,6 @@ class TabularQAlgorithm(BaseAlgorithm):
             # 4. callbacks, once per decision, with the locals of a one-env VecEnv step
             if call_back:
                 self.num_timesteps = t
-                if done:
-                    info = {**info, "terminal_observation": s2 + obs_start}
-                    if not terminated:
-                        info["TimeLimit.truncated"] = True
                 cb_locals["new_obs"] = np.array([s + obs_start])
                 cb_locals["rewards"] = np.array([step_reward], dtype=np.float32)
                 cb_locals["dones"] = _DONE if done else _NOT_DONE
