@@ -28,7 +28,9 @@ class AffectQ(TabularQAlgorithm):
     Table II, and the emotion's behaviour (Table III) sets the direction (random for joy, greedy otherwise) and the
     cells moved (joy and anger 1 or 2, sadness and fear 0 or 1). The appraisal and the emotion come from an
     ``EmotionCallback`` that AffectQ drives through its affect hook (see ``sb3_affect.callbacks``); the first
-    episode, with nothing to appraise, is all joy.
+    episode, with nothing to appraise, is all joy. Which terminations reach the goal (what the known map learns) is
+    the callback's goal test: on envs other than the package's, see ``sb3_affect.goals`` (e.g. FrozenLake's holes
+    are not goals; CliffWalking needs ``EmotionCallback(goal=every_termination)``).
 
     :param policy: ``"Grid"`` (alias of ``TabularQPolicy``) or a policy class
     :param env: the environment (a Gymnasium env, a registered id or a one-env DummyVecEnv)

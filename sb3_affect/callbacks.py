@@ -12,7 +12,7 @@ two ways:
   follows. AffectQ therefore calls the callback's hook methods directly, in this order, for every decision::
 
       emotion = callback.feel(state)          # before the decision: appraise, apply the emotion rule, count it
-      callback.observe(s, s2, terminated)     # for each one-cell transition the decision makes (0, 1 or 2)
+      callback.observe(s, s2, reached_goal)   # for each one-cell transition the decision makes (0, 1 or 2)
       callback.end_episode(reached_goal)      # at the end of an episode (then begin_episode() for the next)
 
   ``feel`` is called exactly once per decision and counts it (the appraisal of a decision sees the decisions

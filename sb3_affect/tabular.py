@@ -12,6 +12,7 @@ import math
 import os
 import random
 import time
+from operator import itemgetter
 from typing import Any, ClassVar, TypeVar
 
 import numpy as np
@@ -23,7 +24,6 @@ from stable_baselines3.common.callbacks import BaseCallback, ConvertCallback
 from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, Schedule
-from stable_baselines3.common.utils import safe_mean
 from stable_baselines3.common.vec_env import DummyVecEnv
 
 from sb3_affect.episode_log import Geometry, env_geometry, greedy_walks_shortest_path, make_frame
@@ -452,23 +452,26 @@ class TabularQAlgorithm(BaseAlgorithm):
 
     def dump_logs(self) -> None:
         """Write the logger: the keys SB3's DQN writes, plus rollout/ep_cells_mean and the affect/* keys."""
-        assert self.ep_info_buffer is not None
+        buffer = self.ep_info_buffer
+        assert buffer is not None
+        record = self.logger.record
         time_elapsed = max((time.time_ns() - self.start_time) / 1e9, 1e-9)
         fps = int((self.num_timesteps - self._num_timesteps_at_start) / time_elapsed)
-        self.logger.record("time/episodes", self._episode_num, exclude="tensorboard")
-        if len(self.ep_info_buffer) > 0:
-            self.logger.record("rollout/ep_rew_mean", safe_mean([ep["r"] for ep in self.ep_info_buffer]))
-            self.logger.record("rollout/ep_len_mean", safe_mean([ep["l"] for ep in self.ep_info_buffer]))
-            self.logger.record("rollout/ep_cells_mean", safe_mean([ep["c"] for ep in self.ep_info_buffer]))
+        record("time/episodes", self._episode_num, exclude="tensorboard")
+        if buffer:  # plain-Python means: this runs every few episodes, also on the fast path
+            n = len(buffer)
+            record("rollout/ep_rew_mean", sum(map(itemgetter("r"), buffer)) / n)
+            record("rollout/ep_len_mean", sum(map(itemgetter("l"), buffer)) / n)
+            record("rollout/ep_cells_mean", sum(map(itemgetter("c"), buffer)) / n)
         if self.ep_success_buffer:
-            self.logger.record("rollout/success_rate", safe_mean(list(self.ep_success_buffer)))
-        self.logger.record("rollout/exploration_rate", self._exploration_value())
-        self.logger.record("rollout/truncated_episodes", self._truncated_episodes)
-        self.logger.record("time/fps", fps)
-        self.logger.record("time/time_elapsed", int(time_elapsed), exclude="tensorboard")
-        self.logger.record("time/total_timesteps", self.num_timesteps, exclude="tensorboard")
-        self.logger.record("train/learning_rate", self._alpha)
-        self.logger.record("train/n_updates", self.num_timesteps)
+            record("rollout/success_rate", sum(map(float, self.ep_success_buffer)) / len(self.ep_success_buffer))
+        record("rollout/exploration_rate", self._exploration_value())
+        record("rollout/truncated_episodes", self._truncated_episodes)
+        record("time/fps", fps)
+        record("time/time_elapsed", int(time_elapsed), exclude="tensorboard")
+        record("time/total_timesteps", self.num_timesteps, exclude="tensorboard")
+        record("train/learning_rate", self._alpha)
+        record("train/n_updates", self.num_timesteps)
         self.logger.dump(step=self.num_timesteps)
 
     # -- the Q-table -------------------------------------------------------------------------------------------
