@@ -64,11 +64,14 @@ class HunterPursuitEnv(ParallelEnv):  # type: ignore[misc]
     A static prey's cell is a constant, so it is left out of the observation.
 
     ## Optimal capture
-    ``capture_distance`` is the fewest steps in which the team could capture the prey at its start: with ``enter``
-    the shortest-path distance from the nearest hunter's start (10 on Kuremoto's layout, from (14, 14)); with
-    ``surround`` the smallest, over assignments of the hunters to different free neighbours of the prey, of the
-    largest distance a hunter walks. An episode is an *optimal capture* when the prey is captured within that many
-    steps (``optimal_capture``): for a static prey, the team could not have been faster.
+    ``capture_distance`` is the fewest one-cell moves in which the team could capture the prey at its start: with
+    ``enter`` the shortest-path distance from the nearest hunter's start (10 on Kuremoto's layout, from (14, 14));
+    with ``surround`` the smallest, over assignments of the hunters to different free neighbours of the prey, of the
+    largest distance a hunter walks. An episode is an *optimal capture* (``optimal_capture``) when, with ``enter``, a
+    hunter rewarded for the capture made at most ``capture_distance`` moves in the episode (for a static prey: the
+    nearest hunter walked a shortest path), with ``surround`` when no hunter made more than ``capture_distance``
+    moves. It counts each hunter's own moves, not env steps: a learner that sometimes moves two cells in one
+    decision (AffectQ, ``sb3_affect.team``) spreads a decision over two env steps without slowing its teammates.
 
     :param size: grid side (int >= 2); ignored when ``maze`` is given
     :param starts: each hunter's first cell (row, col); their number is the number of hunters (default Kuremoto's
@@ -201,9 +204,18 @@ class HunterPursuitEnv(ParallelEnv):  # type: ignore[misc]
             raise ValueError(f"the prey at {self.prey_start} can not be captured from starts={list(self.starts)}: walled off")
         return int(best)
 
-    def optimal_capture(self, steps: int, captured: bool) -> bool:
-        """An episode that captured the prey within ``capture_distance`` steps (see the class docstring)."""
-        return bool(captured) and int(steps) <= self.capture_distance
+    def optimal_capture(self, moves: Sequence[int], capturers: Sequence[int]) -> bool:
+        """
+        Whether an episode was an optimal capture (see the class docstring).
+
+        :param moves: each hunter's one-cell moves in the episode (bumps into walls count), in agent order
+        :param capturers: indices of the hunters rewarded for the capture (empty: no capture)
+        """
+        if not capturers:
+            return False
+        if self.capture == "enter":
+            return min(int(moves[i]) for i in capturers) <= self.capture_distance
+        return max(int(m) for m in moves) <= self.capture_distance
 
     def encode(self, agent_index: int) -> int:
         """The observation of hunter ``agent_index`` in the current state."""

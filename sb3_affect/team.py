@@ -21,7 +21,8 @@ moves): its next decision starts from its observation then. A capture ends the e
 rewarded for it (``infos[h]["capturer"]``) that made a move in that env step, the episode *terminated* at the goal;
 for every other hunter it was *cut off*: its last update bootstraps from the cell it reached (as for a time limit) and
 its episode-log row says ``truncated=True``. So a hunter's ``optimal`` column means that *it* captured the prey along
-a shortest path, and the team's ``optimal`` that the prey was captured within the env's ``capture_distance`` steps.
+a shortest path, and the team's ``optimal`` is the env's ``optimal_capture`` of the hunters' moves (with ``"enter"``:
+a capturer made no more one-cell moves than the nearest hunter's shortest path).
 """
 
 from __future__ import annotations
@@ -207,7 +208,7 @@ class HunterTeam:
                 rounds,
                 steps,
                 reward,
-                self.env.optimal_capture(steps, captured),
+                self.env.optimal_capture([r[column["cells"]] for r in rows], sorted(set(capturers))),
                 not captured,
                 total("random_moves"),
                 total("waits"),
@@ -225,8 +226,8 @@ class HunterTeam:
     def episode_log(self) -> pd.DataFrame:
         """
         One row per team episode, columns ``TEAM_COLUMNS``: ``decisions`` = rounds (each hunter's decisions),
-        ``cells`` = env steps, ``reward`` = all hunters' rewards, ``optimal`` = captured within ``capture_distance``
-        steps, ``truncated`` = not captured, ``random_moves``/``waits``/emotions summed over the hunters,
+        ``cells`` = env steps, ``reward`` = all hunters' rewards, ``optimal`` = the env's ``optimal_capture`` of the
+        hunters' moves, ``truncated`` = not captured, ``random_moves``/``waits``/emotions summed over the hunters,
         ``greedy_optimal`` and ``norm`` NaN (per hunter only), ``capturer`` = index of the (first) hunter rewarded
         for the capture (-1: none).
         """
