@@ -1,8 +1,8 @@
 """Gymnasium environments of sb3-affect, installed as ``sb3_affect.envs``."""
 
-from gymnasium.envs.registration import register, registry
-
 from typing import Any
+
+from gymnasium.envs.registration import register, registry
 
 from sb3_affect.envs.grid_pursuit import ACTION_NAMES, MOVES, GridPursuitEnv, build_transitions, distances_to
 from sb3_affect.envs.maze import Maze, MazeError, load_maze, maze_kwargs, parse_maze, shipped_mazes

@@ -24,7 +24,7 @@ OBSERVATION_MODES = ("self", "all")
 KUREMOTO_STARTS: tuple[tuple[int, int], ...] = ((2, 2), (14, 14))
 
 
-class HunterPursuitEnv(ParallelEnv):  # type: ignore[misc]
+class HunterPursuitEnv(ParallelEnv):
     """
     Several hunters (agents ``hunter_0``, ``hunter_1``, ...) pursue one prey on a square grid, all moving at once.
 
@@ -90,7 +90,7 @@ class HunterPursuitEnv(ParallelEnv):  # type: ignore[misc]
     :param render_mode: ``None`` or ``"ansi"``
     """
 
-    metadata = {"name": "hunter_pursuit_v0", "render_modes": ["ansi"], "is_parallelizable": True}
+    metadata: dict[str, Any] = {"name": "hunter_pursuit_v0", "render_modes": ["ansi"], "is_parallelizable": True}
 
     def __init__(
         self,
@@ -140,9 +140,9 @@ class HunterPursuitEnv(ParallelEnv):  # type: ignore[misc]
                 raise ValueError(f"{name}={value!r} is not supported; choose one of {', '.join(map(repr, allowed))}")
         if isinstance(prey_speed, bool) or not isinstance(prey_speed, (int, float)) or not 0.0 <= prey_speed <= 1.0:
             raise ValueError(f"prey_speed={prey_speed!r} must be a probability in [0, 1]")
-        for name, value in (("goal_reward", goal_reward), ("step_reward", step_reward)):
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value):
-                raise ValueError(f"{name}={value!r} must be a finite number")
+        for reward_name, reward in (("goal_reward", goal_reward), ("step_reward", step_reward)):
+            if isinstance(reward, bool) or not isinstance(reward, (int, float)) or not np.isfinite(reward):
+                raise ValueError(f"{reward_name}={reward!r} must be a finite number")
         if goal_reward <= 0:
             raise ValueError(f"goal_reward={goal_reward!r} must be > 0 (a capture must be worth it)")
         if max_cycles is not None and (isinstance(max_cycles, bool) or not isinstance(max_cycles, int) or max_cycles < 1):

@@ -27,6 +27,7 @@ a capturer made no more one-cell moves than the nearest hunter's shortest path).
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import math
@@ -79,6 +80,10 @@ class HunterView(gym.Env[Any, Any]):
 
     def step(self, action: Any) -> Any:
         raise RuntimeError(f"{self.agent}'s view is moved by its HunterTeam, not stepped directly (e.g. by learn())")
+
+
+def _same(value: Any) -> Any:
+    return value
 
 
 def member_seed(seed: int, index: int) -> int:
@@ -177,8 +182,9 @@ class HunterTeam:
             if over:
                 next_obs, _ = env.reset()
             for a in agents:
-                stepper = steppers[a]
-                episode_ended = stepper.end_decision(ended[a], over and not ended[a], reset=lambda a=a: next_obs[a])
+                first: Any = next_obs.get(a)
+                reset = functools.partial(_same, first)
+                episode_ended = steppers[a].end_decision(ended[a], over and not ended[a], reset=reset)
                 if episode_ended:
                     assert over, "a hunter's episode ends with the team's"
                     rows.append(self.models[a]._episode_rows[-1])

@@ -17,6 +17,7 @@ from sb3_affect.envs import HUNTER_PURSUIT_ID, make_parallel
 from sb3_affect.envs.hunter_pursuit import STAY, HunterPursuitEnv
 from sb3_affect.experiments import run_sweep
 from sb3_affect.experiments.schema import SweepError, load_sweep
+from sb3_affect.report import build_report
 from sb3_affect.stepping import DecisionStepper
 from sb3_affect.team import TEAM_COLUMNS, HunterTeam, HunterView
 
@@ -29,7 +30,14 @@ UP, DOWN, LEFT, RIGHT = 0, 1, 2, 3
     [
         {},
         {"size": 5, "starts": [(0, 0), (4, 4), (0, 4)], "prey_start": (2, 2), "prey": "random", "observation": "all"},
-        {"size": 6, "starts": [(0, 0), (5, 5)], "prey_start": (2, 2), "prey": "evade", "capture": "surround", "max_cycles": 40},
+        {
+            "size": 6,
+            "starts": [(0, 0), (5, 5)],
+            "prey_start": (2, 2),
+            "prey": "evade",
+            "capture": "surround",
+            "max_cycles": 40,
+        },
         {"maze": "rooms", "starts": [(1, 1), (1, 2)], "prey": "random"},
     ],
 )
@@ -51,7 +59,7 @@ def test_default_is_kuremotos_layout() -> None:
 def test_enter_capture_rewards_the_capturer_and_ends_for_everyone() -> None:
     env = HunterPursuitEnv(size=5, starts=[(2, 1), (0, 0)], prey_start=(2, 2))
     env.reset(seed=0)
-    obs, rewards, terms, truncs, infos = env.step({"hunter_0": RIGHT, "hunter_1": STAY})
+    _, rewards, terms, truncs, infos = env.step({"hunter_0": RIGHT, "hunter_1": STAY})
     assert rewards == {"hunter_0": 100.0, "hunter_1": 0.0}
     assert terms == {"hunter_0": True, "hunter_1": True} and not any(truncs.values())
     assert infos["hunter_0"]["capturer"] and not infos["hunter_1"]["capturer"] and infos["hunter_1"]["captured"]
@@ -194,13 +202,35 @@ def test_team_sweep_schema_errors(tmp_path: Path) -> None:
             load_sweep(_write(tmp_path, head + body))
 
 
-def test_two_hunter_sweep_runs_from_yaml_on_the_local_backend(tmp_path: Path) -> None:
-    overrides = ["episodes=8", "seeds=[0, 1]", "env.kwargs={size: 7, starts: [[0, 0], [6, 6]], prey_start: [3, 3]}"]
-    summary = run_sweep(EXPERIMENTS / "hunters.yaml", tmp_path, workers=2, overrides=overrides, progress=False)
+def test_two_hunter_sweep_runs_from_yaml_and_the_report_gets_both_sections(tmp_path: Path) -> None:
+    overrides = ["episodes=25", "seeds=[0, 1]", "env.kwargs={size: 7, starts: [[0, 0], [6, 6]], prey_start: [3, 3]}"]
+    summary = run_sweep(EXPERIMENTS / "hunters.yaml", tmp_path / "hunters", workers=2, overrides=overrides, progress=False)
     assert (summary.total, summary.finished, summary.failed) == (8, 8, 0)
-    record = json.loads(next((tmp_path / "runs").glob("mixed-affective-far-*.json")).read_text())
-    assert record["config"]["team"] == [{"algo": "AffectQ", "kwargs": {}}, {"algo": "QLearning", "kwargs": {"exploration_rate": 0.1}}]
+    record = json.loads(next((tmp_path / "hunters" / "runs").glob("mixed-affective-far-*.json")).read_text())
+    assert record["config"]["team"] == [
+        {"algo": "AffectQ", "kwargs": {}},
+        {"algo": "QLearning", "kwargs": {"exploration_rate": 0.1}},
+    ]
     columns = record["episodes"]
-    assert len(columns["decisions"]) == 8 and columns["hunter_0/decisions"] == columns["decisions"]
+    assert len(columns["decisions"]) == 25 and columns["hunter_0/decisions"] == columns["decisions"]
     assert {"capturer", "hunter_1/optimal", "hunter_0/broekens_joy", "hunter_1/broekens_fear"} <= set(columns)
     assert sum(columns["hunter_1/joy"]) == 0 < sum(columns["hunter_0/joy"])  # QLearning has no emotions of its own
+
+    # the report: a results folder holding hunters/ gets the two sections (tables, verdict lines, figures)
+    run_sweep(EXPERIMENTS / "smoke.yaml", tmp_path, workers=2, overrides=["episodes=3"], progress=False)
+    report = build_report(tmp_path).read_text()
+    assert "## Beyond the paper: two hunters" in report and "## Two emotion models on the same runs" in report
+    teams = pd.read_csv(tmp_path / "tables" / "hunters.csv")
+    assert list(teams.team) == ["affective", "epsilon-greedy", "mixed-affective-far", "mixed-affective-near"]
+    assert (teams.runs == 2).all() and teams["decisions per episode"].str.match(r"^[\d.,]+ \[[\d.,]+, [\d.,]+\]$").all()
+    verdicts = [
+        line
+        for line in report.splitlines()
+        if line.startswith(("- **Supported**: hunters-static", "- **Not supported**: hunters-static"))
+    ]
+    assert len(verdicts) == 9  # 3 teams x 3 metrics against the epsilon-greedy team, each with a verdict line
+    profiles = pd.read_csv(tmp_path / "tables" / "emotion_models.csv")
+    assert len(profiles) == 8 and (profiles[profiles.hunter.str.contains("QLearning")]["paper joy"] == "-").all()
+    for name in ("hunters_learning.png", "emotion_models.png"):
+        assert (tmp_path / "figures" / name).stat().st_size > 10_000
+        assert f"figures/{name}" in report

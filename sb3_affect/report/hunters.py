@@ -123,9 +123,8 @@ def claims(metrics: pd.DataFrame) -> list[tuple[str, bool, str]]:
                 a, b = ours[column].mean(), base[column].mean()
                 supported = low > 0.5
                 worse = high < 0.5
-                evidence = (
-                    f"{a:,.1f} vs {b:,.1f}; P({team} better) = {p:.2f} [{low:.2f}, {high:.2f}]"
-                    + ("" if supported else " (the epsilon-greedy team is better)" if worse else " (no clear difference)")
+                evidence = f"{a:,.1f} vs {b:,.1f}; P({team} better) = {p:.2f} [{low:.2f}, {high:.2f}]" + (
+                    "" if supported else " (the epsilon-greedy team is better)" if worse else " (no clear difference)"
                 )
                 out.append((f"{task}: the {team} team needs fewer {what} than the epsilon-greedy team", supported, evidence))
     return out
@@ -143,7 +142,9 @@ def learning_figure(runs: list[dict[str, Any]], path: Path) -> Path:
     for ax, task in zip(axes[0], tasks):
         teams = list(dict.fromkeys(r["config"]["agent"] for r in runs if r["config"]["sweep"] == task))
         for team in teams:
-            curves = np.array([r["episodes"]["decisions"] for r in runs if r["config"]["sweep"] == task and r["config"]["agent"] == team])
+            curves = np.array(
+                [r["episodes"]["decisions"] for r in runs if r["config"]["sweep"] == task and r["config"]["agent"] == team]
+            )
             blocks = curves[:, : curves.shape[1] // 10 * 10].reshape(len(curves), -1, 10).mean(axis=2)
             cis = np.array([bootstrap_ci(blocks[:, j]) for j in range(blocks.shape[1])])
             x = np.arange(blocks.shape[1]) * 10 + 5.5
