@@ -94,6 +94,8 @@ def build_report(
 
         doc.md(baselines_section(baseline_dirs))
     hunter_dirs = [run_dir / name for name in HUNTER_FOLDERS if (run_dir / name / "runs").is_dir()]
+    if "team" in episodes.columns or "capturer" in episodes.columns:  # a single folder of team runs
+        hunter_dirs.append(paper_dir)
     if hunter_dirs:
         from sb3_affect.report.emotion_models import emotion_models_section
         from sb3_affect.report.hunters import hunters_section
