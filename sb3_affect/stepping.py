@@ -7,7 +7,7 @@ its own transitions. The stepper exposes exactly the pieces of ``learn`` for tha
 ``_decide`` (epsilon-greedy, the emotion's behaviour, ...), the same Eq. 1 update, the transition hook (the
 appraisal's ``observe``), ``_begin_episode``/``_close_episode`` (schedules, emotions, the episode log, the logger)
 and the SB3 callbacks with the locals ``learn`` gives them. Driving a single env with it gives the same episode log,
-Q-table and random draws as ``learn`` (tests/test_team.py checks this)::
+Q-table and random draws as ``learn`` (tests/test_hunters.py checks this)::
 
     stepper = DecisionStepper(model, total_timesteps=10**6)          # starts a run, as learn() does
     action, cells, explored = stepper.decide()                     # one decision in the current state

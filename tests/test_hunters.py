@@ -13,6 +13,7 @@ from pettingzoo.test import parallel_api_test
 from stable_baselines3.common.callbacks import StopTrainingOnMaxEpisodes
 
 from sb3_affect import AffectQ, QLearning
+from sb3_affect.baselines import Boltzmann, UCBQLearning
 from sb3_affect.envs import HUNTER_PURSUIT_ID, make_parallel
 from sb3_affect.envs.hunter_pursuit import STAY, HunterPursuitEnv
 from sb3_affect.experiments import run_sweep
@@ -113,7 +114,10 @@ def test_bad_arguments_name_the_field(kwargs: dict, message: str) -> None:
         make_parallel("sb3_affect/Nope-v0")
 
 
-@pytest.mark.parametrize(("cls", "kwargs"), [(QLearning, {"exploration_rate": 0.3}), (AffectQ, {})])
+@pytest.mark.parametrize(
+    ("cls", "kwargs"),
+    [(QLearning, {"exploration_rate": 0.3}), (AffectQ, {}), (Boltzmann, {"temperature": 3.0}), (UCBQLearning, {})],
+)
 def test_decision_stepper_is_learn_one_decision_at_a_time(cls: type, kwargs: dict) -> None:
     """Driving one env through the stepper gives learn()'s episode log and Q-table: the same code, the same draws."""
 
@@ -169,6 +173,18 @@ def test_a_mixed_team_learns_and_every_hunter_keeps_its_own_log() -> None:
     pd.testing.assert_frame_equal(run().episode_log, log)  # same seed, same numbers
     with pytest.raises(RuntimeError, match="moved by its HunterTeam"):
         team.models["hunter_0"].learn(10)
+
+
+def test_teams_of_baselines_and_surrounding_hunters() -> None:
+    env = make_parallel(HUNTER_PURSUIT_ID, size=6, starts=[(0, 0), (5, 5)], prey_start=(2, 2), capture="surround")
+    team = HunterTeam(
+        env, [("sb3_affect.baselines:UCBQLearning", {}), ("sb3_affect.baselines:SpeedEpsilonGreedy", {})], seed=0
+    )
+    log = team.learn(15).episode_log
+    assert len(log) == 15 and (log.capturer == 0).all()  # surround: every hunter is rewarded, the first is named
+    own = team.hunter_logs()
+    assert env.capture_distance == 5 and (log.optimal == (np.maximum(own["hunter_0"].cells, own["hunter_1"].cells) <= 5)).all()
+    assert (~log.truncated).all() and (log.reward == 200.0).all()  # both rewarded for every capture
 
 
 def test_team_errors_name_the_problem() -> None:
