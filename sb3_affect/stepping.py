@@ -166,7 +166,7 @@ class DecisionStepper:
             info = {**info, "terminal_observation": s2 + self._obs_start}
             if not terminated:
                 info["TimeLimit.truncated"] = True
-        decision_reward = self._decision_reward
+        decision_reward, action = self._decision_reward, self._action  # before a reset starts the next episode
         if done:
             m.num_timesteps = self.t
             m._close_episode(
@@ -191,7 +191,7 @@ class DecisionStepper:
             cb["rewards"] = np.array([decision_reward], dtype=np.float32)
             cb["dones"] = _DONE if done else _NOT_DONE
             cb["infos"] = [info]
-            cb["actions"] = np.array([self._action + self._act_start])
+            cb["actions"] = np.array([action + self._act_start])
             self.callback.update_locals(cb)
             if not self.callback.on_step():
                 self.continue_training = False

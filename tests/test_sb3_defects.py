@@ -215,3 +215,39 @@ def test_an_episode_ending_at_the_goal_is_not_reported_as_truncated_to_callbacks
     truncated = [bool(info.get("TimeLimit.truncated", False)) for info in ends]
     assert truncated == model.episode_log["truncated"].tolist()
     assert not all(truncated) and any(truncated)
+
+
+def test_the_decision_stepper_gives_callbacks_what_learn_gives_them() -> None:
+    """``sb3_affect.stepping.DecisionStepper`` mirrors ``learn``: the same callback locals, waits and terminal infos."""
+    from stable_baselines3.common.monitor import Monitor
+
+    from sb3_affect.stepping import DecisionStepper
+
+    def make() -> gym.Env:
+        return gym.make(GRID, size=7, goal=(3, 3))
+
+    kwargs = {"speeds": (0, 1, 2), "seed": 5, "max_episode_decisions": 60}
+    learnt = Recorder()
+    SpeedEpsilonGreedy("Grid", make(), **kwargs).learn(10**7, callback=[learnt, StopTrainingOnMaxEpisodes(15)])
+    env = Monitor(make())
+    stepped = Recorder()
+    model = SpeedEpsilonGreedy("Grid", env, **kwargs)
+    stepper = DecisionStepper(model, 10**7, callback=stepped)
+    episodes = 0
+    while episodes < 15:
+        action, cells, _ = stepper.decide()
+        terminated = truncated = False
+        for _ in range(cells):
+            obs, reward, terminated, truncated, info = env.step(action)
+            stepper.transition(obs, reward, terminated, truncated, info)
+            if terminated or truncated:
+                break
+        episodes += stepper.end_decision(terminated, truncated, reset=lambda: env.reset()[0])
+    stepper.close()
+    assert len(stepped.steps) == len(learnt.steps)
+    for a, b in zip(stepped.steps, learnt.steps):
+        for key in ("new_obs", "rewards", "dones", "actions"):
+            assert isinstance(a[key], np.ndarray) and np.array_equal(a[key], b[key]), key
+        info_a, info_b = a["infos"][0], b["infos"][0]
+        assert info_a.keys() == info_b.keys()
+        assert {k: v for k, v in info_a.items() if k != "episode"} == {k: v for k, v in info_b.items() if k != "episode"}
