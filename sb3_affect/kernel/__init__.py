@@ -1,0 +1,16 @@
+"""
+The compiled engine: numba kernels of the tabular agents' learning loop (issue 11).
+
+``sb3_affect/tabular.py`` (``TabularQAlgorithm._run_loop``) is the readable reference; the kernel runs the same
+decisions with the same random draws and the same floating-point operations, so for a given seed both engines give
+the identical episode log, Q-table, random-generator state and appraisal. Modules:
+
+- ``mt19937``: CPython's ``random.Random`` (MT19937) in numba, the stream both engines draw from;
+- ``affect``: the appraisal (known map, power fit) and Table II;
+- ``loop``: the decision loop (every agent kind, the env's moves, Eq. 1, the episode rows);
+- ``agents``: what the kernel needs to know about each agent class;
+- ``state``: a model's state as arrays and back; ``bridge``: ``learn`` on the kernel; ``batch``: ``simulate``.
+
+Compiled code is cached on disk (numba ``cache=True``, in ``__pycache__`` beside these files or numba's cache
+folder), so only the first import on a machine pays the compilation.
+"""
