@@ -22,22 +22,37 @@ INF = math.inf
 
 
 @njit(cache=True)
-def propagate(dist: np.ndarray, pred: np.ndarray, pred_n: np.ndarray, start: int) -> None:
-    """A decrease of ``dist[start]`` reaches every cell that can walk into it (``KnownMap._propagate``)."""
-    stack = [start]
-    while len(stack) > 0:
-        v = stack.pop()
+def propagate(dist: np.ndarray, pred: np.ndarray, pred_n: np.ndarray, start: int, queue: np.ndarray) -> None:
+    """
+    A decrease of ``dist[start]`` reaches every cell that can walk into it (``KnownMap._propagate``). The Python
+    reference uses a stack, this a FIFO queue: both reach the same fixed point (the shortest known distances), and in
+    first-in first-out order each cell decreases at most once, so ``queue`` needs ``n_states + 1`` entries.
+    """
+    queue[0] = start
+    head, tail = 0, 1
+    while head < tail:
+        v = queue[head]
+        head += 1
         dv = dist[v] + 1.0
         for k in range(pred_n[v]):
             u = pred[v, k]
             if dv < dist[u]:
                 dist[u] = dv
-                stack.append(u)
+                queue[tail] = u
+                tail += 1
 
 
 @njit(cache=True)
 def known_add(
-    dist: np.ndarray, edge: np.ndarray, pred: np.ndarray, pred_n: np.ndarray, trans: np.ndarray, s: int, a: int, s2: int
+    dist: np.ndarray,
+    edge: np.ndarray,
+    pred: np.ndarray,
+    pred_n: np.ndarray,
+    trans: np.ndarray,
+    s: int,
+    a: int,
+    s2: int,
+    queue: np.ndarray,
 ) -> None:
     """Record the experienced transition ``s -> s2`` (taken with action ``a``, ``s != s2``): ``KnownMap.add``."""
     if edge[s, a]:
@@ -49,16 +64,16 @@ def known_add(
     pred_n[s2] += 1
     if dist[s2] + 1 < dist[s]:
         dist[s] = dist[s2] + 1
-        propagate(dist, pred, pred_n, s)
+        propagate(dist, pred, pred_n, s, queue)
 
 
 @njit(cache=True)
-def known_add_goal(dist: np.ndarray, goal: np.ndarray, pred: np.ndarray, pred_n: np.ndarray, g: int) -> None:
+def known_add_goal(dist: np.ndarray, goal: np.ndarray, pred: np.ndarray, pred_n: np.ndarray, g: int, queue: np.ndarray) -> None:
     """Record that entering ``g`` ended an episode at the goal: ``KnownMap.add_goal``."""
     if dist[g] > 0:
         goal[g] = True
         dist[g] = 0.0
-        propagate(dist, pred, pred_n, g)
+        propagate(dist, pred, pred_n, g, queue)
 
 
 @njit(cache=True)
@@ -89,7 +104,7 @@ def fit_predict(fit_vals: np.ndarray, fsum: np.ndarray, n: int, t: int) -> float
     return value if math.isfinite(value) else 1e300
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def table_ii(norm: float, exp1: float, act: float, valence: bool) -> int:
     """Table II, first match wins (``sb3_affect.emotions.table_ii``)."""
     if valence:

@@ -10,6 +10,7 @@ learning can go on with either engine.
 
 from __future__ import annotations
 
+import gc
 import math
 import time
 from typing import Any
@@ -139,10 +140,9 @@ def learn_compiled(model: Any, env: Any, total_timesteps: int, callback: BaseCal
             before = model.num_timesteps
             finished, _ = run.step(alpha, p, limit_t, max_episodes)
             model.num_timesteps = run.timesteps
-            for j in range(finished):
-                _close_episode(model, run, j)
             if finished:
-                _record(model, run, finished - 1, log_interval)
+                _close_episodes(model, run, finished)
+                _record(model, run, log_interval)
                 model._update_current_progress_remaining(model.num_timesteps, total_timesteps)
                 model._update_schedules()
             for bar in bars:
@@ -158,35 +158,41 @@ def learn_compiled(model: Any, env: Any, total_timesteps: int, callback: BaseCal
         run.write_back()
 
 
-def _close_episode(model: Any, run: KernelRun, j: int) -> None:
-    """``TabularQAlgorithm._close_episode`` for the kernel's ``j``-th finished episode (the logger aside)."""
-    ints, floats = run.out_i[j], run.out_f[j]
-    decisions, cells = int(ints[loop.O_DECISIONS]), int(ints[loop.O_CELLS])
-    reward, truncated = float(floats[0]), bool(ints[loop.O_TRUNCATED])
-    norm = float(floats[1])
-    model._episode_rows.append(
-        [
-            len(model._episode_rows) + 1,
-            decisions,
-            cells,
-            reward,
-            bool(ints[loop.O_OPTIMAL]),
-            truncated,
-            int(ints[loop.O_RANDOM]),
-            int(ints[loop.O_WAITS]),
-            *(int(v) for v in ints[loop.O_JOY : loop.O_ANGER + 1]),
-            bool(ints[loop.O_GREEDY]),
-            math.nan if norm != norm else norm,
-        ]
-    )
-    if truncated:
-        model._truncated_episodes += 1
-    model._episode_num += 1
-    model.ep_info_buffer.append({"r": reward, "l": decisions, "c": cells, "t": round(time.time() - model.start_time / 1e9, 6)})
-    run.monitor_episode(cells, truncated)
+def _close_episodes(model: Any, run: KernelRun, finished: int) -> None:
+    """``TabularQAlgorithm._close_episode`` for the kernel's ``finished`` episodes (the logger aside), in bulk."""
+    ints, floats = run.out_i[:finished], run.out_f[:finished]
+    rows = np.empty((finished, 14), dtype=object)  # numpy turns each value into the Python int, float or bool
+    first = len(model._episode_rows) + 1
+    rows[:, 0] = np.arange(first, first + finished)
+    rows[:, 1] = ints[:, loop.O_DECISIONS]
+    rows[:, 2] = ints[:, loop.O_CELLS]
+    rows[:, 3] = floats[:, 0]
+    rows[:, 4] = ints[:, loop.O_OPTIMAL].astype(bool)
+    truncated = ints[:, loop.O_TRUNCATED].astype(bool)
+    rows[:, 5] = truncated
+    rows[:, 6] = ints[:, loop.O_RANDOM]
+    rows[:, 7] = ints[:, loop.O_WAITS]
+    rows[:, 8:12] = ints[:, loop.O_JOY : loop.O_ANGER + 1]
+    rows[:, 12] = ints[:, loop.O_GREEDY].astype(bool)
+    rows[:, 13] = floats[:, 1]
+    enabled = gc.isenabled()
+    gc.disable()  # thousands of new row lists at once: no collection passes in between (they hold no cycles)
+    try:
+        model._episode_rows.extend(rows.tolist())
+    finally:
+        if enabled:
+            gc.enable()
+    model._truncated_episodes += int(truncated.sum())
+    model._episode_num += finished
+    buffer = model.ep_info_buffer
+    keep = finished if buffer.maxlen is None else min(finished, buffer.maxlen)
+    stamp = round(time.time() - model.start_time / 1e9, 6)
+    for j in range(finished - keep, finished):
+        buffer.append({"r": float(floats[j, 0]), "l": int(ints[j, loop.O_DECISIONS]), "c": int(ints[j, loop.O_CELLS]), "t": stamp})
+    run.monitor_episodes(ints[:, loop.O_CELLS], truncated)
 
 
-def _record(model: Any, run: KernelRun, j: int, log_interval: int | None) -> None:
+def _record(model: Any, run: KernelRun, log_interval: int | None) -> None:
     """The logger keys of an episode end (only the last episode before a dump matters: records overwrite)."""
     logger = model.logger
     if not logger.output_formats:

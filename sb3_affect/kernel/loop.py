@@ -76,25 +76,32 @@ N_OUT_I = 11
 STOP_TIMESTEPS, STOP_EPISODES = 0, 1
 
 
-@njit(cache=True)
-def greedy(row: np.ndarray, mt: np.ndarray, tie_first: bool) -> int:
-    """``policies.greedy_action``: arg-max, ties uniformly at random (one ``choice`` draw) or the first one."""
-    best = row[0]
-    for a in range(1, row.shape[0]):
-        if row[a] > best:
-            best = row[a]
+@njit(cache=True, inline="always")
+def row_max(q: np.ndarray, s: int) -> float:
+    """``max(q[s])``."""
+    best = q[s, 0]
+    for a in range(1, q.shape[1]):
+        if q[s, a] > best:
+            best = q[s, a]
+    return best
+
+
+@njit(cache=True, inline="always")
+def greedy(q: np.ndarray, s: int, mt: np.ndarray, tie_first: bool) -> int:
+    """``policies.greedy_action`` on ``q[s]``: arg-max, ties uniformly at random (one ``choice`` draw) or the first."""
+    best = row_max(q, s)
     count = 0
     first = -1
-    for a in range(row.shape[0]):
-        if row[a] == best:
+    for a in range(q.shape[1]):
+        if q[s, a] == best:
             count += 1
             if first < 0:
                 first = a
     if count == 1 or tie_first:
         return first
     pick = randbelow(mt, count)
-    for a in range(row.shape[0]):
-        if row[a] == best:
+    for a in range(q.shape[1]):
+        if q[s, a] == best:
             if pick == 0:
                 return a
             pick -= 1
@@ -102,43 +109,41 @@ def greedy(row: np.ndarray, mt: np.ndarray, tie_first: bool) -> int:
 
 
 @njit(cache=True)
-def row_max(row: np.ndarray) -> float:
-    best = row[0]
-    for a in range(1, row.shape[0]):
-        if row[a] > best:
-            best = row[a]
-    return best
-
-
-@njit(cache=True)
-def greedy_walks_shortest_path(q: np.ndarray, trans: np.ndarray, tdist: np.ndarray, start: int) -> bool:
-    """``episode_log.greedy_walks_shortest_path`` (its answer does not depend on the visiting order)."""
-    seen = np.zeros(q.shape[0], dtype=np.bool_)
-    stack = [start]
-    while len(stack) > 0:
-        s = stack.pop()
+def greedy_walks_shortest_path(
+    q: np.ndarray, trans: np.ndarray, tdist: np.ndarray, start: int, seen: np.ndarray, stack: np.ndarray
+) -> bool:
+    """
+    ``episode_log.greedy_walks_shortest_path`` (its answer does not depend on the visiting order). ``seen`` (one
+    flag per cell) and ``stack`` (``n_states * n_actions + 1`` entries) are work space.
+    """
+    seen[:] = False
+    stack[0] = start
+    top = 1
+    while top > 0:
+        top -= 1
+        s = stack[top]
         d = tdist[s]
         if d == 0 or seen[s]:
             continue
         seen[s] = True
-        best = row_max(q[s])
+        best = row_max(q, s)
         for a in range(q.shape[1]):
             if q[s, a] == best:
                 t = trans[s, a]
                 if tdist[t] != d - 1:
                     return False
-                stack.append(t)
+                stack[top] = t
+                top += 1
     return True
 
 
 @njit(cache=True)
-def softmax_action(row: np.ndarray, inv_temperature: float, u: float, compensated: bool) -> int:
-    """``baselines.boltzmann.softmax_action``; ``compensated``: ``sum`` is Neumaier's (Python >= 3.12)."""
-    best = row_max(row)
-    n = row.shape[0]
-    weights = np.empty(n)
+def softmax_action(q: np.ndarray, s: int, inv_temperature: float, u: float, compensated: bool, weights: np.ndarray) -> int:
+    """``baselines.boltzmann.softmax_action`` on ``q[s]``; ``compensated``: ``sum`` is Neumaier's (Python >= 3.12)."""
+    best = row_max(q, s)
+    n = q.shape[1]
     for a in range(n):
-        weights[a] = math.exp((row[a] - best) * inv_temperature)
+        weights[a] = math.exp((q[s, a] - best) * inv_temperature)
     total = weights[0]
     c = 0.0
     for a in range(1, n):
@@ -167,25 +172,27 @@ def softmax_action(row: np.ndarray, inv_temperature: float, u: float, compensate
 
 
 @njit(cache=True)
-def ucb_action(row: np.ndarray, counts: np.ndarray, total: int, coef: float, mt: np.ndarray) -> int:
-    """``UCBQLearning._decide``'s choice (the caller updates the counts)."""
-    n = row.shape[0]
+def ucb_action(q: np.ndarray, s: int, counts: np.ndarray, total: int, coef: float, mt: np.ndarray, scores: np.ndarray) -> int:
+    """``UCBQLearning._decide``'s choice in ``s`` (the caller updates the counts)."""
+    n = q.shape[1]
     untried = 0
     for a in range(n):
-        if counts[a] == 0:
+        if counts[s, a] == 0:
             untried += 1
     if untried > 0:
         pick = 0 if untried == 1 else randbelow(mt, untried)
         for a in range(n):
-            if counts[a] == 0:
+            if counts[s, a] == 0:
                 if pick == 0:
                     return a
                 pick -= 1
     c = coef * math.sqrt(math.log(float(total)))
-    scores = np.empty(n)
     for a in range(n):
-        scores[a] = row[a] + c / math.sqrt(float(counts[a]))
-    best = row_max(scores)
+        scores[a] = q[s, a] + c / math.sqrt(float(counts[s, a]))
+    best = scores[0]
+    for a in range(1, n):
+        if scores[a] > best:
+            best = scores[a]
     ties = 0
     for a in range(n):
         if scores[a] == best:
@@ -227,6 +234,10 @@ def run(
     norm_scale = fcfg[F_NORM_SCALE]
     n_actions = q.shape[1]
     fsum = fst[S_FIT0 : S_FIT0 + 4]
+    work = np.empty(n_actions)
+    seen = np.zeros(q.shape[0], dtype=np.bool_)
+    stack = np.empty(q.shape[0] * n_actions + 1, dtype=np.int64)
+    queue = np.empty(q.shape[0] + 1, dtype=np.int64)
 
     t = ist[I_T]
     s = ist[I_STATE]
@@ -268,7 +279,7 @@ def run(
                 action = randbelow(mt, n_actions)
                 explored = True
             else:
-                action = greedy(q[s], mt, tie_first)
+                action = greedy(q, s, mt, tie_first)
         elif kind == EPSILON:
             ns = beh_n[0]
             k = beh_speeds[0, 0] if ns == 1 else beh_speeds[0, randbelow(mt, ns)]
@@ -276,17 +287,17 @@ def run(
                 action = randbelow(mt, n_actions)
                 explored = True
             else:
-                action = greedy(q[s], mt, tie_first)
+                action = greedy(q, s, mt, tie_first)
         elif kind == BOLTZMANN:
             k = 1
-            action = softmax_action(q[s], p, random01(mt), icfg[C_COMPENSATED_SUM] != 0)
-            explored = q[s, action] != row_max(q[s])
+            action = softmax_action(q, s, p, random01(mt), icfg[C_COMPENSATED_SUM] != 0, work)
+            explored = q[s, action] != row_max(q, s)
         else:
             k = 1
-            action = ucb_action(q[s], ucb_n[s], ucb_tot[s], fcfg[F_UCB_COEF], mt)
+            action = ucb_action(q, s, ucb_n, ucb_tot[s], fcfg[F_UCB_COEF], mt, work)
             ucb_n[s, action] += 1
             ucb_tot[s] += 1
-            explored = q[s, action] != row_max(q[s])
+            explored = q[s, action] != row_max(q, s)
         # 2. move k cells, one Eq. 1 update per cell (or one for the whole move)
         start_cell = s
         jump_reward = 0.0
@@ -300,16 +311,16 @@ def run(
                 jump_reward += reward
             else:
                 old = q[s, action]
-                new = old + alpha * ((reward if terminated else reward + gamma * row_max(q[s2])) - old)
+                new = old + alpha * ((reward if terminated else reward + gamma * row_max(q, s2)) - old)
                 if new != old:
                     q[s, action] = new
                     changed = True
             if kind == AFFECT:
                 ist[I_EL_CELLS] += 1
                 if terminated:
-                    known_add_goal(dist, goal, pred, pred_n, s2)
-                if s != s2:
-                    known_add(dist, edge, pred, pred_n, trans, s, action, s2)
+                    known_add_goal(dist, goal, pred, pred_n, s2, queue)
+                if s != s2 and not edge[s, action]:  # (known_add's own first check, without the call)
+                    known_add(dist, edge, pred, pred_n, trans, s, action, s2, queue)
             cells += 1
             reward_sum += reward
             prev = s
@@ -318,7 +329,7 @@ def run(
                 break
         if jump and k > 0:
             old = q[start_cell, action]
-            new = old + alpha * ((jump_reward if terminated else jump_reward + gamma * row_max(q[s])) - old)
+            new = old + alpha * ((jump_reward if terminated else jump_reward + gamma * row_max(q, s)) - old)
             if new != old:
                 q[start_cell, action] = new
                 changed = True
@@ -340,7 +351,7 @@ def run(
             for e in range(4):
                 row[O_JOY + e] = ist[I_JOY + e]
             if changed or ist[I_GREEDY] < 0:
-                ist[I_GREEDY] = 1 if greedy_walks_shortest_path(q, trans, tdist, icfg[C_START]) else 0
+                ist[I_GREEDY] = 1 if greedy_walks_shortest_path(q, trans, tdist, icfg[C_START], seen, stack) else 0
             row[O_GREEDY] = ist[I_GREEDY]
             out_f[episode, 0] = reward_sum
             out_f[episode, 1] = fst[S_NORM] if kind == AFFECT else math.nan

@@ -45,7 +45,7 @@ def _twist(mt: np.ndarray) -> None:
     mt[N] = 0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def genrand(mt: np.ndarray) -> int:
     """One 32-bit output (``genrand_uint32``); ``mt`` is the 625-entry state (words, then the index)."""
     if mt[N] >= N:
@@ -59,7 +59,7 @@ def genrand(mt: np.ndarray) -> int:
     return y & MASK32
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def random01(mt: np.ndarray) -> float:
     """``random.Random.random()``: a float in [0, 1) with 53 random bits."""
     a = genrand(mt) >> 5
@@ -67,7 +67,7 @@ def random01(mt: np.ndarray) -> float:
     return (a * 67108864.0 + b) * (1.0 / 9007199254740992.0)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def randbelow(mt: np.ndarray, n: int) -> int:
     """``random.Random.randrange(n)`` (and ``choice`` of a sequence of length ``n``), for ``1 <= n < 2**32``."""
     k = 0

@@ -210,23 +210,34 @@ class KernelRun:
         self.monitor_cells += stepped + int(self.ist[loop.I_CELLS]) - (0 if finished else cells_before)
         return int(finished), int(stop)
 
-    def monitor_episode(self, cells: int, truncated: bool) -> None:
-        """The Monitor's bookkeeping of an episode end the env reported (goal reached or the env's time limit)."""
+    def monitor_episodes(self, cells: np.ndarray, truncated: np.ndarray) -> None:
+        """The Monitor's bookkeeping of the episode ends the env reported (goal reached or the env's time limit)."""
         self.last_monitor_info = None
         monitor = self.monitor
+        if monitor is None:
+            return
         limit = int(self.icfg[loop.C_TIME_LIMIT])
-        if monitor is None or (truncated and not (limit > 0 and cells >= limit)):
-            return  # no Monitor, or the safety cap: the env saw no episode end
-        rewards = [self.geo.step_reward] * (cells - 1) + [self.geo.step_reward if truncated else self.geo.goal_reward]
-        ep_rew, now = sum(rewards), time.time()
-        info = {"r": round(ep_rew, 6), "l": cells, "t": round(now - monitor.t_start, 6)}
-        monitor.episode_returns.append(ep_rew)
-        monitor.episode_lengths.append(cells)
-        monitor.episode_times.append(now - monitor.t_start)
-        info.update(monitor.current_reset_info)
-        if monitor.results_writer:
-            monitor.results_writer.write_row(info)
-        self.last_monitor_info = info
+        seen = ~truncated | ((cells >= limit) if limit > 0 else False)  # the safety cap: the env saw no episode end
+        lengths = cells[seen].tolist()
+        cut = truncated[seen].tolist()
+        if not lengths:
+            return
+        step, goal = self.geo.step_reward, self.geo.goal_reward
+        sums: dict[tuple[int, bool], float] = {}
+        returns = []
+        for n, c in zip(lengths, cut):
+            ep_rew = sums.get((n, c))
+            if ep_rew is None:
+                ep_rew = sums[n, c] = sum([step] * (n - 1) + [step if c else goal])
+            returns.append(ep_rew)
+        elapsed = time.time() - monitor.t_start
+        monitor.episode_returns.extend(returns)
+        monitor.episode_lengths.extend(lengths)
+        monitor.episode_times.extend([elapsed] * len(lengths))
+        for ep_rew, n in zip(returns, lengths) if monitor.results_writer else ():
+            monitor.results_writer.write_row({"r": round(ep_rew, 6), "l": n, "t": round(elapsed, 6), **monitor.current_reset_info})
+        last = {"r": round(returns[-1], 6), "l": lengths[-1], "t": round(elapsed, 6), **monitor.current_reset_info}
+        self.last_monitor_info = last if bool(seen[-1]) else None
 
     def write_back(self) -> None:
         """Return every piece of state to the model, its generator, its appraisal, the env and its wrappers."""
