@@ -38,7 +38,14 @@ READINGS = [
 # (id, agent class, agent kwargs, env id, env kwargs, episodes)
 CASES: list[tuple[str, type, dict[str, Any], str, dict[str, Any], int]] = [
     ("qlearning-paper-grid", QLearning, {}, GRID, {}, 8),
-    ("qlearning-eps0.6-alpha0.5-qinit1", QLearning, {"exploration_rate": 0.6, "learning_rate": 0.5, "q_init": 1.0}, GRID, SMALL, 12),
+    (
+        "qlearning-eps0.6-alpha0.5-qinit1",
+        QLearning,
+        {"exploration_rate": 0.6, "learning_rate": 0.5, "q_init": 1.0},
+        GRID,
+        SMALL,
+        12,
+    ),
     ("qlearning-progress-schedule", QLearning, {"exploration_rate": LinearSchedule(1.0, 0.1, 0.5)}, GRID, SMALL, 12),
     ("qlearning-tie-first-cap", QLearning, {"tie_break": "first", "max_episode_decisions": 40}, GRID, SMALL, 12),
     ("affectq-paper-grid", AffectQ, {}, GRID, {}, 8),
@@ -46,15 +53,36 @@ CASES: list[tuple[str, type, dict[str, Any], str, dict[str, Any], int]] = [
     ("affectq-optimistic", AffectQ, {"personality": "optimistic"}, GRID, SMALL, 12),
     ("affectq-pessimistic-valence", AffectQ, {"personality": "pessimistic", "comparison": "valence"}, GRID, SMALL, 12),
     ("affectq-behaviour-table", AffectQ, {"behaviour_table": TABLE}, GRID, SMALL, 12),
-    ("affectq-jump-tie-first", AffectQ, {"multi_cell": "jump", "tie_break": "first", "max_episode_decisions": 60}, GRID, SMALL, 12),
+    (
+        "affectq-jump-tie-first",
+        AffectQ,
+        {"multi_cell": "jump", "tie_break": "first", "max_episode_decisions": 60},
+        GRID,
+        SMALL,
+        12,
+    ),
     ("affectq-time-limit", AffectQ, {}, GRID, {**SMALL, "max_episode_steps": 20}, 12),
     ("affectq-obstacles", AffectQ, {}, GRID, {**SMALL, "obstacles": [(1, 1), (2, 1), (3, 3), (0, 4)]}, 12),
     ("affectq-maze-rooms", AffectQ, {"max_episode_decisions": 200}, MAZE, {"maze": "rooms"}, 6),
     ("qlearning-maze-zigzag", QLearning, {"max_episode_decisions": 200}, MAZE, {"maze": "zigzag"}, 6),
     ("decaying-linear", DecayingEpsilonGreedy, {"exploration_decay_episodes": 10}, GRID, SMALL, 12),
-    ("decaying-exponential", DecayingEpsilonGreedy, {"exploration_decay_episodes": 5, "decay": "exponential"}, GRID, SMALL, 12),
+    (
+        "decaying-exponential",
+        DecayingEpsilonGreedy,
+        {"exploration_decay_episodes": 5, "decay": "exponential"},
+        GRID,
+        SMALL,
+        12,
+    ),
     ("boltzmann", Boltzmann, {"temperature": 2.0}, GRID, SMALL, 12),
-    ("boltzmann-decay", Boltzmann, {"temperature": 5.0, "temperature_final": 0.5, "temperature_decay_episodes": 8}, GRID, SMALL, 12),
+    (
+        "boltzmann-decay",
+        Boltzmann,
+        {"temperature": 5.0, "temperature_final": 0.5, "temperature_decay_episodes": 8},
+        GRID,
+        SMALL,
+        12,
+    ),
     ("ucb", UCBQLearning, {"exploration_coef": 3.0}, GRID, SMALL, 12),
     ("optimistic", OptimisticQLearning, {}, GRID, SMALL, 12),
     ("speed", SpeedEpsilonGreedy, {"speeds": (0, 1, 2)}, GRID, SMALL, 12),
@@ -62,7 +90,9 @@ CASES: list[tuple[str, type, dict[str, Any], str, dict[str, Any], int]] = [
 ]
 
 
-def trained(cls: type, kwargs: dict[str, Any], env_id: str, env_kwargs: dict[str, Any], seed: int, episodes: int, engine: str) -> Any:
+def trained(
+    cls: type, kwargs: dict[str, Any], env_id: str, env_kwargs: dict[str, Any], seed: int, episodes: int, engine: str
+) -> Any:
     model = cls("Grid", gym.make(env_id, **env_kwargs), seed=seed, engine=engine, **kwargs)
     model.learn(episodes * model.max_episode_decisions, callback=StopTrainingOnMaxEpisodes(episodes))  # as simulate does
     return model

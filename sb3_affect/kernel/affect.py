@@ -68,7 +68,9 @@ def known_add(
 
 
 @njit(cache=True)
-def known_add_goal(dist: np.ndarray, goal: np.ndarray, pred: np.ndarray, pred_n: np.ndarray, g: int, queue: np.ndarray) -> None:
+def known_add_goal(
+    dist: np.ndarray, goal: np.ndarray, pred: np.ndarray, pred_n: np.ndarray, g: int, queue: np.ndarray
+) -> None:
     """Record that entering ``g`` ended an episode at the goal: ``KnownMap.add_goal``."""
     if dist[g] > 0:
         goal[g] = True

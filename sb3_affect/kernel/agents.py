@@ -85,7 +85,7 @@ def agent_spec(model: Any) -> AgentSpec | str:
     if comparison is None:
         return "the emotion callback has a custom emotion_rule, which the kernel can not call"
     appraiser = callback.appraiser
-    if type(appraiser) not in (Appraiser, PersonalityAppraiser):
+    if appraiser is None or type(appraiser) not in (Appraiser, PersonalityAppraiser):
         return f"the appraiser is a {type(appraiser).__name__}, which the kernel can not call"
     from sb3_affect.emotions import Emotion
 

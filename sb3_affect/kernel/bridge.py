@@ -11,7 +11,6 @@ learning can go on with either engine.
 from __future__ import annotations
 
 import gc
-import math
 import time
 from typing import Any
 
@@ -148,9 +147,12 @@ def learn_compiled(model: Any, env: Any, total_timesteps: int, callback: BaseCal
             for bar in bars:
                 bar.pbar.update(model.num_timesteps - before)
             if episodic and (finished or limit_t == before + 1):
-                if not _call_back(model, run, callback, episodic, finished, model.num_timesteps - calls_before, total_timesteps):
-                    break
+                go_on = _call_back(
+                    model, run, callback, episodic, finished, model.num_timesteps - calls_before, total_timesteps
+                )
                 calls_before = model.num_timesteps
+                if not go_on:
+                    break
     finally:
         for leaf in leaves:
             if not isinstance(leaf, ProgressBarCallback):
@@ -188,7 +190,9 @@ def _close_episodes(model: Any, run: KernelRun, finished: int) -> None:
     keep = finished if buffer.maxlen is None else min(finished, buffer.maxlen)
     stamp = round(time.time() - model.start_time / 1e9, 6)
     for j in range(finished - keep, finished):
-        buffer.append({"r": float(floats[j, 0]), "l": int(ints[j, loop.O_DECISIONS]), "c": int(ints[j, loop.O_CELLS]), "t": stamp})
+        buffer.append(
+            {"r": float(floats[j, 0]), "l": int(ints[j, loop.O_DECISIONS]), "c": int(ints[j, loop.O_CELLS]), "t": stamp}
+        )
     run.monitor_episodes(ints[:, loop.O_CELLS], truncated)
 
 

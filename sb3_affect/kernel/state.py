@@ -234,8 +234,10 @@ class KernelRun:
         monitor.episode_returns.extend(returns)
         monitor.episode_lengths.extend(lengths)
         monitor.episode_times.extend([elapsed] * len(lengths))
-        for ep_rew, n in zip(returns, lengths) if monitor.results_writer else ():
-            monitor.results_writer.write_row({"r": round(ep_rew, 6), "l": n, "t": round(elapsed, 6), **monitor.current_reset_info})
+        writer = monitor.results_writer
+        if writer is not None:
+            for ep_rew, n in zip(returns, lengths):
+                writer.write_row({"r": round(ep_rew, 6), "l": n, "t": round(elapsed, 6), **monitor.current_reset_info})
         last = {"r": round(returns[-1], 6), "l": lengths[-1], "t": round(elapsed, 6), **monitor.current_reset_info}
         self.last_monitor_info = last if bool(seen[-1]) else None
 
@@ -263,7 +265,7 @@ class KernelRun:
         model._last_obs = np.array([s + self.obs_start])
         self.base.state = s
         if self.time_limit is not None:
-            self.time_limit._elapsed_steps = int(ist[loop.I_TL_ELAPSED])
+            self.time_limit._elapsed_steps = int(ist[loop.I_TL_ELAPSED])  # type: ignore[assignment]
         if self.monitor is not None:
             self.monitor.rewards = [self.geo.step_reward] * int(ist[loop.I_CELLS])
             self.monitor.needs_reset = False
