@@ -86,7 +86,7 @@ def simulate_batch(model: Any, seeds: Sequence[int], episodes: int) -> pd.DataFr
     assert isinstance(spec, AgentSpec)
     env = model._single_env()
     base, wrappers = unwrap(env)
-    geo = Geometry(base)
+    geo = Geometry.of(base)
     limits = [int(w._max_episode_steps) for w in wrappers if hasattr(w, "_max_episode_steps")]
     icfg, fcfg = config_arrays(model, spec, geo, limits[0] if limits else 0)
     schedule = episode_schedule(model, spec.kind, 0, episodes)

@@ -24,7 +24,18 @@ from sb3_affect.kernel.mt19937 import state_from_rng, state_to_rng
 class Geometry:
     """The env's dynamics as arrays: ``trans[s, a]``, true distances, start, goal, rewards, predecessor capacity."""
 
+    @classmethod
+    def of(cls, base: Any) -> Geometry:
+        """The geometry of ``base``, kept on the env (its moves and rewards are fixed once it is built)."""
+        cached = getattr(base, "_sb3_affect_kernel_geometry", None)
+        if cached is None or cached.source is not base.transitions or cached.rewards != (base.goal_reward, base.step_reward):
+            cached = cls(base)
+            base._sb3_affect_kernel_geometry = cached
+        return cached
+
     def __init__(self, base: Any) -> None:
+        self.source = base.transitions
+        self.rewards = (base.goal_reward, base.step_reward)
         self.trans = np.asarray(base.transitions, dtype=np.int64)
         self.tdist = np.asarray(base.distances, dtype=np.float64)
         self.start = int(base.start_state)
@@ -95,7 +106,7 @@ class KernelRun:
         self.base, wrappers = unwrap(env)
         self.monitor = next((w for w in wrappers if isinstance(w, Monitor)), None)
         self.time_limit = next((w for w in wrappers if isinstance(w, TimeLimit)), None)
-        self.geo = geo = Geometry(self.base)
+        self.geo = geo = Geometry.of(self.base)
         self.size = geo.size
         self.obs_start = int(model.observation_space.start)
         self.act_start = int(model.action_space.start)
