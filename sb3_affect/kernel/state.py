@@ -230,17 +230,13 @@ class KernelRun:
         limit = int(self.icfg[loop.C_TIME_LIMIT])
         seen = ~truncated | ((cells >= limit) if limit > 0 else False)  # the safety cap: the env saw no episode end
         lengths = cells[seen].tolist()
-        cut = truncated[seen].tolist()
         if not lengths:
             return
         step, goal = self.geo.step_reward, self.geo.goal_reward
-        sums: dict[tuple[int, bool], float] = {}
-        returns = []
-        for n, c in zip(lengths, cut):
-            ep_rew = sums.get((n, c))
-            if ep_rew is None:
-                ep_rew = sums[n, c] = sum([step] * (n - 1) + [step if c else goal])
-            returns.append(ep_rew)
+        # the Monitor sums each episode's rewards with Python's sum: once per distinct (length, truncated) pair
+        keys, inverse = np.unique(cells[seen] * 2 + truncated[seen], return_inverse=True)
+        sums = [sum([step] * (key // 2 - 1) + [step if key % 2 else goal]) for key in keys.tolist()]
+        returns = np.asarray(sums)[inverse.reshape(-1)].tolist()
         elapsed = time.time() - monitor.t_start
         monitor.episode_returns.extend(returns)
         monitor.episode_lengths.extend(lengths)
