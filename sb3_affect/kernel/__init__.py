@@ -14,3 +14,15 @@ the identical episode log, Q-table, random-generator state and appraisal. Module
 Compiled code is cached on disk (numba ``cache=True``, in ``__pycache__`` beside these files or numba's cache
 folder), so only the first import on a machine pays the compilation.
 """
+
+
+
+def warm_up() -> None:
+    """
+    Load every kernel now (compiling it, the first time on a machine), without building a model (no torch): for
+    example in a launcher before it forks workers, so that each worker does not import numba and load the kernels
+    again (seconds per process). Cheap once the cache is warm.
+    """
+    from sb3_affect.kernel.batch import warm_up as load
+
+    load()

@@ -134,3 +134,37 @@ def rows_frame(seed_column: np.ndarray, episodes: int, out_i: np.ndarray, out_f:
         }
     )
     return frame
+
+
+def warm_up() -> None:
+    """Call ``run_seeds`` and ``loop.run`` once on a 3 x 3 grid, with the argument types the engines use."""
+    from sb3_affect.envs.grid_pursuit import build_transitions, distances_to
+
+    table = build_transitions(3)
+    trans = np.asarray(table, dtype=np.int64)
+    tdist = np.asarray(distances_to(8, table), dtype=np.float64)
+    icfg = np.zeros(loop.N_ICFG, dtype=np.int64)
+    fields = [loop.C_KIND, loop.C_GOAL, loop.C_SHORTEST, loop.C_CAP, loop.C_ACT_EPISODE, loop.C_UNITS_CELLS]
+    icfg[fields] = (loop.AFFECT, 8, 4, 50, 1, 1)
+    fcfg = np.zeros(loop.N_FCFG)
+    fcfg[[loop.F_GAMMA, loop.F_GOAL_REWARD, loop.F_NORM_SCALE]] = (0.8, 100.0, 1.0)
+    beh_rand = np.array([1, 0, 0, 0], dtype=np.int64)
+    beh_speeds = np.ones((4, 2), dtype=np.int64)
+    beh_n = np.ones(4, dtype=np.int64)
+    alpha, p = np.ones(1), np.zeros(1)
+    out_i, out_f = np.zeros((1, loop.N_OUT_I), dtype=np.int64), np.zeros((1, 2))
+    keys, lengths = np.zeros((1, 1), dtype=np.int64), np.ones(1, dtype=np.int64)
+    run_seeds(keys, lengths, 0.0, 4, trans, tdist, icfg, fcfg, beh_rand, beh_speeds, beh_n, 2, alpha, p, 1, 50, out_i, out_f)
+    mt = np.zeros(STATE_SIZE, dtype=np.int64)
+    seed_state(mt, keys[0], 1)
+    ist = np.zeros(loop.N_IST, dtype=np.int64)
+    ist[loop.I_GREEDY] = -1
+    fst = np.zeros(loop.N_FST)
+    fst[loop.S_NORM] = np.nan
+    dist, edge = np.full(9, np.inf), np.zeros((9, 4), dtype=np.bool_)
+    pred, pred_n, goal = np.zeros((9, 2), dtype=np.int64), np.zeros(9, dtype=np.int64), np.zeros(9, dtype=np.bool_)
+    ucb_n, ucb_tot = np.zeros((9, 4), dtype=np.int64), np.zeros(9, dtype=np.int64)
+    loop.run(
+        np.zeros((9, 4)), trans, tdist, icfg, fcfg, beh_rand, beh_speeds, beh_n, ucb_n, ucb_tot, mt, ist, fst,
+        dist, edge, pred, pred_n, goal, np.zeros(4), alpha, p, 50, 1, out_i, out_f,
+    )  # fmt: skip
