@@ -37,7 +37,7 @@ READINGS = [
 
 # (id, agent class, agent kwargs, env id, env kwargs, episodes)
 CASES: list[tuple[str, type, dict[str, Any], str, dict[str, Any], int]] = [
-    ("qlearning-paper-grid", QLearning, {}, GRID, {}, 8),
+    ("qlearning-paper-grid", QLearning, {}, GRID, {}, 5),
     (
         "qlearning-eps0.6-alpha0.5-qinit1",
         QLearning,
@@ -46,13 +46,13 @@ CASES: list[tuple[str, type, dict[str, Any], str, dict[str, Any], int]] = [
         SMALL,
         12,
     ),
-    ("qlearning-progress-schedule", QLearning, {"exploration_rate": LinearSchedule(1.0, 0.1, 0.5)}, GRID, SMALL, 12),
-    ("qlearning-tie-first-cap", QLearning, {"tie_break": "first", "max_episode_decisions": 40}, GRID, SMALL, 12),
-    ("affectq-paper-grid", AffectQ, {}, GRID, {}, 8),
-    *((f"affectq-{r['comparison']}-{r['act']}-{r['units']}", AffectQ, r, GRID, SMALL, 12) for r in READINGS),
-    ("affectq-optimistic", AffectQ, {"personality": "optimistic"}, GRID, SMALL, 12),
-    ("affectq-pessimistic-valence", AffectQ, {"personality": "pessimistic", "comparison": "valence"}, GRID, SMALL, 12),
-    ("affectq-behaviour-table", AffectQ, {"behaviour_table": TABLE}, GRID, SMALL, 12),
+    ("qlearning-progress-schedule", QLearning, {"exploration_rate": LinearSchedule(1.0, 0.1, 0.5)}, GRID, SMALL, 8),
+    ("qlearning-tie-first-cap", QLearning, {"tie_break": "first", "max_episode_decisions": 40}, GRID, SMALL, 8),
+    ("affectq-paper-grid", AffectQ, {}, GRID, {}, 5),
+    *((f"affectq-{r['comparison']}-{r['act']}-{r['units']}", AffectQ, r, GRID, SMALL, 8) for r in READINGS),
+    ("affectq-optimistic", AffectQ, {"personality": "optimistic"}, GRID, SMALL, 8),
+    ("affectq-pessimistic-valence", AffectQ, {"personality": "pessimistic", "comparison": "valence"}, GRID, SMALL, 8),
+    ("affectq-behaviour-table", AffectQ, {"behaviour_table": TABLE}, GRID, SMALL, 8),
     (
         "affectq-jump-tie-first",
         AffectQ,
@@ -61,11 +61,11 @@ CASES: list[tuple[str, type, dict[str, Any], str, dict[str, Any], int]] = [
         SMALL,
         12,
     ),
-    ("affectq-time-limit", AffectQ, {}, GRID, {**SMALL, "max_episode_steps": 20}, 12),
-    ("affectq-obstacles", AffectQ, {}, GRID, {**SMALL, "obstacles": [(1, 1), (2, 1), (3, 3), (0, 4)]}, 12),
-    ("affectq-maze-rooms", AffectQ, {"max_episode_decisions": 200}, MAZE, {"maze": "rooms"}, 6),
-    ("qlearning-maze-zigzag", QLearning, {"max_episode_decisions": 200}, MAZE, {"maze": "zigzag"}, 6),
-    ("decaying-linear", DecayingEpsilonGreedy, {"exploration_decay_episodes": 10}, GRID, SMALL, 12),
+    ("affectq-time-limit", AffectQ, {}, GRID, {**SMALL, "max_episode_steps": 20}, 8),
+    ("affectq-obstacles", AffectQ, {}, GRID, {**SMALL, "obstacles": [(1, 1), (2, 1), (3, 3), (0, 4)]}, 8),
+    ("affectq-maze-rooms", AffectQ, {"max_episode_decisions": 200}, MAZE, {"maze": "rooms"}, 4),
+    ("qlearning-maze-zigzag", QLearning, {"max_episode_decisions": 200}, MAZE, {"maze": "zigzag"}, 4),
+    ("decaying-linear", DecayingEpsilonGreedy, {"exploration_decay_episodes": 10}, GRID, SMALL, 8),
     (
         "decaying-exponential",
         DecayingEpsilonGreedy,
@@ -74,7 +74,7 @@ CASES: list[tuple[str, type, dict[str, Any], str, dict[str, Any], int]] = [
         SMALL,
         12,
     ),
-    ("boltzmann", Boltzmann, {"temperature": 2.0}, GRID, SMALL, 12),
+    ("boltzmann", Boltzmann, {"temperature": 2.0}, GRID, SMALL, 8),
     (
         "boltzmann-decay",
         Boltzmann,
@@ -83,10 +83,10 @@ CASES: list[tuple[str, type, dict[str, Any], str, dict[str, Any], int]] = [
         SMALL,
         12,
     ),
-    ("ucb", UCBQLearning, {"exploration_coef": 3.0}, GRID, SMALL, 12),
-    ("optimistic", OptimisticQLearning, {}, GRID, SMALL, 12),
-    ("speed", SpeedEpsilonGreedy, {"speeds": (0, 1, 2)}, GRID, SMALL, 12),
-    ("speed-jump", SpeedEpsilonGreedy, {"speeds": (1, 2), "multi_cell": "jump"}, GRID, SMALL, 12),
+    ("ucb", UCBQLearning, {"exploration_coef": 3.0}, GRID, SMALL, 8),
+    ("optimistic", OptimisticQLearning, {}, GRID, SMALL, 8),
+    ("speed", SpeedEpsilonGreedy, {"speeds": (0, 1, 2)}, GRID, SMALL, 8),
+    ("speed-jump", SpeedEpsilonGreedy, {"speeds": (1, 2), "multi_cell": "jump"}, GRID, SMALL, 8),
 ]
 
 
