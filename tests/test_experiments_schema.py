@@ -138,7 +138,7 @@ def test_overrides(tmp_path: Path) -> None:
     # An override is validated like the file.
     assert "seeds" in error_of(tmp_path, GOOD, ("seeds=0",))
     assert "key=value" in error_of(tmp_path, GOOD, ("seeds",))
-    assert "does not apply" in error_of(tmp_path, GOOD, ("agents.7.kwargs.gamma=1",))
+    assert "no agent '7'" in error_of(tmp_path, GOOD, ("agents.7.kwargs.gamma=1",))
 
 
 def test_cli_reports_schema_error_without_running(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
