@@ -71,7 +71,7 @@ class EnvSpec(BaseModel):
     id: str = Field(
         default="sb3_affect/GridPursuit-v0",
         description="a registered Gymnasium id: sb3_affect/GridPursuit-v0, sb3_affect/MazePursuit-v0, "
-        "sb3_affect/MovingPursuit-v0 or any env registered on import of sb3_affect",
+        "sb3_affect/MovingPursuit-v0, or 'your_module:YourEnv-v0' for an env that importing your_module registers",
     )
     kwargs: dict[str, Any] = Field(
         default_factory=dict, description="keyword arguments of the env, e.g. {size: 15, goal: [6, 6]}"
@@ -84,9 +84,18 @@ class EnvSpec(BaseModel):
 
         import sb3_affect  # noqa: F401  (registers the package's envs)
 
-        if value not in gym.registry:
+        module, _, env_id = value.rpartition(":")  # "my_package.envs:MyEnv-v0": import the module that registers it
+        if module:
+            try:
+                importlib.import_module(module)
+            except ImportError as error:
+                raise ValueError(f"env id {value!r}: module {module!r} can not be imported ({error})") from None
+        if env_id not in gym.registry:
             known = sorted(k for k in gym.registry if k.startswith("sb3_affect/"))
-            raise ValueError(f"env id {value!r} is not registered; the package registers {', '.join(known)}")
+            raise ValueError(
+                f"env id {value!r} is not registered; the package registers {', '.join(known)} (an env of your own: "
+                "'your_module:YourEnv-v0', where importing your_module registers YourEnv-v0)"
+            )
         return value
 
 
