@@ -43,6 +43,7 @@ autodoc_member_order = "bysource"
 autodoc_typehints = "signature"
 autodoc_default_options = {"members": True, "show-inheritance": True}
 autoclass_content = "class"
+autodoc_inherit_docstrings = False  # document our own methods, not Gymnasium's or SB3's docstrings again
 
 # Nitpicky mode (-n) checks every internal reference. Other projects' objects (SB3, Gymnasium, NumPy, ...) can not
 # be resolved without their inventories (intersphinx needs the network), so references into them are not checked.
@@ -50,10 +51,11 @@ nitpicky = True
 _EXTERNAL = r"(stable_baselines3|gymnasium|gym|numpy|np|pandas|pd|torch|th|pydantic|matplotlib|plt|tqdm|yaml|spaces)"
 nitpick_ignore_regex = [
     (r"py:.*", _EXTERNAL + r"(\..*)?"),
+    (r"py:class", r"sb3_affect\.tabular\.SelfTabular"),  # the TypeVar of ``load`` (SB3's convention)
     (r"py:.*", r"(collections\.abc|typing|pathlib|enum|types|os|argparse|io)\..*"),
     (r"py:.*", r"(GymEnv|Schedule|MaybeCallback|BaseCallback|BaseAlgorithm|BasePolicy|VecEnv|Env|Logger|Path|Figure|"
      r"Axes|DataFrame|Series|ndarray|NDArray|Tensor|Callable|Mapping|Sequence|Iterable|Iterator|Any|Self|TypeAlias|"
-     r"EmotionRule|Geometry|Task|OnResult|OnFailure|ObsType|ActType|SupportsFloat|RenderFrame|MazeSpec|_Context)"),
+     r"EmotionRule|Geometry|SelfTabular|Module|Task|OnResult|OnFailure|ObsType|ActType|SupportsFloat|RenderFrame|MazeSpec|_Context)"),
 ]
 
 # Examples gallery: examples/plot_*.py run at build time; their figures appear on the pages.

@@ -195,8 +195,8 @@ class _Context:
         runs = int(self.agent(AFFECTIVE).groupby("epsilon").run_id.count().max())
         self.doc.p(
             f"The paper's Table V values (~1e5) look like sums over the {runs} simulations of each epsilon "
-            "(see Definitions in the docs), so the spreadsheet layout is computed on the sums; the same test on per-run means follows. Runs that never "
-            "find the optimal path contribute all their steps (censored)."
+            "(see Definitions in the docs), so the spreadsheet layout is computed on the sums; the same test on per-run "
+            "means follows. Runs that never find the optimal path contribute all their steps (censored)."
         )
         inputs = pd.concat({"sum over runs": sums, "per-run mean": means}, axis=1)
         inputs.columns = pd.Index([f"{pair[1]} ({pair[0]})" for pair in inputs.columns.to_list()])
