@@ -20,7 +20,6 @@ release = version = sb3_affect.__version__
 
 extensions = [
     "sphinx.ext.autodoc",
-    "sphinx.ext.mathjax",
     "myst_parser",
     "sphinx_gallery.gen_gallery",
     "matplotlib.sphinxext.plot_directive",
@@ -35,7 +34,8 @@ exclude_patterns = [
 root_doc = "index"
 
 # Markdown pages (MyST): headings get anchors for [text](page.md#anchor) links, which -n checks.
-myst_enable_extensions = ["colon_fence", "dollarmath", "deflist"]
+# No math extension: formulas are plain text, so pages read the same offline (MathJax would load from the web).
+myst_enable_extensions = ["colon_fence", "deflist"]
 myst_heading_anchors = 3
 
 # API reference: the project's :param: docstrings, signatures with type hints, members in source order.
@@ -79,5 +79,6 @@ plot_formats = [("png", 110)]
 html_theme = "sphinx_rtd_theme"
 html_title = f"sb3-affect {version}"
 html_static_path = ["_static"]
+html_css_files = ["custom.css"]
 html_theme_options = {"navigation_depth": 3, "collapse_navigation": False}
 html_show_sourcelink = False

@@ -1,7 +1,8 @@
 """
 Directives that generate documentation from the code, so the pages can not drift from it:
 
-* ``.. sweep-schema::`` the experiment-file reference, one table per section, from the pydantic models of
+* ``.. sweep-schema::`` (reStructuredText: in a Markdown page, inside an ``{eval-rst}`` block): the experiment-file
+  reference, one table per section, from the pydantic models of
   ``sb3_affect.experiments.schema`` (field names, types, defaults, constraints and descriptions);
 * ``.. cli-help:: [COMMAND]`` the ``--help`` text of the ``sb3-affect`` command (or one sub-command), from its parser.
 """
@@ -18,7 +19,7 @@ from docutils.statemachine import StringList
 CONSTRAINTS = {
     "exclusiveMinimum": "> {}",
     "minimum": ">= {}",
-    "minLength": "at least {} characters",
+    "minLength": "at least {} character(s)",
     "minItems": "at least {} item(s)",
     "pattern": "matches ``{}``",
 }

@@ -165,13 +165,13 @@ class Sweep(BaseModel):
         description="the sweep's name (letters, digits, _ . + -); enters the derived seeds and the run files",
     )
     env: EnvSpec = Field(default_factory=EnvSpec, description="the environment section (below)")
-    episodes: int = Field(gt=0, description="episodes per run (> 0); a run stops after this many finished episodes")
+    episodes: int = Field(gt=0, description="episodes per run; a run stops after this many finished episodes")
     seeds: int | list[int] = Field(
         description="a count N (seeds derived by sha256 of sweep, agent, grid point and replicate) or an explicit list "
         "of distinct integers, the same for every grid point"
     )
     max_timesteps: int | None = Field(
-        default=None, gt=0, description="optional cap on a run's decisions (env steps), e.g. for DQN; null: none"
+        default=None, gt=0, description="optional cap on a run's decisions (env steps), e.g. for DQN; null: no cap"
     )
     logs: list[str] = Field(
         default_factory=list,
