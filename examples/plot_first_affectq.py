@@ -28,9 +28,10 @@ first = log.index[log.optimal].min() if log.optimal.any() else None
 print("first optimal episode:", None if first is None else int(log.episode[first]))
 
 # %%
-# Decisions per episode fall as the Q-table fills in; the share of decisions made in *joy* (random direction) is
-# the agent's "equivalent epsilon" (the paper's Fig. 6).
-fractions = log[["joy", "sadness", "fear", "anger"]].div(log.decisions, axis=0)
+# Decisions per episode fall as the Q-table fills in. Below, the share of each episode's decisions made in each
+# emotion (a rolling mean over 10 episodes, as in the paper's Fig. 5); the share of *joy* (random direction) is the
+# agent's "equivalent epsilon" (the paper's Fig. 6).
+fractions = log[["joy", "sadness", "fear", "anger"]].div(log.decisions, axis=0).rolling(10, min_periods=1).mean()
 fig, (top, bottom) = plt.subplots(2, 1, figsize=(7, 6), sharex=True)
 top.plot(log.episode, log.decisions, label="decisions")
 top.plot(log.episode, log.cells, label="cells moved", alpha=0.7)
@@ -41,7 +42,7 @@ top.legend()
 for emotion in fractions:
     bottom.plot(log.episode, fractions[emotion], label=emotion)
 bottom.set_xlabel("episode")
-bottom.set_ylabel("fraction of decisions")
+bottom.set_ylabel("fraction of decisions\n(10-episode mean)")
 bottom.legend(ncols=4)
 fig.suptitle("AffectQ, one run")
 fig.tight_layout()

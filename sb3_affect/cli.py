@@ -172,7 +172,7 @@ def build_parser() -> argparse.ArgumentParser:
 
     parser = argparse.ArgumentParser(
         prog="sb3-affect",
-        description=__doc__,
+        description="Run experiment sweeps, show their status, build the report, run the whole replication.",
         epilog="`sb3-affect COMMAND --help` describes each command. Documentation: docs/ (make docs).",
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
@@ -180,7 +180,7 @@ def build_parser() -> argparse.ArgumentParser:
     run = sub.add_parser(
         "run",
         help="run (or resume) an experiment sweep",
-        description="Run every run of an experiment file that OUT does not hold yet (rerun the same command to resume).",
+        description="Run every run of an experiment file that DIR does not hold yet (rerun the same command to resume).",
     )
     run.add_argument("file", help="experiment YAML, e.g. experiments/smoke.yaml (see the experiment-file reference)")
     run.add_argument("--out", required=True, metavar="DIR", help="results folder (created; an earlier run's folder resumes)")

@@ -88,7 +88,7 @@ class CliHelp(Directive):
         from sb3_affect.cli import build_parser
 
         previous = os.environ.get("COLUMNS")
-        os.environ["COLUMNS"] = "118"
+        os.environ["COLUMNS"] = "92"  # the width of the theme's code blocks
         try:
             parser = build_parser()
             if self.arguments:
