@@ -18,11 +18,11 @@ $(STAMP): pyproject.toml
 	@# (PYTHONWARNINGS: setuptools says "Editable installation" for every editable install with a package-dir map.)
 	@# CPU torch first: a plain `torch` requirement would pull a multi-GB CUDA build.
 	@$(PY) -c "import torch" 2>/dev/null && echo "== torch already installed" || { \
-		echo "== installing CPU torch (about 1 min) ..."; \
+		echo "== installing CPU torch (1-3 min) ..."; \
 		$(PY) -m pip install -q torch==2.13.0 || $(PY) -m pip install -q torch --index-url https://download.pytorch.org/whl/cpu; }
-	@echo "== installing sb3-affect and its test and docs tools (1-2 min) ..."
+	@echo "== installing sb3-affect and its test and docs tools (1-3 min) ..."
 	@PYTHONWARNINGS="ignore:Editable installation" $(PY) -m pip install -q -e '.[test,docs]'
-	@echo "== installing the optional Ray extra (about 1 min) ..."
+	@echo "== installing the optional Ray extra (1-2 min) ..."
 	@PYTHONWARNINGS="ignore:Editable installation" $(PY) -m pip install -q -e '.[ray]' || echo "note: the optional Ray extra could not be installed; Ray tests will be skipped"
 	@touch $(STAMP)
 	@echo "== installed in $(VENV). To use the sb3-affect command in this shell: source $(VENV)/bin/activate"
