@@ -48,10 +48,16 @@ class SweepSchema(Directive):
     def run(self) -> list[nodes.Node]:
         from pydantic_core import PydanticUndefined
 
-        from sb3_affect.experiments.schema import AgentSpec, EnvSpec, Sweep
+        from sb3_affect.experiments.schema import AgentSpec, EnvSpec, MemberSpec, Sweep
 
         lines: list[str] = []
-        for title, model in (("Top-level keys", Sweep), ("``env``", EnvSpec), ("Each item of ``agents``", AgentSpec)):
+        sections = (
+            ("Top-level keys", Sweep),
+            ("``env``", EnvSpec),
+            ("Each item of ``agents``", AgentSpec),
+            ("Each item of an agent's ``team``", MemberSpec),
+        )
+        for title, model in sections:
             properties = model.model_json_schema()["properties"]
             lines += [f".. rubric:: {title}", "", (model.__doc__ or "").strip().splitlines()[0], "",
                       ".. list-table::", "   :header-rows: 1", "   :widths: 14 18 16 52", "",
