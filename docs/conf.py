@@ -48,8 +48,9 @@ autodoc_inherit_docstrings = False  # document our own methods, not Gymnasium's 
 # Nitpicky mode (-n) checks every internal reference. Other projects' objects (SB3, Gymnasium, NumPy, ...) can not
 # be resolved without their inventories (intersphinx needs the network), so references into them are not checked.
 nitpicky = True
-_EXTERNAL = r"(stable_baselines3|gymnasium|pettingzoo|gym|numpy|np|pandas|pd|torch|th|pydantic|matplotlib|plt|tqdm|yaml|"
-    r"spaces)"
+_EXTERNAL = (
+    r"(stable_baselines3|gymnasium|pettingzoo|gym|numpy|np|pandas|pd|torch|th|pydantic|matplotlib|plt|tqdm|yaml|spaces)"
+)
 nitpick_ignore_regex = [
     (r"py:.*", _EXTERNAL + r"(\..*)?"),
     (r"py:class", r"sb3_affect\.tabular\.SelfTabular"),  # the TypeVar of ``load`` (SB3's convention)
