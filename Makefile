@@ -39,7 +39,7 @@ docs: venv
 	@echo "docs: open $(DOCS_OUT)/index.html"
 
 replicate: venv
-	@echo "== the main job: 4 sweeps then the report, about 8-10 min on 2 cores (rerun to resume if interrupted)"
+	@echo "== the main job: the sweeps listed by 'sb3-affect replicate --help', then the report; about 10-12 min on 2 cores (rerun to resume)"
 	$(VENV)/bin/sb3-affect replicate --out $(OUT)
 
 bench: venv

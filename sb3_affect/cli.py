@@ -162,7 +162,7 @@ def _replicate_help() -> str:
         *(f"  OUT/{name + '/':11s} experiments/{name}.yaml: {description}" for name, description in PARTS),
         f"  {'OUT/report.html':15s} the report (also report.md, tables/*.csv, figures/*.png): open it in a browser",
         "",
-        "About 8-10 minutes on 2 cores. Interrupted? Rerun the same command: finished runs are kept and skipped.",
+        "About 10-12 minutes on 2 cores. Interrupted? Rerun the same command: finished runs are kept and skipped.",
     ]
     return "\n".join(lines)
 

@@ -18,9 +18,9 @@ PARTS = (
 
 def main(out_dir: Path = Path("runs"), workers: int | None = None, experiments: Path | None = None) -> Path:
     """
-    Run each of ``PARTS`` (experiments/paper.yaml, dqn.yaml, ablation.yaml, baselines.yaml) into ``out_dir/<name>``
-    (resuming what is there), then write ``out_dir/report.md`` (and .html, tables/, figures/). Prints the wall time of
-    each part.
+    Run each of ``PARTS`` (``experiments/<name>.yaml``: paper, dqn, ablation, baselines, hunters, ...) into
+    ``out_dir/<name>`` (resuming what is there), then write ``out_dir/report.md`` (and .html, tables/, figures/).
+    Prints the wall time of each part.
 
     :param out_dir: the results folder
     :param workers: parallel runs (default: the number of CPUs)
