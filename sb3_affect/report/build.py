@@ -19,6 +19,8 @@ STANDARD, AFFECTIVE = "epsilon-greedy", "affective"
 WINDOWS = ((1, 10), (21, 40), (181, 200))
 #: Issue 7 results folders a replicate folder may hold (experiments/baselines*.yaml), shown in their own section.
 BASELINE_FOLDERS = ("baselines", "baselines_moving7", "baselines_moving")
+#: Issue 16 results folders (experiments/hunters*.yaml): two hunters, and the two emotion models side by side.
+HUNTER_FOLDERS = ("hunters", "hunters_moving")
 
 
 def _layout(run_dir: Path) -> tuple[Path, Path | None, Path | None]:
@@ -91,6 +93,18 @@ def build_report(
         from sb3_affect.report.baselines import baselines_section
 
         doc.md(baselines_section(baseline_dirs))
+    hunter_dirs = [run_dir / name for name in HUNTER_FOLDERS if (run_dir / name / "runs").is_dir()]
+    if "team" in episodes.columns or "capturer" in episodes.columns:  # a single folder of team runs
+        hunter_dirs.append(paper_dir)
+    if hunter_dirs:
+        from sb3_affect.report.emotion_models import emotion_models_section
+        from sb3_affect.report.hunters import hunters_section
+
+        for section in (hunters_section, emotion_models_section):
+            text, images = section(hunter_dirs, out)
+            doc.md(text)
+            for path, caption in images:
+                doc.img(path, caption)
     ctx.definitions()
     md = out / "report.md"
     md.write_text(doc.markdown(out))
@@ -144,7 +158,8 @@ class _Context:
             f"Results folder `{paper_dir}`: {len(m)} runs ({', '.join(f'{a}: {n}' for a, n in runs.items())}), "
             f"up to {episodes} episodes each, epsilon values {', '.join(fmt(e, 1) for e in eps) or 'none'}. "
             "A *step* is one decision (one unit of time), as in the paper; *cells* are one-cell moves (the affective "
-            "agent moves 0, 1 or 2 cells per decision). Paper's numbers from SPEC; every other number is computed "
+            "agent moves 0, 1 or 2 cells per decision). The paper's numbers are as it prints them; every other number "
+            "is computed "
             "from the run files by `sb3-affect report`."
         )
         truncated = int(m.truncated.sum())
@@ -193,9 +208,9 @@ class _Context:
         means = self._per_epsilon("decisions_before_optimal", "mean")
         runs = int(self.agent(AFFECTIVE).groupby("epsilon").run_id.count().max())
         self.doc.p(
-            f"The paper's Table V values (~1e5) look like sums over the {runs} simulations of each epsilon (SPEC), so "
-            "the spreadsheet layout is computed on the sums; the same test on per-run means follows. Runs that never "
-            "find the optimal path contribute all their steps (censored)."
+            f"The paper's Table V values (~1e5) look like sums over the {runs} simulations of each epsilon "
+            "(see Definitions in the docs), so the spreadsheet layout is computed on the sums; the same test on per-run "
+            "means follows. Runs that never find the optimal path contribute all their steps (censored)."
         )
         inputs = pd.concat({"sum over runs": sums, "per-run mean": means}, axis=1)
         inputs.columns = pd.Index([f"{pair[1]} ({pair[0]})" for pair in inputs.columns.to_list()])
@@ -507,7 +522,7 @@ class _Context:
             "first optimal one (all decisions for runs that never find it: censored). Greedy optimal from: the first "
             "episode after which every greedy choice from the start walks a shortest path until the end of the run. "
             "Equivalent epsilon: fraction of decisions whose direction was random (joy). Emotion profile: fraction of "
-            "decisions in each emotion. Per-episode fractions are averaged over runs (SPEC)."
+            "decisions in each emotion. Per-episode fractions are averaged over runs (docs: Definitions)."
         )
 
 
