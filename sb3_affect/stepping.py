@@ -90,6 +90,7 @@ class DecisionStepper:
         self.log_interval = log_interval
         self._observe = m._transition_hook()
         self._is_goal = m._goal_test()
+        self._jump = m.multi_cell == "jump"  # one Eq. 1 update per decision, made in end_decision
         self._obs_start = int(m.observation_space.start)  # type: ignore[attr-defined]
         self._act_start = int(m.action_space.start)  # type: ignore[attr-defined]
         self._call_back = not (isinstance(self.callback, ConvertCallback) and self.callback.callback is None)
@@ -124,18 +125,22 @@ class DecisionStepper:
         action, k, explored = self.model._decide(self.s, self.q)
         self._action, self._explored, self._k = action, explored, k
         self._decision_reward = 0.0
+        self._start_cell, self._jump_reward = self.s, 0.0
         return action + self._act_start, k, explored
 
     def transition(self, obs: int, reward: float, terminated: bool, truncated: bool = False, info: Any = None) -> None:
         """One one-cell transition of the current decision: the Eq. 1 update and the transition hook, as ``learn``."""
         s, s2, action, q = self.s, int(obs) - self._obs_start, self._action, self.q
         reward = float(reward)
-        row = q[s]
-        old = row[action]
-        new = old + self._alpha * ((reward if terminated else reward + self.model.gamma * max(q[s2])) - old)
-        if new != old:
-            row[action] = new
-            self._changed = True
+        if self._jump:
+            self._jump_reward += reward
+        else:
+            row = q[s]
+            old = row[action]
+            new = old + self._alpha * ((reward if terminated else reward + self.model.gamma * max(q[s2])) - old)
+            if new != old:
+                row[action] = new
+                self._changed = True
         info = info if info is not None else {}
         if self._observe is not None:
             self._observe(s, s2, terminated and self._is_goal(reward, info))
@@ -153,6 +158,14 @@ class DecisionStepper:
         :return: whether the episode ended
         """
         m = self.model
+        if self._jump and self._k > 0:  # multi_cell="jump": one update from the decision's start cell to its end cell
+            q, gain = self.q, self._jump_reward
+            row = q[self._start_cell]
+            old = row[self._action]
+            new = old + self._alpha * ((gain if terminated else gain + m.gamma * max(q[self.s])) - old)
+            if new != old:
+                row[self._action] = new
+                self._changed = True
         if self._k == 0:  # a wait: no env step, nothing of the previous step to report again
             self.waits += 1
             self._last = (self.s, 0.0, {"wait": True})
