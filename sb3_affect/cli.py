@@ -109,6 +109,9 @@ def build_parser() -> argparse.ArgumentParser:
     replicate.add_argument("--out", default="runs")
     replicate.add_argument("--workers", type=int, default=None)
     replicate.set_defaults(func=_cmd_replicate)
+    from sb3_affect.forensics.command import add_forensics_parser
+
+    add_forensics_parser(sub)
     return parser
 
 

@@ -1,0 +1,198 @@
+"""
+``run_forensics``: which candidate implementation could have produced the paper's numbers?
+
+1. Screen: every simulation of the candidate space, ``screen_reps`` replications each; score every candidate
+   (simulation x reading) with the diagonal synthetic likelihood.
+2. Leaders: the ``leaders`` affective simulations whose best reading scores highest get ``reps`` replications
+   (with their epsilon-greedy partners); their candidates are scored with the full synthetic likelihood and given
+   posterior probabilities under a uniform prior over the leaders' candidates.
+3. Intervals: each printed number against the simulated 95% interval of the best candidates, and the printed numbers
+   no candidate reaches.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from sb3_affect.forensics.candidates import Candidate, CandidateSpace, Protocol, Simulation
+from sb3_affect.forensics.runner import run_units
+from sb3_affect.forensics.scoring import intervals, log_likelihood, posterior, predictive_reach
+from sb3_affect.forensics.statistics import STATISTICS, candidate_statistics, printed_numbers
+from sb3_affect.forensics.store import SummaryStore
+
+
+@dataclass
+class ForensicsResult:
+    """
+    What ``run_forensics`` found (also written to its folder as CSV files).
+
+    :param screen: every candidate with its screening log-likelihood, best first
+    :param leaders: the leaders' candidates with their full log-likelihood and posterior probability, best first
+    :param intervals: per printed statistic: the printed value, the best candidates' 95% intervals, how many
+        candidates reach it
+    :param unreached: the printed statistics that no candidate reaches
+    :param seconds: wall time
+    """
+
+    screen: pd.DataFrame
+    leaders: pd.DataFrame
+    intervals: pd.DataFrame
+    unreached: list[str]
+    seconds: float
+
+
+class _Samples:
+    """Per-candidate samples of the printed statistics, reading each stored summary once."""
+
+    def __init__(self, store: SummaryStore) -> None:
+        self.store = store
+        self._cache: dict[tuple[str, int], pd.DataFrame] = {}
+
+    def summary(self, simulation: Simulation, replication: int) -> pd.DataFrame:
+        key = (simulation.key, replication)
+        if key not in self._cache:
+            self._cache[key] = self.store.read(simulation, replication)
+        return self._cache[key]
+
+    def sample(self, candidate: Candidate, replications: range) -> np.ndarray:
+        rows = [
+            candidate_statistics(self.summary(candidate.standard, r), self.summary(candidate.affective, r), candidate.reading)
+            for r in replications
+        ]
+        return np.array(rows, dtype=float).reshape(len(rows), len(STATISTICS))
+
+
+def _units(simulations: list[Simulation], replications: range) -> list[tuple[Simulation, int]]:
+    pairs = [(sim, r) for r in replications for sim in simulations]
+    return pairs
+
+
+def run_forensics(
+    out: str | Path,
+    space: CandidateSpace | None = None,
+    protocol: Protocol | None = None,
+    screen_reps: int = 3,
+    leaders: int = 4,
+    reps: int = 100,
+    workers: int = 2,
+    progress: bool = True,
+    printed: np.ndarray | None = None,
+) -> ForensicsResult:
+    """
+    Screen the candidate space, replicate the leaders, score the printed numbers, write the tables and the report.
+
+    :param out: results folder (resumable: finished replications are kept and skipped)
+    :param space: the candidate space (default: ``CandidateSpace.default()``)
+    :param protocol: the protocol (default: the paper's)
+    :param screen_reps: replications of every simulation in the screen (>= 2)
+    :param leaders: affective simulations given the full number of replications
+    :param reps: replications of each leader (>= screen_reps)
+    :param workers: worker processes
+    :param progress: show progress bars
+    :param printed: the numbers to explain, one per ``STATISTICS`` entry (default: the paper's)
+    """
+    start = time.perf_counter()
+    space = space or CandidateSpace.default()
+    protocol = protocol or Protocol()
+    if screen_reps < 2:
+        raise ValueError(f"screen_reps={screen_reps!r} must be >= 2 (a spread needs two replications)")
+    if reps < screen_reps:
+        raise ValueError(f"reps={reps!r} must be >= screen_reps={screen_reps!r}")
+    if leaders < 1:
+        raise ValueError(f"leaders={leaders!r} must be >= 1")
+    observed = printed_numbers() if printed is None else np.asarray(printed, dtype=float)
+    if observed.shape != (len(STATISTICS),):
+        raise ValueError(f"printed must hold {len(STATISTICS)} values ({', '.join(STATISTICS)}), got shape {observed.shape}")
+    out = Path(out)
+    store = SummaryStore(out, protocol)
+    affective = space.affective_simulations()
+    standard = space.standard_simulations()
+    screen_range = range(screen_reps)
+    run_units(store, _units(standard + affective, screen_range), workers, progress, "screen")
+
+    samples = _Samples(store)
+    rows = []
+    screened = {c.name: samples.sample(c, screen_range) for c in space.candidates()}
+    for candidate in space.candidates():
+        ll = log_likelihood(screened[candidate.name], observed, diagonal=True)
+        rows.append({"candidate": candidate.name, **candidate.describe(), "screen_loglik": ll})
+    screen = pd.DataFrame(rows).sort_values("screen_loglik", ascending=False, kind="stable").reset_index(drop=True)
+    by_sim = {c.name: c for c in space.candidates()}
+    leading: list[Simulation] = []
+    for name in screen.candidate:
+        sim = by_sim[name].affective
+        if sim not in leading:
+            leading.append(sim)
+        if len(leading) == leaders:
+            break
+    full_range = range(reps)
+    leader_units = _units(list(dict.fromkeys([s.standard for s in leading])) + leading, full_range)
+    run_units(store, leader_units, workers, progress, "leaders")
+
+    finalists = [c for c in space.candidates() if c.affective in leading]
+    full = {c.name: samples.sample(c, full_range) for c in finalists}
+    leaders_table = pd.DataFrame(
+        [{"candidate": c.name, **c.describe(), "loglik": log_likelihood(full[c.name], observed)} for c in finalists]
+    )
+    leaders_table["posterior"] = posterior(leaders_table.loglik)
+    leaders_table = leaders_table.sort_values("loglik", ascending=False, kind="stable").reset_index(drop=True)
+    table, unreached = _interval_table(leaders_table, full, screened, observed)
+    result = ForensicsResult(screen, leaders_table, table, unreached, time.perf_counter() - start)
+    screen.to_csv(out / "screen.csv", index=False)
+    leaders_table.to_csv(out / "leaders.csv", index=False)
+    table.to_csv(out / "intervals.csv")
+    for rank, name in enumerate(leaders_table.candidate[:3]):
+        pd.DataFrame(full[name], columns=list(STATISTICS)).to_csv(out / f"sample_top{rank + 1}.csv", index=False)
+    (out / "run.json").write_text(
+        pd.Series(
+            {
+                "screen_reps": screen_reps,
+                "leaders": leaders,
+                "reps": reps,
+                "candidates": len(screen),
+                "affective_simulations": len(affective),
+                "standard_simulations": len(standard),
+                "seconds": round(result.seconds, 1),
+                "unreached": unreached,
+                "printed": observed.tolist(),
+            }
+        ).to_json(indent=1)
+    )
+    from sb3_affect.forensics.section import write_standalone
+
+    write_standalone(out)
+    return result
+
+
+def _interval_table(
+    leaders_table: pd.DataFrame,
+    full: dict[str, np.ndarray],
+    screened: dict[str, np.ndarray],
+    observed: np.ndarray,
+) -> tuple[pd.DataFrame, list[str]]:
+    """Printed values beside the top candidates' 95% intervals; how many leaders / screened candidates reach each."""
+    table = pd.DataFrame(index=pd.Index(STATISTICS, name="statistic"))
+    table["printed"] = observed
+    for rank, name in enumerate(leaders_table.candidate[:3]):
+        lo, hi = intervals(full[name])
+        table[f"#{rank + 1} 2.5%"] = lo
+        table[f"#{rank + 1} 97.5%"] = hi
+    leader_reach = np.zeros(len(STATISTICS), dtype=int)
+    for name in leaders_table.candidate:
+        lo, hi = intervals(full[name])
+        leader_reach += (observed >= lo) & (observed <= hi)
+    screen_reach = np.zeros(len(STATISTICS), dtype=int)
+    for sample in screened.values():
+        screen_reach += predictive_reach(sample, observed)
+    table["leaders reaching"] = leader_reach
+    table["screened reaching"] = screen_reach
+    unreached = [
+        s for s, a, b, y in zip(STATISTICS, leader_reach, screen_reach, observed) if a == 0 and b == 0 and not math.isnan(y)
+    ]
+    return table, unreached

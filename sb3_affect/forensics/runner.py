@@ -1,0 +1,79 @@
+"""Simulate (simulation, replication) units in parallel worker processes, with a progress bar; resumable."""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import os
+from collections.abc import Iterable
+
+from sb3_affect.forensics.candidates import Protocol, Simulation
+from sb3_affect.forensics.statistics import cell_summary
+from sb3_affect.forensics.store import SummaryStore
+
+Unit = tuple[Simulation, int]
+
+
+def simulate_unit(unit: Unit, protocol: Protocol) -> tuple[Unit, dict[float, dict[str, float]]]:
+    """One replication of one simulation under the protocol: a ``cell_summary`` per epsilon."""
+    from sb3_affect.engine import simulate
+
+    simulation, replication = unit
+    cells = {}
+    for epsilon in protocol.epsilons:
+        log = simulate(
+            simulation.algo,
+            simulation.algo_kwargs(epsilon),
+            protocol.env_id,
+            protocol.env_kwargs,
+            protocol.seed_list(simulation, replication, epsilon),
+            protocol.episodes,
+        )
+        cells[float(epsilon)] = cell_summary(log)
+    return unit, cells
+
+
+def _init_worker() -> None:
+    import torch
+
+    torch.set_num_threads(1)
+
+
+def _work(args: tuple[Unit, Protocol]) -> tuple[Unit, dict[float, dict[str, float]]]:
+    return simulate_unit(*args)
+
+
+def run_units(
+    store: SummaryStore, units: Iterable[Unit], workers: int = 2, progress: bool = True, desc: str = "simulating"
+) -> int:
+    """
+    Simulate every unit not yet in ``store`` and write each one as soon as it finishes (the driver is the only
+    writer). Returns how many were simulated now.
+
+    :param store: the results folder
+    :param units: (simulation, replication) pairs; those already stored are skipped
+    :param workers: worker processes (1: in this process)
+    :param progress: show a tqdm progress bar
+    :param desc: the bar's label
+    """
+    from tqdm.auto import tqdm
+
+    todo = [u for u in dict.fromkeys(units) if not store.has(*u)]
+    if not todo:
+        return 0
+    bar = tqdm(total=len(todo), desc=desc, unit="replication", disable=not progress, dynamic_ncols=True)
+    tasks = [(u, store.protocol) for u in todo]
+    try:
+        if workers <= 1:
+            for task in tasks:
+                unit, cells = _work(task)
+                store.write(*unit, cells)
+                bar.update()
+        else:
+            context = mp.get_context("forkserver" if os.name == "posix" else "spawn")
+            with context.Pool(workers, initializer=_init_worker) as pool:
+                for unit, cells in pool.imap_unordered(_work, tasks):
+                    store.write(*unit, cells)
+                    bar.update()
+    finally:
+        bar.close()
+    return len(todo)
