@@ -91,6 +91,13 @@ def build_report(
         from sb3_affect.report.baselines import baselines_section
 
         doc.md(baselines_section(baseline_dirs))
+    from sb3_affect.forensics.section import forensics_section, has_results
+
+    if has_results(run_dir / "forensics"):  # written by `sb3-affect forensics --out DIR/forensics`
+        section = forensics_section(run_dir / "forensics", out / "figures")
+        doc.md(section.markdown)
+        for figure_path, caption in section.figures:
+            doc.img(figure_path, caption)
     ctx.definitions()
     md = out / "report.md"
     md.write_text(doc.markdown(out))
