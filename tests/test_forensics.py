@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +13,7 @@ import pytest
 
 from sb3_affect.cli import build_parser
 from sb3_affect.engine import simulate
+from sb3_affect.experiments import run_sweep
 from sb3_affect.experiments.store import StoreError
 from sb3_affect.forensics import STATISTICS, CandidateSpace, Protocol, Reading, Simulation, printed_numbers, run_forensics
 from sb3_affect.forensics.runner import run_units, simulate_unit
@@ -19,9 +21,10 @@ from sb3_affect.forensics.scoring import log_likelihood, posterior
 from sb3_affect.forensics.section import forensics_section
 from sb3_affect.forensics.statistics import candidate_statistics, cell_summary
 from sb3_affect.forensics.store import SummaryStore
-from sb3_affect.report import paper
+from sb3_affect.report import build_report, paper
 from sb3_affect.report.metrics import _first_stable, run_metrics
 
+ROOT = Path(__file__).resolve().parents[1]
 ENV = "sb3_affect/GridPursuit-v0"
 AFFECTIVE = Simulation("affective", 1.0, 0.8, None, "literal", "episode", "cells")
 TINY = Protocol(epsilons=(0.2, 0.6), seeds=4, episodes=25)
@@ -114,6 +117,13 @@ def test_self_check_recovers_the_candidate_that_printed_the_numbers(tmp_path: Pa
     assert result.unreached == []  # a candidate's own replication lies within the candidates' reach
     section = forensics_section(tmp_path / "f")
     assert "| 1 | literal | episode | cells |" in section.markdown and section.figures[0][0].exists()
+    # the replication report shows the section when its folder holds forensics results
+    smoke = tmp_path / "smoke"
+    run_sweep(ROOT / "experiments" / "smoke.yaml", smoke, workers=1, progress=False)
+    shutil.copytree(tmp_path / "f", smoke / "forensics")
+    text = build_report(smoke).read_text()
+    assert "## Replication forensics" in text and "figures/forensics_statistics.png" in text
+    assert (smoke / "figures" / "forensics_statistics.png").exists()
     # resumable: everything is on disk, nothing is simulated again
     units = [(s, r) for s in (truth.standard, *[c.affective for c in space.candidates()]) for r in range(3)]
     assert run_units(SummaryStore(tmp_path / "f", TINY), units, workers=1, progress=False) == 0

@@ -33,7 +33,8 @@ class ForensicsResult:
     What ``run_forensics`` found (also written to its folder as CSV files).
 
     :param screen: every candidate with its screening log-likelihood, best first
-    :param leaders: the leaders' candidates with their full log-likelihood and posterior probability, best first
+    :param leaders: the leaders' candidates with their full log-likelihood and posterior probability, best first;
+        ``loglik_reachable`` / ``posterior_reachable``: the same with the unreached statistics left out
     :param intervals: per printed statistic: the printed value, the best candidates' 95% intervals, how many
         candidates reach it
     :param unreached: the printed statistics that no candidate reaches
@@ -143,6 +144,10 @@ def run_forensics(
     leaders_table["posterior"] = posterior(leaders_table.loglik)
     leaders_table = leaders_table.sort_values("loglik", ascending=False, kind="stable").reset_index(drop=True)
     table, unreached = _interval_table(leaders_table, full, screened, observed)
+    # the same ranking with the unreachable statistics left out: which candidate explains the rest best
+    reachable = np.where(np.isin(np.array(STATISTICS), unreached), np.nan, observed)
+    leaders_table["loglik_reachable"] = [log_likelihood(full[name], reachable) for name in leaders_table.candidate]
+    leaders_table["posterior_reachable"] = posterior(leaders_table.loglik_reachable)
     result = ForensicsResult(screen, leaders_table, table, unreached, time.perf_counter() - start)
     screen.to_csv(out / "screen.csv", index=False)
     leaders_table.to_csv(out / "leaders.csv", index=False)

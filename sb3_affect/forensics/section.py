@@ -77,8 +77,16 @@ def forensics_section(folder: str | Path, figures_dir: str | Path | None = None)
     ranking = top[[c for c in FACTORS if c in top.columns]].copy()
     ranking["log-likelihood"] = top.loglik.map(_loglik)
     ranking["posterior"] = top.posterior.map(lambda v: f"{v:.3g}")
+    if "posterior_reachable" in top.columns:
+        ranking["posterior, reachable statistics only"] = top.posterior_reachable.map(lambda v: f"{v:.3g}")
     ranking.index = pd.Index(range(1, len(ranking) + 1), name="rank")
-    lines += ["*Leading candidates, best first (full replications)*", "", _md_table(ranking, 2), ""]
+    lines += [
+        "*Leading candidates, best first (full replications); the last column scores only the printed numbers some "
+        "candidate reaches (below)*",
+        "",
+        _md_table(ranking, 2),
+        "",
+    ]
     best_screen = screen.head(8)
     screened = best_screen[[c for c in FACTORS if c in best_screen.columns]].copy()
     screened["screen log-likelihood"] = best_screen.screen_loglik.map(_loglik)
