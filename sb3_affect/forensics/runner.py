@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import multiprocessing as mp
 import os
+import sys
 from collections.abc import Iterable
 
 from sb3_affect.forensics.candidates import Protocol, Simulation
@@ -32,9 +33,17 @@ def simulate_unit(unit: Unit, protocol: Protocol) -> tuple[Unit, dict[float, dic
     return unit, cells
 
 
-def _init_worker() -> None:
+def _init_worker(driver: int) -> None:
+    import signal
+
     import torch
 
+    from sb3_affect.experiments.launcher import _die_with_parent
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the driver decides what Ctrl-C does (it terminates the pool)
+    _die_with_parent()  # and a worker does not outlive a killed driver
+    if os.getppid() != driver:  # the driver died before the line above took effect
+        os._exit(1)
     torch.set_num_threads(1)
 
 
@@ -69,8 +78,9 @@ def run_units(
                 store.write(*unit, cells)
                 bar.update()
         else:
-            context = mp.get_context("forkserver" if os.name == "posix" else "spawn")
-            with context.Pool(workers, initializer=_init_worker) as pool:
+            # fork (Linux): the workers are the driver's children, so PR_SET_PDEATHSIG ends them if it is killed
+            context = mp.get_context("fork" if sys.platform.startswith("linux") else "spawn")
+            with context.Pool(workers, initializer=_init_worker, initargs=(os.getpid(),)) as pool:
                 for unit, cells in pool.imap_unordered(_work, tasks):
                     store.write(*unit, cells)
                     bar.update()
