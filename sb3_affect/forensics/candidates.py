@@ -205,6 +205,8 @@ class CandidateSpace:
     :param optimal: definitions of "optimal path found"
     :param steps: what a step counts
     :param table_v: Table V as sums or per-run means
+    :param probes: extra affective simulations outside the grid (e.g. one expensive level of a factor tried at the
+        tutorial's values only)
     """
 
     readings: tuple[tuple[str, str, str], ...] = tuple(itertools.product(COMPARISONS, ACTS, UNITS))
@@ -215,23 +217,34 @@ class CandidateSpace:
     optimal: tuple[str, ...] = OPTIMAL
     steps: tuple[str, ...] = STEP_UNITS
     table_v: tuple[str, ...] = TABLE_V
+    probes: tuple[Simulation, ...] = ()
 
     @classmethod
     def default(cls) -> CandidateSpace:
-        """The issue's space, with tie-breaking and 2-cell moves included when the installed agents support them."""
+        """
+        The issue's space: the 8 readings x alpha x gamma x (when the installed agents support them) both ways of
+        moving 2 cells, with random tie-breaking; plus first-index tie-breaking probed at the tutorial's values
+        (alpha 1, gamma 0.8) with the default reading and 2-cell steps. First-index ties freeze both agents at the
+        start (every Q is 0, the first action walks into the wall), so their episodes run to the safety cap: one such
+        simulation costs ~40 times a random-tie one, and the probe is enough to judge the level.
+        """
         options = supported_options()
-        return cls(
-            tie_breaks=TIE_BREAKS if options["tie_break"] else (None,),
-            multi_cells=MULTI_CELLS if options["multi_cell"] else (None,),
-        )
+        multi = MULTI_CELLS if options["multi_cell"] else (None,)
+        tie = "random" if options["tie_break"] else None
+        probes = (Simulation(AFFECTIVE, 1.0, 0.8, "first", "literal", "episode", "cells", multi[0]),)
+        return cls(tie_breaks=(tie,), multi_cells=multi, probes=probes if options["tie_break"] else ())
 
     def affective_simulations(self) -> list[Simulation]:
-        return [
+        grid = [
             Simulation(AFFECTIVE, alpha, gamma, tie, comparison, act, units, multi)
             for (comparison, act, units), alpha, gamma, tie, multi in itertools.product(
                 self.readings, self.alphas, self.gammas, self.tie_breaks, self.multi_cells
             )
         ]
+        for probe in self.probes:
+            if probe.agent != AFFECTIVE:
+                raise ValueError(f"probes must be affective simulations, got {probe.key}")
+        return list(dict.fromkeys([*grid, *self.probes]))
 
     def standard_simulations(self) -> list[Simulation]:
         return list(dict.fromkeys(sim.standard for sim in self.affective_simulations()))
@@ -252,6 +265,7 @@ class CandidateSpace:
             "optimal": list(self.optimal),
             "steps": list(self.steps),
             "table_v": list(self.table_v),
+            "probes": [p.key for p in self.probes],
         }
 
 

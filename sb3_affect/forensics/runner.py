@@ -47,6 +47,19 @@ def _init_worker(driver: int) -> None:
     torch.set_num_threads(1)
 
 
+def _warm_up(units: list[Unit], protocol: Protocol) -> None:
+    """One one-episode run of each agent in the driver: compiled code is loaded once, and the forked workers share it."""
+    from sb3_affect.engine import simulate
+
+    for simulation in dict.fromkeys(sim for sim, _ in units):
+        if simulation.algo not in {s.algo for s in _warmed}:
+            simulate(simulation.algo, simulation.algo_kwargs(0.5), protocol.env_id, protocol.env_kwargs, [0], 1)
+            _warmed.append(simulation)
+
+
+_warmed: list[Simulation] = []
+
+
 def _work(args: tuple[Unit, Protocol]) -> tuple[Unit, dict[float, dict[str, float]]]:
     return simulate_unit(*args)
 
@@ -69,6 +82,8 @@ def run_units(
     todo = [u for u in dict.fromkeys(units) if not store.has(*u)]
     if not todo:
         return 0
+    if workers > 1:
+        _warm_up(todo, store.protocol)
     bar = tqdm(total=len(todo), desc=desc, unit="replication", disable=not progress, dynamic_ncols=True)
     tasks = [(u, store.protocol) for u in todo]
     try:
