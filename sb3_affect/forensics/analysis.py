@@ -1,8 +1,11 @@
 """
 ``run_forensics``: which candidate implementation could have produced the paper's numbers?
 
-1. Screen: every simulation of the candidate space, ``screen_reps`` replications each; score every candidate
-   (simulation x reading) with the diagonal synthetic likelihood.
+0. Pre-screen: one replication of every simulation; a simulation whose mean steps per episode is more than
+   ``REJECT_FACTOR`` times off its agent's printed Table IV mean (in both step units) is dropped, with its
+   candidates (one replication is enough: that mean is over 36,000 episodes and varies by a few percent).
+1. Screen: every other simulation, ``screen_reps`` replications each; score every candidate (simulation x reading)
+   with the diagonal synthetic likelihood.
 2. Leaders: the ``leaders`` affective simulations whose best reading scores highest get ``reps`` replications
    (with their epsilon-greedy partners); their candidates are scored with the full synthetic likelihood and given
    posterior probabilities under a uniform prior over the leaders' candidates.
@@ -20,11 +23,15 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from sb3_affect.forensics.candidates import Candidate, CandidateSpace, Protocol, Simulation
+from sb3_affect.forensics.candidates import STANDARD, STEP_UNITS, Candidate, CandidateSpace, Protocol, Simulation
 from sb3_affect.forensics.runner import run_units
 from sb3_affect.forensics.scoring import intervals, log_likelihood, posterior, predictive_reach
 from sb3_affect.forensics.statistics import STATISTICS, candidate_statistics, printed_numbers
 from sb3_affect.forensics.store import SummaryStore
+
+#: Pre-screen: a simulation whose mean steps per episode (one replication) is more than this factor from its agent's
+#: printed Table IV mean, in both step units, is not screened further (its candidates score -inf).
+REJECT_FACTOR = 10.0
 
 
 @dataclass
@@ -67,6 +74,19 @@ class _Samples:
             for r in replications
         ]
         return np.array(rows, dtype=float).reshape(len(rows), len(STATISTICS))
+
+
+def _steps_ratio(summary: pd.DataFrame, observed: np.ndarray, standard: bool) -> float:
+    """How far (a factor >= 1) one replication's mean steps per episode is from the printed Table IV mean of its agent,
+    in the closer of the two step units."""
+    printed = observed[STATISTICS.index("IV mean ε-greedy" if standard else "IV mean affective")]
+    if not np.isfinite(printed) or printed <= 0:
+        return 1.0
+    factors = []
+    for unit in STEP_UNITS:
+        mean = float((summary[unit] / summary.n).mean())
+        factors.append(max(mean / printed, printed / mean) if mean > 0 else math.inf)
+    return min(factors)
 
 
 def _units(simulations: list[Simulation], replications: range) -> list[tuple[Simulation, int]]:
@@ -115,15 +135,23 @@ def run_forensics(
     affective = space.affective_simulations()
     standard = space.standard_simulations()
     screen_range = range(screen_reps)
-    run_units(store, _units(standard + affective, screen_range), workers, progress, "screen")
-
     samples = _Samples(store)
+    run_units(store, _units(standard + affective, range(1)), workers, progress, "pre-screen")
+    ratios = {sim: _steps_ratio(samples.summary(sim, 0), observed, sim.agent == STANDARD) for sim in standard + affective}
+    kept = [sim for sim in affective if max(ratios[sim], ratios[sim.standard]) <= REJECT_FACTOR]
+    partners = list(dict.fromkeys(sim.standard for sim in kept))
+    run_units(store, _units(partners + kept, screen_range), workers, progress, "screen")
+
     rows = []
-    screened = {c.name: samples.sample(c, screen_range) for c in space.candidates()}
+    screened = {}
     for candidate in space.candidates():
-        ll = log_likelihood(screened[candidate.name], observed, diagonal=True)
-        rows.append({"candidate": candidate.name, **candidate.describe(), "screen_loglik": ll})
-    screen = pd.DataFrame(rows).sort_values("screen_loglik", ascending=False, kind="stable").reset_index(drop=True)
+        sim = candidate.affective
+        ratio = max(ratios[sim], ratios[sim.standard])
+        screened[candidate.name] = samples.sample(candidate, screen_range if sim in kept else range(1))
+        ll = log_likelihood(screened[candidate.name], observed, diagonal=True) if sim in kept else -math.inf
+        rows.append({"candidate": candidate.name, **candidate.describe(), "screen_loglik": ll, "steps_ratio": ratio})
+    screen = pd.DataFrame(rows).sort_values(["screen_loglik", "steps_ratio"], ascending=[False, True], kind="stable")
+    screen = screen.reset_index(drop=True)
     by_sim = {c.name: c for c in space.candidates()}
     leading: list[Simulation] = []
     for name in screen.candidate:

@@ -35,6 +35,13 @@ def has_results(folder: str | Path) -> bool:
     return (Path(folder) / "leaders.csv").exists() and (Path(folder) / "intervals.csv").exists()
 
 
+def _short(row: pd.Series) -> str:
+    return (
+        f"{row.comparison}/{row.act}/{row.units}, ties {row.tie_break}, 2 cells {row.multi_cell}, "
+        f"alpha {fmt(float(row.alpha))}, gamma {fmt(float(row.gamma))} (x{fmt(float(row.steps_ratio), 0)})"
+    )
+
+
 def _loglik(value: float) -> str:
     return "-inf (never produces a printed value)" if value == -math.inf else f"{value:,.1f}"
 
@@ -91,6 +98,18 @@ def forensics_section(folder: str | Path, figures_dir: str | Path | None = None)
     screened = best_screen[[c for c in FACTORS if c in best_screen.columns]].copy()
     screened["screen log-likelihood"] = best_screen.screen_loglik.map(_loglik)
     screened.index = pd.Index(range(1, len(screened) + 1), name="rank")
+    rejected = screen[screen.screen_loglik == -math.inf]
+    if "steps_ratio" in screen.columns and len(rejected):
+        sims = rejected.drop_duplicates(subset=[c for c in FACTORS[:7] if c in rejected.columns])
+        lines += [
+            f"Pre-screen: {len(sims)} affective simulations ({len(rejected)} candidates) were dropped after one "
+            "replication because their own or their ε-greedy partner's mean steps per episode missed the printed "
+            "Table IV mean by more than a factor 10 in both step units (the factor in brackets): "
+            + "; ".join(_short(row) for _, row in sims.head(12).iterrows())
+            + ("; ..." if len(sims) > 12 else "")
+            + ".",
+            "",
+        ]
     lines += [f"*Screen: the best 8 of {len(screen)} candidates (diagonal likelihood, few replications)*", ""]
     lines += [_md_table(screened, 2), ""]
     shown = table.copy()
