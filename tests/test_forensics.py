@@ -16,6 +16,7 @@ from sb3_affect.engine import simulate
 from sb3_affect.experiments import run_sweep
 from sb3_affect.experiments.store import StoreError
 from sb3_affect.forensics import STATISTICS, CandidateSpace, Protocol, Reading, Simulation, printed_numbers, run_forensics
+from sb3_affect.forensics.analysis import REJECT_FACTOR, _steps_ratio
 from sb3_affect.forensics.runner import run_units, simulate_unit
 from sb3_affect.forensics.scoring import log_likelihood, posterior
 from sb3_affect.forensics.section import forensics_section
@@ -62,6 +63,16 @@ def test_table_v_sum_is_the_mean_times_the_runs() -> None:
     v_mean = STATISTICS.index("V mean affective")
     assert total[v_mean] == pytest.approx(TINY.seeds * mean[v_mean])
     assert total[:6] == pytest.approx(mean[:6])  # Table IV does not depend on Table V's reading
+
+
+def test_pre_screen_factor_uses_the_closer_step_unit() -> None:
+    summary = pd.DataFrame({"n": [20.0, 20.0], "decisions": [20 * 50.0, 20 * 70.0], "cells": [20 * 600.0, 20 * 600.0]})
+    observed = printed_numbers()  # affective 56.28, epsilon-greedy 67.02
+    assert _steps_ratio(summary, observed, standard=False) == pytest.approx(60 / 56.28)
+    assert _steps_ratio(summary, observed, standard=True) == pytest.approx(67.02 / 60)
+    frozen = summary.assign(decisions=20 * 20000.0, cells=20 * 20000.0)
+    assert _steps_ratio(frozen, observed, standard=True) == pytest.approx(20000 / 67.02)
+    assert 20000 / 67.02 > REJECT_FACTOR
 
 
 def test_scoring_prefers_the_sample_that_holds_the_value() -> None:
