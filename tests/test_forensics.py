@@ -72,7 +72,19 @@ def test_pre_screen_factor_uses_the_closer_step_unit() -> None:
     assert _steps_ratio(summary, observed, standard=True) == pytest.approx(67.02 / 60)
     frozen = summary.assign(decisions=20 * 20000.0, cells=20 * 20000.0)
     assert _steps_ratio(frozen, observed, standard=True) == pytest.approx(20000 / 67.02)
-    assert 20000 / 67.02 > REJECT_FACTOR
+    assert REJECT_FACTOR < 20000 / 67.02
+
+
+def test_pre_screen_stops_a_frozen_replication_early(tmp_path: Path) -> None:
+    protocol = Protocol(epsilons=(0.1, 0.2, 0.9), seeds=2, episodes=5)
+    frozen = Simulation("epsilon-greedy", 1.0, 0.8)  # first cell ~ a few hundred steps per episode: above 1 step
+    store = SummaryStore(tmp_path, protocol)
+    assert run_units(store, [(frozen, 0)], workers=1, progress=False, stop_above={frozen: 1.0}) == 1
+    assert store.has(frozen, 0, partial_ok=True) and not store.has(frozen, 0)
+    assert len(store.read(frozen, 0, partial_ok=True)) == 1  # stopped after the first epsilon cell
+    assert run_units(store, [(frozen, 0)], workers=1, progress=False, stop_above={frozen: 1.0}) == 0
+    assert run_units(store, [(frozen, 0)], workers=1, progress=False) == 1  # a full replication is another thing
+    assert len(store.read(frozen, 0)) == 3 and store.replications(frozen) == [0]
 
 
 def test_scoring_prefers_the_sample_that_holds_the_value() -> None:

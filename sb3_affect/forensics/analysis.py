@@ -73,18 +73,27 @@ class _Samples:
             candidate_statistics(self.summary(candidate.standard, r), self.summary(candidate.affective, r), candidate.reading)
             for r in replications
         ]
-        return np.array(rows, dtype=float).reshape(len(rows), len(STATISTICS))
+        return np.array(rows, dtype=float).reshape(len(rows), len(STATISTICS))  # (0, n) for no replications
 
 
-def _steps_ratio(summary: pd.DataFrame, observed: np.ndarray, standard: bool) -> float:
-    """How far (a factor >= 1) one replication's mean steps per episode is from the printed Table IV mean of its agent,
-    in the closer of the two step units."""
-    printed = observed[STATISTICS.index("IV mean ε-greedy" if standard else "IV mean affective")]
-    if not np.isfinite(printed) or printed <= 0:
+def _printed_steps(observed: np.ndarray, standard: bool) -> float:
+    """The printed Table IV mean steps per episode of one agent (inf when not printed: nothing is rejected)."""
+    printed = float(observed[STATISTICS.index("IV mean ε-greedy" if standard else "IV mean affective")])
+    return printed if np.isfinite(printed) and printed > 0 else math.inf
+
+
+def _steps_ratio(summary: pd.DataFrame, observed: np.ndarray, standard: bool, cells: int | None = None) -> float:
+    """
+    How far (a factor >= 1) one replication's mean steps per episode is from the printed Table IV mean of its agent,
+    in the closer of the two step units. ``cells``: the protocol's number of epsilon cells, when ``summary`` may be a
+    replication stopped early (its missing cells count as 0 steps: a lower bound of a too-high mean).
+    """
+    printed = _printed_steps(observed, standard)
+    if not math.isfinite(printed):
         return 1.0
     factors = []
     for unit in STEP_UNITS:
-        mean = float((summary[unit] / summary.n).mean())
+        mean = float((summary[unit] / summary.n).sum()) / (cells or len(summary))
         factors.append(max(mean / printed, printed / mean) if mean > 0 else math.inf)
     return min(factors)
 
@@ -136,8 +145,13 @@ def run_forensics(
     standard = space.standard_simulations()
     screen_range = range(screen_reps)
     samples = _Samples(store)
-    run_units(store, _units(standard + affective, range(1)), workers, progress, "pre-screen")
-    ratios = {sim: _steps_ratio(samples.summary(sim, 0), observed, sim.agent == STANDARD) for sim in standard + affective}
+    cells = len(protocol.epsilons)
+    stop = {sim: REJECT_FACTOR * cells * _printed_steps(observed, sim.agent == STANDARD) for sim in standard + affective}
+    run_units(store, _units(standard + affective, range(1)), workers, progress, "pre-screen", stop_above=stop)
+    ratios = {
+        sim: _steps_ratio(store.read(sim, 0, partial_ok=True), observed, sim.agent == STANDARD, cells)
+        for sim in standard + affective
+    }
     kept = [sim for sim in affective if max(ratios[sim], ratios[sim.standard]) <= REJECT_FACTOR]
     partners = list(dict.fromkeys(sim.standard for sim in kept))
     run_units(store, _units(partners + kept, screen_range), workers, progress, "screen")
@@ -147,7 +161,7 @@ def run_forensics(
     for candidate in space.candidates():
         sim = candidate.affective
         ratio = max(ratios[sim], ratios[sim.standard])
-        screened[candidate.name] = samples.sample(candidate, screen_range if sim in kept else range(1))
+        screened[candidate.name] = samples.sample(candidate, screen_range if sim in kept else range(0))
         ll = log_likelihood(screened[candidate.name], observed, diagonal=True) if sim in kept else -math.inf
         rows.append({"candidate": candidate.name, **candidate.describe(), "screen_loglik": ll, "steps_ratio": ratio})
     screen = pd.DataFrame(rows).sort_values(["screen_loglik", "steps_ratio"], ascending=[False, True], kind="stable")
