@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -17,17 +17,16 @@ from sb3_affect.report.document import _md_table, fmt
 FACTORS = ("comparison", "act", "units", "tie_break", "multi_cell", "alpha", "gamma", "optimal", "step", "table_v")
 
 
-@dataclass
-class ForensicsSection:
+class ForensicsSection(NamedTuple):
     """
-    A ready-made report section.
+    A ready-made report section: ``text, images = forensics_section(...)`` like the report's other sections.
 
     :param markdown: the section's Markdown (heading, text, tables), without the figures
     :param figures: (PNG path, caption) pairs to show after it
     """
 
     markdown: str
-    figures: list[tuple[Path, str]] = field(default_factory=list)
+    figures: list[tuple[Path, str]]
 
 
 def has_results(folder: str | Path) -> bool:
