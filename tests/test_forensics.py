@@ -56,7 +56,11 @@ def test_printed_numbers_are_the_papers() -> None:
 
 
 def test_table_v_sum_is_the_mean_times_the_runs() -> None:
-    (_, std), (_, aff) = simulate_unit((AFFECTIVE.standard, 0), TINY), simulate_unit((AFFECTIVE, 0), TINY)
+    (_, std, complete_std), (_, aff, complete_aff) = (
+        simulate_unit((AFFECTIVE.standard, 0), TINY),
+        simulate_unit((AFFECTIVE, 0), TINY),
+    )
+    assert complete_std and complete_aff
     std_frame, aff_frame = pd.DataFrame.from_dict(std, orient="index"), pd.DataFrame.from_dict(aff, orient="index")
     total = candidate_statistics(std_frame, aff_frame, Reading(table_v="sum"))
     mean = candidate_statistics(std_frame, aff_frame, Reading(table_v="mean"))
