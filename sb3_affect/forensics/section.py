@@ -103,7 +103,8 @@ def forensics_section(folder: str | Path, figures_dir: str | Path | None = None)
         lines += [
             f"Pre-screen: {len(sims)} affective simulations ({len(rejected)} candidates) were dropped after one "
             "replication because their own or their ε-greedy partner's mean steps per episode missed the printed "
-            "Table IV mean by more than a factor 10 in both step units (the factor in brackets): "
+            "Table IV mean by more than a factor 10 in both step units (the factor in brackets; a lower bound where the "
+            "replication was stopped as soon as the factor was certain): "
             + "; ".join(_short(row) for _, row in sims.head(12).iterrows())
             + ("; ..." if len(sims) > 12 else "")
             + ".",
