@@ -151,24 +151,8 @@ def test_smoke_sweep_end_to_end(tmp_path: Path, capsys: pytest.CaptureFixture[st
     # The same seed gives the same records in another process (byte-identical config + episodes); per-run SB3 csv
     # logs when asked.
     again = tmp_path / "again"
-    assert (
-        main(
-            [
-                "run",
-                str(EXPERIMENTS / "smoke.yaml"),
-                "--out",
-                str(again),
-                "--workers",
-                "1",
-                "--set",
-                "episodes=10",
-                "--logs",
-                "csv",
-                "--no-progress",
-            ]
-        )
-        == 0
-    )
+    assert main(["run", str(EXPERIMENTS / "smoke.yaml"), "--out", str(again), "--workers", "1", "--set", "episodes=10",
+                 "--logs", "csv", "--no-progress"]) == 0
     assert contents(again) == runs
     logs = sorted((again / "logs").glob("*/progress.csv"))
     assert [p.parent.name for p in logs] == sorted(runs)
@@ -199,10 +183,8 @@ def test_dead_worker_is_recorded_and_others_finish(tmp_path: Path, monkeypatch: 
     monkeypatch.setenv(FAULTS, "1")
     summary = run_sweep(sweep, out, workers=2, progress=False)
     assert (summary.total, summary.finished, summary.failed) == (8, 4, 4)
-    errors = {
-        json.loads(p.read_text())["config"]["labels"]["fault"]: json.loads(p.read_text())["error"]
-        for p in (out / "failed").glob("[!.]*.json")
-    }
+    errors = {json.loads(p.read_text())["config"]["labels"]["fault"]: json.loads(p.read_text())["error"]
+              for p in (out / "failed").glob("[!.]*.json")}
     assert "died" in errors["exit"] and "exit code 3" in errors["exit"]
     assert "killed by SIGKILL" in errors["kill"]
     monkeypatch.delenv(FAULTS)
