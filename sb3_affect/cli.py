@@ -30,6 +30,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         workers=args.workers,
         backend=args.backend,
         ray_address=args.ray_address,
+        ray_timeout=args.ray_timeout,
         overrides=[*(args.set or ()), *([f"logs=[{args.logs}]"] if args.logs else [])],
         progress=not args.no_progress,
     )
@@ -90,9 +91,16 @@ def build_parser() -> argparse.ArgumentParser:
     run = sub.add_parser("run", help="run (or resume) an experiment sweep")
     run.add_argument("file", help="experiment YAML, e.g. experiments/paper.yaml")
     run.add_argument("--out", required=True, help="results folder")
-    run.add_argument("--workers", type=int, default=None, help="parallel runs (default: CPU count)")
+    run.add_argument(
+        "--workers", type=int, default=None, help="parallel runs (default: CPU count; on a Ray cluster: all its CPUs)"
+    )
     run.add_argument("--backend", choices=("local", "ray"), default="local")
-    run.add_argument("--ray-address", default=None, help="Ray cluster address (default: start a local instance)")
+    run.add_argument(
+        "--ray-address", default=None, help="Ray cluster address, HOST:PORT or ray://HOST:PORT (default: a private instance)"
+    )
+    run.add_argument(
+        "--ray-timeout", type=float, default=60.0, metavar="SECONDS", help="give up on an unresponsive Ray cluster after this"
+    )
     run.add_argument("--set", action="append", metavar="KEY=VALUE", help="override one key, e.g. --set seeds=5")
     run.add_argument("--no-progress", action="store_true", help="no progress bar")
     run.add_argument(
@@ -113,17 +121,20 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from sb3_affect.experiments.ray_cluster import ClusterLost, RayClusterError
     from sb3_affect.experiments.schema import SweepError
     from sb3_affect.experiments.store import StoreError
 
     args = build_parser().parse_args(argv)
     try:
         return int(args.func(args))
-    except (SweepError, StoreError) as error:
+    except (SweepError, StoreError, RayClusterError) as error:
         print(f"sb3-affect: error: {error}", file=sys.stderr)
         return 2
     except KeyboardInterrupt as interrupt:
         how = "terminated" if isinstance(interrupt, Terminated) else "interrupted"
+        if isinstance(interrupt, ClusterLost):
+            how = interrupt.message
         print(f"\nsb3-affect: {how}; finished runs are kept, rerun the same command to resume", file=sys.stderr)
         return 143 if isinstance(interrupt, Terminated) else 130
 

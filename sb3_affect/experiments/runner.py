@@ -6,6 +6,7 @@ import json
 import math
 import os
 import platform
+import socket
 import time
 from pathlib import Path
 from typing import Any
@@ -174,6 +175,7 @@ def execute_run(config: dict[str, Any], log_dir: str | None = None, log_formats:
             "wall_seconds": round(time.perf_counter() - start, 4),
             "decisions": int(model.num_timesteps),
             "pid": os.getpid(),
+            "host": socket.gethostname(),
         },
         "versions": package_versions(),
     }
