@@ -157,7 +157,7 @@ class Cluster:
         proc = subprocess.Popen(
             command,
             env=env or self.env,
-            cwd=self.temp,
+            cwd=ROOT,  # from the checkout, as a user would: its sb3_affect/ (without envs/) must not shadow the shipped code
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
             text=True,
@@ -174,7 +174,7 @@ class Cluster:
         return subprocess.Popen(
             command,
             env=self.env,
-            cwd=self.temp,
+            cwd=ROOT,
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
             text=True,

@@ -361,7 +361,11 @@ def connect(address: str | None, workers: int, timeout: float = 60.0) -> Iterato
         if address:
             staging = tempfile.mkdtemp(prefix="sb3-affect-ship-")
             package = stage_package(Path(staging))
-            _init_with_timeout(ray, address, timeout, {"py_modules": [str(package)]})
+            # Ray puts the driver's working directory on every worker's sys.path, before the shipped code: started from
+            # a checkout (or a shared filesystem), its sb3_affect/ folder, which lacks envs/, would shadow the package.
+            (Path(staging) / "cwd").mkdir()
+            with _working_directory(Path(staging) / "cwd"):
+                _init_with_timeout(ray, address, timeout, {"py_modules": [str(package)]})
             check_nodes(ray, address, timeout)
         else:
             _private_init(ray, workers)
@@ -374,6 +378,16 @@ def connect(address: str | None, workers: int, timeout: float = 60.0) -> Iterato
             _shutdown(ray)
         if staging:
             shutil.rmtree(staging, ignore_errors=True)
+
+
+@contextlib.contextmanager
+def _working_directory(path: Path) -> Iterator[None]:
+    previous = os.getcwd()
+    os.chdir(path)
+    try:
+        yield
+    finally:
+        os.chdir(previous)
 
 
 def _shutdown(ray: Any, timeout: float = 20.0) -> None:
