@@ -237,6 +237,7 @@ def _execute_team(config: dict[str, Any], log_dir: str | None, log_formats: tupl
             "wall_seconds": round(time.perf_counter() - start, 4),
             "decisions": int(sum(m.num_timesteps for m in team.models.values())),
             "pid": os.getpid(),
+            "host": socket.gethostname(),
         },
         "versions": package_versions(),
     }
