@@ -3,8 +3,9 @@ The Ray side of the ``ray`` backend: connect, ship the code, check versions, run
 
 * Without an address: a private instance on this machine (``address="local"``, so neither ``RAY_ADDRESS`` nor a
   cluster recorded by an earlier ``ray start`` can redirect it), dashboard off, every process on 127.0.0.1.
-* With an address (``HOST:PORT`` or ``ray://HOST:PORT``): the address is tried with a plain TCP connection first and
-  ``ray.init`` is given ``timeout`` seconds, so a wrong address fails with a message instead of retrying forever;
+* With an address (``HOST:PORT`` or ``ray://HOST:PORT``): the address is tried first and ``ray.init`` is given
+  ``timeout`` seconds (:mod:`sb3_affect.experiments.ray_connect`), so a wrong address or a missing token fails with a
+  message instead of retrying forever;
   this package's code (``sb3_affect`` with its ``envs`` subpackage, as the driver imports it) is shipped with the
   job as a Ray ``py_modules`` entry, so a worker node needs Python, Ray and sb3-affect's dependencies, not
   sb3-affect; then one zero-CPU task per node reports its host and package versions, and a node whose versions differ
@@ -17,13 +18,10 @@ The Ray side of the ``ray`` backend: connect, ship the code, check versions, run
 from __future__ import annotations
 
 import contextlib
-import logging
 import os
-import re
 import shutil
 import socket
 import tempfile
-import threading
 import time
 import traceback
 from collections import deque
@@ -31,11 +29,20 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
+from sb3_affect.experiments.ray_connect import (
+    RayClusterError,
+    handshake,
+    host_port,
+    init_with_timeout,
+    plain_text,
+    reachable,
+    shutdown_within,
+    working_directory,
+)
+
+__all__ = ["ClusterLost", "RayClusterError", "RaySession", "connect", "execute_task", "plain_text", "write_logs"]
+
 Versions = dict[str, str]
-
-
-class RayClusterError(RuntimeError):
-    """The Ray cluster can not be used for this sweep (unreachable, authentication, other package versions)."""
 
 
 class ClusterLost(KeyboardInterrupt):
@@ -48,25 +55,6 @@ class ClusterLost(KeyboardInterrupt):
     def __init__(self, message: str) -> None:
         super().__init__(message)
         self.message = message
-
-
-def plain_text(text: str) -> str:
-    """Ray's error messages without their terminal colour codes."""
-    return re.sub(r"\x1b\[[0-9;]*m", "", text)
-
-
-def _host_port(address: str) -> tuple[str, int] | None:
-    match = re.fullmatch(r"(?:ray://)?\[?([^\]]+?)\]?:(\d+)", address.strip())
-    return (match.group(1), int(match.group(2))) if match else None
-
-
-def _reachable(host: str, port: int, timeout: float) -> str | None:
-    """``None`` if a TCP connection to ``host:port`` opens within ``timeout`` seconds, else why not."""
-    try:
-        socket.create_connection((host, port), timeout=timeout).close()
-    except OSError as error:
-        return error.strerror or type(error).__name__ if not isinstance(error, socket.timeout) else "timed out"
-    return None
 
 
 def stage_package(folder: Path) -> Path:
@@ -85,107 +73,6 @@ def stage_package(folder: Path) -> Path:
         shutil.rmtree(target / "envs", ignore_errors=True)
         shutil.copytree(envs, target / "envs", ignore=ignore)
     return target
-
-
-def _auth_hint(address: str) -> str:
-    mode = os.environ.get("RAY_AUTH_MODE")
-    return (
-        f"could not authenticate with the Ray cluster at {address} (RAY_AUTH_MODE={mode or 'unset'}): a cluster started "
-        "with token authentication (Ray writes ~/.ray/auth_token when it first starts one) needs RAY_AUTH_MODE=token here, "
-        "and the cluster's token in RAY_AUTH_TOKEN or ~/.ray/auth_token; a cluster without it needs RAY_AUTH_MODE=disabled"
-    )
-
-
-def _driver_token() -> str | None:
-    """The token this driver would present (``RAY_AUTH_TOKEN``, ``RAY_AUTH_TOKEN_PATH`` or ``~/.ray/auth_token``)."""
-    if os.environ.get("RAY_AUTH_TOKEN"):
-        return os.environ["RAY_AUTH_TOKEN"].strip()
-    path = Path(os.environ.get("RAY_AUTH_TOKEN_PATH") or Path.home() / ".ray" / "auth_token")
-    with contextlib.suppress(OSError):
-        return path.read_text().strip() or None
-    return None
-
-
-def handshake(address: str, host: str, port: int, timeout: float) -> None:
-    """
-    Ask the head node's GCS for its cluster id (one gRPC call) before ``ray.init``, which retries a wrong port or a
-    missing token forever: raise :class:`RayClusterError` saying what is wrong, or return if Ray would get in.
-    """
-    try:
-        import grpc
-        from ray.core.generated import gcs_service_pb2, gcs_service_pb2_grpc
-    except ImportError:  # another Ray layout: leave it to ray.init (and its timeout)
-        return
-    token_mode = os.environ.get("RAY_AUTH_MODE", "").lower() == "token"
-    token = _driver_token() if token_mode else None
-    metadata = [("authorization", f"Bearer {token}")] if token else []
-    channel = grpc.insecure_channel(f"{host}:{port}")
-    try:
-        stub = gcs_service_pb2_grpc.NodeInfoGcsServiceStub(channel)
-        request = gcs_service_pb2.GetClusterIdRequest()  # type: ignore[attr-defined]
-        stub.GetClusterId(request, timeout=timeout, metadata=metadata)
-    except grpc.RpcError as error:
-        code = error.code()
-        if code == grpc.StatusCode.UNAUTHENTICATED:
-            if token_mode and token:
-                raise RayClusterError(
-                    f"the Ray cluster at {address} rejected this driver's token (RAY_AUTH_TOKEN, RAY_AUTH_TOKEN_PATH or "
-                    "~/.ray/auth_token): use the token of the machine that started the head node"
-                ) from None
-            raise RayClusterError(_auth_hint(address)) from None
-        if code == grpc.StatusCode.UNIMPLEMENTED:
-            raise RayClusterError(
-                f"{address} answers, but it is not a Ray head node's GCS port: give the port of `ray start --head --port` "
-                "(6379 by default), or ray://HOST:10001 for Ray's client server"
-            ) from None
-        raise RayClusterError(
-            f"no Ray cluster answered at {address} within {timeout:g} s ({code.name}): check --ray-address, or raise "
-            "--ray-timeout"
-        ) from None
-    finally:
-        channel.close()
-
-
-class _DropMessage(logging.Filter):
-    """A logging filter that drops records containing ``text``."""
-
-    def __init__(self, text: str) -> None:
-        super().__init__()
-        self.text = text
-
-    def filter(self, record: logging.LogRecord) -> bool:
-        return self.text not in record.getMessage()
-
-
-def _init_with_timeout(ray: Any, address: str, timeout: float, runtime_env: dict[str, Any]) -> None:
-    """``ray.init(address)`` that gives up after ``timeout`` seconds (Ray itself retries a silent address forever)."""
-    outcome: dict[str, BaseException | None] = {}
-
-    def connect() -> None:
-        try:
-            ray.init(address=address, log_to_driver=False, runtime_env=runtime_env)
-            outcome["error"] = None
-        except BaseException as error:
-            outcome["error"] = error
-
-    thread = threading.Thread(target=connect, name="sb3-affect:ray-connect", daemon=True)
-    quiet = _DropMessage("SIGTERM handler is not set")  # ray.init in a thread; the CLI has its own SIGTERM handler
-    logging.getLogger("ray._private.worker").addFilter(quiet)
-    thread.start()
-    thread.join(timeout)
-    logging.getLogger("ray._private.worker").removeFilter(quiet)
-    if thread.is_alive():
-        raise RayClusterError(
-            f"no Ray cluster answered at {address} within {timeout:g} s (the port is open, but Ray did not respond): "
-            "check --ray-address (the head node's GCS port, 6379 by default, or ray://HOST:10001), or raise --ray-timeout"
-        )
-    error = outcome.get("error")
-    if error is None:
-        return
-    text = plain_text(str(error))
-    if type(error).__name__ == "AuthenticationError" or "authenticat" in text.lower() or "auth_token" in text:
-        raise RayClusterError(_auth_hint(address)) from None
-    raise RayClusterError(f"could not connect to the Ray cluster at {address}: {type(error).__name__}: {text}") from None
 
 
 def _probe() -> dict[str, Any]:
@@ -255,14 +142,14 @@ class RaySession:
         self.gcs: tuple[str, int] | None = None
         if address and not address.startswith("ray://"):
             with contextlib.suppress(Exception):
-                self.gcs = _host_port(ray.get_runtime_context().gcs_address)
+                self.gcs = host_port(ray.get_runtime_context().gcs_address)
 
     def lost(self) -> str | None:
         """Why the cluster counts as lost (its GCS refuses connections for 3 s), or ``None``."""
         if self.gcs is None:
             return None
         for attempt in range(4):
-            why = _reachable(*self.gcs, timeout=2.0)
+            why = reachable(*self.gcs, timeout=2.0)
             if why is None:
                 return None
             if attempt < 3:
@@ -338,10 +225,10 @@ def connect(address: str | None, workers: int, timeout: float = 60.0) -> Iterato
         # this every Ray process listens on 127.0.0.1 only (checked with ``ss -ltnp`` in tests/test_experiments_ray.py).
         os.environ.setdefault("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "0")
     else:
-        where = _host_port(address)
+        where = host_port(address)
         if where is None:
             raise RayClusterError(f"--ray-address {address!r} is not HOST:PORT or ray://HOST:PORT")
-        why = _reachable(*where, timeout=min(timeout, 10.0))
+        why = reachable(*where, timeout=min(timeout, 10.0))
         if why is not None:
             raise RayClusterError(
                 f"no Ray cluster at {address}: connecting to {where[0]}:{where[1]} failed ({why}); start one with "
@@ -364,8 +251,8 @@ def connect(address: str | None, workers: int, timeout: float = 60.0) -> Iterato
             # Ray puts the driver's working directory on every worker's sys.path, before the shipped code: started from
             # a checkout (or a shared filesystem), its sb3_affect/ folder, which lacks envs/, would shadow the package.
             (Path(staging) / "cwd").mkdir()
-            with _working_directory(Path(staging) / "cwd"):
-                _init_with_timeout(ray, address, timeout, {"py_modules": [str(package)]})
+            with working_directory(Path(staging) / "cwd"):
+                init_with_timeout(ray, address, timeout, {"py_modules": [str(package)]})
             check_nodes(ray, address, timeout)
         else:
             _private_init(ray, workers)
@@ -375,26 +262,9 @@ def connect(address: str | None, workers: int, timeout: float = 60.0) -> Iterato
         # instance). No ``ray.cancel(force=True)`` of the pending tasks: racing with tasks that are just finishing, it
         # crashes the driver inside Ray ("Tried to complete task that was not pending", Ray 2.60).
         if ray.is_initialized():
-            _shutdown(ray)
+            shutdown_within(ray)
         if staging:
             shutil.rmtree(staging, ignore_errors=True)
-
-
-@contextlib.contextmanager
-def _working_directory(path: Path) -> Iterator[None]:
-    previous = os.getcwd()
-    os.chdir(path)
-    try:
-        yield
-    finally:
-        os.chdir(previous)
-
-
-def _shutdown(ray: Any, timeout: float = 20.0) -> None:
-    """``ray.shutdown()``, given up after ``timeout`` seconds (it can wait long for a cluster that is gone)."""
-    thread = threading.Thread(target=ray.shutdown, name="sb3-affect:ray-shutdown", daemon=True)
-    thread.start()
-    thread.join(timeout)
 
 
 def execute_task(config: dict[str, Any], log_dir: str | None, formats: tuple[str, ...]) -> tuple[Any, ...]:
