@@ -80,7 +80,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
 def _cmd_replicate(args: argparse.Namespace) -> int:
     from sb3_affect.replicate import main as replicate
 
-    replicate(out_dir=Path(args.out), workers=args.workers)
+    replicate(out_dir=Path(args.out), workers=args.workers, large_seeds=args.large_seeds)
     return 0
 
 
@@ -108,6 +108,9 @@ def build_parser() -> argparse.ArgumentParser:
     replicate = sub.add_parser("replicate", help="the main job: paper protocol, DQN subset, ablation, then the report")
     replicate.add_argument("--out", default="runs")
     replicate.add_argument("--workers", type=int, default=None)
+    replicate.add_argument(
+        "--large-seeds", type=int, default=1000, help="seeds per cell of the large-N study (engine; default 1000)"
+    )
     replicate.set_defaults(func=_cmd_replicate)
     return parser
 

@@ -1,4 +1,7 @@
-"""The main job: the paper's protocol, the DQN comparison, the reading ablation, then one report."""
+"""
+The main job: the paper's protocol and the DQN comparison through the launcher (run files), issue 7's fair baselines,
+then the engine studies (large-N, reading ablation, moving and evading prey and mazes), then one report.
+"""
 
 from __future__ import annotations
 
@@ -6,36 +9,59 @@ import time
 from pathlib import Path
 
 EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
-PARTS = (
+#: Launcher sweeps: (name of experiments/<name>.yaml and of the results folder, description).
+SWEEPS = (
     ("paper", "the paper's protocol (360 runs)"),
-    ("dqn", "SB3 DQN subset (20 runs)"),
-    ("ablation", "reading ablation (1,440 runs)"),
+    ("dqn", "SB3 DQN beside the tabular agents, equal seeds and budget (35 runs)"),
     ("baselines", "fair baselines beside both paper agents (issue 7)"),
 )
+ABLATION_SEEDS, BEYOND_SEEDS = 20, 10
 
 
-def main(out_dir: Path = Path("runs"), workers: int | None = None, experiments: Path = EXPERIMENTS) -> Path:
+def main(
+    out_dir: Path = Path("runs"), workers: int | None = None, experiments: Path = EXPERIMENTS, large_seeds: int = 1000
+) -> Path:
     """
-    Run experiments/paper.yaml, dqn.yaml and ablation.yaml into ``out_dir/<name>`` (resuming what is there), then
-    write ``out_dir/report.md`` (and .html, tables/, figures/). Prints the wall time of each part.
+    Run the sweeps of ``SWEEPS`` into ``out_dir/<name>`` (resuming what is there) and the engine studies into
+    ``out_dir/large``, ``out_dir/ablation_engine`` and ``out_dir/beyond`` (reused when complete), then write
+    ``out_dir/report.md`` (and .html, tables/, figures/). Prints the wall time of each part.
+
+    :param out_dir: the replicate folder
+    :param workers: processes (default: usable CPUs)
+    :param experiments: the folder of the sweep files
+    :param large_seeds: seeds per cell of the large-N study
     """
     from sb3_affect.experiments import run_sweep
     from sb3_affect.report import build_report
+    from sb3_affect.report.ablation import ablation_cells
+    from sb3_affect.report.baselines import beyond_cells
+    from sb3_affect.report.largen import large_cells, run_cells
 
     out_dir = Path(out_dir)
-    timings: list[tuple[str, float]] = []
-    for name, description in PARTS:
+    timings: dict[str, float] = {}
+    for name, description in SWEEPS:
         print(f"== {description}: {experiments / f'{name}.yaml'} -> {out_dir / name}", flush=True)
         summary = run_sweep(experiments / f"{name}.yaml", out_dir / name, workers=workers)
-        timings.append((description, summary.seconds))
+        timings[f"{name} ({description})"] = summary.seconds
         print(
             f"   {summary.finished} runs now, {summary.skipped} already done, {summary.failed} failed, "
             f"{summary.seconds:.1f} s",
             flush=True,
         )
+    studies = (
+        ("large", f"large-N study, {large_seeds} seeds per cell (engine)", large_cells(), large_seeds),
+        ("ablation_engine", f"reading ablation, {ABLATION_SEEDS} seeds per cell (engine)", ablation_cells(), ABLATION_SEEDS),
+        ("beyond", f"moving and evading prey, mazes, {BEYOND_SEEDS} seeds (engine)", beyond_cells(), BEYOND_SEEDS),
+    )
+    for name, description, cells, seeds in studies:
+        print(f"== {description} -> {out_dir / name}", flush=True)
+        start = time.perf_counter()
+        table, _ = run_cells(out_dir / name, cells, seeds, workers=workers)
+        timings[description] = time.perf_counter() - start
+        print(f"   {len(table)} runs, {timings[description]:.1f} s", flush=True)
     start = time.perf_counter()
-    report = build_report(out_dir)
-    timings.append(("report", time.perf_counter() - start))
-    print("wall time: " + ", ".join(f"{name} {seconds:.1f} s" for name, seconds in timings))
+    report = build_report(out_dir, timings=timings)
+    timings["report"] = time.perf_counter() - start
+    print("wall time: " + ", ".join(f"{name} {seconds:.1f} s" for name, seconds in timings.items()))
     print(f"report: {report} (and {report.with_suffix('.html')})")
     return report

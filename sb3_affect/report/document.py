@@ -34,7 +34,10 @@ def fmt(value: object, digits: int = 2) -> str:
 
 @dataclass
 class Document:
-    """Blocks in order: ("h", level, text), ("p", text), ("table", frame, caption), ("img", path, caption)."""
+    """
+    Blocks in order: ("h", level, text), ("p", text), ("ul", items), ("table", frame, caption, digits),
+    ("md", markdown), ("img", path, caption).
+    """
 
     title: str
     blocks: list[tuple] = field(default_factory=list)
@@ -47,6 +50,10 @@ class Document:
 
     def table(self, frame: pd.DataFrame, caption: str = "", digits: int = 2) -> None:
         self.blocks.append(("table", frame, caption, digits))
+
+    def ul(self, items: list[str]) -> None:
+        """A bulleted list (each item inline text: **bold** and `code` spans)."""
+        self.blocks.append(("ul", list(items)))
 
     def md(self, text: str) -> None:
         """A ready-made Markdown fragment (rendered to HTML with python-markdown's tables extension)."""
@@ -69,6 +76,8 @@ class Document:
                 if caption:
                     out += [f"*{caption}*", ""]
                 out += [_md_table(frame, digits), ""]
+            elif kind == "ul":
+                out += [f"- {item}" for item in block[1]] + [""]
             elif kind == "md":
                 out += [block[1], ""]
             elif kind == "img":
@@ -95,10 +104,12 @@ class Document:
             elif kind == "table":
                 frame, caption, digits = block[1], block[2], block[3]
                 parts.append(_html_table(frame, caption, digits))
+            elif kind == "ul":
+                parts.append("<ul>" + "".join(f"<li>{_inline(item)}</li>" for item in block[1]) + "</ul>")
             elif kind == "md":
                 import markdown
 
-                parts.append(markdown.markdown(block[1], extensions=["tables"]))
+                parts.append(markdown.markdown(block[1], extensions=["tables", "sane_lists"]))
             elif kind == "img":
                 data = base64.b64encode(block[1].read_bytes()).decode()
                 parts.append(

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import math
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -57,7 +58,9 @@ def episodes_frame(runs: list[dict[str, Any]]) -> pd.DataFrame:
         frames.append(frame)
     if not frames:
         return pd.DataFrame()
-    out = pd.concat(frames, ignore_index=True)
+    with warnings.catch_warnings():  # all-NaN columns (e.g. norm of an ε-greedy run) are expected
+        warnings.simplefilter("ignore", FutureWarning)
+        out = pd.concat(frames, ignore_index=True)
     for column in ("optimal", "truncated", "greedy_optimal"):
         out[column] = out[column].fillna(False).astype(bool)
     for column in ("random_moves", "norm"):
