@@ -458,4 +458,4 @@ def holm(judgements: list[Judgement]) -> int:
 
 def verdict_word(verdict: str) -> str:
     """The verdict's first words (``reproduced``, ``partly``, ``not reproduced`` ...), for compact tables."""
-    return verdict.split(":")[0].split(" (")[0]
+    return verdict.split(":")[0].split(";")[0].split(" (")[0]

@@ -93,36 +93,27 @@ def adastop_table(large: pd.DataFrame, column: str, n: int = 5, max_interims: in
         part = large[(large.agent == STANDARD) & np.isclose(large.epsilon, eps)].sort_values("replicate")
         data[f"{STANDARD} {eps:.1f}"] = part[column].to_numpy(float)
     comparator = MultipleAgentsComparator(
-        n=n, K=interims, B=2000, comparisons=[(0, i) for i in range(1, len(names))], alpha=0.05, seed=seed
+        n=n, K=interims, B=2000, comparisons=np.array([(0, i) for i in range(1, len(names))]), alpha=0.05, seed=seed
     )
-    values: dict[str, np.ndarray] = {name: np.array([]) for name in names}
+    decided_at: dict[str, int] = {}
     for k in range(interims):
-        for name in names:
-            if k == 0 or not comparator.is_finished:
-                values[name] = data[name][: (k + 1) * n]
-        comparator.partial_compare({name: values[name] for name in names}, verbose=False)
+        comparator.partial_compare({name: data[name][: (k + 1) * n] for name in names}, verbose=False)
+        for key, decision in comparator.decisions.items():
+            if decision != "continue" and key not in decided_at:
+                decided_at[key] = (k + 1) * n
         if comparator.is_finished:
             break
     rows = {}
     for i, name in enumerate(names[1:], start=1):
-        decision = comparator.decisions.get(str(np.array([0, i])), None) if hasattr(comparator, "decisions") else None
-        if decision is None:
-            decision = _decision(comparator, i)
+        key = str(np.array([0, i]))
+        decision = comparator.decisions.get(key, "undecided")
         rows[f"affective vs {name}"] = {
-            "decision (affective is ... than ε-greedy)": decision,
-            "runs used per agent": int(comparator.n_iters.get(name, len(values[name]))),
+            "decision (affective is ... than ε-greedy)": "undecided" if decision == "continue" else decision,
+            "runs per agent when decided": decided_at.get(key, f"> {interims * n}"),
         }
     table = pd.DataFrame.from_dict(rows, orient="index")
     table.index.name = f"comparison ({column})"
     return table
-
-
-def _decision(comparator: object, index: int) -> str:
-    decisions = getattr(comparator, "decisions", {})
-    for key, value in decisions.items():
-        if str(index) in str(key).split("vs")[-1] or str(key).endswith(f"{index}"):
-            return str(value)
-    return "undecided"
 
 
 def headline_tables(large: pd.DataFrame, m: pd.DataFrame) -> pd.DataFrame:
