@@ -30,7 +30,8 @@ EMOTIONS = ("joy", "sadness", "fear", "anger")
 def ablation_cells() -> list[Cell]:
     """experiments/ablation.yaml's cells (same seeds: sweep "ablation", agent "affective")."""
     cells = []
-    for comparison, act, units, eps in product(("literal", "valence"), ("episode", "remaining"), ("cells", "decisions"), paper.EPSILONS):
+    readings = product(("literal", "valence"), ("episode", "remaining"), ("cells", "decisions"), paper.EPSILONS)
+    for comparison, act, units, eps in readings:
         point = {"comparison": comparison, "act": act, "units": units, "epsilon": eps}
         kwargs = {"comparison": comparison, "act": act, "units": units}  # the classes' defaults are the paper's
         cells.append(Cell("affective", "AffectQ", kwargs, point, "ablation", point))

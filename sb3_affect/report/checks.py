@@ -31,14 +31,14 @@ METRICS = (
 REPS = 1000
 
 
-def groups(m: pd.DataFrame) -> dict[str, np.ndarray]:
+def groups(m: pd.DataFrame) -> dict[str, pd.DataFrame]:
     """Runs per agent configuration: the affective agent pooled over ε, ε-greedy per ε, the speed-matched agent."""
     out = {AFFECTIVE: m[m.agent == AFFECTIVE]}
     for eps in sorted(m[m.agent == STANDARD].epsilon.unique()):
         out[f"ε-greedy {eps:.1f}"] = m[(m.agent == STANDARD) & (m.epsilon == eps)]
     if (m.agent == SPEED_AGENT).any():
         out[SPEED_AGENT] = m[m.agent == SPEED_AGENT]
-    return out  # type: ignore[return-value]
+    return out
 
 
 def rliable_table(m: pd.DataFrame, seed: int = 0) -> pd.DataFrame:
@@ -58,7 +58,8 @@ def rliable_table(m: pd.DataFrame, seed: int = 0) -> pd.DataFrame:
             )
         for name in scores:
             low, high = np.ravel(cis[name])[:2]
-            rows[name][f"IQM {label}"] = f"{fmt(float(np.ravel(point[name])[0]), 1)} [{fmt(float(low), 1)}, {fmt(float(high), 1)}]"
+            iqm = float(np.ravel(point[name])[0])
+            rows[name][f"IQM {label}"] = f"{fmt(iqm, 1)} [{fmt(float(low), 1)}, {fmt(float(high), 1)}]"
             if name in poi:
                 low, high = np.ravel(poi_ci[name])[:2]
                 rows[name][f"P(affective better), {label}"] = (
@@ -75,7 +76,8 @@ def profile_figure(m: pd.DataFrame, path: str, column: str = "decisions_before_o
     keep = [AFFECTIVE, "ε-greedy 0.1", "ε-greedy 0.5", "ε-greedy 0.9", SPEED_AGENT]
     scores = {k: parts[k][column].to_numpy(float)[:, None] for k in keep if k in parts and len(parts[k])}
     top = max(float(np.nanpercentile(s, 99)) for s in scores.values())
-    taus = np.logspace(1, np.log10(max(top, 11.0)), 60)
+    bottom = min(float(np.nanpercentile(s, 1)) for s in scores.values())
+    taus = np.logspace(np.log10(max(bottom / 1.5, 1.0)), np.log10(max(top, bottom + 1.0, 2.0)), 60)
 
     def at_most(s: np.ndarray, t: np.ndarray) -> np.ndarray:
         return np.array([np.mean(s <= x) for x in t])
@@ -84,7 +86,7 @@ def profile_figure(m: pd.DataFrame, path: str, column: str = "decisions_before_o
         warnings.simplefilter("ignore", FutureWarning)
         prof, prof_ci = rly.create_performance_profile(scores, taus, custom_profile_func=at_most, reps=200)
     fig, ax = plt.subplots(figsize=(7.0, 4.2))
-    palette = plt.get_cmap("tab10").colors
+    palette = [plt.get_cmap("tab10")(i) for i in range(10)]
     for i, name in enumerate(scores):
         ax.plot(taus, prof[name], color=palette[i], label=name, lw=1.6)
         ax.fill_between(taus, prof_ci[name][0], prof_ci[name][1], color=palette[i], alpha=0.2)
@@ -142,7 +144,8 @@ def checks_section(ctx: ReportContext) -> None:
         "(0.5 = no difference; lower steps are better). The affective agent is pooled over its 9 ε labels."
     )
     ctx.table("rliable", rliable_table(m), "IQM and probability of improvement (rliable)")
-    path = profile_figure(m, str(ctx.figure("performance_profiles")))
+    profile_figure(m, str(ctx.figure("performance_profiles")))
     ctx.doc.img(
-        path, "Performance profiles of steps before the optimal path: the fraction of runs that need at most τ steps"
+        ctx.figure("performance_profiles"),
+        "Performance profiles of steps before the optimal path: the fraction of runs that need at most τ steps",
     )

@@ -9,6 +9,7 @@ repeat on thousands of subsamples (the seed-count study).
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -97,9 +98,16 @@ def cell_means(m: pd.DataFrame, column: str) -> pd.DataFrame:
     """Per epsilon: mean, variance and count over runs of both paper agents (columns ``mean_<agent>`` ...)."""
     part = m[m.agent.isin([STANDARD, AFFECTIVE])]
     g = part.groupby(["epsilon", "agent"])[column]
-    out = pd.concat({"mean": g.mean(), "var": g.var(ddof=1), "n": g.count()}, axis=1).unstack("agent")
-    out.columns = [f"{a}_{b}" for a, b in out.columns]
-    return out.dropna(subset=[f"mean_{STANDARD}", f"mean_{AFFECTIVE}"])
+    stats = pd.DataFrame({"mean": g.mean(), "var": g.var(ddof=1), "n": g.count()})
+    out = pd.DataFrame(
+        {
+            f"{stat}_{agent}": stats[stat].xs(agent, level="agent")
+            for stat in ("mean", "var", "n")
+            for agent in (STANDARD, AFFECTIVE)
+            if agent in set(part.agent)
+        }
+    )
+    return out.dropna() if len(out.columns) == 6 else out.iloc[0:0]
 
 
 def _mean_over_eps_diff(cells: pd.DataFrame) -> tuple[float, float, float]:
@@ -157,44 +165,51 @@ def judge_table_iv(m: pd.DataFrame) -> Judgement:
     return j
 
 
-def judge_fig3(m: pd.DataFrame) -> Judgement:
-    rows = []
-    tests = []
-    for eps, part in m[m.agent.isin([STANDARD, AFFECTIVE])].groupby("epsilon"):
-        a = part[part.agent == STANDARD].decisions_per_episode.to_numpy(float)
-        b = part[part.agent == AFFECTIVE].decisions_per_episode.to_numpy(float)
+def _per_epsilon(
+    m: pd.DataFrame, column: str, name: str, reference: np.ndarray | None = None
+) -> tuple[dict[float, tuple[float, float, float]], dict[float, Test]]:
+    """Per ε: ε-greedy minus affective (or minus ``reference``) mean of ``column`` with its Welch CI, and a U test."""
+    diffs: dict[float, tuple[float, float, float]] = {}
+    tests: dict[float, Test] = {}
+    std_runs = m[m.agent == STANDARD]
+    for eps in sorted(float(e) for e in std_runs.epsilon.unique()):
+        a = std_runs[std_runs.epsilon == eps][column].to_numpy(float)
+        part = m[(m.agent == AFFECTIVE) & (m.epsilon == eps)]
+        b = reference if reference is not None else part[column].to_numpy(float)
         if len(a) and len(b):
-            rows.append((float(eps), *_welch(a, b)))
-            tests.append(Test(f"Mann-Whitney U at ε = {fmt(float(eps), 1)} (two-sided)", _mwu(a, b)))
-    diffs = pd.DataFrame(rows, columns=["epsilon", "d", "low", "high"]).set_index("epsilon")
-    low = diffs[diffs.index < 0.45]
-    high = diffs[diffs.index > 0.65]
+            diffs[eps] = _welch(a, b)
+            tests[eps] = Test(f"Mann-Whitney U at ε = {fmt(eps, 1)}{name} (two-sided)", _mwu(a, b))
+    return diffs, tests
+
+
+def judge_fig3(m: pd.DataFrame) -> Judgement:
+    diffs, tests = _per_epsilon(m, "decisions_per_episode", "")
+    low = [d[0] for e, d in diffs.items() if e < 0.45]
+    high = [d[0] for e, d in diffs.items() if e > 0.65]
+    point = sorted((e, d[0] > 0) for e, d in diffs.items())
+    cross = [f"{fmt(a, 1)}-{fmt(b, 1)}" for (a, sa), (b, sb) in itertools.pairwise(point) if sa != sb]
     j = Judgement(
         "fig3",
         "Fig. 3: crossover, ε-greedy better below ε 0.5, affective better above 0.6",
         "crossover between ε = 0.5 and 0.6",
         "ε-greedy minus affective steps per episode: "
-        + "; ".join(f"ε {fmt(e, 1)}: {_ci_text((r.d, r.low, r.high), 1)}" for e, r in diffs.iterrows()),
-        direction=bool((low.d < 0).all() and (high.d > 0).all()) if len(low) and len(high) else None,
+        + "; ".join(f"ε {fmt(e, 1)}: {_ci_text(d, 1)}" for e, d in diffs.items())
+        + f". Point estimates change sign between ε {', '.join(cross) or 'none'}",
+        direction=bool(all(x < 0 for x in low) and all(x > 0 for x in high)) if low and high else None,
         size=None,
-        tests=tests,
+        tests=list(tests.values()),
     )
 
-    point_signs = [(e, r.d > 0) for e, r in diffs.iterrows()]
-    cross = [f"{fmt(a, 1)}-{fmt(b, 1)}" for (a, sa), (b, sb) in zip(point_signs, point_signs[1:]) if sa != sb]
-    j.ours += f". Point estimates change sign between ε {', '.join(cross) or 'none'}"
-
     def decide(j: Judgement) -> str:
-        sig = {float(t.name.split("= ")[1].split(" ")[0]): _significant(t) for t in j.tests}
-        sign = {e: (1 if r.d > 0 else -1) if sig.get(e) else 0 for e, r in diffs.iterrows()}
+        sign = {e: (1 if d[0] > 0 else -1) if _significant(tests[e]) else 0 for e, d in diffs.items()}
         signs = [sign[e] for e in sorted(sign) if sign[e] != 0]
-        changes = sum(1 for x, y in zip(signs, signs[1:]) if x != y)
+        changes = sum(1 for x, y in itertools.pairwise(signs) if x != y)
         if changes == 1 and signs[0] < 0:
             last_neg = max(e for e in sign if sign[e] < 0)
             first_pos = min(e for e in sign if sign[e] > 0)
             where = f"significant differences change sign between ε {fmt(last_neg, 1)} and {fmt(first_pos, 1)}"
             if last_neg >= 0.4 and first_pos <= 0.7:
-                return f"reproduced: a crossover {where}"
+                return f"reproduced: a crossover, {where}"
             return f"crossover reproduced, shifted: {where} (paper: 0.5-0.6)"
         if not signs:
             return "not reproduced: no significant difference at any ε"
@@ -208,7 +223,7 @@ def judge_table_v(m: pd.DataFrame, column: str = "decisions_before_optimal", def
     cells = cell_means(m, column)
     est = _mean_over_eps_diff(cells)
     runs = paper.SEEDS_PER_CELL
-    scaled = tuple(x * runs for x in est)
+    scaled = (est[0] * runs, est[1] * runs, est[2] * runs)
     paper_diff = paper.TABLE_V["Mean"][0] - paper.TABLE_V["Mean"][1]
     j = Judgement(
         f"table_v:{definition}",
@@ -239,29 +254,21 @@ def judge_table_v(m: pd.DataFrame, column: str = "decisions_before_optimal", def
 
 
 def judge_fig4(m: pd.DataFrame, column: str = "decisions_before_optimal", definition: str = "walked") -> Judgement:
-    rows, tests = [], []
-    for eps, part in m[m.agent.isin([STANDARD, AFFECTIVE])].groupby("epsilon"):
-        a = part[part.agent == STANDARD][column].to_numpy(float)
-        b = part[part.agent == AFFECTIVE][column].to_numpy(float)
-        if len(a) and len(b):
-            rows.append((float(eps), *_welch(a, b)))
-            tests.append(Test(f"Mann-Whitney U at ε = {fmt(float(eps), 1)}, {definition} (two-sided)", _mwu(a, b)))
-    diffs = pd.DataFrame(rows, columns=["epsilon", "d", "low", "high"]).set_index("epsilon")
-    fewer = [e for e, r in diffs.iterrows() if r.d > 0]
+    diffs, tests = _per_epsilon(m, column, f", {definition}")
+    fewer = [e for e, d in diffs.items() if d[0] > 0]
     j = Judgement(
         f"fig4:{definition}",
         f"Fig. 4 ({definition} definition): affective needs fewer steps at every ε but 0.7",
         "fewer at 8 of 9 ε (all but 0.7)",
         f"affective fewer (point estimate) at {len(fewer)} of {len(diffs)} ε: {', '.join(fmt(e, 1) for e in fewer) or 'none'}",
-        direction=len(fewer) >= len(diffs) - 1 if len(diffs) else None,
+        direction=len(fewer) >= len(diffs) - 1 if diffs else None,
         size=None,
-        tests=tests,
+        tests=list(tests.values()),
     )
 
     def decide(j: Judgement) -> str:
-        sig = [float(t.name.split("= ")[1].split(",")[0]) for t in j.tests if _significant(t)]
-        aff = [e for e in sig if diffs.loc[e, "d"] > 0]
-        std = [e for e in sig if diffs.loc[e, "d"] < 0]
+        aff = [e for e, d in diffs.items() if _significant(tests[e]) and d[0] > 0]
+        std = [e for e, d in diffs.items() if _significant(tests[e]) and d[0] < 0]
         text = (
             f"affective significantly fewer at ε {', '.join(fmt(e, 1) for e in aff) or 'none'}; "
             f"significantly more at {', '.join(fmt(e, 1) for e in std) or 'none'}"
@@ -369,27 +376,22 @@ def judge_fig6(m: pd.DataFrame) -> Judgement:
 
 
 def judge_long_run(m: pd.DataFrame) -> Judgement:
-    tests, lower, higher = [], [], []
     aff = m[m.agent == AFFECTIVE].decisions_181_200.to_numpy(float)
-    for eps, part in m[m.agent == STANDARD].groupby("epsilon"):
-        std = part.decisions_181_200.to_numpy(float)
-        tests.append(Test(f"Mann-Whitney U, episodes 181-200 at ε = {fmt(float(eps), 1)} (two-sided)", _mwu(std, aff)))
-        (lower if np.mean(aff) < np.mean(std) else higher).append(float(eps))
-    means = m.groupby(["agent", "epsilon"]).decisions_181_200.mean()
+    diffs, tests = _per_epsilon(m, "decisions_181_200", ", episodes 181-200", reference=aff)
     j = Judgement(
         "long_run",
         "Long run: the affective agent takes fewer steps than the standard agent",
         "no numbers printed",
-        f"steps per episode in episodes 181-200: affective {fmt(float(np.mean(aff)))}, ε-greedy "
-        + ", ".join(f"ε {fmt(e, 1)}: {fmt(v)}" for (a, e), v in means.items() if a == STANDARD),
-        direction=not higher,
+        f"steps per episode in episodes 181-200: affective {fmt(float(np.mean(aff)))}; ε-greedy minus affective "
+        + ", ".join(f"ε {fmt(e, 1)}: {_ci_text(d, 1)}" for e, d in diffs.items()),
+        direction=all(d[0] > 0 for d in diffs.values()),
         size=None,
-        tests=tests,
+        tests=list(tests.values()),
     )
 
     def decide(j: Judgement) -> str:
-        sig_low = [e for e, t in zip(sorted(lower + higher), j.tests) if _significant(t) and e in lower]
-        sig_high = [e for e, t in zip(sorted(lower + higher), j.tests) if _significant(t) and e in higher]
+        sig_low = [e for e, d in diffs.items() if _significant(tests[e]) and d[0] > 0]
+        sig_high = [e for e, d in diffs.items() if _significant(tests[e]) and d[0] < 0]
         text = (
             f"affective significantly lower at ε {', '.join(fmt(e, 1) for e in sig_low) or 'none'}, "
             f"higher at {', '.join(fmt(e, 1) for e in sig_high) or 'none'}"

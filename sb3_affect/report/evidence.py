@@ -122,9 +122,11 @@ def headline_tables(large: pd.DataFrame, m: pd.DataFrame) -> pd.DataFrame:
     n_large = int(large.groupby(["agent", "epsilon"]).size().min())
     n_paper = int(m.groupby(["agent", "epsilon"]).run_id.count().min())
     specs = [("Table IV", "decisions_per_episode", paper.TABLE_IV_PRINTED, 1.0)]
-    specs += [(f"Table V ({label.split(':')[0]}, per 20 runs)", column, paper.TABLE_V_PRINTED, 20.0) for column, label in DEFINITIONS]
+    specs += [
+        (f"Table V ({label.split(':')[0]}, per 20 runs)", column, paper.TABLE_V_PRINTED, 20.0) for column, label in DEFINITIONS
+    ]
     for name, column, printed, scale in specs:
-        for source, data, n in (("paper protocol", m, n_paper), ("large-N", large, n_large)):
+        for data, n in ((m, n_paper), (large, n_large)):
             per_eps = per_epsilon(data, column) * scale
             t = paired_ttest_table(per_eps[STANDARD], per_eps[AFFECTIVE])
             rows[(name, f"ours, {n} seeds")] = {
@@ -190,13 +192,13 @@ def evidence_section(ctx: ReportContext) -> None:
         "Seeds needed is a documented alternative to a power analysis: for each seed count, draw random subsets of "
         "the runs of every cell, rerun the whole verdict (Holm correction included) and count how often it agrees "
         f"with the verdict at {n_large} seeds. AdaStop (below, the adastop package: an adaptive, sequential "
-        "permutation test with early stopping, α = 0.05) answers the same question for single comparisons: it adds "
+        "permutation test with early stopping, alpha = 0.05) answers the same question for single comparisons: it adds "
         "5 runs per agent at a time and stops when every comparison is decided."
     )
     for column in ("decisions_before_optimal", "decisions_per_episode"):
         try:
             table = adastop_table(large, column)
-        except Exception as error:  # noqa: BLE001 - an optional analysis: say why it is missing
+        except Exception as error:  # an optional analysis: say why it is missing
             ctx.doc.p(f"AdaStop on {column}: not available ({type(error).__name__}: {error}).")
             continue
         ctx.table(f"adastop_{column}", table, f"AdaStop: affective against ε-greedy on {column.replace('_', ' ')}")

@@ -122,7 +122,7 @@ def equivalent_epsilon(prof: pd.DataFrame, path: Path) -> Path:
 def learning_curves(episodes: pd.DataFrame, path: Path, title: str, groups: list[tuple[str, pd.DataFrame]]) -> Path:
     """Decisions per episode over episodes: median over runs with the quartile band, one line per group."""
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
-    palette = plt.get_cmap("tab10").colors
+    palette = [plt.get_cmap("tab10")(i) for i in range(10)]
     styles = ("-", "--", "-.", ":")
     for i, (label, data) in enumerate(groups):
         grouped = data.groupby("episode").decisions

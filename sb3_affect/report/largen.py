@@ -68,7 +68,9 @@ def large_cells() -> list[Cell]:
         for eps in paper.EPSILONS
     ]
     out.append(
-        Cell(SPEED_AGENT, "sb3_affect.baselines:SpeedEpsilonGreedy", {**COMMON, **SPEED_KWARGS}, {"epsilon": 0.01}, "large", {})
+        Cell(
+            SPEED_AGENT, "sb3_affect.baselines:SpeedEpsilonGreedy", {**COMMON, **SPEED_KWARGS}, {"epsilon": 0.01}, "large", {}
+        ),
     )
     return out
 
@@ -124,7 +126,9 @@ def run_cells(
         if (meta.get("seeds"), meta.get("episodes"), meta.get("cells")) == (seeds, episodes, key):
             return pd.read_csv(table_path), meta
     folder.mkdir(parents=True, exist_ok=True)
-    jobs = [(cell, list(range(start, min(seeds, start + CHUNK))), episodes) for cell in cells for start in range(0, seeds, CHUNK)]
+    jobs = [
+        (cell, list(range(start, min(seeds, start + CHUNK))), episodes) for cell in cells for start in range(0, seeds, CHUNK)
+    ]
     workers = workers or len(os.sched_getaffinity(0))
     start = time.perf_counter()
     if workers > 1 and len(jobs) > 1:
@@ -134,7 +138,8 @@ def run_cells(
         frames = [_chunk(job) for job in jobs]
     table = pd.concat(frames, ignore_index=True)
     table.to_csv(table_path, index=False)
-    meta = {"seeds": seeds, "episodes": episodes, "runs": len(table), "wall_seconds": time.perf_counter() - start, "cells": key}
+    seconds = time.perf_counter() - start
+    meta = {"seeds": seeds, "episodes": episodes, "runs": len(table), "wall_seconds": seconds, "cells": key}
     meta_path.write_text(json.dumps(meta))
     return table, meta
 

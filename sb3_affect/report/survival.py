@@ -40,13 +40,14 @@ def km_table(m: pd.DataFrame) -> pd.DataFrame:
     """Per (agent, epsilon): runs, censored runs, KM medians of the first optimal episode and of decisions before it."""
     rows = {}
     horizon = float(m.episodes.max())
-    for (agent, eps), g in m.groupby(["agent", "epsilon"]):
+    for key, g in m.groupby(["agent", "epsilon"]):
+        agent, eps = str(key[0]), float(key[1])  # type: ignore[arg-type]
         observed = ~g.censored.to_numpy(bool)
         episodes = g.first_optimal.fillna(g.episodes).to_numpy(float)
         decisions = g.decisions_before_optimal.to_numpy(float)
         e = km(episodes, observed, horizon)
         d = km(decisions, observed, float(decisions.max()))
-        rows[f"{agent} @ {fmt(float(eps), 1)}"] = {
+        rows[f"{agent} @ {fmt(eps, 1)}"] = {
             "runs": len(g),
             "censored": int((~observed).sum()),
             "first optimal episode: KM median [95% CI]": f"{fmt(e['median'], 1)} [{fmt(e['median_low'], 1)}, "
@@ -66,7 +67,8 @@ def km_figure(m: pd.DataFrame, path: str, title: str) -> str:
     cmap = plt.get_cmap("Blues")
     for eps in sorted(m[m.agent == STANDARD].epsilon.unique()):
         g = m[(m.agent == STANDARD) & (m.epsilon == eps)]
-        fitter = KaplanMeierFitter().fit(g.first_optimal.fillna(g.episodes), ~g.censored.astype(bool), label=f"ε-greedy {eps:.1f}")
+        label = f"ε-greedy {eps:.1f}"
+        fitter = KaplanMeierFitter().fit(g.first_optimal.fillna(g.episodes), ~g.censored.astype(bool), label=label)
         fitter.plot_survival_function(ax=ax, ci_show=False, color=cmap(0.3 + 0.7 * eps), lw=1.2)
     g = m[m.agent == AFFECTIVE]
     fitter = KaplanMeierFitter().fit(g.first_optimal.fillna(g.episodes), ~g.censored.astype(bool), label="affective (all ε)")

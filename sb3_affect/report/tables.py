@@ -80,8 +80,7 @@ def table_v_section(ctx: ReportContext) -> None:
             beside_paper(ttest, paper.TABLE_V_PRINTED),
             f"Table V, {label} (sums over runs), ε-greedy = Variable 1; the paper's cells verbatim as printed",
         )
-    both = pd.concat(sums, axis=1)
-    both.columns = pd.Index([f"{agent} ({name})" for name, agent in both.columns.to_list()])
+    both = pd.DataFrame({f"{agent} ({name})": s[agent] for name, s in sums.items() for agent in (STANDARD, AFFECTIVE)})
     ratio = {name: s[STANDARD].max() / s[STANDARD].min() for name, s in sums.items()}
     ctx.table("table_v_inputs", both.rename_axis("epsilon"), "Steps before the optimal path, sums over runs per ε")
     ctx.doc.p(

@@ -80,7 +80,7 @@ def verdict_section(ctx: ReportContext) -> None:
         f"(Welch or t intervals; \"about\" in Fig. 6 read as ±{claims.ABOUT}). Tests: the paper's spreadsheet t-test "
         "over the 9 ε values beside a Wilcoxon signed-rank test and a paired t-test on logs; per-ε comparisons of "
         f"runs by Mann-Whitney U. Multiplicity: the {family} tests of the table below form one family, corrected "
-        f"with Holm's step-down method (statsmodels `multipletests`, α = {claims.ALPHA}); every verdict uses the "
+        f"with Holm's step-down method (statsmodels `multipletests`, alpha = {claims.ALPHA}); every verdict uses the "
         "Holm-adjusted p-values. These are the paper's claims only; the project's own checks follow separately."
     )
     ctx.table("verdict", verdict_table(judged, other, n, n_other), "Verdict on the paper's claims")
