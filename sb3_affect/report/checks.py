@@ -116,17 +116,23 @@ def speed_matched(m: pd.DataFrame) -> list[str]:
     return out
 
 
-def checks_section(ctx: ReportContext) -> None:
-    ctx.doc.h("The project's own checks (not the paper's claims)")
-    if not ctx.has_paper_agents:
-        ctx.doc.p("Skipped: both paper agents are needed.")
-        return
+def with_speed_matched(ctx: ReportContext) -> pd.DataFrame:
+    """Per-run metrics of the large-N study (else the paper sweep), with the issue 7 speed-matched runs if needed."""
     m = ctx.large if ctx.large is not None else ctx.metrics
     if SPEED_AGENT not in set(m.agent) and "baselines" in ctx.folders:
         results = load_results(ctx.folders["baselines"])
         base = run_metrics(results.episodes, results.runs) if len(results.episodes) else pd.DataFrame()
         if len(base) and SPEED_AGENT in set(base.agent):
             m = pd.concat([m, base[base.agent == SPEED_AGENT]], ignore_index=True)
+    return m
+
+
+def checks_section(ctx: ReportContext) -> None:
+    ctx.doc.h("The project's own checks (not the paper's claims)")
+    if not ctx.has_paper_agents:
+        ctx.doc.p("Skipped: both paper agents are needed.")
+        return
+    m = with_speed_matched(ctx)
     n = int(m[m.agent == AFFECTIVE].groupby("epsilon").size().min()) if len(m[m.agent == AFFECTIVE]) else 0
     ctx.doc.p(
         "The speed-matched ε-greedy moves 1 or 2 cells a decision like the affective agent, at the tuned ε = 0.01 "

@@ -91,7 +91,7 @@ class Document:
             f"<title>{html.escape(self.title)}</title>",
             "<style>body{font-family:sans-serif;max-width:1000px;margin:2em auto;line-height:1.45}"
             "table{border-collapse:collapse;margin:0.5em 0 1.2em}td,th{border:1px solid #ccc;padding:3px 8px;"
-            "text-align:right}th{background:#f3f3f3}td:first-child,th:first-child{text-align:left}"
+            "text-align:right;vertical-align:top}td.text{text-align:left}th{background:#f3f3f3}td:first-child,th:first-child{text-align:left}"
             "img{max-width:100%}figcaption,caption{font-style:italic;color:#444}</style></head><body>",
             f"<h1>{html.escape(self.title)}</h1>",
         ]
@@ -136,6 +136,15 @@ def _cells(frame: pd.DataFrame, digits: int) -> tuple[list[str], list[list[str]]
     return header, rows
 
 
+def _numeric(cell: str) -> bool:
+    """Whether a table cell is one number (right-aligned in HTML; text is left-aligned)."""
+    try:
+        float(cell.replace(",", ""))
+    except ValueError:
+        return cell in ("", "inf", "yes", "no", "n/a")
+    return True
+
+
 def _md_table(frame: pd.DataFrame, digits: int) -> str:
     header, rows = _cells(frame, digits)
     lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
@@ -150,6 +159,6 @@ def _html_table(frame: pd.DataFrame, caption: str, digits: int) -> str:
         out.append(f"<caption>{html.escape(caption)}</caption>")
     out.append("<tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in header) + "</tr>")
     for row in rows:
-        out.append("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in row) + "</tr>")
+        out.append("<tr>" + "".join(f"<td{'' if _numeric(c) else ' class=text'}>{html.escape(c)}</td>" for c in row) + "</tr>")
     out.append("</table>")
     return "\n".join(out)

@@ -53,6 +53,13 @@ def tests_table(judged: list[claims.Judgement]) -> pd.DataFrame:
     return pd.DataFrame(rows).set_index("claim") if rows else pd.DataFrame()
 
 
+def speed_matched_sentences(ctx: ReportContext) -> list[str]:
+    """The affective agent against the speed-matched ε-greedy (large-N study, else the issue 7 baselines folder)."""
+    from sb3_affect.report.checks import speed_matched, with_speed_matched
+
+    return speed_matched(with_speed_matched(ctx))
+
+
 def verdict_section(ctx: ReportContext) -> None:
     ctx.doc.h("Verdict")
     refusal = ctx.verdict_refusal()
@@ -85,6 +92,14 @@ def verdict_section(ctx: ReportContext) -> None:
     )
     ctx.table("verdict", verdict_table(judged, other, n, n_other), "Verdict on the paper's claims")
     ctx.table("verdict_tests", tests_table(judged), "The family of tests (raw and Holm-adjusted p-values)", 4)
+    speed = speed_matched_sentences(ctx)
+    if speed:
+        ctx.doc.p(
+            "Beside the verdict, the speed-matched ε-greedy (ε = 0.01, moving 1 or 2 cells a decision like the affective "
+            "agent; the project's baseline, not the paper's): where it matches the affective agent, the affective "
+            "agent's advantage over the paper's ε-greedy comes from its 2-cell moves, not from its emotions."
+        )
+        ctx.doc.ul(speed)
     ctx.doc.h("Not reproduced, and why", 3)
     items = [WHY_SADNESS_FEAR]
     for j in judged:
