@@ -9,6 +9,7 @@ repeat on thousands of subsamples (the seed-count study).
 
 from __future__ import annotations
 
+import gc
 import itertools
 import math
 from collections.abc import Callable
@@ -81,11 +82,13 @@ def _ci(x: np.ndarray) -> tuple[float, float, float]:
 
 def _welch(a: np.ndarray, b: np.ndarray) -> tuple[float, float, float]:
     """Mean of a - mean of b with the Welch 95% CI."""
+    d = float(a.mean() - b.mean())
     if len(a) < 2 or len(b) < 2 or (a.std() == 0 and b.std() == 0):
-        d = float(a.mean() - b.mean())
         return d, d, d
-    ci = sps.ttest_ind(a, b, equal_var=False).confidence_interval(0.95)
-    return float(a.mean() - b.mean()), float(ci.low), float(ci.high)
+    va, vb = a.var(ddof=1) / len(a), b.var(ddof=1) / len(b)
+    df = (va + vb) ** 2 / (va**2 / (len(a) - 1) + vb**2 / (len(b) - 1))  # Welch-Satterthwaite
+    half = float(sps.t.ppf(0.975, df)) * math.sqrt(va + vb)
+    return d, d - half, d + half
 
 
 def _mwu(a: np.ndarray, b: np.ndarray, alternative: str = "two-sided") -> float:
@@ -171,11 +174,12 @@ def _per_epsilon(
     """Per ε: ε-greedy minus affective (or minus ``reference``) mean of ``column`` with its Welch CI, and a U test."""
     diffs: dict[float, tuple[float, float, float]] = {}
     tests: dict[float, Test] = {}
-    std_runs = m[m.agent == STANDARD]
-    for eps in sorted(float(e) for e in std_runs.epsilon.unique()):
-        a = std_runs[std_runs.epsilon == eps][column].to_numpy(float)
-        part = m[(m.agent == AFFECTIVE) & (m.epsilon == eps)]
-        b = reference if reference is not None else part[column].to_numpy(float)
+    part = m[m.agent.isin([STANDARD, AFFECTIVE])]
+    cells = {(str(k[0]), float(k[1])): g[column].to_numpy(float) for k, g in part.groupby(["agent", "epsilon"])}  # type: ignore[index, arg-type]
+    empty = np.array([])
+    for eps in sorted(e for agent, e in cells if agent == STANDARD):
+        a = cells[(STANDARD, eps)]
+        b = reference if reference is not None else cells.get((AFFECTIVE, eps), empty)
         if len(a) and len(b):
             diffs[eps] = _welch(a, b)
             tests[eps] = Test(f"Mann-Whitney U at ε = {fmt(eps, 1)}{name} (two-sided)", _mwu(a, b))
@@ -452,7 +456,11 @@ def holm(judgements: list[Judgement]) -> int:
     tests = [t for j in judgements for t in j.tests]
     pvalues = np.array([t.p if not math.isnan(t.p) else 1.0 for t in tests])
     if len(tests):
-        adjusted = multipletests(pvalues, alpha=ALPHA, method="holm")[1]
+        gc.freeze()  # statsmodels' Holm branch calls gc.collect(): keep it from scanning the whole heap each time
+        try:
+            adjusted = multipletests(pvalues, alpha=ALPHA, method="holm")[1]
+        finally:
+            gc.unfreeze()
         for t, p in zip(tests, adjusted):
             t.p_holm = float(p)
     return len(tests)
