@@ -152,7 +152,7 @@ def run_metrics(episodes: pd.DataFrame, runs: list[dict[str, Any]] | None = None
 def _vector_metrics(episodes: pd.DataFrame) -> pd.DataFrame:
     e = episodes.sort_values(["run_id", "episode"], kind="stable").copy()
     for column in ("optimal", "truncated", "greedy_optimal"):  # None where an env does not define it
-        e[column] = e[column].astype(object).fillna(False).astype(bool)
+        e[column] = e[column].eq(True)
     g = e.groupby("run_id", sort=False)
     run_index = pd.Index(g.size().index, name="run_id")
     label_columns = [c for c in e.columns if c not in _EPISODE_VALUE_COLUMNS and c != "run_id"]
