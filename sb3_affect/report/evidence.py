@@ -19,7 +19,7 @@ from sb3_affect.report.tables import DEFINITIONS, per_epsilon
 SEED_COUNTS = (5, 10, 20, 50, 100, 1000)
 #: Subsample sizes of the "seeds needed" search, repetitions per size, and the agreement it asks for.
 NEEDED_GRID = (5, 10, 20, 50, 100, 200, 500)
-REPETITIONS = 20
+REPETITIONS = 10
 AGREEMENT = 0.8
 
 
