@@ -91,3 +91,16 @@ def test_engine_study_gives_the_launchers_runs(tmp_path: Path) -> None:
     pd.testing.assert_frame_equal(again.reset_index(drop=True), pd.read_csv(tmp_path / "engine" / "runs.csv.gz"))
     with pytest.raises(ValueError, match="seeds=0"):
         run_cells(tmp_path / "engine", [cell], seeds=0)
+
+
+def test_seeds_needed_and_adastop_on_a_clear_difference() -> None:
+    from sb3_affect.report.evidence import adastop_table, seeds_needed
+
+    runs = _runs(30)
+    needed = seeds_needed(runs, grid=(5, 10), repetitions=2)
+    assert set(needed.columns) >= {"agreement at 5", "agreement at 10", "seeds needed"}
+    assert needed.loc["Four emotions shape behaviour (sadness and fear included)", "seeds needed"] == 5  # always the same
+    table = adastop_table(runs, "decisions_per_episode")
+    decisions = table["decision (affective is ... than ε-greedy)"]
+    assert decisions["affective vs epsilon-greedy 0.9"] == "smaller"  # 50 vs ~2,200 steps per episode
+    assert decisions["affective vs epsilon-greedy 0.1"] == "larger"  # 50 vs ~21
