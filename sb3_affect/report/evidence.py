@@ -38,7 +38,7 @@ def sensitivity(large: pd.DataFrame, counts: tuple[int, ...] = SEED_COUNTS) -> p
             continue
         judged = claims.judge_all(subset(large, n))
         labels = [j.label for j in judged]
-        columns[f"{n} seeds"] = [j.verdict for j in judged]
+        columns[f"{n} seeds"] = [claims.verdict_word(j.verdict) for j in judged]
     table = pd.DataFrame(columns, index=pd.Index(labels, name="claim"))
     return table
 
@@ -179,7 +179,12 @@ def evidence_section(ctx: ReportContext) -> None:
         4,
     )
     sens = sensitivity(large)
-    ctx.table("seed_sensitivity", sens, "Each verdict at 5 to 1,000 seeds per cell (the first n replicates of each cell)")
+    ctx.table(
+        "seed_sensitivity",
+        sens,
+        "Each verdict (its first words; the full verdicts are in the verdict table) at 5 to 1,000 seeds per cell "
+        "(the first n replicates of each cell)",
+    )
     needed = seeds_needed(large)
     ctx.table(
         "seeds_needed",
