@@ -36,6 +36,11 @@ def km(durations: np.ndarray, observed: np.ndarray, horizon: float) -> dict[str,
     }
 
 
+def _reached(value: float, horizon: float, digits: int = 1) -> str:
+    """A KM quantile, or "> horizon" when the curve never falls that far (more than half the runs censored)."""
+    return f"> {fmt(horizon, 0)}" if math.isinf(value) else fmt(value, digits)
+
+
 def km_table(m: pd.DataFrame) -> pd.DataFrame:
     """Per (agent, epsilon): runs, censored runs, KM medians of the first optimal episode and of decisions before it."""
     rows = {}
@@ -50,11 +55,11 @@ def km_table(m: pd.DataFrame) -> pd.DataFrame:
         rows[f"{agent} @ {fmt(eps, 1)}"] = {
             "runs": len(g),
             "censored": int((~observed).sum()),
-            "first optimal episode: KM median [95% CI]": f"{fmt(e['median'], 1)} [{fmt(e['median_low'], 1)}, "
-            f"{fmt(e['median_high'], 1)}]",
+            "first optimal episode: KM median [95% CI]": f"{_reached(e['median'], horizon)} "
+            f"[{_reached(e['median_low'], horizon)}, {_reached(e['median_high'], horizon)}]",
             f"restricted mean to {int(horizon)}": e["rmst"],
             "mean over runs that found it": g.first_optimal.mean(),
-            "decisions before it: KM median": d["median"],
+            "decisions before it: KM median": _reached(d["median"], float(decisions.max()), 0),
         }
     table = pd.DataFrame.from_dict(rows, orient="index")
     table.index.name = "agent @ ε"
