@@ -135,15 +135,9 @@ def checks_section(ctx: ReportContext) -> None:
     m = with_speed_matched(ctx)
     n = int(m[m.agent == AFFECTIVE].groupby("epsilon").size().min()) if len(m[m.agent == AFFECTIVE]) else 0
     ctx.doc.p(
-        "The speed-matched ε-greedy moves 1 or 2 cells a decision like the affective agent, at the tuned ε = 0.01 "
-        "(docs/beyond_the_paper.md). If it matches the affective agent, the affective agent's advantage in steps "
-        "before the optimal path comes from moving 2 cells a decision, not from its emotions."
+        "The speed-matched ε-greedy (ε = 0.01, 1 or 2 cells a decision; docs/beyond_the_paper.md) is compared with the "
+        "affective agent in the verdict; it is in the tables below too."
     )
-    sentences = speed_matched(m)
-    if sentences:
-        ctx.doc.ul(sentences)
-    else:
-        ctx.doc.p("No speed-matched runs in this folder.")
     ctx.doc.p(
         f"rliable ({n} runs per affective cell): interquartile mean (IQM) with stratified-bootstrap 95% CIs "
         f"({REPS} resamples), and the probability of improvement P(affective better than X) with its CI "
