@@ -19,7 +19,13 @@ ABLATION_SEEDS, BEYOND_SEEDS = 20, 10
 
 
 def main(
-    out_dir: Path = Path("runs"), workers: int | None = None, experiments: Path = EXPERIMENTS, large_seeds: int = 1000
+    out_dir: Path = Path("runs"),
+    workers: int | None = None,
+    experiments: Path = EXPERIMENTS,
+    large_seeds: int = 1000,
+    ablation_seeds: int = ABLATION_SEEDS,
+    beyond_seeds: int = BEYOND_SEEDS,
+    engine_episodes: int = 200,
 ) -> Path:
     """
     Run the sweeps of ``SWEEPS`` into ``out_dir/<name>`` (resuming what is there) and the engine studies into
@@ -30,6 +36,9 @@ def main(
     :param workers: processes (default: usable CPUs)
     :param experiments: the folder of the sweep files
     :param large_seeds: seeds per cell of the large-N study
+    :param ablation_seeds: seeds per cell of the reading ablation (engine)
+    :param beyond_seeds: seeds per agent and task beyond the paper (engine)
+    :param engine_episodes: episodes per run of the engine studies (the paper's 200; fewer only for quick checks)
     """
     from sb3_affect.experiments import run_sweep
     from sb3_affect.report import build_report
@@ -50,13 +59,13 @@ def main(
         )
     studies = (
         ("large", f"large-N study, {large_seeds} seeds per cell (engine)", large_cells(), large_seeds),
-        ("ablation_engine", f"reading ablation, {ABLATION_SEEDS} seeds per cell (engine)", ablation_cells(), ABLATION_SEEDS),
-        ("beyond", f"moving and evading prey, mazes, {BEYOND_SEEDS} seeds (engine)", beyond_cells(), BEYOND_SEEDS),
+        ("ablation_engine", f"reading ablation, {ablation_seeds} seeds per cell (engine)", ablation_cells(), ablation_seeds),
+        ("beyond", f"moving and evading prey, mazes, {beyond_seeds} seeds (engine)", beyond_cells(), beyond_seeds),
     )
     for name, description, cells, seeds in studies:
         print(f"== {description} -> {out_dir / name}", flush=True)
         start = time.perf_counter()
-        table, _ = run_cells(out_dir / name, cells, seeds, workers=workers)
+        table, _ = run_cells(out_dir / name, cells, seeds, engine_episodes, workers=workers)
         timings[description] = time.perf_counter() - start
         print(f"   {len(table)} runs, {timings[description]:.1f} s", flush=True)
     start = time.perf_counter()

@@ -104,3 +104,26 @@ def test_seeds_needed_and_adastop_on_a_clear_difference() -> None:
     decisions = table["decision (affective is ... than ε-greedy)"]
     assert decisions["affective vs epsilon-greedy 0.9"] == "smaller"  # 50 vs ~2,200 steps per episode
     assert decisions["affective vs epsilon-greedy 0.1"] == "larger"  # 50 vs ~21
+
+
+@pytest.mark.slow
+def test_replicate_writes_every_part_and_the_record(tmp_path: Path) -> None:
+    """replicate end to end at toy size: launcher sweeps, the three engine studies, one report with their sections."""
+    from sb3_affect.replicate import main
+
+    experiments = tmp_path / "experiments"
+    experiments.mkdir()
+    smoke = (ROOT / "experiments" / "smoke.yaml").read_text()
+    for name in ("paper", "dqn", "baselines"):
+        text = smoke.replace("name: smoke", f"name: {name}").replace("episodes: 20", "episodes: 5")
+        (experiments / f"{name}.yaml").write_text(text)
+    report = main(tmp_path / "out", workers=1, experiments=experiments, large_seeds=1, ablation_seeds=1, beyond_seeds=1,
+                  engine_episodes=5)
+    text = report.read_text()
+    assert "No verdict: too few runs" in text
+    for part in ("large", "ablation_engine", "beyond"):
+        assert (tmp_path / "out" / part / "runs.csv.gz").exists(), part
+    assert "evading prey 7x7 / affective" in text and "maze: rooms / speed-epsilon-greedy" in text
+    assert "Readings ranked by distance" in text
+    wall = pd.read_csv(tmp_path / "out" / "tables" / "wall_times.csv")
+    assert len(wall) == 6 and (wall["wall seconds"] >= 0).all()  # 3 sweeps + 3 engine studies
