@@ -31,7 +31,9 @@ from sb3_affect.report.verdict import verdict_section
 
 Section = Callable[[ReportContext], None]
 #: Sub-folders of a replicate folder the sections may read (``ctx.folders[name]``).
-FOLDERS = ("dqn", "ablation", "baselines", "baselines_moving7", "baselines_moving", "beyond")
+FOLDERS = ("dqn", "ablation", "baselines", "baselines_moving7", "baselines_moving", "beyond", "hunters", "hunters_moving")
+#: Issue 16 results folders (experiments/hunters*.yaml): two hunters, and the two emotion models side by side.
+HUNTER_FOLDERS = ("hunters", "hunters_moving")
 
 
 def overview_section(ctx: ReportContext) -> None:
@@ -77,6 +79,23 @@ def agents_section(ctx: ReportContext) -> None:
     ctx.table("agents", summary, "Per-agent summary (means over runs)")
 
 
+def hunters_sections(ctx: ReportContext) -> None:
+    """Issue 16's sections (two hunters; the two emotion models), when a folder holds team runs."""
+    dirs = [ctx.folders[name] for name in HUNTER_FOLDERS if name in ctx.folders]
+    if "team" in ctx.episodes.columns or "capturer" in ctx.episodes.columns:  # a single folder of team runs
+        dirs.append(ctx.paper.folder)
+    if not dirs:
+        return
+    from sb3_affect.report.emotion_models import emotion_models_section
+    from sb3_affect.report.hunters import hunters_section
+
+    for section in (hunters_section, emotion_models_section):
+        text, images = section(dirs, ctx.out)
+        ctx.doc.md(text)
+        for path, caption in images:
+            ctx.doc.img(path, caption)
+
+
 def definitions_section(ctx: ReportContext) -> None:
     ctx.doc.h("Definitions")
     ctx.doc.ul(
@@ -109,6 +128,7 @@ SECTIONS: list[Section] = [
     learning_curves_section,
     dqn_section,
     beyond_section,
+    hunters_sections,
     ablation_section,
     record_section,
     definitions_section,

@@ -1,5 +1,5 @@
 """
-From run files to tidy tables: one row per episode, and one row of metrics per run.
+From run files to tidy tables: one row per episode, and one row of metrics per run (docs/definitions.md).
 
 ``load_results`` is the report's only access to a results folder: every section reads runs through it, so a change of
 the results store (files, format) is one change here.
@@ -99,7 +99,7 @@ def _window(e: pd.DataFrame, runs: pd.Index, lo: int, hi: int) -> dict[str, pd.S
 
 def run_metrics(episodes: pd.DataFrame, runs: list[dict[str, Any]] | None = None) -> pd.DataFrame:
     """
-    Metrics, one row per run (vectorised: fast for thousands of runs):
+    The metrics of docs/definitions.md, one row per run (vectorised: fast for thousands of runs):
 
     - ``decisions_per_episode``, ``cells_per_episode``: means over the run's episodes (the paper's "steps" are decisions)
     - ``first_optimal``: first episode whose path is a shortest path; ``censored`` when none is

@@ -1,6 +1,7 @@
 """
 The paper's own numbers and sentences, copied verbatim from Badoy & Teknomo, "Q-Learning with Basic Emotions"
-(HNICEM 2014, arXiv 1609.01468), each with where it is printed, to set ours beside.
+(HNICEM 2014, arXiv 1609.01468), each with where it is printed, to set ours beside (docs/definitions.md, "The
+paper's numbers").
 
 Numbers are kept exactly as printed (as strings too, so "0.00" and "110190.20" keep their digits).
 """
