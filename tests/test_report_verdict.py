@@ -107,9 +107,12 @@ def test_seeds_needed_and_adastop_on_a_clear_difference() -> None:
 
 
 @pytest.mark.slow
-def test_replicate_writes_every_part_and_the_record(tmp_path: Path) -> None:
+def test_replicate_writes_every_part_and_the_record(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """replicate end to end at toy size: launcher sweeps, the three engine studies, one report with their sections."""
+    from sb3_affect import replicate
     from sb3_affect.replicate import main
+
+    monkeypatch.setattr(replicate, "PARTS", (("paper", "toy paper"), ("dqn", "toy dqn"), ("baselines", "toy baselines")))
 
     experiments = tmp_path / "experiments"
     experiments.mkdir()
