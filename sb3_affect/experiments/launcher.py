@@ -85,6 +85,9 @@ def _describe_exit(code: int | None) -> str:
 
 def run_local(tasks: list[Task], workers: int, formats: tuple[str, ...], on_result: OnResult, on_failure: OnFailure) -> None:
     """Run ``tasks`` in forked worker processes, ``workers`` at a time."""
+    from sb3_affect.kernel import warm_up
+
+    warm_up()  # the compiled engine's kernels, loaded once here (no torch) instead of in every worker
     context = multiprocessing.get_context("fork")
     queue = deque(tasks)
     running: dict[str, tuple[Any, Any, dict[str, Any]]] = {}
