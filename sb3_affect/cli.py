@@ -146,7 +146,7 @@ def _cmd_replicate(args: argparse.Namespace) -> int:
 
     _check_out(args.out)
     start = time.perf_counter()
-    report = replicate(out_dir=Path(args.out), workers=args.workers)
+    report = replicate(out_dir=Path(args.out), workers=args.workers, large_seeds=args.large_seeds)
     minutes, seconds = divmod(time.perf_counter() - start, 60)
     print(f"done in {int(minutes)} min {seconds:.0f} s. Open {report.with_suffix('.html')} in a browser to read the report.")
     return 0
@@ -154,13 +154,14 @@ def _cmd_replicate(args: argparse.Namespace) -> int:
 
 def _replicate_help() -> str:
     """``replicate --help``: what it runs (from ``sb3_affect.replicate.PARTS``, so it can not drift) and writes."""
-    from sb3_affect.replicate import PARTS
+    from sb3_affect.replicate import PARTS, STUDIES
 
     lines = [
-        "The main job (`make replicate` runs it): runs these sweeps, each into its own sub-folder of OUT, then writes",
-        "one report from all of them.",
+        "The main job (`make replicate` runs it): runs these sweeps and engine studies, each into its own sub-folder",
+        "of OUT, then writes one report from all of them.",
         "",
         *(f"  OUT/{name + '/':11s} experiments/{name}.yaml: {description}" for name, description in PARTS),
+        *(f"  OUT/{name + '/':11s} {description}" for name, description in STUDIES),
         f"  {'OUT/report.html':15s} the report (also report.md, tables/*.csv, figures/*.png): open it in a browser",
         "",
         "About 10-12 minutes on 2 cores. Interrupted? Rerun the same command: finished runs are kept and skipped.",
@@ -227,12 +228,19 @@ def build_parser() -> argparse.ArgumentParser:
     report.set_defaults(func=_cmd_report)
     replicate = sub.add_parser(
         "replicate",
-        help="the main job: paper protocol, DQN subset, ablation, baselines, then the report",
+        help="the main job: paper protocol, DQN, baselines, hunters, engine studies (1,000 seeds), then the report",
         description=_replicate_help(),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     replicate.add_argument("--out", default="runs", metavar="OUT", help="results folder (default: runs)")
     replicate.add_argument("--workers", type=_positive_int, default=None, help="parallel runs, >= 1 (default: CPU count)")
+    replicate.add_argument(
+        "--large-seeds",
+        type=_positive_int,
+        default=None,
+        metavar="N",
+        help="seeds per cell of the large-N study (default: 1000)",
+    )
     replicate.set_defaults(func=_cmd_replicate)
     from sb3_affect.forensics.command import add_forensics_parser
 
