@@ -69,6 +69,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         workers=args.workers,
         backend=args.backend,
         ray_address=args.ray_address,
+        ray_timeout=args.ray_timeout,
         overrides=[*(args.set or ()), *([f"logs=[{args.logs}]"] if args.logs else [])],
         progress=not args.no_progress,
     )
@@ -145,7 +146,7 @@ def _cmd_replicate(args: argparse.Namespace) -> int:
 
     _check_out(args.out)
     start = time.perf_counter()
-    report = replicate(out_dir=Path(args.out), workers=args.workers)
+    report = replicate(out_dir=Path(args.out), workers=args.workers, large_seeds=args.large_seeds)
     minutes, seconds = divmod(time.perf_counter() - start, 60)
     print(f"done in {int(minutes)} min {seconds:.0f} s. Open {report.with_suffix('.html')} in a browser to read the report.")
     return 0
@@ -153,13 +154,14 @@ def _cmd_replicate(args: argparse.Namespace) -> int:
 
 def _replicate_help() -> str:
     """``replicate --help``: what it runs (from ``sb3_affect.replicate.PARTS``, so it can not drift) and writes."""
-    from sb3_affect.replicate import PARTS
+    from sb3_affect.replicate import PARTS, STUDIES
 
     lines = [
-        "The main job (`make replicate` runs it): runs these sweeps, each into its own sub-folder of OUT, then writes",
-        "one report from all of them.",
+        "The main job (`make replicate` runs it): runs these sweeps and engine studies, each into its own sub-folder",
+        "of OUT, then writes one report from all of them.",
         "",
         *(f"  OUT/{name + '/':11s} experiments/{name}.yaml: {description}" for name, description in PARTS),
+        *(f"  OUT/{name + '/':11s} {description}" for name, description in STUDIES),
         f"  {'OUT/report.html':15s} the report (also report.md, tables/*.csv, figures/*.png): open it in a browser",
         "",
         "About 10-12 minutes on 2 cores. Interrupted? Rerun the same command: finished runs are kept and skipped.",
@@ -184,9 +186,19 @@ def build_parser() -> argparse.ArgumentParser:
     )
     run.add_argument("file", help="experiment YAML, e.g. experiments/smoke.yaml (see the experiment-file reference)")
     run.add_argument("--out", required=True, metavar="DIR", help="results folder (created; an earlier run's folder resumes)")
-    run.add_argument("--workers", type=_positive_int, default=None, help="parallel runs, >= 1 (default: CPU count)")
+    run.add_argument(
+        "--workers",
+        type=_positive_int,
+        default=None,
+        help="parallel runs, >= 1 (default: CPU count; on a Ray cluster: as many as its CPUs allow)",
+    )
     run.add_argument("--backend", choices=("local", "ray"), default="local", help="local processes (default) or Ray tasks")
-    run.add_argument("--ray-address", default=None, help="Ray cluster address (default: start a local instance)")
+    run.add_argument(
+        "--ray-address", default=None, help="Ray cluster address, HOST:PORT or ray://HOST:PORT (default: a private instance)"
+    )
+    run.add_argument(
+        "--ray-timeout", type=float, default=60.0, metavar="SECONDS", help="give up on an unresponsive Ray cluster after this"
+    )
     run.add_argument(
         "--set",
         action="append",
@@ -216,28 +228,41 @@ def build_parser() -> argparse.ArgumentParser:
     report.set_defaults(func=_cmd_report)
     replicate = sub.add_parser(
         "replicate",
-        help="the main job: paper protocol, DQN subset, ablation, baselines, then the report",
+        help="the main job: paper protocol, DQN, baselines, hunters, engine studies (1,000 seeds), then the report",
         description=_replicate_help(),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     replicate.add_argument("--out", default="runs", metavar="OUT", help="results folder (default: runs)")
     replicate.add_argument("--workers", type=_positive_int, default=None, help="parallel runs, >= 1 (default: CPU count)")
+    replicate.add_argument(
+        "--large-seeds",
+        type=_positive_int,
+        default=None,
+        metavar="N",
+        help="seeds per cell of the large-N study (default: 1000)",
+    )
     replicate.set_defaults(func=_cmd_replicate)
+    from sb3_affect.forensics.command import add_forensics_parser
+
+    add_forensics_parser(sub)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
+    from sb3_affect.experiments.ray_cluster import ClusterLost, RayClusterError
     from sb3_affect.experiments.schema import SweepError
     from sb3_affect.experiments.store import StoreError
 
     args = build_parser().parse_args(argv)
     try:
         return int(args.func(args))
-    except (SweepError, StoreError, UsageError) as error:
+    except (SweepError, StoreError, UsageError, RayClusterError) as error:
         print(f"sb3-affect: error: {error}", file=sys.stderr)
         return 2
     except KeyboardInterrupt as interrupt:
         how = "terminated" if isinstance(interrupt, Terminated) else "interrupted"
+        if isinstance(interrupt, ClusterLost):
+            how = interrupt.message
         print(f"\nsb3-affect: {how}; finished runs are kept, rerun the same command to resume", file=sys.stderr)
         return 143 if isinstance(interrupt, Terminated) else 130
 

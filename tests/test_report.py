@@ -124,6 +124,10 @@ def test_run_metrics_definitions() -> None:
     assert metrics.at["never", "decisions_before_optimal"] == 60  # censored: all its steps
     assert metrics.at["never", "greedy_optimal_from"] == 1
     assert metrics.at["found", "decisions_per_episode"] == pytest.approx(26.5)
+    assert metrics.at["found", "decisions_to_greedy_optimal"] == 50 + 30 + 12 + 14  # episodes 1-4
+    assert metrics.at["never", "decisions_to_greedy_optimal"] == 40  # greedy optimal after episode 1
+    late = _episodes("late", [False, True], [True, False], [30, 12])
+    assert run_metrics(late).set_index("run_id").at["late", "greedy_censored"]  # not optimal after the last episode
 
 
 def test_report_end_to_end_from_the_smoke_sweep(tmp_path: Path) -> None:
@@ -132,31 +136,39 @@ def test_report_end_to_end_from_the_smoke_sweep(tmp_path: Path) -> None:
     report = build_report(out)
     text = report.read_text()
     for section in (
+        "Verdict",
+        "No verdict: too few runs",
+        "Why the affective agent behaves as it does",
+        "Fig. 5 under both weightings",
         "Table IV",
         "Table V",
         "Figures 3 and 4",
-        "Episodes until the optimal path",
-        "Figures 5 and 6",
+        "The first optimal episode as time-to-event data",
+        "The project's own checks",
         "Learning curves",
-        "Statistics that do not rest on pairing",
-        "Verdict",
         "Reading ablation",
         "DQN on the same task",
+        "Reproducibility record",
         "Definitions",
         "t-Test: Paired Two Sample for Means",
         "P(T<=t) one-tail",
+        "110190.20",  # the paper's cells verbatim
+        "76689863",
     ):
         assert section in text, section
-    assert "Supported" in text or "Not supported" in text
+    # too few runs (2 seeds, 2 epsilons, 20 episodes): no verdict at all
+    assert "Supported" not in text and "| reproduced" not in text
+    assert not (out / "tables" / "verdict.csv").exists()
     figures = sorted((out / "figures").glob("*.png"))
-    assert len(figures) >= 5
+    assert len(figures) >= 8
     for png in figures:
         image = mpimg.imread(png)
         assert image.ndim == 3 and image.shape[0] > 100 and image.shape[1] > 100
         assert f"figures/{png.name}" in text
     html = (out / "report.html").read_text()
     assert html.count("data:image/png;base64,") == len(figures) and "<table>" in html
-    for table in ("table_iv", "table_v", "robust_statistics", "optimal_path", "profile_windows"):
+    assert "<ul><li>" in html and "<p>- " not in html  # lists render as lists
+    for table in ("table_iv", "table_v_walked", "table_v_greedy", "kaplan_meier_paper", "rliable", "profile_windows"):
         frame = pd.read_csv(out / "tables" / f"{table}.csv")
         assert len(frame) > 0
 

@@ -11,10 +11,22 @@ only assembles the markdown, so the report build can add it::
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
 
 from sb3_affect.baselines.summary import emotion_profile, load_runs, markdown, profile_markdown, summarise
+from sb3_affect.report.context import ReportContext
+from sb3_affect.report.document import fmt
+from sb3_affect.report.largen import Cell, study
+from sb3_affect.report.stats import bootstrap_ci
+
+#: Issue 7 results folders a replicate folder may hold (experiments/baselines*.yaml).
+BASELINE_FOLDERS = ("baselines", "baselines_moving7", "baselines_moving")
 
 INTRO = (
     "The paper's baseline is epsilon-greedy averaged over epsilon 0.1 to 0.9. Here every agent runs on the same seeds "
@@ -37,3 +49,99 @@ def baselines_section(run_dirs: Sequence[str | Path], title: str = "Beyond the p
             profile
         )
     return text
+
+
+#: Tasks beyond the paper run through the engine (``beyond_cells``): (task label, env id, env kwargs).
+TASKS: tuple[tuple[str, str, dict[str, Any]], ...] = (
+    ("moving prey 7x7 (random walk)", "sb3_affect/MovingPursuit-v0",
+     {"size": 7, "start": [0, 0], "prey_start": [3, 3], "prey": "random", "prey_speed": 0.5}),
+    ("evading prey 7x7", "sb3_affect/MovingPursuit-v0",
+     {"size": 7, "start": [0, 0], "prey_start": [3, 3], "prey": "evade", "prey_speed": 0.5}),
+    ("maze: wall", "sb3_affect/MazePursuit-v0", {"maze": "wall"}),
+    ("maze: rooms", "sb3_affect/MazePursuit-v0", {"maze": "rooms"}),
+)
+#: Agents of the tasks beyond the paper: (name, algo, kwargs).
+BEYOND_AGENTS: tuple[tuple[str, str, dict[str, Any]], ...] = (
+    ("affective", "AffectQ", {}),
+    ("epsilon-greedy 0.1", "QLearning", {"exploration_rate": 0.1}),
+    ("epsilon-greedy 0.01 (tuned)", "QLearning", {"exploration_rate": 0.01}),
+    ("speed-epsilon-greedy", "sb3_affect.baselines:SpeedEpsilonGreedy", {"exploration_rate": 0.01, "speeds": [1, 2]}),
+)
+
+
+#: Safety cap of the tasks beyond the paper: an episode of this many decisions is truncated (and counted).
+BEYOND_CAP = 2000
+
+
+def beyond_cells() -> list[Cell]:
+    """Every (task, agent) of the study beyond the paper (seeds: sweep "beyond", the same per agent across tasks)."""
+    return [
+        Cell(
+            agent,
+            algo,
+            {**kwargs, "max_episode_decisions": BEYOND_CAP},
+            {"task": task},
+            "beyond",
+            {"task": task},
+            env_id,
+            env_kwargs,
+        )
+        for task, env_id, env_kwargs in TASKS
+        for agent, algo, kwargs in BEYOND_AGENTS
+    ]
+
+
+def _ci(values: np.ndarray, digits: int = 1) -> str:
+    point, low, high = bootstrap_ci(values)
+    return "" if math.isnan(point) else f"{fmt(point, digits)} [{fmt(low, digits)}, {fmt(high, digits)}]"
+
+
+def beyond_table(m: pd.DataFrame) -> pd.DataFrame:
+    rows = {}
+    for (task, agent), g in m.groupby(["task", "agent"], sort=False):
+        rows[(task, agent)] = {
+            "runs": len(g),
+            "decisions per episode [95% CI]": _ci(g.decisions_per_episode.to_numpy(float)),
+            "cells per episode": g.cells_per_episode.mean(),
+            "first optimal episode (mean of found)": g.first_optimal.mean(),
+            "never optimal": int(g.censored.sum()),
+            "truncated episodes": int(g.truncated.sum()),
+            "decisions before optimal [95% CI]": _ci(g.decisions_before_optimal.to_numpy(float), 0),
+            "joy share of decisions, episodes 181-200": g.joy_181_200_weighted.mean(),
+        }
+    table = pd.DataFrame.from_dict(rows, orient="index")
+    table.index = [f"{t} / {a}" for t, a in table.index]
+    table.index.name = "task / agent"
+    return table
+
+
+def beyond_section(ctx: ReportContext) -> None:
+    """Moving prey, evading prey and mazes (engine study), then issue 7's fair-baselines folders when present."""
+    ctx.doc.h("Beyond the paper: moving prey, evading prey, mazes and fair baselines")
+    found = study(ctx.root, "beyond")
+    if found is None:
+        ctx.doc.p("No moving-prey, evading-prey or maze results in this folder (`sb3-affect replicate` runs them).")
+    else:
+        m, meta = found
+        ctx.doc.p(
+            f"Each task, {meta['seeds']} seeds per agent, {meta['episodes']} episodes ({fmt(meta['wall_seconds'], 1)} s "
+            "through the engine). Moving prey: the hunter starts at (0, 0), the prey at (3, 3) and moves after a hunter "
+            "move with probability 0.5, at random or away from the hunter (evading); optimal means a capture within the "
+            "prey's starting distance. Mazes: shipped maps `wall` (shortest path 24) and `rooms` (21), static goal. "
+            f"Episodes are cut at {BEYOND_CAP:,} decisions (truncated, counted in the table; an evading prey can keep a "
+            "nearly greedy hunter chasing for tens of thousands of decisions). Means over runs with bootstrap 95% CIs; "
+            "lower is better."
+        )
+        ctx.table("beyond", beyond_table(m), "Tasks beyond the paper")
+        ranks = []
+        for task, g in m.groupby("task", sort=False):
+            means = g.groupby("agent").decisions_per_episode.mean().sort_values()
+            place = list(means.index).index("affective") + 1 if "affective" in means.index else 0
+            ranks.append(
+                f"{task}: fewest decisions per episode {means.index[0]} ({fmt(float(means.iloc[0]), 1)}); affective "
+                f"ranks {place} of {len(means)} ({fmt(float(means.get('affective', math.nan)), 1)})"
+            )
+        ctx.doc.ul(ranks)
+    dirs = [ctx.root / name for name in BASELINE_FOLDERS if (ctx.root / name / "runs").is_dir()]
+    if dirs:
+        ctx.doc.md(baselines_section(dirs, title="Fair baselines (issue 7)").replace("## ", "### ", 1))

@@ -34,7 +34,10 @@ def fmt(value: object, digits: int = 2) -> str:
 
 @dataclass
 class Document:
-    """Blocks in order: ("h", level, text), ("p", text), ("table", frame, caption), ("img", path, caption)."""
+    """
+    Blocks in order: ("h", level, text), ("p", text), ("ul", items), ("table", frame, caption, digits),
+    ("md", markdown), ("img", path, caption).
+    """
 
     title: str
     blocks: list[tuple] = field(default_factory=list)
@@ -47,6 +50,10 @@ class Document:
 
     def table(self, frame: pd.DataFrame, caption: str = "", digits: int = 2) -> None:
         self.blocks.append(("table", frame, caption, digits))
+
+    def ul(self, items: list[str]) -> None:
+        """A bulleted list (each item inline text: **bold** and `code` spans)."""
+        self.blocks.append(("ul", list(items)))
 
     def md(self, text: str) -> None:
         """A ready-made Markdown fragment (rendered to HTML with python-markdown's tables extension)."""
@@ -69,6 +76,8 @@ class Document:
                 if caption:
                     out += [f"*{caption}*", ""]
                 out += [_md_table(frame, digits), ""]
+            elif kind == "ul":
+                out += [f"- {item}" for item in block[1]] + [""]
             elif kind == "md":
                 out += [block[1], ""]
             elif kind == "img":
@@ -82,7 +91,7 @@ class Document:
             f"<title>{html.escape(self.title)}</title>",
             "<style>body{font-family:sans-serif;max-width:1000px;margin:2em auto;line-height:1.45}"
             "table{border-collapse:collapse;margin:0.5em 0 1.2em}td,th{border:1px solid #ccc;padding:3px 8px;"
-            "text-align:right}th{background:#f3f3f3}td:first-child,th:first-child{text-align:left}"
+            "text-align:right;vertical-align:top}td.text{text-align:left}th{background:#f3f3f3}td:first-child,th:first-child{text-align:left}"
             "img{max-width:100%}figcaption,caption{font-style:italic;color:#444}</style></head><body>",
             f"<h1>{html.escape(self.title)}</h1>",
         ]
@@ -95,10 +104,12 @@ class Document:
             elif kind == "table":
                 frame, caption, digits = block[1], block[2], block[3]
                 parts.append(_html_table(frame, caption, digits))
+            elif kind == "ul":
+                parts.append("<ul>" + "".join(f"<li>{_inline(item)}</li>" for item in block[1]) + "</ul>")
             elif kind == "md":
                 import markdown
 
-                parts.append(markdown.markdown(block[1], extensions=["tables"]))
+                parts.append(markdown.markdown(block[1], extensions=["tables", "sane_lists"]))
             elif kind == "img":
                 data = base64.b64encode(block[1].read_bytes()).decode()
                 parts.append(
@@ -125,6 +136,15 @@ def _cells(frame: pd.DataFrame, digits: int) -> tuple[list[str], list[list[str]]
     return header, rows
 
 
+def _numeric(cell: str) -> bool:
+    """Whether a table cell is one number (right-aligned in HTML; text is left-aligned)."""
+    try:
+        float(cell.replace(",", ""))
+    except ValueError:
+        return cell in ("", "inf", "yes", "no", "n/a")
+    return True
+
+
 def _md_table(frame: pd.DataFrame, digits: int) -> str:
     header, rows = _cells(frame, digits)
     lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
@@ -139,6 +159,6 @@ def _html_table(frame: pd.DataFrame, caption: str, digits: int) -> str:
         out.append(f"<caption>{html.escape(caption)}</caption>")
     out.append("<tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in header) + "</tr>")
     for row in rows:
-        out.append("<tr>" + "".join(f"<td>{html.escape(c)}</td>" for c in row) + "</tr>")
+        out.append("<tr>" + "".join(f"<td{'' if _numeric(c) else ' class=text'}>{html.escape(c)}</td>" for c in row) + "</tr>")
     out.append("</table>")
     return "\n".join(out)

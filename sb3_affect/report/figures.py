@@ -23,11 +23,12 @@ COLOURS = {
 }
 
 
-def _save(fig: plt.Figure, path: Path) -> Path:
+def save(fig: plt.Figure, path: Path | str) -> Path:
+    """Write the figure as a PNG (tight layout, 110 dpi) and close it."""
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
-    return path
+    return Path(path)
 
 
 def metric_vs_epsilon(
@@ -38,8 +39,12 @@ def metric_vs_epsilon(
     path: Path,
     agents: tuple[str, ...] = ("epsilon-greedy", "affective"),
     log: bool = False,
+    mark_censored: bool = False,
 ) -> Path:
-    """Per-run ``column`` against epsilon: mean over runs with its bootstrap 95% CI band, and every run as a dot."""
+    """
+    Per-run ``column`` against epsilon: mean over runs with its bootstrap 95% CI band, and every run as a dot
+    (``mark_censored``: runs that never found the optimal path as crosses).
+    """
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
     for agent in agents:
         data = metrics[metrics.agent == agent]
@@ -51,33 +56,51 @@ def metric_vs_epsilon(
         ax.plot(eps, cis[:, 0], "o-", color=colour, label=f"{agent} (mean, 95% CI)")
         ax.fill_between(eps, cis[:, 1], cis[:, 2], color=colour, alpha=0.2)
         jitter = 0.012 if agent == "affective" else -0.012
-        ax.scatter(data.epsilon + jitter, data[column], s=5, color=colour, alpha=0.25)
+        censored = data.censored.astype(bool) if mark_censored and "censored" in data else pd.Series(False, index=data.index)
+        ax.scatter(data.epsilon[~censored] + jitter, data[column][~censored], s=5, color=colour, alpha=0.25)
+        if censored.any():
+            ax.scatter(
+                data.epsilon[censored] + jitter,
+                data[column][censored],
+                s=22,
+                marker="x",
+                color=colour,
+                alpha=0.8,
+                label=f"{agent}: censored run (never found it; all its steps)",
+            )
     ax.set_xlabel("epsilon (the affective agent ignores it)")
     ax.set_ylabel(ylabel)
     ax.set_title(title)
     if log:
         ax.set_yscale("log")
-    ax.legend()
-    return _save(fig, path)
+    ax.legend(fontsize=7)
+    return save(fig, path)
 
 
 def emotion_profile(prof: pd.DataFrame, path: Path, title: str = "Fig. 5: emotion profile per episode") -> Path:
-    fig, ax = plt.subplots(figsize=(6.4, 4.0))
+    """Two panels: the mean over runs of per-episode fractions (95% band), and the decision-weighted fractions."""
+    fig, axes = plt.subplots(1, 2, figsize=(10.0, 4.0), sharey=True)
     for emotion in ("joy", "sadness", "fear", "anger"):
         colour = COLOURS[emotion]
-        ax.plot(prof.index, prof[f"{emotion}_mean"], color=colour, label=emotion)
-        ax.fill_between(prof.index, prof[f"{emotion}_lo"], prof[f"{emotion}_hi"], color=colour, alpha=0.2)
-    ax.set_xlabel("episode")
-    ax.set_ylabel("fraction of decisions (mean over runs, 95% band)")
-    ax.set_ylim(-0.02, 1.02)
-    ax.set_title(title)
-    ax.legend()
-    return _save(fig, path)
+        style = "-" if emotion in ("joy", "anger") else ":"
+        axes[0].plot(prof.index, prof[f"{emotion}_mean"], color=colour, ls=style, label=emotion)
+        axes[0].fill_between(prof.index, prof[f"{emotion}_lo"], prof[f"{emotion}_hi"], color=colour, alpha=0.2)
+        axes[1].plot(prof.index, prof[f"{emotion}_weighted"], color=colour, ls=style, label=emotion)
+    axes[0].set_title("mean of per-episode fractions (each episode counts once)", fontsize=9)
+    axes[1].set_title("decision-weighted (each decision counts once)", fontsize=9)
+    axes[0].set_ylabel("fraction of decisions")
+    for ax in axes:
+        ax.set_xlabel("episode")
+        ax.set_ylim(-0.02, 1.02)
+        ax.legend(fontsize=8)
+    fig.suptitle(title)
+    return save(fig, path)
 
 
 def equivalent_epsilon(prof: pd.DataFrame, path: Path) -> Path:
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
-    ax.plot(prof.index, prof["equivalent_epsilon_mean"], color="tab:red", label="affective: random-direction fraction")
+    ax.plot(prof.index, prof["equivalent_epsilon_mean"], color="tab:red", label="mean of per-episode fractions")
+    ax.plot(prof.index, prof["equivalent_epsilon_weighted"], color="tab:orange", ls="--", label="decision-weighted")
     ax.fill_between(
         prof.index,
         prof["equivalent_epsilon_lo"],
@@ -93,18 +116,19 @@ def equivalent_epsilon(prof: pd.DataFrame, path: Path) -> Path:
     ax.set_ylim(-0.02, 1.02)
     ax.set_title("Fig. 6: equivalent epsilon per episode")
     ax.legend()
-    return _save(fig, path)
+    return save(fig, path)
 
 
 def learning_curves(episodes: pd.DataFrame, path: Path, title: str, groups: list[tuple[str, pd.DataFrame]]) -> Path:
     """Decisions per episode over episodes: median over runs with the quartile band, one line per group."""
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
-    cmap = plt.get_cmap("viridis")
+    palette = [plt.get_cmap("tab10")(i) for i in range(10)]
+    styles = ("-", "--", "-.", ":")
     for i, (label, data) in enumerate(groups):
         grouped = data.groupby("episode").decisions
         median, q25, q75 = grouped.median(), grouped.quantile(0.25), grouped.quantile(0.75)
-        colour = COLOURS.get(label, cmap(i / max(1, len(groups) - 1)))
-        ax.plot(median.index, median, color=colour, label=label, lw=1.3)
+        colour = COLOURS.get(label, palette[i % len(palette)])
+        ax.plot(median.index, median, color=colour, label=label, lw=1.5, ls=styles[(i // len(palette)) % len(styles)])
         ax.fill_between(median.index, q25, q75, color=colour, alpha=0.12)
     ax.axhline(12, color="black", lw=0.8, ls=":", label="12 (shortest path in cells)")
     ax.set_yscale("log")
@@ -112,7 +136,7 @@ def learning_curves(episodes: pd.DataFrame, path: Path, title: str, groups: list
     ax.set_ylabel("decisions per episode (median; band: quartiles)")
     ax.set_title(title)
     ax.legend(fontsize=7, ncol=2)
-    return _save(fig, path)
+    return save(fig, path)
 
 
 def ablation_bars(ranking: pd.DataFrame, path: Path) -> Path:
@@ -121,4 +145,21 @@ def ablation_bars(ranking: pd.DataFrame, path: Path) -> Path:
     ax.barh(labels[::-1], ranking.distance.to_numpy()[::-1], color="tab:gray")
     ax.set_xlabel("distance to the paper (lower is closer)")
     ax.set_title("Reading ablation")
-    return _save(fig, path)
+    return save(fig, path)
+
+
+def decisions_histogram(decisions: np.ndarray, path: Path, threshold: int, title: str) -> Path:
+    """Per-episode decisions (log bins): count of episodes, and share of all decisions, per bin."""
+    fig, axes = plt.subplots(1, 2, figsize=(10.0, 3.8))
+    bins = np.unique(np.logspace(0, np.log10(max(decisions.max(), 2)) + 0.01, 40).astype(int))
+    axes[0].hist(decisions, bins=bins, color="tab:red", alpha=0.8)
+    axes[0].set_ylabel("episodes")
+    axes[1].hist(decisions, bins=bins, weights=decisions / decisions.sum(), color="tab:orange", alpha=0.8)
+    axes[1].set_ylabel("share of all decisions")
+    for ax in axes:
+        ax.set_xscale("log")
+        ax.axvline(threshold + 0.5, color="black", ls="--", lw=1, label=f"{threshold} decisions")
+        ax.set_xlabel("decisions in the episode (log scale)")
+        ax.legend(fontsize=8)
+    fig.suptitle(title)
+    return save(fig, path)

@@ -1,0 +1,89 @@
+"""
+What every report section gets: ``ReportContext`` (the document, the output folder, the loaded results, the
+large-N table and the claims judged so far).
+
+A section is a function ``section(ctx: ReportContext) -> None`` that adds blocks to ``ctx.doc`` (headings,
+paragraphs, lists, tables, figures, or a ready-made markdown fragment with ``ctx.doc.md``); ``report.build.SECTIONS``
+lists them in order. A new section is one function in its own module, appended to that list.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from sb3_affect.report.document import Document
+from sb3_affect.report.metrics import Results
+
+STANDARD, AFFECTIVE = "epsilon-greedy", "affective"
+#: Fewest runs per (agent, epsilon) cell, epsilon values and episodes for a verdict (the smoke sweep has fewer).
+MIN_RUNS_PER_CELL, MIN_EPSILONS, MIN_EPISODES = 5, 9, 200
+
+
+@dataclass
+class ReportContext:
+    """
+    The shared state of one report build.
+
+    :param doc: the document sections add to
+    :param out: the output folder (``tables/`` and ``figures/`` inside)
+    :param root: the folder the report was asked for (a replicate folder or one results folder)
+    :param paper: the paper sweep's results (``metrics`` holds one row per run)
+    :param metrics: per-run metrics of ``paper``
+    :param folders: other results folders found in ``root`` by name (dqn, ablation, baselines, ...)
+    :param large: per-run metrics of the large-N study (``report.largen``), or None
+    :param large_meta: its seeds, episodes and wall time
+    :param judgements: the claims judged (filled by the verdict section)
+    :param timings: wall time of each sweep (for the reproducibility record)
+    """
+
+    doc: Document
+    out: Path
+    root: Path
+    paper: Results
+    metrics: pd.DataFrame
+    folders: dict[str, Path] = field(default_factory=dict)
+    large: pd.DataFrame | None = None
+    large_meta: dict[str, Any] | None = None
+    judgements: list[Any] = field(default_factory=list)
+    timings: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def episodes(self) -> pd.DataFrame:
+        return self.paper.episodes
+
+    def table(self, name: str, frame: pd.DataFrame, caption: str, digits: int = 2) -> None:
+        """Write ``tables/<name>.csv`` and add the table to the document."""
+        frame.to_csv(self.out / "tables" / f"{name}.csv")
+        self.doc.table(frame, caption + f" (tables/{name}.csv)", digits)
+
+    def figure(self, name: str) -> Path:
+        return self.out / "figures" / f"{name}.png"
+
+    def agent(self, name: str) -> pd.DataFrame:
+        return self.metrics[self.metrics.agent == name]
+
+    @property
+    def has_paper_agents(self) -> bool:
+        m = self.metrics
+        return {STANDARD, AFFECTIVE} <= set(m.agent) and "epsilon" in m.columns
+
+    def verdict_refusal(self) -> str | None:
+        """Why these results are too few for a verdict (None: enough)."""
+        if not self.has_paper_agents:
+            return f"the paper's comparison needs both agents `{STANDARD}` and `{AFFECTIVE}` with an `epsilon` label"
+        m = self.metrics[self.metrics.agent.isin([STANDARD, AFFECTIVE])]
+        per_cell = int(m.groupby(["agent", "epsilon"]).run_id.count().min())
+        epsilons = int(m.epsilon.nunique())
+        episodes = int(m.episodes.max())
+        problems = []
+        if per_cell < MIN_RUNS_PER_CELL:
+            problems.append(f"{per_cell} runs in its smallest (agent, ε) cell (a verdict needs {MIN_RUNS_PER_CELL})")
+        if epsilons < MIN_EPSILONS:
+            problems.append(f"{epsilons} ε values (the paper's protocol has {MIN_EPSILONS})")
+        if episodes < MIN_EPISODES:
+            problems.append(f"{episodes} episodes per run (the paper's protocol has {MIN_EPISODES})")
+        return "; ".join(problems) or None

@@ -1,0 +1,158 @@
+"""Replication forensics: the statistics agree with the report's, the store resumes, the method recovers a candidate."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from sb3_affect.cli import build_parser
+from sb3_affect.engine import simulate
+from sb3_affect.experiments import run_sweep
+from sb3_affect.experiments.store import StoreError
+from sb3_affect.forensics import STATISTICS, CandidateSpace, Protocol, Reading, Simulation, printed_numbers, run_forensics
+from sb3_affect.forensics.analysis import REJECT_FACTOR, _steps_ratio
+from sb3_affect.forensics.runner import run_units, simulate_unit
+from sb3_affect.forensics.scoring import log_likelihood, posterior
+from sb3_affect.forensics.section import forensics_section
+from sb3_affect.forensics.statistics import candidate_statistics, cell_summary
+from sb3_affect.forensics.store import SummaryStore
+from sb3_affect.report import build_report, paper
+from sb3_affect.report.metrics import _first_stable, run_metrics
+
+ROOT = Path(__file__).resolve().parents[1]
+ENV = "sb3_affect/GridPursuit-v0"
+AFFECTIVE = Simulation("affective", 1.0, 0.8, None, "literal", "episode", "cells")
+TINY = Protocol(epsilons=(0.2, 0.6), seeds=4, episodes=25)
+
+
+def test_cell_summary_matches_the_report_definitions() -> None:
+    log = simulate("AffectQ", AFFECTIVE.algo_kwargs(0.1), ENV, None, [3, 4, 5], 30)
+    summary = cell_summary(log)
+    episodes = log.assign(run_id=log.seed.astype(str), agent="affective")
+    metrics = run_metrics(episodes)
+    assert summary["n"] == 3
+    assert summary["decisions"] == pytest.approx(metrics.decisions_per_episode.sum())
+    assert summary["cells"] == pytest.approx(metrics.cells_per_episode.sum())
+    assert summary["walked_found"] == (~metrics.censored).sum()
+    assert summary["walked_first"] == pytest.approx(metrics.first_optimal.sum())
+    assert summary["walked_decisions_before"] == pytest.approx(metrics.decisions_before_optimal.sum())
+    assert summary["walked_cells_before"] == pytest.approx(metrics.cells_before_optimal.sum())
+    greedy = [_first_stable(run.sort_values("episode").greedy_optimal.to_numpy()) for _, run in log.groupby("seed")]
+    assert summary["greedy_found"] == sum(not math.isnan(g) for g in greedy)
+    assert summary["greedy_first"] == pytest.approx(np.nansum(greedy))
+
+
+def test_printed_numbers_are_the_papers() -> None:
+    printed = dict(zip(STATISTICS, printed_numbers()))
+    assert printed["IV mean ε-greedy"] == paper.TABLE_IV["Mean"][0] == 67.02
+    assert printed["V variance affective"] == paper.TABLE_V["Variance"][1] == 53278480
+    assert printed["episodes to optimal (affective)"] == 27.35
+
+
+def test_table_v_sum_is_the_mean_times_the_runs() -> None:
+    (_, std, complete_std), (_, aff, complete_aff) = (
+        simulate_unit((AFFECTIVE.standard, 0), TINY),
+        simulate_unit((AFFECTIVE, 0), TINY),
+    )
+    assert complete_std and complete_aff
+    std_frame, aff_frame = pd.DataFrame.from_dict(std, orient="index"), pd.DataFrame.from_dict(aff, orient="index")
+    total = candidate_statistics(std_frame, aff_frame, Reading(table_v="sum"))
+    mean = candidate_statistics(std_frame, aff_frame, Reading(table_v="mean"))
+    v_mean = STATISTICS.index("V mean affective")
+    assert total[v_mean] == pytest.approx(TINY.seeds * mean[v_mean])
+    assert total[:6] == pytest.approx(mean[:6])  # Table IV does not depend on Table V's reading
+
+
+def test_pre_screen_factor_uses_the_closer_step_unit() -> None:
+    summary = pd.DataFrame({"n": [20.0, 20.0], "decisions": [20 * 50.0, 20 * 70.0], "cells": [20 * 600.0, 20 * 600.0]})
+    observed = printed_numbers()  # affective 56.28, epsilon-greedy 67.02
+    assert _steps_ratio(summary, observed, standard=False) == pytest.approx(60 / 56.28)
+    assert _steps_ratio(summary, observed, standard=True) == pytest.approx(67.02 / 60)
+    frozen = summary.assign(decisions=20 * 20000.0, cells=20 * 20000.0)
+    assert _steps_ratio(frozen, observed, standard=True) == pytest.approx(20000 / 67.02)
+    assert REJECT_FACTOR < 20000 / 67.02
+
+
+def test_pre_screen_stops_a_frozen_replication_early(tmp_path: Path) -> None:
+    protocol = Protocol(epsilons=(0.1, 0.2, 0.9), seeds=2, episodes=5)
+    frozen = Simulation("epsilon-greedy", 1.0, 0.8)  # first cell ~ a few hundred steps per episode: above 1 step
+    store = SummaryStore(tmp_path, protocol)
+    assert run_units(store, [(frozen, 0)], workers=1, progress=False, stop_above={frozen: 1.0}) == 1
+    assert store.has(frozen, 0, partial_ok=True) and not store.has(frozen, 0)
+    assert len(store.read(frozen, 0, partial_ok=True)) == 1  # stopped after the first epsilon cell
+    assert run_units(store, [(frozen, 0)], workers=1, progress=False, stop_above={frozen: 1.0}) == 0
+    assert run_units(store, [(frozen, 0)], workers=1, progress=False) == 1  # a full replication is another thing
+    assert len(store.read(frozen, 0)) == 3 and store.replications(frozen) == [0]
+
+
+def test_scoring_prefers_the_sample_that_holds_the_value() -> None:
+    rng = np.random.default_rng(0)
+    sample = np.exp(rng.normal(3.0, 0.1, size=(200, len(STATISTICS))))
+    sample[:, [4, 5, 10, 11]] = rng.normal(0.0, 0.2, size=(200, 4))
+    near, far = sample.mean(axis=0), sample.mean(axis=0) * 3
+    for diagonal in (False, True):
+        assert log_likelihood(sample, near, diagonal) > log_likelihood(sample, far, diagonal) + 10
+    probabilities = posterior([log_likelihood(sample, near), log_likelihood(sample, far), -math.inf])
+    assert probabilities.sum() == pytest.approx(1.0) and probabilities[0] > 0.99 and probabilities[2] == 0
+
+
+def test_bad_candidate_options_are_named() -> None:
+    with pytest.raises(ValueError, match="comparison='both'"):
+        Simulation("affective", 1.0, 0.8, None, "both", "episode", "cells")
+    with pytest.raises(ValueError, match="alpha=0"):
+        Simulation("epsilon-greedy", 0.0)
+    with pytest.raises(ValueError, match="table_v='total'"):
+        Reading(table_v="total")
+
+
+def test_cli_parses_forensics() -> None:
+    args = build_parser().parse_args(["forensics", "--out", "x", "--alphas", "0.5,1", "--reps", "10"])
+    assert args.alphas == (0.5, 1.0) and args.reps == 10 and args.func.__name__ == "forensics_command"
+    with pytest.raises(SystemExit):
+        build_parser().parse_args(["forensics", "--out", "x", "--gammas", "high"])
+
+
+@pytest.mark.slow
+def test_self_check_recovers_the_candidate_that_printed_the_numbers(tmp_path: Path) -> None:
+    """Numbers 'printed' by one replication of a known candidate: the analysis ranks that candidate first."""
+    space = CandidateSpace(
+        readings=(("literal", "episode", "cells"), ("valence", "episode", "cells")),
+        alphas=(1.0,),
+        gammas=(0.8,),
+        optimal=("walked", "greedy"),
+        steps=("decisions",),
+        table_v=("sum", "mean"),
+    )
+    wanted = Reading("greedy", "decisions", "mean")
+    truth = next(c for c in space.candidates() if c.reading == wanted and c.affective == AFFECTIVE)
+    store = SummaryStore(tmp_path / "held-out", TINY)
+    held_out = 99  # a replication the analysis never sees
+    run_units(store, [(truth.standard, held_out), (truth.affective, held_out)], workers=1, progress=False)
+    printed = candidate_statistics(store.read(truth.standard, held_out), store.read(truth.affective, held_out), truth.reading)
+    result = run_forensics(
+        tmp_path / "f", space, TINY, screen_reps=3, leaders=2, reps=12, workers=1, progress=False, printed=printed
+    )
+    assert len(result.screen) == 8 and len(result.leaders) == 8
+    assert result.leaders.candidate.iloc[0] == truth.name
+    assert result.leaders.posterior.iloc[0] > 0.5
+    assert result.unreached == []  # a candidate's own replication lies within the candidates' reach
+    section = forensics_section(tmp_path / "f")
+    assert "| 1 | literal | episode | cells |" in section.markdown and section.figures[0][0].exists()
+    # the replication report shows the section when its folder holds forensics results
+    smoke = tmp_path / "smoke"
+    run_sweep(ROOT / "experiments" / "smoke.yaml", smoke, workers=1, progress=False)
+    shutil.copytree(tmp_path / "f", smoke / "forensics")
+    text = build_report(smoke).read_text()
+    assert "## Replication forensics" in text and "figures/forensics_statistics.png" in text
+    assert (smoke / "figures" / "forensics_statistics.png").exists()
+    # resumable: everything is on disk, nothing is simulated again
+    units = [(s, r) for s in (truth.standard, *[c.affective for c in space.candidates()]) for r in range(3)]
+    assert run_units(SummaryStore(tmp_path / "f", TINY), units, workers=1, progress=False) == 0
+    with pytest.raises(StoreError, match="another protocol"):
+        SummaryStore(tmp_path / "f", dataclasses.replace(TINY, seeds=5))
