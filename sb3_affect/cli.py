@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import signal
 import sys
 import threading
@@ -51,13 +50,12 @@ def _cmd_status(args: argparse.Namespace) -> int:
     if not saved.exists():
         print(f"{store.root}: no sweep has been run here (no sweep.json)", file=sys.stderr)
         return 2
-    resolved = json.loads(saved.read_text())
-    runs = resolved["runs"]
+    name, runs = store.sweep_runs()  # run id -> agent
     done, failed = store.done_ids(), store.failed_ids()
-    per_agent: Counter[str] = Counter(c["agent"] for c in runs.values())
-    done_agent: Counter[str] = Counter(runs[r]["agent"] for r in done if r in runs)
-    failed_agent: Counter[str] = Counter(runs[r]["agent"] for r in failed if r in runs)
-    print(f"sweep {resolved['name']!r} in {store.root}: {len(done)}/{len(runs)} runs done, {len(failed - done)} failed")
+    per_agent: Counter[str] = Counter(runs.values())
+    done_agent: Counter[str] = Counter(runs[r] for r in done if r in runs)
+    failed_agent: Counter[str] = Counter(runs[r] for r in failed if r in runs)
+    print(f"sweep {name!r} in {store.root}: {len(done)}/{len(runs)} runs done, {len(failed - done)} failed")
     for agent, total in per_agent.items():
         print(f"  {agent:24s} {done_agent[agent]:5d}/{total:<5d} done  {failed_agent[agent]} failed")
     lock = store.root / ".lock"

@@ -1,13 +1,17 @@
 """
 Run a sweep: skip finished runs, execute the rest on a backend, store each result as it arrives.
 
+The runs are cut into jobs (``batches``): tabular runs of this package's agents on its envs go in batches of one
+cell each (one ``engine.simulate`` call, stored as one Parquet chunk), any other run is a job of its own (one JSON
+file). Fork, import and scheduling costs are paid once per job.
+
 Backends:
 
-* ``local``: one forked process per run, at most ``workers`` at a time. A run that raises is recorded with its
-  traceback; a worker that dies (``os._exit``, a signal, out of memory) is recorded as failed with its exit code,
-  without touching the other runs. Ctrl-C stops every worker before the launcher exits; workers also die with the
-  launcher if it is killed (Linux ``PR_SET_PDEATHSIG``).
-* ``ray``: Ray core tasks (``pip install sb3-affect[ray]``), on the cluster at ``ray_address`` or on a local
+* ``local``: one forked process per job, at most ``workers`` at a time. A job that raises is recorded with its
+  traceback (for each of its runs); a worker that dies (``os._exit``, a signal, out of memory) is recorded as failed
+  with its exit code, without touching the other jobs. Ctrl-C stops every worker before the launcher exits; workers
+  also die with the launcher if it is killed (Linux ``PR_SET_PDEATHSIG``).
+* ``ray``: one Ray core task per job (``pip install sb3-affect[ray]``), on the cluster at ``ray_address`` or on a local
   instance started for the sweep (dashboard off, bound to 127.0.0.1). Results are written by the driver only, so a
   retried task can not write twice.
 
@@ -32,13 +36,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from sb3_affect.experiments.runner import execute_run
-from sb3_affect.experiments.schema import load_sweep
-from sb3_affect.experiments.store import ResultsStore, run_id
+from sb3_affect.experiments.batches import Batch, Job, Single, batch_size, batchable, split_cell
+from sb3_affect.experiments.schema import Cell, load_sweep
+from sb3_affect.experiments.store import SWEEP_SCHEMA, ResultsStore, cell_run_ids
 
-Task = tuple[str, dict[str, Any], str | None]  # run id, config, log dir
-OnResult = Callable[[str, dict[str, Any], dict[str, Any]], None]
-OnFailure = Callable[[str, dict[str, Any], str], None]
+OnResult = Callable[[Job, dict[str, Any]], None]
+OnFailure = Callable[[Job, str], None]
 
 
 @dataclass
@@ -62,14 +65,14 @@ def _die_with_parent() -> None:
         ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
 
 
-def _worker(config: dict[str, Any], log_dir: str | None, formats: tuple[str, ...], conn: Any, launcher: int) -> None:
+def _worker(job: Job, conn: Any, launcher: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the launcher decides what Ctrl-C does
     signal.signal(signal.SIGTERM, signal.SIG_DFL)  # and stops a worker with SIGTERM (not the launcher's handler)
     _die_with_parent()
     if os.getppid() != launcher:  # the launcher died before the line above took effect
         os._exit(1)
     try:
-        message: tuple[str, Any] = ("ok", execute_run(config, log_dir, formats))
+        message: tuple[str, Any] = ("ok", job.execute())
     except BaseException:
         message = ("error", traceback.format_exc())
     conn.send(message)
@@ -83,24 +86,23 @@ def _describe_exit(code: int | None) -> str:
     return f"exit code {code}"
 
 
-def run_local(tasks: list[Task], workers: int, formats: tuple[str, ...], on_result: OnResult, on_failure: OnFailure) -> None:
-    """Run ``tasks`` in forked worker processes, ``workers`` at a time."""
+def run_local(jobs: list[Job], workers: int, on_result: OnResult, on_failure: OnFailure) -> None:
+    """Run ``jobs`` in forked worker processes, ``workers`` at a time."""
     context = multiprocessing.get_context("fork")
-    queue = deque(tasks)
-    running: dict[str, tuple[Any, Any, dict[str, Any]]] = {}
+    queue = deque(jobs)
+    running: dict[str, tuple[Any, Any, Job]] = {}
     try:
         while queue or running:
             while queue and len(running) < workers:
-                rid, config, log_dir = queue.popleft()
+                job = queue.popleft()
                 receiver, sender = context.Pipe(duplex=False)
-                args = (config, log_dir, formats, sender, os.getpid())
-                process = context.Process(target=_worker, args=args, name=f"sb3-affect:{rid}")
+                process = context.Process(target=_worker, args=(job, sender, os.getpid()), name=f"sb3-affect:{job.name}")
                 process.start()
                 sender.close()
-                running[rid] = (process, receiver, config)
+                running[job.name] = (process, receiver, job)
             waitables = [r for _, r, _ in running.values()] + [p.sentinel for p, _, _ in running.values()]
             multiprocessing.connection.wait(waitables, timeout=1.0)
-            for rid, (process, receiver, config) in list(running.items()):
+            for key, (process, receiver, job) in list(running.items()):
                 message = None
                 if receiver.poll():
                     try:
@@ -111,15 +113,13 @@ def run_local(tasks: list[Task], workers: int, formats: tuple[str, ...], on_resu
                     continue
                 process.join(timeout=30)
                 receiver.close()
-                del running[rid]
+                del running[key]
                 if message is None:
-                    on_failure(
-                        rid, config, f"the worker process died before returning a result ({_describe_exit(process.exitcode)})"
-                    )
+                    on_failure(job, f"the worker process died before returning a result ({_describe_exit(process.exitcode)})")
                 elif message[0] == "ok":
-                    on_result(rid, config, message[1])
+                    on_result(job, message[1])
                 else:
-                    on_failure(rid, config, message[1])
+                    on_failure(job, message[1])
     finally:
         for process, _receiver, _ in running.values():
             if process.is_alive():
@@ -145,23 +145,22 @@ def _sigint_ignored() -> Iterator[None]:
         signal.signal(signal.SIGINT, previous)
 
 
-def _ray_execute(config: dict[str, Any], log_dir: str | None, formats: tuple[str, ...]) -> tuple[str, Any]:
+def _ray_execute(job: Job) -> tuple[str, Any]:
     """A Ray task: ``("ok", result)`` or ``("error", traceback)`` (the same failure record as the local backend)."""
     try:
-        return "ok", execute_run(config, log_dir, formats)
+        return "ok", job.execute()
     except Exception:
         return "error", traceback.format_exc()
 
 
 def run_ray(
-    tasks: list[Task],
+    jobs: list[Job],
     workers: int,
-    formats: tuple[str, ...],
     on_result: OnResult,
     on_failure: OnFailure,
     address: str | None = None,
 ) -> None:
-    """Run ``tasks`` as Ray core tasks; start (and stop) a local Ray instance unless one is running or given."""
+    """Run ``jobs`` as Ray core tasks; start (and stop) a local Ray instance unless one is running or given."""
     os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
     if not address:
         # A private single-machine instance: Ray rewrites 127.0.0.1 to the machine's address (and its gRPC servers then
@@ -182,22 +181,22 @@ def run_ray(
             with _sigint_ignored():
                 ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False, _node_ip_address="127.0.0.1")
         started = True
-    pending: dict[Any, tuple[str, dict[str, Any]]] = {}
+    pending: dict[Any, Job] = {}
     try:
         remote = ray.remote(num_cpus=1, max_retries=1)(_ray_execute)
-        pending = {remote.remote(config, log_dir, formats): (rid, config) for rid, config, log_dir in tasks}
+        pending = {remote.remote(job): job for job in jobs}
         while pending:
             done, _ = ray.wait(list(pending), num_returns=1)
-            rid, config = pending.pop(done[0])
+            job = pending.pop(done[0])
             try:
                 status, result = ray.get(done[0])
             except Exception as error:  # the worker died (after Ray's retry), or Ray could not run the task
-                on_failure(rid, config, f"the Ray task failed: {type(error).__name__}: {_plain_text(str(error))}")
+                on_failure(job, f"the Ray task failed: {type(error).__name__}: {_plain_text(str(error))}")
             else:
                 if status == "ok":
-                    on_result(rid, config, result)
+                    on_result(job, result)
                 else:
-                    on_failure(rid, config, result)
+                    on_failure(job, result)
     finally:
         # Ctrl-C or an error: ``ray.shutdown`` ends this job, and Ray stops the job's tasks with it (and a local
         # instance we started). No ``ray.cancel(force=True)`` of the pending tasks: racing with tasks that are just
@@ -242,9 +241,10 @@ def run_sweep(
         raise ValueError(f"workers={workers} must be >= 1")
     start = time.perf_counter()
     sweep = load_sweep(sweep_path, tuple(overrides))
-    configs = sweep.run_configs()
-    ids = [run_id(c) for c in configs]
-    resolved = {"name": sweep.name, "sweep": sweep.model_dump(mode="json"), "runs": dict(zip(ids, configs))}
+    cells = sweep.cells()
+    cell_ids = [cell_run_ids(cell) for cell in cells]
+    total = sum(len(ids) for ids in cell_ids)
+    resolved = {"schema": SWEEP_SCHEMA, "name": sweep.name, "sweep": sweep.model_dump(mode="json"), "total_runs": total}
     store = ResultsStore(out_dir)
     try:
         store.root.mkdir(parents=True, exist_ok=True)
@@ -253,46 +253,59 @@ def run_sweep(
 
         raise _store_error(store.root, error) from None
     with store.lock():
-        store.prepare(resolved)
-        done = store.done_ids()
-        tasks: list[Task] = [
-            (rid, config, str(store.logs / rid) if sweep.logs else None)
-            for rid, config in zip(ids, configs)
-            if rid not in done
-        ]
+        store.prepare(resolved, [rid for ids in cell_ids for rid in ids])
+        jobs = plan_jobs(cells, cell_ids, store, workers, sweep.logs)
+        todo = sum(job.size for job in jobs)
         counts = {"finished": 0, "failed": 0}
-        bar = _progress(len(configs), len(configs) - len(tasks), sweep.name, progress)
+        bar = _progress(total, total - todo, sweep.name, progress)
 
-        def on_result(rid: str, config: dict[str, Any], result: dict[str, Any]) -> None:
-            store.write_run(rid, config, result)
-            counts["finished"] += 1
-            bar.update(1)
+        def on_result(job: Job, result: dict[str, Any]) -> None:
+            if isinstance(job, Batch):
+                store.write_chunk(job.name, result["chunk"], result["run_ids"])
+            else:
+                store.write_run(job.run_id, job.config, result)
+            counts["finished"] += job.size
+            bar.update(job.size)
 
-        def on_failure(rid: str, config: dict[str, Any], error: str) -> None:
-            store.write_failure(rid, config, error)
-            counts["failed"] += 1
-            bar.update(1)
+        def on_failure(job: Job, error: str) -> None:
+            for rid, config in job.failures():
+                store.write_failure(rid, config, error)
+            counts["failed"] += job.size
+            bar.update(job.size)
             bar.set_postfix(failed=counts["failed"])
 
         try:
-            formats = tuple(sweep.logs) or ("csv",)
-            if not tasks:
+            if not jobs:
                 pass  # everything is done already: start no workers (nor a Ray instance)
             elif backend == "local":
-                run_local(tasks, workers, formats, on_result, on_failure)
+                run_local(jobs, workers, on_result, on_failure)
             else:
-                run_ray(tasks, workers, formats, on_result, on_failure, address=ray_address)
+                run_ray(jobs, workers, on_result, on_failure, address=ray_address)
         finally:
             bar.close()
-    return SweepSummary(
-        sweep.name,
-        len(configs),
-        len(configs) - len(tasks),
-        counts["finished"],
-        counts["failed"],
-        time.perf_counter() - start,
-        Path(out_dir),
-    )
+    seconds = time.perf_counter() - start
+    return SweepSummary(sweep.name, total, total - todo, counts["finished"], counts["failed"], seconds, Path(out_dir))
+
+
+def plan_jobs(cells: list[Cell], cell_ids: list[list[str]], store: ResultsStore, workers: int, logs: list[str]) -> list[Job]:
+    """
+    The jobs of the runs ``store`` does not hold yet: batches of the cells that can run as batches (at most
+    ``batch_size`` runs each), one job per run for the others (with its log folder when ``logs`` asks for one).
+    """
+    done = store.done_ids()
+    formats = tuple(logs) or ("csv",)
+    todo = [[(rid, cell.seeds[i], i) for i, rid in enumerate(ids) if rid not in done] for cell, ids in zip(cells, cell_ids)]
+    can_batch = [batchable(cell.base, bool(logs)) for cell in cells]
+    size = batch_size(sum(len(runs) for runs, ok in zip(todo, can_batch) if ok), workers)
+    jobs: list[Job] = []
+    for cell, runs, ok in zip(cells, todo, can_batch):
+        if ok:
+            jobs.extend(split_cell(cell.base, runs, size))
+        else:
+            jobs.extend(
+                Single(rid, cell.config(i), str(store.logs / rid) if logs else None, formats) for rid, _, i in runs
+            )
+    return jobs
 
 
 def _progress(total: int, initial: int, name: str, enabled: bool) -> Any:
