@@ -265,23 +265,25 @@ class ResultsStore:
 
     def runs_frame(self) -> pd.DataFrame:
         """
-        One row per finished run (either layout): ``run_id``, ``agent``, ``algo``, ``seed``, one column per label
-        (``replicate`` included), ``decisions`` (every decision of the run) and ``episodes`` (finished episodes).
+        One row per finished run (either layout; chunks: from their footers only): ``run_id``, ``agent``, ``algo``,
+        ``seed``, one column per label (``replicate`` included), ``decisions`` (every decision of the run),
+        ``episodes`` (finished episodes), ``wall_seconds`` (a batch's runs: their share of it), ``max_timesteps``.
         """
-        return self._read(columns=())[0]
+        return self._read(None)[0]
 
-    def episodes_frame(self, columns: Sequence[str] | None = None) -> pd.DataFrame:
+    def results(self, columns: Sequence[str] | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
         """
-        One row per episode of every finished run (either layout), without loading a JSON file per run for chunks.
+        Every finished run (either layout) as two tables, without a Python object per episode.
 
         :param columns: the episode columns wanted (default every ``EPISODE_COLUMNS`` column)
-        :return: ``run_id``, ``agent``, ``seed`` and one column per label (categoricals, from ``runs_frame``), then
-            the episode columns (integers as int32, flags as bool, the rest float64)
+        :return: ``(runs_frame(), episodes)``; ``episodes`` has one row per episode: ``run_id``, ``agent``, ``seed``
+            and one column per label (categoricals but ``seed``), then the episode columns (integers as int32, flags
+            as bool, the rest float64), each run's rows together in episode order
         """
-        runs, episodes = self._read(columns=EPISODE_COLUMNS if columns is None else tuple(columns))
+        runs, episodes = self._read(EPISODE_COLUMNS if columns is None else tuple(columns))
         run = episodes.pop("run").to_numpy()
         front: dict[str, Any] = {}
-        labels = [c for c in runs.columns if c not in ("run_id", "agent", "algo", "seed", "decisions", "episodes")]
+        labels = [c for c in runs.columns if c not in _RUN_COLUMNS]
         for key in ("run_id", "agent", "seed", *labels):
             values = runs[key]
             if key == "seed":
@@ -289,41 +291,67 @@ class ResultsStore:
             else:
                 categories = pd.Categorical(values)
                 front[key] = pd.Categorical.from_codes(categories.codes[run], categories=categories.categories)
-        return pd.concat([pd.DataFrame(front), episodes], axis=1)
+        return runs, pd.concat([pd.DataFrame(front), episodes], axis=1)
 
-    def _read(self, columns: Sequence[str]) -> tuple[pd.DataFrame, pd.DataFrame]:
+    def episodes_frame(self, columns: Sequence[str] | None = None) -> pd.DataFrame:
+        """The episode table of ``results``."""
+        return self.results(columns)[1]
+
+    def _read(self, columns: Sequence[str] | None) -> tuple[pd.DataFrame, pd.DataFrame]:
+        """The run table, and (unless ``columns`` is None) the episode columns with ``run``, the row in it."""
         rows: list[dict[str, Any]] = []
         parts: list[dict[str, np.ndarray]] = []
         for path in self._json_files():
             record = json.loads(path.read_text())
             if record.get("status", "ok") != "ok":
                 continue
-            config, episodes = record["config"], record["episodes"]
+            config, episodes, timings = record["config"], record["episodes"], record.get("timings", {})
             count = len(episodes["episode"])
-            decisions = record.get("timings", {}).get("decisions")
-            rows.append(_run_row(record["run_id"], config, decisions, count))
+            rows.append(_run_row(record["run_id"], config, timings.get("decisions"), count, timings.get("wall_seconds")))
+            if columns is None:
+                continue
             part = {"run": np.full(count, len(rows) - 1, dtype=np.int64)}
             for column in columns:
                 part[column] = _typed(column, episodes[column])
             parts.append(part)
         for path in self._chunk_files():
             meta = chunk_meta(path)
+            share = meta["timings"]["wall_seconds"] / max(1, len(meta["runs"]))
+            if columns is None:  # the footer only: the episode count is the batch's episode budget
+                for rid, seed, replicate, decisions in meta["runs"]:
+                    config = run_config(meta["base"], seed, replicate)
+                    rows.append(_run_row(rid, config, decisions, meta["base"]["episodes"], share))
+                continue
             table = chunk_table(path, columns)
             counts = np.bincount(table["run"], minlength=len(meta["runs"]))
             offset = len(rows)
             for (rid, seed, replicate, decisions), count in zip(meta["runs"], counts):
-                rows.append(_run_row(rid, run_config(meta["base"], seed, replicate), decisions, int(count)))
+                rows.append(_run_row(rid, run_config(meta["base"], seed, replicate), decisions, int(count), share))
             table["run"] = table["run"].astype(np.int64) + offset
             parts.append(table)
-        runs = pd.DataFrame(rows)
-        if runs.empty:
-            runs = pd.DataFrame(columns=["run_id", "agent", "algo", "seed", "decisions", "episodes"])
-        wanted = ["run", *columns]
-        episodes = pd.DataFrame({name: np.concatenate([p[name] for p in parts]) if parts else np.zeros(0) for name in wanted})
-        return runs, episodes
+        # One canonical order whatever the layout and the batching: runs by run id, each run's episodes in order.
+        order = sorted(range(len(rows)), key=lambda i: rows[i]["run_id"])
+        runs = pd.DataFrame([rows[i] for i in order], columns=None if rows else list(_RUN_COLUMNS))
+        wanted = ["run", *(columns or ())]
+        data = {name: np.concatenate([p[name] for p in parts]) if parts else np.zeros(0, np.int64) for name in wanted}
+        if len(data["run"]) and columns is not None:
+            counts = np.bincount(data["run"], minlength=len(rows))
+            starts = np.r_[0, np.cumsum(counts)[:-1]]
+            if np.any(np.diff(data["run"]) < 0):  # each run's rows are together; only their blocks move
+                raise ValueError(f"{self.root}: a run's episodes are not stored together")
+            lengths = counts[order]
+            offsets = np.repeat(starts[order] - np.r_[0, np.cumsum(lengths)[:-1]], lengths)
+            take = offsets + np.arange(len(data["run"]))
+            rank = np.empty(len(rows), dtype=np.int64)
+            rank[order] = np.arange(len(rows))
+            data = {name: (rank[values[take]] if name == "run" else values[take]) for name, values in data.items()}
+        return runs, pd.DataFrame(data)
 
 
-def _run_row(rid: str, config: dict[str, Any], decisions: int | None, episodes: int) -> dict[str, Any]:
+_RUN_COLUMNS = ("run_id", "agent", "algo", "seed", "decisions", "episodes", "wall_seconds", "max_timesteps")
+
+
+def _run_row(rid: str, config: dict[str, Any], decisions: int | None, episodes: int, wall: float | None) -> dict[str, Any]:
     return {
         "run_id": rid,
         "agent": config["agent"],
@@ -332,6 +360,8 @@ def _run_row(rid: str, config: dict[str, Any], decisions: int | None, episodes: 
         **config["labels"],
         "decisions": decisions,
         "episodes": episodes,
+        "wall_seconds": wall,
+        "max_timesteps": config.get("max_timesteps"),
     }
 
 

@@ -11,7 +11,7 @@ import pandas as pd
 
 from sb3_affect.report import figures, paper
 from sb3_affect.report.document import Document, fmt
-from sb3_affect.report.metrics import episodes_frame, load_runs, profile, run_metrics, window_mean
+from sb3_affect.report.metrics import load_results, profile, run_metrics, window_mean
 from sb3_affect.report.stats import bootstrap_ci, bootstrap_improvement, paired_ttest_table
 from sb3_affect.report.verdict import Claim, verdict
 
@@ -22,7 +22,7 @@ BASELINE_FOLDERS = ("baselines", "baselines_moving7", "baselines_moving")
 
 
 def _layout(run_dir: Path) -> tuple[Path, Path | None, Path | None]:
-    """A replicate folder (paper/, dqn/, ablation/) or a single results folder."""
+    """A replicate folder (paper/, dqn/, ablation/) or a single results folder (holding runs/, chunks/ or both)."""
     if not (run_dir / "runs").is_dir() and (run_dir / "paper" / "runs").is_dir():
         dqn = run_dir / "dqn"
         ablation = run_dir / "ablation"
@@ -52,8 +52,7 @@ def build_report(
     (out / "tables").mkdir(parents=True, exist_ok=True)
     (out / "figures").mkdir(parents=True, exist_ok=True)
 
-    runs = load_runs(paper_dir)
-    episodes = episodes_frame(runs)
+    runs, episodes = load_results(paper_dir)
     if episodes.empty:
         raise ValueError(f"{paper_dir / 'runs'} holds no finished runs")
     metrics = run_metrics(episodes, runs)
@@ -417,7 +416,7 @@ class _Context:
         from sb3_affect.report.ablation import rank_readings
 
         self.doc.h("Reading ablation: which reading of the appraisal comes closest to the paper")
-        episodes = episodes_frame(load_runs(ablation_dir))
+        episodes = load_results(ablation_dir)[1]
         if episodes.empty:
             self.doc.p(f"Skipped: {ablation_dir} holds no finished runs.")
             return
@@ -437,15 +436,13 @@ class _Context:
 
     def dqn(self, dqn_dir: Path) -> None:
         self.doc.h("DQN on the same task")
-        runs = load_runs(dqn_dir)
-        episodes = episodes_frame(runs)
+        runs, episodes = load_results(dqn_dir)
         if episodes.empty:
             self.doc.p(f"Skipped: {dqn_dir} holds no finished runs.")
             return
         metrics = run_metrics(episodes, runs)
-        wall = {r["run_id"]: r["timings"]["wall_seconds"] for r in runs}
-        metrics["wall_seconds"] = metrics.run_id.map(wall)
-        budget = {r["config"]["agent"]: r["config"].get("max_timesteps") for r in runs}
+        metrics["wall_seconds"] = metrics.run_id.map(runs.set_index("run_id").wall_seconds)
+        budget = {agent: None if pd.isna(cap) else int(cap) for agent, cap in zip(runs.agent, runs.max_timesteps)}
         rows = {}
         for keys, group in metrics.groupby(["agent", "epsilon"] if "epsilon" in metrics.columns else ["agent"], dropna=False):
             keys = keys if isinstance(keys, tuple) else (keys,)
@@ -513,7 +510,7 @@ class _Context:
 
 def summary_numbers(run_dir: Path) -> dict[str, float]:
     """A few headline numbers (for notes and tests)."""
-    metrics = run_metrics(episodes_frame(load_runs(Path(run_dir))))
+    metrics = run_metrics(load_results(Path(run_dir))[1])
     return {
         f"{agent} decisions_per_episode": float(group.decisions_per_episode.mean())
         for agent, group in metrics.groupby("agent")
