@@ -125,7 +125,7 @@ def chunk_records(path: Path) -> list[dict[str, Any]]:
     records = []
     for index, (rid, seed, replicate, decisions) in enumerate(meta["runs"]):
         rows = slice(bounds[index], bounds[index + 1])
-        episodes = {column: [_plain(v) for v in table[column][rows].tolist()] for column in EPISODE_COLUMNS}
+        episodes = {column: [_plain(v) for v in table[column][rows].tolist()] for column in sorted(EPISODE_COLUMNS)}
         records.append(
             {
                 "schema": CHUNK_SCHEMA,
