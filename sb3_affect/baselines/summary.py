@@ -2,12 +2,12 @@
 Rank the agents of issue 7's comparison: decisions per episode, cells per episode and steps before the optimal path,
 each a mean over runs with a percentile-bootstrap 95% confidence interval.
 
-Reads the launcher's results (``ResultsStore.load_runs``: chunks and run files, ``docs/interfaces.md``); groups by task (``labels["task"]``,
-else the sweep name) and ``config["agent"]``. "Optimal" is the episode log's ``optimal`` column (a shortest path
-from the start) except on envs that define ``capture_distance`` (``sb3_affect/MovingPursuit-v0``), where it is an
-optimal capture: captured within ``capture_distance`` cells (see ``MovingPursuitEnv``). Steps before the optimal
-path: decisions summed over the episodes before the first optimal one; a run that never finds it contributes all
-its decisions and is counted as censored.
+Reads the launcher's results (``ResultsStore.load_runs``: chunks and run files, ``docs/interfaces.md``); groups by
+task (``labels["task"]``, else the sweep name) and ``config["agent"]``. "Optimal" is the episode log's ``optimal``
+column (a shortest path from the start) except on envs that define ``capture_distance``
+(``sb3_affect/MovingPursuit-v0``), where it is an optimal capture: captured within ``capture_distance`` cells (see
+``MovingPursuitEnv``). Steps before the optimal path: decisions summed over the episodes before the first optimal
+one; a run that never finds it contributes all its decisions and is counted as censored.
 
     python -m sb3_affect.baselines.summary runs/baselines [--markdown report.md]
     python -m sb3_affect.baselines.summary runs/baselines-tuning --tuning
