@@ -109,6 +109,7 @@ class ResultsStore:
         self.root = Path(root)
         self.runs = self.root / "runs"
         self.chunks = self.root / "chunks"
+        self._failed: set[str] | None = None  # failure records known to write_chunk (those it may have to remove)
         self.failed = self.root / "failed"
         self.logs = self.root / "logs"
 
@@ -213,11 +214,16 @@ class ResultsStore:
     def write_chunk(self, name: str, data: bytes, run_ids: Iterable[str]) -> None:
         """Store a batch's chunk (``chunks.encode_chunk``) and forget earlier failures of its runs."""
         _write_atomic(self.chunks / f"{name}.parquet", data)
-        for rid in run_ids:
+        if self._failed is None:
+            self._failed = self.failed_ids()
+        for rid in self._failed.intersection(run_ids):
             with contextlib.suppress(FileNotFoundError):
                 (self.failed / f"{rid}.json").unlink()
+            self._failed.discard(rid)
 
     def write_failure(self, rid: str, config: dict[str, Any], error: str) -> None:
+        if self._failed is not None:
+            self._failed.add(rid)
         _write_atomic(
             self.failed / f"{rid}.json",
             {"schema": SCHEMA, "run_id": rid, "config": config, "status": "failed", "error": error},
