@@ -6,7 +6,6 @@ import argparse
 import signal
 import sys
 import threading
-from collections import Counter
 from pathlib import Path
 
 
@@ -50,14 +49,11 @@ def _cmd_status(args: argparse.Namespace) -> int:
     if not saved.exists():
         print(f"{store.root}: no sweep has been run here (no sweep.json)", file=sys.stderr)
         return 2
-    name, runs = store.sweep_runs()  # run id -> agent
-    done, failed = store.done_ids(), store.failed_ids()
-    per_agent: Counter[str] = Counter(runs.values())
-    done_agent: Counter[str] = Counter(runs[r] for r in done if r in runs)
-    failed_agent: Counter[str] = Counter(runs[r] for r in failed if r in runs)
-    print(f"sweep {name!r} in {store.root}: {len(done)}/{len(runs)} runs done, {len(failed - done)} failed")
-    for agent, total in per_agent.items():
-        print(f"  {agent:24s} {done_agent[agent]:5d}/{total:<5d} done  {failed_agent[agent]} failed")
+    name, per_agent = store.progress()  # agent -> (runs, done, failed)
+    total, done, failed = (sum(counts[i] for counts in per_agent.values()) for i in range(3))
+    print(f"sweep {name!r} in {store.root}: {done}/{total} runs done, {failed} failed")
+    for agent, (runs, done_agent, failed_agent) in per_agent.items():
+        print(f"  {agent:24s} {done_agent:5d}/{runs:<5d} done  {failed_agent} failed")
     lock = store.root / ".lock"
     if lock.exists():
         owner = store.lock_owner()

@@ -29,7 +29,7 @@ import numpy as np
 import pandas as pd
 
 from sb3_affect.episode_log import EPISODE_COLUMNS
-from sb3_affect.experiments.chunks import INT_COLUMNS, chunk_meta, chunk_records, chunk_table, run_config
+from sb3_affect.experiments.chunks import INT_COLUMNS, chunk_meta, chunk_records, chunk_table
 
 if TYPE_CHECKING:
     from sb3_affect.experiments.schema import Cell
@@ -236,20 +236,52 @@ class ResultsStore:
     def _chunk_files(self) -> list[Path]:
         return sorted(p for p in self.chunks.glob("*.parquet") if not p.name.startswith("."))
 
-    def sweep_runs(self) -> tuple[str, dict[str, str]]:
+    def progress(self) -> tuple[str, dict[str, tuple[int, int, int]]]:
         """
-        The saved sweep's name and every run id of it -> its agent (from ``sweep.json``: its run list in a folder
-        written before chunks, else the sweep's cells). ``FileNotFoundError`` when no sweep was run here.
+        The saved sweep's name and, per agent, ``(runs, finished, failed)`` (failed: recorded and not finished since),
+        from ``sweep.json``, the chunks' footers and the file names: no run's data is read. ``FileNotFoundError``
+        when no sweep was run here.
         """
         resolved = json.loads((self.root / "sweep.json").read_text())
-        if isinstance(resolved.get("runs"), dict):
-            return resolved["name"], {rid: config["agent"] for rid, config in resolved["runs"].items()}
+        listed = resolved.get("runs") if isinstance(resolved.get("runs"), dict) else None
+        if listed is not None:  # a folder written before chunks lists every run
+            totals: dict[str, int] = {}
+            for config in listed.values():
+                totals[config["agent"]] = totals.get(config["agent"], 0) + 1
+        else:
+            from sb3_affect.experiments.schema import Sweep
+
+            sweep = Sweep.model_validate(resolved["sweep"])
+            replicates = sweep.seeds if isinstance(sweep.seeds, int) else len(sweep.seeds)
+            totals = {agent.name: len(agent.points()) * replicates for agent in sweep.agents}
+        done = {name: 0 for name in totals}
+        done_ids: set[str] = set()
+        for path in self._chunk_files():
+            meta = chunk_meta(path)
+            done[meta["base"]["agent"]] += len(meta["runs"])
+            done_ids.update(run[0] for run in meta["runs"])
+        files = [p.stem for p in self._json_files()]
+        if files:
+            agent_of = {rid: c["agent"] for rid, c in listed.items()} if listed is not None else self._agents_of_runs()
+            for rid in files:
+                if rid in agent_of:
+                    done[agent_of[rid]] += 1
+                    done_ids.add(rid)
+        failed = {name: 0 for name in totals}
+        for path in self.failed.glob("[!.]*.json"):
+            if path.stem not in done_ids:
+                with contextlib.suppress(OSError, ValueError, KeyError):
+                    failed[json.loads(path.read_text())["config"]["agent"]] += 1
+        return resolved["name"], {name: (totals[name], done[name], failed[name]) for name in totals}
+
+    def _agents_of_runs(self) -> dict[str, str]:
         from sb3_affect.experiments.schema import Sweep
 
+        resolved = json.loads((self.root / "sweep.json").read_text())
         runs: dict[str, str] = {}
         for cell in Sweep.model_validate(resolved["sweep"]).cells():
             runs.update(dict.fromkeys(cell_run_ids(cell), cell.base["agent"]))
-        return resolved["name"], runs
+        return runs
 
     def done_ids(self) -> set[str]:
         """Every finished run, in either layout (chunks: from their footers only)."""
@@ -320,36 +352,53 @@ class ResultsStore:
             for column in columns:
                 part[column] = _typed(column, episodes[column])
             parts.append(part)
-        for path in self._chunk_files():
+        frames = [pd.DataFrame(rows)] if rows else []
+        total = len(rows)
+        for path in self._chunk_files():  # whole columns per chunk: no Python object per run beyond its id
             meta = chunk_meta(path)
-            share = meta["timings"]["wall_seconds"] / max(1, len(meta["runs"]))
+            base, count = meta["base"], len(meta["runs"])
+            ids, seeds, replicates, decisions = (list(values) for values in zip(*meta["runs"])) if count else ([],) * 4
             if columns is None:  # the footer only: the episode count is the batch's episode budget
-                for rid, seed, replicate, decisions in meta["runs"]:
-                    config = run_config(meta["base"], seed, replicate)
-                    rows.append(_run_row(rid, config, decisions, meta["base"]["episodes"], share))
-                continue
-            table = chunk_table(path, columns)
-            counts = np.bincount(table["run"], minlength=len(meta["runs"]))
-            offset = len(rows)
-            for (rid, seed, replicate, decisions), count in zip(meta["runs"], counts):
-                rows.append(_run_row(rid, run_config(meta["base"], seed, replicate), decisions, int(count), share))
-            table["run"] = table["run"].astype(np.int64) + offset
-            parts.append(table)
+                episodes_per_run: Any = base["episodes"]
+            else:
+                table = chunk_table(path, columns)
+                episodes_per_run = np.bincount(table["run"], minlength=count)
+                table["run"] = table["run"].astype(np.int64) + total
+                parts.append(table)
+            labels = {**base["labels"], "replicate": replicates}
+            frames.append(
+                pd.DataFrame(
+                    {
+                        "run_id": ids,
+                        "agent": base["agent"],
+                        "algo": base["algo"],
+                        "seed": seeds,
+                        **labels,
+                        "decisions": decisions,
+                        "episodes": episodes_per_run,
+                        "wall_seconds": meta["timings"]["wall_seconds"] / max(1, count),
+                        "max_timesteps": [base.get("max_timesteps")] * count,
+                    },
+                    index=pd.RangeIndex(count),
+                )
+            )
+            total += count
         # One canonical order whatever the layout and the batching: runs by run id, each run's episodes in order.
-        order = sorted(range(len(rows)), key=lambda i: rows[i]["run_id"])
-        runs = pd.DataFrame([rows[i] for i in order], columns=None if rows else list(_RUN_COLUMNS))
+        runs = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=list(_RUN_COLUMNS))
+        order = np.argsort(runs["run_id"].to_numpy(dtype=object), kind="stable") if total else np.zeros(0, np.int64)
+        runs = runs.iloc[order].reset_index(drop=True)
         wanted = ["run", *(columns or ())]
         data = {name: np.concatenate([p[name] for p in parts]) if parts else np.zeros(0, np.int64) for name in wanted}
         if len(data["run"]) and columns is not None:
-            counts = np.bincount(data["run"], minlength=len(rows))
+            counts = np.bincount(data["run"], minlength=total)
             starts = np.r_[0, np.cumsum(counts)[:-1]]
             if np.any(np.diff(data["run"]) < 0):  # each run's rows are together; only their blocks move
                 raise ValueError(f"{self.root}: a run's episodes are not stored together")
             lengths = counts[order]
             offsets = np.repeat(starts[order] - np.r_[0, np.cumsum(lengths)[:-1]], lengths)
             take = offsets + np.arange(len(data["run"]))
-            rank = np.empty(len(rows), dtype=np.int64)
-            rank[order] = np.arange(len(rows))
+            rank = np.empty(total, dtype=np.int64)
+            rank[order] = np.arange(total)
             data = {name: (rank[values[take]] if name == "run" else values[take]) for name, values in data.items()}
         return runs, pd.DataFrame(data)
 
