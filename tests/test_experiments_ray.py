@@ -178,10 +178,10 @@ def test_ctrl_c_on_ray_backend_stops_the_instance_and_leaves_no_partial_files(tm
     command = [sys.executable, "-m", "sb3_affect", "run", str(paper), "--out", str(out), "--backend", "ray", "--workers", "2"]
     pipe = subprocess.PIPE
     env = {**os.environ, "RAY_USAGE_STATS_ENABLED": "0"}
-    command += ["--set", "seeds=400", "--set", "episodes=20"]  # batches of 400 short runs: plenty left to stop, on any engine
+    command += ["--set", "seeds=100"]  # 18 batches of 100 runs: plenty left to stop, on any engine
     proc = subprocess.Popen([*command, "--no-progress"], env=env, stdout=pipe, stderr=pipe, text=True, start_new_session=True)
     try:
-        deadline = time.monotonic() + 90
+        deadline = time.monotonic() + 240  # a first batch of 100 runs on a busy machine
         while not (out / "chunks").exists() or len(ResultsStore(out).done_ids()) < 5:
             assert time.monotonic() < deadline and proc.poll() is None, "the sweep did not start"
             time.sleep(0.1)
@@ -203,4 +203,4 @@ def test_ctrl_c_on_ray_backend_stops_the_instance_and_leaves_no_partial_files(tm
     assert not (out / ".lock").exists()
     assert [p for p in out.rglob(".tmp-*")] == []
     done = ResultsStore(out).load_runs()
-    assert 5 <= len(done) < 7200 and all(r["status"] == "ok" for r in done)
+    assert 5 <= len(done) < 1800 and all(r["status"] == "ok" for r in done)
