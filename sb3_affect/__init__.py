@@ -3,6 +3,7 @@
 from sb3_affect.affectq import AffectQ
 from sb3_affect.appraisal import Appraisal, Appraiser, KnownMap, PowerFit
 from sb3_affect.behaviour import TABLE_III, Behaviour
+from sb3_affect.broekens import BroekensCallback
 from sb3_affect.callbacks import EmotionCallback
 from sb3_affect.emotions import EMOTION_NAMES, Emotion, make_table_ii, table_ii
 from sb3_affect.envs import (
@@ -36,6 +37,7 @@ __all__ = [
     "Appraisal",
     "Appraiser",
     "Behaviour",
+    "BroekensCallback",
     "Emotion",
     "EmotionCallback",
     "GridPursuitEnv",

@@ -11,6 +11,8 @@ PARTS = (
     ("dqn", "SB3 DQN subset (20 runs)"),
     ("ablation", "reading ablation (1,440 runs)"),
     ("baselines", "fair baselines beside both paper agents (issue 7)"),
+    ("hunters", "two hunters on Kuremoto's pursuit problem (issue 16)"),
+    ("hunters_moving", "two hunters, moving prey (issue 16)"),
 )
 
 

@@ -311,6 +311,7 @@ class TabularQAlgorithm(BaseAlgorithm):
             # 3. episode end: at the goal, by the env's time limit, or by the safety cap
             done = terminated or truncated or decisions >= cap
             if done:
+                at_goal = terminated  # for the callbacks' info below, after the reset clears ``terminated``
                 self.num_timesteps = t
                 self._close_episode(
                     decisions, cells, reward_sum, random_moves, waits, terminated, not terminated, changed, log_interval
@@ -328,7 +329,7 @@ class TabularQAlgorithm(BaseAlgorithm):
                 self.num_timesteps = t
                 if done:
                     info = {**info, "terminal_observation": s2 + obs_start}
-                    if not terminated:
+                    if not at_goal:
                         info["TimeLimit.truncated"] = True
                 cb_locals["new_obs"] = [s + obs_start]
                 cb_locals["rewards"] = [reward]

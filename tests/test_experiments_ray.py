@@ -131,6 +131,17 @@ def test_ray_backend_gives_the_local_run_files_and_listens_on_loopback_only(ray_
     assert os.getpid() not in pids  # the runs ran in Ray workers, the files were written by the driver
 
 
+def test_two_hunter_sweep_on_ray_gives_the_local_run_files(ray_instance: Any, tmp_path: Path) -> None:
+    hunters = SMOKE.parent / "hunters.yaml"
+    overrides = ["episodes=6", "seeds=[0, 1]", "env.kwargs={size: 7, starts: [[0, 0], [6, 6]], prey_start: [3, 3]}"]
+    run_sweep(hunters, tmp_path / "local", workers=2, overrides=overrides, progress=False)
+    summary = run_sweep(hunters, tmp_path / "ray", workers=2, backend="ray", overrides=overrides, progress=False)
+    assert (summary.total, summary.finished, summary.failed) == (8, 8, 0)
+    found = contents(tmp_path / "ray")
+    assert found == contents(tmp_path / "local")
+    assert all(len(run["config"]["team"]) == 2 and "hunter_1/decisions" in run["episodes"] for run in found.values())
+
+
 def test_ray_backend_records_failed_runs_and_dead_workers(ray_instance: Any, tmp_path: Path) -> None:
     from test_experiments_local import sweep_file
 

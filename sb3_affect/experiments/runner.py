@@ -40,6 +40,26 @@ def _plain(value: Any) -> Any:
     return value
 
 
+def build_team(config: dict[str, Any]) -> Any:
+    """The ``HunterTeam`` of a team run config (a multi-agent env and one tabular agent per hunter)."""
+    import sb3_affect  # noqa: F401
+    from sb3_affect.envs import make_parallel
+    from sb3_affect.team import HunterTeam
+
+    env = make_parallel(config["env_id"], **config["env_kwargs"])
+    return HunterTeam(env, [(m["algo"], m["kwargs"]) for m in config["team"]], seed=config["seed"])
+
+
+def _make_env(config: dict[str, Any]) -> Any:
+    import gymnasium as gym
+
+    from sb3_affect.envs import PARALLEL_ENVS, make_parallel
+
+    if config["env_id"] in PARALLEL_ENVS:
+        return make_parallel(config["env_id"], **config["env_kwargs"])
+    return gym.make(config["env_id"], **config["env_kwargs"])
+
+
 def build_model(config: dict[str, Any]) -> tuple[Any, bool]:
     """The env and the algorithm of a run config: ``(model, tabular)`` (``tabular``: keeps its own ``episode_log``)."""
     import gymnasium as gym
@@ -71,20 +91,21 @@ def check_configs(configs: list[dict[str, Any]]) -> list[tuple[str, str]]:
         env_key = json.dumps([config["env_id"], config["env_kwargs"]], sort_keys=True)
         if env_key not in env_checked:
             env_checked.add(env_key)
-            import gymnasium as gym
-
             try:
-                gym.make(config["env_id"], **config["env_kwargs"]).close()
+                _make_env(config).close()
             except Exception as error:
                 problems.append(("", f"the env can not be built: {type(error).__name__}: {error}"))
                 return problems
-        key = json.dumps([config["agent"], config["algo"], config["algo_kwargs"]], sort_keys=True)
+        key = json.dumps([config["agent"], config["algo"], config["algo_kwargs"], config.get("team")], sort_keys=True)
         if key in seen:
             continue
         seen.add(key)
         try:
-            model, _ = build_model(config)
-            model.get_env().close()
+            if "team" in config:
+                build_team(config).env.close()
+            else:
+                model, _ = build_model(config)
+                model.get_env().close()
         except Exception as error:
             labels = {k: v for k, v in config["labels"].items() if k != "replicate"}
             where = f" at {labels}" if labels else ""
@@ -151,6 +172,8 @@ def execute_run(config: dict[str, Any], log_dir: str | None = None, log_formats:
     from sb3_affect.callbacks import EmotionCallback
 
     start = time.perf_counter()
+    if "team" in config:
+        return _execute_team(config, log_dir, log_formats, start)
     model, tabular = build_model(config)
     episodes = int(config["episodes"])
     if tabular:
@@ -173,6 +196,44 @@ def execute_run(config: dict[str, Any], log_dir: str | None = None, log_formats:
         "timings": {
             "wall_seconds": round(time.perf_counter() - start, 4),
             "decisions": int(model.num_timesteps),
+            "pid": os.getpid(),
+        },
+        "versions": package_versions(),
+    }
+
+
+def _execute_team(config: dict[str, Any], log_dir: str | None, log_formats: tuple[str, ...], start: float) -> dict[str, Any]:
+    """
+    A team run. Its ``episodes`` columns: the team's (``TEAM_COLUMNS``: ``EPISODE_COLUMNS`` for the team, then
+    ``capturer``), then per hunter ``<hunter>/<column>`` for its own episode log and ``<hunter>/broekens_<emotion>``
+    (mean intensity per decision, and ``broekens_goal_joy``) from a ``BroekensCallback`` observing it.
+    """
+    from stable_baselines3.common.logger import configure
+
+    from sb3_affect.broekens import BROEKENS_COLUMNS, BroekensCallback
+    from sb3_affect.team import TEAM_COLUMNS
+
+    team = build_team(config)
+    if log_dir is not None:
+        for agent, model in team.models.items():
+            Path(log_dir, agent).mkdir(parents=True, exist_ok=True)
+            model.set_logger(configure(str(Path(log_dir, agent)), list(log_formats)))
+    observers = {agent: BroekensCallback() for agent in team.models}
+    team.learn(int(config["episodes"]), callbacks=observers)
+    log = team.episode_log
+    columns = {name: [_plain(v) for v in log[name].tolist()] for name in TEAM_COLUMNS}
+    for agent, model in team.models.items():
+        own = model.episode_log
+        for name in EPISODE_COLUMNS:
+            columns[f"{agent}/{name}"] = [_plain(v) for v in own[name].tolist()]
+        felt = observers[agent].episode_log
+        for name in BROEKENS_COLUMNS[3:]:
+            columns[f"{agent}/broekens_{name}"] = [_plain(v) for v in felt[name].tolist()]
+    return {
+        "episodes": columns,
+        "timings": {
+            "wall_seconds": round(time.perf_counter() - start, 4),
+            "decisions": int(sum(m.num_timesteps for m in team.models.values())),
             "pid": os.getpid(),
         },
         "versions": package_versions(),

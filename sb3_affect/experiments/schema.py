@@ -14,6 +14,13 @@ labels that no kwarg references only replicate the agent (the paper's affective 
         algo: QLearning
         grid: {epsilon: [0.1, 0.5, 0.9]}
         kwargs: {exploration_rate: $epsilon}
+
+A multi-agent env (``sb3_affect/HunterPursuit-v0``, one hunter per ``team`` member) takes ``team`` agents instead of
+``algo``: one ``{algo, kwargs}`` per hunter, independent learners that may mix classes (``sb3_affect.team``)::
+
+      - name: mixed
+        team: [{algo: AffectQ}, {algo: QLearning, kwargs: {exploration_rate: $epsilon}}]
+        grid: {epsilon: [0.1]}
 """
 
 from __future__ import annotations
@@ -64,6 +71,13 @@ def resolve_class(algo: str) -> type:
     return cls
 
 
+def is_multi_agent(env_id: str) -> bool:
+    """Whether ``env_id`` names one of the package's multi-agent (PettingZoo) envs."""
+    from sb3_affect.envs import PARALLEL_ENVS
+
+    return env_id in PARALLEL_ENVS
+
+
 class EnvSpec(BaseModel):
     model_config = ConfigDict(extra="forbid")
     id: str = "sb3_affect/GridPursuit-v0"
@@ -75,25 +89,53 @@ class EnvSpec(BaseModel):
         import gymnasium as gym
 
         import sb3_affect  # noqa: F401  (registers the package's envs)
+        from sb3_affect.envs import PARALLEL_ENVS
 
-        if value not in gym.registry:
-            known = sorted(k for k in gym.registry if k.startswith("sb3_affect/"))
+        if value not in gym.registry and value not in PARALLEL_ENVS:
+            known = sorted([*(k for k in gym.registry if k.startswith("sb3_affect/")), *PARALLEL_ENVS])
             raise ValueError(f"env id {value!r} is not registered; the package registers {', '.join(known)}")
+        return value
+
+
+class MemberSpec(BaseModel):
+    """One hunter of a team agent: its algorithm and constructor arguments (``$label`` references allowed)."""
+
+    model_config = ConfigDict(extra="forbid")
+    algo: str
+    kwargs: dict[str, Any] = Field(default_factory=dict)
+
+    @field_validator("algo")
+    @classmethod
+    def _tabular(cls, value: str) -> str:
+        from sb3_affect.tabular import TabularQAlgorithm
+
+        if not issubclass(resolve_class(value), TabularQAlgorithm):
+            raise ValueError(f"team members are tabular agents of this package (QLearning, AffectQ, baselines), not {value!r}")
         return value
 
 
 class AgentSpec(BaseModel):
     model_config = ConfigDict(extra="forbid")
     name: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.+-]+$")
-    algo: str
+    algo: str | None = None
     kwargs: dict[str, Any] = Field(default_factory=dict)
     grid: dict[str, list[Any]] = Field(default_factory=dict)
+    team: list[MemberSpec] | None = Field(default=None, min_length=1)
 
     @field_validator("algo")
     @classmethod
-    def _importable(cls, value: str) -> str:
-        resolve_class(value)
+    def _importable(cls, value: str | None) -> str | None:
+        if value is not None:
+            resolve_class(value)
         return value
+
+    @model_validator(mode="after")
+    def _one_kind(self) -> AgentSpec:
+        if (self.algo is None) == (self.team is None):
+            raise ValueError("give either algo (one agent) or team (one {algo, kwargs} per hunter of a multi-agent env)")
+        if self.team is not None and self.kwargs:
+            raise ValueError("a team agent has no kwargs of its own: give each member's under team[i].kwargs")
+        return self
 
     @field_validator("grid")
     @classmethod
@@ -105,22 +147,30 @@ class AgentSpec(BaseModel):
 
     @model_validator(mode="after")
     def _references(self) -> AgentSpec:
-        for key, raw in self.kwargs.items():
-            match = _REFERENCE.match(raw) if isinstance(raw, str) else None
-            if match and match.group(1) not in self.grid:
-                raise ValueError(f"kwargs.{key}={raw!r} refers to no grid label; the grid has {sorted(self.grid) or 'none'}")
+        places = [("kwargs", self.kwargs)] + [(f"team[{i}].kwargs", m.kwargs) for i, m in enumerate(self.team or [])]
+        for where, kwargs in places:
+            for key, raw in kwargs.items():
+                match = _REFERENCE.match(raw) if isinstance(raw, str) else None
+                if match and match.group(1) not in self.grid:
+                    raise ValueError(
+                        f"{where}.{key}={raw!r} refers to no grid label; the grid has {sorted(self.grid) or 'none'}"
+                    )
         return self
 
     def points(self) -> list[dict[str, Any]]:
         keys = list(self.grid)
         return [dict(zip(keys, values)) for values in itertools.product(*(self.grid[k] for k in keys))]
 
-    def kwargs_at(self, point: dict[str, Any]) -> dict[str, Any]:
+    def kwargs_at(self, point: dict[str, Any], kwargs: dict[str, Any] | None = None) -> dict[str, Any]:
         out = {}
-        for key, raw in self.kwargs.items():
+        for key, raw in (self.kwargs if kwargs is None else kwargs).items():
             match = _REFERENCE.match(raw) if isinstance(raw, str) else None
             out[key] = point[match.group(1)] if match else raw
         return out
+
+    def team_at(self, point: dict[str, Any]) -> list[dict[str, Any]]:
+        """The team's members at a grid point, as plain data (``{"algo", "kwargs"}`` per hunter)."""
+        return [{"algo": m.algo, "kwargs": self.kwargs_at(point, m.kwargs)} for m in self.team or []]
 
 
 class Sweep(BaseModel):
@@ -155,6 +205,14 @@ class Sweep(BaseModel):
         names = [a.name for a in self.agents]
         if len(set(names)) != len(names):
             raise ValueError(f"agents: names must be unique, got {names}")
+        multi = is_multi_agent(self.env.id)
+        for i, agent in enumerate(self.agents):
+            if multi and agent.team is None:
+                raise ValueError(f"agents[{i}] ({agent.name}): env {self.env.id!r} is multi-agent: give a team, not algo")
+            if not multi and agent.team is not None:
+                raise ValueError(f"agents[{i}] ({agent.name}): a team needs a multi-agent env id, not {self.env.id!r}")
+        if multi and self.max_timesteps is not None:
+            raise ValueError("max_timesteps is not supported for teams: their runs are counted in episodes")
         return self
 
     def cells(self) -> list[Cell]:
@@ -167,7 +225,7 @@ class Sweep(BaseModel):
                 base = {
                     "sweep": self.name,
                     "agent": agent.name,
-                    "algo": agent.algo,
+                    "algo": agent.algo or "team",
                     "algo_kwargs": agent.kwargs_at(point),
                     "env_id": self.env.id,
                     "env_kwargs": dict(self.env.kwargs),
@@ -176,6 +234,8 @@ class Sweep(BaseModel):
                     "max_timesteps": self.max_timesteps,
                     "labels": dict(point),
                 }
+                if agent.team is not None:  # only team runs carry the key: other run ids are unchanged
+                    base["team"] = agent.team_at(point)
                 cells.append(Cell(base, seeds))
         return cells
 

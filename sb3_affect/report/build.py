@@ -19,6 +19,8 @@ STANDARD, AFFECTIVE = "epsilon-greedy", "affective"
 WINDOWS = ((1, 10), (21, 40), (181, 200))
 #: Issue 7 results folders a replicate folder may hold (experiments/baselines*.yaml), shown in their own section.
 BASELINE_FOLDERS = ("baselines", "baselines_moving7", "baselines_moving")
+#: Issue 16 results folders (experiments/hunters*.yaml): two hunters, and the two emotion models side by side.
+HUNTER_FOLDERS = ("hunters", "hunters_moving")
 
 
 def _layout(run_dir: Path) -> tuple[Path, Path | None, Path | None]:
@@ -90,6 +92,18 @@ def build_report(
         from sb3_affect.report.baselines import baselines_section
 
         doc.md(baselines_section(baseline_dirs))
+    hunter_dirs = [run_dir / name for name in HUNTER_FOLDERS if (run_dir / name / "runs").is_dir()]
+    if "team" in episodes.columns or "capturer" in episodes.columns:  # a single folder of team runs
+        hunter_dirs.append(paper_dir)
+    if hunter_dirs:
+        from sb3_affect.report.emotion_models import emotion_models_section
+        from sb3_affect.report.hunters import hunters_section
+
+        for section in (hunters_section, emotion_models_section):
+            text, images = section(hunter_dirs, out)
+            doc.md(text)
+            for path, caption in images:
+                doc.img(path, caption)
     ctx.definitions()
     md = out / "report.md"
     md.write_text(doc.markdown(out))

@@ -1,0 +1,202 @@
+"""
+``DecisionStepper``: drive a tabular agent one decision at a time, for worlds its ``learn`` can not step itself.
+
+``TabularQAlgorithm.learn`` steps one Gymnasium env in a tight loop. When several agents share one world (the
+hunters of ``sb3_affect.team``), each needs to take a decision, wait while the world moves everyone, and learn from
+its own transitions. The stepper exposes exactly the pieces of ``learn`` for that, calling the agent's own code:
+``_decide`` (epsilon-greedy, the emotion's behaviour, ...), the same Eq. 1 update, the transition hook (the
+appraisal's ``observe``), ``_begin_episode``/``_close_episode`` (schedules, emotions, the episode log, the logger)
+and the SB3 callbacks with the locals ``learn`` gives them. Driving a single env with it gives the same episode log,
+Q-table and random draws as ``learn`` (tests/test_hunters.py checks this)::
+
+    stepper = DecisionStepper(model, total_timesteps=10**6)          # starts a run, as learn() does
+    action, cells, explored = stepper.decide()                     # one decision in the current state
+    for _ in range(cells):                                         # its one-cell transitions
+        obs, reward, terminated, truncated, info = env.step(action)
+        stepper.transition(obs, reward, terminated, truncated, info)
+        if terminated or truncated: break
+    stepper.end_decision(terminated, truncated, reset=lambda: env.reset()[0])
+    ...
+    stepper.close()                                                # as learn() ends: Q-table synced, callbacks told
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+from stable_baselines3.common.callbacks import ConvertCallback
+from stable_baselines3.common.logger import Logger
+from stable_baselines3.common.type_aliases import MaybeCallback
+
+from sb3_affect.episode_log import env_geometry
+from sb3_affect.tabular import _DONE, _NOT_DONE, TabularQAlgorithm
+
+
+class DecisionStepper:
+    """
+    One run of a tabular agent, advanced one decision at a time by the caller (see the module docstring).
+
+    :param model: a ``TabularQAlgorithm`` (QLearning, AffectQ, a baseline) with an env whose ``reset`` returns the
+        agent's current observation (a single env, or a hunter's view of a team)
+    :param total_timesteps: the run's budget in decisions (schedules' progress is measured against it)
+    :param callback: SB3 callback(s), called once per decision as in ``learn``
+    :param reset_num_timesteps: start a new run (episode log and appraisal history afresh), as in ``learn``
+    :param log_interval: dump the logger every this many episodes (None: never)
+    :param tb_log_name: TensorBoard run name
+    """
+
+    def __init__(
+        self,
+        model: TabularQAlgorithm,
+        total_timesteps: int,
+        callback: MaybeCallback = None,
+        reset_num_timesteps: bool = True,
+        log_interval: int | None = 4,
+        tb_log_name: str = "run",
+    ) -> None:
+        if not isinstance(model, TabularQAlgorithm):
+            raise TypeError(f"model must be a tabular agent of this package, got {type(model).__name__}")
+        self.model = m = model
+        # what learn() does before its loop
+        if reset_num_timesteps:
+            m._episode_rows = []
+            m._truncated_episodes = 0
+            m._new_run()
+        m._episode_state = None
+        if getattr(m, "emotion_callback", None) is not None:  # AffectQ.learn binds it to the model for logging
+            m.emotion_callback.init_callback(m)  # type: ignore[attr-defined]
+        silent = not m._custom_logger and m.verbose == 0 and m.tensorboard_log is None
+        if silent:
+            m._logger, m._custom_logger = Logger(folder=None, output_formats=[]), True
+        try:
+            self.total_timesteps, self.callback = m._setup_learn(
+                total_timesteps, callback, reset_num_timesteps, tb_log_name, False
+            )
+        finally:
+            if silent:
+                m._custom_logger = False
+        self.callback.on_training_start({"self": m, "total_timesteps": self.total_timesteps}, {})
+        m._geometry = env_geometry(m._single_env())
+        m._greedy_optimal = None
+        self.q: list[list[float]] = m.policy.q_table.tolist()
+        m._q = self.q
+        m._update_schedules()
+        # what _run_loop does before its loop
+        self.log_interval = log_interval
+        self._observe = m._transition_hook()
+        self._obs_start = int(m.observation_space.start)  # type: ignore[attr-defined]
+        self._act_start = int(m.action_space.start)  # type: ignore[attr-defined]
+        self._call_back = not (isinstance(self.callback, ConvertCallback) and self.callback.callback is None)
+        self._locals: dict[str, Any] = {"self": m, "total_timesteps": self.total_timesteps, "callback": self.callback}
+        self.t = m.num_timesteps
+        self._changed = True
+        self.continue_training = True
+        self._start(int(np.asarray(m._last_obs).reshape(-1)[0]))
+
+    def _start(self, obs: int) -> None:
+        self.s = obs - self._obs_start
+        self.decisions = self.cells = self.random_moves = self.waits = 0
+        self.reward_sum = 0.0
+        self.model._begin_episode(self.total_timesteps)
+        self._alpha = self.model._alpha
+        self._last: tuple[int, float, dict[str, Any]] = (self.s, 0.0, {})
+        self._action = 0
+        self._explored = False
+
+    @property
+    def state(self) -> int:
+        """The agent's current observation (in the env's numbering)."""
+        return self.s + self._obs_start
+
+    def set_state(self, obs: int) -> None:
+        """The world changed while the agent stood still (others moved): its next decision starts from ``obs``."""
+        self.s = int(obs) - self._obs_start
+
+    def decide(self) -> tuple[int, int, bool]:
+        """``(action, cells to move, whether the direction was random)`` for a decision in the current state."""
+        action, k, explored = self.model._decide(self.s, self.q)
+        self._action, self._explored, self._k = action, explored, k
+        return action + self._act_start, k, explored
+
+    def transition(self, obs: int, reward: float, terminated: bool, truncated: bool = False, info: Any = None) -> None:
+        """One one-cell transition of the current decision: the Eq. 1 update and the transition hook, as ``learn``."""
+        s, s2, action, q = self.s, int(obs) - self._obs_start, self._action, self.q
+        reward = float(reward)
+        row = q[s]
+        old = row[action]
+        new = old + self._alpha * ((reward if terminated else reward + self.model.gamma * max(q[s2])) - old)
+        if new != old:
+            row[action] = new
+            self._changed = True
+        if self._observe is not None:
+            self._observe(s, s2, terminated)
+        self.cells += 1
+        self.reward_sum += reward
+        self.s = s2
+        self._last = (s2, reward, info if info is not None else {})
+
+    def end_decision(self, terminated: bool, truncated: bool, reset: Callable[[], Any]) -> bool:
+        """
+        Close the current decision; ends the episode at the goal (``terminated``), when cut off (``truncated``) or at
+        the agent's safety cap, then calls ``reset()`` for the next episode's first observation. Calls the callbacks.
+
+        :return: whether the episode ended
+        """
+        m = self.model
+        if self._k == 0:
+            self.waits += 1
+        if self._explored:
+            self.random_moves += 1
+        self.decisions += 1
+        self.t += 1
+        s2, reward, info = self._last
+        done = terminated or truncated or self.decisions >= m.max_episode_decisions
+        if done:
+            m.num_timesteps = self.t
+            m._close_episode(
+                self.decisions,
+                self.cells,
+                self.reward_sum,
+                self.random_moves,
+                self.waits,
+                terminated,
+                not terminated,
+                self._changed,
+                self.log_interval,
+            )
+            self._changed = False
+            self._start(int(reset()))
+        if self._call_back:
+            m.num_timesteps = self.t
+            if done:
+                info = {**info, "terminal_observation": s2 + self._obs_start}
+                if not terminated:
+                    info["TimeLimit.truncated"] = True
+            cb = self._locals
+            cb["new_obs"] = [self.s + self._obs_start]
+            cb["rewards"] = [reward]
+            cb["dones"] = _DONE if done else _NOT_DONE
+            cb["infos"] = [info]
+            cb["actions"] = [self._action + self._act_start]
+            self.callback.update_locals(cb)
+            if not self.callback.on_step():
+                self.continue_training = False
+        return done
+
+    def close(self) -> None:
+        """End the run as ``learn`` does: the Q-table written back to the policy, ``on_training_end`` called."""
+        m = self.model
+        m.num_timesteps = self.t
+        m._episode_state = {
+            "state": self.s,
+            "decisions": self.decisions,
+            "cells": self.cells,
+            "random_moves": self.random_moves,
+            "waits": self.waits,
+            "reward": self.reward_sum,
+        }
+        m._last_obs = np.array([self.s + self._obs_start])
+        m._sync_policy()
+        self.callback.on_training_end()

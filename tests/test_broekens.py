@@ -1,0 +1,96 @@
+"""BroekensCallback: what follows from joy/distress = TD error and hope/fear = V(s), on real agents and envs."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pandas as pd
+import pytest
+import torch as th
+from stable_baselines3 import A2C, DQN, PPO
+from stable_baselines3.common.callbacks import CallbackList, StopTrainingOnMaxEpisodes
+from stable_baselines3.common.logger import configure
+
+from sb3_affect import AffectQ, QLearning
+from sb3_affect.broekens import BROEKENS_COLUMNS, BroekensCallback
+
+
+def observe(model, episodes: int, callback: BroekensCallback | None = None, **learn_kwargs) -> pd.DataFrame:
+    callback = callback or BroekensCallback()
+    model.learn(10**7, callback=CallbackList([callback, StopTrainingOnMaxEpisodes(episodes)]), **learn_kwargs)
+    return callback.episode_log
+
+
+def grid(**kwargs) -> gym.Env:
+    return gym.make("sb3_affect/GridPursuit-v0", **{"size": 5, "goal": (2, 2), **kwargs})
+
+
+@pytest.mark.parametrize("cls", [QLearning, AffectQ])
+def test_joy_appears_before_hope_as_values_propagate_back_from_the_goal(cls: type) -> None:
+    log = observe(cls("Grid", grid(), seed=0), 30)
+    assert tuple(log.columns) == BROEKENS_COLUMNS and len(log) == 30
+    # Episode 1: every value is 0 until the goal's reward arrives: joy at the goal, nothing to hope for yet.
+    assert log.joy.iloc[0] > 0 and log.hope.iloc[0] == 0 and log.goal_joy.iloc[0] == 100.0
+    first_joy, first_hope = (log.joy > 0).idxmax(), (log.hope > 0).idxmax()
+    assert log.hope.iloc[-1] > 0 and first_joy < first_hope
+    assert (log.fear == 0).all()  # no negative reward anywhere: no value below 0, nothing to fear
+    assert (log[["joy", "distress", "hope", "fear"]] >= 0).all().all()
+
+
+def test_joy_at_the_goal_fades_with_repetition_in_a_deterministic_task() -> None:
+    log = observe(QLearning("Grid", grid(), seed=0, exploration_rate=0.0, learning_rate=0.5), 30)
+    goal_joy = log.goal_joy.to_numpy()
+    assert goal_joy[0] == 100.0
+    assert np.all(np.diff(goal_joy[:12]) < 0) and goal_joy[-1] < 0.01  # habituation: 100, 50, 25, ...
+
+
+def test_fear_learned_from_a_punishment_fades_once_it_is_removed() -> None:
+    far = {"size": 7, "goal": (6, 6)}
+    model = QLearning("Grid", grid(step_reward=-30.0, **far), seed=0, exploration_rate=0.1, learning_rate=0.2)
+    callback = BroekensCallback()
+    observe(model, 100, callback)
+    model.set_env(grid(**far))  # the punishment is removed
+    fear = observe(model, 100, callback, reset_num_timesteps=False).fear.to_numpy()
+    learned, just_after, later, last = fear[80:100].mean(), fear[100:110].mean(), fear[110:130].mean(), fear[180:].mean()
+    assert learned > 20  # the punished task: values far from the goal are negative
+    assert learned > just_after > later > last and last < 0.05 * learned  # extinction
+
+
+def test_a_noisier_task_keeps_joy_and_distress_larger() -> None:
+    def surprise(prey: str, seed: int) -> float:
+        env = gym.make("sb3_affect/MovingPursuit-v0", size=4, start=(0, 0), prey_start=(2, 2), prey=prey)
+        log = observe(QLearning("Grid", env, seed=seed, exploration_rate=0.1), 300)
+        return float((log.joy + log.distress).iloc[-100:].mean())
+
+    for seed in (0, 1):
+        assert surprise("random", seed) > 3 * surprise("static", seed)  # a random-walking prey vs a still one
+
+
+def test_observes_sb3_dqn_ppo_and_a2c_and_logs_affect_keys(tmp_path) -> None:
+    th.set_num_threads(1)
+    env = grid(max_episode_steps=40)
+    models = [
+        DQN("MlpPolicy", env, learning_starts=50, seed=0, policy_kwargs={"net_arch": [16]}),
+        PPO("MlpPolicy", env, n_steps=64, batch_size=32, n_epochs=1, seed=0, policy_kwargs={"net_arch": [16]}),
+        A2C("MlpPolicy", env, n_steps=8, seed=0, policy_kwargs={"net_arch": [16]}),
+    ]
+    for model in models:
+        model.set_logger(configure(str(tmp_path / type(model).__name__), ["csv"]))
+        log = observe(model, 6, log_interval=1)
+        assert len(log) == 6 and log.steps.sum() <= model.num_timesteps
+        assert ((log.joy > 0) | (log.distress > 0)).all()  # an untrained network's values are never exact
+        assert log.goal_joy.isna().tolist() == (log.reward == 0).tolist()  # cut off by the time limit: no goal joy
+        header = (tmp_path / type(model).__name__ / "progress.csv").read_text().splitlines()[0]
+        assert {"affect/broekens/joy", "affect/broekens/distress", "affect/broekens/hope", "affect/broekens/fear"} <= set(
+            header.split(",")
+        )
+
+
+def test_algorithms_without_values_and_bad_gamma_are_refused() -> None:
+    from stable_baselines3 import SAC
+
+    with pytest.raises(ValueError, match="gamma=2"):
+        BroekensCallback(gamma=2)
+    pendulum = gym.make("Pendulum-v1")
+    with pytest.raises(TypeError, match="needs a value-based algorithm"):
+        SAC("MlpPolicy", pendulum, seed=0).learn(10, callback=BroekensCallback())
