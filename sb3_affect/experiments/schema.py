@@ -222,7 +222,7 @@ class Sweep(BaseModel):
             for point in agent.points():
                 count = self.seeds if isinstance(self.seeds, int) else len(self.seeds)
                 seeds = list(self.seeds) if isinstance(self.seeds, list) else derive_seeds(self.name, agent.name, point, count)
-                base = {
+                base: dict[str, Any] = {
                     "sweep": self.name,
                     "agent": agent.name,
                     "algo": agent.algo or "team",
