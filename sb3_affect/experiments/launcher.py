@@ -57,6 +57,9 @@ class SweepSummary:
     out_dir: Path
 
 
+_STOP_SIGNALS = {signal.SIGINT, signal.SIGTERM}
+
+
 def _die_with_parent() -> None:
     """Ask Linux to kill this worker when the launcher dies (best effort; no-op elsewhere)."""
     with contextlib.suppress(Exception):
@@ -68,6 +71,7 @@ def _die_with_parent() -> None:
 def _worker(job: Job, conn: Any, launcher: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the launcher decides what Ctrl-C does
     signal.signal(signal.SIGTERM, signal.SIG_DFL)  # and stops a worker with SIGTERM (not the launcher's handler)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, _STOP_SIGNALS)  # blocked by the launcher around the fork
     _die_with_parent()
     if os.getppid() != launcher:  # the launcher died before the line above took effect
         os._exit(1)
@@ -97,9 +101,15 @@ def run_local(jobs: list[Job], workers: int, on_result: OnResult, on_failure: On
                 job = queue.popleft()
                 receiver, sender = context.Pipe(duplex=False)
                 process = context.Process(target=_worker, args=(job, sender, os.getpid()), name=f"sb3-affect:{job.name}")
-                process.start()
-                sender.close()
-                running[job.name] = (process, receiver, job)
+                # Ctrl-C or SIGTERM during the fork would be swallowed by an at-fork hook ("Exception ignored"): hold them
+                # until the fork is done, then they stop the launcher as anywhere else.
+                previous = signal.pthread_sigmask(signal.SIG_BLOCK, _STOP_SIGNALS)
+                try:
+                    process.start()
+                    sender.close()
+                    running[job.name] = (process, receiver, job)
+                finally:
+                    signal.pthread_sigmask(signal.SIG_SETMASK, previous)
             waitables = [r for _, r, _ in running.values()] + [p.sentinel for p, _, _ in running.values()]
             multiprocessing.connection.wait(waitables, timeout=1.0)
             for key, (process, receiver, job) in list(running.items()):
