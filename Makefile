@@ -1,35 +1,49 @@
 # Two entry points (see README): `make replicate` runs the paper's replication and writes the report,
-# `make test` runs the test suite. Both create .venv and install everything on a fresh machine.
+# `make test` runs the test suite and builds the docs. Both create .venv and install everything on a fresh machine.
 PYTHON ?= python3
 VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.sb3-affect-installed
 OUT ?= runs
+DOCS_OUT ?= docs/_build/html
 
-.PHONY: venv test replicate lint bench clean
+.PHONY: venv test replicate docs lint bench clean
 
 venv: $(STAMP)
 
 $(STAMP): pyproject.toml
-	test -x $(PY) || $(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install -q --upgrade pip
-	# CPU torch first: a plain `torch` requirement would pull a multi-GB CUDA build.
-	$(PY) -c "import torch" 2>/dev/null || $(PY) -m pip install -q torch==2.13.0 \
-		|| $(PY) -m pip install -q torch --index-url https://download.pytorch.org/whl/cpu
-	$(PY) -m pip install -q -e '.[test]'
-	$(PY) -m pip install -q -e '.[ray]' || echo "note: the optional Ray extra could not be installed; Ray tests will be skipped"
-	touch $(STAMP)
+	@echo "== creating $(VENV) (a Python virtual environment) ..."
+	@test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	@$(PY) -m pip install -q --upgrade pip
+	@# (PYTHONWARNINGS: setuptools says "Editable installation" for every editable install with a package-dir map.)
+	@# CPU torch first: a plain `torch` requirement would pull a multi-GB CUDA build.
+	@$(PY) -c "import torch" 2>/dev/null && echo "== torch already installed" || { \
+		echo "== installing CPU torch (1-3 min) ..."; \
+		$(PY) -m pip install -q torch==2.13.0 || $(PY) -m pip install -q torch --index-url https://download.pytorch.org/whl/cpu; }
+	@echo "== installing sb3-affect and its test and docs tools (1-3 min) ..."
+	@PYTHONWARNINGS="ignore:Editable installation" $(PY) -m pip install -q -e '.[test,docs]'
+	@echo "== installing the optional Ray extra (1-2 min) ..."
+	@PYTHONWARNINGS="ignore:Editable installation" $(PY) -m pip install -q -e '.[ray]' || echo "note: the optional Ray extra could not be installed; Ray tests will be skipped"
+	@touch $(STAMP)
+	@echo "== installed in $(VENV). To use the sb3-affect command in this shell: source $(VENV)/bin/activate"
 
 test: venv
 	$(PY) -m ruff check .
 	$(PY) -m mypy
+	$(MAKE) --no-print-directory docs
 	$(PY) -m pytest -q
 
+# The documentation site: warnings are errors (-W), every internal reference is checked (-n: nitpicky).
+docs: venv
+	$(PY) -m sphinx -b html -W --keep-going -n -q docs $(DOCS_OUT)
+	@echo "docs: open $(DOCS_OUT)/index.html"
+
 replicate: venv
+	@echo "== the main job: the sweeps listed by 'sb3-affect replicate --help', then the report; about 10-12 min on 2 cores (rerun to resume)"
 	$(VENV)/bin/sb3-affect replicate --out $(OUT)
 
 bench: venv
 	$(PY) benchmarks/bench.py
 
 clean:
-	rm -rf $(VENV) build *.egg-info
+	rm -rf $(VENV) build *.egg-info docs/_build docs/auto_examples docs/generated

@@ -1,8 +1,10 @@
 """
-Speed benchmark (issue 5): decisions per second of the SB3-interface learn loops against a bare pure-Python loop and
-SB3's DQN, plus the wall time of the paper protocol.
+Speed benchmark (issues 5 and 11): decisions per second of the SB3-interface learn loops on both engines (the Python
+loop and the compiled kernel) against a bare pure-Python loop and SB3's DQN, ``simulate`` of the paper protocol on the
+kernel, the kernel's cold and warm start, and the wall time of the paper protocol through the launcher.
 
     python benchmarks/bench.py                 # full run (a few minutes), table on stdout, CSV in benchmarks/results.csv
+    python benchmarks/bench.py --large         # also the paper protocol with 10,000 seeds per cell through simulate
     python benchmarks/bench.py --smoke         # seconds: tiny sizes, no protocol (what the test suite runs)
 
 Every figure is the median of repeated runs in this one process; ratios are between figures of the same run.
@@ -16,6 +18,7 @@ import os
 import platform
 import random
 import statistics
+import subprocess
 import sys
 import tempfile
 import time
@@ -63,13 +66,50 @@ def timed(fn: Callable[[], int], repeats: int) -> float:
     return statistics.median(rates)
 
 
-def learn_rate(cls: type, steps: int, **kwargs: object) -> Callable[[], int]:
-    def run() -> int:
+def learn_rate(cls: type, steps: int, **kwargs: object) -> Callable[[], float]:
+    """``cls("Grid", env).learn(steps)``; the timed part is ``learn`` (building the model is a fixed cost of ~ms)."""
+
+    def run() -> float:
         model = cls("Grid", gym.make(ENV_ID), seed=0, **kwargs)
+        start = time.perf_counter()
         model.learn(steps)
-        return int(model.num_timesteps)
+        return model.num_timesteps / (time.perf_counter() - start)
 
     return run
+
+
+def median_rate(fn: Callable[[], float], repeats: int) -> float:
+    return statistics.median(fn() for _ in range(repeats))
+
+
+EPSILONS = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9)
+
+
+def simulate_protocol(seeds: int, batch: int = 1000) -> tuple[float, int]:
+    """Seconds and decisions of the paper protocol (9 epsilon-greedy + 9 affective cells x seeds x 200 episodes)."""
+    from sb3_affect.engine import simulate
+
+    start, decisions = time.perf_counter(), 0
+    for cell, epsilon in enumerate(EPSILONS):
+        for first in range(0, seeds, batch):
+            seed_list = range(first, min(seeds, first + batch))
+            rows = simulate("QLearning", {"exploration_rate": epsilon}, ENV_ID, None, seed_list, 200)
+            decisions += int(rows["decisions"].sum())
+            affective = range(10**6 * (cell + 1) + first, 10**6 * (cell + 1) + seed_list.stop)
+            decisions += int(simulate("AffectQ", {}, ENV_ID, None, affective, 200)["decisions"].sum())
+    return time.perf_counter() - start, decisions
+
+
+def kernel_start_seconds(cache_dir: str) -> float:
+    """Wall time of a fresh process that imports the package and runs one tiny simulate of each agent kind."""
+    code = (
+        "from sb3_affect.engine import simulate\n"
+        "for algo in ('QLearning', 'AffectQ', 'sb3_affect.baselines:Boltzmann', 'sb3_affect.baselines:UCBQLearning'):\n"
+        "    simulate(algo, {}, 'sb3_affect/GridPursuit-v0', None, [0], 1)\n"
+    )
+    start = time.perf_counter()
+    subprocess.run([sys.executable, "-c", code], check=True, env={**os.environ, "NUMBA_CACHE_DIR": cache_dir})
+    return time.perf_counter() - start
 
 
 def dqn_rate(steps: int) -> Callable[[], int]:
@@ -102,29 +142,51 @@ def protocol_seconds(workers: int) -> float | None:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--smoke", action="store_true", help="tiny sizes, no protocol: checks the script runs")
+    parser.add_argument("--large", action="store_true", help="also the paper protocol with 10,000 seeds per cell")
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--csv", type=Path, default=Path(__file__).with_name("results.csv"))
     args = parser.parse_args(argv)
     steps, dqn_steps, repeats = (3000, 300, 1) if args.smoke else (200_000, 5000, args.repeats)
 
     rows: list[tuple[str, float, str]] = []
+    learn_rate(QLearning, 10)()  # load (or compile) the kernel before timing it
+    learn_rate(AffectQ, 10)()
     bare = timed(lambda: bare_loop(gym.make(ENV_ID), steps), repeats)
     rows.append(("bare pure-Python loop (decisions/s)", bare, "floor"))
-    q_rate = timed(learn_rate(QLearning, steps, exploration_rate=0.1), repeats)
-    rows.append(("QLearning.learn (decisions/s)", q_rate, f"{q_rate / bare:.2f} x bare (target >= 0.5)"))
-    a_rate = timed(learn_rate(AffectQ, steps), repeats)
-    rows.append(("AffectQ.learn (decisions/s)", a_rate, f"{a_rate / bare:.2f} x bare (target >= 0.3)"))
+    q_py = median_rate(learn_rate(QLearning, steps, exploration_rate=0.1, engine="python"), repeats)
+    rows.append(("QLearning.learn, Python engine (decisions/s)", q_py, f"{q_py / bare:.2f} x bare (target >= 0.5)"))
+    a_py = median_rate(learn_rate(AffectQ, steps, engine="python"), repeats)
+    rows.append(("AffectQ.learn, Python engine (decisions/s)", a_py, f"{a_py / bare:.2f} x bare (target >= 0.3)"))
+    q_rate = median_rate(learn_rate(QLearning, steps, exploration_rate=0.1), repeats)
+    rows.append(("QLearning.learn, compiled (decisions/s)", q_rate, f"{q_rate / bare:.1f} x bare (target >= 20)"))
+    a_rate = median_rate(learn_rate(AffectQ, steps), repeats)
+    rows.append(("AffectQ.learn, compiled (decisions/s)", a_rate, f"{a_rate / bare:.1f} x bare (target >= 8)"))
     d_rate = timed(dqn_rate(dqn_steps), max(1, repeats // 2))
     rows.append(("SB3 DQN.learn (steps/s, 1 torch thread)", d_rate, "reference"))
-    rows.append(("QLearning / DQN", q_rate / d_rate, "target >= 100"))
-    rows.append(("AffectQ / DQN", a_rate / d_rate, "target >= 100"))
+    rows.append(("QLearning (Python engine) / DQN", q_py / d_rate, "target >= 100"))
+    rows.append(("AffectQ (Python engine) / DQN", a_py / d_rate, "target >= 100"))
+    rows.append(("QLearning (compiled) / DQN", q_rate / d_rate, ""))
+    rows.append(("AffectQ (compiled) / DQN", a_rate / d_rate, ""))
     if not args.smoke:
+        sims = [simulate_protocol(20) for _ in range(repeats)]
+        seconds = statistics.median(s for s, _ in sims)
+        rows.append(("simulate, paper protocol, 360 runs, 1 process (s)", seconds, "kernel; target well under 2 s"))
+        rows.append(("simulate, paper protocol (decisions/s)", sims[0][1] / seconds, "both agents, all epsilons"))
+        with tempfile.TemporaryDirectory() as cache:
+            cold = kernel_start_seconds(cache)
+            warm = kernel_start_seconds(cache)
+        rows.append(("new process: import + first kernel use, cold cache (s)", cold, "compiles every kernel"))
+        rows.append(("new process: import + first kernel use, warm cache (s)", warm, "loads the cached kernels"))
+        if args.large:
+            seconds, decisions = simulate_protocol(10_000)
+            note = f"1 process, {decisions:,} decisions"
+            rows.append(("simulate, paper protocol, 10,000 seeds per cell (s)", seconds, note))
         for workers in (1, 2):
-            seconds = protocol_seconds(workers)
-            if seconds is None:
+            launcher = protocol_seconds(workers)
+            if launcher is None:
                 rows.append((f"paper protocol, {workers} worker(s) (s)", float("nan"), "launcher not installed"))
             else:
-                rows.append((f"paper protocol, {workers} worker(s) (s)", seconds, "360 runs x 200 episodes (target < 60 s)"))
+                rows.append((f"paper protocol, {workers} worker(s) (s)", launcher, "sb3-affect run, 360 runs x 200 episodes"))
 
     cores = os.cpu_count()
     print(f"sb3-affect {sb3_affect.__version__} | Python {platform.python_version()} | {cores} cores | {platform.machine()}")

@@ -42,6 +42,7 @@ class HunterPursuitEnv(ParallelEnv):
     ties at random; ``"static"``: never). The prey never moves onto a hunter.
 
     ## Capture (``capture``)
+
     - ``"enter"`` (default): a hunter entering the prey's cell. The capturers (every hunter that entered it in
       that step) receive ``goal_reward``; the others ``step_reward``.
     - ``"surround"``: hunters can not enter the prey's cell (a move into it stays put, like a wall); the prey is

@@ -59,6 +59,7 @@ class MovingPursuitEnv(gym.Env[Any, Any]):
     previous value in states from which no capture is known, which early on is most of them.
 
     ## Arguments
+
     :param size: grid side (int >= 2); ignored when ``maze`` is given
     :param start: the hunter's first cell (row, col)
     :param prey_start: the prey's first cell (row, col)

@@ -1,5 +1,5 @@
 """
-Issue 2's summary with SPEC defaults: 20 seeds x 200 episodes per agent, in-process (no launcher).
+Issue 2's summary, default definitions: 20 seeds x 200 episodes per agent, in-process (no launcher).
 
     python experiments/core_summary.py [--seeds 20] [--episodes 200]
 """
@@ -46,7 +46,7 @@ def main() -> None:
             f"first optimal episode {first_optimal(log)}  truncated {int(log.truncated.sum())}"
         )
     log = agents["affective"]
-    print("affective: per-episode fractions of decisions (SPEC Fig. 5/6), mean over runs and over the episodes of each window")
+    print("affective: per-episode fractions of decisions (Fig. 5/6), mean over runs and over the episodes of each window")
     fractions = log[["joy", "sadness", "fear", "anger", "random_moves"]].div(log.decisions, axis=0)
     fractions = fractions.rename(columns={"random_moves": "equivalent epsilon"}).assign(episode=log.episode)
     for lo, hi in ((1, 10), (21, 40), (181, 200)):

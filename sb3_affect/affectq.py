@@ -13,7 +13,7 @@ from sb3_affect.callbacks import EmotionCallback
 from sb3_affect.emotions import COMPARISONS, Emotion
 from sb3_affect.personalities import PersonalityAppraiser, check_personality
 from sb3_affect.policies import TabularQPolicy, greedy_action
-from sb3_affect.tabular import TabularQAlgorithm
+from sb3_affect.tabular import MULTI_CELLS, TabularQAlgorithm
 
 
 class AffectQ(TabularQAlgorithm):
@@ -45,6 +45,10 @@ class AffectQ(TabularQAlgorithm):
     :param device: torch device of the Q-table
     :param personality: ``"neutral"`` (the paper), ``"optimistic"`` or ``"pessimistic"``: a bias on the appraisal's
         norm (``sb3_affect.personalities``); not combinable with ``emotion_callback``
+    :param engine: ``"auto"``, ``"python"`` or ``"compiled"``: which engine runs ``learn`` (see ``TabularQAlgorithm``)
+    :param tie_break: greedy ties while learning: ``"random"`` (default) or ``"first"`` (the lowest action)
+    :param multi_cell: a decision of k cells: ``"steps"`` (k one-cell transitions, one Eq. 1 update each) or
+        ``"jump"`` (k cells moved, one Eq. 1 update from the start cell to the end cell with the summed reward)
     :param _init_setup_model: build the policy now (SB3 convention)
     """
 
@@ -68,8 +72,12 @@ class AffectQ(TabularQAlgorithm):
         seed: int | None = None,
         device: Any = "cpu",
         personality: str = "neutral",
+        engine: str = "auto",
+        tie_break: str = "random",
+        multi_cell: str = "steps",
         _init_setup_model: bool = True,
     ) -> None:
+        self.multi_cell = check_choice("multi_cell", multi_cell, MULTI_CELLS)
         self.personality = check_personality(personality)
         if emotion_callback is not None and personality != "neutral":
             raise ValueError("give either a personality or an emotion_callback (with its own appraiser), not both")
@@ -97,6 +105,8 @@ class AffectQ(TabularQAlgorithm):
             verbose=verbose,
             seed=seed,
             device=device,
+            engine=engine,
+            tie_break=tie_break,
             _init_setup_model=_init_setup_model,
         )
 
@@ -164,7 +174,7 @@ class AffectQ(TabularQAlgorithm):
         cells = speeds[0] if len(speeds) == 1 else speeds[rng.randrange(len(speeds))]
         if random_direction:
             return rng.randrange(len(q[state])), cells, True
-        return greedy_action(q[state], rng), cells, False
+        return greedy_action(q[state], rng, self._tie_first), cells, False
 
     def _exploration_value(self) -> float:
         rows = self._episode_rows

@@ -136,7 +136,7 @@ class Appraisal(NamedTuple):
 
 class Appraiser:
     """
-    Appraises each decision (SPEC "Appraisal").
+    Appraises each decision (docs/definitions.md, "Appraisal").
 
     - ``norm``: power regression over the finished episodes 1..k-1 of this run, evaluated at ``t = k``
       (one finished episode: its value). Before any episode has finished there is no appraisal.

@@ -18,7 +18,7 @@ class Behaviour(NamedTuple):
     speeds: tuple[int, ...]
 
 
-#: Table III with SPEC speeds: "fast" = 1 or 2 cells, "slow" = 0 or 1 cell.
+#: Table III with the project's speeds (docs/definitions.md): "fast" = 1 or 2 cells, "slow" = 0 or 1 cell.
 TABLE_III: dict[Emotion, Behaviour] = {
     Emotion.JOY: Behaviour(random_direction=True, speeds=(1, 2)),
     Emotion.SADNESS: Behaviour(random_direction=False, speeds=(0, 1)),

@@ -40,7 +40,7 @@ class EmotionCallback(BaseCallback):
     """
     Appraise each decision, feel one of joy, sadness, fear or anger, count and log it.
 
-    :param comparison: Table II reading, ``"literal"`` or ``"valence"`` (SPEC)
+    :param comparison: Table II reading, ``"literal"`` or ``"valence"`` (docs/definitions.md)
     :param act: ``"episode"`` (elapsed + known remaining) or ``"remaining"`` (known remaining only)
     :param units: ``"cells"`` or ``"decisions"``: what norm, exp1 and act count
     :param appraiser: a ready appraiser to use instead of building one from ``act`` and ``units``

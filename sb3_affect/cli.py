@@ -6,7 +6,45 @@ import argparse
 import signal
 import sys
 import threading
+import time
 from pathlib import Path
+
+
+class UsageError(Exception):
+    """A command-line argument that can not be used (printed as ``sb3-affect: error: ...``, exit 2)."""
+
+
+def _positive_int(text: str) -> int:
+    """argparse type of ``--workers``: an integer >= 1."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{value} is not allowed: give 1 or more parallel runs (default: CPU count)")
+    return value
+
+
+def _check_out(out: str) -> None:
+    """``--out`` must be a folder (new, or one an earlier run wrote), not a file."""
+    path = Path(out)
+    if path.exists() and not path.is_dir():
+        raise UsageError(f"--out {out}: this is a file; give a results folder (a new one, or one an earlier run wrote)")
+
+
+def _existing_folder(directory: str, command: str) -> Path:
+    """The results folder given to ``status`` or ``report``, or a UsageError saying what is wrong with it."""
+    path = Path(directory)
+    if not path.exists():
+        raise UsageError(f"{directory}: no such folder; give the --out folder of `sb3-affect run` or `sb3-affect replicate`")
+    if not path.is_dir():
+        hint = (
+            f"; a sweep file is run with `sb3-affect run {directory} --out DIR`, then `sb3-affect {command} DIR`"
+            if path.suffix in (".yaml", ".yml")
+            else ""
+        )
+        raise UsageError(f"{directory}: this is a file, not a results folder{hint}")
+    return path
 
 
 class Terminated(KeyboardInterrupt):
@@ -20,6 +58,7 @@ def _on_sigterm(signum: int, frame: object) -> None:
 def _cmd_run(args: argparse.Namespace) -> int:
     from sb3_affect.experiments import run_sweep
 
+    _check_out(args.out)
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGTERM, _on_sigterm)
     summary = run_sweep(
@@ -42,13 +81,32 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_status(args: argparse.Namespace) -> int:
+    root = _existing_folder(args.dir, "status")
+    if (root / "sweep.json").exists():
+        _print_status(root)
+        return 0
+    # A `replicate` folder: one sweep folder per part (paper/, dqn/, ...).
+    parts = sorted(p for p in root.iterdir() if (p / "sweep.json").exists())
+    if not parts:
+        print(
+            f"{root}: no sweep has been run here (no sweep.json, nor sub-folders with one); "
+            "start one with `sb3-affect run FILE --out DIR`",
+            file=sys.stderr,
+        )
+        return 2
+    print(f"{root}: {len(parts)} sweeps")
+    for part in parts:
+        _print_status(part)
+    report = root / "report.html"
+    if report.exists():
+        print(f"report: {report}")
+    return 0
+
+
+def _print_status(root: Path) -> None:
     from sb3_affect.experiments import ResultsStore
 
-    store = ResultsStore(args.dir)
-    saved = store.root / "sweep.json"
-    if not saved.exists():
-        print(f"{store.root}: no sweep has been run here (no sweep.json)", file=sys.stderr)
-        return 2
+    store = ResultsStore(root)
     name, per_agent = store.progress()  # agent -> (runs, done, failed)
     total, done, failed = (sum(counts[i] for counts in per_agent.values()) for i in range(3))
     print(f"sweep {name!r} in {store.root}: {done}/{total} runs done, {failed} failed")
@@ -60,48 +118,104 @@ def _cmd_status(args: argparse.Namespace) -> int:
         recorded = lock.read_text().split()[:1] or ["?"]
         state = "running" if owner is not None else "gone: stale lock, the next run takes it over"
         print(f"  locked by launcher pid {recorded[0]} ({state})")
-    return 0
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
     from sb3_affect.report import build_report
 
-    path = build_report(Path(args.dir))
-    print(f"report: {path}")
+    root = _existing_folder(args.dir, "report")
+    if not any(root.iterdir()):
+        raise UsageError(f"{args.dir}: the folder is empty; run a sweep into it (`sb3-affect run FILE --out {args.dir}`)")
+    try:
+        path = build_report(root)
+    except (FileNotFoundError, ValueError) as error:  # no results in a layout the report knows, or no finished run
+        raise UsageError(f"{args.dir}: no report can be built: {error}") from None
+    print(f"report: {path} and {path.with_suffix('.html')} (open it in a browser)")
     return 0
 
 
 def _cmd_replicate(args: argparse.Namespace) -> int:
     from sb3_affect.replicate import main as replicate
 
-    replicate(out_dir=Path(args.out), workers=args.workers)
+    _check_out(args.out)
+    start = time.perf_counter()
+    report = replicate(out_dir=Path(args.out), workers=args.workers)
+    minutes, seconds = divmod(time.perf_counter() - start, 60)
+    print(f"done in {int(minutes)} min {seconds:.0f} s. Open {report.with_suffix('.html')} in a browser to read the report.")
     return 0
 
 
+def _replicate_help() -> str:
+    """``replicate --help``: what it runs (from ``sb3_affect.replicate.PARTS``, so it can not drift) and writes."""
+    from sb3_affect.replicate import PARTS
+
+    lines = [
+        "The main job (`make replicate` runs it): runs these sweeps, each into its own sub-folder of OUT, then writes",
+        "one report from all of them.",
+        "",
+        *(f"  OUT/{name + '/':11s} experiments/{name}.yaml: {description}" for name, description in PARTS),
+        f"  {'OUT/report.html':15s} the report (also report.md, tables/*.csv, figures/*.png): open it in a browser",
+        "",
+        "About 10-12 minutes on 2 cores. Interrupted? Rerun the same command: finished runs are kept and skipped.",
+    ]
+    return "\n".join(lines)
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="sb3-affect", description=__doc__)
-    sub = parser.add_subparsers(dest="command", required=True)
-    run = sub.add_parser("run", help="run (or resume) an experiment sweep")
-    run.add_argument("file", help="experiment YAML, e.g. experiments/paper.yaml")
-    run.add_argument("--out", required=True, help="results folder")
-    run.add_argument("--workers", type=int, default=None, help="parallel runs (default: CPU count)")
-    run.add_argument("--backend", choices=("local", "ray"), default="local")
+    from sb3_affect import __version__
+
+    parser = argparse.ArgumentParser(
+        prog="sb3-affect",
+        description="Run experiment sweeps, show their status, build the report, run the whole replication.",
+        epilog="`sb3-affect COMMAND --help` describes each command. Documentation: docs/ (make docs).",
+    )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    run = sub.add_parser(
+        "run",
+        help="run (or resume) an experiment sweep",
+        description="Run every run of an experiment file that DIR does not hold yet (rerun the same command to resume).",
+    )
+    run.add_argument("file", help="experiment YAML, e.g. experiments/smoke.yaml (see the experiment-file reference)")
+    run.add_argument("--out", required=True, metavar="DIR", help="results folder (created; an earlier run's folder resumes)")
+    run.add_argument("--workers", type=_positive_int, default=None, help="parallel runs, >= 1 (default: CPU count)")
+    run.add_argument("--backend", choices=("local", "ray"), default="local", help="local processes (default) or Ray tasks")
     run.add_argument("--ray-address", default=None, help="Ray cluster address (default: start a local instance)")
-    run.add_argument("--set", action="append", metavar="KEY=VALUE", help="override one key, e.g. --set seeds=5")
+    run.add_argument(
+        "--set",
+        action="append",
+        metavar="KEY=VALUE",
+        help="override one key of the file (repeatable), e.g. --set seeds=5, --set agents.affective.kwargs.gamma=0.9",
+    )
     run.add_argument("--no-progress", action="store_true", help="no progress bar")
     run.add_argument(
         "--logs", metavar="FORMATS", default=None, help="per-run SB3 logger output under DIR/logs/: csv, tensorboard or both"
     )
     run.set_defaults(func=_cmd_run)
-    status = sub.add_parser("status", help="show how far a results folder is")
-    status.add_argument("dir")
+    status = sub.add_parser(
+        "status",
+        help="show how far a results folder is",
+        description="Count finished and failed runs per agent (each sweep of a `replicate` folder), and whether a "
+        "launcher is using the folder.",
+    )
+    status.add_argument("dir", metavar="DIR", help="a results folder (the --out of `run` or `replicate`)")
     status.set_defaults(func=_cmd_status)
-    report = sub.add_parser("report", help="build DIR/report.md (and .html, tables, figures) from a results folder")
-    report.add_argument("dir")
+    report = sub.add_parser(
+        "report",
+        help="build DIR/report.html (and .md, tables, figures) from a results folder",
+        description="Build DIR/report.md, DIR/report.html (self-contained), DIR/tables/*.csv and DIR/figures/*.png. "
+        "A `replicate` folder gives the full report; a single sweep folder the sections its runs allow.",
+    )
+    report.add_argument("dir", metavar="DIR", help="a results folder (the --out of `run` or `replicate`)")
     report.set_defaults(func=_cmd_report)
-    replicate = sub.add_parser("replicate", help="the main job: paper protocol, DQN subset, ablation, then the report")
-    replicate.add_argument("--out", default="runs")
-    replicate.add_argument("--workers", type=int, default=None)
+    replicate = sub.add_parser(
+        "replicate",
+        help="the main job: paper protocol, DQN subset, ablation, baselines, then the report",
+        description=_replicate_help(),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    replicate.add_argument("--out", default="runs", metavar="OUT", help="results folder (default: runs)")
+    replicate.add_argument("--workers", type=_positive_int, default=None, help="parallel runs, >= 1 (default: CPU count)")
     replicate.set_defaults(func=_cmd_replicate)
     return parser
 
@@ -113,7 +227,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         return int(args.func(args))
-    except (SweepError, StoreError) as error:
+    except (SweepError, StoreError, UsageError) as error:
         print(f"sb3-affect: error: {error}", file=sys.stderr)
         return 2
     except KeyboardInterrupt as interrupt:

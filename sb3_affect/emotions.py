@@ -58,4 +58,5 @@ def make_table_ii(comparison: str = "literal") -> EmotionRule:
         return table_ii(appraisal, comparison)
 
     rule.__name__ = f"table_ii_{comparison}"
+    rule.table_ii_comparison = comparison  # type: ignore[attr-defined]  # tells the compiled engine it is Table II
     return rule

@@ -11,10 +11,10 @@ from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import PyTorchObs
 
 
-def greedy_action(row: list[float], rng: random.Random) -> int:
-    """Arg-max of one Q-table row, ties broken uniformly at random with ``rng``."""
+def greedy_action(row: list[float], rng: random.Random, first: bool = False) -> int:
+    """Arg-max of one Q-table row, ties broken uniformly at random with ``rng`` (``first``: the lowest action, no draw)."""
     best = max(row)
-    if row.count(best) == 1:
+    if first or row.count(best) == 1:
         return row.index(best)
     return rng.choice([a for a, value in enumerate(row) if value == best])
 

@@ -33,6 +33,8 @@ class QLearning(TabularQAlgorithm):
     :param verbose: 0 silent, 1 training logs on stdout
     :param seed: seed of every random choice
     :param device: torch device of the Q-table
+    :param engine: ``"auto"``, ``"python"`` or ``"compiled"``: which engine runs ``learn`` (see ``TabularQAlgorithm``)
+    :param tie_break: greedy ties while learning: ``"random"`` (default) or ``"first"`` (the lowest action)
     :param _init_setup_model: build the policy now (SB3 convention)
     """
 
@@ -51,6 +53,8 @@ class QLearning(TabularQAlgorithm):
         verbose: int = 0,
         seed: int | None = None,
         device: Any = "cpu",
+        engine: str = "auto",
+        tie_break: str = "random",
         _init_setup_model: bool = True,
     ) -> None:
         _check_rate("exploration_rate", exploration_rate, 0.0, 1.0)
@@ -68,6 +72,8 @@ class QLearning(TabularQAlgorithm):
             verbose=verbose,
             seed=seed,
             device=device,
+            engine=engine,
+            tie_break=tie_break,
             _init_setup_model=_init_setup_model,
         )
 
@@ -87,7 +93,7 @@ class QLearning(TabularQAlgorithm):
         rng = self._rng
         if rng.random() < self._epsilon:
             return rng.randrange(len(q[state])), 1, True
-        return greedy_action(q[state], rng), 1, False
+        return greedy_action(q[state], rng, self._tie_first), 1, False
 
     def predict(self, observation: Any, state: Any = None, episode_start: Any = None, deterministic: bool = False) -> Any:
         """

@@ -16,14 +16,21 @@ PARTS = (
 )
 
 
-def main(out_dir: Path = Path("runs"), workers: int | None = None, experiments: Path = EXPERIMENTS) -> Path:
+def main(out_dir: Path = Path("runs"), workers: int | None = None, experiments: Path | None = None) -> Path:
     """
-    Run experiments/paper.yaml, dqn.yaml and ablation.yaml into ``out_dir/<name>`` (resuming what is there), then
-    write ``out_dir/report.md`` (and .html, tables/, figures/). Prints the wall time of each part.
+    Run each of ``PARTS`` (``experiments/<name>.yaml``: paper, dqn, ablation, baselines, hunters, ...) into
+    ``out_dir/<name>`` (resuming what is there), then write ``out_dir/report.md`` (and .html, tables/, figures/).
+    Prints the wall time of each part.
+
+    :param out_dir: the results folder
+    :param workers: parallel runs (default: the number of CPUs)
+    :param experiments: the folder holding the experiment files (default: the project's ``experiments/``)
+    :return: the path of report.md
     """
     from sb3_affect.experiments import run_sweep
     from sb3_affect.report import build_report
 
+    experiments = Path(experiments or EXPERIMENTS)
     out_dir = Path(out_dir)
     timings: list[tuple[str, float]] = []
     for name, description in PARTS:

@@ -86,6 +86,7 @@ class DecisionStepper:
         # what _run_loop does before its loop
         self.log_interval = log_interval
         self._observe = m._transition_hook()
+        self._jump = m.multi_cell == "jump"  # one Eq. 1 update per decision, made in end_decision
         self._obs_start = int(m.observation_space.start)  # type: ignore[attr-defined]
         self._act_start = int(m.action_space.start)  # type: ignore[attr-defined]
         self._call_back = not (isinstance(self.callback, ConvertCallback) and self.callback.callback is None)
@@ -118,18 +119,22 @@ class DecisionStepper:
         """``(action, cells to move, whether the direction was random)`` for a decision in the current state."""
         action, k, explored = self.model._decide(self.s, self.q)
         self._action, self._explored, self._k = action, explored, k
+        self._start_cell, self._jump_reward = self.s, 0.0
         return action + self._act_start, k, explored
 
     def transition(self, obs: int, reward: float, terminated: bool, truncated: bool = False, info: Any = None) -> None:
         """One one-cell transition of the current decision: the Eq. 1 update and the transition hook, as ``learn``."""
         s, s2, action, q = self.s, int(obs) - self._obs_start, self._action, self.q
         reward = float(reward)
-        row = q[s]
-        old = row[action]
-        new = old + self._alpha * ((reward if terminated else reward + self.model.gamma * max(q[s2])) - old)
-        if new != old:
-            row[action] = new
-            self._changed = True
+        if self._jump:
+            self._jump_reward += reward
+        else:
+            row = q[s]
+            old = row[action]
+            new = old + self._alpha * ((reward if terminated else reward + self.model.gamma * max(q[s2])) - old)
+            if new != old:
+                row[action] = new
+                self._changed = True
         if self._observe is not None:
             self._observe(s, s2, terminated)
         self.cells += 1
@@ -145,6 +150,14 @@ class DecisionStepper:
         :return: whether the episode ended
         """
         m = self.model
+        if self._jump and self._k > 0:  # multi_cell="jump": one update from the decision's start cell to its end cell
+            q, gain = self.q, self._jump_reward
+            row = q[self._start_cell]
+            old = row[self._action]
+            new = old + self._alpha * ((gain if terminated else gain + m.gamma * max(q[self.s])) - old)
+            if new != old:
+                row[self._action] = new
+                self._changed = True
         if self._k == 0:
             self.waits += 1
         if self._explored:

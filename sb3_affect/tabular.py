@@ -25,11 +25,16 @@ from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, Schedul
 from stable_baselines3.common.utils import safe_mean
 from stable_baselines3.common.vec_env import DummyVecEnv
 
+from sb3_affect.appraisal import check_choice
 from sb3_affect.episode_log import Geometry, env_geometry, greedy_walks_shortest_path, make_frame
 from sb3_affect.policies import TabularQPolicy
 from sb3_affect.serialization import add_plain_description, load_safe
 
 SelfTabular = TypeVar("SelfTabular", bound="TabularQAlgorithm")
+
+ENGINES = ("auto", "python", "compiled")
+TIE_BREAKS = ("random", "first")
+MULTI_CELLS = ("steps", "jump")
 
 _DONE = np.array([True])
 _NOT_DONE = np.array([False])
@@ -74,11 +79,18 @@ class TabularQAlgorithm(BaseAlgorithm):
     :param verbose: 0 silent, 1 training logs on stdout
     :param seed: seed of every random choice (Python, NumPy, torch and the agent's own generator)
     :param device: torch device of the Q-table (``"cpu"`` is all a table needs)
+    :param engine: ``"auto"`` (default: the compiled kernel where it applies, else the Python loop), ``"python"``
+        (always the readable Python loop) or ``"compiled"`` (the kernel; an error says why when it can not apply).
+        Both give the same episode log and Q-table for the same seed (see ``sb3_affect.kernel``)
+    :param tie_break: how greedy ties are broken while learning: ``"random"`` (uniformly, one random draw) or
+        ``"first"`` (the lowest action, no draw)
     :param _init_setup_model: build the policy now (SB3 convention)
     """
 
     policy_aliases: ClassVar[dict[str, type[BasePolicy]]] = {"Grid": TabularQPolicy, "TabularQPolicy": TabularQPolicy}
     policy: TabularQPolicy
+    #: how a decision of k cells learns (agents that move several cells set it: ``"steps"`` or ``"jump"``)
+    multi_cell: str = "steps"
 
     def __init__(
         self,
@@ -94,8 +106,12 @@ class TabularQAlgorithm(BaseAlgorithm):
         verbose: int = 0,
         seed: int | None = None,
         device: th.device | str = "cpu",
+        engine: str = "auto",
+        tie_break: str = "random",
         _init_setup_model: bool = True,
     ) -> None:
+        self.engine = check_choice("engine", engine, ENGINES)
+        self.tie_break = check_choice("tie_break", tie_break, TIE_BREAKS)
         _check_rate("learning_rate", learning_rate, 0.0, 1.0, low_open=True)
         self.gamma = _check_number("gamma", gamma, 0.0, 1.0)
         self.q_init = _check_number("q_init", q_init, -1e300, 1e300)
@@ -148,6 +164,7 @@ class TabularQAlgorithm(BaseAlgorithm):
             self.observation_space, self.action_space, self.lr_schedule, q_init=self.q_init, **self.policy_kwargs
         )
         self.policy = self.policy.to(self.device)
+        self._tie_first = self.tie_break == "first"
         self._rng = random.Random(self.seed)
         if self._rng_state is not None:
             version, internal, gauss = self._rng_state
@@ -155,7 +172,7 @@ class TabularQAlgorithm(BaseAlgorithm):
         self.policy.rng = self._rng
 
     def _excluded_save_params(self) -> list[str]:
-        return [*super()._excluded_save_params(), "_rng"]
+        return [*super()._excluded_save_params(), "_rng", "_tie_first"]
 
     # -- what subclasses define ----------------------------------------------------------------------------------
     def _decide(self, state: int, q: list[list[float]]) -> tuple[int, int, bool]:
@@ -239,11 +256,32 @@ class TabularQAlgorithm(BaseAlgorithm):
         self._q = q
         self._update_schedules()
         try:
-            self._run_loop(env, q, total_timesteps, callback, log_interval)
+            if self._use_kernel(env, callback):
+                from sb3_affect.kernel.bridge import learn_compiled
+
+                learn_compiled(self, env, total_timesteps, callback, log_interval)
+            else:
+                self._run_loop(env, q, total_timesteps, callback, log_interval)
         finally:
             self._sync_policy()
         callback.on_training_end()
         return self
+
+    def _use_kernel(self, env: Any, callback: BaseCallback | None) -> bool:
+        """
+        Whether ``learn`` runs on the compiled kernel: ``engine="python"`` never, ``"compiled"`` always (an error
+        naming the reason when it can not), ``"auto"`` when the agent, the env (one of the package's grid envs, with
+        Gymnasium's and SB3's standard wrappers only) and the callbacks (none, ``StopTrainingOnMaxEpisodes``, the
+        progress bar, or callbacks marked ``episode_level = True``) all allow it.
+        """
+        if self.engine == "python":
+            return False
+        from sb3_affect.kernel.bridge import compiled_reason
+
+        reason = compiled_reason(self, env, callback)
+        if reason is not None and self.engine == "compiled":
+            raise ValueError(f"engine='compiled' can not run this learn call: {reason}; use engine='auto' or 'python'")
+        return reason is None
 
     def _run_loop(
         self, env: Any, q: list[list[float]], total_timesteps: int, callback: BaseCallback, log_interval: int | None
@@ -252,6 +290,7 @@ class TabularQAlgorithm(BaseAlgorithm):
         cap = self.max_episode_decisions
         decide = self._decide
         observe = self._transition_hook()
+        jump = self.multi_cell == "jump"
         obs_start = int(self.observation_space.start)  # type: ignore[attr-defined]
         act_start = int(self.action_space.start)  # type: ignore[attr-defined]
         cb_locals: dict[str, Any] = {"self": self, "total_timesteps": total_timesteps, "callback": callback}
@@ -284,17 +323,21 @@ class TabularQAlgorithm(BaseAlgorithm):
         while t < total_timesteps:
             # 1. decide: direction and speed (epsilon-greedy, or the emotion's behaviour)
             action, k, explored = decide(s, q)
-            # 2. move k cells, one Eq. 1 update per cell
+            # 2. move k cells, one Eq. 1 update per cell (multi_cell="jump": one for the whole move, below)
+            start_cell, jump_reward = s, 0.0
             for _ in range(k):
                 obs, r, terminated, truncated, info = env.step(action + act_start)
                 s2 = int(obs) - obs_start
                 reward = float(r)
-                row = q[s]
-                old = row[action]
-                new = old + alpha * ((reward if terminated else reward + gamma * max(q[s2])) - old)
-                if new != old:
-                    row[action] = new
-                    changed = True
+                if jump:
+                    jump_reward += reward
+                else:
+                    row = q[s]
+                    old = row[action]
+                    new = old + alpha * ((reward if terminated else reward + gamma * max(q[s2])) - old)
+                    if new != old:
+                        row[action] = new
+                        changed = True
                 if observe is not None:
                     observe(s, s2, terminated)
                 cells += 1
@@ -302,6 +345,13 @@ class TabularQAlgorithm(BaseAlgorithm):
                 s = s2
                 if terminated or truncated:
                     break
+            if jump and k > 0:
+                row = q[start_cell]
+                old = row[action]
+                new = old + alpha * ((jump_reward if terminated else jump_reward + gamma * max(q[s])) - old)
+                if new != old:
+                    row[action] = new
+                    changed = True
             if k == 0:
                 waits += 1
             if explored:

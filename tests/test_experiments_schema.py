@@ -138,7 +138,7 @@ def test_overrides(tmp_path: Path) -> None:
     # An override is validated like the file.
     assert "seeds" in error_of(tmp_path, GOOD, ("seeds=0",))
     assert "key=value" in error_of(tmp_path, GOOD, ("seeds",))
-    assert "does not apply" in error_of(tmp_path, GOOD, ("agents.7.kwargs.gamma=1",))
+    assert "no agent '7'" in error_of(tmp_path, GOOD, ("agents.7.kwargs.gamma=1",))
 
 
 def test_cli_reports_schema_error_without_running(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -177,3 +177,23 @@ def test_shipped_files(name: str, runs: int, agents: dict[str, int]) -> None:
         readings = {(c["algo_kwargs"]["comparison"], c["algo_kwargs"]["act"], c["algo_kwargs"]["units"]) for c in configs}
         assert len(readings) == 8
         assert sorted({c["labels"]["epsilon"] for c in configs}) == [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9]
+
+
+def test_env_of_your_own_as_module_colon_id(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    (tmp_path / "my_sweep_envs.py").write_text(
+        "import gymnasium as gym\n"
+        "gym.register(id='MyPursuit-v0', entry_point='sb3_affect.envs.grid_pursuit:GridPursuitEnv',\n"
+        "             kwargs={'size': 5, 'goal': (2, 2)})\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    text = GOOD.replace(
+        "env: {id: sb3_affect/GridPursuit-v0, kwargs: {size: 5, goal: [2, 2]}}", "env: {id: 'my_sweep_envs:MyPursuit-v0'}"
+    )
+    configs = load_sweep(write(tmp_path, text)).run_configs()
+    assert {c["env_id"] for c in configs} == {"my_sweep_envs:MyPursuit-v0"}
+    from sb3_affect.experiments import execute_run
+
+    result = execute_run({**configs[0], "episodes": 2})
+    assert len(result["episodes"]["episode"]) == 2 and result["episodes"]["optimal"] is not None
+    assert "module 'no_such_module' can not be imported" in error_of(tmp_path, text.replace("my_sweep_envs", "no_such_module"))
+    assert "'your_module:YourEnv-v0'" in error_of(tmp_path, text.replace("MyPursuit-v0", "Other-v0"))

@@ -13,7 +13,7 @@ from pettingzoo.test import parallel_api_test
 from stable_baselines3.common.callbacks import StopTrainingOnMaxEpisodes
 
 from sb3_affect import AffectQ, QLearning
-from sb3_affect.baselines import Boltzmann, UCBQLearning
+from sb3_affect.baselines import Boltzmann, SpeedEpsilonGreedy, UCBQLearning
 from sb3_affect.envs import HUNTER_PURSUIT_ID, make_parallel
 from sb3_affect.envs.hunter_pursuit import STAY, HunterPursuitEnv
 from sb3_affect.experiments import run_sweep
@@ -116,7 +116,14 @@ def test_bad_arguments_name_the_field(kwargs: dict, message: str) -> None:
 
 @pytest.mark.parametrize(
     ("cls", "kwargs"),
-    [(QLearning, {"exploration_rate": 0.3}), (AffectQ, {}), (Boltzmann, {"temperature": 3.0}), (UCBQLearning, {})],
+    [
+        (QLearning, {"exploration_rate": 0.3}),
+        (AffectQ, {}),
+        (Boltzmann, {"temperature": 3.0}),
+        (UCBQLearning, {}),
+        (AffectQ, {"multi_cell": "jump", "tie_break": "first"}),
+        (SpeedEpsilonGreedy, {"multi_cell": "jump"}),
+    ],
 )
 def test_decision_stepper_is_learn_one_decision_at_a_time(cls: type, kwargs: dict) -> None:
     """Driving one env through the stepper gives learn()'s episode log and Q-table: the same code, the same draws."""

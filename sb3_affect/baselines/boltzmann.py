@@ -65,6 +65,8 @@ class Boltzmann(TabularQAlgorithm):
     :param verbose: 0 silent, 1 training logs on stdout
     :param seed: seed of every random choice
     :param device: torch device of the Q-table
+    :param engine: ``"auto"``, ``"python"`` or ``"compiled"``: which engine runs ``learn`` (see ``TabularQAlgorithm``)
+    :param tie_break: greedy ties while learning: ``"random"`` (default) or ``"first"`` (the lowest action)
     :param _init_setup_model: build the policy now (SB3 convention)
     """
 
@@ -86,6 +88,8 @@ class Boltzmann(TabularQAlgorithm):
         verbose: int = 0,
         seed: int | None = None,
         device: Any = "cpu",
+        engine: str = "auto",
+        tie_break: str = "random",
         _init_setup_model: bool = True,
     ) -> None:
         _check_rate("temperature", temperature, 0.0, 1e300, low_open=True)
@@ -110,6 +114,8 @@ class Boltzmann(TabularQAlgorithm):
             verbose=verbose,
             seed=seed,
             device=device,
+            engine=engine,
+            tie_break=tie_break,
             _init_setup_model=_init_setup_model,
         )
 

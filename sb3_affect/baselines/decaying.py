@@ -40,6 +40,8 @@ class DecayingEpsilonGreedy(QLearning):
     :param verbose: 0 silent, 1 training logs on stdout
     :param seed: seed of every random choice
     :param device: torch device of the Q-table
+    :param engine: ``"auto"``, ``"python"`` or ``"compiled"``: which engine runs ``learn`` (see ``TabularQAlgorithm``)
+    :param tie_break: greedy ties while learning: ``"random"`` (default) or ``"first"`` (the lowest action)
     :param _init_setup_model: build the policy now (SB3 convention)
     """
 
@@ -61,6 +63,8 @@ class DecayingEpsilonGreedy(QLearning):
         verbose: int = 0,
         seed: int | None = None,
         device: Any = "cpu",
+        engine: str = "auto",
+        tie_break: str = "random",
         _init_setup_model: bool = True,
     ) -> None:
         self.exploration_initial_eps = _check_number("exploration_initial_eps", exploration_initial_eps, 0.0, 1.0)
@@ -83,6 +87,8 @@ class DecayingEpsilonGreedy(QLearning):
             verbose=verbose,
             seed=seed,
             device=device,
+            engine=engine,
+            tie_break=tie_break,
             _init_setup_model=_init_setup_model,
         )
 

@@ -39,6 +39,8 @@ class OptimisticQLearning(QLearning):
     :param verbose: 0 silent, 1 training logs on stdout
     :param seed: seed of every random choice
     :param device: torch device of the Q-table
+    :param engine: ``"auto"``, ``"python"`` or ``"compiled"``: which engine runs ``learn`` (see ``TabularQAlgorithm``)
+    :param tie_break: greedy ties while learning: ``"random"`` (default) or ``"first"`` (the lowest action)
     :param _init_setup_model: build the policy now (SB3 convention)
     """
 
@@ -57,6 +59,8 @@ class OptimisticQLearning(QLearning):
         verbose: int = 0,
         seed: int | None = None,
         device: Any = "cpu",
+        engine: str = "auto",
+        tie_break: str = "random",
         _init_setup_model: bool = True,
     ) -> None:
         super().__init__(
@@ -73,5 +77,7 @@ class OptimisticQLearning(QLearning):
             verbose=verbose,
             seed=seed,
             device=device,
+            engine=engine,
+            tie_break=tie_break,
             _init_setup_model=_init_setup_model,
         )

@@ -7,8 +7,10 @@ from typing import Any
 
 from stable_baselines3.common.type_aliases import GymEnv, Schedule
 
+from sb3_affect.appraisal import check_choice
 from sb3_affect.policies import TabularQPolicy, greedy_action
 from sb3_affect.qlearning import QLearning
+from sb3_affect.tabular import MULTI_CELLS
 
 
 class SpeedEpsilonGreedy(QLearning):
@@ -34,6 +36,10 @@ class SpeedEpsilonGreedy(QLearning):
     :param verbose: 0 silent, 1 training logs on stdout
     :param seed: seed of every random choice
     :param device: torch device of the Q-table
+    :param engine: ``"auto"``, ``"python"`` or ``"compiled"``: which engine runs ``learn`` (see ``TabularQAlgorithm``)
+    :param tie_break: greedy ties while learning: ``"random"`` (default) or ``"first"`` (the lowest action)
+    :param multi_cell: a decision of k cells: ``"steps"`` (k one-cell transitions, one Eq. 1 update each) or
+        ``"jump"`` (k cells moved, one Eq. 1 update from the start cell to the end cell with the summed reward)
     :param _init_setup_model: build the policy now (SB3 convention)
     """
 
@@ -53,8 +59,12 @@ class SpeedEpsilonGreedy(QLearning):
         verbose: int = 0,
         seed: int | None = None,
         device: Any = "cpu",
+        engine: str = "auto",
+        tie_break: str = "random",
+        multi_cell: str = "steps",
         _init_setup_model: bool = True,
     ) -> None:
+        self.multi_cell = check_choice("multi_cell", multi_cell, MULTI_CELLS)
         if isinstance(speeds, (str, bytes)) or not isinstance(speeds, Sequence):
             raise TypeError(f"speeds must be a sequence of integers >= 0, got {speeds!r}")
         if not speeds or not all(isinstance(k, int) and not isinstance(k, bool) and k >= 0 for k in speeds):
@@ -74,6 +84,8 @@ class SpeedEpsilonGreedy(QLearning):
             verbose=verbose,
             seed=seed,
             device=device,
+            engine=engine,
+            tie_break=tie_break,
             _init_setup_model=_init_setup_model,
         )
 
@@ -83,4 +95,4 @@ class SpeedEpsilonGreedy(QLearning):
         cells = speeds[0] if len(speeds) == 1 else speeds[rng.randrange(len(speeds))]
         if rng.random() < self._epsilon:
             return rng.randrange(len(q[state])), cells, True
-        return greedy_action(q[state], rng), cells, False
+        return greedy_action(q[state], rng, self._tie_first), cells, False

@@ -92,6 +92,9 @@ def _describe_exit(code: int | None) -> str:
 
 def run_local(jobs: list[Job], workers: int, on_result: OnResult, on_failure: OnFailure) -> None:
     """Run ``jobs`` in forked worker processes, ``workers`` at a time."""
+    from sb3_affect.kernel import warm_up
+
+    warm_up()  # the compiled engine's kernels, loaded once here (no torch) instead of in every worker
     context = multiprocessing.get_context("fork")
     queue = deque(jobs)
     running: dict[str, tuple[Any, Any, Job]] = {}

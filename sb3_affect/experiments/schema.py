@@ -25,6 +25,7 @@ A multi-agent env (``sb3_affect/HunterPursuit-v0``, one hunter per ``team`` memb
 
 from __future__ import annotations
 
+import difflib
 import hashlib
 import importlib
 import itertools
@@ -79,9 +80,17 @@ def is_multi_agent(env_id: str) -> bool:
 
 
 class EnvSpec(BaseModel):
+    """The ``env`` section: which Gymnasium env every run builds (``gym.make(id, **kwargs)``)."""
+
     model_config = ConfigDict(extra="forbid")
-    id: str = "sb3_affect/GridPursuit-v0"
-    kwargs: dict[str, Any] = Field(default_factory=dict)
+    id: str = Field(
+        default="sb3_affect/GridPursuit-v0",
+        description="a registered Gymnasium id: sb3_affect/GridPursuit-v0, sb3_affect/MazePursuit-v0, "
+        "sb3_affect/MovingPursuit-v0, or 'your_module:YourEnv-v0' for an env that importing your_module registers",
+    )
+    kwargs: dict[str, Any] = Field(
+        default_factory=dict, description="keyword arguments of the env, e.g. {size: 15, goal: [6, 6]}"
+    )
 
     @field_validator("id")
     @classmethod
@@ -91,9 +100,18 @@ class EnvSpec(BaseModel):
         import sb3_affect  # noqa: F401  (registers the package's envs)
         from sb3_affect.envs import PARALLEL_ENVS
 
-        if value not in gym.registry and value not in PARALLEL_ENVS:
+        module, _, env_id = value.rpartition(":")  # "my_package.envs:MyEnv-v0": import the module that registers it
+        if module:
+            try:
+                importlib.import_module(module)
+            except ImportError as error:
+                raise ValueError(f"env id {value!r}: module {module!r} can not be imported ({error})") from None
+        if env_id not in gym.registry and env_id not in PARALLEL_ENVS:
             known = sorted([*(k for k in gym.registry if k.startswith("sb3_affect/")), *PARALLEL_ENVS])
-            raise ValueError(f"env id {value!r} is not registered; the package registers {', '.join(known)}")
+            raise ValueError(
+                f"env id {value!r} is not registered; the package registers {', '.join(known)} (an env of your own: "
+                "'your_module:YourEnv-v0', where importing your_module registers YourEnv-v0)"
+            )
         return value
 
 
@@ -101,8 +119,10 @@ class MemberSpec(BaseModel):
     """One hunter of a team agent: its algorithm and constructor arguments (``$label`` references allowed)."""
 
     model_config = ConfigDict(extra="forbid")
-    algo: str
-    kwargs: dict[str, Any] = Field(default_factory=dict)
+    algo: str = Field(description="a tabular agent of this package: QLearning, AffectQ or a baseline class path")
+    kwargs: dict[str, Any] = Field(
+        default_factory=dict, description="its constructor arguments; $label takes the grid label's value"
+    )
 
     @field_validator("algo")
     @classmethod
@@ -115,12 +135,33 @@ class MemberSpec(BaseModel):
 
 
 class AgentSpec(BaseModel):
+    """One item of ``agents``: an algorithm, its fixed kwargs and the grid of labels it is swept over."""
+
     model_config = ConfigDict(extra="forbid")
-    name: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.+-]+$")
-    algo: str | None = None
-    kwargs: dict[str, Any] = Field(default_factory=dict)
-    grid: dict[str, list[Any]] = Field(default_factory=dict)
-    team: list[MemberSpec] | None = Field(default=None, min_length=1)
+    name: str = Field(
+        min_length=1,
+        pattern=r"^[A-Za-z0-9_.+-]+$",
+        description="unique within the file; names the runs (letters, digits, _ . + -) and groups them in the report",
+    )
+    algo: str | None = Field(
+        default=None,
+        description="QLearning, AffectQ, DQN, PPO, A2C or an importable 'package.module:Class' (an SB3 algorithm); "
+        "give algo or team",
+    )
+    kwargs: dict[str, Any] = Field(
+        default_factory=dict,
+        description="constructor arguments of the algorithm; a value written $label takes the grid label's value",
+    )
+    grid: dict[str, list[Any]] = Field(
+        default_factory=dict,
+        description="label -> list of values; every combination is one grid point, run once per seed. A label no "
+        "kwarg uses only replicates the agent",
+    )
+    team: list[MemberSpec] | None = Field(
+        default=None,
+        min_length=1,
+        description="instead of algo, on a multi-agent env: one {algo, kwargs} per hunter (below)",
+    )
 
     @field_validator("algo")
     @classmethod
@@ -174,14 +215,28 @@ class AgentSpec(BaseModel):
 
 
 class Sweep(BaseModel):
+    """A whole experiment file (top-level keys)."""
+
     model_config = ConfigDict(extra="forbid")
-    name: str = Field(min_length=1, pattern=r"^[A-Za-z0-9_.+-]+$")
-    env: EnvSpec = Field(default_factory=EnvSpec)
-    episodes: int = Field(gt=0)
-    seeds: int | list[int]
-    max_timesteps: int | None = Field(default=None, gt=0)
-    logs: list[str] = Field(default_factory=list, description="per-run SB3 logger formats under DIR/logs: csv, tensorboard")
-    agents: list[AgentSpec] = Field(min_length=1)
+    name: str = Field(
+        min_length=1,
+        pattern=r"^[A-Za-z0-9_.+-]+$",
+        description="the sweep's name (letters, digits, _ . + -); enters the derived seeds and the run files",
+    )
+    env: EnvSpec = Field(default_factory=EnvSpec, description="the environment section (below)")
+    episodes: int = Field(gt=0, description="episodes per run; a run stops after this many finished episodes")
+    seeds: int | list[int] = Field(
+        description="a count N (seeds derived by sha256 of sweep, agent, grid point and replicate) or an explicit list "
+        "of distinct integers, the same for every grid point"
+    )
+    max_timesteps: int | None = Field(
+        default=None, gt=0, description="optional cap on a run's decisions (env steps), e.g. for DQN; null: no cap"
+    )
+    logs: list[str] = Field(
+        default_factory=list,
+        description="SB3 logger formats written per run under DIR/logs/<run>/: csv, tensorboard, stdout, json, log",
+    )
+    agents: list[AgentSpec] = Field(min_length=1, description="one or more agents (below)")
 
     @field_validator("seeds")
     @classmethod
@@ -283,21 +338,86 @@ def derive_seeds(sweep: str, agent: str, point: dict[str, Any], count: int) -> l
     ]
 
 
-def _apply_override(data: dict[str, Any], assignment: str) -> None:
-    """``key.path=value`` (value parsed as YAML; list items by index, e.g. ``agents.0.kwargs.gamma=0.9``)."""
+def _override_path(assignment: str, data: dict[str, Any]) -> tuple[list[Any], Any]:
+    """
+    Check the key path of one ``--set key.path=value`` against the schema; return the path (list items as ints) and
+    the parsed value. A key the schema does not know is named with the keys allowed there (and the closest one).
+    A kwarg bound to a grid label (``$label``) can not be overridden: run ids and labels come from the grid, so the
+    override would run one value under another value's label; the error says which grid to set instead.
+    """
     if "=" not in assignment:
         raise SweepError(f"--set {assignment!r}: use key=value, e.g. --set seeds=5")
-    path, _, raw = assignment.partition("=")
-    keys = path.strip().split(".")
+    raw_path, _, raw = assignment.partition("=")
+    keys: list[Any] = raw_path.strip().split(".")
+    try:
+        value = yaml.safe_load(raw)
+    except yaml.YAMLError as error:
+        raise SweepError(f"--set {assignment!r}: the value is not valid YAML ({error})") from None
+
+    def unknown(key: str, allowed: list[str], where: str) -> SweepError:
+        close = difflib.get_close_matches(key, allowed, n=1)
+        hint = f"; did you mean {close[0]!r}?" if close else ""
+        return SweepError(
+            f"--set {assignment!r}: {key!r} is not a key of {where}{hint} (allowed: {', '.join(allowed)})"
+        )
+
+    top = list(Sweep.model_fields)
+    if keys[0] not in top:
+        raise unknown(keys[0], top, "a sweep file")
+    if keys[0] == "env" and len(keys) > 1 and keys[1] not in EnvSpec.model_fields:
+        raise unknown(keys[1], list(EnvSpec.model_fields), "env")
+    if keys[0] in ("name", "episodes", "seeds", "max_timesteps", "logs") and len(keys) > 1:
+        raise SweepError(f"--set {assignment!r}: {keys[0]!r} is a single value; use --set {keys[0]}=VALUE")
+    if keys[0] == "agents" and len(keys) > 1:
+        agents: list[Any] = data["agents"] if isinstance(data.get("agents"), list) else []
+        names = [a.get("name") if isinstance(a, dict) else None for a in agents]
+        if keys[1] in names:  # an agent by name: agents.affective.kwargs.gamma=0.9
+            keys[1] = names.index(keys[1])
+        elif keys[1].isdigit() and int(keys[1]) < len(agents):
+            keys[1] = int(keys[1])
+        else:
+            raise SweepError(
+                f"--set {assignment!r}: no agent {keys[1]!r}; give an index 0..{len(agents) - 1} or a name "
+                f"({', '.join(str(n) for n in names)})"
+            )
+        if len(keys) > 2 and keys[2] not in AgentSpec.model_fields:
+            raise unknown(keys[2], list(AgentSpec.model_fields), f"agents[{keys[1]}]")
+        if len(keys) == 4 and keys[2] == "kwargs":
+            agent = agents[keys[1]] if isinstance(agents[keys[1]], dict) else {}
+            bound = (agent.get("kwargs") or {}).get(keys[3])
+            match = _REFERENCE.match(bound) if isinstance(bound, str) else None
+            if match and value != bound:
+                label = match.group(1)
+                raise SweepError(
+                    f"--set {assignment!r}: kwargs.{keys[3]} of agent {names[keys[1]]!r} takes its value from the grid "
+                    f"label {label!r}, which names its runs and labels its results; set the grid instead, e.g. "
+                    f"--set agents.{names[keys[1]]}.grid.{label}=[{raw.strip()}]"
+                )
+    return keys, value
+
+
+def _apply_override(data: dict[str, Any], assignment: str) -> list[Any]:
+    """
+    ``key.path=value`` (value parsed as YAML; list items by index or agent name, e.g. ``agents.0.kwargs.gamma=0.9``).
+
+    :return: the key path it set (agents by index), to tell which validation errors the override caused
+    """
+    keys, value = _override_path(assignment, data)
     target: Any = data
     for key in keys[:-1]:
         target = target[int(key)] if isinstance(target, list) else target.setdefault(key, {})
     last = keys[-1]
-    value = yaml.safe_load(raw)
     if isinstance(target, list):
         target[int(last)] = value
     else:
         target[last] = value
+    return keys
+
+
+def _overlaps(location: tuple[Any, ...], keys: list[Any]) -> bool:
+    """Whether a validation error at ``location`` concerns the key path an override set (one is a prefix of the other)."""
+    n = min(len(location), len(keys))
+    return n > 0 and [str(k) for k in location[:n]] == [str(k) for k in keys[:n]]
 
 
 def _key_path(location: tuple[Any, ...], data: dict[str, Any]) -> str:
@@ -336,23 +456,30 @@ def load_sweep(path: str | Path, overrides: tuple[str, ...] | list[str] = (), *,
         raise SweepError(f"{path}: malformed YAML{where}: {problem}") from None
     if not isinstance(data, dict):
         raise SweepError(f"{path}: a sweep file must be a YAML mapping with name, episodes, seeds and agents")
+    overridden: list[tuple[str, list[Any]]] = []
     for assignment in overrides:
         try:
-            _apply_override(data, assignment)
-        except (KeyError, IndexError, ValueError, TypeError, yaml.YAMLError) as error:
-            raise SweepError(f"{path}: --set {assignment!r} does not apply ({error})") from None
+            overridden.append((assignment, _apply_override(data, assignment)))
+        except SweepError as error:
+            raise SweepError(f"{error} [sweep file: {path}]") from None
+        except (KeyError, IndexError, ValueError, TypeError, AttributeError) as error:
+            raise SweepError(f"--set {assignment!r} does not apply to {path} ({error})") from None
     try:
         sweep = Sweep.model_validate(data)
     except ValidationError as error:
-        lines = []
+        lines, from_file = [], False
         for item in error.errors():
-            key = _key_path(tuple(item["loc"]), data) or "(top level)"
+            location = tuple(item["loc"])
+            key = _key_path(location, data) or "(top level)"
             value = item.get("input")
             shown = "" if isinstance(value, (dict, list)) or item["type"] == "missing" else f" (got {value!r})"
             message = item["msg"].removeprefix("Value error, ")
-            lines.append(f"  {key}: {message}{shown}")
+            setters = [a for a, keys in overridden if _overlaps(location, keys)]
+            from_file = from_file or not setters
+            lines.append(f"  {key}: {message}{shown}" + (f" [from --set {setters[-1]}]" if setters else ""))
         allowed = "allowed top-level keys: " + ", ".join(Sweep.model_fields)
-        raise SweepError(f"{path}: invalid sweep file\n" + "\n".join(lines) + f"\n  ({allowed})") from None
+        what = "invalid sweep file" if from_file else "invalid --set value"
+        raise SweepError(f"{path}: {what}\n" + "\n".join(lines) + f"\n  ({allowed})") from None
     if build:
         from sb3_affect.experiments.runner import check_configs_in_child
 

@@ -157,7 +157,8 @@ class _Context:
             f"Results folder `{paper_dir}`: {len(m)} runs ({', '.join(f'{a}: {n}' for a, n in runs.items())}), "
             f"up to {episodes} episodes each, epsilon values {', '.join(fmt(e, 1) for e in eps) or 'none'}. "
             "A *step* is one decision (one unit of time), as in the paper; *cells* are one-cell moves (the affective "
-            "agent moves 0, 1 or 2 cells per decision). Paper's numbers from SPEC; every other number is computed "
+            "agent moves 0, 1 or 2 cells per decision). The paper's numbers are as it prints them; every other number "
+            "is computed "
             "from the run files by `sb3-affect report`."
         )
         truncated = int(m.truncated.sum())
@@ -206,9 +207,9 @@ class _Context:
         means = self._per_epsilon("decisions_before_optimal", "mean")
         runs = int(self.agent(AFFECTIVE).groupby("epsilon").run_id.count().max())
         self.doc.p(
-            f"The paper's Table V values (~1e5) look like sums over the {runs} simulations of each epsilon (SPEC), so "
-            "the spreadsheet layout is computed on the sums; the same test on per-run means follows. Runs that never "
-            "find the optimal path contribute all their steps (censored)."
+            f"The paper's Table V values (~1e5) look like sums over the {runs} simulations of each epsilon "
+            "(see Definitions in the docs), so the spreadsheet layout is computed on the sums; the same test on per-run "
+            "means follows. Runs that never find the optimal path contribute all their steps (censored)."
         )
         inputs = pd.concat({"sum over runs": sums, "per-run mean": means}, axis=1)
         inputs.columns = pd.Index([f"{pair[1]} ({pair[0]})" for pair in inputs.columns.to_list()])
@@ -518,7 +519,7 @@ class _Context:
             "first optimal one (all decisions for runs that never find it: censored). Greedy optimal from: the first "
             "episode after which every greedy choice from the start walks a shortest path until the end of the run. "
             "Equivalent epsilon: fraction of decisions whose direction was random (joy). Emotion profile: fraction of "
-            "decisions in each emotion. Per-episode fractions are averaged over runs (SPEC)."
+            "decisions in each emotion. Per-episode fractions are averaged over runs (docs: Definitions)."
         )
 
 

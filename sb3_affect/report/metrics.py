@@ -1,4 +1,4 @@
-"""From run files to tidy tables: one row per episode, and one row of SPEC metrics per run."""
+"""From run files to tidy tables: one row per episode, and one row of metrics per run (docs/definitions.md)."""
 
 from __future__ import annotations
 
@@ -72,7 +72,7 @@ def _first_stable(flags: np.ndarray) -> float:
 
 def run_metrics(episodes: pd.DataFrame, runs: pd.DataFrame | None = None) -> pd.DataFrame:
     """
-    SPEC metrics, one row per run:
+    The metrics of docs/definitions.md, one row per run:
 
     - ``decisions_per_episode``, ``cells_per_episode``: means over the run's episodes (the paper's "steps" are decisions)
     - ``first_optimal``: first episode whose path is a shortest path; ``censored`` when none is

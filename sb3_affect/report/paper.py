@@ -1,4 +1,4 @@
-"""The paper's own numbers (SPEC, "The paper's numbers"), to set ours beside."""
+"""The paper's own numbers (docs/definitions.md, "The paper's numbers"), to set ours beside."""
 
 from __future__ import annotations
 

@@ -1,0 +1,393 @@
+"""
+The compiled decision loop: ``TabularQAlgorithm._run_loop`` with the agent's ``_decide``, the appraisal and the
+env's moves, in numba. ``sb3_affect/tabular.py`` is the readable reference; this file does the same operations in the
+same order (same random draws, same floating-point expressions), so both give the same episode log and Q-table.
+
+State crosses the boundary as arrays. ``ist`` (int64) and ``fst`` (float64) hold the run's scalars at the indices
+below; the caller (``sb3_affect.kernel.bridge``) fills them from the model and writes them back after the call.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from sb3_affect.kernel.affect import fit_add, known_add, known_add_goal, start_norm, table_ii
+from sb3_affect.kernel.mt19937 import randbelow, random01
+
+# agent kinds
+EPSILON, AFFECT, BOLTZMANN, UCB = 0, 1, 2, 3
+
+# icfg: fixed configuration
+(
+    C_KIND,
+    C_GOAL,
+    C_START,
+    C_SHORTEST,
+    C_TIME_LIMIT,
+    C_CAP,
+    C_ACT_EPISODE,
+    C_UNITS_CELLS,
+    C_VALENCE,
+    C_TIE_FIRST,
+    C_JUMP,
+    C_COMPENSATED_SUM,
+) = range(12)
+N_ICFG = 12
+# fcfg: fixed float configuration
+F_GAMMA, F_GOAL_REWARD, F_STEP_REWARD, F_NORM_SCALE, F_UCB_COEF = range(5)
+N_FCFG = 5
+
+# ist: int run state
+(
+    I_T,
+    I_STATE,
+    I_DECISIONS,
+    I_CELLS,
+    I_RANDOM,
+    I_WAITS,
+    I_JOY,
+    I_SADNESS,
+    I_FEAR,
+    I_ANGER,
+    I_CHANGED,
+    I_GREEDY,
+    I_TL_ELAPSED,
+    I_NFIT,
+    I_EL_CELLS,
+    I_EL_DECISIONS,
+    I_LAST_ACTION,
+    I_LAST_PREV,
+    I_LAST_S2,
+    I_LAST_TERMINATED,
+) = range(20)
+N_IST = 20
+# fst: float run state
+S_REWARD, S_NORM, S_LAST_ACT, S_LAST_REWARD, S_FIT0 = range(5)  # S_FIT0..S_FIT0+3: the power fit's running sums
+N_FST = 9
+
+# out_i columns (out_f: reward, norm)
+(O_DECISIONS, O_CELLS, O_OPTIMAL, O_TRUNCATED, O_RANDOM, O_WAITS, O_JOY, O_SADNESS, O_FEAR, O_ANGER, O_GREEDY) = range(11)
+N_OUT_I = 11
+
+# why run returned
+STOP_TIMESTEPS, STOP_EPISODES = 0, 1
+
+
+@njit(cache=True, inline="always")
+def row_max(q: np.ndarray, s: int) -> float:
+    """``max(q[s])``."""
+    best = q[s, 0]
+    for a in range(1, q.shape[1]):
+        if q[s, a] > best:
+            best = q[s, a]
+    return best
+
+
+@njit(cache=True, inline="always")
+def greedy(q: np.ndarray, s: int, mt: np.ndarray, tie_first: bool) -> int:
+    """``policies.greedy_action`` on ``q[s]``: arg-max, ties uniformly at random (one ``choice`` draw) or the first."""
+    best = row_max(q, s)
+    count = 0
+    first = -1
+    for a in range(q.shape[1]):
+        if q[s, a] == best:
+            count += 1
+            if first < 0:
+                first = a
+    if count == 1 or tie_first:
+        return first
+    pick = randbelow(mt, count)
+    for a in range(q.shape[1]):
+        if q[s, a] == best:
+            if pick == 0:
+                return a
+            pick -= 1
+    return first
+
+
+@njit(cache=True)
+def greedy_walks_shortest_path(
+    q: np.ndarray, trans: np.ndarray, tdist: np.ndarray, start: int, seen: np.ndarray, stack: np.ndarray
+) -> bool:
+    """
+    ``episode_log.greedy_walks_shortest_path`` (its answer does not depend on the visiting order). ``seen`` (one
+    flag per cell) and ``stack`` (``n_states * n_actions + 1`` entries) are work space.
+    """
+    seen[:] = False
+    stack[0] = start
+    top = 1
+    while top > 0:
+        top -= 1
+        s = stack[top]
+        d = tdist[s]
+        if d == 0 or seen[s]:
+            continue
+        seen[s] = True
+        best = row_max(q, s)
+        for a in range(q.shape[1]):
+            if q[s, a] == best:
+                t = trans[s, a]
+                if tdist[t] != d - 1:
+                    return False
+                stack[top] = t
+                top += 1
+    return True
+
+
+@njit(cache=True)
+def softmax_action(q: np.ndarray, s: int, inv_temperature: float, u: float, compensated: bool, weights: np.ndarray) -> int:
+    """``baselines.boltzmann.softmax_action`` on ``q[s]``; ``compensated``: ``sum`` is Neumaier's (Python >= 3.12)."""
+    best = row_max(q, s)
+    n = q.shape[1]
+    for a in range(n):
+        weights[a] = math.exp((q[s, a] - best) * inv_temperature)
+    total = weights[0]
+    c = 0.0
+    for a in range(1, n):
+        w = weights[a]
+        if compensated:
+            t = total + w
+            if abs(total) >= abs(w):
+                c += (total - t) + w
+            else:
+                c += (w - t) + total
+            total = t
+        else:
+            total += w
+    if c != 0.0 and math.isfinite(c):
+        total += c
+    x = u * total
+    last = 0
+    for a in range(n):
+        w = weights[a]
+        if w > 0.0:
+            last = a
+            x -= w
+            if x < 0.0:
+                return a
+    return last
+
+
+@njit(cache=True)
+def ucb_action(q: np.ndarray, s: int, counts: np.ndarray, total: int, coef: float, mt: np.ndarray, scores: np.ndarray) -> int:
+    """``UCBQLearning._decide``'s choice in ``s`` (the caller updates the counts)."""
+    n = q.shape[1]
+    untried = 0
+    for a in range(n):
+        if counts[s, a] == 0:
+            untried += 1
+    if untried > 0:
+        pick = 0 if untried == 1 else randbelow(mt, untried)
+        for a in range(n):
+            if counts[s, a] == 0:
+                if pick == 0:
+                    return a
+                pick -= 1
+    c = coef * math.sqrt(math.log(float(total)))
+    for a in range(n):
+        scores[a] = q[s, a] + c / math.sqrt(float(counts[s, a]))
+    best = scores[0]
+    for a in range(1, n):
+        if scores[a] > best:
+            best = scores[a]
+    ties = 0
+    for a in range(n):
+        if scores[a] == best:
+            ties += 1
+    pick = 0 if ties == 1 else randbelow(mt, ties)
+    for a in range(n):
+        if scores[a] == best:
+            if pick == 0:
+                return a
+            pick -= 1
+    return 0
+
+
+@njit(cache=True)
+def run(
+    q, trans, tdist, icfg, fcfg, beh_rand, beh_speeds, beh_n, ucb_n, ucb_tot, mt, ist, fst,
+    dist, edge, pred, pred_n, goal, fit_vals, alpha_e, p_e, total_timesteps, max_episodes, out_i, out_f,
+):  # fmt: skip
+    """
+    Run decisions until ``num_timesteps`` reaches ``total_timesteps`` or ``max_episodes`` episodes have finished.
+
+    Episode ``j`` of this call (``j = 0``: the one in progress) learns with ``alpha_e[j]`` and explores with ``p_e[j]``
+    (epsilon, or the inverse temperature). Finished episodes are written to ``out_i``/``out_f``. After an episode ends
+    the next one is started (the env reset to its start, the appraisal's new norm), as the Python loop does.
+    Returns ``(episodes finished, STOP_TIMESTEPS or STOP_EPISODES)``.
+    """
+    kind = icfg[C_KIND]
+    goal_state = icfg[C_GOAL]
+    time_limit = icfg[C_TIME_LIMIT]
+    cap = icfg[C_CAP]
+    act_episode = icfg[C_ACT_EPISODE] != 0
+    units_cells = icfg[C_UNITS_CELLS] != 0
+    valence = icfg[C_VALENCE] != 0
+    tie_first = icfg[C_TIE_FIRST] != 0
+    jump = icfg[C_JUMP] != 0
+    gamma = fcfg[F_GAMMA]
+    goal_reward = fcfg[F_GOAL_REWARD]
+    step_reward = fcfg[F_STEP_REWARD]
+    norm_scale = fcfg[F_NORM_SCALE]
+    n_actions = q.shape[1]
+    fsum = fst[S_FIT0 : S_FIT0 + 4]
+    work = np.empty(n_actions)
+    seen = np.zeros(q.shape[0], dtype=np.bool_)
+    stack = np.empty(q.shape[0] * n_actions + 1, dtype=np.int64)
+    queue = np.empty(q.shape[0] + 1, dtype=np.int64)
+
+    t = ist[I_T]
+    s = ist[I_STATE]
+    decisions = ist[I_DECISIONS]
+    cells = ist[I_CELLS]
+    random_moves = ist[I_RANDOM]
+    waits = ist[I_WAITS]
+    changed = ist[I_CHANGED] != 0
+    tl_elapsed = ist[I_TL_ELAPSED]
+    reward_sum = fst[S_REWARD]
+    episode = 0
+    alpha = alpha_e[0]
+    p = p_e[0]
+    s2 = s
+    reward = 0.0
+    terminated = False
+    truncated = False
+    action = 0
+    prev = s
+    stop = STOP_TIMESTEPS
+    while t < total_timesteps:
+        # 1. decide: direction and speed
+        explored = False
+        if kind == AFFECT:
+            norm = fst[S_NORM]
+            emotion = 0
+            if norm == norm:
+                elapsed = ist[I_EL_CELLS] if units_cells else ist[I_EL_DECISIONS]
+                remaining = dist[s]
+                if remaining != math.inf:
+                    fst[S_LAST_ACT] = elapsed + remaining if act_episode else remaining
+                exp1 = norm if norm > elapsed else float(elapsed)
+                emotion = table_ii(norm, exp1, fst[S_LAST_ACT], valence)
+            ist[I_EL_DECISIONS] += 1
+            ist[I_JOY + emotion] += 1
+            ns = beh_n[emotion]
+            k = beh_speeds[emotion, 0] if ns == 1 else beh_speeds[emotion, randbelow(mt, ns)]
+            if beh_rand[emotion]:
+                action = randbelow(mt, n_actions)
+                explored = True
+            else:
+                action = greedy(q, s, mt, tie_first)
+        elif kind == EPSILON:
+            ns = beh_n[0]
+            k = beh_speeds[0, 0] if ns == 1 else beh_speeds[0, randbelow(mt, ns)]
+            if random01(mt) < p:
+                action = randbelow(mt, n_actions)
+                explored = True
+            else:
+                action = greedy(q, s, mt, tie_first)
+        elif kind == BOLTZMANN:
+            k = 1
+            action = softmax_action(q, s, p, random01(mt), icfg[C_COMPENSATED_SUM] != 0, work)
+            explored = q[s, action] != row_max(q, s)
+        else:
+            k = 1
+            action = ucb_action(q, s, ucb_n, ucb_tot[s], fcfg[F_UCB_COEF], mt, work)
+            ucb_n[s, action] += 1
+            ucb_tot[s] += 1
+            explored = q[s, action] != row_max(q, s)
+        # 2. move k cells, one Eq. 1 update per cell (or one for the whole move)
+        start_cell = s
+        jump_reward = 0.0
+        for _ in range(k):
+            s2 = trans[s, action]
+            terminated = s2 == goal_state
+            reward = goal_reward if terminated else step_reward
+            tl_elapsed += 1
+            truncated = time_limit > 0 and tl_elapsed >= time_limit
+            if jump:
+                jump_reward += reward
+            else:
+                old = q[s, action]
+                new = old + alpha * ((reward if terminated else reward + gamma * row_max(q, s2)) - old)
+                if new != old:
+                    q[s, action] = new
+                    changed = True
+            if kind == AFFECT:
+                ist[I_EL_CELLS] += 1
+                if terminated:
+                    known_add_goal(dist, goal, pred, pred_n, s2, queue)
+                if s != s2 and not edge[s, action]:  # (known_add's own first check, without the call)
+                    known_add(dist, edge, pred, pred_n, trans, s, action, s2, queue)
+            cells += 1
+            reward_sum += reward
+            prev = s
+            s = s2
+            if terminated or truncated:
+                break
+        if jump and k > 0:
+            old = q[start_cell, action]
+            new = old + alpha * ((jump_reward if terminated else jump_reward + gamma * row_max(q, s)) - old)
+            if new != old:
+                q[start_cell, action] = new
+                changed = True
+        if k == 0:
+            waits += 1
+        if explored:
+            random_moves += 1
+        decisions += 1
+        t += 1
+        # 3. episode end: at the goal, by the env's time limit, or by the safety cap
+        if terminated or truncated or decisions >= cap:
+            row = out_i[episode]
+            row[O_DECISIONS] = decisions
+            row[O_CELLS] = cells
+            row[O_OPTIMAL] = 1 if terminated and cells == icfg[C_SHORTEST] else 0
+            row[O_TRUNCATED] = 0 if terminated else 1
+            row[O_RANDOM] = random_moves
+            row[O_WAITS] = waits
+            for e in range(4):
+                row[O_JOY + e] = ist[I_JOY + e]
+            if changed or ist[I_GREEDY] < 0:
+                ist[I_GREEDY] = 1 if greedy_walks_shortest_path(q, trans, tdist, icfg[C_START], seen, stack) else 0
+            row[O_GREEDY] = ist[I_GREEDY]
+            out_f[episode, 0] = reward_sum
+            out_f[episode, 1] = fst[S_NORM] if kind == AFFECT else math.nan
+            changed = False
+            if kind == AFFECT:
+                y = ist[I_EL_CELLS] if units_cells else ist[I_EL_DECISIONS]
+                ist[I_NFIT] = fit_add(fit_vals, fsum, ist[I_NFIT], float(y))
+            episode += 1
+            ist[I_LAST_ACTION] = action
+            ist[I_LAST_PREV] = prev
+            ist[I_LAST_S2] = s2
+            ist[I_LAST_TERMINATED] = 1 if terminated else 0
+            fst[S_LAST_REWARD] = reward
+            # the next episode starts
+            s = icfg[C_START]
+            decisions = cells = random_moves = waits = tl_elapsed = 0
+            reward_sum = 0.0
+            terminated = truncated = False
+            if kind == AFFECT:
+                ist[I_EL_CELLS] = 0
+                ist[I_EL_DECISIONS] = 0
+                fst[S_NORM] = start_norm(fit_vals, fsum, ist[I_NFIT], norm_scale)
+            for e in range(4):
+                ist[I_JOY + e] = 0
+            if episode >= max_episodes:
+                stop = STOP_EPISODES
+                break
+            alpha = alpha_e[episode]
+            p = p_e[episode]
+    ist[I_T] = t
+    ist[I_STATE] = s
+    ist[I_DECISIONS] = decisions
+    ist[I_CELLS] = cells
+    ist[I_RANDOM] = random_moves
+    ist[I_WAITS] = waits
+    ist[I_CHANGED] = 1 if changed else 0
+    ist[I_TL_ELAPSED] = tl_elapsed
+    fst[S_REWARD] = reward_sum
+    return episode, stop

@@ -1,0 +1,132 @@
+"""
+The random stream both engines share: CPython's ``random.Random`` (MT19937), ported to numba draw for draw.
+
+The Python loop draws from the model's ``random.Random`` with ``random()``, ``randrange(n)`` and ``choice(seq)``. The
+kernel draws the same numbers in the same order from a copy of that generator's state: it loads the state with
+``getstate()`` before a run, draws with the functions below, and writes the state back with ``setstate()`` after, so
+the Python generator continues exactly where the kernel stopped. What the functions reproduce (CPython's
+``Modules/_randommodule.c`` and ``Lib/random.py``):
+
+- ``genrand``: one 32-bit MT19937 output (the 624-word state and its index, the twist, the tempering);
+- ``random01``: ``random()``, 53 bits from two outputs, ``(a >> 5) * 2**26 + (b >> 6)`` over ``2**53``;
+- ``randbelow``: ``randrange(n)`` and ``choice`` (``seq[randbelow(len(seq))]``): ``k = n.bit_length()`` bits of one
+  output (``getrandbits(k) = genrand() >> (32 - k)``), drawn again while ``>= n``;
+- ``seed_state``: ``random.Random(seed)`` for an integer seed (``init_by_array`` on the 32-bit words of ``|seed|``).
+
+The state is an int64 array of 625 entries: the 624 words and, last, the index of the next word to use.
+"""
+
+from __future__ import annotations
+
+import random
+
+import numpy as np
+from numba import njit
+
+N = 624
+M = 397
+MATRIX_A = 0x9908B0DF
+UPPER_MASK = 0x80000000
+LOWER_MASK = 0x7FFFFFFF
+MASK32 = 0xFFFFFFFF
+STATE_SIZE = N + 1
+
+
+@njit(cache=True)
+def _twist(mt: np.ndarray) -> None:
+    for kk in range(N - M):
+        y = (mt[kk] & UPPER_MASK) | (mt[kk + 1] & LOWER_MASK)
+        mt[kk] = mt[kk + M] ^ (y >> 1) ^ (MATRIX_A if y & 1 else 0)
+    for kk in range(N - M, N - 1):
+        y = (mt[kk] & UPPER_MASK) | (mt[kk + 1] & LOWER_MASK)
+        mt[kk] = mt[kk + (M - N)] ^ (y >> 1) ^ (MATRIX_A if y & 1 else 0)
+    y = (mt[N - 1] & UPPER_MASK) | (mt[0] & LOWER_MASK)
+    mt[N - 1] = mt[M - 1] ^ (y >> 1) ^ (MATRIX_A if y & 1 else 0)
+    mt[N] = 0
+
+
+@njit(cache=True, inline="always")
+def genrand(mt: np.ndarray) -> int:
+    """One 32-bit output (``genrand_uint32``); ``mt`` is the 625-entry state (words, then the index)."""
+    if mt[N] >= N:
+        _twist(mt)
+    y = mt[mt[N]]
+    mt[N] += 1
+    y ^= y >> 11
+    y ^= (y << 7) & 0x9D2C5680
+    y ^= (y << 15) & 0xEFC60000
+    y ^= y >> 18
+    return y & MASK32
+
+
+@njit(cache=True, inline="always")
+def random01(mt: np.ndarray) -> float:
+    """``random.Random.random()``: a float in [0, 1) with 53 random bits."""
+    a = genrand(mt) >> 5
+    b = genrand(mt) >> 6
+    return (a * 67108864.0 + b) * (1.0 / 9007199254740992.0)
+
+
+@njit(cache=True, inline="always")
+def randbelow(mt: np.ndarray, n: int) -> int:
+    """``random.Random.randrange(n)`` (and ``choice`` of a sequence of length ``n``), for ``1 <= n < 2**32``."""
+    k = 0
+    m = n
+    while m:
+        k += 1
+        m >>= 1
+    shift = 32 - k
+    r = genrand(mt) >> shift
+    while r >= n:
+        r = genrand(mt) >> shift
+    return r
+
+
+@njit(cache=True)
+def seed_state(mt: np.ndarray, key: np.ndarray, key_length: int) -> None:
+    """Fill ``mt`` as ``random.Random(seed)`` does; ``key`` holds the 32-bit words of ``|seed|``, least significant first."""
+    mt[0] = 19650218
+    for i in range(1, N):
+        mt[i] = (1812433253 * (mt[i - 1] ^ (mt[i - 1] >> 30)) + i) & MASK32
+    i = 1
+    j = 0
+    for _ in range(max(N, key_length)):
+        mt[i] = ((mt[i] ^ (((mt[i - 1] ^ (mt[i - 1] >> 30)) * 1664525) & MASK32)) + key[j] + j) & MASK32
+        i += 1
+        j += 1
+        if i >= N:
+            mt[0] = mt[N - 1]
+            i = 1
+        if j >= key_length:
+            j = 0
+    for _ in range(N - 1):
+        mt[i] = ((mt[i] ^ (((mt[i - 1] ^ (mt[i - 1] >> 30)) * 1566083941) & MASK32)) - i) & MASK32
+        i += 1
+        if i >= N:
+            mt[0] = mt[N - 1]
+            i = 1
+    mt[0] = 0x80000000
+    mt[N] = N
+
+
+def seed_key(seed: int) -> list[int]:
+    """The 32-bit words of ``|seed|`` (least significant first) that ``random.Random(seed)`` seeds with."""
+    n = abs(int(seed))
+    words = []
+    while n:
+        words.append(n & MASK32)
+        n >>= 32
+    return words or [0]
+
+
+def state_from_rng(rng: random.Random) -> tuple[np.ndarray, object]:
+    """A copy of ``rng``'s state for the kernel, and the ``gauss`` part (which the kernel does not use)."""
+    version, internal, gauss = rng.getstate()
+    if version != 3 or len(internal) != STATE_SIZE:
+        raise RuntimeError(f"unexpected random.Random state (version {version}, {len(internal)} entries)")
+    return np.array(internal, dtype=np.int64), gauss
+
+
+def state_to_rng(rng: random.Random, mt: np.ndarray, gauss: object) -> None:
+    """Write a kernel state back into ``rng``, which then continues the stream exactly where the kernel stopped."""
+    rng.setstate((3, tuple(int(v) for v in mt), gauss))

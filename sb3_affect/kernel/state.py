@@ -1,0 +1,308 @@
+"""
+A model's run state as the kernel's arrays (``KernelRun``), and back.
+
+Read at the start of a compiled ``learn``: the Q-table, the random generator's MT19937 state, the episode in
+progress, the appraisal (known map, power fit, elapsed counters, ``last_act``), UCB counts, the env's geometry and its
+time limit. ``write_back`` returns all of it to the Python objects, so the Python loop can continue from there.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from typing import Any
+
+import numpy as np
+from gymnasium.wrappers import TimeLimit
+from stable_baselines3.common.monitor import Monitor
+
+from sb3_affect.kernel import loop
+from sb3_affect.kernel.agents import COMPENSATED_SUM, AgentSpec
+from sb3_affect.kernel.mt19937 import state_from_rng, state_to_rng
+
+
+class Geometry:
+    """The env's dynamics as arrays: ``trans[s, a]``, true distances, start, goal, rewards, predecessor capacity."""
+
+    @classmethod
+    def of(cls, base: Any) -> Geometry:
+        """The geometry of ``base``, kept on the env (its moves and rewards are fixed once it is built)."""
+        cached = getattr(base, "_sb3_affect_kernel_geometry", None)
+        if cached is None or cached.source is not base.transitions or cached.rewards != (base.goal_reward, base.step_reward):
+            cached = cls(base)
+            base._sb3_affect_kernel_geometry = cached
+        return cached
+
+    def __init__(self, base: Any) -> None:
+        self.source = base.transitions
+        self.rewards = (base.goal_reward, base.step_reward)
+        self.trans = np.asarray(base.transitions, dtype=np.int64)
+        self.tdist = np.asarray(base.distances, dtype=np.float64)
+        self.start = int(base.start_state)
+        self.goal = int(base.goal_state)
+        self.shortest = int(base.shortest_path_length)
+        self.goal_reward = float(base.goal_reward)
+        self.step_reward = float(base.step_reward)
+        self.size = int(base.size)
+        n_states = self.trans.shape[0]
+        # the most distinct cells with a move into one cell: the width of the known map's predecessor table
+        into = np.zeros(n_states, dtype=np.int64)
+        for s in range(n_states):
+            for t in set(self.trans[s].tolist()) - {s}:
+                into[t] += 1
+        self.max_pred = max(1, int(into.max()))
+
+
+def affect_arrays(
+    n_states: int, n_actions: int, max_pred: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """An empty known map: ``dist``, ``edge``, ``pred``, ``pred_n``, ``goal``."""
+    return (
+        np.full(n_states, math.inf),
+        np.zeros((n_states, n_actions), dtype=np.bool_),
+        np.zeros((n_states, max_pred), dtype=np.int64),
+        np.zeros(n_states, dtype=np.int64),
+        np.zeros(n_states, dtype=np.bool_),
+    )
+
+
+def config_arrays(model: Any, spec: AgentSpec, geo: Geometry, time_limit: int) -> tuple[np.ndarray, np.ndarray]:
+    """``icfg`` and ``fcfg`` of the kernel for ``model`` on an env of geometry ``geo``."""
+    icfg = np.zeros(loop.N_ICFG, dtype=np.int64)
+    icfg[loop.C_KIND] = spec.kind
+    icfg[loop.C_GOAL] = geo.goal
+    icfg[loop.C_START] = geo.start
+    icfg[loop.C_SHORTEST] = geo.shortest
+    icfg[loop.C_TIME_LIMIT] = time_limit
+    icfg[loop.C_CAP] = model.max_episode_decisions
+    icfg[loop.C_ACT_EPISODE] = spec.act_episode
+    icfg[loop.C_UNITS_CELLS] = spec.units_cells
+    icfg[loop.C_VALENCE] = spec.valence
+    icfg[loop.C_TIE_FIRST] = getattr(model, "tie_break", "random") == "first"
+    icfg[loop.C_JUMP] = getattr(model, "multi_cell", "steps") == "jump"
+    icfg[loop.C_COMPENSATED_SUM] = COMPENSATED_SUM
+    fcfg = np.zeros(loop.N_FCFG)
+    fcfg[loop.F_GAMMA] = model.gamma
+    fcfg[loop.F_GOAL_REWARD] = geo.goal_reward
+    fcfg[loop.F_STEP_REWARD] = geo.step_reward
+    fcfg[loop.F_NORM_SCALE] = spec.norm_scale
+    fcfg[loop.F_UCB_COEF] = spec.ucb_coef
+    return icfg, fcfg
+
+
+class KernelRun:
+    """
+    One model's state in kernel arrays for the length of a ``learn`` call.
+
+    :param model: the tabular model (its episode in progress already begun)
+    :param env: the model's single env (wrapped)
+    :param spec: the agent as the kernel runs it
+    """
+
+    def __init__(self, model: Any, env: Any, spec: AgentSpec) -> None:
+        from sb3_affect.kernel.bridge import unwrap
+
+        self.model, self.spec = model, spec
+        self.base, wrappers = unwrap(env)
+        self.monitor = next((w for w in wrappers if isinstance(w, Monitor)), None)
+        self.time_limit = next((w for w in wrappers if isinstance(w, TimeLimit)), None)
+        self.geo = geo = Geometry.of(self.base)
+        self.size = geo.size
+        self.obs_start = int(model.observation_space.start)
+        self.act_start = int(model.action_space.start)
+        limit = 0 if self.time_limit is None else int(self.time_limit._max_episode_steps)
+        self.icfg, self.fcfg = config_arrays(model, spec, geo, limit)
+        self.q = np.array(model._q, dtype=np.float64)
+        n_states, n_actions = self.q.shape
+        self.mt, self.gauss = state_from_rng(model._rng)
+        self.ist = np.zeros(loop.N_IST, dtype=np.int64)
+        self.fst = np.zeros(loop.N_FST)
+        st = model._episode_state
+        ist, fst = self.ist, self.fst
+        ist[loop.I_T] = model.num_timesteps
+        if st is None:
+            ist[loop.I_STATE] = int(np.asarray(model._last_obs).reshape(-1)[0]) - self.obs_start
+        else:
+            ist[loop.I_STATE] = st["state"]
+            ist[loop.I_DECISIONS], ist[loop.I_CELLS] = st["decisions"], st["cells"]
+            ist[loop.I_RANDOM], ist[loop.I_WAITS] = st["random_moves"], st["waits"]
+            fst[loop.S_REWARD] = st["reward"]
+        ist[loop.I_CHANGED] = 1
+        ist[loop.I_GREEDY] = -1
+        ist[loop.I_TL_ELAPSED] = 0 if self.time_limit is None else int(self.time_limit._elapsed_steps or 0)
+        self.cells_at_start = int(ist[loop.I_CELLS])
+        self.dist, self.edge, self.pred, self.pred_n, self.goal = affect_arrays(n_states, n_actions, geo.max_pred)
+        self.fit_vals = np.zeros(64)
+        if spec.kind == loop.AFFECT:
+            self._read_appraisal()
+        self.ucb_n = np.zeros((n_states, n_actions), dtype=np.int64)
+        self.ucb_tot = np.zeros(n_states, dtype=np.int64)
+        if spec.kind == loop.UCB:
+            self.ucb_n[:] = np.asarray(model.counts, dtype=np.int64)
+            self.ucb_tot[:] = np.asarray(model._totals, dtype=np.int64)
+        self.out_i = np.zeros((1, loop.N_OUT_I), dtype=np.int64)
+        self.out_f = np.zeros((1, 2))
+        self.monitor_cells = 0
+        self.last_monitor_info: dict[str, Any] | None = None
+
+    # -- appraisal in and out ------------------------------------------------------------------------------------
+    def _read_appraisal(self) -> None:
+        callback = self.model.emotion_callback
+        appraiser = callback.appraiser
+        known = appraiser.known
+        trans = self.geo.trans
+        self.dist[:] = np.asarray(known.distance, dtype=np.float64)
+        for g in known.goals:
+            self.goal[g] = True
+        for s, successors in enumerate(known.successors):
+            for t in successors:
+                hits = np.flatnonzero(trans[s] == t)
+                if hits.size == 0:
+                    raise ValueError(f"the appraiser's known map has a move {s} -> {t} that this env does not have")
+                self.edge[s, hits] = True
+        for v, preds in enumerate(known.predecessors):
+            self.pred[v, : len(preds)] = preds
+            self.pred_n[v] = len(preds)
+        values = appraiser.fit.values
+        self.fit_vals = np.zeros(max(64, 2 * len(values)))
+        self.fit_vals[: len(values)] = values
+        fit = appraiser.fit
+        self.fst[loop.S_FIT0 : loop.S_FIT0 + 4] = (fit._sx, fit._sy, fit._sxx, fit._sxy)
+        self.ist[loop.I_NFIT] = len(values)
+        self.ist[loop.I_EL_CELLS] = appraiser.elapsed_cells
+        self.ist[loop.I_EL_DECISIONS] = appraiser.elapsed_decisions
+        self.ist[loop.I_JOY : loop.I_ANGER + 1] = callback.counts
+        self.fst[loop.S_NORM] = appraiser.norm
+        self.fst[loop.S_LAST_ACT] = appraiser.last_act
+
+    def _write_appraisal(self) -> None:
+        from sb3_affect.appraisal import KnownMap, PowerFit
+
+        callback = self.model.emotion_callback
+        appraiser = callback.appraiser
+        trans = self.geo.trans
+        known = KnownMap(len(self.dist))
+        known.distance = self.dist.tolist()
+        known.goals = {int(g) for g in np.flatnonzero(self.goal)}
+        for s, a in zip(*np.nonzero(self.edge)):
+            known.successors[int(s)].add(int(trans[s, a]))
+        known.predecessors = [self.pred[v, : self.pred_n[v]].tolist() for v in range(len(self.dist))]
+        appraiser.known = known
+        n = int(self.ist[loop.I_NFIT])
+        fit = PowerFit()
+        fit.values = self.fit_vals[:n].tolist()
+        fit._sx, fit._sy, fit._sxx, fit._sxy = (float(v) for v in self.fst[loop.S_FIT0 : loop.S_FIT0 + 4])
+        appraiser.fit = fit
+        appraiser.norm = float(self.fst[loop.S_NORM])
+        appraiser.elapsed_cells = int(self.ist[loop.I_EL_CELLS])
+        appraiser.elapsed_decisions = int(self.ist[loop.I_EL_DECISIONS])
+        appraiser.last_act = float(self.fst[loop.S_LAST_ACT])
+        callback.counts = [int(v) for v in self.ist[loop.I_JOY : loop.I_ANGER + 1]]
+
+    # -- running -------------------------------------------------------------------------------------------------
+    def step(self, alpha: np.ndarray, p: np.ndarray, total_timesteps: int, max_episodes: int) -> tuple[int, int]:
+        """Run the kernel (see ``loop.run``); returns (episodes finished, why it stopped)."""
+        if self.out_i.shape[0] < max_episodes:
+            self.out_i = np.zeros((max_episodes, loop.N_OUT_I), dtype=np.int64)
+            self.out_f = np.zeros((max_episodes, 2))
+        need = int(self.ist[loop.I_NFIT]) + max_episodes
+        if self.fit_vals.shape[0] < need:
+            grown = np.zeros(max(need, 2 * self.fit_vals.shape[0]))
+            grown[: self.fit_vals.shape[0]] = self.fit_vals
+            self.fit_vals = grown
+        cells_before = int(self.ist[loop.I_CELLS])
+        finished, stop = loop.run(
+            self.q, self.geo.trans, self.geo.tdist, self.icfg, self.fcfg,
+            self.spec.beh_rand, self.spec.beh_speeds, self.spec.beh_n, self.ucb_n, self.ucb_tot,
+            self.mt, self.ist, self.fst, self.dist, self.edge, self.pred, self.pred_n, self.goal, self.fit_vals,
+            alpha, p, int(total_timesteps), int(max_episodes), self.out_i, self.out_f,
+        )  # fmt: skip
+        stepped = int(self.out_i[:finished, loop.O_CELLS].sum()) - (cells_before if finished else 0)
+        self.monitor_cells += stepped + int(self.ist[loop.I_CELLS]) - (0 if finished else cells_before)
+        return int(finished), int(stop)
+
+    def monitor_episodes(self, cells: np.ndarray, truncated: np.ndarray) -> None:
+        """The Monitor's bookkeeping of the episode ends the env reported (goal reached or the env's time limit)."""
+        self.last_monitor_info = None
+        monitor = self.monitor
+        if monitor is None:
+            return
+        limit = int(self.icfg[loop.C_TIME_LIMIT])
+        seen = ~truncated | ((cells >= limit) if limit > 0 else False)  # the safety cap: the env saw no episode end
+        lengths = cells[seen].tolist()
+        if not lengths:
+            return
+        step, goal = self.geo.step_reward, self.geo.goal_reward
+        # the Monitor sums each episode's rewards with Python's sum: once per distinct (length, truncated) pair
+        keys, inverse = np.unique(cells[seen] * 2 + truncated[seen], return_inverse=True)
+        sums = [sum([step] * (key // 2 - 1) + [step if key % 2 else goal]) for key in keys.tolist()]
+        returns = np.asarray(sums)[inverse.reshape(-1)].tolist()
+        elapsed = time.time() - monitor.t_start
+        monitor.episode_returns.extend(returns)
+        monitor.episode_lengths.extend(lengths)
+        monitor.episode_times.extend([elapsed] * len(lengths))
+        writer = monitor.results_writer
+        if writer is not None:
+            for ep_rew, n in zip(returns, lengths):
+                writer.write_row({"r": round(ep_rew, 6), "l": n, "t": round(elapsed, 6), **monitor.current_reset_info})
+        last = {"r": round(returns[-1], 6), "l": lengths[-1], "t": round(elapsed, 6), **monitor.current_reset_info}
+        self.last_monitor_info = last if bool(seen[-1]) else None
+
+    def write_back(self) -> None:
+        """Return every piece of state to the model, its generator, its appraisal, the env and its wrappers."""
+        model, ist = self.model, self.ist
+        model._q = self.q.tolist()
+        state_to_rng(model._rng, self.mt, self.gauss)
+        if self.spec.kind == loop.AFFECT:
+            self._write_appraisal()
+        if self.spec.kind == loop.UCB:
+            model.counts = self.ucb_n.tolist()
+            model._totals = self.ucb_tot.tolist()
+        s = int(ist[loop.I_STATE])
+        greedy = int(ist[loop.I_GREEDY])
+        model._greedy_optimal = None if greedy < 0 else bool(greedy)
+        model._episode_state = {
+            "state": s,
+            "decisions": int(ist[loop.I_DECISIONS]),
+            "cells": int(ist[loop.I_CELLS]),
+            "random_moves": int(ist[loop.I_RANDOM]),
+            "waits": int(ist[loop.I_WAITS]),
+            "reward": float(self.fst[loop.S_REWARD]),
+        }
+        model._last_obs = np.array([s + self.obs_start])
+        self.base.state = s
+        if self.time_limit is not None:
+            self.time_limit._elapsed_steps = int(ist[loop.I_TL_ELAPSED])  # type: ignore[assignment]
+        if self.monitor is not None:
+            self.monitor.rewards = [self.geo.step_reward] * int(ist[loop.I_CELLS])
+            self.monitor.needs_reset = False
+            self.monitor.total_steps += self.monitor_cells
+
+    # -- the last decision (callback locals) -----------------------------------------------------------------------
+    @property
+    def timesteps(self) -> int:
+        return int(self.ist[loop.I_T])
+
+    @property
+    def state(self) -> int:
+        return int(self.ist[loop.I_STATE])
+
+    @property
+    def last_s2(self) -> int:
+        return int(self.ist[loop.I_LAST_S2])
+
+    @property
+    def last_prev(self) -> int:
+        return int(self.ist[loop.I_LAST_PREV])
+
+    @property
+    def last_action(self) -> int:
+        return int(self.ist[loop.I_LAST_ACTION])
+
+    @property
+    def last_terminated(self) -> bool:
+        return bool(self.ist[loop.I_LAST_TERMINATED])
+
+    @property
+    def last_reward(self) -> float:
+        return float(self.fst[loop.S_LAST_REWARD])

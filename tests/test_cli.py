@@ -1,0 +1,148 @@
+"""The ``sb3-affect`` command as a newcomer meets it: clear errors on wrong arguments, help that says what it does."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+import sb3_affect
+from sb3_affect import replicate
+from sb3_affect.cli import main
+from sb3_affect.experiments import SweepError, load_sweep, run_sweep
+
+EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
+
+TINY = """\
+name: {name}
+env: {{id: sb3_affect/GridPursuit-v0, kwargs: {{size: 5, goal: [2, 2]}}}}
+episodes: 4
+seeds: 2
+agents:
+  - name: epsilon-greedy
+    algo: QLearning
+    grid: {{epsilon: [0.1, 0.5]}}
+    kwargs: {{exploration_rate: $epsilon}}
+  - name: affective
+    algo: AffectQ
+    grid: {{epsilon: [0.1, 0.5]}}
+"""
+
+
+def tiny(folder: Path, name: str = "tiny") -> Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / f"{name}.yaml"
+    path.write_text(TINY.format(name=name))
+    return path
+
+
+def error(capsys: pytest.CaptureFixture[str], argv: list[str], code: int = 2) -> str:
+    capsys.readouterr()
+    assert main(argv) == code
+    captured = capsys.readouterr()
+    assert "Traceback" not in captured.err
+    return captured.err
+
+
+def test_version(capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as exit_info:
+        main(["--version"])
+    assert exit_info.value.code == 0
+    assert capsys.readouterr().out.strip() == f"sb3-affect {sb3_affect.__version__}"
+
+
+def test_report_on_missing_empty_or_yaml_is_a_clear_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert "no such folder" in error(capsys, ["report", str(tmp_path / "nope")])
+    (tmp_path / "empty").mkdir()
+    assert "the folder is empty" in error(capsys, ["report", str(tmp_path / "empty")])
+    message = error(capsys, ["report", str(EXPERIMENTS / "smoke.yaml")])
+    assert "is a file, not a results folder" in message and "sb3-affect run" in message
+    (tmp_path / "started" / "runs").mkdir(parents=True)  # a sweep interrupted before its first run finished
+    assert "no report can be built" in error(capsys, ["report", str(tmp_path / "started")])
+    (tmp_path / "other").mkdir()
+    (tmp_path / "other" / "notes.txt").write_text("not results")
+    assert "holds no results" in error(capsys, ["report", str(tmp_path / "other")])
+
+
+def test_status_of_missing_folder_and_of_a_replicate_folder(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert "no such folder" in error(capsys, ["status", str(tmp_path / "nope")])
+    assert "no sweep has been run here" in error(capsys, ["status", str(tmp_path)])
+    # The layout `replicate` writes: one sweep per sub-folder.
+    for part in ("paper", "dqn"):
+        run_sweep(tiny(tmp_path / "files", part), tmp_path / "runs" / part, workers=1, progress=False)
+    capsys.readouterr()
+    assert main(["status", str(tmp_path / "runs")]) == 0
+    out = capsys.readouterr().out
+    assert "2 sweeps" in out
+    assert "sweep 'paper'" in out and "sweep 'dqn'" in out and out.count("8/8 runs done") == 2
+
+
+def test_run_out_is_a_file_and_workers_below_one(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    sweep, file = tiny(tmp_path), tmp_path / "a-file"
+    file.write_text("")
+    message = error(capsys, ["run", str(sweep), "--out", str(file), "--no-progress"])
+    assert "this is a file; give a results folder" in message and "File exists" not in message
+    assert "this is a file" in error(capsys, ["replicate", "--out", str(file)])
+    for command in (["run", str(sweep), "--out", str(tmp_path / "out")], ["replicate"]):
+        with pytest.raises(SystemExit) as exit_info:
+            main([*command, "--workers", "0"])
+        assert exit_info.value.code == 2
+        assert "--workers: 0 is not allowed" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+
+
+def test_set_typo_is_blamed_on_the_set_option(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    message = error(capsys, ["run", str(EXPERIMENTS / "smoke.yaml"), "--out", str(tmp_path / "o"), "--set", "seed=3"])
+    assert "--set 'seed=3'" in message and "did you mean 'seeds'" in message and "invalid sweep file" not in message
+    message = error(capsys, ["run", str(EXPERIMENTS / "smoke.yaml"), "--out", str(tmp_path / "o"), "--set", "seeds=0"])
+    assert "invalid --set value" in message and "[from --set seeds=0]" in message
+    message = error(capsys, ["run", str(tiny(tmp_path)), "--out", str(tmp_path / "o"), "--set", "agents.0.kwarg.gamma=1"])
+    assert "'kwarg' is not a key of agents[0]; did you mean 'kwargs'?" in message
+    assert "no agent 'dqn'" in error(capsys, ["run", str(tiny(tmp_path)), "--out", str(tmp_path / "o"),
+                                             "--set", "agents.dqn.kwargs.gamma=1"])
+    assert not (tmp_path / "o").exists()
+
+
+def test_nested_set_of_a_labelled_kwarg_points_to_the_grid(tmp_path: Path) -> None:
+    path = tiny(tmp_path)
+    with pytest.raises(SweepError, match=r"takes its value from the grid label 'epsilon'") as info:
+        load_sweep(path, ["agents.0.kwargs.exploration_rate=0.3"], build=False)
+    suggestion = str(info.value).split("e.g. --set ")[1].split()[0]
+    assert suggestion == "agents.epsilon-greedy.grid.epsilon=[0.3]"
+    configs = load_sweep(path, [suggestion], build=False).run_configs()
+    greedy = [c for c in configs if c["agent"] == "epsilon-greedy"]
+    assert {c["labels"]["epsilon"] for c in greedy} == {0.3}
+    assert {c["algo_kwargs"]["exploration_rate"] for c in greedy} == {0.3}
+    # A kwarg no label binds is overridden as such (by index or by agent name).
+    configs = load_sweep(path, ["agents.affective.kwargs.gamma=0.9"], build=False).run_configs()
+    assert {c["algo_kwargs"].get("gamma") for c in configs if c["agent"] == "affective"} == {0.9}
+
+
+def test_help_describes_every_argument(capsys: pytest.CaptureFixture[str]) -> None:
+    helps = {}
+    for command in ("status", "report", "replicate", "run"):
+        with pytest.raises(SystemExit):
+            main([command, "--help"])
+        helps[command] = capsys.readouterr().out
+    assert "a results folder (the --out of `run` or `replicate`)" in helps["status"]
+    assert "a results folder (the --out of `run` or `replicate`)" in helps["report"]
+    assert "report.html" in helps["report"]
+    for name, description in replicate.PARTS:
+        assert f"experiments/{name}.yaml: {description}" in helps["replicate"]
+    assert "open it in a browser" in helps["replicate"] and "results folder (default: runs)" in helps["replicate"]
+    assert "parallel runs, >= 1" in helps["run"]
+
+
+@pytest.mark.slow
+def test_replicate_says_where_the_report_is(tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                             monkeypatch: pytest.MonkeyPatch) -> None:
+    files = tmp_path / "files"
+    tiny(files, "paper")
+    monkeypatch.setattr(replicate, "EXPERIMENTS", files)
+    monkeypatch.setattr(replicate, "PARTS", (("paper", "a tiny paper protocol"),))
+    assert main(["replicate", "--out", str(tmp_path / "runs"), "--workers", "2"]) == 0
+    out = capsys.readouterr().out
+    html = tmp_path / "runs" / "report.html"
+    assert html.exists() and f"Open {html} in a browser" in out.splitlines()[-1]
+    assert json.loads((tmp_path / "runs" / "paper" / "sweep.json").read_text())["name"] == "paper"

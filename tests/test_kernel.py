@@ -1,0 +1,235 @@
+"""The compiled engine: its random stream, the engine option, continuing across engines, callbacks and the logger."""
+
+from __future__ import annotations
+
+import csv
+import random
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+import pandas as pd
+import pytest
+from stable_baselines3.common.callbacks import BaseCallback, StopTrainingOnMaxEpisodes
+from stable_baselines3.common.logger import configure
+
+from sb3_affect import AffectQ, EmotionCallback, QLearning
+from sb3_affect.appraisal import Appraiser
+from sb3_affect.baselines import Boltzmann, SpeedEpsilonGreedy, UCBQLearning, softmax_action
+from sb3_affect.engine import simulate
+from sb3_affect.envs.grid_pursuit import RIGHT
+from sb3_affect.kernel import loop
+from sb3_affect.kernel.agents import COMPENSATED_SUM
+from sb3_affect.kernel.mt19937 import STATE_SIZE, randbelow, random01, seed_key, seed_state, state_from_rng
+
+GRID = "sb3_affect/GridPursuit-v0"
+SMALL = {"size": 6, "goal": (3, 4)}
+
+
+# -- the random stream ------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("seed", [0, 1, 7, -7, 2**32 - 1, 2**32, 2**64 + 12345, 10**30])
+def test_mt19937_seeds_and_draws_as_python_random(seed: int) -> None:
+    reference = random.Random(seed)
+    key = np.array(seed_key(seed), dtype=np.int64)
+    mt = np.zeros(STATE_SIZE, dtype=np.int64)
+    seed_state(mt, key, len(key))
+    assert mt.tolist() == list(reference.getstate()[1])
+    for i in range(2000):  # more than 624 words: the twist runs several times
+        n = 1 + i % 9
+        if i % 3 == 0:
+            assert random01(mt) == reference.random()
+        elif i % 3 == 1:
+            assert randbelow(mt, n) == reference.randrange(n)
+        else:
+            assert randbelow(mt, n) == reference.choice(range(n))
+    assert mt.tolist() == list(reference.getstate()[1])
+    copied, _ = state_from_rng(reference)
+    assert np.array_equal(copied, mt)
+
+
+def test_softmax_matches_the_python_draw_and_its_sum() -> None:
+    rng = np.random.default_rng(0)
+    weights = np.empty(4)
+    for _ in range(500):
+        q = rng.normal(0, 30, size=(1, 4))
+        inv_t, u = float(rng.uniform(0.01, 3)), float(rng.random())
+        expected = softmax_action(q[0].tolist(), inv_t, u)
+        assert loop.softmax_action(q, 0, inv_t, u, COMPENSATED_SUM, weights) == expected
+
+
+# -- the engine option ------------------------------------------------------------------------------------------------
+def test_engine_options_are_validated_and_saved(tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match="engine='fast' is not supported"):
+        QLearning("Grid", GRID, engine="fast")
+    with pytest.raises(ValueError, match="tie_break='last'"):
+        AffectQ("Grid", GRID, tie_break="last")
+    with pytest.raises(ValueError, match="multi_cell='teleport'"):
+        SpeedEpsilonGreedy("Grid", GRID, multi_cell="teleport")
+    model = AffectQ("Grid", GRID, engine="python", tie_break="first", multi_cell="jump", seed=1)
+    model.save(tmp_path / "m.zip")
+    loaded = AffectQ.load(tmp_path / "m.zip")
+    assert (loaded.engine, loaded.tie_break, loaded.multi_cell) == ("python", "first", "jump")
+
+
+class EveryDecision(BaseCallback):
+    def __init__(self) -> None:
+        super().__init__()
+        self.calls = 0
+
+    def _on_step(self) -> bool:
+        self.calls += 1
+        return True
+
+
+class AtEpisodeEnds(BaseCallback):
+    episode_level = True
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.seen: list[tuple[int, bool, int]] = []
+
+    def _on_step(self) -> bool:
+        self.seen.append((self.num_timesteps, bool(self.locals["dones"][0]), len(self.model.episode_log)))
+        return True
+
+
+def test_auto_falls_back_and_compiled_names_the_reason() -> None:
+    every = EveryDecision()
+    model = QLearning("Grid", gym.make(GRID, **SMALL), seed=0).learn(500, callback=every)  # auto: the Python loop
+    assert every.calls == 500
+    with pytest.raises(ValueError, match="EveryDecision is called after every decision"):
+        QLearning("Grid", gym.make(GRID, **SMALL), engine="compiled").learn(10, callback=EveryDecision())
+    with pytest.raises(ValueError, match="MovingPursuit's prey draws from the env's NumPy generator"):
+        AffectQ("Grid", gym.make("sb3_affect/MovingPursuit-v0"), engine="compiled").learn(10)
+    with pytest.raises(ValueError, match="wrapped in TransformReward"):
+        env = gym.wrappers.TransformReward(gym.make(GRID, **SMALL), lambda r: 2 * r)
+        QLearning("Grid", env, engine="compiled").learn(10)
+    with pytest.raises(ValueError, match="custom emotion_rule"):
+        rule = EmotionCallback(emotion_rule=lambda appraisal: 0)
+        AffectQ("Grid", GRID, emotion_callback=rule, engine="compiled").learn(10)
+    with pytest.raises(ValueError, match="the appraiser is a Mine"):
+
+        class Mine(Appraiser):
+            pass
+
+        AffectQ("Grid", GRID, emotion_callback=EmotionCallback(appraiser=Mine(225)), engine="compiled").learn(10)
+    moving = AffectQ("Grid", gym.make("sb3_affect/MovingPursuit-v0"), seed=0).learn(300)  # auto: the Python loop
+    assert moving.num_timesteps == 300 and model.num_timesteps == 500
+
+
+def test_episode_level_callbacks_and_progress_bar_on_the_kernel() -> None:
+    ends = AtEpisodeEnds()
+    model = AffectQ("Grid", gym.make(GRID, **SMALL), seed=3, engine="compiled")
+    model.learn(10**6, callback=[ends, StopTrainingOnMaxEpisodes(7)], progress_bar=True)
+    log = model.episode_log
+    assert len(log) == 7 and [episodes for _, _, episodes in ends.seen] == list(range(1, 8))
+    assert all(done for _, done, _ in ends.seen)
+    assert [t for t, _, _ in ends.seen] == log.decisions.cumsum().tolist()
+    assert ends.n_calls == model.num_timesteps
+    reference = AffectQ("Grid", gym.make(GRID, **SMALL), seed=3, engine="python")
+    reference.learn(10**6, callback=StopTrainingOnMaxEpisodes(7))
+    pd.testing.assert_frame_equal(log, reference.episode_log)
+
+
+def _csv_rows(folder: Path) -> list[dict[str, str]]:
+    with (folder / "progress.csv").open() as handle:
+        return [{k: v for k, v in row.items() if not k.startswith("time/")} for row in csv.DictReader(handle)]
+
+
+@pytest.mark.parametrize("cls", [QLearning, AffectQ, Boltzmann])
+def test_logger_output_is_the_python_engines(cls: type, tmp_path: Path) -> None:
+    rows = []
+    for engine in ("python", "compiled"):
+        model = cls("Grid", gym.make(GRID, **SMALL), seed=2, engine=engine)
+        model.set_logger(configure(str(tmp_path / engine), ["csv"]))
+        model.learn(3000, log_interval=3)
+        rows.append(_csv_rows(tmp_path / engine))
+    assert len(rows[0]) >= 5 and rows[1] == rows[0]
+
+
+# -- continuing across engines ----------------------------------------------------------------------------------------
+def _everything(model: Any) -> dict[str, Any]:
+    env = model.env.envs[0]
+    state = {
+        "log": model.episode_log.fillna(-1.0).to_dict("list"),  # NaN != NaN
+        "q": model.q_table.tolist(),
+        "rng": model._rng.getstate(),
+        "t": model.num_timesteps,
+        "episode_state": model._episode_state,
+        "last_obs": model._last_obs.tolist(),
+        "episodes": model._episode_num,
+        "ep_info": [(e["r"], e["l"], e["c"]) for e in model.ep_info_buffer],
+        "env": env.unwrapped.state,
+        "monitor": (env.rewards, env.episode_returns, env.episode_lengths, env.total_steps, env.needs_reset),
+        "time_limit": env.env._elapsed_steps,
+    }
+    if isinstance(model, AffectQ):
+        state["appraisal"] = model.emotion_callback.appraiser.get_state()
+        state["counts"] = model.emotion_callback.counts
+    if isinstance(model, UCBQLearning):
+        state["ucb"] = (model.counts, model._totals)
+    return state
+
+
+@pytest.mark.parametrize("cls", [QLearning, AffectQ, UCBQLearning])
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_learning_continues_on_either_engine(cls: type, seed: int) -> None:
+    results = []
+    for first, second in (("python", "python"), ("python", "compiled"), ("compiled", "python"), ("compiled", "compiled")):
+        model = cls("Grid", gym.make(GRID, max_episode_steps=60, **SMALL), seed=seed, engine=first)
+        model.learn(537)  # stops in the middle of an episode
+        model.engine = second
+        model.learn(1000, reset_num_timesteps=False, callback=StopTrainingOnMaxEpisodes(4))
+        model.engine = first
+        model.learn(211, reset_num_timesteps=False)
+        results.append(_everything(model))
+    assert results[1] == results[0] and results[2] == results[0] and results[3] == results[0]
+
+
+# -- tie_break and multi_cell (both engines) --------------------------------------------------------------------------
+@pytest.mark.parametrize("engine", ["python", "compiled"])
+def test_tie_break_first_takes_the_lowest_action_without_a_draw(engine: str) -> None:
+    model = QLearning(
+        "Grid", gym.make(GRID, **SMALL), exploration_rate=0.0, tie_break="first", max_episode_decisions=50, seed=4,
+        engine=engine,
+    )  # fmt: skip
+    model.learn(50)
+    row = model.episode_log.iloc[0]
+    assert bool(row.truncated) and row.decisions == 50 and row.cells == 50  # always "up" from the top row: stuck
+    reference = random.Random(4)
+    for _ in range(50):  # the epsilon draws only: no draw for the four-way ties
+        reference.random()
+    assert model._rng.getstate() == reference.getstate()
+
+
+@pytest.mark.parametrize("engine", ["python", "compiled"])
+@pytest.mark.parametrize("multi_cell", ["steps", "jump"])
+def test_jump_makes_one_update_from_the_start_to_the_end_cell(engine: str, multi_cell: str) -> None:
+    for seed in range(100):  # find a seed whose first decision moves right twice, into the goal
+        model = SpeedEpsilonGreedy(
+            "Grid", gym.make(GRID, size=3, goal=(0, 2)), speeds=(2,), exploration_rate=1.0, multi_cell=multi_cell,
+            seed=seed, engine=engine,
+        )  # fmt: skip
+        model.learn(100, callback=StopTrainingOnMaxEpisodes(1))
+        first = model.episode_log.iloc[0]
+        if first.decisions == 1 and first.cells == 2 and not first.truncated:
+            break
+    else:
+        pytest.fail("no seed moved right first")
+    q = model.q_table
+    if multi_cell == "jump":  # one update: (0, 0) -> (0, 2) with the goal's reward; (0, 1) untouched
+        assert q[0, RIGHT] == 100.0 and q[1, RIGHT] == 0.0
+    else:  # two updates: (0, 0) -> (0, 1) bootstraps a zero row, then (0, 1) -> goal
+        assert q[0, RIGHT] == 0.0 and q[1, RIGHT] == 100.0
+
+
+def test_simulate_engine_choice() -> None:
+    python = simulate("AffectQ", {}, GRID, SMALL, [5, 6], 5, engine="python")
+    compiled = simulate("AffectQ", {}, GRID, SMALL, [5, 6], 5, engine="compiled")
+    pd.testing.assert_frame_equal(compiled, python)
+    with pytest.raises(ValueError, match="MovingPursuit"):
+        simulate("QLearning", {}, "sb3_affect/MovingPursuit-v0", None, [1], 2, engine="compiled")
+    with pytest.raises(ValueError, match="engine='turbo'"):
+        simulate("QLearning", {}, GRID, None, [1], 2, engine="turbo")
+    assert len(simulate("QLearning", {}, GRID, None, [], 3)) == 0
