@@ -67,6 +67,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
         workers=args.workers,
         backend=args.backend,
         ray_address=args.ray_address,
+        ray_timeout=args.ray_timeout,
         overrides=[*(args.set or ()), *([f"logs=[{args.logs}]"] if args.logs else [])],
         progress=not args.no_progress,
     )
@@ -178,9 +179,19 @@ def build_parser() -> argparse.ArgumentParser:
     )
     run.add_argument("file", help="experiment YAML, e.g. experiments/smoke.yaml (see the experiment-file reference)")
     run.add_argument("--out", required=True, metavar="DIR", help="results folder (created; an earlier run's folder resumes)")
-    run.add_argument("--workers", type=_positive_int, default=None, help="parallel runs, >= 1 (default: CPU count)")
+    run.add_argument(
+        "--workers",
+        type=_positive_int,
+        default=None,
+        help="parallel runs, >= 1 (default: CPU count; on a Ray cluster: as many as its CPUs allow)",
+    )
     run.add_argument("--backend", choices=("local", "ray"), default="local", help="local processes (default) or Ray tasks")
-    run.add_argument("--ray-address", default=None, help="Ray cluster address (default: start a local instance)")
+    run.add_argument(
+        "--ray-address", default=None, help="Ray cluster address, HOST:PORT or ray://HOST:PORT (default: a private instance)"
+    )
+    run.add_argument(
+        "--ray-timeout", type=float, default=60.0, metavar="SECONDS", help="give up on an unresponsive Ray cluster after this"
+    )
     run.add_argument(
         "--set",
         action="append",
@@ -221,17 +232,20 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    from sb3_affect.experiments.ray_cluster import ClusterLost, RayClusterError
     from sb3_affect.experiments.schema import SweepError
     from sb3_affect.experiments.store import StoreError
 
     args = build_parser().parse_args(argv)
     try:
         return int(args.func(args))
-    except (SweepError, StoreError, UsageError) as error:
+    except (SweepError, StoreError, UsageError, RayClusterError) as error:
         print(f"sb3-affect: error: {error}", file=sys.stderr)
         return 2
     except KeyboardInterrupt as interrupt:
         how = "terminated" if isinstance(interrupt, Terminated) else "interrupted"
+        if isinstance(interrupt, ClusterLost):
+            how = interrupt.message
         print(f"\nsb3-affect: {how}; finished runs are kept, rerun the same command to resume", file=sys.stderr)
         return 143 if isinstance(interrupt, Terminated) else 130
 

@@ -158,7 +158,8 @@ def test_ray_backend_records_failed_runs_and_dead_workers(ray_instance: Any, tmp
 
 
 def test_cli_ray_backend_starts_and_stops_its_own_instance(tmp_path: Path) -> None:
-    env = {**os.environ, "RAY_USAGE_STATS_ENABLED": "0"}
+    # RAY_ADDRESS (a cluster nobody runs) must not redirect the private instance, nor make Ray reject num_cpus
+    env = {**os.environ, "RAY_USAGE_STATS_ENABLED": "0", "RAY_ADDRESS": "127.0.0.1:9"}
     command = [sys.executable, "-m", "sb3_affect", "run", str(SMOKE), "--out", str(tmp_path / "ray"), "--backend", "ray"]
     command += ["--workers", "2", "--no-progress", "--set", OVERRIDES[0]]
     pipe = subprocess.PIPE

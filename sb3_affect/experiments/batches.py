@@ -14,6 +14,7 @@ import hashlib
 import math
 import os
 import re
+import socket
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -58,9 +59,10 @@ class Batch:
         seeds = list(dict.fromkeys(seed for _, seed, _ in self.runs))
         base = self.base
         episodes = simulate(base["algo"], base["algo_kwargs"], base["env_id"], base["env_kwargs"], seeds, base["episodes"])
-        timings = {"wall_seconds": round(time.perf_counter() - start, 4), "pid": os.getpid()}
-        chunk = encode_chunk(self.name, base, self.runs, episodes, timings, package_versions())
-        return {"chunk": chunk, "run_ids": [rid for rid, _, _ in self.runs]}
+        timings = {"wall_seconds": round(time.perf_counter() - start, 4), "pid": os.getpid(), "host": socket.gethostname()}
+        versions = package_versions()
+        chunk = encode_chunk(self.name, base, self.runs, episodes, timings, versions)
+        return {"chunk": chunk, "run_ids": [rid for rid, _, _ in self.runs], "timings": timings, "versions": versions}
 
 
 @dataclass(frozen=True)

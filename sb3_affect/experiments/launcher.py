@@ -11,9 +11,10 @@ Backends:
   traceback (for each of its runs); a worker that dies (``os._exit``, a signal, out of memory) is recorded as failed
   with its exit code, without touching the other jobs. Ctrl-C stops every worker before the launcher exits; workers
   also die with the launcher if it is killed (Linux ``PR_SET_PDEATHSIG``).
-* ``ray``: one Ray core task per job (``pip install sb3-affect[ray]``), on the cluster at ``ray_address`` or on a local
-  instance started for the sweep (dashboard off, bound to 127.0.0.1). Results are written by the driver only, so a
-  retried task can not write twice.
+* ``ray``: one Ray core task per job (``pip install sb3-affect[ray]``), on the cluster at ``ray_address`` (the code
+  shipped with the job, node versions checked, at most ``workers`` tasks at a time if given; see ``ray_cluster``) or on
+  a private instance started for the sweep (dashboard off, bound to 127.0.0.1). Results and logs are written by the
+  driver only, so a retried task can not write twice.
 
 Either way the driver is the only writer, and a run's result depends only on its config: the same seed gives the
 same per-episode records on either backend.
@@ -25,7 +26,6 @@ import contextlib
 import multiprocessing
 import multiprocessing.connection
 import os
-import re
 import signal
 import threading
 import time
@@ -158,8 +158,8 @@ def _sigint_ignored() -> Iterator[None]:
         signal.signal(signal.SIGINT, previous)
 
 
-def _ray_execute(job: Job) -> tuple[str, Any]:
-    """A Ray task: ``("ok", result)`` or ``("error", traceback)`` (the same failure record as the local backend)."""
+def _ray_batch(job: Batch) -> tuple[str, Any]:
+    """A Ray task running a batch: ``("ok", result)`` or ``("error", traceback)`` (as on the local backend)."""
     try:
         return "ok", job.execute()
     except Exception:
@@ -172,56 +172,47 @@ def run_ray(
     on_result: OnResult,
     on_failure: OnFailure,
     address: str | None = None,
+    cap: int | None = None,
+    timeout: float = 60.0,
 ) -> None:
-    """Run ``jobs`` as Ray core tasks; start (and stop) a local Ray instance unless one is running or given."""
-    os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
-    if not address:
-        # A private single-machine instance: Ray rewrites 127.0.0.1 to the machine's address (and its gRPC servers then
-        # listen on every interface) unless "clusters" are disabled, which Ray reads when it is first imported; with
-        # this every Ray process listens on 127.0.0.1 only (checked with ``ss -ltnp`` in tests/test_experiments_ray.py).
-        os.environ.setdefault("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "0")
-    try:
-        import ray
-    except ImportError:
-        raise RuntimeError("the ray backend needs Ray: pip install 'sb3-affect[ray]'") from None
-    started = False
-    if not ray.is_initialized():
-        if address:
-            ray.init(address=address, log_to_driver=False)
-        else:
-            # Ctrl-C in a terminal sends SIGINT to the whole process group: the instance's processes inherit "ignore
-            # SIGINT" from here, so that only this driver reacts (cancels the tasks and shuts the instance down).
-            with _sigint_ignored():
-                ray.init(num_cpus=workers, include_dashboard=False, log_to_driver=False, _node_ip_address="127.0.0.1")
-        started = True
-    pending: dict[Any, Job] = {}
-    try:
-        remote = ray.remote(num_cpus=1, max_retries=1)(_ray_execute)
-        pending = {remote.remote(job): job for job in jobs}
-        while pending:
-            done, _ = ray.wait(list(pending), num_returns=1)
-            job = pending.pop(done[0])
-            try:
-                status, result = ray.get(done[0])
-            except Exception as error:  # the worker died (after Ray's retry), or Ray could not run the task
-                on_failure(job, f"the Ray task failed: {type(error).__name__}: {_plain_text(str(error))}")
-            else:
-                if status == "ok":
-                    on_result(job, result)
-                else:
-                    on_failure(job, result)
-    finally:
-        # Ctrl-C or an error: ``ray.shutdown`` ends this job, and Ray stops the job's tasks with it (and a local
-        # instance we started). No ``ray.cancel(force=True)`` of the pending tasks: racing with tasks that are just
-        # finishing, it crashes the driver inside Ray ("Tried to complete task that was not pending", Ray 2.60).
-        # On an instance the caller started (``ray.init`` before ``run_sweep``), pending tasks finish unobserved.
-        if started:
-            ray.shutdown()
+    """
+    Run ``jobs`` as Ray core tasks on the cluster at ``address`` (at most ``cap`` at a time), or on a private instance
+    of ``workers`` CPUs started and stopped here; connection, shipping the code, version checks and a lost cluster are
+    handled in :mod:`sb3_affect.experiments.ray_cluster`. A batch is one task (``Batch.execute``), a lone run one
+    ``ray_cluster.execute_task``.
+    """
+    from sb3_affect.experiments import ray_cluster
+    from sb3_affect.experiments.runner import package_versions
 
+    with ray_cluster.connect(address, workers, timeout) as session:
+        ours = package_versions() if address else None
+        remote = session.ray.remote(num_cpus=1, max_retries=1)(ray_cluster.execute_task)
+        remote_batch = session.ray.remote(num_cpus=1, max_retries=1)(_ray_batch)
 
-def _plain_text(text: str) -> str:
-    """Ray's error messages without their terminal colour codes."""
-    return re.sub(r"\x1b\[[0-9;]*m", "", text)
+        def submit(job: Job) -> Any:
+            if isinstance(job, Batch):
+                return remote_batch.remote(job)
+            return remote.remote(job.config, job.log_dir, job.formats)
+
+        def on_value(job: Job, value: tuple[Any, ...]) -> None:
+            if value[0] != "ok":
+                on_failure(job, value[1])
+                return
+            result = value[1]
+            differences = ray_cluster.version_differences(ours, result["versions"]) if ours else []
+            if differences:  # a node that joined after the check
+                host = result["timings"].get("host")
+                on_failure(job, f"ran on {host} with other package versions: {', '.join(differences)}")
+                return
+            if isinstance(job, Single) and job.log_dir is not None:
+                ray_cluster.write_logs(job.log_dir, value[2])
+            on_result(job, result)
+
+        def on_error(job: Job, error: BaseException) -> None:  # the worker died (after Ray's retry), or Ray failed
+            text = ray_cluster.plain_text(str(error))
+            on_failure(job, f"the Ray task failed: {type(error).__name__}: {text}")
+
+        session.run(jobs, submit, on_value, on_error, cap=cap)
 
 
 def run_sweep(
@@ -231,6 +222,7 @@ def run_sweep(
     workers: int | None = None,
     backend: str = "local",
     ray_address: str | None = None,
+    ray_timeout: float = 60.0,
     overrides: tuple[str, ...] | list[str] = (),
     progress: bool = True,
 ) -> SweepSummary:
@@ -241,14 +233,16 @@ def run_sweep(
 
     :param sweep_path: the experiment YAML
     :param out_dir: the results folder
-    :param workers: parallel runs (default: the number of CPUs)
+    :param workers: parallel runs (default: the number of CPUs; on a Ray cluster: as many as its CPUs allow)
     :param backend: ``"local"`` (process pool) or ``"ray"``
     :param ray_address: a Ray cluster to connect to (ray backend; default: start a local instance)
+    :param ray_timeout: seconds to wait for the Ray cluster to answer before giving up with a message
     :param overrides: ``key=value`` assignments applied to the file before validation (``--set``)
     :param progress: show a progress bar
     """
     if backend not in ("local", "ray"):
         raise ValueError(f"backend={backend!r} is not supported; choose 'local' or 'ray'")
+    cap = workers  # a share of a Ray cluster: only when asked for
     workers = workers or (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()) or 1
     if workers < 1:
         raise ValueError(f"workers={workers} must be >= 1")
@@ -293,7 +287,7 @@ def run_sweep(
             elif backend == "local":
                 run_local(jobs, workers, on_result, on_failure)
             else:
-                run_ray(jobs, workers, on_result, on_failure, address=ray_address)
+                run_ray(jobs, workers, on_result, on_failure, ray_address, cap=cap, timeout=ray_timeout)
         finally:
             bar.close()
     seconds = time.perf_counter() - start

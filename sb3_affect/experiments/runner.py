@@ -6,6 +6,7 @@ import json
 import math
 import os
 import platform
+import socket
 import time
 from pathlib import Path
 from typing import Any
@@ -197,6 +198,7 @@ def execute_run(config: dict[str, Any], log_dir: str | None = None, log_formats:
             "wall_seconds": round(time.perf_counter() - start, 4),
             "decisions": int(model.num_timesteps),
             "pid": os.getpid(),
+            "host": socket.gethostname(),
         },
         "versions": package_versions(),
     }
@@ -235,6 +237,7 @@ def _execute_team(config: dict[str, Any], log_dir: str | None, log_formats: tupl
             "wall_seconds": round(time.perf_counter() - start, 4),
             "decisions": int(sum(m.num_timesteps for m in team.models.values())),
             "pid": os.getpid(),
+            "host": socket.gethostname(),
         },
         "versions": package_versions(),
     }
