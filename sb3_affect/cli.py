@@ -3,12 +3,10 @@
 from __future__ import annotations
 
 import argparse
-import json
 import signal
 import sys
 import threading
 import time
-from collections import Counter
 from pathlib import Path
 
 
@@ -110,15 +108,11 @@ def _print_status(root: Path) -> None:
     from sb3_affect.experiments import ResultsStore
 
     store = ResultsStore(root)
-    resolved = json.loads((store.root / "sweep.json").read_text())
-    runs = resolved["runs"]
-    done, failed = store.done_ids(), store.failed_ids()
-    per_agent: Counter[str] = Counter(c["agent"] for c in runs.values())
-    done_agent: Counter[str] = Counter(runs[r]["agent"] for r in done if r in runs)
-    failed_agent: Counter[str] = Counter(runs[r]["agent"] for r in failed if r in runs)
-    print(f"sweep {resolved['name']!r} in {store.root}: {len(done)}/{len(runs)} runs done, {len(failed - done)} failed")
-    for agent, total in per_agent.items():
-        print(f"  {agent:24s} {done_agent[agent]:5d}/{total:<5d} done  {failed_agent[agent]} failed")
+    name, per_agent = store.progress()  # agent -> (runs, done, failed)
+    total, done, failed = (sum(counts[i] for counts in per_agent.values()) for i in range(3))
+    print(f"sweep {name!r} in {store.root}: {done}/{total} runs done, {failed} failed")
+    for agent, (runs, done_agent, failed_agent) in per_agent.items():
+        print(f"  {agent:24s} {done_agent:5d}/{runs:<5d} done  {failed_agent} failed")
     lock = store.root / ".lock"
     if lock.exists():
         owner = store.lock_owner()

@@ -22,7 +22,8 @@ import pytest
 
 from sb3_affect import QLearning
 from sb3_affect.cli import main
-from sb3_affect.experiments import StoreError, run_sweep
+from sb3_affect.experiments import ResultsStore, StoreError, run_sweep
+from sb3_affect.experiments.chunks import chunk_records
 
 EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
 TESTS = Path(__file__).resolve().parent
@@ -71,12 +72,14 @@ agents:
 
 
 def contents(out: Path) -> dict[str, Any]:
-    """Run id -> (config, episodes) of every run file: what must be identical between sweeps (timings excluded)."""
+    """
+    Run id -> (config, episodes, decisions) of every finished run, chunks and JSON files alike: what must be identical
+    between sweeps (timings excluded). No run is stored twice.
+    """
     found = {}
-    for path in sorted((out / "runs").glob("[!.]*.json")):
-        data = json.loads(path.read_text())
-        assert data["status"] == "ok" and data["run_id"] == path.stem
-        found[path.stem] = {"config": data["config"], "episodes": data["episodes"]}
+    for data in ResultsStore(out).load_runs():
+        assert data["status"] == "ok" and data["run_id"] not in found
+        found[data["run_id"]] = {k: data[k] for k in ("config", "episodes")} | {"decisions": data["timings"]["decisions"]}
     return found
 
 
@@ -85,6 +88,8 @@ def no_partial_files(out: Path) -> None:
     assert leftovers == []
     for path in (out / "runs").glob("[!.]*.json"):
         json.loads(path.read_text())  # whole files only
+    for path in (out / "chunks").glob("[!.]*.parquet"):
+        chunk_records(path)  # whole files only
 
 
 def children(pid: int) -> list[int]:
@@ -129,15 +134,16 @@ def test_smoke_sweep_end_to_end(tmp_path: Path, capsys: pytest.CaptureFixture[st
     out = tmp_path / "smoke"
     assert main(["run", str(EXPERIMENTS / "smoke.yaml"), "--out", str(out), "--workers", "2", "--set", "episodes=10"]) == 0
     runs = contents(out)
-    assert len(runs) == 8
+    assert len(runs) == 8 and len(list((out / "chunks").glob("*.parquet"))) >= 4  # tabular runs go in batches
+    assert list((out / "runs").glob("*.json")) == []
     from sb3_affect import EPISODE_COLUMNS
 
     for run in runs.values():
         assert list(run["episodes"]) == sorted(EPISODE_COLUMNS)
         assert run["episodes"]["episode"] == list(range(1, 11))
         assert all(isinstance(v, int) for v in run["episodes"]["decisions"])
-    one = json.loads(next((out / "runs").glob("affective-*.json")).read_text())
-    assert one["schema"] == 1 and one["timings"]["wall_seconds"] > 0 and "stable_baselines3" in one["versions"]
+    one = next(r for r in ResultsStore(out).load_runs() if r["config"]["agent"] == "affective")
+    assert one["timings"]["wall_seconds"] > 0 and "stable_baselines3" in one["versions"]
     assert any(v > 0 for v in one["episodes"]["joy"])
     assert json.loads((out / "sweep.json").read_text())["name"] == "smoke"
     assert not (out / ".lock").exists()
@@ -149,10 +155,11 @@ def test_smoke_sweep_end_to_end(tmp_path: Path, capsys: pytest.CaptureFixture[st
     assert main(["status", str(out)]) == 0
     assert "8/8 runs done" in capsys.readouterr().out
     # The same seed gives the same records in another process (byte-identical config + episodes); per-run SB3 csv
-    # logs when asked.
+    # logs when asked, which runs each run on its own (one JSON file each): batches equal per-run execution.
     again = tmp_path / "again"
     assert main(["run", str(EXPERIMENTS / "smoke.yaml"), "--out", str(again), "--workers", "1", "--set", "episodes=10",
                  "--logs", "csv", "--no-progress"]) == 0
+    assert len(list((again / "runs").glob("*.json"))) == 8 and list((again / "chunks").glob("*.parquet")) == []
     assert contents(again) == runs
     logs = sorted((again / "logs").glob("*/progress.csv"))
     assert [p.parent.name for p in logs] == sorted(runs)
@@ -304,7 +311,7 @@ def test_read_only_out_folder_gives_clear_error(tmp_path: Path, capsys: pytest.C
         pytest.skip("running as root without mount rights: no way to make a folder read-only")
     try:
         run_sweep(sweep, out, workers=2, progress=False)
-        (out / "runs" / f"{next(iter(contents(out)))}.json").unlink()  # leave one run to do
+        next((out / "runs").glob("[!.]*.json")).unlink()  # leave one run to do
         kept = contents(out)
         undo = _read_only(out)
         if undo is None:
@@ -330,7 +337,7 @@ def test_sigkill_launcher_then_resume_gives_the_uninterrupted_results(
     sweep, out = sweep_file(tmp_path, ["none"], seeds=4, pause=1.5), tmp_path / "out"
     first = launcher(sweep, out)
     try:
-        wait_until(lambda: len(list((out / "runs").glob("[!.]*.json"))) >= 2, 60, "2 runs")
+        wait_until(lambda: (out / "runs").exists() and len(list((out / "runs").glob("[!.]*.json"))) >= 2, 60, "2 runs")
         # A second launcher on the same folder is refused while the first holds it.
         assert main(["run", str(sweep), "--out", str(out), "--no-progress"]) == 2
         assert f"in use by another launcher (pid {first.pid})" in capsys.readouterr().err

@@ -23,7 +23,7 @@ from typing import Any
 
 import pytest
 
-from sb3_affect.experiments import run_sweep
+from sb3_affect.experiments import ResultsStore, run_sweep
 
 pytestmark = [
     pytest.mark.ray,
@@ -37,11 +37,7 @@ OVERRIDES = ["episodes=12"]
 
 
 def contents(out: Path) -> dict[str, Any]:
-    found = {}
-    for path in sorted((out / "runs").glob("[!.]*.json")):
-        data = json.loads(path.read_text())
-        found[path.stem] = {"config": data["config"], "episodes": data["episodes"]}
-    return found
+    return {r["run_id"]: {"config": r["config"], "episodes": r["episodes"]} for r in ResultsStore(out).load_runs()}
 
 
 def alive(pid: int) -> bool:
@@ -131,7 +127,7 @@ def test_ray_backend_gives_the_local_run_files_and_listens_on_loopback_only(ray_
     outside = [line for line in lines if not (line.split()[3].startswith(("127.0.0.1:", "[::ffff:127.0.0.1]:", "[::1]:")))]
     assert outside == [], "Ray listens beyond 127.0.0.1:\n" + "\n".join(outside)
     assert contents(tmp_path / "ray") == contents(tmp_path / "local")
-    pids = {json.loads(p.read_text())["timings"]["pid"] for p in (tmp_path / "ray" / "runs").glob("[!.]*.json")}
+    pids = {r["timings"]["pid"] for r in ResultsStore(tmp_path / "ray").load_runs()}
     assert os.getpid() not in pids  # the runs ran in Ray workers, the files were written by the driver
 
 
@@ -158,7 +154,7 @@ def test_ray_backend_records_failed_runs_and_dead_workers(ray_instance: Any, tmp
         errors[record["config"]["labels"]["fault"]] = record["error"]
     assert "RuntimeError: injected failure" in errors["raise"] and "Traceback" in errors["raise"]
     assert "WorkerCrashedError" in errors["exit"] or "died" in errors["exit"], errors["exit"]
-    assert len(list((out / "runs").glob("[!.]*.json"))) == 2
+    assert len(contents(out)) == 2
 
 
 def test_cli_ray_backend_starts_and_stops_its_own_instance(tmp_path: Path) -> None:
@@ -194,10 +190,11 @@ def test_ctrl_c_on_ray_backend_stops_the_instance_and_leaves_no_partial_files(tm
     command = [sys.executable, "-m", "sb3_affect", "run", str(paper), "--out", str(out), "--backend", "ray", "--workers", "2"]
     pipe = subprocess.PIPE
     env = {**os.environ, "RAY_USAGE_STATS_ENABLED": "0"}
+    command += ["--set", "seeds=100"]  # 18 batches of 100 runs: plenty left to stop, on any engine
     proc = subprocess.Popen([*command, "--no-progress"], env=env, stdout=pipe, stderr=pipe, text=True, start_new_session=True)
     try:
-        deadline = time.monotonic() + 90
-        while not (out / "runs").exists() or len(list((out / "runs").glob("[!.]*.json"))) < 5:
+        deadline = time.monotonic() + 240  # a first batch of 100 runs on a busy machine
+        while not (out / "chunks").exists() or len(ResultsStore(out).done_ids()) < 5:
             assert time.monotonic() < deadline and proc.poll() is None, "the sweep did not start"
             time.sleep(0.1)
         os.killpg(proc.pid, signal.SIGINT)  # Ctrl-C: SIGINT to the launcher and every process of its group
@@ -217,5 +214,5 @@ def test_ctrl_c_on_ray_backend_stops_the_instance_and_leaves_no_partial_files(tm
     assert left == [], f"processes of the launcher's Ray instance left running: {left}"
     assert not (out / ".lock").exists()
     assert [p for p in out.rglob(".tmp-*")] == []
-    done = list((out / "runs").glob("[!.]*.json"))
-    assert 5 <= len(done) < 360 and all(json.loads(p.read_text())["status"] == "ok" for p in done)
+    done = ResultsStore(out).load_runs()
+    assert 5 <= len(done) < 1800 and all(r["status"] == "ok" for r in done)

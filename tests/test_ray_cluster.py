@@ -54,15 +54,16 @@ RAY_MAIN = "from ray.scripts.scripts import main; main()"
 
 
 def contents(out: Path) -> dict[str, Any]:
-    found = {}
-    for path in sorted((out / "runs").glob("[!.]*.json")):
-        data = json.loads(path.read_text())
-        found[path.stem] = {"config": data["config"], "episodes": data["episodes"]}
-    return found
+    """Run id -> (config, episodes) of every finished run, batches (chunks) and runs on their own (JSON) alike."""
+    from sb3_affect.experiments import ResultsStore
+
+    return {r["run_id"]: {"config": r["config"], "episodes": r["episodes"]} for r in ResultsStore(out).load_runs()}
 
 
 def count_runs(out: Path) -> int:
-    return len(list((out / "runs").glob("[!.]*.json"))) if (out / "runs").exists() else 0
+    from sb3_affect.experiments import ResultsStore
+
+    return len(ResultsStore(out).done_ids()) if (out / "runs").exists() else 0
 
 
 def alive(pid: int) -> bool:

@@ -2,12 +2,12 @@
 Rank the agents of issue 7's comparison: decisions per episode, cells per episode and steps before the optimal path,
 each a mean over runs with a percentile-bootstrap 95% confidence interval.
 
-Reads the launcher's run files (``DIR/runs/*.json``, ``docs/interfaces.md``); groups by task (``labels["task"]``,
-else the sweep name) and ``config["agent"]``. "Optimal" is the episode log's ``optimal`` column (a shortest path
-from the start) except on envs that define ``capture_distance`` (``sb3_affect/MovingPursuit-v0``), where it is an
-optimal capture: captured within ``capture_distance`` cells (see ``MovingPursuitEnv``). Steps before the optimal
-path: decisions summed over the episodes before the first optimal one; a run that never finds it contributes all
-its decisions and is counted as censored.
+Reads the launcher's results (``ResultsStore.load_runs``: chunks and run files, ``docs/interfaces.md``); groups by
+task (``labels["task"]``, else the sweep name) and ``config["agent"]``. "Optimal" is the episode log's ``optimal``
+column (a shortest path from the start) except on envs that define ``capture_distance``
+(``sb3_affect/MovingPursuit-v0``), where it is an optimal capture: captured within ``capture_distance`` cells (see
+``MovingPursuitEnv``). Steps before the optimal path: decisions summed over the episodes before the first optimal
+one; a run that never finds it contributes all its decisions and is counted as censored.
 
     python -m sb3_affect.baselines.summary runs/baselines [--markdown report.md]
     python -m sb3_affect.baselines.summary runs/baselines-tuning --tuning
@@ -30,9 +30,13 @@ _CAPTURE: dict[str, int | None] = {}
 
 
 def load_runs(folder: str | Path) -> list[dict[str, Any]]:
-    """Every ``status == "ok"`` run record under ``folder/runs`` (or ``folder`` itself)."""
+    """Every ``status == "ok"`` run record of a results folder (chunks and ``runs/*.json``), or of ``folder/*.json``."""
     root = Path(folder)
-    files = sorted((root / "runs").glob("*.json")) or sorted(root.glob("*.json"))
+    if (root / "runs").is_dir() or (root / "chunks").is_dir():
+        from sb3_affect.experiments.store import ResultsStore
+
+        return ResultsStore(root).load_runs()
+    files = sorted(root.glob("*.json"))
     records = [json.loads(f.read_text()) for f in files]
     return [r for r in records if r.get("status", "ok") == "ok"]
 

@@ -1,16 +1,20 @@
 """
 Run a sweep: skip finished runs, execute the rest on a backend, store each result as it arrives.
 
+The runs are cut into jobs (``batches``): tabular runs of this package's agents on its envs go in batches of one
+cell each (one ``engine.simulate`` call, stored as one Parquet chunk), any other run is a job of its own (one JSON
+file). Fork, import and scheduling costs are paid once per job.
+
 Backends:
 
-* ``local``: one forked process per run, at most ``workers`` at a time. A run that raises is recorded with its
-  traceback; a worker that dies (``os._exit``, a signal, out of memory) is recorded as failed with its exit code,
-  without touching the other runs. Ctrl-C stops every worker before the launcher exits; workers also die with the
-  launcher if it is killed (Linux ``PR_SET_PDEATHSIG``).
-* ``ray``: Ray core tasks (``pip install sb3-affect[ray]``), on the cluster at ``ray_address`` (the code shipped with
-  the job, node versions checked, at most ``workers`` tasks at a time if given; see ``ray_cluster``) or on a private
-  instance started for the sweep (dashboard off, bound to 127.0.0.1). Results and logs are written by the driver only,
-  so a retried task can not write twice.
+* ``local``: one forked process per job, at most ``workers`` at a time. A job that raises is recorded with its
+  traceback (for each of its runs); a worker that dies (``os._exit``, a signal, out of memory) is recorded as failed
+  with its exit code, without touching the other jobs. Ctrl-C stops every worker before the launcher exits; workers
+  also die with the launcher if it is killed (Linux ``PR_SET_PDEATHSIG``).
+* ``ray``: one Ray core task per job (``pip install sb3-affect[ray]``), on the cluster at ``ray_address`` (the code
+  shipped with the job, node versions checked, at most ``workers`` tasks at a time if given; see ``ray_cluster``) or on
+  a private instance started for the sweep (dashboard off, bound to 127.0.0.1). Results and logs are written by the
+  driver only, so a retried task can not write twice.
 
 Either way the driver is the only writer, and a run's result depends only on its config: the same seed gives the
 same per-episode records on either backend.
@@ -32,13 +36,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from sb3_affect.experiments.runner import execute_run
-from sb3_affect.experiments.schema import load_sweep
-from sb3_affect.experiments.store import ResultsStore, run_id
+from sb3_affect.experiments.batches import Batch, Job, Single, batch_size, batchable, split_cell
+from sb3_affect.experiments.schema import Cell, load_sweep
+from sb3_affect.experiments.store import SWEEP_SCHEMA, ResultsStore, cell_run_ids
 
-Task = tuple[str, dict[str, Any], str | None]  # run id, config, log dir
-OnResult = Callable[[str, dict[str, Any], dict[str, Any]], None]
-OnFailure = Callable[[str, dict[str, Any], str], None]
+OnResult = Callable[[Job, dict[str, Any]], None]
+OnFailure = Callable[[Job, str], None]
 
 
 @dataclass
@@ -54,6 +57,9 @@ class SweepSummary:
     out_dir: Path
 
 
+_STOP_SIGNALS = {signal.SIGINT, signal.SIGTERM}
+
+
 def _die_with_parent() -> None:
     """Ask Linux to kill this worker when the launcher dies (best effort; no-op elsewhere)."""
     with contextlib.suppress(Exception):
@@ -62,14 +68,15 @@ def _die_with_parent() -> None:
         ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
 
 
-def _worker(config: dict[str, Any], log_dir: str | None, formats: tuple[str, ...], conn: Any, launcher: int) -> None:
+def _worker(job: Job, conn: Any, launcher: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the launcher decides what Ctrl-C does
     signal.signal(signal.SIGTERM, signal.SIG_DFL)  # and stops a worker with SIGTERM (not the launcher's handler)
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, _STOP_SIGNALS)  # blocked by the launcher around the fork
     _die_with_parent()
     if os.getppid() != launcher:  # the launcher died before the line above took effect
         os._exit(1)
     try:
-        message: tuple[str, Any] = ("ok", execute_run(config, log_dir, formats))
+        message: tuple[str, Any] = ("ok", job.execute())
     except BaseException:
         message = ("error", traceback.format_exc())
     conn.send(message)
@@ -83,27 +90,32 @@ def _describe_exit(code: int | None) -> str:
     return f"exit code {code}"
 
 
-def run_local(tasks: list[Task], workers: int, formats: tuple[str, ...], on_result: OnResult, on_failure: OnFailure) -> None:
-    """Run ``tasks`` in forked worker processes, ``workers`` at a time."""
+def run_local(jobs: list[Job], workers: int, on_result: OnResult, on_failure: OnFailure) -> None:
+    """Run ``jobs`` in forked worker processes, ``workers`` at a time."""
     from sb3_affect.kernel import warm_up
 
     warm_up()  # the compiled engine's kernels, loaded once here (no torch) instead of in every worker
     context = multiprocessing.get_context("fork")
-    queue = deque(tasks)
-    running: dict[str, tuple[Any, Any, dict[str, Any]]] = {}
+    queue = deque(jobs)
+    running: dict[str, tuple[Any, Any, Job]] = {}
     try:
         while queue or running:
             while queue and len(running) < workers:
-                rid, config, log_dir = queue.popleft()
+                job = queue.popleft()
                 receiver, sender = context.Pipe(duplex=False)
-                args = (config, log_dir, formats, sender, os.getpid())
-                process = context.Process(target=_worker, args=args, name=f"sb3-affect:{rid}")
-                process.start()
-                sender.close()
-                running[rid] = (process, receiver, config)
+                process = context.Process(target=_worker, args=(job, sender, os.getpid()), name=f"sb3-affect:{job.name}")
+                # Ctrl-C or SIGTERM during the fork would be swallowed by an at-fork hook ("Exception ignored"): hold them
+                # until the fork is done, then they stop the launcher as anywhere else.
+                previous = signal.pthread_sigmask(signal.SIG_BLOCK, _STOP_SIGNALS)
+                try:
+                    process.start()
+                    sender.close()
+                    running[job.name] = (process, receiver, job)
+                finally:
+                    signal.pthread_sigmask(signal.SIG_SETMASK, previous)
             waitables = [r for _, r, _ in running.values()] + [p.sentinel for p, _, _ in running.values()]
             multiprocessing.connection.wait(waitables, timeout=1.0)
-            for rid, (process, receiver, config) in list(running.items()):
+            for key, (process, receiver, job) in list(running.items()):
                 message = None
                 if receiver.poll():
                     try:
@@ -114,15 +126,13 @@ def run_local(tasks: list[Task], workers: int, formats: tuple[str, ...], on_resu
                     continue
                 process.join(timeout=30)
                 receiver.close()
-                del running[rid]
+                del running[key]
                 if message is None:
-                    on_failure(
-                        rid, config, f"the worker process died before returning a result ({_describe_exit(process.exitcode)})"
-                    )
+                    on_failure(job, f"the worker process died before returning a result ({_describe_exit(process.exitcode)})")
                 elif message[0] == "ok":
-                    on_result(rid, config, message[1])
+                    on_result(job, message[1])
                 else:
-                    on_failure(rid, config, message[1])
+                    on_failure(job, message[1])
     finally:
         for process, _receiver, _ in running.values():
             if process.is_alive():
@@ -148,10 +158,17 @@ def _sigint_ignored() -> Iterator[None]:
         signal.signal(signal.SIGINT, previous)
 
 
+def _ray_batch(job: Batch) -> tuple[str, Any]:
+    """A Ray task running a batch: ``("ok", result)`` or ``("error", traceback)`` (as on the local backend)."""
+    try:
+        return "ok", job.execute()
+    except Exception:
+        return "error", traceback.format_exc()
+
+
 def run_ray(
-    tasks: list[Task],
+    jobs: list[Job],
     workers: int,
-    formats: tuple[str, ...],
     on_result: OnResult,
     on_failure: OnFailure,
     address: str | None = None,
@@ -159,9 +176,10 @@ def run_ray(
     timeout: float = 60.0,
 ) -> None:
     """
-    Run ``tasks`` as Ray core tasks on the cluster at ``address`` (at most ``cap`` at a time), or on a private instance
+    Run ``jobs`` as Ray core tasks on the cluster at ``address`` (at most ``cap`` at a time), or on a private instance
     of ``workers`` CPUs started and stopped here; connection, shipping the code, version checks and a lost cluster are
-    handled in :mod:`sb3_affect.experiments.ray_cluster`.
+    handled in :mod:`sb3_affect.experiments.ray_cluster`. A batch is one task (``Batch.execute``), a lone run one
+    ``ray_cluster.execute_task``.
     """
     from sb3_affect.experiments import ray_cluster
     from sb3_affect.experiments.runner import package_versions
@@ -169,27 +187,32 @@ def run_ray(
     with ray_cluster.connect(address, workers, timeout) as session:
         ours = package_versions() if address else None
         remote = session.ray.remote(num_cpus=1, max_retries=1)(ray_cluster.execute_task)
+        remote_batch = session.ray.remote(num_cpus=1, max_retries=1)(_ray_batch)
 
-        def on_value(task: Task, value: tuple[Any, ...]) -> None:
-            rid, config, log_dir = task
+        def submit(job: Job) -> Any:
+            if isinstance(job, Batch):
+                return remote_batch.remote(job)
+            return remote.remote(job.config, job.log_dir, job.formats)
+
+        def on_value(job: Job, value: tuple[Any, ...]) -> None:
             if value[0] != "ok":
-                on_failure(rid, config, value[1])
+                on_failure(job, value[1])
                 return
-            _, result, logs = value
+            result = value[1]
             differences = ray_cluster.version_differences(ours, result["versions"]) if ours else []
             if differences:  # a node that joined after the check
                 host = result["timings"].get("host")
-                on_failure(rid, config, f"ran on {host} with other package versions: {', '.join(differences)}")
+                on_failure(job, f"ran on {host} with other package versions: {', '.join(differences)}")
                 return
-            if log_dir is not None:
-                ray_cluster.write_logs(log_dir, logs)
-            on_result(rid, config, result)
+            if isinstance(job, Single) and job.log_dir is not None:
+                ray_cluster.write_logs(job.log_dir, value[2])
+            on_result(job, result)
 
-        def on_error(task: Task, error: BaseException) -> None:  # the worker died (after Ray's retry), or Ray failed
+        def on_error(job: Job, error: BaseException) -> None:  # the worker died (after Ray's retry), or Ray failed
             text = ray_cluster.plain_text(str(error))
-            on_failure(task[0], task[1], f"the Ray task failed: {type(error).__name__}: {text}")
+            on_failure(job, f"the Ray task failed: {type(error).__name__}: {text}")
 
-        session.run(tasks, lambda task: remote.remote(task[1], task[2], formats), on_value, on_error, cap=cap)
+        session.run(jobs, submit, on_value, on_error, cap=cap)
 
 
 def run_sweep(
@@ -225,9 +248,10 @@ def run_sweep(
         raise ValueError(f"workers={workers} must be >= 1")
     start = time.perf_counter()
     sweep = load_sweep(sweep_path, tuple(overrides))
-    configs = sweep.run_configs()
-    ids = [run_id(c) for c in configs]
-    resolved = {"name": sweep.name, "sweep": sweep.model_dump(mode="json"), "runs": dict(zip(ids, configs))}
+    cells = sweep.cells()
+    cell_ids = [cell_run_ids(cell) for cell in cells]
+    total = sum(len(ids) for ids in cell_ids)
+    resolved = {"schema": SWEEP_SCHEMA, "name": sweep.name, "sweep": sweep.model_dump(mode="json"), "total_runs": total}
     store = ResultsStore(out_dir)
     try:
         store.root.mkdir(parents=True, exist_ok=True)
@@ -236,46 +260,59 @@ def run_sweep(
 
         raise _store_error(store.root, error) from None
     with store.lock():
-        store.prepare(resolved)
-        done = store.done_ids()
-        tasks: list[Task] = [
-            (rid, config, str(store.logs / rid) if sweep.logs else None)
-            for rid, config in zip(ids, configs)
-            if rid not in done
-        ]
+        store.prepare(resolved, [rid for ids in cell_ids for rid in ids])
+        jobs = plan_jobs(cells, cell_ids, store, workers, sweep.logs)
+        todo = sum(job.size for job in jobs)
         counts = {"finished": 0, "failed": 0}
-        bar = _progress(len(configs), len(configs) - len(tasks), sweep.name, progress)
+        bar = _progress(total, total - todo, sweep.name, progress)
 
-        def on_result(rid: str, config: dict[str, Any], result: dict[str, Any]) -> None:
-            store.write_run(rid, config, result)
-            counts["finished"] += 1
-            bar.update(1)
+        def on_result(job: Job, result: dict[str, Any]) -> None:
+            if isinstance(job, Batch):
+                store.write_chunk(job.name, result["chunk"], result["run_ids"])
+            else:
+                store.write_run(job.run_id, job.config, result)
+            counts["finished"] += job.size
+            bar.update(job.size)
 
-        def on_failure(rid: str, config: dict[str, Any], error: str) -> None:
-            store.write_failure(rid, config, error)
-            counts["failed"] += 1
-            bar.update(1)
+        def on_failure(job: Job, error: str) -> None:
+            for rid, config in job.failures():
+                store.write_failure(rid, config, error)
+            counts["failed"] += job.size
+            bar.update(job.size)
             bar.set_postfix(failed=counts["failed"])
 
         try:
-            formats = tuple(sweep.logs) or ("csv",)
-            if not tasks:
+            if not jobs:
                 pass  # everything is done already: start no workers (nor a Ray instance)
             elif backend == "local":
-                run_local(tasks, workers, formats, on_result, on_failure)
+                run_local(jobs, workers, on_result, on_failure)
             else:
-                run_ray(tasks, workers, formats, on_result, on_failure, ray_address, cap=cap, timeout=ray_timeout)
+                run_ray(jobs, workers, on_result, on_failure, ray_address, cap=cap, timeout=ray_timeout)
         finally:
             bar.close()
-    return SweepSummary(
-        sweep.name,
-        len(configs),
-        len(configs) - len(tasks),
-        counts["finished"],
-        counts["failed"],
-        time.perf_counter() - start,
-        Path(out_dir),
-    )
+    seconds = time.perf_counter() - start
+    return SweepSummary(sweep.name, total, total - todo, counts["finished"], counts["failed"], seconds, Path(out_dir))
+
+
+def plan_jobs(cells: list[Cell], cell_ids: list[list[str]], store: ResultsStore, workers: int, logs: list[str]) -> list[Job]:
+    """
+    The jobs of the runs ``store`` does not hold yet: batches of the cells that can run as batches (at most
+    ``batch_size`` runs each), one job per run for the others (with its log folder when ``logs`` asks for one).
+    """
+    done = store.done_ids()
+    formats = tuple(logs) or ("csv",)
+    todo = [[(rid, cell.seeds[i], i) for i, rid in enumerate(ids) if rid not in done] for cell, ids in zip(cells, cell_ids)]
+    can_batch = [batchable(cell.base, bool(logs)) for cell in cells]
+    size = batch_size(sum(len(runs) for runs, ok in zip(todo, can_batch) if ok), workers)
+    jobs: list[Job] = []
+    for cell, runs, ok in zip(cells, todo, can_batch):
+        if ok:
+            jobs.extend(split_cell(cell.base, runs, size))
+        else:
+            jobs.extend(
+                Single(rid, cell.config(i), str(store.logs / rid) if logs else None, formats) for rid, _, i in runs
+            )
+    return jobs
 
 
 def _progress(total: int, initial: int, name: str, enabled: bool) -> Any:

@@ -31,6 +31,7 @@ import importlib
 import itertools
 import json
 import re
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -269,39 +270,72 @@ class Sweep(BaseModel):
             raise ValueError("max_timesteps is not supported for teams: their runs are counted in episodes")
         return self
 
-    def run_configs(self) -> list[dict[str, Any]]:
-        """Every run of the sweep as a plain-data config (the unit the launcher executes and stores)."""
-        configs = []
+    def cells(self) -> list[Cell]:
+        """The sweep as cells: one per agent and grid point, holding every replicate's seed (see ``Cell``)."""
+        cells = []
         for agent in self.agents:
             for point in agent.points():
-                for replicate in range(self.seeds if isinstance(self.seeds, int) else len(self.seeds)):
-                    seed = (
-                        self.seeds[replicate]
-                        if isinstance(self.seeds, list)
-                        else derive_seed(self.name, agent.name, point, replicate)
-                    )
-                    config = {
-                        "sweep": self.name,
-                        "agent": agent.name,
-                        "algo": agent.algo or "team",
-                        "algo_kwargs": agent.kwargs_at(point),
-                        "env_id": self.env.id,
-                        "env_kwargs": dict(self.env.kwargs),
-                        "seed": seed,
-                        "episodes": self.episodes,
-                        "max_timesteps": self.max_timesteps,
-                        "labels": {**point, "replicate": replicate},
-                    }
-                    if agent.team is not None:  # only team runs carry the key: other run ids are unchanged
-                        config["team"] = agent.team_at(point)
-                    configs.append(config)
-        return configs
+                count = self.seeds if isinstance(self.seeds, int) else len(self.seeds)
+                seeds = list(self.seeds) if isinstance(self.seeds, list) else derive_seeds(self.name, agent.name, point, count)
+                base: dict[str, Any] = {
+                    "sweep": self.name,
+                    "agent": agent.name,
+                    "algo": agent.algo or "team",
+                    "algo_kwargs": agent.kwargs_at(point),
+                    "env_id": self.env.id,
+                    "env_kwargs": dict(self.env.kwargs),
+                    "seed": None,
+                    "episodes": self.episodes,
+                    "max_timesteps": self.max_timesteps,
+                    "labels": dict(point),
+                }
+                if agent.team is not None:  # only team runs carry the key: other run ids are unchanged
+                    base["team"] = agent.team_at(point)
+                cells.append(Cell(base, seeds))
+        return cells
+
+    def run_configs(self) -> list[dict[str, Any]]:
+        """Every run of the sweep as a plain-data config (the unit the launcher executes and stores)."""
+        return [cell.config(replicate) for cell in self.cells() for replicate in range(len(cell.seeds))]
+
+
+@dataclass
+class Cell:
+    """
+    The runs of one agent at one grid point: configs equal but for ``seed`` and ``labels["replicate"]``.
+
+    :param base: the run config with ``seed`` None and ``labels`` without ``replicate``
+    :param seeds: the seed of each replicate, in replicate order
+    """
+
+    base: dict[str, Any]
+    seeds: list[int]
+
+    def config(self, replicate: int) -> dict[str, Any]:
+        """The full run config of one replicate."""
+        base = self.base
+        return {
+            **base,
+            "algo_kwargs": dict(base["algo_kwargs"]),
+            "env_kwargs": dict(base["env_kwargs"]),
+            "seed": self.seeds[replicate],
+            "labels": {**base["labels"], "replicate": replicate},
+        }
 
 
 def derive_seed(sweep: str, agent: str, point: dict[str, Any], replicate: int) -> int:
     """A stable seed (sha256, never Python's ``hash``) for one replicate of one agent at one grid point."""
     text = json.dumps([sweep, agent, point, replicate], sort_keys=True)
     return int.from_bytes(hashlib.sha256(text.encode()).digest()[:4], "big") & 0x7FFFFFFF
+
+
+def derive_seeds(sweep: str, agent: str, point: dict[str, Any], count: int) -> list[int]:
+    """``derive_seed`` of replicates ``0..count-1``, encoding the JSON once (the text differs only in its last number)."""
+    head = json.dumps([sweep, agent, point, 0], sort_keys=True)[: -len("0]")]
+    return [
+        int.from_bytes(hashlib.sha256(f"{head}{replicate}]".encode()).digest()[:4], "big") & 0x7FFFFFFF
+        for replicate in range(count)
+    ]
 
 
 def _override_path(assignment: str, data: dict[str, Any]) -> tuple[list[Any], Any]:
@@ -450,7 +484,7 @@ def load_sweep(path: str | Path, overrides: tuple[str, ...] | list[str] = (), *,
         from sb3_affect.experiments.runner import check_configs_in_child
 
         index = {agent.name: i for i, agent in enumerate(sweep.agents)}
-        problems = check_configs_in_child(sweep.run_configs())
+        problems = check_configs_in_child([cell.config(0) for cell in sweep.cells()])
         if problems:
             lines = [
                 f"  {f'agents[{index[agent]}] ({agent}).kwargs' if agent in index else 'env.kwargs'}: {message}"

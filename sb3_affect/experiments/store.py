@@ -1,10 +1,12 @@
 """
-The results store: one JSON file per finished run, written atomically by the driver only.
+The results store: finished runs in Parquet chunks (one per batch) or JSON files (one per run), written atomically by
+the driver only.
 
 Layout of a results folder ``DIR``::
 
-    DIR/sweep.json          the resolved sweep (every run config); a different sweep into DIR is refused
-    DIR/runs/<id>.json      one finished run: config, per-episode columns, timings, package versions
+    DIR/sweep.json          the resolved sweep; a different sweep into DIR is refused
+    DIR/chunks/<batch>.parquet  the finished runs of one batch: one row per episode, per-run data in the footer
+    DIR/runs/<id>.json      one finished run executed on its own: config, per-episode columns, timings, versions
     DIR/failed/<id>.json    a run that raised or whose worker died: config and traceback (retried on resume)
     DIR/logs/<id>/          per-run SB3 logger output, when the sweep asks for it
     DIR/.lock               the pid (and start time) of the launcher using DIR
@@ -19,11 +21,21 @@ import json
 import os
 import re
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Collection, Iterable, Iterator, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import pandas as pd
+
+from sb3_affect.episode_log import EPISODE_COLUMNS
+from sb3_affect.experiments.chunks import INT_COLUMNS, chunk_meta, chunk_records, chunk_table
+
+if TYPE_CHECKING:
+    from sb3_affect.experiments.schema import Cell
 
 SCHEMA = 1
+SWEEP_SCHEMA = 2
 
 
 class StoreError(RuntimeError):
@@ -38,16 +50,39 @@ def run_id(config: dict[str, Any]) -> str:
     return f"{prefix}-{digest}"
 
 
-def _write_atomic(path: Path, payload: dict[str, Any]) -> None:
+_SEED, _REPLICATE = 8_101_999_202_707_303, 8_101_999_202_707_404  # stand-ins no real config holds
+
+
+def cell_run_ids(cell: Cell) -> list[str]:
+    """
+    ``run_id`` of every replicate of a cell, encoding its JSON once: the texts of its runs differ only in the seed and
+    the replicate number (checked on the first replicate; falls back to ``run_id`` per run if anything differs).
+    """
+    probe = cell.config(0)
+    probe["seed"], probe["labels"]["replicate"] = _SEED, _REPLICATE
+    text = json.dumps(probe, sort_keys=True)
+    prefix = run_id(probe).rsplit("-", 1)[0]
+    seed, replicate = str(_SEED), str(_REPLICATE)
+    ids = []
+    if text.count(seed) == 1 and text.count(replicate) == 1 and prefix.count(seed) == 1 and replicate not in prefix:
+        for index, value in enumerate(cell.seeds):
+            digest = hashlib.sha256(text.replace(replicate, str(index)).replace(seed, str(value)).encode()).hexdigest()
+            ids.append(f"{prefix.replace(seed, str(value))}-{digest[:12]}")
+    if not ids or ids[0] != run_id(cell.config(0)):
+        ids = [run_id(cell.config(index)) for index in range(len(cell.seeds))]
+    return ids
+
+
+def _write_atomic(path: Path, payload: dict[str, Any] | bytes) -> None:
     """Temp file in the same folder, fsync, rename: a reader sees the whole file or none."""
-    text = json.dumps(payload, sort_keys=True, indent=1)
+    data = payload if isinstance(payload, bytes) else json.dumps(payload, sort_keys=True, indent=1).encode()
     try:
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=".json")
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=path.suffix)
     except OSError as error:
         raise _store_error(path.parent, error) from None
     try:
-        with os.fdopen(fd, "w") as handle:
-            handle.write(text)
+        with os.fdopen(fd, "wb") as handle:
+            handle.write(data)
             handle.flush()
             os.fsync(handle.fileno())
         os.replace(tmp, path)
@@ -73,14 +108,21 @@ class ResultsStore:
     def __init__(self, root: str | Path) -> None:
         self.root = Path(root)
         self.runs = self.root / "runs"
+        self.chunks = self.root / "chunks"
+        self._failed: set[str] | None = None  # failure records known to write_chunk (those it may have to remove)
         self.failed = self.root / "failed"
         self.logs = self.root / "logs"
 
     # -- set-up ------------------------------------------------------------------------------------------------
-    def prepare(self, resolved_sweep: dict[str, Any]) -> None:
-        """Create the folders, refuse a different sweep, save the resolved sweep, clear stale temp files."""
+    def prepare(self, resolved_sweep: dict[str, Any], run_ids: Collection[str] = ()) -> None:
+        """
+        Create the folders, refuse a different sweep, save the resolved sweep, clear stale temp files.
+
+        :param resolved_sweep: ``{"name", "sweep" (the validated file), ...}``; a folder holding another is refused
+        :param run_ids: every run id of the sweep, compared with the run list of a folder written before chunks
+        """
         try:
-            for folder in (self.root, self.runs, self.failed):
+            for folder in (self.root, self.runs, self.chunks, self.failed):
                 folder.mkdir(parents=True, exist_ok=True)
         except OSError as error:
             raise _store_error(self.root, error) from None
@@ -90,7 +132,10 @@ class ResultsStore:
                 previous = json.loads(saved.read_text())
             except (OSError, ValueError):
                 previous = None
-            if _identity(previous) != _identity(resolved_sweep):
+            same = _identity(previous) == _identity(resolved_sweep)
+            if same and isinstance(previous.get("runs"), dict) and run_ids:  # a folder of the one-file-per-run era
+                same = set(previous["runs"]) == set(run_ids)
+            if not same:
                 name = (previous or {}).get("name", "?")
                 raise StoreError(
                     f"{self.root} already holds the results of a different sweep ({name!r}, or the same file with "
@@ -98,7 +143,7 @@ class ResultsStore:
                 )
         else:
             _write_atomic(saved, resolved_sweep)
-        for folder in (self.runs, self.failed):
+        for folder in (self.runs, self.chunks, self.failed):
             for stale in folder.glob(".tmp-*"):
                 with contextlib.suppress(OSError):
                     stale.unlink()
@@ -159,34 +204,239 @@ class ResultsStore:
                 if path.read_text().strip() == mine:
                     path.unlink()
 
-    # -- runs --------------------------------------------------------------------------------------------------
-    def done_ids(self) -> set[str]:
-        return {p.stem for p in self.runs.glob("*.json") if not p.name.startswith(".")}
-
-    def failed_ids(self) -> set[str]:
-        return {p.stem for p in self.failed.glob("*.json") if not p.name.startswith(".")}
-
+    # -- writing -----------------------------------------------------------------------------------------------
     def write_run(self, rid: str, config: dict[str, Any], result: dict[str, Any]) -> None:
         payload = {"schema": SCHEMA, "run_id": rid, "config": config, "status": "ok", **result}
         _write_atomic(self.runs / f"{rid}.json", payload)
         with contextlib.suppress(FileNotFoundError):
             (self.failed / f"{rid}.json").unlink()
 
+    def write_chunk(self, name: str, data: bytes, run_ids: Iterable[str]) -> None:
+        """Store a batch's chunk (``chunks.encode_chunk``) and forget earlier failures of its runs."""
+        _write_atomic(self.chunks / f"{name}.parquet", data)
+        if self._failed is None:
+            self._failed = self.failed_ids()
+        for rid in self._failed.intersection(run_ids):
+            with contextlib.suppress(FileNotFoundError):
+                (self.failed / f"{rid}.json").unlink()
+            self._failed.discard(rid)
+
     def write_failure(self, rid: str, config: dict[str, Any], error: str) -> None:
+        if self._failed is not None:
+            self._failed.add(rid)
         _write_atomic(
             self.failed / f"{rid}.json",
             {"schema": SCHEMA, "run_id": rid, "config": config, "status": "failed", "error": error},
         )
 
+    # -- reading -----------------------------------------------------------------------------------------------
+    def _json_files(self) -> list[Path]:
+        return sorted(p for p in self.runs.glob("*.json") if not p.name.startswith("."))
+
+    def _chunk_files(self) -> list[Path]:
+        return sorted(p for p in self.chunks.glob("*.parquet") if not p.name.startswith("."))
+
+    def progress(self) -> tuple[str, dict[str, tuple[int, int, int]]]:
+        """
+        The saved sweep's name and, per agent, ``(runs, finished, failed)`` (failed: recorded and not finished since),
+        from ``sweep.json``, the chunks' footers and the file names: no run's data is read. ``FileNotFoundError``
+        when no sweep was run here.
+        """
+        resolved = json.loads((self.root / "sweep.json").read_text())
+        listed = resolved.get("runs") if isinstance(resolved.get("runs"), dict) else None
+        if listed is not None:  # a folder written before chunks lists every run
+            totals: dict[str, int] = {}
+            for config in listed.values():
+                totals[config["agent"]] = totals.get(config["agent"], 0) + 1
+        else:
+            from sb3_affect.experiments.schema import Sweep
+
+            sweep = Sweep.model_validate(resolved["sweep"])
+            replicates = sweep.seeds if isinstance(sweep.seeds, int) else len(sweep.seeds)
+            totals = {agent.name: len(agent.points()) * replicates for agent in sweep.agents}
+        done = {name: 0 for name in totals}
+        done_ids: set[str] = set()
+        for path in self._chunk_files():
+            meta = chunk_meta(path)
+            done[meta["base"]["agent"]] += len(meta["runs"])
+            done_ids.update(run[0] for run in meta["runs"])
+        files = [p.stem for p in self._json_files()]
+        if files:
+            agent_of = {rid: c["agent"] for rid, c in listed.items()} if listed is not None else self._agents_of_runs()
+            for rid in files:
+                if rid in agent_of:
+                    done[agent_of[rid]] += 1
+                    done_ids.add(rid)
+        failed = {name: 0 for name in totals}
+        for path in self.failed.glob("[!.]*.json"):
+            if path.stem not in done_ids:
+                with contextlib.suppress(OSError, ValueError, KeyError):
+                    failed[json.loads(path.read_text())["config"]["agent"]] += 1
+        return resolved["name"], {name: (totals[name], done[name], failed[name]) for name in totals}
+
+    def _agents_of_runs(self) -> dict[str, str]:
+        from sb3_affect.experiments.schema import Sweep
+
+        resolved = json.loads((self.root / "sweep.json").read_text())
+        runs: dict[str, str] = {}
+        for cell in Sweep.model_validate(resolved["sweep"]).cells():
+            runs.update(dict.fromkeys(cell_run_ids(cell), cell.base["agent"]))
+        return runs
+
+    def done_ids(self) -> set[str]:
+        """Every finished run, in either layout (chunks: from their footers only)."""
+        done = {p.stem for p in self._json_files()}
+        for path in self._chunk_files():
+            done.update(run[0] for run in chunk_meta(path)["runs"])
+        return done
+
+    def failed_ids(self) -> set[str]:
+        return {p.stem for p in self.failed.glob("*.json") if not p.name.startswith(".")}
+
     def load_runs(self) -> list[dict[str, Any]]:
-        return [json.loads(p.read_text()) for p in sorted(self.runs.glob("*.json")) if not p.name.startswith(".")]
+        """Every finished run as a record of the JSON layout (``run_id``, ``config``, ``episodes`` lists, ...): for
+        small folders; large ones read ``runs_frame`` and ``episodes_frame``."""
+        records = [json.loads(p.read_text()) for p in self._json_files()]
+        for path in self._chunk_files():
+            records.extend(chunk_records(path))
+        return sorted((r for r in records if r.get("status", "ok") == "ok"), key=lambda r: r["run_id"])
+
+    def runs_frame(self) -> pd.DataFrame:
+        """
+        One row per finished run (either layout; chunks: from their footers only): ``run_id``, ``agent``, ``algo``,
+        ``seed``, one column per label (``replicate`` included), ``decisions`` (every decision of the run),
+        ``episodes`` (finished episodes), ``wall_seconds`` (a batch's runs: their share of it), ``max_timesteps``.
+        """
+        return self._read(None)[0]
+
+    def results(self, columns: Sequence[str] | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
+        """
+        Every finished run (either layout) as two tables, without a Python object per episode.
+
+        :param columns: the episode columns wanted (default every ``EPISODE_COLUMNS`` column)
+        :return: ``(runs_frame(), episodes)``; ``episodes`` has one row per episode: ``run_id``, ``agent``, ``seed``
+            and one column per label (categoricals but ``seed``), then the episode columns (integers as int32, flags
+            as bool, the rest float64), each run's rows together in episode order
+        """
+        runs, episodes = self._read(EPISODE_COLUMNS if columns is None else tuple(columns))
+        run = episodes.pop("run").to_numpy()
+        front: dict[str, Any] = {}
+        labels = [c for c in runs.columns if c not in _RUN_COLUMNS]
+        for key in ("run_id", "agent", "seed", *labels):
+            values = runs[key]
+            if key == "seed":
+                front[key] = values.to_numpy()[run]
+            else:
+                categories = pd.Categorical(values)
+                front[key] = pd.Categorical.from_codes(categories.codes[run], categories=categories.categories)
+        return runs, pd.concat([pd.DataFrame(front), episodes], axis=1)
+
+    def episodes_frame(self, columns: Sequence[str] | None = None) -> pd.DataFrame:
+        """The episode table of ``results``."""
+        return self.results(columns)[1]
+
+    def _read(self, columns: Sequence[str] | None) -> tuple[pd.DataFrame, pd.DataFrame]:
+        """The run table, and (unless ``columns`` is None) the episode columns with ``run``, the row in it."""
+        rows: list[dict[str, Any]] = []
+        parts: list[dict[str, np.ndarray]] = []
+        for path in self._json_files():
+            record = json.loads(path.read_text())
+            if record.get("status", "ok") != "ok":
+                continue
+            config, episodes, timings = record["config"], record["episodes"], record.get("timings", {})
+            count = len(episodes["episode"])
+            rows.append(_run_row(record["run_id"], config, timings.get("decisions"), count, timings.get("wall_seconds")))
+            if columns is None:
+                continue
+            part = {"run": np.full(count, len(rows) - 1, dtype=np.int64)}
+            for column in columns:
+                part[column] = _typed(column, episodes[column])
+            parts.append(part)
+        frames = [pd.DataFrame(rows)] if rows else []
+        total = len(rows)
+        for path in self._chunk_files():  # whole columns per chunk: no Python object per run beyond its id
+            meta = chunk_meta(path)
+            base, count = meta["base"], len(meta["runs"])
+            ids, seeds, replicates, decisions = (list(values) for values in zip(*meta["runs"])) if count else ([],) * 4
+            if columns is None:  # the footer only: the episode count is the batch's episode budget
+                episodes_per_run: Any = base["episodes"]
+            else:
+                table = chunk_table(path, columns)
+                episodes_per_run = np.bincount(table["run"], minlength=count)
+                table["run"] = table["run"].astype(np.int64) + total
+                parts.append(table)
+            labels = {**base["labels"], "replicate": replicates}
+            frames.append(
+                pd.DataFrame(
+                    {
+                        "run_id": ids,
+                        "agent": base["agent"],
+                        "algo": base["algo"],
+                        "seed": seeds,
+                        **labels,
+                        "decisions": decisions,
+                        "episodes": episodes_per_run,
+                        "wall_seconds": meta["timings"]["wall_seconds"] / max(1, count),
+                        "max_timesteps": [base.get("max_timesteps")] * count,
+                    },
+                    index=pd.RangeIndex(count),
+                )
+            )
+            total += count
+        # One canonical order whatever the layout and the batching: runs by run id, each run's episodes in order.
+        runs = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=list(_RUN_COLUMNS))
+        order = np.argsort(runs["run_id"].to_numpy(dtype=object), kind="stable") if total else np.zeros(0, np.int64)
+        runs = runs.iloc[order].reset_index(drop=True)
+        wanted = ["run", *(columns or ())]
+        data = {name: np.concatenate([p[name] for p in parts]) if parts else np.zeros(0, np.int64) for name in wanted}
+        if len(data["run"]) and columns is not None:
+            counts = np.bincount(data["run"], minlength=total)
+            starts = np.r_[0, np.cumsum(counts)[:-1]]
+            if np.any(np.diff(data["run"]) < 0):  # each run's rows are together; only their blocks move
+                raise ValueError(f"{self.root}: a run's episodes are not stored together")
+            lengths = counts[order]
+            offsets = np.repeat(starts[order] - np.r_[0, np.cumsum(lengths)[:-1]], lengths)
+            take = offsets + np.arange(len(data["run"]))
+            rank = np.empty(total, dtype=np.int64)
+            rank[order] = np.arange(total)
+            data = {name: (rank[values[take]] if name == "run" else values[take]) for name, values in data.items()}
+        return runs, pd.DataFrame(data)
+
+
+_RUN_COLUMNS = ("run_id", "agent", "algo", "seed", "decisions", "episodes", "wall_seconds", "max_timesteps")
+
+
+def _run_row(rid: str, config: dict[str, Any], decisions: int | None, episodes: int, wall: float | None) -> dict[str, Any]:
+    return {
+        "run_id": rid,
+        "agent": config["agent"],
+        "algo": config["algo"],
+        "seed": config["seed"],
+        **config["labels"],
+        "decisions": decisions,
+        "episodes": episodes,
+        "wall_seconds": wall,
+        "max_timesteps": config.get("max_timesteps"),
+    }
+
+
+def _typed(column: str, values: list[Any]) -> np.ndarray:
+    """A JSON episode column as the chunks' dtype (None: NaN, or False for flags)."""
+    if column in INT_COLUMNS:
+        return np.asarray(values, dtype=np.int32)
+    if column in ("optimal", "truncated", "greedy_optimal"):
+        return np.asarray([bool(v) for v in values], dtype=bool)
+    return np.asarray([np.nan if v is None else v for v in values], dtype=np.float64)
 
 
 def _identity(resolved: Any) -> Any:
-    """What must match to resume into a folder: the resolved sweep minus settings that do not change results (logs)."""
+    """
+    What must match to resume into a folder: the sweep's name and validated file minus settings that do not change
+    results (logs). The runs follow from these (a folder written before chunks also lists them: compared apart).
+    """
     if not isinstance(resolved, dict) or not isinstance(resolved.get("sweep"), dict):
         return resolved
-    return {**resolved, "sweep": {k: v for k, v in resolved["sweep"].items() if k != "logs"}}
+    return {"name": resolved.get("name"), "sweep": {k: v for k, v in resolved["sweep"].items() if k != "logs"}}
 
 
 def _alive(pid: int) -> bool:

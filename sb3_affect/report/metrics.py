@@ -7,7 +7,6 @@ the results store (files, format) is one change here.
 
 from __future__ import annotations
 
-import json
 import math
 import warnings
 from dataclasses import dataclass
@@ -32,10 +31,10 @@ class Results:
 
 
 def load_runs(run_dir: Path) -> list[dict[str, Any]]:
-    """Every finished run of a results folder (``DIR/runs/*.json``)."""
-    files = sorted((Path(run_dir) / "runs").glob("*.json"))
-    runs = [json.loads(p.read_text()) for p in files if not p.name.startswith(".")]
-    return [r for r in runs if r.get("status", "ok") == "ok"]
+    """Every finished run of a results folder, whatever its layout (Parquet chunks or one JSON file per run)."""
+    from sb3_affect.experiments.store import ResultsStore
+
+    return [r for r in ResultsStore(run_dir).load_runs() if r.get("status", "ok") == "ok"]
 
 
 def load_results(run_dir: Path) -> Results:

@@ -1,0 +1,123 @@
+"""
+Batches and chunked storage, end to end with real processes and files: a killed launcher resumes without losing or
+duplicating a run, a batch whose worker dies is recorded for each of its runs and retried, and a results folder of
+the one-JSON-file-per-run layout (written before chunks) is still read, resumed and reported.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import time
+from pathlib import Path
+
+import pandas as pd
+import pytest
+from test_experiments_local import EXPERIMENTS, children, contents, launcher, linux_only, no_partial_files, running
+
+from sb3_affect.cli import main
+from sb3_affect.experiments import ResultsStore, run_sweep
+from sb3_affect.experiments.chunks import chunk_meta
+from sb3_affect.report.build import summary_numbers
+from sb3_affect.report.metrics import load_results
+
+SMOKE = EXPERIMENTS / "smoke.yaml"
+
+
+def smoke_file(tmp_path: Path, seeds: int, episodes: int) -> Path:
+    """smoke.yaml with other seeds and episodes, as a file (the launcher subprocess takes no --set here)."""
+    path = tmp_path / "smoke.yaml"
+    path.write_text(SMOKE.read_text().replace("episodes: 20", f"episodes: {episodes}").replace("seeds: 2", f"seeds: {seeds}"))
+    return path
+
+
+def stored_once(out: Path) -> int:
+    """The number of runs stored, checking that no run is stored twice (in two chunks, or a chunk and a file)."""
+    ids = [run[0] for path in (out / "chunks").glob("[!.]*.parquet") for run in chunk_meta(path)["runs"]]
+    ids += [path.stem for path in (out / "runs").glob("[!.]*.json")]
+    assert len(ids) == len(set(ids)), "a run is stored twice"
+    return len(ids)
+
+
+def wait_until(condition: object, timeout: float, what: str) -> None:
+    deadline = time.monotonic() + timeout
+    while not condition():  # type: ignore[operator]
+        assert time.monotonic() < deadline, f"timed out waiting for {what}"
+        time.sleep(0.01)
+
+
+@linux_only
+def test_sigkill_then_resume_with_chunks_loses_and_duplicates_nothing(tmp_path: Path) -> None:
+    sweep, out = smoke_file(tmp_path, seeds=20, episodes=10), tmp_path / "out"
+    first = launcher(sweep, out)  # --workers 2: 80 runs in batches of 5
+    try:
+        wait_until(lambda: (out / "chunks").exists() and any((out / "chunks").glob("[!.]*.parquet")), 120, "a chunk")
+        os.kill(first.pid, signal.SIGKILL)
+        first.wait(timeout=10)
+    finally:
+        if first.poll() is None:
+            first.kill()
+            first.wait()
+    before = stored_once(out)
+    assert 0 < before < 80
+    summary = run_sweep(sweep, out, workers=1, progress=False)  # another batch size: batching does not change runs
+    assert (summary.skipped, summary.finished, summary.failed) == (before, 80 - before, 0)
+    assert stored_once(out) == 80
+    no_partial_files(out)
+    reference = tmp_path / "reference"
+    run_sweep(sweep, reference, workers=2, progress=False)
+    assert contents(out) == contents(reference)
+
+
+@linux_only
+def test_batch_whose_worker_dies_is_recorded_per_run_and_retried(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    sweep, out = smoke_file(tmp_path, seeds=40, episodes=10), tmp_path / "out"
+    proc = launcher(sweep, out)
+    try:
+        # After sweep.json the launcher's children are batch workers (the kwargs check ran before it).
+        wait_until(lambda: (out / "sweep.json").exists() and any(running(p) for p in children(proc.pid)), 120, "a worker")
+        worker = next(p for p in children(proc.pid) if running(p))
+        os.kill(worker, signal.SIGSTOP)  # mid-batch: its result is not sent
+        os.kill(worker, signal.SIGKILL)
+        wait_until(lambda: len(list((out / "failed").glob("[!.]*.json"))) == 10, 60, "the failure records")
+        os.killpg(proc.pid, signal.SIGINT)  # no need to finish the sweep: the rerun does
+        proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    failed = [json.loads(p.read_text()) for p in (out / "failed").glob("[!.]*.json")]
+    assert len(failed) == 10 and all("killed by SIGKILL" in r["error"] for r in failed)  # every run of the batch
+    assert len({json.dumps(r["config"]["labels"], sort_keys=True) for r in failed}) == 10
+    assert not {r["run_id"] for r in failed} & ResultsStore(out).done_ids()
+    capsys.readouterr()
+    assert main(["status", str(out)]) == 0
+    assert "10 failed" in capsys.readouterr().out
+    summary = run_sweep(sweep, out, workers=2, progress=False)
+    assert summary.failed == 0 and summary.total == 160 and stored_once(out) == 160
+    assert list((out / "failed").glob("[!.]*.json")) == []
+
+
+def test_folder_of_one_json_file_per_run_is_still_read_resumed_and_reported(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    chunked, old = tmp_path / "chunked", tmp_path / "old"
+    overrides = ["episodes=12"]
+    run_sweep(SMOKE, chunked, workers=2, overrides=overrides, progress=False)
+    run_sweep(SMOKE, old, workers=2, overrides=[*overrides, "logs=[csv]"], progress=False)  # one JSON file per run
+    # sweep.json as the launcher wrote it before chunks: every run config listed.
+    saved = json.loads((old / "sweep.json").read_text())
+    runs = {r["run_id"]: r["config"] for r in ResultsStore(old).load_runs()}
+    (old / "sweep.json").write_text(json.dumps({"name": saved["name"], "sweep": saved["sweep"], "runs": runs}))
+    assert list((old / "chunks").glob("*")) == [] and len(list((old / "runs").glob("*.json"))) == 8
+    assert main(["status", str(old)]) == 0
+    assert "8/8 runs done, 0 failed" in capsys.readouterr().out
+    assert run_sweep(SMOKE, old, workers=2, overrides=overrides, progress=False).skipped == 8  # the same sweep
+    assert main(["run", str(SMOKE), "--out", str(old), "--set", "seeds=3", "--no-progress"]) == 2
+    assert "different sweep" in capsys.readouterr().err
+    # The report's loader gives the same tables from either layout.
+    from_json, from_chunks = load_results(old), load_results(chunked)
+    pd.testing.assert_frame_equal(from_json.episodes, from_chunks.episodes)
+    assert [r["config"] for r in from_json.runs] == [r["config"] for r in from_chunks.runs]
+    assert summary_numbers(old) == summary_numbers(chunked)
