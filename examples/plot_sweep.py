@@ -4,13 +4,14 @@ Write an experiment file and run it
 
 What ``sb3-affect run FILE --out DIR`` does, from Python: an experiment file names the env, the episodes, the seeds
 and the agents with a grid of labels. ``run_sweep`` validates it, runs every run (resuming what ``DIR`` already
-holds) and writes one JSON file per run. The same file runs from the shell with::
+holds) and stores the results in ``DIR``: our own tabular agents run in batches stored as Parquet chunks
+(``DIR/chunks/``), other runs as one JSON file each (``DIR/runs/``); ``ResultsStore(DIR)`` reads either. The same file
+runs from the shell with::
 
     sb3-affect run my_sweep.yaml --out runs/my_sweep
     sb3-affect report runs/my_sweep
 """
 
-import json
 import os
 import tempfile
 from pathlib import Path
@@ -18,7 +19,7 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import pandas as pd
 
-from sb3_affect.experiments import run_sweep
+from sb3_affect.experiments import ResultsStore, run_sweep
 
 SMOKE = bool(os.environ.get("SB3_AFFECT_SMOKE"))
 SWEEP = f"""\
@@ -40,13 +41,13 @@ folder = Path(tempfile.mkdtemp())
 (folder / "my_sweep.yaml").write_text(SWEEP)
 summary = run_sweep(folder / "my_sweep.yaml", folder / "out", workers=2, progress=False)
 print(f"{summary.total} runs, {summary.finished} finished, {summary.failed} failed, {summary.seconds:.1f} s")
-print(sorted(p.name for p in (folder / "out" / "runs").glob("*.json"))[:3], "...")
+store = ResultsStore(folder / "out")
+print(sorted(p.name for p in (folder / "out" / "chunks").glob("*.parquet"))[:3], "...")
 
 # %%
-# Each run file holds its config (with the grid labels) and one list per episode-log column.
+# Each run record holds its config (with the grid labels) and one list per episode-log column.
 rows = []
-for path in (folder / "out" / "runs").glob("*.json"):
-    run = json.loads(path.read_text())
+for run in store.load_runs():
     labels = {k: v for k, v in run["config"]["labels"].items() if k != "replicate"}
     name = run["config"]["agent"] + " " + " ".join(f"{k}={v}" for k, v in labels.items())
     decisions = run["episodes"]["decisions"]

@@ -9,7 +9,8 @@ from stable_baselines3.common.type_aliases import GymEnv, Schedule
 from stable_baselines3.common.utils import FloatSchedule
 
 from sb3_affect.policies import TabularQPolicy, check_not_gym_tuple, greedy_action
-from sb3_affect.tabular import TabularQAlgorithm, _check_rate
+from sb3_affect.tabular import TabularQAlgorithm
+from sb3_affect.validation import check_rate
 
 
 class QLearning(TabularQAlgorithm):
@@ -57,7 +58,7 @@ class QLearning(TabularQAlgorithm):
         tie_break: str = "random",
         _init_setup_model: bool = True,
     ) -> None:
-        _check_rate("exploration_rate", exploration_rate, 0.0, 1.0)
+        check_rate("exploration_rate", exploration_rate, 0.0, 1.0)
         self.exploration_rate = exploration_rate
         super().__init__(
             policy,
@@ -89,7 +90,7 @@ class QLearning(TabularQAlgorithm):
     def _follow_exploration_rate(self) -> None:
         """A value the user assigned to ``exploration_rate`` since the schedule was built takes effect now."""
         if self.exploration_rate is not self._exploration_source:
-            _check_rate("exploration_rate", self.exploration_rate, 0.0, 1.0)
+            check_rate("exploration_rate", self.exploration_rate, 0.0, 1.0)
             self.exploration_schedule = FloatSchedule(self.exploration_rate)
             self._exploration_source = self.exploration_rate
             self._epsilon = float(self.exploration_schedule(self._current_progress_remaining))

@@ -32,7 +32,8 @@ from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.type_aliases import MaybeCallback
 
 from sb3_affect.episode_log import env_geometry
-from sb3_affect.tabular import _DONE, _NOT_DONE, TabularQAlgorithm
+from sb3_affect.loop import DONE, NOT_DONE
+from sb3_affect.tabular import TabularQAlgorithm
 
 
 class DecisionStepper:
@@ -86,7 +87,7 @@ class DecisionStepper:
         self.q: list[list[float]] = m.policy.q_table.tolist()
         m._q = self.q
         m._update_schedules()
-        # what _run_loop does before its loop
+        # what run_loop does before its loop
         self.log_interval = log_interval
         self._observe = m._transition_hook()
         self._is_goal = m._goal_test()
@@ -202,7 +203,7 @@ class DecisionStepper:
             cb = self._locals
             cb["new_obs"] = np.array([self.s + self._obs_start])
             cb["rewards"] = np.array([decision_reward], dtype=np.float32)
-            cb["dones"] = _DONE if done else _NOT_DONE
+            cb["dones"] = DONE if done else NOT_DONE
             cb["infos"] = [info]
             cb["actions"] = np.array([action + self._act_start])
             self.callback.update_locals(cb)

@@ -1,9 +1,10 @@
 """
-``TabularQAlgorithm``: what QLearning and AffectQ share, including the learning loop.
+``TabularQAlgorithm``: what QLearning and AffectQ share: set-up, ``learn`` (and which engine runs it), the Q-table,
+logging, save and load.
 
-A *decision* picks a direction and a number of cells ``k``; it makes ``k`` ordinary one-cell transitions, each with
-its own Eq. 1 update, all in the same direction, stopping early at the goal; ``k = 0`` is a wait. ``num_timesteps``
-counts decisions (the paper's "steps"). Subclasses say how a decision is taken (``_decide``).
+The decision loop itself is ``sb3_affect.loop.run_loop`` (the readable reference) and ``sb3_affect.kernel`` (its
+compiled twin). ``num_timesteps`` counts decisions (the paper's "steps"). Subclasses say how a decision is taken
+(``_decide``).
 """
 
 from __future__ import annotations
@@ -20,49 +21,25 @@ import pandas as pd
 import torch as th
 from gymnasium import spaces
 from stable_baselines3.common.base_class import BaseAlgorithm
-from stable_baselines3.common.callbacks import BaseCallback, ConvertCallback
+from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, Schedule
 from stable_baselines3.common.vec_env import DummyVecEnv
 
 from sb3_affect.appraisal import check_choice
-from sb3_affect.episode_log import Geometry, env_geometry, greedy_walks_shortest_path, make_frame
+from sb3_affect.episode_log import Geometry, env_geometry, make_frame
 from sb3_affect.goals import GoalTest, positive_terminal_reward
+from sb3_affect.loop import close_episode, run_loop
 from sb3_affect.policies import TabularQPolicy, check_not_gym_tuple
 from sb3_affect.serialization import add_plain_description, load_safe
+from sb3_affect.validation import check_number, check_rate
 
 SelfTabular = TypeVar("SelfTabular", bound="TabularQAlgorithm")
 
 ENGINES = ("auto", "python", "compiled")
 TIE_BREAKS = ("random", "first")
 MULTI_CELLS = ("steps", "jump")
-
-_DONE = np.array([True])
-_NOT_DONE = np.array([False])
-_DONE.flags.writeable = False
-_NOT_DONE.flags.writeable = False
-
-
-def _check_number(name: str, value: Any, low: float, high: float, low_open: bool = False) -> float:
-    """Validate a float hyperparameter in ``[low, high]`` (``(low, high]`` when ``low_open``)."""
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        raise TypeError(f"{name} must be a number, got {value!r} ({type(value).__name__})")
-    value = float(value)
-    bad = not math.isfinite(value) or value > high or (value <= low if low_open else value < low)
-    if bad:
-        interval = f"{'(' if low_open else '['}{low:g}, {high:g}]"
-        raise ValueError(f"{name}={value!r} is out of range: it must be in {interval}")
-    return value
-
-
-def _check_rate(name: str, value: float | Schedule, low: float, high: float, low_open: bool = False) -> None:
-    """A rate may be a number or an SB3-style schedule (a callable of the remaining progress)."""
-    if callable(value):
-        for progress in (1.0, 0.0):
-            _check_number(f"{name}({progress:g})", value(progress), low, high, low_open)
-    else:
-        _check_number(name, value, low, high, low_open)
 
 
 class TabularQAlgorithm(BaseAlgorithm):
@@ -114,9 +91,9 @@ class TabularQAlgorithm(BaseAlgorithm):
     ) -> None:
         self.engine = check_choice("engine", engine, ENGINES)
         self.tie_break = check_choice("tie_break", tie_break, TIE_BREAKS)
-        _check_rate("learning_rate", learning_rate, 0.0, 1.0, low_open=True)
-        self.gamma = _check_number("gamma", gamma, 0.0, 1.0)
-        self.q_init = _check_number("q_init", q_init, -1e300, 1e300)
+        check_rate("learning_rate", learning_rate, 0.0, 1.0, low_open=True)
+        self.gamma = check_number("gamma", gamma, 0.0, 1.0)
+        self.q_init = check_number("q_init", q_init, -1e300, 1e300)
         if isinstance(max_episode_decisions, bool) or not isinstance(max_episode_decisions, (int, np.integer)):
             raise TypeError(f"max_episode_decisions must be an integer >= 1, got {max_episode_decisions!r}")
         if max_episode_decisions < 1:
@@ -309,134 +286,8 @@ class TabularQAlgorithm(BaseAlgorithm):
     def _run_loop(
         self, env: Any, q: list[list[float]], total_timesteps: int, callback: BaseCallback, log_interval: int | None
     ) -> None:
-        gamma = self.gamma
-        cap = self.max_episode_decisions
-        decide = self._decide
-        observe = self._transition_hook()
-        is_goal = self._goal_test()
-        jump = self.multi_cell == "jump"
-        obs_start = int(self.observation_space.start)  # type: ignore[attr-defined]
-        act_start = int(self.action_space.start)  # type: ignore[attr-defined]
-        cb_locals: dict[str, Any] = {"self": self, "total_timesteps": total_timesteps, "callback": callback}
-        update_locals = callback.update_locals
-        on_step = callback.on_step
-        # learn(callback=None) without a progress bar: nothing to call per decision
-        call_back = not (isinstance(callback, ConvertCallback) and callback.callback is None)
-
-        # the episode in progress (continued across learn(reset_num_timesteps=False) calls)
-        if self._episode_state is None:
-            s = int(np.asarray(self._last_obs).reshape(-1)[0]) - obs_start
-            decisions = cells = random_moves = waits = 0
-            reward_sum = 0.0
-            self._begin_episode(total_timesteps)
-        else:
-            st = self._episode_state
-            s, decisions, cells, random_moves, waits, reward_sum = (
-                st["state"],
-                st["decisions"],
-                st["cells"],
-                st["random_moves"],
-                st["waits"],
-                st["reward"],
-            )
-        alpha = self._alpha
-        s2, reward, terminated, truncated, info, action = s, 0.0, False, False, {}, 0
-
-        t = self.num_timesteps
-        changed = True  # whether the Q-table changed since the last greedy-path check
-        while t < total_timesteps:
-            # 1. decide: direction and speed (epsilon-greedy, or the emotion's behaviour)
-            action, k, explored = decide(s, q)
-            before = reward_sum
-            # 2. move k cells, one Eq. 1 update per cell (multi_cell="jump": one for the whole move, below)
-            start_cell, jump_reward = s, 0.0
-            for _ in range(k):
-                obs, r, terminated, truncated, info = env.step(action + act_start)
-                s2 = int(obs) - obs_start
-                reward = float(r)
-                if jump:
-                    jump_reward += reward
-                else:
-                    row = q[s]
-                    old = row[action]
-                    new = old + alpha * ((reward if terminated else reward + gamma * max(q[s2])) - old)
-                    if new != old:
-                        row[action] = new
-                        changed = True
-                if observe is not None:
-                    observe(s, s2, terminated and is_goal(reward, info))
-                cells += 1
-                reward_sum += reward
-                s = s2
-                if terminated or truncated:
-                    break
-            if jump and k > 0:
-                row = q[start_cell]
-                old = row[action]
-                new = old + alpha * ((jump_reward if terminated else jump_reward + gamma * max(q[s])) - old)
-                if new != old:
-                    row[action] = new
-                    changed = True
-            if k == 0:  # a wait: no env step, nothing of the previous step to report again
-                waits += 1
-                s2, reward, info = s, 0.0, {"wait": True}
-            if explored:
-                random_moves += 1
-            decisions += 1
-            t += 1
-            # 3. episode end: at the goal, by the env's time limit, or by the safety cap
-            done = terminated or truncated or decisions >= cap
-            if call_back:
-                step_reward = reward if k == 1 else reward_sum - before
-                if done:  # what a VecEnv adds to the last info of an episode (before the reset below)
-                    info = {**info, "terminal_observation": s2 + obs_start}
-                    if not terminated:
-                        info["TimeLimit.truncated"] = True
-            if done:
-                self.num_timesteps = t
-                self._close_episode(
-                    decisions,
-                    cells,
-                    reward_sum,
-                    random_moves,
-                    waits,
-                    terminated,
-                    not terminated,
-                    changed,
-                    log_interval,
-                    reached_goal=terminated and is_goal(reward, info),
-                    info=info,
-                )
-                changed = False
-                obs, _ = env.reset()
-                s = int(obs) - obs_start
-                decisions = cells = random_moves = waits = 0
-                reward_sum = 0.0
-                terminated = truncated = False
-                self._begin_episode(total_timesteps)
-                alpha = self._alpha
-            # 4. callbacks, once per decision, with the locals of a one-env VecEnv step
-            if call_back:
-                self.num_timesteps = t
-                cb_locals["new_obs"] = np.array([s + obs_start])
-                cb_locals["rewards"] = np.array([step_reward], dtype=np.float32)
-                cb_locals["dones"] = _DONE if done else _NOT_DONE
-                cb_locals["infos"] = [info]
-                cb_locals["actions"] = np.array([action + act_start])
-                update_locals(cb_locals)
-                if not on_step():
-                    break
-        self.num_timesteps = t
-
-        self._episode_state = {
-            "state": s,
-            "decisions": decisions,
-            "cells": cells,
-            "random_moves": random_moves,
-            "waits": waits,
-            "reward": reward_sum,
-        }
-        self._last_obs = np.array([s + obs_start])
+        """The reference decision loop, ``sb3_affect.loop.run_loop`` (its compiled twin: ``sb3_affect.kernel``)."""
+        run_loop(self, env, q, total_timesteps, callback, log_interval)
 
     def _begin_episode(self, total_timesteps: int) -> None:
         if total_timesteps > 0:  # learn(0) takes no decision: the progress stays where it was
@@ -458,47 +309,21 @@ class TabularQAlgorithm(BaseAlgorithm):
         reached_goal: bool | None = None,
         info: dict[str, Any] | None = None,
     ) -> None:
-        counts, norm = self._end_episode(terminated if reached_goal is None else reached_goal)
-        geometry = self._geometry
-        if geometry is None:
-            optimal: Any = math.nan
-            greedy: Any = math.nan
-        else:
-            optimal = terminated and cells == geometry.shortest_path_length
-            if q_changed or self._greedy_optimal is None:
-                assert self._q is not None, "_close_episode runs inside learn, on the loop's table"
-                self._greedy_optimal = greedy_walks_shortest_path(self._q, geometry)
-            greedy = self._greedy_optimal
-        self._episode_rows.append(
-            [
-                len(self._episode_rows) + 1,
-                decisions,
-                cells,
-                reward,
-                optimal,
-                truncated,
-                random_moves,
-                waits,
-                *counts,
-                greedy,
-                norm,
-            ]
+        """An episode's end: its row of the episode log and its logger records (``sb3_affect.loop.close_episode``)."""
+        close_episode(
+            self,
+            decisions,
+            cells,
+            reward,
+            random_moves,
+            waits,
+            terminated,
+            truncated,
+            q_changed,
+            log_interval,
+            reached_goal,
+            info,
         )
-        if truncated:
-            self._truncated_episodes += 1
-        self._episode_num += 1
-        assert self.ep_info_buffer is not None
-        self.ep_info_buffer.append(
-            {"r": reward, "l": decisions, "c": cells, "t": round(time.time() - self.start_time / 1e9, 6)}
-        )
-        success = None if info is None else info.get("is_success")
-        if success is not None:
-            assert self.ep_success_buffer is not None
-            self.ep_success_buffer.append(success)
-        # per episode, never per decision: a few dict writes, and a dump every log_interval episodes
-        self.logger.record("affect/equivalent_epsilon", random_moves / decisions)
-        if log_interval is not None and self._episode_num % log_interval == 0:
-            self.dump_logs()
 
     def dump_logs(self) -> None:
         """Write the logger: the keys SB3's DQN writes, plus rollout/ep_cells_mean and the affect/* keys."""

@@ -12,7 +12,8 @@ from stable_baselines3.common.utils import FloatSchedule
 from sb3_affect.appraisal import check_choice
 from sb3_affect.baselines._schedules import DECAYS, check_positive_int, episode_decay
 from sb3_affect.policies import TabularQPolicy, check_not_gym_tuple
-from sb3_affect.tabular import TabularQAlgorithm, _check_number, _check_rate
+from sb3_affect.tabular import TabularQAlgorithm
+from sb3_affect.validation import check_number, check_rate
 
 
 def softmax_action(row: list[float], inv_temperature: float, u: float) -> int:
@@ -92,11 +93,11 @@ class Boltzmann(TabularQAlgorithm):
         tie_break: str = "random",
         _init_setup_model: bool = True,
     ) -> None:
-        _check_rate("temperature", temperature, 0.0, 1e300, low_open=True)
+        check_rate("temperature", temperature, 0.0, 1e300, low_open=True)
         if temperature_final is not None:
             if callable(temperature):
                 raise ValueError("give either a temperature schedule or temperature_final, not both")
-            temperature_final = _check_number("temperature_final", temperature_final, 0.0, 1e300, low_open=True)
+            temperature_final = check_number("temperature_final", temperature_final, 0.0, 1e300, low_open=True)
         self.temperature = temperature
         self.temperature_final = temperature_final
         self.temperature_decay_episodes = check_positive_int("temperature_decay_episodes", temperature_decay_episodes)

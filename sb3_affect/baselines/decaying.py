@@ -10,7 +10,7 @@ from sb3_affect.appraisal import check_choice
 from sb3_affect.baselines._schedules import DECAYS, check_positive_int, episode_decay
 from sb3_affect.policies import TabularQPolicy
 from sb3_affect.qlearning import QLearning
-from sb3_affect.tabular import _check_number
+from sb3_affect.validation import check_number
 
 
 class DecayingEpsilonGreedy(QLearning):
@@ -67,8 +67,8 @@ class DecayingEpsilonGreedy(QLearning):
         tie_break: str = "random",
         _init_setup_model: bool = True,
     ) -> None:
-        self.exploration_initial_eps = _check_number("exploration_initial_eps", exploration_initial_eps, 0.0, 1.0)
-        self.exploration_final_eps = _check_number("exploration_final_eps", exploration_final_eps, 0.0, 1.0)
+        self.exploration_initial_eps = check_number("exploration_initial_eps", exploration_initial_eps, 0.0, 1.0)
+        self.exploration_final_eps = check_number("exploration_final_eps", exploration_final_eps, 0.0, 1.0)
         self.exploration_decay_episodes = check_positive_int("exploration_decay_episodes", exploration_decay_episodes)
         self.decay = check_choice("decay", decay, DECAYS)
         if decay == "exponential" and min(self.exploration_initial_eps, self.exploration_final_eps) <= 0:

@@ -8,7 +8,8 @@ from typing import Any
 from stable_baselines3.common.type_aliases import GymEnv, Schedule
 
 from sb3_affect.policies import TabularQPolicy
-from sb3_affect.tabular import TabularQAlgorithm, _check_number
+from sb3_affect.tabular import TabularQAlgorithm
+from sb3_affect.validation import check_number
 
 
 class UCBQLearning(TabularQAlgorithm):
@@ -58,7 +59,7 @@ class UCBQLearning(TabularQAlgorithm):
         tie_break: str = "random",
         _init_setup_model: bool = True,
     ) -> None:
-        self.exploration_coef = _check_number("exploration_coef", exploration_coef, 0.0, 1e300)
+        self.exploration_coef = check_number("exploration_coef", exploration_coef, 0.0, 1e300)
         self.counts: list[list[int]] | None = None
         super().__init__(
             policy,

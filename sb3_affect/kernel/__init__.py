@@ -1,7 +1,7 @@
 """
 The compiled engine: numba kernels of the tabular agents' learning loop (issue 11).
 
-``sb3_affect/tabular.py`` (``TabularQAlgorithm._run_loop``) is the readable reference; the kernel runs the same
+``sb3_affect/loop.py`` (``run_loop``) is the readable reference; the kernel runs the same
 decisions with the same random draws and the same floating-point operations, so for a given seed both engines give
 the identical episode log, Q-table, random-generator state and appraisal. Modules:
 

@@ -104,7 +104,7 @@ def _stop_remaining(leaves: list[BaseCallback]) -> int | None:
 
 
 def learn_compiled(model: Any, env: Any, total_timesteps: int, callback: BaseCallback, log_interval: int | None) -> None:
-    """The body of ``TabularQAlgorithm._run_loop`` on the kernel (see the module docstring)."""
+    """``sb3_affect.loop.run_loop`` on the kernel (see the module docstring)."""
     if model._episode_state is None:
         model._begin_episode(total_timesteps)
     spec = agent_spec(model)
