@@ -10,22 +10,12 @@ from __future__ import annotations
 
 import math
 
+from sb3_affect.report.stats import TTEST_ROWS
+
 nan = math.nan
 
-#: Row labels of the spreadsheet tables, in the paper's order.
-TABLE_ROWS: tuple[str, ...] = (
-    "Mean",
-    "Variance",
-    "Observations",
-    "Pearson Correlation",
-    "Hypothesized Mean Difference",
-    "df",
-    "t Stat",
-    "P(T<=t) one-tail",
-    "t Critical one-tail",
-    "P(T<=t) two-tail",
-    "t Critical two-tail",
-)
+#: Row labels of the spreadsheet tables, in the paper's order (the spreadsheet's t-test layout).
+TABLE_ROWS: tuple[str, ...] = TTEST_ROWS
 
 #: Table IV ("T-test comparison for average number of steps per episode", Sec. V), as printed:
 #: (epsilon-greedy selection, proposed); "" where the paper leaves the cell empty.
