@@ -18,8 +18,10 @@ from __future__ import annotations
 from typing import Any
 
 from numba import njit
+from numba.core.options import DefaultOptions
 
-_OPTIONS: dict[str, Any] = {"cache": True, "_nrt": False}
+#: ``_nrt`` is numba's (private) switch of the NRT; a numba without it compiles the same code with reference counting.
+_OPTIONS: dict[str, Any] = {"cache": True, "_nrt": False} if hasattr(DefaultOptions, "_nrt") else {"cache": True}
 
 #: ``@kernel_jit``: ``njit(cache=True)`` without reference counting, for functions that allocate no array.
 kernel_jit = njit(**_OPTIONS)
