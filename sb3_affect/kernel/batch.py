@@ -18,7 +18,7 @@ from numba import njit
 
 from sb3_affect.kernel import loop
 from sb3_affect.kernel.agents import AgentSpec, episode_schedule
-from sb3_affect.kernel.mt19937 import STATE_SIZE, seed_key, seed_state
+from sb3_affect.kernel.mt19937 import STATE_SIZE, TW_SIZE, seed_key, seed_state
 from sb3_affect.kernel.state import Geometry, config_arrays
 
 
@@ -49,6 +49,7 @@ def run_seeds(
     seen = np.zeros(n_states, dtype=np.int64)
     stack = np.empty(n_states * n_actions + 1, dtype=np.int64)
     queue = np.empty(n_states + 1, dtype=np.int64)
+    tw = np.empty(TW_SIZE, dtype=np.int64)
     for r in range(keys.shape[0]):
         q[:] = q_init
         seed_state(mt, keys[r], key_lengths[r])
@@ -70,7 +71,7 @@ def run_seeds(
         loop.decision_loop(
             icfg[loop.C_KIND], q, trans, tdist, icfg, fcfg, beh_rand, beh_speeds, beh_n, ucb_n, ucb_tot, mt, ist, fst,
             dist, edge, pred, pred_n, goal, fit_vals, alpha_e, p_e, total_timesteps, episodes, out_i[lo:hi],
-            out_f[lo:hi], work, seen, stack, queue,
+            out_f[lo:hi], work, seen, stack, queue, tw,
         )  # fmt: skip
 
 

@@ -16,8 +16,8 @@ from numba import njit
 
 from sb3_affect.kernel.affect import fit_add, known_add, known_add_goal, start_norm, table_ii
 from sb3_affect.kernel.jit import kernel_inline, kernel_jit
+from sb3_affect.kernel.mt19937 import TW_SIZE, bit_length, draw01, draw_below, temper_all
 from sb3_affect.kernel.mt19937 import N as MT_N
-from sb3_affect.kernel.mt19937 import bit_length, draw01, draw_below, randbelow
 
 # agent kinds
 EPSILON, AFFECT, BOLTZMANN, UCB = 0, 1, 2, 3
@@ -98,7 +98,7 @@ def row_max(q: np.ndarray, s: int) -> float:
 
 
 @kernel_inline
-def greedy_n(q: np.ndarray, s: int, n: int, mt: np.ndarray, i: int, tie_first: bool) -> tuple[int, int]:
+def greedy_n(q: np.ndarray, s: int, n: int, mt: np.ndarray, tw: np.ndarray, i: int, tie_first: bool) -> tuple[int, int]:
     """``greedy`` for a row of ``n`` actions."""
     best = row_max_n(q, s, n)
     count = 0
@@ -109,7 +109,7 @@ def greedy_n(q: np.ndarray, s: int, n: int, mt: np.ndarray, i: int, tie_first: b
         first = a if tie else first
     if count == 1 or tie_first:
         return first, i
-    pick, i = draw_below(mt, i, count, 32 - bit_length(count))
+    pick, i = draw_below(mt, tw, i, count, 32 - bit_length(count))
     for a in range(first, n):
         if q[s, a] == best:
             if pick == 0:
@@ -119,15 +119,15 @@ def greedy_n(q: np.ndarray, s: int, n: int, mt: np.ndarray, i: int, tie_first: b
 
 
 @kernel_inline
-def greedy(q: np.ndarray, s: int, mt: np.ndarray, i: int, tie_first: bool) -> tuple[int, int]:
+def greedy(q: np.ndarray, s: int, mt: np.ndarray, tw: np.ndarray, i: int, tie_first: bool) -> tuple[int, int]:
     """
     ``policies.greedy_action`` on ``q[s]``: arg-max, ties uniformly at random (one ``choice`` draw) or the first.
-    ``i`` is the random stream's index (``mt19937.draw``); returns ``(action, i)``. Four actions (the grids') with
-    a constant count, so that the compiler unrolls the loops.
+    ``i`` is the random stream's index and ``tw`` its tempered words (``mt19937.draw``); returns ``(action, i)``.
+    Four actions (the grids') with a constant count, so that the compiler unrolls the loops.
     """
     if q.shape[1] == 4:
-        return greedy_n(q, s, 4, mt, i, tie_first)
-    return greedy_n(q, s, q.shape[1], mt, i, tie_first)
+        return greedy_n(q, s, 4, mt, tw, i, tie_first)
+    return greedy_n(q, s, q.shape[1], mt, tw, i, tie_first)
 
 
 @kernel_jit
@@ -194,19 +194,31 @@ def softmax_action(q: np.ndarray, s: int, inv_temperature: float, u: float, comp
 
 
 @kernel_jit
-def ucb_action(q: np.ndarray, s: int, counts: np.ndarray, total: int, coef: float, mt: np.ndarray, scores: np.ndarray) -> int:
-    """``UCBQLearning._decide``'s choice in ``s`` (the caller updates the counts)."""
+def ucb_action(
+    q: np.ndarray,
+    s: int,
+    counts: np.ndarray,
+    total: int,
+    coef: float,
+    mt: np.ndarray,
+    tw: np.ndarray,
+    i: int,
+    scores: np.ndarray,
+) -> tuple[int, int]:
+    """``UCBQLearning._decide``'s choice in ``s`` (the caller updates the counts); returns ``(action, i)`` (see ``greedy``)."""
     n = q.shape[1]
     untried = 0
     for a in range(n):
         if counts[s, a] == 0:
             untried += 1
     if untried > 0:
-        pick = 0 if untried == 1 else randbelow(mt, untried)
+        pick = 0
+        if untried > 1:
+            pick, i = draw_below(mt, tw, i, untried, 32 - bit_length(untried))
         for a in range(n):
             if counts[s, a] == 0:
                 if pick == 0:
-                    return a
+                    return a, i
                 pick -= 1
     c = coef * math.sqrt(math.log(float(total)))
     for a in range(n):
@@ -219,13 +231,15 @@ def ucb_action(q: np.ndarray, s: int, counts: np.ndarray, total: int, coef: floa
     for a in range(n):
         if scores[a] == best:
             ties += 1
-    pick = 0 if ties == 1 else randbelow(mt, ties)
+    pick = 0
+    if ties > 1:
+        pick, i = draw_below(mt, tw, i, ties, 32 - bit_length(ties))
     for a in range(n):
         if scores[a] == best:
             if pick == 0:
-                return a
+                return a, i
             pick -= 1
-    return 0
+    return 0, i
 
 
 @njit(cache=True)
@@ -248,10 +262,11 @@ def run(
     seen = np.zeros(n_states, dtype=np.int64)
     stack = np.empty(n_states * n_actions + 1, dtype=np.int64)
     queue = np.empty(n_states + 1, dtype=np.int64)
+    tw = np.empty(TW_SIZE, dtype=np.int64)
     return decision_loop(
         icfg[C_KIND], q, trans, tdist, icfg, fcfg, beh_rand, beh_speeds, beh_n, ucb_n, ucb_tot, mt, ist, fst,
         dist, edge, pred, pred_n, goal, fit_vals, alpha_e, p_e, total_timesteps, max_episodes, out_i, out_f,
-        work, seen, stack, queue,
+        work, seen, stack, queue, tw,
     )  # fmt: skip
 
 
@@ -259,13 +274,15 @@ def run(
 def decision_loop(
     kind, q, trans, tdist, icfg, fcfg, beh_rand, beh_speeds, beh_n, ucb_n, ucb_tot, mt, ist, fst,
     dist, edge, pred, pred_n, goal, fit_vals, alpha_e, p_e, total_timesteps, max_episodes, out_i, out_f,
-    work, seen, stack, queue,
+    work, seen, stack, queue, tw,
 ):  # fmt: skip
     """
     ``run``'s loop, for an agent of ``kind``. The run's scalars live in locals during the loop (the random stream's
     index, the counters, the appraisal's norm and elapsed time) and go back to ``mt[N]``, ``ist`` and ``fst`` when it
     returns. ``work`` (``n_actions`` floats), ``seen`` (``n_states`` zeros), ``stack`` (``n_states * n_actions + 1``)
-    and ``queue`` (``n_states + 1``) are work space.
+    and ``queue`` (``n_states + 1``) are work space, ``tw`` (``mt19937.TW_SIZE``) the random stream's tempered words.
+    Q-table changes mark the greedy walk's answer out of date only in rows that walk read (``seen[s] == walks``):
+    the walk reads no other row, so a change elsewhere can not change its answer.
     """
     goal_state = icfg[C_GOAL]
     start_state = icfg[C_START]
@@ -290,6 +307,7 @@ def decision_loop(
     fsum = fst[S_FIT0 : S_FIT0 + 4]
 
     r = mt[MT_N]  # the random stream's index
+    temper_all(mt, tw)
     t = ist[I_T]
     s = ist[I_STATE]
     decisions = ist[I_DECISIONS]
@@ -333,35 +351,33 @@ def decision_loop(
             if ns == 1:
                 k = beh_speeds[emotion, 0]
             else:
-                pick, r = draw_below(mt, r, ns, 32 - bit_length(ns))
+                pick, r = draw_below(mt, tw, r, ns, 32 - bit_length(ns))
                 k = beh_speeds[emotion, pick]
             if beh_rand[emotion]:
-                action, r = draw_below(mt, r, n_actions, action_shift)
+                action, r = draw_below(mt, tw, r, n_actions, action_shift)
                 explored = True
             else:
-                action, r = greedy(q, s, mt, r, tie_first)
+                action, r = greedy(q, s, mt, tw, r, tie_first)
         elif kind == EPSILON:
             if speeds0 == 1:
                 k = speed0
             else:
-                pick, r = draw_below(mt, r, speeds0, 32 - bit_length(speeds0))
+                pick, r = draw_below(mt, tw, r, speeds0, 32 - bit_length(speeds0))
                 k = beh_speeds[0, pick]
-            u, r = draw01(mt, r)
+            u, r = draw01(mt, tw, r)
             if u < p:
-                action, r = draw_below(mt, r, n_actions, action_shift)
+                action, r = draw_below(mt, tw, r, n_actions, action_shift)
                 explored = True
             else:
-                action, r = greedy(q, s, mt, r, tie_first)
+                action, r = greedy(q, s, mt, tw, r, tie_first)
         elif kind == BOLTZMANN:
             k = 1
-            u, r = draw01(mt, r)
+            u, r = draw01(mt, tw, r)
             action = softmax_action(q, s, p, u, compensated, work)
             explored = q[s, action] != row_max(q, s)
         else:
             k = 1
-            mt[MT_N] = r
-            action = ucb_action(q, s, ucb_n, ucb_tot[s], ucb_coef, mt, work)
-            r = mt[MT_N]
+            action, r = ucb_action(q, s, ucb_n, ucb_tot[s], ucb_coef, mt, tw, r, work)
             ucb_n[s, action] += 1
             ucb_tot[s] += 1
             explored = q[s, action] != row_max(q, s)
@@ -381,7 +397,7 @@ def decision_loop(
                 new = old + alpha * ((reward if terminated else reward + gamma * row_max(q, s2)) - old)
                 if new != old:
                     q[s, action] = new
-                    changed = True
+                    changed |= seen[s] == walks  # (only a row the last greedy walk read can change its answer)
             if kind == AFFECT:
                 el_cells += 1
                 if terminated:
@@ -399,7 +415,7 @@ def decision_loop(
             new = old + alpha * ((jump_reward if terminated else jump_reward + gamma * row_max(q, s)) - old)
             if new != old:
                 q[start_cell, action] = new
-                changed = True
+                changed |= seen[start_cell] == walks
         if k == 0:
             waits += 1
         if explored:

@@ -14,6 +14,13 @@ the Python generator continues exactly where the kernel stopped. What the functi
 - ``seed_state``: ``random.Random(seed)`` for an integer seed (``init_by_array`` on the 32-bit words of ``|seed|``).
 
 The state is an int64 array of 625 entries: the 624 words and, last, the index of the next word to use.
+
+The decision loop draws through ``draw``/``draw01``/``draw_below``, which keep the index in the caller's local and
+read a second array ``tw`` (``TW_SIZE`` entries, filled by ``temper_all`` from the state and again at each twist):
+``tw[:N]`` the 624 words tempered (a draw is one load), ``tw[N + i]`` the first index ``j >= i`` whose tempered word
+has its top bit clear (``tw[2N] = N``). For ``n`` a power of two, ``getrandbits(k)`` with ``k = n.bit_length()`` is
+``< n`` exactly when the word's top bit is clear, so ``randbelow(n)`` is the word at ``tw[N + i]``: the words it
+skips are those CPython draws and rejects. The state words themselves stay untempered (they go back to Python).
 """
 
 from __future__ import annotations
@@ -31,6 +38,8 @@ UPPER_MASK = 0x80000000
 LOWER_MASK = 0x7FFFFFFF
 MASK32 = 0xFFFFFFFF
 STATE_SIZE = N + 1
+TW_SIZE = 2 * N + 1
+TOP_BIT = 0x80000000
 
 
 @kernel_jit
@@ -47,28 +56,60 @@ def _twist(mt: np.ndarray) -> None:
 
 
 @kernel_inline
-def draw(mt: np.ndarray, i: int) -> tuple[int, int]:
-    """
-    ``genrand`` with the index in the caller's hands: the output at index ``i`` (twisting first when ``i == N``) and
-    the index of the next word. The decision loop keeps the index in a local and stores it in ``mt[N]`` when it
-    returns, instead of reading and writing ``mt[N]`` on every draw.
-    """
-    if i >= N:
-        _twist(mt)
-        i = 0
-    y = mt[i]
+def temper(y: int) -> int:
+    """MT19937's tempering of one state word."""
     y ^= y >> 11
     y ^= (y << 7) & 0x9D2C5680
     y ^= (y << 15) & 0xEFC60000
     y ^= y >> 18
-    return y & MASK32, i + 1
+    return y & MASK32
+
+
+@kernel_jit
+def temper_all(mt: np.ndarray, tw: np.ndarray) -> None:
+    """Fill ``tw`` from the state's words (see the module's docstring)."""
+    for k in range(N):
+        tw[k] = temper(mt[k])
+    nxt = N
+    tw[2 * N] = N
+    for k in range(N - 1, -1, -1):
+        nxt = k if tw[k] < TOP_BIT else nxt
+        tw[N + k] = nxt
+
+
+@kernel_jit
+def _twist_tempered(mt: np.ndarray, tw: np.ndarray) -> None:
+    _twist(mt)
+    temper_all(mt, tw)
 
 
 @kernel_inline
-def draw01(mt: np.ndarray, i: int) -> tuple[float, int]:
+def _draw_raw(mt: np.ndarray, i: int) -> tuple[int, int]:
+    """``genrand`` on the state alone (tempering the word), for the functions below that take no ``tw``."""
+    if i >= N:
+        _twist(mt)
+        i = 0
+    return temper(mt[i]), i + 1
+
+
+@kernel_inline
+def draw(mt: np.ndarray, tw: np.ndarray, i: int) -> tuple[int, int]:
+    """
+    ``genrand`` with the index in the caller's hands: the output at index ``i`` (twisting first when ``i == N``) and
+    the index of the next word. The decision loop keeps the index in a local and stores it in ``mt[N]`` when it
+    returns, instead of reading and writing ``mt[N]`` on every draw. ``tw`` is the tempered copy of ``mt``.
+    """
+    if i >= N:
+        _twist_tempered(mt, tw)
+        i = 0
+    return tw[i], i + 1
+
+
+@kernel_inline
+def draw01(mt: np.ndarray, tw: np.ndarray, i: int) -> tuple[float, int]:
     """``random01`` with the index in the caller's hands (see ``draw``)."""
-    a, i = draw(mt, i)
-    b, i = draw(mt, i)
+    a, i = draw(mt, tw, i)
+    b, i = draw(mt, tw, i)
     return ((a >> 5) * 67108864.0 + (b >> 6)) * (1.0 / 9007199254740992.0), i
 
 
@@ -83,12 +124,31 @@ def bit_length(n: int) -> int:
 
 
 @kernel_inline
-def draw_below(mt: np.ndarray, i: int, n: int, shift: int) -> tuple[int, int]:
-    """``randbelow`` with the index in the caller's hands (see ``draw``); ``shift`` is ``32 - n.bit_length()``."""
-    r, i = draw(mt, i)
+def draw_below(mt: np.ndarray, tw: np.ndarray, i: int, n: int, shift: int) -> tuple[int, int]:
+    """
+    ``randbelow`` with the index in the caller's hands (see ``draw``); ``shift`` is ``32 - n.bit_length()``. For ``n``
+    a power of two (the grids' four actions, ties of two and four) the accepted word is ``tw[N + i]``, without a loop.
+    """
+    if n & (n - 1) == 0:
+        j = tw[N + i]
+        while j >= N:  # no accepted word before the end: twist and look from the start
+            _twist_tempered(mt, tw)
+            j = tw[N]
+        return tw[j] >> shift, j + 1
+    r, i = draw(mt, tw, i)
     r >>= shift
     while r >= n:
-        r, i = draw(mt, i)
+        r, i = draw(mt, tw, i)
+        r >>= shift
+    return r, i
+
+
+@kernel_inline
+def _draw_below_raw(mt: np.ndarray, i: int, n: int, shift: int) -> tuple[int, int]:
+    r, i = _draw_raw(mt, i)
+    r >>= shift
+    while r >= n:
+        r, i = _draw_raw(mt, i)
         r >>= shift
     return r, i
 
@@ -96,7 +156,7 @@ def draw_below(mt: np.ndarray, i: int, n: int, shift: int) -> tuple[int, int]:
 @kernel_jit
 def genrand(mt: np.ndarray) -> int:
     """One 32-bit output (``genrand_uint32``); ``mt`` is the 625-entry state (words, then the index)."""
-    y, i = draw(mt, mt[N])
+    y, i = _draw_raw(mt, mt[N])
     mt[N] = i
     return y
 
@@ -104,15 +164,16 @@ def genrand(mt: np.ndarray) -> int:
 @kernel_jit
 def random01(mt: np.ndarray) -> float:
     """``random.Random.random()``: a float in [0, 1) with 53 random bits."""
-    u, i = draw01(mt, mt[N])
+    a, i = _draw_raw(mt, mt[N])
+    b, i = _draw_raw(mt, i)
     mt[N] = i
-    return u
+    return ((a >> 5) * 67108864.0 + (b >> 6)) * (1.0 / 9007199254740992.0)
 
 
 @kernel_jit
 def randbelow(mt: np.ndarray, n: int) -> int:
     """``random.Random.randrange(n)`` (and ``choice`` of a sequence of length ``n``), for ``1 <= n < 2**32``."""
-    r, i = draw_below(mt, mt[N], n, 32 - bit_length(n))
+    r, i = _draw_below_raw(mt, mt[N], n, 32 - bit_length(n))
     mt[N] = i
     return r
 
