@@ -41,6 +41,7 @@ def refresh_cache(sources: Path, cache: Path) -> bool:
             return False
     removed = False
     with contextlib.suppress(OSError):  # a cache folder we can not write: numba uses its own elsewhere
+        cache.mkdir(exist_ok=True)  # (else a first run leaves no digest, and the second drops what the first compiled)
         for path in [*cache.glob("*.nbi"), *cache.glob("*.nbc")]:
             path.unlink(missing_ok=True)
             removed = True

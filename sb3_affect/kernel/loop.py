@@ -118,6 +118,26 @@ def greedy_n(q: np.ndarray, s: int, n: int, mt: np.ndarray, tw: np.ndarray, i: i
     return first, i
 
 
+#: four actions: for the mask of the maximal ones (bit ``a``: action ``a``), their number, the ``j``-th of them and the
+#: shift of ``randbelow`` of their number (``32 - n.bit_length()``)
+TIE_COUNT = np.array([bin(m).count("1") for m in range(16)], dtype=np.int64)
+TIE_PICK = np.array([([a for a in range(4) if m >> a & 1] + [0] * 4)[:4] for m in range(16)], dtype=np.int64)
+TIE_SHIFT = np.array([32 - n.bit_length() for n in range(5)], dtype=np.int64)
+
+
+@kernel_inline
+def greedy4(q: np.ndarray, s: int, mt: np.ndarray, tw: np.ndarray, i: int, tie_first: bool) -> tuple[int, int]:
+    """``greedy`` for a row of four actions: the maximal ones as a mask, the choice among them by table."""
+    q0, q1, q2, q3 = q[s, 0], q[s, 1], q[s, 2], q[s, 3]
+    best = row_max_n(q, s, 4)
+    mask = (1 if q0 == best else 0) | (2 if q1 == best else 0) | (4 if q2 == best else 0) | (8 if q3 == best else 0)
+    count = TIE_COUNT[mask]
+    if count == 1 or tie_first:
+        return TIE_PICK[mask, 0], i
+    pick, i = draw_below(mt, tw, i, count, TIE_SHIFT[count])
+    return TIE_PICK[mask, pick], i
+
+
 @kernel_inline
 def greedy(q: np.ndarray, s: int, mt: np.ndarray, tw: np.ndarray, i: int, tie_first: bool) -> tuple[int, int]:
     """
@@ -126,7 +146,7 @@ def greedy(q: np.ndarray, s: int, mt: np.ndarray, tw: np.ndarray, i: int, tie_fi
     Four actions (the grids') with a constant count, so that the compiler unrolls the loops.
     """
     if q.shape[1] == 4:
-        return greedy_n(q, s, 4, mt, tw, i, tie_first)
+        return greedy4(q, s, mt, tw, i, tie_first)
     return greedy_n(q, s, q.shape[1], mt, tw, i, tie_first)
 
 
