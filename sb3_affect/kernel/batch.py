@@ -132,28 +132,32 @@ def simulate_batch(model: Any, seeds: Sequence[int], episodes: int) -> pd.DataFr
 
 
 def rows_frame(seed_column: np.ndarray, episodes: int, out_i: np.ndarray, out_f: np.ndarray) -> pd.DataFrame:
-    """The kernel's rows as ``simulate``'s table (the dtypes of ``episode_log``)."""
+    """
+    The kernel's rows as ``simulate``'s table (the dtypes of ``episode_log``). The columns are rows of one transposed
+    copy of ``out_i`` (and ``out_f``), handed to pandas without copying and without merging them into blocks by
+    dtype (which would copy every column once more).
+    """
     n_runs = len(seed_column) // episodes if episodes else 0
-    frame = pd.DataFrame(
-        {
-            "seed": seed_column,
-            "episode": np.tile(np.arange(1, episodes + 1, dtype=np.int64), n_runs),
-            "decisions": out_i[:, loop.O_DECISIONS],
-            "cells": out_i[:, loop.O_CELLS],
-            "reward": out_f[:, 0],
-            "optimal": out_i[:, loop.O_OPTIMAL].astype(bool),
-            "truncated": out_i[:, loop.O_TRUNCATED].astype(bool),
-            "random_moves": out_i[:, loop.O_RANDOM].astype(np.float64),
-            "waits": out_i[:, loop.O_WAITS],
-            "joy": out_i[:, loop.O_JOY],
-            "sadness": out_i[:, loop.O_SADNESS],
-            "fear": out_i[:, loop.O_FEAR],
-            "anger": out_i[:, loop.O_ANGER],
-            "greedy_optimal": out_i[:, loop.O_GREEDY].astype(bool),
-            "norm": out_f[:, 1],
-        }
-    )
-    return frame
+    col_i = np.ascontiguousarray(out_i.T)
+    col_f = np.ascontiguousarray(out_f.T)
+    columns = {
+        "seed": seed_column,
+        "episode": np.tile(np.arange(1, episodes + 1, dtype=np.int64), n_runs),
+        "decisions": col_i[loop.O_DECISIONS],
+        "cells": col_i[loop.O_CELLS],
+        "reward": col_f[0],
+        "optimal": col_i[loop.O_OPTIMAL].astype(bool),
+        "truncated": col_i[loop.O_TRUNCATED].astype(bool),
+        "random_moves": col_i[loop.O_RANDOM].astype(np.float64),
+        "waits": col_i[loop.O_WAITS],
+        "joy": col_i[loop.O_JOY],
+        "sadness": col_i[loop.O_SADNESS],
+        "fear": col_i[loop.O_FEAR],
+        "anger": col_i[loop.O_ANGER],
+        "greedy_optimal": col_i[loop.O_GREEDY].astype(bool),
+        "norm": col_f[1],
+    }
+    return pd.DataFrame(columns, copy=False)
 
 
 def warm_up() -> None:
