@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import importlib
 import json
 import math
@@ -29,17 +30,23 @@ def _version(name: str) -> str:
         return str(importlib.import_module(name).__version__)
 
 
-def package_versions() -> dict[str, str]:
+@functools.cache
+def _package_versions() -> tuple[tuple[str, str], ...]:
     import sb3_affect
 
-    return {
-        "python": platform.python_version(),
-        "sb3_affect": sb3_affect.__version__,
-        "stable_baselines3": _version("stable_baselines3"),
-        "gymnasium": _version("gymnasium"),
-        "torch": _version("torch"),
-        "numpy": _version("numpy"),
-    }
+    return (
+        ("python", platform.python_version()),
+        ("sb3_affect", sb3_affect.__version__),
+        ("stable_baselines3", _version("stable_baselines3")),
+        ("gymnasium", _version("gymnasium")),
+        ("torch", _version("torch")),
+        ("numpy", _version("numpy")),
+    )
+
+
+def package_versions() -> dict[str, str]:
+    """The versions a run records (Python, sb3-affect, SB3, Gymnasium, PyTorch, NumPy); read once per process."""
+    return dict(_package_versions())
 
 
 def _plain(value: Any) -> Any:
