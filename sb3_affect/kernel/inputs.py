@@ -151,18 +151,6 @@ def batch_inputs(agent: Any, env: Any, episodes: int) -> BatchInputs:
     return BatchInputs(spec, geo, icfg, fcfg, alpha, p, float(agent.q_init), n_actions, int(agent.max_episode_decisions))
 
 
-def settings_of(algo: str | type, kwargs: Mapping[str, Any]) -> Any:
-    """
-    The settings object of ``algo`` (an agent class or its ``algo`` name) with ``kwargs`` (validated by the agent's
-    own checks: a bad value raises what the constructor raises), or None when this path can not stand for the
-    constructor: a class the package does not know by name, or an argument that is not a setting.
-    """
-    settings = agent_settings_class(algo)
-    if settings is None or not set(kwargs) <= set(settings.names()):
-        return None
-    return settings(**kwargs)
-
-
 def agent_settings_class(algo: str | type) -> Any:
     """The settings class of the package's agent ``algo`` (a class, or its ``algo`` name: not imported), or None."""
     from sb3_affect.settings import AGENT_SETTINGS
@@ -185,14 +173,15 @@ def settings_inputs(
     The kernel inputs of fresh runs of ``algo`` with ``kwargs`` on ``gym.make(env_id, **env_kwargs)``, without a model;
     None where the model-based path must decide (see the module docstring). Bad kwargs raise the constructor's error.
     """
-    settings = settings_of(algo, kwargs)
-    if settings is None:
+    settings_cls = agent_settings_class(algo)
+    if settings_cls is None or not set(kwargs) <= set(settings_cls.names()):
         return None
-    spec = agent_spec(settings)
-    if isinstance(spec, str) or episode_schedule(settings, spec.kind, 0, 1) is None:
-        return None
-    env = gym.make(env_id, **dict(env_kwargs or {}))
+    env = gym.make(env_id, **dict(env_kwargs or {}))  # first, as for a model: a bad env is the first error
     try:
+        settings = settings_cls(**kwargs)
+        spec = agent_spec(settings)
+        if isinstance(spec, str) or episode_schedule(settings, spec.kind, 0, 1) is None:
+            return None
         if env_reason(env) is not None or not isinstance(env.observation_space, gym.spaces.Discrete):
             return None
         if not isinstance(env.action_space, gym.spaces.Discrete):
