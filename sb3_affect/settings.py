@@ -200,7 +200,11 @@ class TabularSettings:
 
 @dataclass
 class QLearningSettings(TabularSettings):
-    """``QLearning``'s settings. :param exploration_rate: epsilon, in [0, 1]; a float or a schedule"""
+    """
+    ``QLearning``'s settings (and ``TabularSettings``').
+
+    :param exploration_rate: epsilon, in [0, 1]; a float or a schedule of the remaining progress
+    """
 
     exploration_rate: Rate = 0.1
 
@@ -225,7 +229,12 @@ class OptimisticQLearningSettings(QLearningSettings):
 
 @dataclass
 class SpeedEpsilonGreedySettings(QLearningSettings):
-    """``SpeedEpsilonGreedy``'s settings. :param speeds: cells a decision moves :param multi_cell: steps or jump"""
+    """
+    ``SpeedEpsilonGreedy``'s settings (and ``QLearningSettings``').
+
+    :param speeds: cells a decision moves, drawn uniformly (non-empty, integers >= 0)
+    :param multi_cell: ``"steps"`` or ``"jump"``
+    """
 
     speeds: Sequence[int] = (1, 2)
     multi_cell: str = "steps"
@@ -240,7 +249,14 @@ class SpeedEpsilonGreedySettings(QLearningSettings):
 
 @dataclass
 class DecayingEpsilonGreedySettings(TabularSettings):
-    """``DecayingEpsilonGreedy``'s settings (epsilon decays over episodes)."""
+    """
+    ``DecayingEpsilonGreedy``'s settings (and ``TabularSettings``'): epsilon decays over the run's episodes.
+
+    :param exploration_initial_eps: epsilon of the first episode, in [0, 1]
+    :param exploration_final_eps: epsilon once the decay is over, in [0, 1]
+    :param exploration_decay_episodes: episodes the decay lasts (>= 1)
+    :param decay: ``"linear"`` or ``"exponential"``
+    """
 
     exploration_initial_eps: float = 1.0
     exploration_final_eps: float = 0.05
@@ -272,7 +288,14 @@ class DecayingEpsilonGreedySettings(TabularSettings):
 
 @dataclass
 class BoltzmannSettings(TabularSettings):
-    """``Boltzmann``'s settings (a fixed, scheduled or episode-decaying temperature)."""
+    """
+    ``Boltzmann``'s settings (and ``TabularSettings``'): a fixed, scheduled or episode-decaying temperature.
+
+    :param temperature: T > 0 (the first episode's when ``temperature_final`` is given); a float or a schedule
+    :param temperature_final: None (no decay) or the temperature once the decay is over (> 0)
+    :param temperature_decay_episodes: episodes the decay lasts (>= 1)
+    :param decay: ``"exponential"`` or ``"linear"``
+    """
 
     temperature: Rate = 1.0
     temperature_final: float | None = None
@@ -303,7 +326,11 @@ class BoltzmannSettings(TabularSettings):
 
 @dataclass
 class UCBQLearningSettings(TabularSettings):
-    """``UCBQLearning``'s settings. :param exploration_coef: the weight c >= 0 of the bonus"""
+    """
+    ``UCBQLearning``'s settings (and ``TabularSettings``').
+
+    :param exploration_coef: the weight c >= 0 of the bonus
+    """
 
     exploration_coef: float = 1.0
 
@@ -318,7 +345,17 @@ class UCBQLearningSettings(TabularSettings):
 
 @dataclass
 class AffectQSettings(TabularSettings):
-    """``AffectQ``'s settings: the reading of Table II, the appraisal, the behaviour table, the personality."""
+    """
+    ``AffectQ``'s settings (and ``TabularSettings``'): the reading of Table II, the appraisal, the behaviour table,
+    the personality.
+
+    :param comparison: ``"literal"`` or ``"valence"``
+    :param act: ``"episode"`` or ``"remaining"``
+    :param units: ``"cells"`` or ``"decisions"``
+    :param behaviour_table: emotion -> ``Behaviour(random_direction, speeds)``; None: Table III
+    :param personality: ``"neutral"``, ``"optimistic"`` or ``"pessimistic"``
+    :param multi_cell: ``"steps"`` or ``"jump"``
+    """
 
     comparison: str = "literal"
     act: str = "episode"
