@@ -18,12 +18,14 @@ schedule of the training progress, MovingPursuit) builds one model as a template
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 
 from sb3_affect.episode_log import EPISODE_COLUMNS
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 #: Columns of ``simulate``'s table: the run's seed, then ``EPISODE_COLUMNS``.
 SIMULATE_COLUMNS: tuple[str, ...] = ("seed", *EPISODE_COLUMNS)
@@ -74,6 +76,25 @@ def simulate(
         it can not apply); an ``engine`` in ``algo_kwargs`` is the agent's own and wins for ``"python"``
     :return: one row per (seed, episode), columns ``SIMULATE_COLUMNS``
     """
+    import pandas as pd
+
+    table = simulate_columns(algo, algo_kwargs, env_id, env_kwargs, seeds, episodes, engine)
+    return table if isinstance(table, pd.DataFrame) else pd.DataFrame(table)
+
+
+def simulate_columns(
+    algo: str | type,
+    algo_kwargs: dict[str, Any] | None,
+    env_id: str,
+    env_kwargs: dict[str, Any] | None,
+    seeds: Sequence[int],
+    episodes: int,
+    engine: str = "auto",
+) -> Any:
+    """
+    ``simulate``'s table, as a DataFrame or, where one kernel call computes it from the agent's settings, as
+    ``{column: NumPy array}`` without importing pandas (the launcher's batches); same arguments as ``simulate``.
+    """
     import gymnasium as gym
 
     import sb3_affect  # noqa: F401  (registers the envs)
@@ -87,8 +108,12 @@ def simulate(
         if agent_settings_class(algo) is not None:  # the package's agent: no model (nor torch, when named)
             _check_args(episodes, engine, seeds)
             inputs = settings_inputs(algo, kwargs, env_id, env_kwargs, episodes)
-            if inputs is not None:
+            if inputs is not None and not seeds:
                 return _batch_frame(inputs, seeds, episodes)
+            if inputs is not None:
+                from sb3_affect.kernel.batch import batch_columns
+
+                return batch_columns(inputs, seeds, episodes)
     cls = _resolve(algo)
     _check_args(episodes, engine, seeds)
     if engine != "python" and own != "python":
@@ -105,6 +130,7 @@ def simulate(
         env.close()
         if engine == "compiled" or own == "compiled":
             raise ValueError(f"engine='compiled' can not run this simulation: {reason}")
+    import pandas as pd
     from stable_baselines3.common.callbacks import StopTrainingOnMaxEpisodes
     from stable_baselines3.common.logger import Logger
 
@@ -127,6 +153,8 @@ def simulate(
 
 def _batch_frame(inputs: Any, seeds: list[Any], episodes: int) -> pd.DataFrame:
     """The rows of one kernel call for all seeds (``kernel.batch.simulate_batch``)."""
+    import pandas as pd
+
     if not seeds:
         return pd.DataFrame(columns=list(SIMULATE_COLUMNS))
     from sb3_affect.kernel.batch import simulate_batch

@@ -53,12 +53,13 @@ class Batch:
 
     def execute(self) -> dict[str, Any]:
         """Run the batch (in a worker): ``{"chunk": Parquet bytes, "run_ids": [...]}``."""
-        from sb3_affect.engine import simulate
+        from sb3_affect.engine import simulate_columns
 
         start = time.perf_counter()
         seeds = list(dict.fromkeys(seed for _, seed, _ in self.runs))
         base = self.base
-        episodes = simulate(base["algo"], base["algo_kwargs"], base["env_id"], base["env_kwargs"], seeds, base["episodes"])
+        algo, kwargs, env_id, env_kwargs = base["algo"], base["algo_kwargs"], base["env_id"], base["env_kwargs"]
+        episodes = simulate_columns(algo, kwargs, env_id, env_kwargs, seeds, base["episodes"])  # no pandas on the kernel
         timings = {"wall_seconds": round(time.perf_counter() - start, 4), "pid": os.getpid(), "host": socket.gethostname()}
         versions = package_versions()
         chunk = encode_chunk(self.name, base, self.runs, episodes, timings, versions)

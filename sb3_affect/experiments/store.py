@@ -26,12 +26,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 
 from sb3_affect.episode_log import EPISODE_COLUMNS
 from sb3_affect.experiments.chunks import INT_COLUMNS, chunk_meta, chunk_records, chunk_table
 
 if TYPE_CHECKING:
+    import pandas as pd
+
     from sb3_affect.experiments.schema import Cell
 
 SCHEMA = 1
@@ -318,6 +319,8 @@ class ResultsStore:
             and one column per label (categoricals but ``seed``), then the episode columns (integers as int32, flags
             as bool, the rest float64), each run's rows together in episode order
         """
+        import pandas as pd  # imported here: the launcher's path writes chunks without pandas
+
         runs, episodes = self._read(EPISODE_COLUMNS if columns is None else tuple(columns))
         run = episodes.pop("run").to_numpy()
         front: dict[str, Any] = {}
@@ -337,6 +340,8 @@ class ResultsStore:
 
     def _read(self, columns: Sequence[str] | None) -> tuple[pd.DataFrame, pd.DataFrame]:
         """The run table, and (unless ``columns`` is None) the episode columns with ``run``, the row in it."""
+        import pandas as pd
+
         rows: list[dict[str, Any]] = []
         parts: list[dict[str, np.ndarray]] = []
         for path in self._json_files():

@@ -10,16 +10,18 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 from numba import njit
 
 from sb3_affect.kernel import loop
 from sb3_affect.kernel.agents import episode_schedule
 from sb3_affect.kernel.inputs import BatchInputs
 from sb3_affect.kernel.mt19937 import STATE_SIZE, seed_key, seed_state
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 
 @njit(cache=True)
@@ -80,6 +82,13 @@ def simulate_batch(inputs: BatchInputs, seeds: Sequence[int], episodes: int) -> 
     :param episodes: episodes per run
     :return: the rows, columns ``sb3_affect.engine.SIMULATE_COLUMNS``
     """
+    import pandas as pd
+
+    return pd.DataFrame(batch_columns(inputs, seeds, episodes))
+
+
+def batch_columns(inputs: BatchInputs, seeds: Sequence[int], episodes: int) -> dict[str, np.ndarray]:
+    """``simulate_batch``'s table as ``{column: array}`` (the dtypes of ``episode_log``), without pandas."""
     spec, geo = inputs.spec, inputs.geometry
     words = [seed_key(int(seed)) for seed in seeds]
     width = max((len(w) for w in words), default=1)
@@ -96,32 +105,24 @@ def simulate_batch(inputs: BatchInputs, seeds: Sequence[int], episodes: int) -> 
         spec.beh_rand, spec.beh_speeds, spec.beh_n, geo.max_pred, inputs.alpha, inputs.p,
         episodes, episodes * inputs.cap, out_i, out_f,
     )  # fmt: skip
-    return rows_frame(np.repeat(np.asarray([int(s) for s in seeds], dtype=np.int64), episodes), episodes, out_i, out_f)
-
-
-def rows_frame(seed_column: np.ndarray, episodes: int, out_i: np.ndarray, out_f: np.ndarray) -> pd.DataFrame:
-    """The kernel's rows as ``simulate``'s table (the dtypes of ``episode_log``)."""
-    n_runs = len(seed_column) // episodes if episodes else 0
-    frame = pd.DataFrame(
-        {
-            "seed": seed_column,
-            "episode": np.tile(np.arange(1, episodes + 1, dtype=np.int64), n_runs),
-            "decisions": out_i[:, loop.O_DECISIONS],
-            "cells": out_i[:, loop.O_CELLS],
-            "reward": out_f[:, 0],
-            "optimal": out_i[:, loop.O_OPTIMAL].astype(bool),
-            "truncated": out_i[:, loop.O_TRUNCATED].astype(bool),
-            "random_moves": out_i[:, loop.O_RANDOM].astype(np.float64),
-            "waits": out_i[:, loop.O_WAITS],
-            "joy": out_i[:, loop.O_JOY],
-            "sadness": out_i[:, loop.O_SADNESS],
-            "fear": out_i[:, loop.O_FEAR],
-            "anger": out_i[:, loop.O_ANGER],
-            "greedy_optimal": out_i[:, loop.O_GREEDY].astype(bool),
-            "norm": out_f[:, 1],
-        }
-    )
-    return frame
+    seed_column = np.repeat(np.asarray([int(s) for s in seeds], dtype=np.int64), episodes)
+    return {
+        "seed": seed_column,
+        "episode": np.tile(np.arange(1, episodes + 1, dtype=np.int64), len(words)),
+        "decisions": out_i[:, loop.O_DECISIONS],
+        "cells": out_i[:, loop.O_CELLS],
+        "reward": out_f[:, 0],
+        "optimal": out_i[:, loop.O_OPTIMAL].astype(bool),
+        "truncated": out_i[:, loop.O_TRUNCATED].astype(bool),
+        "random_moves": out_i[:, loop.O_RANDOM].astype(np.float64),
+        "waits": out_i[:, loop.O_WAITS],
+        "joy": out_i[:, loop.O_JOY],
+        "sadness": out_i[:, loop.O_SADNESS],
+        "fear": out_i[:, loop.O_FEAR],
+        "anger": out_i[:, loop.O_ANGER],
+        "greedy_optimal": out_i[:, loop.O_GREEDY].astype(bool),
+        "norm": out_f[:, 1],
+    }
 
 
 def warm_up() -> None:
