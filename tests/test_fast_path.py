@@ -194,7 +194,7 @@ def test_each_agents_defaults_are_its_settings(settings: Any) -> None:
 
 
 def test_import_and_a_sweep_of_tabular_agents_never_import_torch(tmp_path: Path) -> None:
-    """Checked in the launcher (its forked workers inherit its modules); pandas is left out too (0.3 s of CPU)."""
+    """Checked in the launcher (its forked workers inherit its modules)."""
     sweep = tmp_path / "mini.yaml"
     sweep.write_text(
         textwrap.dedent(
@@ -220,7 +220,7 @@ heavy = ("sb3_affect.forensics.analysis", "sb3_affect.report", "scipy")
 loaded["parser"] = sorted(m for m in heavy if m in sys.modules)
 from sb3_affect.experiments import run_sweep
 summary = run_sweep({str(sweep)!r}, {str(tmp_path / "out")!r}, workers=2, progress=False)
-loaded["sweep"] = sorted(m for m in ("torch", "stable_baselines3", "pandas") if m in sys.modules)
+loaded["sweep"] = sorted(m for m in ("torch", "stable_baselines3") if m in sys.modules)
 print(json.dumps({{**loaded, "finished": summary.finished, "failed": summary.failed}}))
 """
     done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300, check=True)
