@@ -233,3 +233,25 @@ def test_simulate_engine_choice() -> None:
     with pytest.raises(ValueError, match="engine='turbo'"):
         simulate("QLearning", {}, GRID, None, [1], 2, engine="turbo")
     assert len(simulate("QLearning", {}, GRID, None, [], 3)) == 0
+
+
+def test_the_kernels_cache_is_dropped_when_any_kernel_source_changes(tmp_path: Path) -> None:
+    """numba checks a cached function against its own file only: a change in a file it calls must drop the cache too."""
+    from sb3_affect.kernel import refresh_cache
+
+    sources, cache = tmp_path / "kernel", tmp_path / "kernel" / "__pycache__"
+    cache.mkdir(parents=True)
+    (sources / "loop.py").write_text("a = 1\n")
+    (sources / "batch.py").write_text("b = 1\n")
+    cached = [cache / "batch.run_seeds-20.py311.nbi", cache / "batch.run_seeds-20.py311.1.nbc"]
+    for path in cached:
+        path.write_bytes(b"compiled")
+    assert refresh_cache(sources, cache)  # no digest yet: the cache's origin is unknown
+    assert not any(path.exists() for path in cached)
+    for path in cached:
+        path.write_bytes(b"compiled")
+    assert not refresh_cache(sources, cache) and all(path.exists() for path in cached)  # same sources: kept
+    (sources / "loop.py").write_text("a = 2\n")  # a callee changed, batch.py did not
+    assert refresh_cache(sources, cache)
+    assert not any(path.exists() for path in cached)
+    assert not refresh_cache(sources, cache)

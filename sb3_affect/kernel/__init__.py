@@ -12,9 +12,43 @@ the identical episode log, Q-table, random-generator state and appraisal. Module
 - ``state``: a model's state as arrays and back; ``bridge``: ``learn`` on the kernel; ``batch``: ``simulate``.
 
 Compiled code is cached on disk (numba ``cache=True``, in ``__pycache__`` beside these files or numba's cache
-folder), so only the first import on a machine pays the compilation.
+folder), so only the first import on a machine pays the compilation. numba checks a cached function against its own
+file only, not against the functions it calls from the other files (a cached ``batch.run_seeds`` would keep an old
+``loop.run``); so on import the kernel compares a digest of all its source files with the one its cache was built
+from, and drops the cached code of every kernel file when they differ (``refresh_cache``).
 """
 
+from __future__ import annotations
+
+import contextlib
+import hashlib
+from pathlib import Path
+
+_STAMP = "sb3_affect_kernel.sha256"
+
+
+def refresh_cache(sources: Path, cache: Path) -> bool:
+    """
+    Remove numba's cached code (``*.nbi``, ``*.nbc``) from ``cache`` when the ``*.py`` files of ``sources`` are not
+    those the cache was built from, and record their digest. Returns whether anything was removed.
+    """
+    digest = hashlib.sha256()
+    for path in sorted(sources.glob("*.py")):
+        digest.update(path.name.encode() + b"\0" + path.read_bytes() + b"\0")
+    stamp = cache / _STAMP
+    with contextlib.suppress(OSError):
+        if stamp.read_text() == digest.hexdigest():
+            return False
+    removed = False
+    with contextlib.suppress(OSError):  # a cache folder we can not write: numba uses its own elsewhere
+        for path in [*cache.glob("*.nbi"), *cache.glob("*.nbc")]:
+            path.unlink(missing_ok=True)
+            removed = True
+        stamp.write_text(digest.hexdigest())
+    return removed
+
+
+refresh_cache(Path(__file__).parent, Path(__file__).parent / "__pycache__")
 
 
 def warm_up() -> None:

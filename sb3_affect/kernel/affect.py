@@ -15,13 +15,14 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from sb3_affect.kernel.jit import kernel_inline, kernel_jit
 
 JOY, SADNESS, FEAR, ANGER = 0, 1, 2, 3
 INF = math.inf
 
 
-@njit(cache=True)
+@kernel_jit
 def propagate(dist: np.ndarray, pred: np.ndarray, pred_n: np.ndarray, start: int, queue: np.ndarray) -> None:
     """
     A decrease of ``dist[start]`` reaches every cell that can walk into it (``KnownMap._propagate``). The Python
@@ -42,7 +43,7 @@ def propagate(dist: np.ndarray, pred: np.ndarray, pred_n: np.ndarray, start: int
                 tail += 1
 
 
-@njit(cache=True)
+@kernel_jit
 def known_add(
     dist: np.ndarray,
     edge: np.ndarray,
@@ -67,7 +68,7 @@ def known_add(
         propagate(dist, pred, pred_n, s, queue)
 
 
-@njit(cache=True)
+@kernel_jit
 def known_add_goal(
     dist: np.ndarray, goal: np.ndarray, pred: np.ndarray, pred_n: np.ndarray, g: int, queue: np.ndarray
 ) -> None:
@@ -78,7 +79,7 @@ def known_add_goal(
         propagate(dist, pred, pred_n, g, queue)
 
 
-@njit(cache=True)
+@kernel_jit
 def fit_add(fit_vals: np.ndarray, fsum: np.ndarray, n: int, y: float) -> int:
     """``PowerFit.add(y)`` on a fit with ``n`` points; returns the new number of points."""
     fit_vals[n] = y
@@ -92,7 +93,7 @@ def fit_add(fit_vals: np.ndarray, fsum: np.ndarray, n: int, y: float) -> int:
     return n
 
 
-@njit(cache=True)
+@kernel_jit
 def fit_predict(fit_vals: np.ndarray, fsum: np.ndarray, n: int, t: int) -> float:
     """``PowerFit.predict(t)`` on a fit with ``n >= 1`` points."""
     if n == 1:
@@ -106,7 +107,7 @@ def fit_predict(fit_vals: np.ndarray, fsum: np.ndarray, n: int, t: int) -> float
     return value if math.isfinite(value) else 1e300
 
 
-@njit(cache=True, inline="always")
+@kernel_inline
 def table_ii(norm: float, exp1: float, act: float, valence: bool) -> int:
     """Table II, first match wins (``sb3_affect.emotions.table_ii``)."""
     if valence:
@@ -118,7 +119,7 @@ def table_ii(norm: float, exp1: float, act: float, valence: bool) -> int:
     return JOY
 
 
-@njit(cache=True)
+@kernel_jit
 def start_norm(fit_vals: np.ndarray, fsum: np.ndarray, n: int, norm_scale: float) -> float:
     """The norm of an episode that starts after ``n`` finished ones (``Appraiser.start_episode``, personality bias)."""
     norm = fit_predict(fit_vals, fsum, n, n + 1) if n else math.nan

@@ -29,31 +29,50 @@ def run_seeds(
     keys, key_lengths, q_init, n_actions, trans, tdist, icfg, fcfg, beh_rand, beh_speeds, beh_n, max_pred,
     alpha_e, p_e, episodes, total_timesteps, out_i, out_f,
 ):  # fmt: skip
-    """Run ``episodes`` episodes from scratch for each seed key; rows of run ``r`` go to ``out[r * episodes ...]``."""
+    """
+    Run ``episodes`` episodes from scratch for each seed key; rows of run ``r`` go to ``out[r * episodes ...]``.
+    The arrays of a run are allocated once and reset for each run (the known map's ``pred`` needs no reset: only its
+    first ``pred_n[v]`` entries are read).
+    """
     n_states = trans.shape[0]
+    q = np.empty((n_states, n_actions))
+    mt = np.empty(STATE_SIZE, dtype=np.int64)
+    ist = np.empty(loop.N_IST, dtype=np.int64)
+    fst = np.empty(loop.N_FST)
+    dist = np.empty(n_states)
+    edge = np.empty((n_states, n_actions), dtype=np.bool_)
+    pred = np.zeros((n_states, max_pred), dtype=np.int64)
+    pred_n = np.empty(n_states, dtype=np.int64)
+    goal = np.empty(n_states, dtype=np.bool_)
+    fit_vals = np.zeros(episodes)
+    ucb_n = np.empty((n_states, n_actions), dtype=np.int64)
+    ucb_tot = np.empty(n_states, dtype=np.int64)
+    work = np.empty(n_actions)
+    seen = np.zeros(n_states, dtype=np.int64)
+    stack = np.empty(n_states * n_actions + 1, dtype=np.int64)
+    queue = np.empty(n_states + 1, dtype=np.int64)
     for r in range(keys.shape[0]):
-        q = np.full((n_states, n_actions), q_init)
-        mt = np.zeros(STATE_SIZE, dtype=np.int64)
+        q[:] = q_init
         seed_state(mt, keys[r], key_lengths[r])
-        ist = np.zeros(loop.N_IST, dtype=np.int64)
+        ist[:] = 0
         ist[loop.I_STATE] = icfg[loop.C_START]
         ist[loop.I_CHANGED] = 1
         ist[loop.I_GREEDY] = -1
-        fst = np.zeros(loop.N_FST)
+        fst[:] = 0.0
         fst[loop.S_NORM] = math.nan
         fst[loop.S_LAST_ACT] = math.inf
-        dist = np.full(n_states, math.inf)
-        edge = np.zeros((n_states, n_actions), dtype=np.bool_)
-        pred = np.zeros((n_states, max_pred), dtype=np.int64)
-        pred_n = np.zeros(n_states, dtype=np.int64)
-        goal = np.zeros(n_states, dtype=np.bool_)
-        fit_vals = np.zeros(episodes)
-        ucb_n = np.zeros((n_states, n_actions), dtype=np.int64)
-        ucb_tot = np.zeros(n_states, dtype=np.int64)
+        dist[:] = math.inf
+        edge[:] = False
+        pred_n[:] = 0
+        goal[:] = False
+        ucb_n[:] = 0
+        ucb_tot[:] = 0
+        seen[:] = 0
         lo, hi = r * episodes, (r + 1) * episodes
-        loop.run(
-            q, trans, tdist, icfg, fcfg, beh_rand, beh_speeds, beh_n, ucb_n, ucb_tot, mt, ist, fst,
-            dist, edge, pred, pred_n, goal, fit_vals, alpha_e, p_e, total_timesteps, episodes, out_i[lo:hi], out_f[lo:hi],
+        loop.decision_loop(
+            icfg[loop.C_KIND], q, trans, tdist, icfg, fcfg, beh_rand, beh_speeds, beh_n, ucb_n, ucb_tot, mt, ist, fst,
+            dist, edge, pred, pred_n, goal, fit_vals, alpha_e, p_e, total_timesteps, episodes, out_i[lo:hi],
+            out_f[lo:hi], work, seen, stack, queue,
         )  # fmt: skip
 
 

@@ -15,7 +15,9 @@ import numpy as np
 from numba import njit
 
 from sb3_affect.kernel.affect import fit_add, known_add, known_add_goal, start_norm, table_ii
-from sb3_affect.kernel.mt19937 import randbelow, random01
+from sb3_affect.kernel.jit import kernel_inline, kernel_jit
+from sb3_affect.kernel.mt19937 import N as MT_N
+from sb3_affect.kernel.mt19937 import bit_length, draw01, draw_below, randbelow
 
 # agent kinds
 EPSILON, AFFECT, BOLTZMANN, UCB = 0, 1, 2, 3
@@ -76,56 +78,76 @@ N_OUT_I = 11
 STOP_TIMESTEPS, STOP_EPISODES = 0, 1
 
 
-@njit(cache=True, inline="always")
-def row_max(q: np.ndarray, s: int) -> float:
-    """``max(q[s])``."""
+@kernel_inline
+def row_max_n(q: np.ndarray, s: int, n: int) -> float:
+    """``max(q[s])`` for a row of ``n`` actions."""
     best = q[s, 0]
-    for a in range(1, q.shape[1]):
-        if q[s, a] > best:
-            best = q[s, a]
+    for a in range(1, n):
+        v = q[s, a]
+        if v > best:
+            best = v
     return best
 
 
-@njit(cache=True, inline="always")
-def greedy(q: np.ndarray, s: int, mt: np.ndarray, tie_first: bool) -> int:
-    """``policies.greedy_action`` on ``q[s]``: arg-max, ties uniformly at random (one ``choice`` draw) or the first."""
-    best = row_max(q, s)
+@kernel_inline
+def row_max(q: np.ndarray, s: int) -> float:
+    """``max(q[s])``; four actions (the grids') with a constant count, so that the compiler unrolls the loop."""
+    if q.shape[1] == 4:
+        return row_max_n(q, s, 4)
+    return row_max_n(q, s, q.shape[1])
+
+
+@kernel_inline
+def greedy_n(q: np.ndarray, s: int, n: int, mt: np.ndarray, i: int, tie_first: bool) -> tuple[int, int]:
+    """``greedy`` for a row of ``n`` actions."""
+    best = row_max_n(q, s, n)
     count = 0
-    first = -1
-    for a in range(q.shape[1]):
-        if q[s, a] == best:
-            count += 1
-            if first < 0:
-                first = a
+    first = n
+    for a in range(n - 1, -1, -1):  # (no branches: the count of ties and the first of them)
+        tie = q[s, a] == best
+        count += tie
+        first = a if tie else first
     if count == 1 or tie_first:
-        return first
-    pick = randbelow(mt, count)
-    for a in range(q.shape[1]):
+        return first, i
+    pick, i = draw_below(mt, i, count, 32 - bit_length(count))
+    for a in range(first, n):
         if q[s, a] == best:
             if pick == 0:
-                return a
+                return a, i
             pick -= 1
-    return first
+    return first, i
 
 
-@njit(cache=True)
+@kernel_inline
+def greedy(q: np.ndarray, s: int, mt: np.ndarray, i: int, tie_first: bool) -> tuple[int, int]:
+    """
+    ``policies.greedy_action`` on ``q[s]``: arg-max, ties uniformly at random (one ``choice`` draw) or the first.
+    ``i`` is the random stream's index (``mt19937.draw``); returns ``(action, i)``. Four actions (the grids') with
+    a constant count, so that the compiler unrolls the loops.
+    """
+    if q.shape[1] == 4:
+        return greedy_n(q, s, 4, mt, i, tie_first)
+    return greedy_n(q, s, q.shape[1], mt, i, tie_first)
+
+
+@kernel_jit
 def greedy_walks_shortest_path(
-    q: np.ndarray, trans: np.ndarray, tdist: np.ndarray, start: int, seen: np.ndarray, stack: np.ndarray
+    q: np.ndarray, trans: np.ndarray, tdist: np.ndarray, start: int, seen: np.ndarray, stamp: int, stack: np.ndarray
 ) -> bool:
     """
-    ``episode_log.greedy_walks_shortest_path`` (its answer does not depend on the visiting order). ``seen`` (one
-    flag per cell) and ``stack`` (``n_states * n_actions + 1`` entries) are work space.
+    ``episode_log.greedy_walks_shortest_path`` (its answer does not depend on the visiting order). ``seen`` (int64,
+    one entry per cell) marks the cells this call visited with ``stamp``, which the caller makes new on every call
+    (no clearing); ``stack`` (``n_states * n_actions + 1`` entries) is work space.
     """
-    seen[:] = False
     stack[0] = start
     top = 1
     while top > 0:
         top -= 1
         s = stack[top]
         d = tdist[s]
-        if d == 0 or seen[s]:
+        if d == 0 or seen[s] == stamp:
             continue
-        seen[s] = True
+        seen[s] = stamp
         best = row_max(q, s)
         for a in range(q.shape[1]):
             if q[s, a] == best:
@@ -137,7 +159,7 @@ def greedy_walks_shortest_path(
     return True
 
 
-@njit(cache=True)
+@kernel_jit
 def softmax_action(q: np.ndarray, s: int, inv_temperature: float, u: float, compensated: bool, weights: np.ndarray) -> int:
     """``baselines.boltzmann.softmax_action`` on ``q[s]``; ``compensated``: ``sum`` is Neumaier's (Python >= 3.12)."""
     best = row_max(q, s)
@@ -171,7 +193,7 @@ def softmax_action(q: np.ndarray, s: int, inv_temperature: float, u: float, comp
     return last
 
 
-@njit(cache=True)
+@kernel_jit
 def ucb_action(q: np.ndarray, s: int, counts: np.ndarray, total: int, coef: float, mt: np.ndarray, scores: np.ndarray) -> int:
     """``UCBQLearning._decide``'s choice in ``s`` (the caller updates the counts)."""
     n = q.shape[1]
@@ -218,9 +240,36 @@ def run(
     (epsilon, or the inverse temperature). Finished episodes are written to ``out_i``/``out_f``. After an episode ends
     the next one is started (the env reset to its start, the appraisal's new norm), as the Python loop does.
     Returns ``(episodes finished, STOP_TIMESTEPS or STOP_EPISODES)``.
+
+    This allocates the work space and calls ``decision_loop``, the loop itself.
     """
-    kind = icfg[C_KIND]
+    n_states, n_actions = q.shape
+    work = np.empty(n_actions)
+    seen = np.zeros(n_states, dtype=np.int64)
+    stack = np.empty(n_states * n_actions + 1, dtype=np.int64)
+    queue = np.empty(n_states + 1, dtype=np.int64)
+    return decision_loop(
+        icfg[C_KIND], q, trans, tdist, icfg, fcfg, beh_rand, beh_speeds, beh_n, ucb_n, ucb_tot, mt, ist, fst,
+        dist, edge, pred, pred_n, goal, fit_vals, alpha_e, p_e, total_timesteps, max_episodes, out_i, out_f,
+        work, seen, stack, queue,
+    )  # fmt: skip
+
+
+@kernel_jit
+def decision_loop(
+    kind, q, trans, tdist, icfg, fcfg, beh_rand, beh_speeds, beh_n, ucb_n, ucb_tot, mt, ist, fst,
+    dist, edge, pred, pred_n, goal, fit_vals, alpha_e, p_e, total_timesteps, max_episodes, out_i, out_f,
+    work, seen, stack, queue,
+):  # fmt: skip
+    """
+    ``run``'s loop, for an agent of ``kind``. The run's scalars live in locals during the loop (the random stream's
+    index, the counters, the appraisal's norm and elapsed time) and go back to ``mt[N]``, ``ist`` and ``fst`` when it
+    returns. ``work`` (``n_actions`` floats), ``seen`` (``n_states`` zeros), ``stack`` (``n_states * n_actions + 1``)
+    and ``queue`` (``n_states + 1``) are work space.
+    """
     goal_state = icfg[C_GOAL]
+    start_state = icfg[C_START]
+    shortest = icfg[C_SHORTEST]
     time_limit = icfg[C_TIME_LIMIT]
     cap = icfg[C_CAP]
     act_episode = icfg[C_ACT_EPISODE] != 0
@@ -228,17 +277,19 @@ def run(
     valence = icfg[C_VALENCE] != 0
     tie_first = icfg[C_TIE_FIRST] != 0
     jump = icfg[C_JUMP] != 0
+    compensated = icfg[C_COMPENSATED_SUM] != 0
     gamma = fcfg[F_GAMMA]
     goal_reward = fcfg[F_GOAL_REWARD]
     step_reward = fcfg[F_STEP_REWARD]
     norm_scale = fcfg[F_NORM_SCALE]
+    ucb_coef = fcfg[F_UCB_COEF]
     n_actions = q.shape[1]
+    action_shift = 32 - bit_length(n_actions)  # randrange(n_actions) draws this many bits fewer than 32
+    speeds0 = beh_n[0]  # the epsilon family's speeds: row 0
+    speed0 = beh_speeds[0, 0]
     fsum = fst[S_FIT0 : S_FIT0 + 4]
-    work = np.empty(n_actions)
-    seen = np.zeros(q.shape[0], dtype=np.bool_)
-    stack = np.empty(q.shape[0] * n_actions + 1, dtype=np.int64)
-    queue = np.empty(q.shape[0] + 1, dtype=np.int64)
 
+    r = mt[MT_N]  # the random stream's index
     t = ist[I_T]
     s = ist[I_STATE]
     decisions = ist[I_DECISIONS]
@@ -246,9 +297,15 @@ def run(
     random_moves = ist[I_RANDOM]
     waits = ist[I_WAITS]
     changed = ist[I_CHANGED] != 0
+    greedy_optimal = ist[I_GREEDY]
     tl_elapsed = ist[I_TL_ELAPSED]
+    el_cells = ist[I_EL_CELLS]
+    el_decisions = ist[I_EL_DECISIONS]
     reward_sum = fst[S_REWARD]
+    norm = fst[S_NORM]
+    last_act = fst[S_LAST_ACT]
     episode = 0
+    walks = 0
     alpha = alpha_e[0]
     p = p_e[0]
     s2 = s
@@ -262,39 +319,49 @@ def run(
         # 1. decide: direction and speed
         explored = False
         if kind == AFFECT:
-            norm = fst[S_NORM]
             emotion = 0
             if norm == norm:
-                elapsed = ist[I_EL_CELLS] if units_cells else ist[I_EL_DECISIONS]
+                elapsed = el_cells if units_cells else el_decisions
                 remaining = dist[s]
                 if remaining != math.inf:
-                    fst[S_LAST_ACT] = elapsed + remaining if act_episode else remaining
+                    last_act = elapsed + remaining if act_episode else remaining
                 exp1 = norm if norm > elapsed else float(elapsed)
-                emotion = table_ii(norm, exp1, fst[S_LAST_ACT], valence)
-            ist[I_EL_DECISIONS] += 1
+                emotion = table_ii(norm, exp1, last_act, valence)
+            el_decisions += 1
             ist[I_JOY + emotion] += 1
             ns = beh_n[emotion]
-            k = beh_speeds[emotion, 0] if ns == 1 else beh_speeds[emotion, randbelow(mt, ns)]
+            if ns == 1:
+                k = beh_speeds[emotion, 0]
+            else:
+                pick, r = draw_below(mt, r, ns, 32 - bit_length(ns))
+                k = beh_speeds[emotion, pick]
             if beh_rand[emotion]:
-                action = randbelow(mt, n_actions)
+                action, r = draw_below(mt, r, n_actions, action_shift)
                 explored = True
             else:
-                action = greedy(q, s, mt, tie_first)
+                action, r = greedy(q, s, mt, r, tie_first)
         elif kind == EPSILON:
-            ns = beh_n[0]
-            k = beh_speeds[0, 0] if ns == 1 else beh_speeds[0, randbelow(mt, ns)]
-            if random01(mt) < p:
-                action = randbelow(mt, n_actions)
+            if speeds0 == 1:
+                k = speed0
+            else:
+                pick, r = draw_below(mt, r, speeds0, 32 - bit_length(speeds0))
+                k = beh_speeds[0, pick]
+            u, r = draw01(mt, r)
+            if u < p:
+                action, r = draw_below(mt, r, n_actions, action_shift)
                 explored = True
             else:
-                action = greedy(q, s, mt, tie_first)
+                action, r = greedy(q, s, mt, r, tie_first)
         elif kind == BOLTZMANN:
             k = 1
-            action = softmax_action(q, s, p, random01(mt), icfg[C_COMPENSATED_SUM] != 0, work)
+            u, r = draw01(mt, r)
+            action = softmax_action(q, s, p, u, compensated, work)
             explored = q[s, action] != row_max(q, s)
         else:
             k = 1
-            action = ucb_action(q, s, ucb_n, ucb_tot[s], fcfg[F_UCB_COEF], mt, work)
+            mt[MT_N] = r
+            action = ucb_action(q, s, ucb_n, ucb_tot[s], ucb_coef, mt, work)
+            r = mt[MT_N]
             ucb_n[s, action] += 1
             ucb_tot[s] += 1
             explored = q[s, action] != row_max(q, s)
@@ -316,7 +383,7 @@ def run(
                     q[s, action] = new
                     changed = True
             if kind == AFFECT:
-                ist[I_EL_CELLS] += 1
+                el_cells += 1
                 if terminated:
                     known_add_goal(dist, goal, pred, pred_n, s2, queue)
                 if s != s2 and not edge[s, action]:  # (known_add's own first check, without the call)
@@ -344,20 +411,21 @@ def run(
             row = out_i[episode]
             row[O_DECISIONS] = decisions
             row[O_CELLS] = cells
-            row[O_OPTIMAL] = 1 if terminated and cells == icfg[C_SHORTEST] else 0
+            row[O_OPTIMAL] = 1 if terminated and cells == shortest else 0
             row[O_TRUNCATED] = 0 if terminated else 1
             row[O_RANDOM] = random_moves
             row[O_WAITS] = waits
             for e in range(4):
                 row[O_JOY + e] = ist[I_JOY + e]
-            if changed or ist[I_GREEDY] < 0:
-                ist[I_GREEDY] = 1 if greedy_walks_shortest_path(q, trans, tdist, icfg[C_START], seen, stack) else 0
-            row[O_GREEDY] = ist[I_GREEDY]
+            if changed or greedy_optimal < 0:
+                walks += 1
+                greedy_optimal = 1 if greedy_walks_shortest_path(q, trans, tdist, start_state, seen, walks, stack) else 0
+            row[O_GREEDY] = greedy_optimal
             out_f[episode, 0] = reward_sum
-            out_f[episode, 1] = fst[S_NORM] if kind == AFFECT else math.nan
+            out_f[episode, 1] = norm if kind == AFFECT else math.nan
             changed = False
             if kind == AFFECT:
-                y = ist[I_EL_CELLS] if units_cells else ist[I_EL_DECISIONS]
+                y = el_cells if units_cells else el_decisions
                 ist[I_NFIT] = fit_add(fit_vals, fsum, ist[I_NFIT], float(y))
             episode += 1
             ist[I_LAST_ACTION] = action
@@ -366,14 +434,14 @@ def run(
             ist[I_LAST_TERMINATED] = 1 if terminated else 0
             fst[S_LAST_REWARD] = reward
             # the next episode starts
-            s = icfg[C_START]
+            s = start_state
             decisions = cells = random_moves = waits = tl_elapsed = 0
             reward_sum = 0.0
             terminated = truncated = False
             if kind == AFFECT:
-                ist[I_EL_CELLS] = 0
-                ist[I_EL_DECISIONS] = 0
-                fst[S_NORM] = start_norm(fit_vals, fsum, ist[I_NFIT], norm_scale)
+                el_cells = 0
+                el_decisions = 0
+                norm = start_norm(fit_vals, fsum, ist[I_NFIT], norm_scale)
             for e in range(4):
                 ist[I_JOY + e] = 0
             if episode >= max_episodes:
@@ -381,6 +449,7 @@ def run(
                 break
             alpha = alpha_e[episode]
             p = p_e[episode]
+    mt[MT_N] = r
     ist[I_T] = t
     ist[I_STATE] = s
     ist[I_DECISIONS] = decisions
@@ -388,6 +457,11 @@ def run(
     ist[I_RANDOM] = random_moves
     ist[I_WAITS] = waits
     ist[I_CHANGED] = 1 if changed else 0
+    ist[I_GREEDY] = greedy_optimal
     ist[I_TL_ELAPSED] = tl_elapsed
+    ist[I_EL_CELLS] = el_cells
+    ist[I_EL_DECISIONS] = el_decisions
     fst[S_REWARD] = reward_sum
+    fst[S_NORM] = norm
+    fst[S_LAST_ACT] = last_act
     return episode, stop

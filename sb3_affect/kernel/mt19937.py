@@ -21,7 +21,8 @@ from __future__ import annotations
 import random
 
 import numpy as np
-from numba import njit
+
+from sb3_affect.kernel.jit import kernel_inline, kernel_jit
 
 N = 624
 M = 397
@@ -32,7 +33,7 @@ MASK32 = 0xFFFFFFFF
 STATE_SIZE = N + 1
 
 
-@njit(cache=True)
+@kernel_jit
 def _twist(mt: np.ndarray) -> None:
     for kk in range(N - M):
         y = (mt[kk] & UPPER_MASK) | (mt[kk + 1] & LOWER_MASK)
@@ -45,44 +46,78 @@ def _twist(mt: np.ndarray) -> None:
     mt[N] = 0
 
 
-@njit(cache=True, inline="always")
-def genrand(mt: np.ndarray) -> int:
-    """One 32-bit output (``genrand_uint32``); ``mt`` is the 625-entry state (words, then the index)."""
-    if mt[N] >= N:
+@kernel_inline
+def draw(mt: np.ndarray, i: int) -> tuple[int, int]:
+    """
+    ``genrand`` with the index in the caller's hands: the output at index ``i`` (twisting first when ``i == N``) and
+    the index of the next word. The decision loop keeps the index in a local and stores it in ``mt[N]`` when it
+    returns, instead of reading and writing ``mt[N]`` on every draw.
+    """
+    if i >= N:
         _twist(mt)
-    y = mt[mt[N]]
-    mt[N] += 1
+        i = 0
+    y = mt[i]
     y ^= y >> 11
     y ^= (y << 7) & 0x9D2C5680
     y ^= (y << 15) & 0xEFC60000
     y ^= y >> 18
-    return y & MASK32
+    return y & MASK32, i + 1
 
 
-@njit(cache=True, inline="always")
+@kernel_inline
+def draw01(mt: np.ndarray, i: int) -> tuple[float, int]:
+    """``random01`` with the index in the caller's hands (see ``draw``)."""
+    a, i = draw(mt, i)
+    b, i = draw(mt, i)
+    return ((a >> 5) * 67108864.0 + (b >> 6)) * (1.0 / 9007199254740992.0), i
+
+
+@kernel_inline
+def bit_length(n: int) -> int:
+    """``n.bit_length()`` for ``n >= 0``."""
+    k = 0
+    while n:
+        k += 1
+        n >>= 1
+    return k
+
+
+@kernel_inline
+def draw_below(mt: np.ndarray, i: int, n: int, shift: int) -> tuple[int, int]:
+    """``randbelow`` with the index in the caller's hands (see ``draw``); ``shift`` is ``32 - n.bit_length()``."""
+    r, i = draw(mt, i)
+    r >>= shift
+    while r >= n:
+        r, i = draw(mt, i)
+        r >>= shift
+    return r, i
+
+
+@kernel_jit
+def genrand(mt: np.ndarray) -> int:
+    """One 32-bit output (``genrand_uint32``); ``mt`` is the 625-entry state (words, then the index)."""
+    y, i = draw(mt, mt[N])
+    mt[N] = i
+    return y
+
+
+@kernel_jit
 def random01(mt: np.ndarray) -> float:
     """``random.Random.random()``: a float in [0, 1) with 53 random bits."""
-    a = genrand(mt) >> 5
-    b = genrand(mt) >> 6
-    return (a * 67108864.0 + b) * (1.0 / 9007199254740992.0)
+    u, i = draw01(mt, mt[N])
+    mt[N] = i
+    return u
 
 
-@njit(cache=True, inline="always")
+@kernel_jit
 def randbelow(mt: np.ndarray, n: int) -> int:
     """``random.Random.randrange(n)`` (and ``choice`` of a sequence of length ``n``), for ``1 <= n < 2**32``."""
-    k = 0
-    m = n
-    while m:
-        k += 1
-        m >>= 1
-    shift = 32 - k
-    r = genrand(mt) >> shift
-    while r >= n:
-        r = genrand(mt) >> shift
+    r, i = draw_below(mt, mt[N], n, 32 - bit_length(n))
+    mt[N] = i
     return r
 
 
-@njit(cache=True)
+@kernel_jit
 def seed_state(mt: np.ndarray, key: np.ndarray, key_length: int) -> None:
     """Fill ``mt`` as ``random.Random(seed)`` does; ``key`` holds the 32-bit words of ``|seed|``, least significant first."""
     mt[0] = 19650218
