@@ -43,7 +43,8 @@ def metric_vs_epsilon(
 ) -> Path:
     """
     Per-run ``column`` against epsilon: mean over runs with its bootstrap 95% CI band, and every run as a dot
-    (``mark_censored``: runs that never found the optimal path as crosses).
+    (``mark_censored``: runs that never found the optimal path as crosses); a cell of more than ``DOTS_PER_CELL``
+    runs shows a seeded sample of that many (the mean and its band use every run).
     """
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
     for agent in agents:
@@ -52,6 +53,7 @@ def metric_vs_epsilon(
             continue
         eps = sorted(data.epsilon.unique())
         cis = np.array([bootstrap_ci(data[data.epsilon == e][column].to_numpy()) for e in eps])
+        data = dot_sample(data)
         colour = COLOURS.get(agent)
         ax.plot(eps, cis[:, 0], "o-", color=colour, label=f"{agent} (mean, 95% CI)")
         ax.fill_between(eps, cis[:, 1], cis[:, 2], color=colour, alpha=0.2)
@@ -75,6 +77,20 @@ def metric_vs_epsilon(
         ax.set_yscale("log")
     ax.legend(fontsize=7)
     return save(fig, path)
+
+
+#: Most runs drawn as dots per (agent, epsilon) cell of ``metric_vs_epsilon``.
+DOTS_PER_CELL = 2000
+
+
+def dot_sample(data: pd.DataFrame, per_cell: int = DOTS_PER_CELL, seed: int = 0) -> pd.DataFrame:
+    """The runs of ``data`` to draw as dots: all of them, or a seeded sample of ``per_cell`` per epsilon (in order)."""
+    counts = data.groupby("epsilon").epsilon.transform("size").to_numpy()
+    if not len(counts) or counts.max() <= per_cell:
+        return data
+    rng = np.random.default_rng(seed)
+    rank = data.assign(_key=rng.random(len(data))).groupby("epsilon")["_key"].rank(method="first").to_numpy()
+    return data[rank <= per_cell]
 
 
 def emotion_profile(prof: pd.DataFrame, path: Path, title: str = "Fig. 5: emotion profile per episode") -> Path:

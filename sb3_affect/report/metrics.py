@@ -290,6 +290,24 @@ def _window(
     return out
 
 
+def rows_where(frame: pd.DataFrame, mask: pd.Series | np.ndarray, columns: Sequence[str] | None = None) -> pd.DataFrame:
+    """
+    The rows of ``frame`` where ``mask`` holds (``columns``: only those): a slice, not a copy, when they are
+    contiguous (one agent's runs are: rows are in run id order, and a run id starts with its agent's name).
+    """
+    where = np.flatnonzero(np.asarray(mask))
+    picked: Any = slice(None) if columns is None else [frame.columns.get_loc(c) for c in columns]
+    if len(where) and where[-1] - where[0] + 1 == len(where):
+        return frame.iloc[where[0] : where[-1] + 1, picked]
+    return frame.iloc[where, picked]
+
+
+def plain_labels(frame: pd.DataFrame) -> pd.DataFrame:
+    """``frame`` with its categorical columns as plain values (for small tables grouped by label with pandas)."""
+    categorical = [c for c in frame.columns if isinstance(frame[c].dtype, pd.CategoricalDtype)]
+    return frame.assign(**{c: np.asarray(frame[c]) for c in categorical}) if categorical else frame
+
+
 def profile(episodes: pd.DataFrame) -> pd.DataFrame:
     """
     Per episode number: the mean over runs of each emotion's fraction of decisions and of the equivalent epsilon,
