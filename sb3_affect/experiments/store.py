@@ -256,11 +256,13 @@ class ResultsStore:
             totals = {agent.name: len(agent.points()) * replicates for agent in sweep.agents}
         done = {name: 0 for name in totals}
         done_ids: set[str] = set()
+        failures = list(self.failed.glob("[!.]*.json"))
+        files = [p.stem for p in self._json_files()]
         for path in self._chunk_files():
             meta = chunk_meta(path)
             done[meta["base"]["agent"]] += len(meta["runs"])
-            done_ids.update(run[0] for run in meta["runs"])
-        files = [p.stem for p in self._json_files()]
+            if failures:  # only to tell a failure since retried: no set of every run id otherwise
+                done_ids.update(run[0] for run in meta["runs"])
         if files:
             agent_of = {rid: c["agent"] for rid, c in listed.items()} if listed is not None else self._agents_of_runs()
             for rid in files:
@@ -268,7 +270,7 @@ class ResultsStore:
                     done[agent_of[rid]] += 1
                     done_ids.add(rid)
         failed = {name: 0 for name in totals}
-        for path in self.failed.glob("[!.]*.json"):
+        for path in failures:
             if path.stem not in done_ids:
                 with contextlib.suppress(OSError, ValueError, KeyError):
                     failed[json.loads(path.read_text())["config"]["agent"]] += 1

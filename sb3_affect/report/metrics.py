@@ -222,8 +222,7 @@ def _vector_metrics(episodes: pd.DataFrame) -> pd.DataFrame:
     out = pd.DataFrame(index=pd.Index(np.asarray(names)[run_codes], name="run_id"))
     for name in (c for c in episodes.columns if c not in _EPISODE_VALUE_COLUMNS and c != "run_id"):
         out[name] = _labels(episodes[name], take, starts, counts)
-    decisions = column("decisions").astype(np.int64)
-    cells = column("cells").astype(np.int64)
+    decisions, cells = column("decisions"), column("cells")  # summed in int64 (reduceat's dtype), not copied
     never = episode.dtype.type(np.iinfo(episode.dtype).max)  # of the episode's own dtype (int32 when read)
     first = np.minimum.reduceat(np.where(column("optimal"), episode, never), starts)
     first_found = first < never
@@ -235,17 +234,19 @@ def _vector_metrics(episodes: pd.DataFrame) -> pd.DataFrame:
     greedy_from[last_false == last_episode] = np.nan
     upto_greedy = episode <= np.repeat(np.where(np.isnan(greedy_from), np.inf, greedy_from), counts)
     out["episodes"] = counts.astype(np.int64)
-    out["decisions_per_episode"] = np.add.reduceat(decisions, starts) / counts
-    out["cells_per_episode"] = np.add.reduceat(cells, starts) / counts
+    total_decisions = np.add.reduceat(decisions, starts, dtype=np.int64)
+    out["decisions_per_episode"] = total_decisions / counts
+    out["cells_per_episode"] = np.add.reduceat(cells, starts, dtype=np.int64) / counts
     out["first_optimal"] = first_float
     out["censored"] = ~first_found
-    out["decisions_before_optimal"] = np.add.reduceat(np.where(before, decisions, 0), starts).astype(float)
-    out["cells_before_optimal"] = np.add.reduceat(np.where(before, cells, 0), starts).astype(float)
+    out["decisions_before_optimal"] = np.add.reduceat(np.where(before, decisions, 0), starts, dtype=np.int64).astype(float)
+    out["cells_before_optimal"] = np.add.reduceat(np.where(before, cells, 0), starts, dtype=np.int64).astype(float)
     out["greedy_optimal_from"] = greedy_from
     out["greedy_censored"] = np.isnan(greedy_from)
-    out["decisions_to_greedy_optimal"] = np.add.reduceat(np.where(upto_greedy, decisions, 0), starts).astype(float)
-    out["truncated"] = np.add.reduceat(column("truncated").astype(np.int64), starts)
-    out["total_decisions"] = np.add.reduceat(decisions, starts)
+    to_greedy = np.add.reduceat(np.where(upto_greedy, decisions, 0), starts, dtype=np.int64)
+    out["decisions_to_greedy_optimal"] = to_greedy.astype(float)
+    out["truncated"] = np.add.reduceat(column("truncated"), starts, dtype=np.int64)
+    out["total_decisions"] = total_decisions
     del decisions, cells, before, upto_greedy
     for window in (EARLY, LATE):
         for key, series in _window(column, codes, episode, run_codes, *window).items():
@@ -292,14 +293,16 @@ def _window(
 
 def rows_where(frame: pd.DataFrame, mask: pd.Series | np.ndarray, columns: Sequence[str] | None = None) -> pd.DataFrame:
     """
-    The rows of ``frame`` where ``mask`` holds (``columns``: only those): a slice, not a copy, when they are
-    contiguous (one agent's runs are: rows are in run id order, and a run id starts with its agent's name).
+    The rows of ``frame`` where ``mask`` holds (``columns``: only those), copying no more than those rows: a slice
+    (a view) when they are contiguous (one agent's runs are: rows are in run id order, and a run id starts with its
+    agent's name), else a copy of the selected rows of the selected columns.
     """
     where = np.flatnonzero(np.asarray(mask))
-    picked: Any = slice(None) if columns is None else [frame.columns.get_loc(c) for c in columns]
     if len(where) and where[-1] - where[0] + 1 == len(where):
-        return frame.iloc[where[0] : where[-1] + 1, picked]
-    return frame.iloc[where, picked]
+        part = frame.iloc[where[0] : where[-1] + 1]
+        return part if columns is None else part[list(columns)]
+    names = frame.columns if columns is None else list(columns)
+    return pd.DataFrame({name: frame[name].iloc[where] for name in names})
 
 
 def plain_labels(frame: pd.DataFrame) -> pd.DataFrame:
@@ -328,9 +331,9 @@ def profile(episodes: pd.DataFrame) -> pd.DataFrame:
         parts["mean"][name], parts["lo"][name], parts["hi"][name] = mean, mean - half, mean + half
         summed = pd.Series(values.astype(np.int64) if values.dtype.kind in "iu" else values).groupby(episode).sum()
         parts["weighted"][name] = summed / totals
-    return pd.concat(
-        [pd.DataFrame(series).add_suffix(f"_{kind}") for kind, series in parts.items()], axis=1
-    ).rename_axis("episode")
+    out = pd.concat([pd.DataFrame(series).add_suffix(f"_{kind}") for kind, series in parts.items()], axis=1)
+    out.index = out.index.astype(np.int64).rename("episode")
+    return out
 
 
 def window_mean(prof: pd.DataFrame, column: str, first: int, last: int, kind: str = "mean") -> float:
