@@ -101,7 +101,8 @@ def test_bootstrap_improvement_equals_resampling_each_pair() -> None:
         a, b = x[draws.integers(0, 57, 57)][:, None], y[draws.integers(0, 41, 41)][None, :]
         boots.append((int((a < b).sum()) + 0.5 * int((a == b).sum())) / (57 * 41))
     tail = (1 - 0.95) / 2 * 100  # as bootstrap_improvement computes it (not exactly 2.5)
-    assert (point, low, high) == (_pairwise(x, y, True), float(np.percentile(boots, tail)), float(np.percentile(boots, 100 - tail)))
+    expected = (_pairwise(x, y, True), float(np.percentile(boots, tail)), float(np.percentile(boots, 100 - tail)))
+    assert (point, low, high) == expected
 
 
 def test_bootstrap_ci_in_blocks_equals_one_draw(monkeypatch: pytest.MonkeyPatch) -> None:

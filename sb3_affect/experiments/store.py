@@ -319,8 +319,8 @@ class ResultsStore:
         :param columns: the episode columns wanted (default every ``EPISODE_COLUMNS`` column)
         :param seed: repeat each run's seed on its episode rows (int64; the run table has it anyway)
         :return: ``(runs_frame(), episodes)``; ``episodes`` has one row per episode: ``run_id``, ``agent``, ``seed``
-            and one column per label (categoricals but ``seed``), then the episode columns (integers as int32, flags as bool, the rest float64), runs in run
-            id order, each run's rows together in episode order
+            and one column per label (categoricals but ``seed``), then the episode columns (integers as int32, flags
+            as bool, the rest float64); runs in run id order, each run's rows together in episode order
         """
         runs, data = read_folder(
             self._json_files(), self._chunk_files(), EPISODE_COLUMNS if columns is None else tuple(columns), self.root

@@ -24,7 +24,9 @@ WINDOWS = ((1, 10), (21, 40), (181, 200))
 REPS, BLOCK_CELLS = 1000, 4_000_000
 
 
-def _bootstrap(per_run: pd.DataFrame, statistics: dict[str, str], reps: int = REPS, seed: int = 0) -> dict[str, tuple[float, float]]:
+def _bootstrap(
+    per_run: pd.DataFrame, statistics: dict[str, str], reps: int = REPS, seed: int = 0
+) -> dict[str, tuple[float, float]]:
     """
     Percentile 95% CIs of ratios of per-run sums (each ``numerator/denominator`` column names), resampling runs.
 
@@ -58,29 +60,34 @@ def bimodality(episodes: pd.DataFrame, first: int = SETTLED[0], last: int = SETT
     """
     episode = episodes.episode.to_numpy()
     rows = np.flatnonzero((episode >= first) & (episode <= last))
-    decisions = episodes.decisions.to_numpy()[rows].astype(np.int64)
-    joy = episodes.joy.to_numpy()[rows].astype(np.int64)
+    decisions, joy = episodes.decisions.to_numpy()[rows], episodes.joy.to_numpy()[rows]
     run_ids = episodes.run_id.iloc[rows]
     if isinstance(run_ids.dtype, pd.CategoricalDtype):
         key = run_ids.cat.codes.to_numpy()
     else:
         key = pd.factorize(run_ids.to_numpy(dtype=object), sort=True)[0]
+    present = np.flatnonzero(np.bincount(key))  # the runs in run id order, as a groupby's
     long = decisions > LONG
     long_decisions = np.where(long, decisions, 0)
     long_joy = np.where(long, joy, 0)
     any_joy = joy > 0
-    present, runs = np.unique(key, return_inverse=True)  # runs in run id order, as the groupby's
     columns = {
         "long": long,
-        "one": np.ones(len(rows)),
+        "one": None,
         "decisions": decisions,
         "long_decisions": long_decisions,
         "long_joy": long_joy,
         "joy": joy,
         "any_joy": any_joy,
     }  # per-run sums of integers: exact in float64
-    per_run = pd.DataFrame({name: np.bincount(runs, weights=v.astype(float), minlength=len(present)) for name, v in columns.items()})
-    total, long_total = int(decisions.sum()), int(long_decisions.sum())
+    per_run = pd.DataFrame(
+        {
+            name: np.bincount(key, weights=None if v is None else v.astype(float))[present].astype(float)
+            for name, v in columns.items()
+        }
+    )
+    total, long_total = int(decisions.sum(dtype=np.int64)), int(long_decisions.sum(dtype=np.int64))
+    joy_total, long_joy_total = int(joy.sum(dtype=np.int64)), int(long_joy.sum(dtype=np.int64))
     short_decisions = total - long_total
     out = {
         "episodes": float(len(rows)),
@@ -89,11 +96,11 @@ def bimodality(episodes: pd.DataFrame, first: int = SETTLED[0], last: int = SETT
         "mean decisions": float(decisions.mean()),
         "share of long episodes": float(long.mean()),
         "share of decisions in long episodes": float(long_total / total),
-        "joy share of decisions in long episodes": float(int(long_joy.sum()) / max(1, long_total)),
-        "joy share of decisions in short episodes": float(int(joy.sum() - long_joy.sum()) / max(1, short_decisions)),
+        "joy share of decisions in long episodes": float(long_joy_total / max(1, long_total)),
+        "joy share of decisions in short episodes": float((joy_total - long_joy_total) / max(1, short_decisions)),
         "share of episodes with any joy": float(any_joy.mean()),
         "mean per-episode joy fraction (equivalent ε)": float(pd.Series(joy / decisions).mean()),
-        "decision-weighted joy fraction": float(int(joy.sum()) / total),
+        "decision-weighted joy fraction": float(joy_total / total),
     }
     cis = {
         "share of long episodes": "long/one",

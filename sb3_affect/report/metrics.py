@@ -136,7 +136,8 @@ def run_metrics(episodes: pd.DataFrame, runs: pd.DataFrame | Sequence[dict[str, 
     if len(rows):
         if "seed" not in rows.columns and "agent" in rows.columns:
             seeds = pd.Series(table.seed.to_numpy(), index=pd.Index(table.run_id.to_numpy()))
-            rows.insert(int(rows.columns.get_loc("agent")) + 1, "seed", rows.run_id.map(seeds[~seeds.index.duplicated()]))
+            place = list(rows.columns).index("agent") + 1
+            rows.insert(place, "seed", rows.run_id.map(seeds[~seeds.index.duplicated()]))
         known_totals = pd.to_numeric(rows.run_id.map(totals), errors="coerce")
         known = known_totals.notna()
         rows.loc[known, "total_decisions"] = known_totals[known].astype(int)
@@ -194,6 +195,7 @@ def _run_table(runs: pd.DataFrame | Sequence[dict[str, Any]] | None) -> pd.DataF
 def _vector_metrics(episodes: pd.DataFrame) -> pd.DataFrame:
     """The per-run metrics of ``run_metrics`` from the episode rows alone (numpy reductions over each run's rows)."""
     run_ids = episodes["run_id"]
+    names: Any
     if isinstance(run_ids.dtype, pd.CategoricalDtype) and run_ids.cat.categories.is_monotonic_increasing:
         codes, names = run_ids.cat.codes.to_numpy(), run_ids.cat.categories
     else:

@@ -116,7 +116,8 @@ def figures_3_4_section(ctx: ReportContext) -> None:
     ctx.doc.img(
         f4,
         "Fig. 4: steps before the first walked optimal path, per run (the paper's totals are x runs); band: bootstrap "
-        f"95% CI; crosses: censored runs (never found it; plotted at all their steps, a lower bound)" + (f"; dots: runs{dots}" if dots else ""),
+        "95% CI; crosses: censored runs (never found it; plotted at all their steps, a lower bound)"
+        + (f"; dots: runs{dots}" if dots else ""),
     )
     f4g = figures.metric_vs_epsilon(
         ctx.metrics.assign(censored=ctx.metrics.greedy_censored),
