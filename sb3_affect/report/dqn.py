@@ -21,9 +21,10 @@ def learning_curves_section(ctx: ReportContext) -> None:
     e = ctx.episodes
     curve = ("episode", "decisions")  # each group's two columns only
     standard = e.agent == STANDARD
-    groups = [
+    m = ctx.metrics
+    groups = [  # the ε values from the run table: a boolean index of a categorical column would copy it
         (f"ε-greedy ε={fmt(eps, 1)}", rows_where(e, standard & (e.epsilon == eps), curve))
-        for eps in sorted(e.epsilon[standard].unique())
+        for eps in sorted(m.epsilon[(m.agent == STANDARD) & (m.episodes > 0)].unique())
     ]
     groups.append((AFFECTIVE, rows_where(e, e.agent == AFFECTIVE, curve)))
     path = figures.learning_curves(e, ctx.figure("learning_curves"), "Steps per episode over episodes", groups)

@@ -135,17 +135,40 @@ def equivalent_epsilon(prof: pd.DataFrame, path: Path) -> Path:
     return save(fig, path)
 
 
+def episode_quantiles(
+    episode: np.ndarray, values: np.ndarray, quantiles: tuple[float, ...] = (0.25, 0.5, 0.75)
+) -> tuple[np.ndarray, list[np.ndarray]]:
+    """
+    Per episode number: the quantiles (linear interpolation, as pandas and numpy) of integer ``values`` over runs.
+
+    One sort of one int64 key (episode, value) for all episodes at once: memory 8 bytes a row, whatever the runs.
+    """
+    low = int(values.min()) if len(values) else 0
+    span = int(values.max()) - low + 1 if len(values) else 1
+    key = np.sort(episode.astype(np.int64) * span + (values.astype(np.int64) - low))
+    episodes, counts = np.unique(key // span, return_counts=True)
+    starts = np.r_[0, np.cumsum(counts)[:-1]]
+    ordered = key % span + low
+    out = []
+    for q in quantiles:
+        h = (counts - 1) * q
+        below = np.floor(h).astype(np.int64)
+        above = np.minimum(below + 1, counts - 1)
+        lo, hi = ordered[starts + below].astype(float), ordered[starts + above].astype(float)
+        out.append(lo + (h - below) * (hi - lo))
+    return episodes, out
+
+
 def learning_curves(episodes: pd.DataFrame, path: Path, title: str, groups: list[tuple[str, pd.DataFrame]]) -> Path:
     """Decisions per episode over episodes: median over runs with the quartile band, one line per group."""
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
     palette = [plt.get_cmap("tab10")(i) for i in range(10)]
     styles = ("-", "--", "-.", ":")
     for i, (label, data) in enumerate(groups):
-        grouped = data.groupby("episode").decisions
-        median, q25, q75 = grouped.median(), grouped.quantile(0.25), grouped.quantile(0.75)
+        episodes, (q25, median, q75) = episode_quantiles(data.episode.to_numpy(), data.decisions.to_numpy())
         colour = COLOURS.get(label, palette[i % len(palette)])
-        ax.plot(median.index, median, color=colour, label=label, lw=1.5, ls=styles[(i // len(palette)) % len(styles)])
-        ax.fill_between(median.index, q25, q75, color=colour, alpha=0.12)
+        ax.plot(episodes, median, color=colour, label=label, lw=1.5, ls=styles[(i // len(palette)) % len(styles)])
+        ax.fill_between(episodes, q25, q75, color=colour, alpha=0.12)
     ax.axhline(12, color="black", lw=0.8, ls=":", label="12 (shortest path in cells)")
     ax.set_yscale("log")
     ax.set_xlabel("episode")
