@@ -1,0 +1,30 @@
+"""The report's numbers do not depend on the engine: the paper sweep on the kernel equals the same sweep on the Python loop."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pandas as pd
+
+from sb3_affect.experiments import run_sweep
+from sb3_affect.report.build import summary_numbers
+from sb3_affect.report.metrics import load_results
+
+PAPER = Path(__file__).resolve().parents[1] / "experiments" / "paper.yaml"
+
+
+def test_paper_sweep_and_its_report_numbers_are_the_python_engines(tmp_path: Path) -> None:
+    size = ["seeds=2", "episodes=40"]
+    python = [f"agents.{agent}.kwargs.engine=python" for agent in ("epsilon-greedy", "affective")]
+    compiled = run_sweep(PAPER, tmp_path / "compiled", workers=2, overrides=size, progress=False)
+    reference = run_sweep(PAPER, tmp_path / "python", workers=2, overrides=[*size, *python], progress=False)
+    assert (compiled.finished, compiled.failed) == (reference.finished, reference.failed) == (36, 0)
+    fast, slow = load_results(tmp_path / "compiled"), load_results(tmp_path / "python")
+    key = ["agent", "epsilon", "seed", "episode"]
+    left = fast.episodes.drop(columns="run_id").sort_values(key).reset_index(drop=True)
+    right = slow.episodes.drop(columns="run_id").sort_values(key).reset_index(drop=True)
+    assert len(left) == 36 * 40
+    pd.testing.assert_frame_equal(left, right)
+    assert [r["config"]["algo_kwargs"].get("engine") for r in slow.runs] == ["python"] * 36  # the reference really was
+    numbers = summary_numbers(tmp_path / "compiled")
+    assert numbers and numbers == summary_numbers(tmp_path / "python")
