@@ -165,10 +165,10 @@ def learning_curves(episodes: pd.DataFrame, path: Path, title: str, groups: list
     palette = [plt.get_cmap("tab10")(i) for i in range(10)]
     styles = ("-", "--", "-.", ":")
     for i, (label, data) in enumerate(groups):
-        episodes, (q25, median, q75) = episode_quantiles(data.episode.to_numpy(), data.decisions.to_numpy())
+        numbers, (q25, median, q75) = episode_quantiles(data.episode.to_numpy(), data.decisions.to_numpy())
         colour = COLOURS.get(label, palette[i % len(palette)])
-        ax.plot(episodes, median, color=colour, label=label, lw=1.5, ls=styles[(i // len(palette)) % len(styles)])
-        ax.fill_between(episodes, q25, q75, color=colour, alpha=0.12)
+        ax.plot(numbers, median, color=colour, label=label, lw=1.5, ls=styles[(i // len(palette)) % len(styles)])
+        ax.fill_between(numbers, q25, q75, color=colour, alpha=0.12)
     ax.axhline(12, color="black", lw=0.8, ls=":", label="12 (shortest path in cells)")
     ax.set_yscale("log")
     ax.set_xlabel("episode")
