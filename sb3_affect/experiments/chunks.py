@@ -99,7 +99,7 @@ def chunk_meta(path: Path) -> dict[str, Any]:
     """The per-run and per-batch data of a chunk (its footer only)."""
     import pyarrow.parquet as pq
 
-    metadata = pq.read_schema(path).metadata or {}
+    metadata = pq.read_metadata(path).metadata or {}  # the file's key-value metadata, no schema conversion
     return dict(json.loads(metadata[META_KEY]))
 
 
