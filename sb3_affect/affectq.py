@@ -8,14 +8,16 @@ from typing import Any, TypeVar
 import numpy as np
 from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, Schedule
 
-from sb3_affect.appraisal import ACT_MODES, UNITS, check_choice
-from sb3_affect.behaviour import TABLE_III, Behaviour, validate_behaviour_table
+from sb3_affect.behaviour import Behaviour
 from sb3_affect.callbacks import EmotionCallback
-from sb3_affect.emotions import COMPARISONS, Emotion
+from sb3_affect.emotions import Emotion
 from sb3_affect.goals import GoalTest
-from sb3_affect.personalities import PersonalityAppraiser, check_personality
+from sb3_affect.personalities import PersonalityAppraiser
 from sb3_affect.policies import TabularQPolicy, greedy_action
-from sb3_affect.tabular import MULTI_CELLS, TabularQAlgorithm
+from sb3_affect.settings import AffectQSettings, check_affect
+from sb3_affect.tabular import TabularQAlgorithm
+
+_S = AffectQSettings  # the defaults (one source: ``sb3_affect.settings``)
 
 SelfAffectQ = TypeVar("SelfAffectQ", bound="AffectQ")
 
@@ -58,42 +60,37 @@ class AffectQ(TabularQAlgorithm):
     :param _init_setup_model: build the policy now (SB3 convention)
     """
 
+    settings_class = AffectQSettings
+
     def __init__(
         self,
         policy: str | type[TabularQPolicy],
         env: GymEnv | str | None,
-        learning_rate: float | Schedule = 1.0,
-        gamma: float = 0.8,
-        q_init: float = 0.0,
-        comparison: str = "literal",
-        act: str = "episode",
-        units: str = "cells",
-        behaviour_table: Mapping[Emotion, Behaviour] | None = None,
+        learning_rate: float | Schedule = _S.learning_rate,
+        gamma: float = _S.gamma,
+        q_init: float = _S.q_init,
+        comparison: str = _S.comparison,
+        act: str = _S.act,
+        units: str = _S.units,
+        behaviour_table: Mapping[Emotion, Behaviour] | None = _S.behaviour_table,
         emotion_callback: EmotionCallback | None = None,
-        max_episode_decisions: int = 20_000,
+        max_episode_decisions: int = _S.max_episode_decisions,
         stats_window_size: int = 100,
         tensorboard_log: str | None = None,
         policy_kwargs: dict[str, Any] | None = None,
         verbose: int = 0,
         seed: int | None = None,
         device: Any = "cpu",
-        personality: str = "neutral",
-        engine: str = "auto",
-        tie_break: str = "random",
-        multi_cell: str = "steps",
+        personality: str = _S.personality,
+        engine: str = _S.engine,
+        tie_break: str = _S.tie_break,
+        multi_cell: str = _S.multi_cell,
         _init_setup_model: bool = True,
     ) -> None:
-        self.multi_cell = check_choice("multi_cell", multi_cell, MULTI_CELLS)
-        self.personality = check_personality(personality)
-        if emotion_callback is not None and personality != "neutral":
-            raise ValueError("give either a personality or an emotion_callback (with its own appraiser), not both")
-        self.comparison = check_choice("comparison", comparison, COMPARISONS)
-        self.act = check_choice("act", act, ACT_MODES)
-        self.units = check_choice("units", units, UNITS)
-        table = TABLE_III if behaviour_table is None else behaviour_table
-        self.behaviour_table: dict[str, list[Any]] = {
-            e.name.lower(): list(b) for e, b in validate_behaviour_table(table).items()
-        }
+        self.behaviour_table: dict[str, list[Any]]
+        self.multi_cell, self.personality, self.comparison, self.act, self.units, self.behaviour_table = check_affect(
+            multi_cell, personality, comparison, act, units, behaviour_table, emotion_callback
+        )
         if emotion_callback is not None and not isinstance(emotion_callback, EmotionCallback):
             raise TypeError(f"emotion_callback must be an EmotionCallback, got {type(emotion_callback).__name__}")
         self.emotion_callback = emotion_callback

@@ -243,11 +243,11 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)  # --help, --version and usage errors end here, having imported little
     from sb3_affect.experiments.ray_cluster import ClusterLost, RayClusterError
     from sb3_affect.experiments.schema import SweepError
     from sb3_affect.experiments.store import StoreError
 
-    args = build_parser().parse_args(argv)
     try:
         return int(args.func(args))
     except (SweepError, StoreError, UsageError, RayClusterError) as error:

@@ -7,32 +7,50 @@ call, many seeds, one table of episode rows. Whatever engine computes it, row ``
 ``StopTrainingOnMaxEpisodes(episodes)``.
 
 On the compiled engine (the default wherever it applies, see ``TabularQAlgorithm``) all seeds run in one kernel call:
-no SB3 model is built per seed, so a batch costs about what its decisions cost. Memory: the table holds
+no SB3 model is built per seed, so a batch costs about what its decisions cost. For the package's own agents named
+with their settings' arguments (``sb3_affect.settings``) on its grid envs no model is built at all, and neither torch
+nor SB3 is imported: the kernel's inputs come from the agent's settings, checked as its constructor checks them
+(``kernel.inputs.settings_inputs``); anything else (a class of your own, an SB3 argument such as ``device``, a
+schedule of the training progress, MovingPursuit) builds one model as a template. Memory: the table holds
 ``len(seeds) * episodes`` rows (about 130 bytes each); give large studies in batches.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 
 from sb3_affect.episode_log import EPISODE_COLUMNS
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 #: Columns of ``simulate``'s table: the run's seed, then ``EPISODE_COLUMNS``.
 SIMULATE_COLUMNS: tuple[str, ...] = ("seed", *EPISODE_COLUMNS)
 
 
 def _resolve(algo: str | type) -> type:
-    from sb3_affect.experiments.schema import resolve_class
+    from sb3_affect.experiments.algos import resolve_class
     from sb3_affect.tabular import TabularQAlgorithm
 
     cls: Any = resolve_class(algo) if isinstance(algo, str) else algo
     if not (isinstance(cls, type) and issubclass(cls, TabularQAlgorithm)):
         raise TypeError(f"algo={algo!r} is not a tabular agent of this package (QLearning, AffectQ or a baseline)")
     return cls
+
+
+def _check_args(episodes: int, engine: str, seeds: list[Any]) -> None:
+    from sb3_affect.appraisal import check_choice
+    from sb3_affect.settings import ENGINES
+
+    if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
+        raise ValueError(f"episodes={episodes!r} must be an integer >= 1")
+    check_choice("engine", engine, ENGINES)
+    for seed in seeds:
+        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
+            raise TypeError(f"seeds must be integers, got {seed!r}")
 
 
 def simulate(
@@ -58,38 +76,64 @@ def simulate(
         it can not apply); an ``engine`` in ``algo_kwargs`` is the agent's own and wins for ``"python"``
     :return: one row per (seed, episode), columns ``SIMULATE_COLUMNS``
     """
+    import pandas as pd
+
+    table = simulate_columns(algo, algo_kwargs, env_id, env_kwargs, seeds, episodes, engine)
+    return table if isinstance(table, pd.DataFrame) else pd.DataFrame(table)
+
+
+def simulate_columns(
+    algo: str | type,
+    algo_kwargs: dict[str, Any] | None,
+    env_id: str,
+    env_kwargs: dict[str, Any] | None,
+    seeds: Sequence[int],
+    episodes: int,
+    engine: str = "auto",
+) -> Any:
+    """
+    ``simulate``'s table, as a DataFrame or, where one kernel call computes it from the agent's settings, as
+    ``{column: NumPy array}`` without importing pandas (the launcher's batches); same arguments as ``simulate``.
+    """
     import gymnasium as gym
-    from stable_baselines3.common.callbacks import StopTrainingOnMaxEpisodes
-    from stable_baselines3.common.logger import Logger
 
     import sb3_affect  # noqa: F401  (registers the envs)
 
-    cls = _resolve(algo)
-    if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
-        raise ValueError(f"episodes={episodes!r} must be an integer >= 1")
-    from sb3_affect.appraisal import check_choice
-    from sb3_affect.tabular import ENGINES
-
-    check_choice("engine", engine, ENGINES)
     seeds = list(seeds)
-    for seed in seeds:
-        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
-            raise TypeError(f"seeds must be integers, got {seed!r}")
     kwargs = dict(algo_kwargs or {})
     own = kwargs.get("engine", "auto")
     if engine != "python" and own != "python":
-        from sb3_affect.kernel.batch import batch_reason, simulate_batch
+        from sb3_affect.kernel.inputs import agent_settings_class, settings_inputs
+
+        if agent_settings_class(algo) is not None:  # the package's agent: no model (nor torch, when named)
+            _check_args(episodes, engine, seeds)
+            inputs = settings_inputs(algo, kwargs, env_id, env_kwargs, episodes)
+            if inputs is not None and not seeds:
+                return _batch_frame(inputs, seeds, episodes)
+            if inputs is not None:
+                from sb3_affect.kernel.batch import batch_columns
+
+                return batch_columns(inputs, seeds, episodes)
+    cls = _resolve(algo)
+    _check_args(episodes, engine, seeds)
+    if engine != "python" and own != "python":
+        from sb3_affect.kernel.batch import batch_reason
+        from sb3_affect.kernel.inputs import batch_inputs
 
         env = gym.make(env_id, **(env_kwargs or {}))
         template = cls("Grid", env, seed=0, **kwargs)
         reason = batch_reason(template, episodes)
         if reason is None:
-            frame = simulate_batch(template, seeds, episodes) if seeds else None
+            inputs = batch_inputs(template, template._single_env(), episodes)
             env.close()
-            return frame if frame is not None else pd.DataFrame(columns=list(SIMULATE_COLUMNS))
+            return _batch_frame(inputs, seeds, episodes)
         env.close()
         if engine == "compiled" or own == "compiled":
             raise ValueError(f"engine='compiled' can not run this simulation: {reason}")
+    import pandas as pd
+    from stable_baselines3.common.callbacks import StopTrainingOnMaxEpisodes
+    from stable_baselines3.common.logger import Logger
+
     if engine == "python":
         kwargs["engine"] = "python"
     frames = []
@@ -105,3 +149,14 @@ def simulate(
     if not frames:
         return pd.DataFrame(columns=list(SIMULATE_COLUMNS))
     return pd.concat(frames, ignore_index=True)
+
+
+def _batch_frame(inputs: Any, seeds: list[Any], episodes: int) -> pd.DataFrame:
+    """The rows of one kernel call for all seeds (``kernel.batch.simulate_batch``)."""
+    import pandas as pd
+
+    if not seeds:
+        return pd.DataFrame(columns=list(SIMULATE_COLUMNS))
+    from sb3_affect.kernel.batch import simulate_batch
+
+    return simulate_batch(inputs, seeds, episodes)

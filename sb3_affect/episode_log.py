@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
-import pandas as pd
+if TYPE_CHECKING:
+    import pandas as pd
 
 #: Columns of ``model.episode_log`` / ``EmotionCallback.episode_log``, in order.
 EPISODE_COLUMNS: tuple[str, ...] = (
@@ -79,6 +80,8 @@ def deterministic_walk_is_shortest(actions: Sequence[int], geometry: Geometry) -
 
 def make_frame(rows: Sequence[Sequence[Any]]) -> pd.DataFrame:
     """The episode log as a DataFrame with typed columns."""
+    import pandas as pd
+
     frame = pd.DataFrame(list(rows), columns=list(EPISODE_COLUMNS))
     for column in ("episode", "decisions", "cells", "waits", "joy", "sadness", "fear", "anger"):
         frame[column] = frame[column].astype("int64")

@@ -2,15 +2,17 @@
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from stable_baselines3.common.type_aliases import GymEnv, Schedule
 from stable_baselines3.common.utils import FloatSchedule
 
 from sb3_affect.policies import TabularQPolicy, check_not_gym_tuple, greedy_action
+from sb3_affect.settings import QLearningSettings, TabularSettings, check_exploration_rate
 from sb3_affect.tabular import TabularQAlgorithm
-from sb3_affect.validation import check_rate
+
+_S = QLearningSettings  # the defaults (one source: ``sb3_affect.settings``)
 
 
 class QLearning(TabularQAlgorithm):
@@ -39,27 +41,28 @@ class QLearning(TabularQAlgorithm):
     :param _init_setup_model: build the policy now (SB3 convention)
     """
 
+    settings_class: ClassVar[type[TabularSettings]] = QLearningSettings
+
     def __init__(
         self,
         policy: str | type[TabularQPolicy],
         env: GymEnv | str | None,
-        learning_rate: float | Schedule = 1.0,
-        gamma: float = 0.8,
-        q_init: float = 0.0,
-        exploration_rate: float | Schedule = 0.1,
-        max_episode_decisions: int = 20_000,
+        learning_rate: float | Schedule = _S.learning_rate,
+        gamma: float = _S.gamma,
+        q_init: float = _S.q_init,
+        exploration_rate: float | Schedule = _S.exploration_rate,
+        max_episode_decisions: int = _S.max_episode_decisions,
         stats_window_size: int = 100,
         tensorboard_log: str | None = None,
         policy_kwargs: dict[str, Any] | None = None,
         verbose: int = 0,
         seed: int | None = None,
         device: Any = "cpu",
-        engine: str = "auto",
-        tie_break: str = "random",
+        engine: str = _S.engine,
+        tie_break: str = _S.tie_break,
         _init_setup_model: bool = True,
     ) -> None:
-        check_rate("exploration_rate", exploration_rate, 0.0, 1.0)
-        self.exploration_rate = exploration_rate
+        self.exploration_rate = check_exploration_rate(exploration_rate)
         super().__init__(
             policy,
             env,
@@ -90,7 +93,7 @@ class QLearning(TabularQAlgorithm):
     def _follow_exploration_rate(self) -> None:
         """A value the user assigned to ``exploration_rate`` since the schedule was built takes effect now."""
         if self.exploration_rate is not self._exploration_source:
-            check_rate("exploration_rate", self.exploration_rate, 0.0, 1.0)
+            check_exploration_rate(self.exploration_rate)
             self.exploration_schedule = FloatSchedule(self.exploration_rate)
             self._exploration_source = self.exploration_rate
             self._epsilon = float(self.exploration_schedule(self._current_progress_remaining))

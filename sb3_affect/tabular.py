@@ -27,19 +27,18 @@ from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, Schedule
 from stable_baselines3.common.vec_env import DummyVecEnv
 
-from sb3_affect.appraisal import check_choice
 from sb3_affect.episode_log import Geometry, env_geometry, make_frame
 from sb3_affect.goals import GoalTest, positive_terminal_reward
 from sb3_affect.loop import close_episode, run_loop
 from sb3_affect.policies import TabularQPolicy, check_not_gym_tuple
 from sb3_affect.serialization import add_plain_description, load_safe
-from sb3_affect.validation import check_number, check_rate
+from sb3_affect.settings import ENGINES, MULTI_CELLS, TIE_BREAKS, TabularSettings, check_tabular
 
 SelfTabular = TypeVar("SelfTabular", bound="TabularQAlgorithm")
 
-ENGINES = ("auto", "python", "compiled")
-TIE_BREAKS = ("random", "first")
-MULTI_CELLS = ("steps", "jump")
+__all__ = ["ENGINES", "MULTI_CELLS", "TIE_BREAKS", "TabularQAlgorithm"]
+
+_S = TabularSettings  # the defaults of the settings (one source: ``sb3_affect.settings``)
 
 
 class TabularQAlgorithm(BaseAlgorithm):
@@ -68,6 +67,8 @@ class TabularQAlgorithm(BaseAlgorithm):
 
     policy_aliases: ClassVar[dict[str, type[BasePolicy]]] = {"Grid": TabularQPolicy, "TabularQPolicy": TabularQPolicy}
     policy: TabularQPolicy
+    #: the agent's settings class: its defaults and checks, which the compiled engine reads without a model
+    settings_class: ClassVar[type[TabularSettings]] = TabularSettings
     #: how a decision of k cells learns (agents that move several cells set it: ``"steps"`` or ``"jump"``)
     multi_cell: str = "steps"
 
@@ -75,32 +76,26 @@ class TabularQAlgorithm(BaseAlgorithm):
         self,
         policy: str | type[TabularQPolicy],
         env: GymEnv | str | None,
-        learning_rate: float | Schedule = 1.0,
-        gamma: float = 0.8,
-        q_init: float = 0.0,
-        max_episode_decisions: int = 20_000,
+        learning_rate: float | Schedule = _S.learning_rate,
+        gamma: float = _S.gamma,
+        q_init: float = _S.q_init,
+        max_episode_decisions: int = _S.max_episode_decisions,
         stats_window_size: int = 100,
         tensorboard_log: str | None = None,
         policy_kwargs: dict[str, Any] | None = None,
         verbose: int = 0,
         seed: int | None = None,
         device: th.device | str = "cpu",
-        engine: str = "auto",
-        tie_break: str = "random",
+        engine: str = _S.engine,
+        tie_break: str = _S.tie_break,
         _init_setup_model: bool = True,
     ) -> None:
-        self.engine = check_choice("engine", engine, ENGINES)
-        self.tie_break = check_choice("tie_break", tie_break, TIE_BREAKS)
-        check_rate("learning_rate", learning_rate, 0.0, 1.0, low_open=True)
-        self.gamma = check_number("gamma", gamma, 0.0, 1.0)
-        self.q_init = check_number("q_init", q_init, -1e300, 1e300)
-        if isinstance(max_episode_decisions, bool) or not isinstance(max_episode_decisions, (int, np.integer)):
-            raise TypeError(f"max_episode_decisions must be an integer >= 1, got {max_episode_decisions!r}")
-        if max_episode_decisions < 1:
-            raise ValueError(f"max_episode_decisions={max_episode_decisions} must be >= 1")
+        self.engine, self.tie_break, self.gamma, self.q_init, max_episode_decisions = check_tabular(
+            learning_rate, gamma, q_init, max_episode_decisions, engine, tie_break
+        )
         if seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer))):
             raise TypeError(f"seed must be an integer or None, got {seed!r}")
-        self.max_episode_decisions = int(max_episode_decisions)
+        self.max_episode_decisions = max_episode_decisions
         if env is not None and not isinstance(env, str):
             self._check_spaces(env.observation_space, env.action_space)
         super().__init__(

@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from stable_baselines3.common.type_aliases import Schedule
+
+if TYPE_CHECKING:
+    from stable_baselines3.common.type_aliases import Schedule
 
 
 def check_number(name: str, value: Any, low: float, high: float, low_open: bool = False) -> float:

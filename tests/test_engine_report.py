@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from sb3_affect.experiments import run_sweep
+from sb3_affect.experiments import ResultsStore, run_sweep
 from sb3_affect.report.build import summary_numbers
 from sb3_affect.report.metrics import load_results
 
@@ -20,11 +20,13 @@ def test_paper_sweep_and_its_report_numbers_are_the_python_engines(tmp_path: Pat
     reference = run_sweep(PAPER, tmp_path / "python", workers=2, overrides=[*size, *python], progress=False)
     assert (compiled.finished, compiled.failed) == (reference.finished, reference.failed) == (36, 0)
     fast, slow = load_results(tmp_path / "compiled"), load_results(tmp_path / "python")
-    key = ["agent", "epsilon", "seed", "episode"]
+    key = ["agent", "epsilon", "replicate", "episode"]  # a replicate has the same seed in both folders
     left = fast.episodes.drop(columns="run_id").sort_values(key).reset_index(drop=True)
     right = slow.episodes.drop(columns="run_id").sort_values(key).reset_index(drop=True)
     assert len(left) == 36 * 40
     pd.testing.assert_frame_equal(left, right)
-    assert [r["config"]["algo_kwargs"].get("engine") for r in slow.runs] == ["python"] * 36  # the reference really was
+    records = ResultsStore(tmp_path / "python").load_runs()
+    assert [r["config"]["algo_kwargs"].get("engine") for r in records] == ["python"] * 36  # the reference really was
+    assert fast.runs.seed.tolist() != [] and sorted(fast.runs.seed) == sorted(slow.runs.seed)
     numbers = summary_numbers(tmp_path / "compiled")
     assert numbers and numbers == summary_numbers(tmp_path / "python")

@@ -9,11 +9,11 @@ import numpy as np
 from stable_baselines3.common.type_aliases import GymEnv, Schedule
 from stable_baselines3.common.utils import FloatSchedule
 
-from sb3_affect.appraisal import check_choice
-from sb3_affect.baselines._schedules import DECAYS, check_positive_int, episode_decay
 from sb3_affect.policies import TabularQPolicy, check_not_gym_tuple
+from sb3_affect.settings import BoltzmannSettings, check_boltzmann, temperature_at
 from sb3_affect.tabular import TabularQAlgorithm
-from sb3_affect.validation import check_number, check_rate
+
+_S = BoltzmannSettings  # the defaults (one source: ``sb3_affect.settings``)
 
 
 def softmax_action(row: list[float], inv_temperature: float, u: float) -> int:
@@ -71,37 +71,33 @@ class Boltzmann(TabularQAlgorithm):
     :param _init_setup_model: build the policy now (SB3 convention)
     """
 
+    settings_class = BoltzmannSettings
+
     def __init__(
         self,
         policy: str | type[TabularQPolicy],
         env: GymEnv | str | None,
-        learning_rate: float | Schedule = 1.0,
-        gamma: float = 0.8,
-        q_init: float = 0.0,
-        temperature: float | Schedule = 1.0,
-        temperature_final: float | None = None,
-        temperature_decay_episodes: int = 100,
-        decay: str = "exponential",
-        max_episode_decisions: int = 20_000,
+        learning_rate: float | Schedule = _S.learning_rate,
+        gamma: float = _S.gamma,
+        q_init: float = _S.q_init,
+        temperature: float | Schedule = _S.temperature,
+        temperature_final: float | None = _S.temperature_final,
+        temperature_decay_episodes: int = _S.temperature_decay_episodes,
+        decay: str = _S.decay,
+        max_episode_decisions: int = _S.max_episode_decisions,
         stats_window_size: int = 100,
         tensorboard_log: str | None = None,
         policy_kwargs: dict[str, Any] | None = None,
         verbose: int = 0,
         seed: int | None = None,
         device: Any = "cpu",
-        engine: str = "auto",
-        tie_break: str = "random",
+        engine: str = _S.engine,
+        tie_break: str = _S.tie_break,
         _init_setup_model: bool = True,
     ) -> None:
-        check_rate("temperature", temperature, 0.0, 1e300, low_open=True)
-        if temperature_final is not None:
-            if callable(temperature):
-                raise ValueError("give either a temperature schedule or temperature_final, not both")
-            temperature_final = check_number("temperature_final", temperature_final, 0.0, 1e300, low_open=True)
-        self.temperature = temperature
-        self.temperature_final = temperature_final
-        self.temperature_decay_episodes = check_positive_int("temperature_decay_episodes", temperature_decay_episodes)
-        self.decay = check_choice("decay", decay, DECAYS)
+        self.temperature, self.temperature_final, self.temperature_decay_episodes, self.decay = check_boltzmann(
+            temperature, temperature_final, temperature_decay_episodes, decay
+        )
         super().__init__(
             policy,
             env,
@@ -131,11 +127,13 @@ class Boltzmann(TabularQAlgorithm):
 
     def temperature_at(self, finished_episodes: int, progress_remaining: float = 1.0) -> float:
         """The temperature of an episode that starts after ``finished_episodes`` episodes at this progress."""
-        if self.temperature_final is None:
-            return float(self.temperature_schedule(progress_remaining))
-        assert not callable(self.temperature)
-        return episode_decay(
-            float(self.temperature), self.temperature_final, self.temperature_decay_episodes, self.decay, finished_episodes
+        return temperature_at(
+            self.temperature,
+            self.temperature_final,
+            self.temperature_decay_episodes,
+            self.decay,
+            finished_episodes,
+            progress_remaining,
         )
 
     def _update_schedules(self) -> None:

@@ -6,11 +6,11 @@ from typing import Any
 
 from stable_baselines3.common.type_aliases import GymEnv, Schedule
 
-from sb3_affect.appraisal import check_choice
-from sb3_affect.baselines._schedules import DECAYS, check_positive_int, episode_decay
 from sb3_affect.policies import TabularQPolicy
 from sb3_affect.qlearning import QLearning
-from sb3_affect.validation import check_number
+from sb3_affect.settings import DecayingEpsilonGreedySettings, check_decaying, episode_decay
+
+_S = DecayingEpsilonGreedySettings  # the defaults (one source: ``sb3_affect.settings``)
 
 
 class DecayingEpsilonGreedy(QLearning):
@@ -45,34 +45,33 @@ class DecayingEpsilonGreedy(QLearning):
     :param _init_setup_model: build the policy now (SB3 convention)
     """
 
+    settings_class = DecayingEpsilonGreedySettings
+
     def __init__(
         self,
         policy: str | type[TabularQPolicy],
         env: GymEnv | str | None,
-        learning_rate: float | Schedule = 1.0,
-        gamma: float = 0.8,
-        q_init: float = 0.0,
-        exploration_initial_eps: float = 1.0,
-        exploration_final_eps: float = 0.05,
-        exploration_decay_episodes: int = 50,
-        decay: str = "linear",
-        max_episode_decisions: int = 20_000,
+        learning_rate: float | Schedule = _S.learning_rate,
+        gamma: float = _S.gamma,
+        q_init: float = _S.q_init,
+        exploration_initial_eps: float = _S.exploration_initial_eps,
+        exploration_final_eps: float = _S.exploration_final_eps,
+        exploration_decay_episodes: int = _S.exploration_decay_episodes,
+        decay: str = _S.decay,
+        max_episode_decisions: int = _S.max_episode_decisions,
         stats_window_size: int = 100,
         tensorboard_log: str | None = None,
         policy_kwargs: dict[str, Any] | None = None,
         verbose: int = 0,
         seed: int | None = None,
         device: Any = "cpu",
-        engine: str = "auto",
-        tie_break: str = "random",
+        engine: str = _S.engine,
+        tie_break: str = _S.tie_break,
         _init_setup_model: bool = True,
     ) -> None:
-        self.exploration_initial_eps = check_number("exploration_initial_eps", exploration_initial_eps, 0.0, 1.0)
-        self.exploration_final_eps = check_number("exploration_final_eps", exploration_final_eps, 0.0, 1.0)
-        self.exploration_decay_episodes = check_positive_int("exploration_decay_episodes", exploration_decay_episodes)
-        self.decay = check_choice("decay", decay, DECAYS)
-        if decay == "exponential" and min(self.exploration_initial_eps, self.exploration_final_eps) <= 0:
-            raise ValueError("decay='exponential' needs exploration_initial_eps > 0 and exploration_final_eps > 0")
+        self.exploration_initial_eps, self.exploration_final_eps, self.exploration_decay_episodes, self.decay = check_decaying(
+            exploration_initial_eps, exploration_final_eps, exploration_decay_episodes, decay
+        )
         super().__init__(
             policy,
             env,

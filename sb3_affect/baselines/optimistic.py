@@ -8,6 +8,9 @@ from stable_baselines3.common.type_aliases import GymEnv, Schedule
 
 from sb3_affect.policies import TabularQPolicy
 from sb3_affect.qlearning import QLearning
+from sb3_affect.settings import OptimisticQLearningSettings
+
+_S = OptimisticQLearningSettings  # the defaults (one source: ``sb3_affect.settings``)
 
 
 class OptimisticQLearning(QLearning):
@@ -44,23 +47,25 @@ class OptimisticQLearning(QLearning):
     :param _init_setup_model: build the policy now (SB3 convention)
     """
 
+    settings_class = OptimisticQLearningSettings
+
     def __init__(
         self,
         policy: str | type[TabularQPolicy],
         env: GymEnv | str | None,
-        learning_rate: float | Schedule = 1.0,
-        gamma: float = 0.8,
-        q_init: float = 100.0,
-        exploration_rate: float | Schedule = 0.0,
-        max_episode_decisions: int = 20_000,
+        learning_rate: float | Schedule = _S.learning_rate,
+        gamma: float = _S.gamma,
+        q_init: float = _S.q_init,
+        exploration_rate: float | Schedule = _S.exploration_rate,
+        max_episode_decisions: int = _S.max_episode_decisions,
         stats_window_size: int = 100,
         tensorboard_log: str | None = None,
         policy_kwargs: dict[str, Any] | None = None,
         verbose: int = 0,
         seed: int | None = None,
         device: Any = "cpu",
-        engine: str = "auto",
-        tie_break: str = "random",
+        engine: str = _S.engine,
+        tie_break: str = _S.tie_break,
         _init_setup_model: bool = True,
     ) -> None:
         super().__init__(

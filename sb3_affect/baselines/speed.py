@@ -7,10 +7,11 @@ from typing import Any
 
 from stable_baselines3.common.type_aliases import GymEnv, Schedule
 
-from sb3_affect.appraisal import check_choice
 from sb3_affect.policies import TabularQPolicy, greedy_action
 from sb3_affect.qlearning import QLearning
-from sb3_affect.tabular import MULTI_CELLS
+from sb3_affect.settings import SpeedEpsilonGreedySettings, check_speeds
+
+_S = SpeedEpsilonGreedySettings  # the defaults (one source: ``sb3_affect.settings``)
 
 
 class SpeedEpsilonGreedy(QLearning):
@@ -43,33 +44,30 @@ class SpeedEpsilonGreedy(QLearning):
     :param _init_setup_model: build the policy now (SB3 convention)
     """
 
+    settings_class = SpeedEpsilonGreedySettings
+
     def __init__(
         self,
         policy: str | type[TabularQPolicy],
         env: GymEnv | str | None,
-        learning_rate: float | Schedule = 1.0,
-        gamma: float = 0.8,
-        q_init: float = 0.0,
-        exploration_rate: float | Schedule = 0.1,
-        speeds: Sequence[int] = (1, 2),
-        max_episode_decisions: int = 20_000,
+        learning_rate: float | Schedule = _S.learning_rate,
+        gamma: float = _S.gamma,
+        q_init: float = _S.q_init,
+        exploration_rate: float | Schedule = _S.exploration_rate,
+        speeds: Sequence[int] = _S.speeds,
+        max_episode_decisions: int = _S.max_episode_decisions,
         stats_window_size: int = 100,
         tensorboard_log: str | None = None,
         policy_kwargs: dict[str, Any] | None = None,
         verbose: int = 0,
         seed: int | None = None,
         device: Any = "cpu",
-        engine: str = "auto",
-        tie_break: str = "random",
-        multi_cell: str = "steps",
+        engine: str = _S.engine,
+        tie_break: str = _S.tie_break,
+        multi_cell: str = _S.multi_cell,
         _init_setup_model: bool = True,
     ) -> None:
-        self.multi_cell = check_choice("multi_cell", multi_cell, MULTI_CELLS)
-        if isinstance(speeds, (str, bytes)) or not isinstance(speeds, Sequence):
-            raise TypeError(f"speeds must be a sequence of integers >= 0, got {speeds!r}")
-        if not speeds or not all(isinstance(k, int) and not isinstance(k, bool) and k >= 0 for k in speeds):
-            raise ValueError(f"speeds={speeds!r} is invalid: use a non-empty sequence of integers >= 0")
-        self.speeds = [int(k) for k in speeds]
+        self.multi_cell, self.speeds = check_speeds(multi_cell, speeds)
         super().__init__(
             policy,
             env,

@@ -8,8 +8,11 @@ from typing import Any
 from stable_baselines3.common.type_aliases import GymEnv, Schedule
 
 from sb3_affect.policies import TabularQPolicy
+from sb3_affect.settings import UCBQLearningSettings
 from sb3_affect.tabular import TabularQAlgorithm
 from sb3_affect.validation import check_number
+
+_S = UCBQLearningSettings  # the defaults (one source: ``sb3_affect.settings``)
 
 
 class UCBQLearning(TabularQAlgorithm):
@@ -40,23 +43,25 @@ class UCBQLearning(TabularQAlgorithm):
     :param _init_setup_model: build the policy now (SB3 convention)
     """
 
+    settings_class = UCBQLearningSettings
+
     def __init__(
         self,
         policy: str | type[TabularQPolicy],
         env: GymEnv | str | None,
-        learning_rate: float | Schedule = 1.0,
-        gamma: float = 0.8,
-        q_init: float = 0.0,
-        exploration_coef: float = 1.0,
-        max_episode_decisions: int = 20_000,
+        learning_rate: float | Schedule = _S.learning_rate,
+        gamma: float = _S.gamma,
+        q_init: float = _S.q_init,
+        exploration_coef: float = _S.exploration_coef,
+        max_episode_decisions: int = _S.max_episode_decisions,
         stats_window_size: int = 100,
         tensorboard_log: str | None = None,
         policy_kwargs: dict[str, Any] | None = None,
         verbose: int = 0,
         seed: int | None = None,
         device: Any = "cpu",
-        engine: str = "auto",
-        tie_break: str = "random",
+        engine: str = _S.engine,
+        tie_break: str = _S.tie_break,
         _init_setup_model: bool = True,
     ) -> None:
         self.exploration_coef = check_number("exploration_coef", exploration_coef, 0.0, 1e300)

@@ -53,12 +53,13 @@ class Batch:
 
     def execute(self) -> dict[str, Any]:
         """Run the batch (in a worker): ``{"chunk": Parquet bytes, "run_ids": [...]}``."""
-        from sb3_affect.engine import simulate
+        from sb3_affect.engine import simulate_columns
 
         start = time.perf_counter()
         seeds = list(dict.fromkeys(seed for _, seed, _ in self.runs))
         base = self.base
-        episodes = simulate(base["algo"], base["algo_kwargs"], base["env_id"], base["env_kwargs"], seeds, base["episodes"])
+        algo, kwargs, env_id, env_kwargs = base["algo"], base["algo_kwargs"], base["env_id"], base["env_kwargs"]
+        episodes = simulate_columns(algo, kwargs, env_id, env_kwargs, seeds, base["episodes"])  # no pandas on the kernel
         timings = {"wall_seconds": round(time.perf_counter() - start, 4), "pid": os.getpid(), "host": socket.gethostname()}
         versions = package_versions()
         chunk = encode_chunk(self.name, base, self.runs, episodes, timings, versions)
@@ -99,11 +100,21 @@ class Single:
 Job = Batch | Single
 
 
+def package_env(env_id: str) -> bool:
+    """Whether ``env_id`` is one of the package's single-agent envs (``sb3_affect/...``, not a multi-agent one)."""
+    from sb3_affect.envs import PARALLEL_ENVS
+
+    return str(env_id).startswith("sb3_affect/") and env_id not in PARALLEL_ENVS
+
+
 def batchable(base: dict[str, Any], logs: bool) -> bool:
     """Whether the runs of a cell can run as batches (see the module docstring)."""
-    if logs or base.get("max_timesteps") is not None or not str(base["env_id"]).startswith("sb3_affect/"):
+    if logs or base.get("max_timesteps") is not None or not package_env(base["env_id"]):
         return False
-    from sb3_affect.experiments.schema import resolve_class
+    from sb3_affect.experiments.algos import known_settings, resolve_class
+
+    if known_settings(base["algo"]) is not None:  # the package's agents, known by name (not imported: no torch)
+        return True
     from sb3_affect.tabular import TabularQAlgorithm
 
     try:

@@ -22,7 +22,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import pandas as pd
 
 from sb3_affect.episode_log import EPISODE_COLUMNS
 
@@ -42,7 +41,7 @@ def encode_chunk(
     name: str,
     base: dict[str, Any],
     runs: Sequence[tuple[str, int, int]],
-    episodes: pd.DataFrame,
+    episodes: Any,
     timings: dict[str, Any],
     versions: dict[str, str],
 ) -> bytes:
@@ -53,14 +52,14 @@ def encode_chunk(
     :param base: the batch's base config (seed None, labels without replicate)
     :param runs: ``(run id, seed, replicate)`` of each run
     :param episodes: ``simulate``'s table for the batch's distinct seeds, in order of first use: a ``seed`` column and
-        every ``EPISODE_COLUMNS`` column, each seed's rows together
+        every ``EPISODE_COLUMNS`` column, each seed's rows together (a DataFrame, or ``{column: array}``)
     :param timings: the batch's wall time and worker pid
     :param versions: package versions
     """
     import pyarrow as pa
     import pyarrow.parquet as pq
 
-    seeds = episodes["seed"].to_numpy()
+    seeds = np.asarray(episodes["seed"])
     starts = np.flatnonzero(np.r_[True, seeds[1:] != seeds[:-1]]) if len(seeds) else np.zeros(0, dtype=np.int64)
     ends = np.r_[starts[1:], len(seeds)].astype(np.int64)
     block = {int(seeds[start]): i for i, start in enumerate(starts)}
@@ -70,11 +69,11 @@ def encode_chunk(
     distinct = len(order) == len(runs)  # no seed used twice: the table's rows are already in the runs' order
     take = None if distinct else np.concatenate([np.arange(starts[block[seed]], ends[block[seed]]) for _, seed, _ in runs])
     lengths = np.array([ends[block[seed]] - starts[block[seed]] for _, seed, _ in runs], dtype=np.int64)
-    decisions = episodes["decisions"].to_numpy(dtype=np.int64)
+    decisions = np.asarray(episodes["decisions"], dtype=np.int64)
     totals = [int(decisions[starts[block[seed]] : ends[block[seed]]].sum()) for _, seed, _ in runs]
     arrays: dict[str, Any] = {"run": pa.array(np.repeat(np.arange(len(runs), dtype=np.int32), lengths))}
     for column in EPISODE_COLUMNS:
-        values = episodes[column].to_numpy()
+        values = np.asarray(episodes[column])
         values = values if take is None else values[take]
         if column in INT_COLUMNS:
             arrays[column] = pa.array(values.astype(np.int32))
@@ -100,7 +99,7 @@ def chunk_meta(path: Path) -> dict[str, Any]:
     """The per-run and per-batch data of a chunk (its footer only)."""
     import pyarrow.parquet as pq
 
-    metadata = pq.read_schema(path).metadata or {}
+    metadata = pq.read_metadata(path).metadata or {}  # the file's key-value metadata, no schema conversion
     return dict(json.loads(metadata[META_KEY]))
 
 

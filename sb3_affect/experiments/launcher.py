@@ -90,11 +90,28 @@ def _describe_exit(code: int | None) -> str:
     return f"exit code {code}"
 
 
-def run_local(jobs: list[Job], workers: int, on_result: OnResult, on_failure: OnFailure) -> None:
-    """Run ``jobs`` in forked worker processes, ``workers`` at a time."""
+def _preload(jobs: list[Job]) -> None:
+    """
+    Load here, once, what every forked worker of a batch would otherwise load again: the compiled engine's kernels
+    (no torch), ``simulate``, the Parquet writer and the package versions the chunks record. pandas too: the chunks
+    are written from NumPy arrays, but pyarrow's ``pa.array`` imports pandas on its first call (0.3-0.6 s a worker).
+    """
+    if not any(isinstance(job, Batch) for job in jobs):
+        return
+    import pandas  # noqa: F401
+    import pyarrow.parquet  # noqa: F401
+
+    import sb3_affect.engine  # noqa: F401
+    from sb3_affect.experiments.runner import package_versions
     from sb3_affect.kernel import warm_up
 
-    warm_up()  # the compiled engine's kernels, loaded once here (no torch) instead of in every worker
+    warm_up()
+    package_versions()
+
+
+def run_local(jobs: list[Job], workers: int, on_result: OnResult, on_failure: OnFailure) -> None:
+    """Run ``jobs`` in forked worker processes, ``workers`` at a time."""
+    _preload(jobs)
     context = multiprocessing.get_context("fork")
     queue = deque(jobs)
     running: dict[str, tuple[Any, Any, Job]] = {}
@@ -315,7 +332,22 @@ def plan_jobs(cells: list[Cell], cell_ids: list[list[str]], store: ResultsStore,
     return jobs
 
 
+class _NoProgress:
+    """The progress bar's methods, doing nothing (``--no-progress``: tqdm is not even imported)."""
+
+    def update(self, n: int = 1) -> None:
+        pass
+
+    def set_postfix(self, **kwargs: Any) -> None:
+        pass
+
+    def close(self) -> None:
+        pass
+
+
 def _progress(total: int, initial: int, name: str, enabled: bool) -> Any:
+    if not enabled:
+        return _NoProgress()
     from tqdm.auto import tqdm
 
     return tqdm(total=total, initial=initial, desc=name, unit="run", disable=not enabled, dynamic_ncols=True)

@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import functools
+import importlib
 import json
 import math
 import os
 import platform
 import socket
+import sys
 import time
 from pathlib import Path
 from typing import Any
@@ -14,22 +17,36 @@ from typing import Any
 from sb3_affect.episode_log import EPISODE_COLUMNS
 
 
-def package_versions() -> dict[str, str]:
-    import gymnasium
-    import numpy
-    import stable_baselines3
-    import torch
+def _version(name: str) -> str:
+    """A package's version: its ``__version__`` if it is imported, else its installed metadata (no import: torch)."""
+    module = sys.modules.get(name)
+    if module is not None and hasattr(module, "__version__"):
+        return str(module.__version__)
+    from importlib.metadata import PackageNotFoundError, version
 
+    try:
+        return version(name)
+    except PackageNotFoundError:
+        return str(importlib.import_module(name).__version__)
+
+
+@functools.cache
+def _package_versions() -> tuple[tuple[str, str], ...]:
     import sb3_affect
 
-    return {
-        "python": platform.python_version(),
-        "sb3_affect": sb3_affect.__version__,
-        "stable_baselines3": stable_baselines3.__version__,
-        "gymnasium": gymnasium.__version__,
-        "torch": torch.__version__,
-        "numpy": numpy.__version__,
-    }
+    return (
+        ("python", platform.python_version()),
+        ("sb3_affect", sb3_affect.__version__),
+        ("stable_baselines3", _version("stable_baselines3")),
+        ("gymnasium", _version("gymnasium")),
+        ("torch", _version("torch")),
+        ("numpy", _version("numpy")),
+    )
+
+
+def package_versions() -> dict[str, str]:
+    """The versions a run records (Python, sb3-affect, SB3, Gymnasium, PyTorch, NumPy); read once per process."""
+    return dict(_package_versions())
 
 
 def _plain(value: Any) -> Any:
@@ -78,9 +95,25 @@ def build_model(config: dict[str, Any]) -> tuple[Any, bool]:
     return cls(policy, env, seed=config["seed"], **kwargs), False
 
 
+def settings_checkable(config: dict[str, Any]) -> bool:
+    """
+    Whether ``check_configs`` can check a config without building its model (so without torch): one of the package's
+    agents, given settings only (``sb3_affect.settings``), on one of its single-agent grid envs.
+    """
+    from sb3_affect.experiments.algos import known_settings
+    from sb3_affect.experiments.batches import package_env
+
+    if "team" in config or not package_env(config["env_id"]):
+        return False
+    settings = known_settings(config["algo"])
+    return settings is not None and set(config["algo_kwargs"]) <= set(settings.names())
+
+
 def check_configs(configs: list[dict[str, Any]]) -> list[tuple[str, str]]:
     """
-    Build the env and the algorithm of each distinct (agent, env, kwargs) once, without training.
+    Build the env and the algorithm of each distinct (agent, env, kwargs) once, without training. The package's
+    agents given settings only are checked by their settings (``settings_checkable``: the constructor's own checks,
+    no model built).
 
     :return: ``(agent name, problem)`` for each config that can not be built (an unknown or impossible kwarg); the
         agent name is empty when the env itself can not be built
@@ -104,6 +137,12 @@ def check_configs(configs: list[dict[str, Any]]) -> list[tuple[str, str]]:
         try:
             if "team" in config:
                 build_team(config).env.close()
+            elif settings_checkable(config):
+                from sb3_affect.experiments.algos import known_settings
+
+                settings = known_settings(config["algo"])
+                assert settings is not None
+                settings(**config["algo_kwargs"])
             else:
                 model, _ = build_model(config)
                 model.get_env().close()
@@ -117,10 +156,13 @@ def check_configs(configs: list[dict[str, Any]]) -> list[tuple[str, str]]:
 def check_configs_in_child(configs: list[dict[str, Any]]) -> list[tuple[str, str]]:
     """
     ``check_configs`` in a short-lived forked process (where fork exists), so that the launcher itself never runs
-    torch operations before it forks its workers (an OpenMP pool used before ``fork`` can hang the children).
+    torch operations before it forks its workers (an OpenMP pool used before ``fork`` can hang the children). When
+    no config needs a model (``settings_checkable``), here: nothing imports torch.
     """
     import multiprocessing
 
+    if all(settings_checkable(config) for config in configs):
+        return check_configs(configs)
     if "fork" not in multiprocessing.get_all_start_methods():  # pragma: no cover - not Linux/macOS
         return check_configs(configs)
     context = multiprocessing.get_context("fork")

@@ -38,38 +38,15 @@ from typing import Any
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-#: Algorithms known by short name; anything else is a dotted path ``package.module:Class``.
-SHORT_NAMES: dict[str, str] = {
-    "QLearning": "sb3_affect:QLearning",
-    "AffectQ": "sb3_affect:AffectQ",
-    "DQN": "stable_baselines3:DQN",
-    "PPO": "stable_baselines3:PPO",
-    "A2C": "stable_baselines3:A2C",
-}
+from sb3_affect.experiments.algos import SHORT_NAMES, check_algo, is_tabular, resolve_class
+
+__all__ = ["SHORT_NAMES", "AgentSpec", "Cell", "EnvSpec", "MemberSpec", "Sweep", "SweepError", "load_sweep", "resolve_class"]
+
 _REFERENCE = re.compile(r"^\$([A-Za-z_][A-Za-z0-9_]*)$")
 
 
 class SweepError(ValueError):
     """A sweep file that can not be run; the message names the file, the key path and what is allowed."""
-
-
-def resolve_class(algo: str) -> type:
-    """The class an ``algo`` field names (short name or ``package.module:Class``)."""
-    target = SHORT_NAMES.get(algo, algo)
-    if ":" in target:
-        module_name, _, attr = target.partition(":")
-    else:
-        module_name, _, attr = target.rpartition(".")
-    if not module_name or not attr:
-        raise ValueError(f"{algo!r} is not a known algorithm ({', '.join(SHORT_NAMES)}) nor a 'package.module:Class' path")
-    try:
-        module = importlib.import_module(module_name)
-    except ImportError as error:
-        raise ValueError(f"{algo!r}: module {module_name!r} can not be imported ({error})") from None
-    cls = getattr(module, attr, None)
-    if not isinstance(cls, type):
-        raise ValueError(f"{algo!r}: {module_name} has no class {attr!r}")
-    return cls
 
 
 def is_multi_agent(env_id: str) -> bool:
@@ -127,9 +104,7 @@ class MemberSpec(BaseModel):
     @field_validator("algo")
     @classmethod
     def _tabular(cls, value: str) -> str:
-        from sb3_affect.tabular import TabularQAlgorithm
-
-        if not issubclass(resolve_class(value), TabularQAlgorithm):
+        if not is_tabular(value):
             raise ValueError(f"team members are tabular agents of this package (QLearning, AffectQ, baselines), not {value!r}")
         return value
 
@@ -167,7 +142,7 @@ class AgentSpec(BaseModel):
     @classmethod
     def _importable(cls, value: str | None) -> str | None:
         if value is not None:
-            resolve_class(value)
+            check_algo(value)
         return value
 
     @model_validator(mode="after")

@@ -25,11 +25,11 @@ from collections.abc import Collection, Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import numpy as np
 import pandas as pd
 
 from sb3_affect.episode_log import EPISODE_COLUMNS
-from sb3_affect.experiments.chunks import INT_COLUMNS, chunk_meta, chunk_records, chunk_table
+from sb3_affect.experiments.chunks import chunk_meta, chunk_records
+from sb3_affect.experiments.reading import RUN_COLUMNS, episode_table, read_folder
 
 if TYPE_CHECKING:
     from sb3_affect.experiments.schema import Cell
@@ -256,11 +256,13 @@ class ResultsStore:
             totals = {agent.name: len(agent.points()) * replicates for agent in sweep.agents}
         done = {name: 0 for name in totals}
         done_ids: set[str] = set()
+        failures = list(self.failed.glob("[!.]*.json"))
+        files = [p.stem for p in self._json_files()]
         for path in self._chunk_files():
             meta = chunk_meta(path)
             done[meta["base"]["agent"]] += len(meta["runs"])
-            done_ids.update(run[0] for run in meta["runs"])
-        files = [p.stem for p in self._json_files()]
+            if failures:  # only to tell a failure since retried: no set of every run id otherwise
+                done_ids.update(run[0] for run in meta["runs"])
         if files:
             agent_of = {rid: c["agent"] for rid, c in listed.items()} if listed is not None else self._agents_of_runs()
             for rid in files:
@@ -268,7 +270,7 @@ class ResultsStore:
                     done[agent_of[rid]] += 1
                     done_ids.add(rid)
         failed = {name: 0 for name in totals}
-        for path in self.failed.glob("[!.]*.json"):
+        for path in failures:
             if path.stem not in done_ids:
                 with contextlib.suppress(OSError, ValueError, KeyError):
                     failed[json.loads(path.read_text())["config"]["agent"]] += 1
@@ -307,126 +309,28 @@ class ResultsStore:
         ``seed``, one column per label (``replicate`` included), ``decisions`` (every decision of the run),
         ``episodes`` (finished episodes), ``wall_seconds`` (a batch's runs: their share of it), ``max_timesteps``.
         """
-        return self._read(None)[0]
+        return read_folder(self._json_files(), self._chunk_files(), None, self.root)[0]
 
-    def results(self, columns: Sequence[str] | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
+    def results(self, columns: Sequence[str] | None = None, seed: bool = True) -> tuple[pd.DataFrame, pd.DataFrame]:
         """
-        Every finished run (either layout) as two tables, without a Python object per episode.
+        Every finished run (either layout) as two tables, read column-wise (``experiments.reading``): no Python object
+        per episode, each column allocated once.
 
         :param columns: the episode columns wanted (default every ``EPISODE_COLUMNS`` column)
+        :param seed: repeat each run's seed on its episode rows (int64; the run table has it anyway)
         :return: ``(runs_frame(), episodes)``; ``episodes`` has one row per episode: ``run_id``, ``agent``, ``seed``
             and one column per label (categoricals but ``seed``), then the episode columns (integers as int32, flags
-            as bool, the rest float64), each run's rows together in episode order
+            as bool, the rest float64); runs in run id order, each run's rows together in episode order
         """
-        runs, episodes = self._read(EPISODE_COLUMNS if columns is None else tuple(columns))
-        run = episodes.pop("run").to_numpy()
-        front: dict[str, Any] = {}
-        labels = [c for c in runs.columns if c not in _RUN_COLUMNS]
-        for key in ("run_id", "agent", "seed", *labels):
-            values = runs[key]
-            if key == "seed":
-                front[key] = values.to_numpy()[run]
-            else:
-                categories = pd.Categorical(values)
-                front[key] = pd.Categorical.from_codes(categories.codes[run], categories=categories.categories)
-        return runs, pd.concat([pd.DataFrame(front), episodes], axis=1)
+        runs, data = read_folder(
+            self._json_files(), self._chunk_files(), EPISODE_COLUMNS if columns is None else tuple(columns), self.root
+        )
+        labels = [c for c in runs.columns if c not in RUN_COLUMNS]
+        return runs, episode_table(runs, data, ["run_id", "agent", *(["seed"] if seed else []), *labels])
 
     def episodes_frame(self, columns: Sequence[str] | None = None) -> pd.DataFrame:
         """The episode table of ``results``."""
         return self.results(columns)[1]
-
-    def _read(self, columns: Sequence[str] | None) -> tuple[pd.DataFrame, pd.DataFrame]:
-        """The run table, and (unless ``columns`` is None) the episode columns with ``run``, the row in it."""
-        rows: list[dict[str, Any]] = []
-        parts: list[dict[str, np.ndarray]] = []
-        for path in self._json_files():
-            record = json.loads(path.read_text())
-            if record.get("status", "ok") != "ok":
-                continue
-            config, episodes, timings = record["config"], record["episodes"], record.get("timings", {})
-            count = len(episodes["episode"])
-            rows.append(_run_row(record["run_id"], config, timings.get("decisions"), count, timings.get("wall_seconds")))
-            if columns is None:
-                continue
-            part = {"run": np.full(count, len(rows) - 1, dtype=np.int64)}
-            for column in columns:
-                part[column] = _typed(column, episodes[column])
-            parts.append(part)
-        frames = [pd.DataFrame(rows)] if rows else []
-        total = len(rows)
-        for path in self._chunk_files():  # whole columns per chunk: no Python object per run beyond its id
-            meta = chunk_meta(path)
-            base, count = meta["base"], len(meta["runs"])
-            ids, seeds, replicates, decisions = (list(values) for values in zip(*meta["runs"])) if count else ([],) * 4
-            if columns is None:  # the footer only: the episode count is the batch's episode budget
-                episodes_per_run: Any = base["episodes"]
-            else:
-                table = chunk_table(path, columns)
-                episodes_per_run = np.bincount(table["run"], minlength=count)
-                table["run"] = table["run"].astype(np.int64) + total
-                parts.append(table)
-            labels = {**base["labels"], "replicate": replicates}
-            frames.append(
-                pd.DataFrame(
-                    {
-                        "run_id": ids,
-                        "agent": base["agent"],
-                        "algo": base["algo"],
-                        "seed": seeds,
-                        **labels,
-                        "decisions": decisions,
-                        "episodes": episodes_per_run,
-                        "wall_seconds": meta["timings"]["wall_seconds"] / max(1, count),
-                        "max_timesteps": [base.get("max_timesteps")] * count,
-                    },
-                    index=pd.RangeIndex(count),
-                )
-            )
-            total += count
-        # One canonical order whatever the layout and the batching: runs by run id, each run's episodes in order.
-        runs = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=list(_RUN_COLUMNS))
-        order = np.argsort(runs["run_id"].to_numpy(dtype=object), kind="stable") if total else np.zeros(0, np.int64)
-        runs = runs.iloc[order].reset_index(drop=True)
-        wanted = ["run", *(columns or ())]
-        data = {name: np.concatenate([p[name] for p in parts]) if parts else np.zeros(0, np.int64) for name in wanted}
-        if len(data["run"]) and columns is not None:
-            counts = np.bincount(data["run"], minlength=total)
-            starts = np.r_[0, np.cumsum(counts)[:-1]]
-            if np.any(np.diff(data["run"]) < 0):  # each run's rows are together; only their blocks move
-                raise ValueError(f"{self.root}: a run's episodes are not stored together")
-            lengths = counts[order]
-            offsets = np.repeat(starts[order] - np.r_[0, np.cumsum(lengths)[:-1]], lengths)
-            take = offsets + np.arange(len(data["run"]))
-            rank = np.empty(total, dtype=np.int64)
-            rank[order] = np.arange(total)
-            data = {name: (rank[values[take]] if name == "run" else values[take]) for name, values in data.items()}
-        return runs, pd.DataFrame(data)
-
-
-_RUN_COLUMNS = ("run_id", "agent", "algo", "seed", "decisions", "episodes", "wall_seconds", "max_timesteps")
-
-
-def _run_row(rid: str, config: dict[str, Any], decisions: int | None, episodes: int, wall: float | None) -> dict[str, Any]:
-    return {
-        "run_id": rid,
-        "agent": config["agent"],
-        "algo": config["algo"],
-        "seed": config["seed"],
-        **config["labels"],
-        "decisions": decisions,
-        "episodes": episodes,
-        "wall_seconds": wall,
-        "max_timesteps": config.get("max_timesteps"),
-    }
-
-
-def _typed(column: str, values: list[Any]) -> np.ndarray:
-    """A JSON episode column as the chunks' dtype (None: NaN, or False for flags)."""
-    if column in INT_COLUMNS:
-        return np.asarray(values, dtype=np.int32)
-    if column in ("optimal", "truncated", "greedy_optimal"):
-        return np.asarray([bool(v) for v in values], dtype=bool)
-    return np.asarray([np.nan if v is None else v for v in values], dtype=np.float64)
 
 
 def _identity(resolved: Any) -> Any:

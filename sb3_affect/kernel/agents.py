@@ -1,6 +1,9 @@
 """
 What the kernel needs to know about an agent: its kind, its fixed configuration and the per-episode parameters
 (learning rate and epsilon or inverse temperature), or why the kernel can not run it.
+
+An *agent* here is a model, or the settings object of one of the package's agents (``sb3_affect.settings``): both
+name their hyperparameters alike, so the functions below read either (the settings without importing torch).
 """
 
 from __future__ import annotations
@@ -39,7 +42,12 @@ def _speeds_table(rows: list[tuple[bool, list[int]]]) -> tuple[np.ndarray, np.nd
     return beh_rand, beh_speeds, beh_n
 
 
+#: The kernel's kind of each family of agents (``TabularSettings.family``).
+FAMILY_KINDS = {"epsilon": loop.EPSILON, "affect": loop.AFFECT, "boltzmann": loop.BOLTZMANN, "ucb": loop.UCB}
+
+
 def _kinds() -> dict[type, int]:
+    """The kind of each agent class the kernel implements (imports the classes: torch)."""
     from sb3_affect.affectq import AffectQ
     from sb3_affect.baselines import (
         Boltzmann,
@@ -50,19 +58,43 @@ def _kinds() -> dict[type, int]:
     )
     from sb3_affect.qlearning import QLearning
 
-    return {
-        QLearning: loop.EPSILON,
-        DecayingEpsilonGreedy: loop.EPSILON,
-        OptimisticQLearning: loop.EPSILON,
-        SpeedEpsilonGreedy: loop.EPSILON,
-        AffectQ: loop.AFFECT,
-        Boltzmann: loop.BOLTZMANN,
-        UCBQLearning: loop.UCB,
-    }
+    classes = (QLearning, DecayingEpsilonGreedy, OptimisticQLearning, SpeedEpsilonGreedy, AffectQ, Boltzmann, UCBQLearning)
+    return {cls: FAMILY_KINDS[cls.settings_class.family] for cls in classes}
+
+
+def _plain_spec(agent: Any, kind: int) -> AgentSpec:
+    """The spec of an agent whose direction rule has no emotions (epsilon, Boltzmann, UCB): speeds aside, fixed."""
+    ucb_coef = float(getattr(agent, "exploration_coef", 0.0))
+    speeds = [int(k) for k in getattr(agent, "speeds", [1])]
+    rows = [(False, speeds)] + [(False, [1])] * 3
+    return AgentSpec(kind, *_speeds_table(rows), False, True, True, 1.0, ucb_coef)
+
+
+def settings_spec(settings: Any) -> AgentSpec | str:
+    """The kernel's view of an agent's settings (``sb3_affect.settings``): what a model built from them gives."""
+    kind = FAMILY_KINDS.get(settings.family)
+    if kind is None:
+        return f"{type(settings).__name__} are not the settings of an agent the kernel implements"
+    if kind != loop.AFFECT:
+        return _plain_spec(settings, kind)
+    # AffectQ builds EmotionCallback(comparison, act, units) or, for a personality, a PersonalityAppraiser preset
+    return AgentSpec(
+        kind,
+        *_speeds_table(settings.behaviour_rows()),
+        settings.comparison == "valence",
+        settings.act == "episode",
+        settings.units == "cells",
+        float(settings.norm_scale),
+        0.0,
+    )
 
 
 def agent_spec(model: Any) -> AgentSpec | str:
-    """The kernel's view of ``model``, or the reason it has none."""
+    """The kernel's view of ``model`` (a model or an agent's settings), or the reason it has none."""
+    from sb3_affect.settings import TabularSettings
+
+    if isinstance(model, TabularSettings):
+        return settings_spec(model)
     from sb3_affect.appraisal import Appraiser
     from sb3_affect.callbacks import EmotionCallback
     from sb3_affect.personalities import PersonalityAppraiser
@@ -75,9 +107,7 @@ def agent_spec(model: Any) -> AgentSpec | str:
         )
     ucb_coef = float(getattr(model, "exploration_coef", 0.0))
     if kind != loop.AFFECT:
-        speeds = [int(k) for k in getattr(model, "speeds", [1])]
-        rows = [(False, speeds)] + [(False, [1])] * 3
-        return AgentSpec(kind, *_speeds_table(rows), False, True, True, 1.0, ucb_coef)
+        return _plain_spec(model, kind)
     callback = model.emotion_callback
     if type(callback) is not EmotionCallback:
         return f"the emotion callback is a {type(callback).__name__}, whose hooks the kernel can not call"
@@ -114,22 +144,22 @@ def episode_schedule(model: Any, kind: int, first: int, count: int) -> tuple[np.
     """
     Learning rate and exploration parameter of the episodes that start after ``first``, ``first + 1``, ...
     finished episodes of the run, or None when they depend on the training progress (an SB3 schedule of the
-    remaining progress), which only the Python side can evaluate, one episode at a time.
+    remaining progress), which only the Python side can evaluate, one episode at a time. ``model``: a model or an
+    agent's settings (an episode-decaying epsilon is the ``epsilon_at`` both ``DecayingEpsilonGreedy`` and its
+    settings have).
     """
-    from sb3_affect.baselines import Boltzmann, DecayingEpsilonGreedy
-
     if callable(model.learning_rate):
         return None
     alpha = np.full(count, float(model.learning_rate))
     if kind == loop.EPSILON:
-        if isinstance(model, DecayingEpsilonGreedy):
-            p = np.array([model.epsilon_at(first + j) for j in range(count)], dtype=np.float64)
+        epsilon_at = getattr(model, "epsilon_at", None)
+        if epsilon_at is not None:
+            p = np.array([epsilon_at(first + j) for j in range(count)], dtype=np.float64)
         elif callable(model.exploration_rate):
             return None
         else:
             p = np.full(count, float(model.exploration_rate))
     elif kind == loop.BOLTZMANN:
-        assert isinstance(model, Boltzmann)
         if model.temperature_final is None and callable(model.temperature):
             return None
         p = np.array([1.0 / model.temperature_at(first + j) for j in range(count)], dtype=np.float64)

@@ -10,16 +10,18 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 from numba import njit
 
 from sb3_affect.kernel import loop
-from sb3_affect.kernel.agents import AgentSpec, episode_schedule
+from sb3_affect.kernel.agents import episode_schedule
+from sb3_affect.kernel.inputs import BatchInputs
 from sb3_affect.kernel.mt19937 import STATE_SIZE, TW_SIZE, seed_key, seed_state
-from sb3_affect.kernel.state import Geometry, config_arrays
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 
 @njit(cache=True)
@@ -90,28 +92,28 @@ def batch_reason(model: Any, episodes: int) -> str | None:
     return None
 
 
-def simulate_batch(model: Any, seeds: Sequence[int], episodes: int) -> pd.DataFrame:
+def simulate_batch(inputs: BatchInputs, seeds: Sequence[int], episodes: int) -> pd.DataFrame:
     """
-    The episode rows of fresh runs of ``model``'s agent (its configuration, not its learnt state) for each seed.
+    The episode rows of fresh runs of one agent on one env for each seed.
 
-    :param model: a freshly built model giving the agent, its options and the env (``batch_reason`` is None)
+    :param inputs: the agent and the env as the kernel runs them (``kernel.inputs.batch_inputs`` of a freshly built
+        model whose ``batch_reason`` is None, or ``kernel.inputs.settings_inputs``), for ``episodes`` episodes
     :param seeds: one run per seed
     :param episodes: episodes per run
     :return: the rows, columns ``sb3_affect.engine.SIMULATE_COLUMNS``
     """
-    from sb3_affect.kernel.agents import agent_spec
-    from sb3_affect.kernel.bridge import unwrap
+    import pandas as pd
 
-    spec = agent_spec(model)
-    assert isinstance(spec, AgentSpec)
-    env = model._single_env()
-    base, wrappers = unwrap(env)
-    geo = Geometry.of(base)
-    limits = [int(w._max_episode_steps) for w in wrappers if hasattr(w, "_max_episode_steps")]
-    icfg, fcfg = config_arrays(model, spec, geo, limits[0] if limits else 0)
-    schedule = episode_schedule(model, spec.kind, 0, episodes)
-    assert schedule is not None
-    alpha, p = schedule
+    return pd.DataFrame(batch_columns(inputs, seeds, episodes), copy=False)  # (the columns are fresh arrays)
+
+
+def batch_columns(inputs: BatchInputs, seeds: Sequence[int], episodes: int) -> dict[str, np.ndarray]:
+    """
+    ``simulate_batch``'s table as ``{column: array}`` (the dtypes of ``episode_log``), without pandas. The columns
+    are rows of one transposed copy of the kernel's output (contiguous; ``simulate_batch`` hands them to pandas
+    without copying or merging them into blocks by dtype, which would copy every column once more).
+    """
+    spec, geo = inputs.spec, inputs.geometry
     words = [seed_key(int(seed)) for seed in seeds]
     width = max((len(w) for w in words), default=1)
     keys = np.zeros((len(words), width), dtype=np.int64)
@@ -122,27 +124,17 @@ def simulate_batch(model: Any, seeds: Sequence[int], episodes: int) -> pd.DataFr
     n_rows = len(words) * episodes
     out_i = np.zeros((n_rows, loop.N_OUT_I), dtype=np.int64)
     out_f = np.zeros((n_rows, 2))
-    n_actions = int(model.action_space.n)
     run_seeds(
-        keys, lengths, float(model.q_init), n_actions, geo.trans, geo.tdist, icfg, fcfg,
-        spec.beh_rand, spec.beh_speeds, spec.beh_n, geo.max_pred, alpha, p,
-        episodes, episodes * model.max_episode_decisions, out_i, out_f,
+        keys, lengths, inputs.q_init, inputs.n_actions, geo.trans, geo.tdist, inputs.icfg, inputs.fcfg,
+        spec.beh_rand, spec.beh_speeds, spec.beh_n, geo.max_pred, inputs.alpha, inputs.p,
+        episodes, episodes * inputs.cap, out_i, out_f,
     )  # fmt: skip
-    return rows_frame(np.repeat(np.asarray([int(s) for s in seeds], dtype=np.int64), episodes), episodes, out_i, out_f)
-
-
-def rows_frame(seed_column: np.ndarray, episodes: int, out_i: np.ndarray, out_f: np.ndarray) -> pd.DataFrame:
-    """
-    The kernel's rows as ``simulate``'s table (the dtypes of ``episode_log``). The columns are rows of one transposed
-    copy of ``out_i`` (and ``out_f``), handed to pandas without copying and without merging them into blocks by
-    dtype (which would copy every column once more).
-    """
-    n_runs = len(seed_column) // episodes if episodes else 0
+    seed_column = np.repeat(np.asarray([int(s) for s in seeds], dtype=np.int64), episodes)
     col_i = np.ascontiguousarray(out_i.T)
     col_f = np.ascontiguousarray(out_f.T)
-    columns = {
+    return {
         "seed": seed_column,
-        "episode": np.tile(np.arange(1, episodes + 1, dtype=np.int64), n_runs),
+        "episode": np.tile(np.arange(1, episodes + 1, dtype=np.int64), len(words)),
         "decisions": col_i[loop.O_DECISIONS],
         "cells": col_i[loop.O_CELLS],
         "reward": col_f[0],
@@ -157,7 +149,6 @@ def rows_frame(seed_column: np.ndarray, episodes: int, out_i: np.ndarray, out_f:
         "greedy_optimal": col_i[loop.O_GREEDY].astype(bool),
         "norm": col_f[1],
     }
-    return pd.DataFrame(columns, copy=False)
 
 
 def warm_up() -> None:

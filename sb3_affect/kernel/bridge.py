@@ -14,9 +14,7 @@ import gc
 import time
 from typing import Any
 
-import gymnasium as gym
 import numpy as np
-from gymnasium.wrappers import OrderEnforcing, PassiveEnvChecker, TimeLimit
 from stable_baselines3.common.callbacks import (
     BaseCallback,
     CallbackList,
@@ -24,47 +22,18 @@ from stable_baselines3.common.callbacks import (
     ProgressBarCallback,
     StopTrainingOnMaxEpisodes,
 )
-from stable_baselines3.common.monitor import Monitor
 
 from sb3_affect.kernel import loop
 from sb3_affect.kernel.agents import agent_spec, current_exploration, episode_schedule
+from sb3_affect.kernel.inputs import env_reason, unwrap
 from sb3_affect.kernel.state import KernelRun
 
-_WRAPPERS = (Monitor, TimeLimit, OrderEnforcing, PassiveEnvChecker)
+__all__ = ["callback_reason", "compiled_reason", "env_reason", "learn_compiled", "unwrap"]
 _CHUNK_EPISODES = 4096
 _PROGRESS_DECISIONS = 500_000
 
 _DONE = np.array([True])
 _DONE.flags.writeable = False
-
-
-def unwrap(env: Any) -> tuple[Any, list[Any]]:
-    """The base env and the wrappers around it (outermost first)."""
-    wrappers = []
-    while isinstance(env, gym.Wrapper):
-        wrappers.append(env)
-        env = env.env
-    return env, wrappers
-
-
-def env_reason(env: Any) -> str | None:
-    """Why the kernel can not step ``env`` (None: it can)."""
-    from sb3_affect.envs import GridPursuitEnv, MazePursuitEnv, MovingPursuitEnv
-
-    base, wrappers = unwrap(env)
-    if type(base) is MovingPursuitEnv:
-        return (
-            "MovingPursuit's prey draws from the env's NumPy generator, which the kernel does not reproduce "
-            "(the Python engine runs it)"
-        )
-    if type(base) not in (GridPursuitEnv, MazePursuitEnv):
-        return f"the env {type(base).__name__} is not one of the package's own grid envs (GridPursuit, MazePursuit)"
-    for wrapper in wrappers:
-        if type(wrapper) not in _WRAPPERS:
-            return f"the env is wrapped in {type(wrapper).__name__}, which may change what a step does"
-        if isinstance(wrapper, Monitor) and wrapper.info_keywords:
-            return "the Monitor records info_keywords, which the kernel does not produce"
-    return None
 
 
 def callback_leaves(callback: BaseCallback) -> list[BaseCallback]:

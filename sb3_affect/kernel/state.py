@@ -17,40 +17,11 @@ from gymnasium.wrappers import TimeLimit
 from stable_baselines3.common.monitor import Monitor
 
 from sb3_affect.kernel import loop
-from sb3_affect.kernel.agents import COMPENSATED_SUM, AgentSpec
+from sb3_affect.kernel.agents import AgentSpec
+from sb3_affect.kernel.inputs import Geometry, config_arrays, unwrap
 from sb3_affect.kernel.mt19937 import state_from_rng, state_to_rng
 
-
-class Geometry:
-    """The env's dynamics as arrays: ``trans[s, a]``, true distances, start, goal, rewards, predecessor capacity."""
-
-    @classmethod
-    def of(cls, base: Any) -> Geometry:
-        """The geometry of ``base``, kept on the env (its moves and rewards are fixed once it is built)."""
-        cached = getattr(base, "_sb3_affect_kernel_geometry", None)
-        if cached is None or cached.source is not base.transitions or cached.rewards != (base.goal_reward, base.step_reward):
-            cached = cls(base)
-            base._sb3_affect_kernel_geometry = cached
-        return cached
-
-    def __init__(self, base: Any) -> None:
-        self.source = base.transitions
-        self.rewards = (base.goal_reward, base.step_reward)
-        self.trans = np.asarray(base.transitions, dtype=np.int64)
-        self.tdist = np.asarray(base.distances, dtype=np.float64)
-        self.start = int(base.start_state)
-        self.goal = int(base.goal_state)
-        self.shortest = int(base.shortest_path_length)
-        self.goal_reward = float(base.goal_reward)
-        self.step_reward = float(base.step_reward)
-        self.size = int(base.size)
-        n_states = self.trans.shape[0]
-        # the most distinct cells with a move into one cell: the width of the known map's predecessor table
-        into = np.zeros(n_states, dtype=np.int64)
-        for s in range(n_states):
-            for t in set(self.trans[s].tolist()) - {s}:
-                into[t] += 1
-        self.max_pred = max(1, int(into.max()))
+__all__ = ["Geometry", "KernelRun", "affect_arrays", "config_arrays"]
 
 
 def affect_arrays(
@@ -66,30 +37,6 @@ def affect_arrays(
     )
 
 
-def config_arrays(model: Any, spec: AgentSpec, geo: Geometry, time_limit: int) -> tuple[np.ndarray, np.ndarray]:
-    """``icfg`` and ``fcfg`` of the kernel for ``model`` on an env of geometry ``geo``."""
-    icfg = np.zeros(loop.N_ICFG, dtype=np.int64)
-    icfg[loop.C_KIND] = spec.kind
-    icfg[loop.C_GOAL] = geo.goal
-    icfg[loop.C_START] = geo.start
-    icfg[loop.C_SHORTEST] = geo.shortest
-    icfg[loop.C_TIME_LIMIT] = time_limit
-    icfg[loop.C_CAP] = model.max_episode_decisions
-    icfg[loop.C_ACT_EPISODE] = spec.act_episode
-    icfg[loop.C_UNITS_CELLS] = spec.units_cells
-    icfg[loop.C_VALENCE] = spec.valence
-    icfg[loop.C_TIE_FIRST] = getattr(model, "tie_break", "random") == "first"
-    icfg[loop.C_JUMP] = getattr(model, "multi_cell", "steps") == "jump"
-    icfg[loop.C_COMPENSATED_SUM] = COMPENSATED_SUM
-    fcfg = np.zeros(loop.N_FCFG)
-    fcfg[loop.F_GAMMA] = model.gamma
-    fcfg[loop.F_GOAL_REWARD] = geo.goal_reward
-    fcfg[loop.F_STEP_REWARD] = geo.step_reward
-    fcfg[loop.F_NORM_SCALE] = spec.norm_scale
-    fcfg[loop.F_UCB_COEF] = spec.ucb_coef
-    return icfg, fcfg
-
-
 class KernelRun:
     """
     One model's state in kernel arrays for the length of a ``learn`` call.
@@ -100,8 +47,6 @@ class KernelRun:
     """
 
     def __init__(self, model: Any, env: Any, spec: AgentSpec) -> None:
-        from sb3_affect.kernel.bridge import unwrap
-
         self.model, self.spec = model, spec
         self.base, wrappers = unwrap(env)
         self.monitor = next((w for w in wrappers if isinstance(w, Monitor)), None)

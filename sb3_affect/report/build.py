@@ -82,7 +82,7 @@ def agents_section(ctx: ReportContext) -> None:
 def hunters_sections(ctx: ReportContext) -> None:
     """Issue 16's sections (two hunters; the two emotion models), when a folder holds team runs."""
     dirs = [ctx.root / name for name in HUNTER_FOLDERS if (ctx.root / name / "runs").is_dir()]
-    if "team" in ctx.episodes.columns or "capturer" in ctx.episodes.columns:  # a single folder of team runs
+    if "team" in ctx.episodes.columns or (ctx.paper.runs.algo == "team").any():  # a single folder of team runs
         dirs.append(ctx.paper.folder)
     if not dirs:
         return

@@ -5,15 +5,12 @@ interquartile means with stratified bootstrap CIs, probabilities of improvement 
 
 from __future__ import annotations
 
-import warnings
-
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
-from rliable import library as rly
 from rliable import metrics as rmetrics
 from scipy import stats as sps
 
@@ -22,13 +19,15 @@ from sb3_affect.report.document import fmt
 from sb3_affect.report.figures import save
 from sb3_affect.report.largen import SPEED_AGENT
 from sb3_affect.report.metrics import load_results, run_metrics
+from sb3_affect.report.stats import bootstrap_ci, bootstrap_improvement, bootstrap_profile
 
 METRICS = (
     ("decisions_per_episode", "steps per episode"),
     ("decisions_before_optimal", "steps before the optimal path (walked)"),
     ("decisions_to_greedy_optimal", "steps until the greedy policy stays optimal"),
 )
-REPS = 1000
+#: Bootstrap resamples: the IQM CIs (the probability of improvement takes REPS // 5), the profile bands.
+REPS, PROFILE_REPS = 1000, 200
 
 
 def groups(m: pd.DataFrame) -> dict[str, pd.DataFrame]:
@@ -42,58 +41,50 @@ def groups(m: pd.DataFrame) -> dict[str, pd.DataFrame]:
 
 
 def rliable_table(m: pd.DataFrame, seed: int = 0) -> pd.DataFrame:
-    """IQM [95% stratified-bootstrap CI] per agent and metric, and P(affective better) [95% CI] against each agent."""
+    """
+    IQM [95% bootstrap CI] per agent and metric, and P(affective better) [95% CI] against each agent.
+
+    rliable's definitions (``aggregate_iqm``, ``probability_of_improvement``: the Mann-Whitney U over all pairs) with
+    a seeded bootstrap of runs (one task: rliable's stratified bootstrap is the bootstrap of runs), ``REPS``
+    resamples for the IQM and ``REPS // 5`` for the probability of improvement. rliable's own bootstrap draws from
+    numpy's global random state (so its CIs changed from one report to the next) and ranks every pair anew each
+    resample; ours is reproducible and costs O(runs) a resample.
+    """
     parts = groups(m)
     rows: dict[str, dict[str, str]] = {name: {} for name in parts}
     for column, label in METRICS:
-        scores = {name: part[column].to_numpy(float)[:, None] for name, part in parts.items() if len(part)}
-        pairs = {name: [-scores[AFFECTIVE], -s] for name, s in scores.items() if name != AFFECTIVE}
-        with warnings.catch_warnings():  # rliable hands arch a RandomState, which arch deprecates
-            warnings.simplefilter("ignore", FutureWarning)
-            point, cis = rly.get_interval_estimates(
-                scores, lambda s: np.array([rmetrics.aggregate_iqm(s)]), reps=REPS, random_state=np.random.RandomState(seed)
-            )
-            poi, poi_ci = rly.get_interval_estimates(
-                pairs, rmetrics.probability_of_improvement, reps=REPS // 5, random_state=np.random.RandomState(seed)
-            )
-        for name in scores:
-            low, high = np.ravel(cis[name])[:2]
-            iqm = float(np.ravel(point[name])[0])
-            rows[name][f"IQM {label}"] = f"{fmt(iqm, 1)} [{fmt(float(low), 1)}, {fmt(float(high), 1)}]"
-            if name in poi:
-                low, high = np.ravel(poi_ci[name])[:2]
-                rows[name][f"P(affective better), {label}"] = (
-                    f"{fmt(float(np.ravel(poi[name])[0]), 3)} [{fmt(float(low), 3)}, {fmt(float(high), 3)}]"
-                )
+        scores = {name: part[column].to_numpy(float) for name, part in parts.items() if len(part)}
+        for name, values in scores.items():
+            iqm = float(rmetrics.aggregate_iqm(values[:, None]))
+            _, low, high = bootstrap_ci(values, "iqm", n_boot=REPS, seed=seed)
+            rows[name][f"IQM {label}"] = f"{fmt(iqm, 1)} [{fmt(low, 1)}, {fmt(high, 1)}]"
+            if name == AFFECTIVE or AFFECTIVE not in scores:
+                continue
+            point, low, high = bootstrap_improvement(scores[AFFECTIVE], values, n_boot=REPS // 5, seed=seed)
+            rows[name][f"P(affective better), {label}"] = f"{fmt(point, 3)} [{fmt(low, 3)}, {fmt(high, 3)}]"
     table = pd.DataFrame.from_dict(rows, orient="index")
     table.index.name = "agent"
     return table
 
 
 def profile_figure(m: pd.DataFrame, path: str, column: str = "decisions_before_optimal") -> str:
-    """rliable performance profiles: the fraction of runs needing at most tau steps (95% bands)."""
+    """Performance profiles: the fraction of runs needing at most tau steps (95% bootstrap bands, seeded)."""
     parts = groups(m)
     keep = [AFFECTIVE, "ε-greedy 0.1", "ε-greedy 0.5", "ε-greedy 0.9", SPEED_AGENT]
-    scores = {k: parts[k][column].to_numpy(float)[:, None] for k in keep if k in parts and len(parts[k])}
+    scores = {k: parts[k][column].to_numpy(float) for k in keep if k in parts and len(parts[k])}
     top = max(float(np.nanpercentile(s, 99)) for s in scores.values())
     bottom = min(float(np.nanpercentile(s, 1)) for s in scores.values())
     taus = np.logspace(np.log10(max(bottom / 1.5, 1.0)), np.log10(max(top, bottom + 1.0, 2.0)), 60)
-
-    def at_most(s: np.ndarray, t: np.ndarray) -> np.ndarray:
-        return np.array([np.mean(s <= x) for x in t])
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", FutureWarning)
-        prof, prof_ci = rly.create_performance_profile(scores, taus, custom_profile_func=at_most, reps=200)
     fig, ax = plt.subplots(figsize=(7.0, 4.2))
     palette = [plt.get_cmap("tab10")(i) for i in range(10)]
-    for i, name in enumerate(scores):
-        ax.plot(taus, prof[name], color=palette[i], label=name, lw=1.6)
-        ax.fill_between(taus, prof_ci[name][0], prof_ci[name][1], color=palette[i], alpha=0.2)
+    for i, (name, values) in enumerate(scores.items()):
+        fraction, low, high = bootstrap_profile(values, taus, n_boot=PROFILE_REPS)
+        ax.plot(taus, fraction, color=palette[i], label=name, lw=1.6)
+        ax.fill_between(taus, low, high, color=palette[i], alpha=0.2)
     ax.set_xscale("log")
     ax.set_xlabel(f"τ: {column.replace('_', ' ')}")
     ax.set_ylabel("fraction of runs with at most τ")
-    ax.set_title("Performance profiles (rliable, stratified bootstrap 95% bands)")
+    ax.set_title("Performance profiles (bootstrap 95% bands over runs)")
     ax.legend(fontsize=8)
     return str(save(fig, path))
 
@@ -139,8 +130,9 @@ def checks_section(ctx: ReportContext) -> None:
         "affective agent in the verdict; it is in the tables below too."
     )
     ctx.doc.p(
-        f"rliable ({n} runs per affective cell): interquartile mean (IQM) with stratified-bootstrap 95% CIs "
-        f"({REPS} resamples), and the probability of improvement P(affective better than X) with its CI "
+        f"rliable's measures ({n} runs per affective cell): interquartile mean (IQM) with bootstrap 95% CIs over runs "
+        f"({REPS} seeded resamples; {REPS // 5} for the probability of improvement), and the probability of "
+        "improvement P(affective better than X) with its CI "
         "(0.5 = no difference; lower steps are better). The affective agent is pooled over its 9 ε labels."
     )
     ctx.table("rliable", rliable_table(m), "IQM and probability of improvement (rliable)")

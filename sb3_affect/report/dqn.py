@@ -10,7 +10,7 @@ import pandas as pd
 from sb3_affect.report import figures
 from sb3_affect.report.context import AFFECTIVE, STANDARD, ReportContext
 from sb3_affect.report.document import fmt
-from sb3_affect.report.metrics import load_results, run_metrics
+from sb3_affect.report.metrics import load_results, plain_labels, rows_where, run_metrics
 from sb3_affect.report.stats import bootstrap_ci
 
 
@@ -19,11 +19,14 @@ def learning_curves_section(ctx: ReportContext) -> None:
         return
     ctx.doc.h("Learning curves")
     e = ctx.episodes
-    groups = [
-        (f"ε-greedy ε={fmt(eps, 1)}", e[(e.agent == STANDARD) & (e.epsilon == eps)])
-        for eps in sorted(e[e.agent == STANDARD].epsilon.unique())
+    curve = ("episode", "decisions")  # each group's two columns only
+    standard = e.agent == STANDARD
+    m = ctx.metrics
+    groups = [  # the ε values from the run table: a boolean index of a categorical column would copy it
+        (f"ε-greedy ε={fmt(eps, 1)}", rows_where(e, standard & (e.epsilon == eps), curve))
+        for eps in sorted(m.epsilon[(m.agent == STANDARD) & (m.episodes > 0)].unique())
     ]
-    groups.append((AFFECTIVE, e[e.agent == AFFECTIVE]))
+    groups.append((AFFECTIVE, rows_where(e, e.agent == AFFECTIVE, curve)))
     path = figures.learning_curves(e, ctx.figure("learning_curves"), "Steps per episode over episodes", groups)
     ctx.doc.img(path, "Decisions per episode over episodes: median over runs and quartile band (log scale)")
 
@@ -47,11 +50,11 @@ def dqn_section(ctx: ReportContext) -> None:
         ctx.doc.p(f"Skipped: {ctx.folders['dqn']} holds no finished runs.")
         return
     m = run_metrics(results.episodes, results.runs)
-    wall = {r["run_id"]: r["timings"]["wall_seconds"] for r in results.runs}
-    m["wall_seconds"] = m.run_id.map(wall)
-    configs = {r["config"]["agent"]: r["config"] for r in results.runs}
-    budget = next(iter(configs.values())).get("max_timesteps")
-    seeds = sorted({int(r["config"]["seed"]) for r in results.runs})
+    runs = results.runs
+    m["wall_seconds"] = m.run_id.map(pd.Series(runs.wall_seconds.to_numpy(), index=runs.run_id.to_numpy()))
+    first_agent = runs.max_timesteps[runs.agent == runs.agent.iloc[0]]
+    budget = None if pd.isna(first_agent.iloc[-1]) else int(first_agent.iloc[-1])
+    seeds = sorted({int(seed) for seed in runs.seed})
     if "epsilon" not in m.columns:
         m["epsilon"] = math.nan
     rows = {}
@@ -82,7 +85,7 @@ def dqn_section(ctx: ReportContext) -> None:
     )
     ctx.table("dqn", table, "DQN beside the tabular agents on the same seeds and budget")
     groups: list[tuple[str, pd.DataFrame]] = []
-    e = results.episodes
+    e = plain_labels(results.episodes)  # a small folder: grouped by label with pandas
     if "epsilon" not in e.columns:
         e = e.assign(epsilon=math.nan)
     for (agent, eps), g in e.groupby(["agent", "epsilon"], dropna=False):

@@ -43,7 +43,8 @@ def metric_vs_epsilon(
 ) -> Path:
     """
     Per-run ``column`` against epsilon: mean over runs with its bootstrap 95% CI band, and every run as a dot
-    (``mark_censored``: runs that never found the optimal path as crosses).
+    (``mark_censored``: runs that never found the optimal path as crosses); a cell of more than ``DOTS_PER_CELL``
+    runs shows a seeded sample of that many (the mean and its band use every run).
     """
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
     for agent in agents:
@@ -52,6 +53,7 @@ def metric_vs_epsilon(
             continue
         eps = sorted(data.epsilon.unique())
         cis = np.array([bootstrap_ci(data[data.epsilon == e][column].to_numpy()) for e in eps])
+        data = dot_sample(data)
         colour = COLOURS.get(agent)
         ax.plot(eps, cis[:, 0], "o-", color=colour, label=f"{agent} (mean, 95% CI)")
         ax.fill_between(eps, cis[:, 1], cis[:, 2], color=colour, alpha=0.2)
@@ -75,6 +77,20 @@ def metric_vs_epsilon(
         ax.set_yscale("log")
     ax.legend(fontsize=7)
     return save(fig, path)
+
+
+#: Most runs drawn as dots per (agent, epsilon) cell of ``metric_vs_epsilon``.
+DOTS_PER_CELL = 2000
+
+
+def dot_sample(data: pd.DataFrame, per_cell: int = DOTS_PER_CELL, seed: int = 0) -> pd.DataFrame:
+    """The runs of ``data`` to draw as dots: all of them, or a seeded sample of ``per_cell`` per epsilon (in order)."""
+    counts = data.groupby("epsilon").epsilon.transform("size").to_numpy()
+    if not len(counts) or counts.max() <= per_cell:
+        return data
+    rng = np.random.default_rng(seed)
+    rank = data.assign(_key=rng.random(len(data))).groupby("epsilon")["_key"].rank(method="first").to_numpy()
+    return data[rank <= per_cell]
 
 
 def emotion_profile(prof: pd.DataFrame, path: Path, title: str = "Fig. 5: emotion profile per episode") -> Path:
@@ -119,17 +135,40 @@ def equivalent_epsilon(prof: pd.DataFrame, path: Path) -> Path:
     return save(fig, path)
 
 
+def episode_quantiles(
+    episode: np.ndarray, values: np.ndarray, quantiles: tuple[float, ...] = (0.25, 0.5, 0.75)
+) -> tuple[np.ndarray, list[np.ndarray]]:
+    """
+    Per episode number: the quantiles (linear interpolation, as pandas and numpy) of integer ``values`` over runs.
+
+    One sort of one int64 key (episode, value) for all episodes at once: memory 8 bytes a row, whatever the runs.
+    """
+    low = int(values.min()) if len(values) else 0
+    span = int(values.max()) - low + 1 if len(values) else 1
+    key = np.sort(episode.astype(np.int64) * span + (values.astype(np.int64) - low))
+    episodes, counts = np.unique(key // span, return_counts=True)
+    starts = np.r_[0, np.cumsum(counts)[:-1]]
+    ordered = key % span + low
+    out = []
+    for q in quantiles:
+        h = (counts - 1) * q
+        below = np.floor(h).astype(np.int64)
+        above = np.minimum(below + 1, counts - 1)
+        lo, hi = ordered[starts + below].astype(float), ordered[starts + above].astype(float)
+        out.append(lo + (h - below) * (hi - lo))
+    return episodes, out
+
+
 def learning_curves(episodes: pd.DataFrame, path: Path, title: str, groups: list[tuple[str, pd.DataFrame]]) -> Path:
     """Decisions per episode over episodes: median over runs with the quartile band, one line per group."""
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
     palette = [plt.get_cmap("tab10")(i) for i in range(10)]
     styles = ("-", "--", "-.", ":")
     for i, (label, data) in enumerate(groups):
-        grouped = data.groupby("episode").decisions
-        median, q25, q75 = grouped.median(), grouped.quantile(0.25), grouped.quantile(0.75)
+        numbers, (q25, median, q75) = episode_quantiles(data.episode.to_numpy(), data.decisions.to_numpy())
         colour = COLOURS.get(label, palette[i % len(palette)])
-        ax.plot(median.index, median, color=colour, label=label, lw=1.5, ls=styles[(i // len(palette)) % len(styles)])
-        ax.fill_between(median.index, q25, q75, color=colour, alpha=0.12)
+        ax.plot(numbers, median, color=colour, label=label, lw=1.5, ls=styles[(i // len(palette)) % len(styles)])
+        ax.fill_between(numbers, q25, q75, color=colour, alpha=0.12)
     ax.axhline(12, color="black", lw=0.8, ls=":", label="12 (shortest path in cells)")
     ax.set_yscale("log")
     ax.set_xlabel("episode")

@@ -11,7 +11,7 @@ import pandas as pd
 from sb3_affect.report import figures
 from sb3_affect.report.context import AFFECTIVE, ReportContext
 from sb3_affect.report.document import fmt
-from sb3_affect.report.metrics import EMOTIONS, profile, window_mean
+from sb3_affect.report.metrics import EMOTIONS, profile, rows_where, window_mean
 
 #: An episode longer than this many decisions is "long" (the shortest path is 12 cells, 6 to 12 decisions).
 LONG = 20
@@ -20,43 +20,87 @@ SETTLED = (51, 200)
 WINDOWS = ((1, 10), (21, 40), (181, 200))
 
 
-def _bootstrap(per_run: pd.DataFrame, statistic: str, reps: int = 1000, seed: int = 0) -> tuple[float, float]:
-    """Percentile 95% CI of a ratio of per-run sums (``statistic`` is ``numerator/denominator`` column names)."""
-    num, den = statistic.split("/")
+#: Bootstrap resamples of the mechanism's CIs, and how many are drawn at a time (memory: block x runs indices).
+REPS, BLOCK_CELLS = 1000, 4_000_000
+
+
+def _bootstrap(
+    per_run: pd.DataFrame, statistics: dict[str, str], reps: int = REPS, seed: int = 0
+) -> dict[str, tuple[float, float]]:
+    """
+    Percentile 95% CIs of ratios of per-run sums (each ``numerator/denominator`` column names), resampling runs.
+
+    Every statistic sees the same resamples (one seeded stream), drawn in blocks of rows so that memory stays
+    ``BLOCK_CELLS`` indices whatever the number of runs (the stream, and so the numbers, are those of one draw).
+    """
+    n = len(per_run)
     rng = np.random.default_rng(seed)
-    idx = rng.integers(0, len(per_run), size=(reps, len(per_run)))
-    a, b = per_run[num].to_numpy(float)[idx].sum(axis=1), per_run[den].to_numpy(float)[idx].sum(axis=1)
-    ratios = a / np.where(b > 0, b, np.nan)
-    low, high = np.nanpercentile(ratios, [2.5, 97.5])
-    return float(low), float(high)
+    columns = {name: per_run[name].to_numpy(float) for ratio in statistics.values() for name in ratio.split("/")}
+    sums: dict[str, list[np.ndarray]] = {name: [] for name in columns}
+    block = max(1, BLOCK_CELLS // max(1, n))
+    for first in range(0, reps, block):
+        idx = rng.integers(0, n, size=(min(block, reps - first), n))
+        for name, values in columns.items():
+            sums[name].append(values[idx].sum(axis=1))
+    out = {}
+    for key, ratio in statistics.items():
+        num, den = ratio.split("/")
+        a, b = np.concatenate(sums[num]), np.concatenate(sums[den])
+        ratios = a / np.where(b > 0, b, np.nan)
+        low, high = np.nanpercentile(ratios, [2.5, 97.5])
+        out[key] = (float(low), float(high))
+    return out
 
 
 def bimodality(episodes: pd.DataFrame, first: int = SETTLED[0], last: int = SETTLED[1]) -> dict[str, float]:
-    """The figures of the mechanism, from the affective agent's episodes ``first..last`` (pooled over runs)."""
-    e = episodes[(episodes.episode >= first) & (episodes.episode <= last)].copy()
-    e["long"] = e.decisions > LONG
-    e["long_decisions"] = e.decisions.where(e.long, 0)
-    e["long_joy"] = e.joy.where(e.long, 0)
-    e["short_decisions"] = e.decisions.where(~e.long, 0)
-    e["short_joy"] = e.joy.where(~e.long, 0)
-    e["any_joy"] = (e.joy > 0).astype(float)
-    e["one"] = 1.0
-    e["joy_fraction"] = e.joy / e.decisions
-    per_run = e.groupby("run_id")[
-        ["long", "one", "decisions", "long_decisions", "long_joy", "short_decisions", "short_joy", "joy", "any_joy"]
-    ].sum()
+    """
+    The figures of the mechanism, from the affective agent's episodes ``first..last`` (pooled over runs).
+
+    Column by column with numpy (memory: a few columns of the window, whatever the number of runs).
+    """
+    episode = episodes.episode.to_numpy()
+    rows = np.flatnonzero((episode >= first) & (episode <= last))
+    decisions, joy = episodes.decisions.to_numpy()[rows], episodes.joy.to_numpy()[rows]
+    run_ids = episodes.run_id.iloc[rows]
+    if isinstance(run_ids.dtype, pd.CategoricalDtype):
+        key = run_ids.cat.codes.to_numpy()
+    else:
+        key = pd.factorize(run_ids.to_numpy(dtype=object), sort=True)[0]
+    present = np.flatnonzero(np.bincount(key))  # the runs in run id order, as a groupby's
+    long = decisions > LONG
+    long_decisions = np.where(long, decisions, 0)
+    long_joy = np.where(long, joy, 0)
+    any_joy = joy > 0
+    columns = {
+        "long": long,
+        "one": None,
+        "decisions": decisions,
+        "long_decisions": long_decisions,
+        "long_joy": long_joy,
+        "joy": joy,
+        "any_joy": any_joy,
+    }  # per-run sums of integers: exact in float64
+    per_run = pd.DataFrame(
+        {
+            name: np.bincount(key, weights=None if v is None else v.astype(float))[present].astype(float)
+            for name, v in columns.items()
+        }
+    )
+    total, long_total = int(decisions.sum(dtype=np.int64)), int(long_decisions.sum(dtype=np.int64))
+    joy_total, long_joy_total = int(joy.sum(dtype=np.int64)), int(long_joy.sum(dtype=np.int64))
+    short_decisions = total - long_total
     out = {
-        "episodes": float(len(e)),
-        "runs": float(e.run_id.nunique()),
-        "median decisions": float(e.decisions.median()),
-        "mean decisions": float(e.decisions.mean()),
-        "share of long episodes": float(e.long.mean()),
-        "share of decisions in long episodes": float(e.long_decisions.sum() / e.decisions.sum()),
-        "joy share of decisions in long episodes": float(e.long_joy.sum() / max(1, e.long_decisions.sum())),
-        "joy share of decisions in short episodes": float(e.short_joy.sum() / max(1, e.short_decisions.sum())),
-        "share of episodes with any joy": float(e.any_joy.mean()),
-        "mean per-episode joy fraction (equivalent ε)": float(e.joy_fraction.mean()),
-        "decision-weighted joy fraction": float(e.joy.sum() / e.decisions.sum()),
+        "episodes": float(len(rows)),
+        "runs": float(len(present)),
+        "median decisions": float(np.median(decisions)),
+        "mean decisions": float(decisions.mean()),
+        "share of long episodes": float(long.mean()),
+        "share of decisions in long episodes": float(long_total / total),
+        "joy share of decisions in long episodes": float(long_joy_total / max(1, long_total)),
+        "joy share of decisions in short episodes": float((joy_total - long_joy_total) / max(1, short_decisions)),
+        "share of episodes with any joy": float(any_joy.mean()),
+        "mean per-episode joy fraction (equivalent ε)": float(pd.Series(joy / decisions).mean()),
+        "decision-weighted joy fraction": float(joy_total / total),
     }
     cis = {
         "share of long episodes": "long/one",
@@ -65,16 +109,15 @@ def bimodality(episodes: pd.DataFrame, first: int = SETTLED[0], last: int = SETT
         "share of episodes with any joy": "any_joy/one",
         "decision-weighted joy fraction": "joy/decisions",
     }
-    for key, ratio in cis.items():
-        low, high = _bootstrap(per_run.reset_index(), ratio)
-        out[f"{key} (low)"], out[f"{key} (high)"] = low, high
+    for key_name, (low, high) in _bootstrap(per_run, cis).items():
+        out[f"{key_name} (low)"], out[f"{key_name} (high)"] = low, high
     return out
 
 
 def mechanism_section(ctx: ReportContext) -> None:
     """Bimodal episodes, the meaning of equivalent epsilon, and Fig. 5 under both weightings."""
     ctx.doc.h("Why the affective agent behaves as it does")
-    aff = ctx.episodes[ctx.episodes.agent == AFFECTIVE] if len(ctx.episodes) else ctx.episodes
+    aff = rows_where(ctx.episodes, ctx.episodes.agent == AFFECTIVE) if len(ctx.episodes) else ctx.episodes
     if aff.empty:
         ctx.doc.p("Skipped: no affective runs.")
         return
@@ -94,7 +137,7 @@ def mechanism_section(ctx: ReportContext) -> None:
         "all the way) or long and random (joy from the crossing on): the per-episode decisions are bimodal."
     )
     path = figures.decisions_histogram(
-        aff[(aff.episode >= first)].decisions.to_numpy(float),
+        aff.decisions.to_numpy()[aff.episode.to_numpy() >= first].astype(float),
         ctx.figure("mechanism_decisions"),
         LONG,
         f"Affective agent, episodes {first}-{last}: decisions per episode",

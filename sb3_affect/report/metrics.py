@@ -2,13 +2,16 @@
 From run files to tidy tables: one row per episode, and one row of metrics per run (docs/definitions.md).
 
 ``load_results`` is the report's only access to a results folder: every section reads runs through it, so a change of
-the results store (files, format) is one change here.
+the results store (files, format) is one change here. It reads column-wise (only ``REPORT_COLUMNS``, compact dtypes),
+and ``run_metrics`` reduces the episode rows run by run with numpy segment reductions, so a folder of 180,000 runs
+(36 M episodes) costs its columns in memory and no Python loop over runs.
 """
 
 from __future__ import annotations
 
 import math
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -19,32 +22,52 @@ import pandas as pd
 EMOTIONS = ("joy", "sadness", "fear", "anger")
 #: Windows of episodes the report summarises (early, after the first optimal path on average, late).
 EARLY, LATE = (1, 10), (181, 200)
+#: The episode columns the report reads (``load_results``): what the sections use, nothing more.
+REPORT_COLUMNS = ("episode", "decisions", "cells", "optimal", "truncated", "random_moves", *EMOTIONS, "greedy_optimal")
 
 
 @dataclass
 class Results:
-    """A results folder's finished runs: ``episodes`` (one row per episode) and ``runs`` (the run records)."""
+    """
+    A results folder's finished runs.
+
+    :param folder: the results folder
+    :param episodes: one row per episode: ``run_id``, ``agent`` and one column per label (categoricals), then the
+        episode columns read (``REPORT_COLUMNS``: int32 counts, bool flags, float64 ``random_moves``); runs in run id
+        order, each run's episodes together and in order
+    :param runs: one row per finished run, sorted by run id (``ResultsStore.runs_frame``: ``run_id``, ``agent``,
+        ``algo``, ``seed``, the labels, ``decisions`` (every decision, an unfinished last episode included),
+        ``episodes``, ``wall_seconds``, ``max_timesteps``)
+    """
 
     folder: Path
     episodes: pd.DataFrame
-    runs: list[dict[str, Any]]
+    runs: pd.DataFrame
 
 
 def load_runs(run_dir: Path) -> list[dict[str, Any]]:
-    """Every finished run of a results folder, whatever its layout (Parquet chunks or one JSON file per run)."""
+    """Every finished run of a results folder as run records with their episode lists (small folders only)."""
     from sb3_affect.experiments.store import ResultsStore
 
     return [r for r in ResultsStore(run_dir).load_runs() if r.get("status", "ok") == "ok"]
 
 
-def load_results(run_dir: Path) -> Results:
-    """The finished runs of ``run_dir`` as a ``Results`` (the report's one loader)."""
-    runs = load_runs(run_dir)
-    return Results(Path(run_dir), episodes_frame(runs), runs)
+def load_results(run_dir: Path, columns: Sequence[str] = REPORT_COLUMNS) -> Results:
+    """
+    The finished runs of ``run_dir`` (Parquet chunks, one JSON file per run, or both) as a ``Results``: the report's
+    one loader.
+
+    Read column-wise by ``ResultsStore.results``: only ``columns``, each allocated once at its final size, no Python
+    object per run or episode (about 40 bytes an episode with the default columns: 1.5 GB for 36 M episodes).
+    """
+    from sb3_affect.experiments.store import ResultsStore
+
+    runs, episodes = ResultsStore(run_dir).results(columns, seed=False)
+    return Results(Path(run_dir), episodes, runs)
 
 
 def episodes_frame(runs: list[dict[str, Any]]) -> pd.DataFrame:
-    """One row per episode of every run, with the run's agent, seed and labels as columns."""
+    """One row per episode of run records (``load_runs``), with the run's agent, seed and labels as columns."""
     frames = []
     for run in runs:
         config = run["config"]
@@ -82,23 +105,10 @@ _EPISODE_VALUE_COLUMNS = (
 )
 
 
-def _window(e: pd.DataFrame, runs: pd.Index, lo: int, hi: int) -> dict[str, pd.Series]:
-    """Per run: mean over the window's episodes of per-episode fractions, and decision-weighted fractions."""
-    part = e[(e.episode >= lo) & (e.episode <= hi)]
-    decisions = part.decisions.where(part.decisions > 0)
-    out: dict[str, pd.Series] = {}
-    g = part.groupby("run_id", sort=False)
-    total = g.decisions.sum().reindex(runs)
-    for name, column in (*((x, x) for x in EMOTIONS), ("eqeps", "random_moves")):
-        out[f"{name}_{lo}_{hi}"] = (part[column] / decisions).groupby(part.run_id).mean().reindex(runs)
-        out[f"{name}_{lo}_{hi}_weighted"] = g[column].sum().reindex(runs) / total.where(total > 0)
-    out[f"decisions_{lo}_{hi}"] = g.decisions.mean().reindex(runs)
-    return out
-
-
-def run_metrics(episodes: pd.DataFrame, runs: list[dict[str, Any]] | None = None) -> pd.DataFrame:
+def run_metrics(episodes: pd.DataFrame, runs: pd.DataFrame | Sequence[dict[str, Any]] | None = None) -> pd.DataFrame:
     """
-    The metrics of docs/definitions.md, one row per run (vectorised: fast for thousands of runs):
+    The metrics of docs/definitions.md, one row per run, sorted by run id (vectorised: numpy reductions over each
+    run's rows, no loop over runs):
 
     - ``decisions_per_episode``, ``cells_per_episode``: means over the run's episodes (the paper's "steps" are decisions)
     - ``first_optimal``: first episode whose path is a shortest path; ``censored`` when none is
@@ -107,78 +117,200 @@ def run_metrics(episodes: pd.DataFrame, runs: list[dict[str, Any]] | None = None
       (NaN, ``greedy_censored``, when it is not optimal after the last episode)
     - ``decisions_to_greedy_optimal``: decisions of episodes 1 .. ``greedy_optimal_from`` (censored: all)
     - ``truncated``: episodes ended by the safety cap
-    - ``total_decisions``: every decision of the run, the unfinished last episode included (from the run file)
+    - ``total_decisions``: every decision of the run, the unfinished last episode included (from the run table)
     - window features (``EARLY``, ``LATE``): ``joy_1_10`` (mean of per-episode fractions), ``joy_1_10_weighted``
       (decision-weighted), the same for every emotion and ``eqeps`` (random-direction decisions), ``decisions_181_200``
 
-    ``runs`` (the run files) adds the runs that finished no episode at all (e.g. a DQN that never reached the goal
-    within its step budget): censored, with all their decisions before the optimal path.
+    :param episodes: one row per episode (``Results.episodes``, or any frame with ``run_id``, the episode columns and
+        label columns)
+    :param runs: the run table (``Results.runs``) or run records (``load_runs``): adds each run's total decisions,
+        its ``seed`` when ``episodes`` has none, and the runs that finished no episode at all (e.g. a DQN that never
+        reached the goal within its step budget): censored, with all their decisions before the optimal path
     """
     rows = _vector_metrics(episodes) if len(episodes) else pd.DataFrame()
-    records = {r["run_id"]: r for r in runs or []}
-    if len(rows) and records:
-        totals = rows.run_id.map(lambda rid: (records.get(rid) or {}).get("timings", {}).get("decisions"))
-        known = totals.notna()
-        rows.loc[known, "total_decisions"] = totals[known].astype(int)
+    table = _run_table(runs)
+    if table is None or not len(table):
+        return rows
+    totals = pd.Series(table.decisions.to_numpy(), index=pd.Index(table.run_id.to_numpy()))
+    totals = totals[~totals.index.duplicated()]
+    if len(rows):
+        if "seed" not in rows.columns and "agent" in rows.columns:
+            seeds = pd.Series(table.seed.to_numpy(), index=pd.Index(table.run_id.to_numpy()))
+            place = list(rows.columns).index("agent") + 1
+            rows.insert(place, "seed", rows.run_id.map(seeds[~seeds.index.duplicated()]))
+        known_totals = pd.to_numeric(rows.run_id.map(totals), errors="coerce")
+        known = known_totals.notna()
+        rows.loc[known, "total_decisions"] = known_totals[known].astype(int)
         fix = known & rows.censored  # the unfinished last episode was spent before the optimal path too
         rows.loc[fix, "decisions_before_optimal"] = rows.loc[fix, "total_decisions"].astype(float)
         gfix = known & rows.greedy_censored
         rows.loc[gfix, "decisions_to_greedy_optimal"] = rows.loc[gfix, "total_decisions"].astype(float)
-    seen = set(rows.run_id) if len(rows) else set()
-    extra = []
-    for record in runs or []:
-        if record["run_id"] in seen:
-            continue
-        total = float(record.get("timings", {}).get("decisions") or 0)
+    seen = pd.Index(rows.run_id) if len(rows) else pd.Index([])
+    missing = table[~table.run_id.isin(seen)]
+    if not len(missing):
+        return rows
+    total = pd.to_numeric(missing.decisions, errors="coerce").fillna(0).astype(float).to_numpy()
+    labels = [c for c in missing.columns if c not in _TABLE_COLUMNS]
+    extra = pd.DataFrame({"agent": missing.agent.to_numpy(), "seed": missing.seed.to_numpy()})
+    for key in labels:
+        extra[key] = missing[key].to_numpy()
+    extra = extra.assign(
+        run_id=missing.run_id.to_numpy(),
+        episodes=0,
+        censored=True,
+        greedy_censored=True,
+        decisions_before_optimal=total,
+        decisions_to_greedy_optimal=total,
+        truncated=0,
+        total_decisions=total.astype(int),
+    )
+    if not len(rows):
+        return extra
+    return pd.concat([rows, extra], ignore_index=True)
+
+
+#: Columns of a run table that are not labels.
+_TABLE_COLUMNS = ("run_id", "agent", "algo", "seed", "decisions", "episodes", "wall_seconds", "max_timesteps")
+
+
+def _run_table(runs: pd.DataFrame | Sequence[dict[str, Any]] | None) -> pd.DataFrame | None:
+    """The run table from ``Results.runs`` or from run records (``run_id``, ``agent``, ``seed``, labels, ``decisions``)."""
+    if runs is None or isinstance(runs, pd.DataFrame):
+        return runs
+    rows = []
+    for record in runs:
         config = record["config"]
-        row = {"agent": config["agent"], "seed": config["seed"], **config["labels"]}
-        row.update(
-            run_id=record["run_id"],
-            episodes=0,
-            censored=True,
-            greedy_censored=True,
-            decisions_before_optimal=total,
-            decisions_to_greedy_optimal=total,
-            truncated=0,
-            total_decisions=int(total),
+        rows.append(
+            {
+                "run_id": record["run_id"],
+                "agent": config["agent"],
+                "seed": config["seed"],
+                **config["labels"],
+                "decisions": record.get("timings", {}).get("decisions"),
+            }
         )
-        extra.append(row)
-    if extra:
-        rows = pd.concat([rows, pd.DataFrame(extra)], ignore_index=True)
-    return rows
+    return pd.DataFrame(rows) if rows else None
 
 
 def _vector_metrics(episodes: pd.DataFrame) -> pd.DataFrame:
-    e = episodes.sort_values(["run_id", "episode"], kind="stable").copy()
-    for column in ("optimal", "truncated", "greedy_optimal"):  # None where an env does not define it
-        e[column] = e[column].eq(True)
-    g = e.groupby("run_id", sort=False)
-    run_index = pd.Index(g.size().index, name="run_id")
-    label_columns = [c for c in e.columns if c not in _EPISODE_VALUE_COLUMNS and c != "run_id"]
-    out = g[label_columns].first() if label_columns else pd.DataFrame(index=run_index)
-    first = e[e.optimal].groupby("run_id").episode.min().reindex(run_index)
-    cutoff = e.run_id.map(first)
-    before = e.episode < cutoff.fillna(np.inf)
-    last_episode = g.episode.max()
-    last_false = e[~e.greedy_optimal].groupby("run_id").episode.max().reindex(run_index)
-    greedy_from = (last_false + 1).fillna(1.0).where(last_false.fillna(-1) != last_episode)
-    upto_greedy = e.episode <= e.run_id.map(greedy_from).fillna(np.inf)
-    out["episodes"] = g.size()
-    out["decisions_per_episode"] = g.decisions.mean()
-    out["cells_per_episode"] = g.cells.mean()
-    out["first_optimal"] = first.astype(float)
-    out["censored"] = first.isna()
-    out["decisions_before_optimal"] = e.decisions.where(before, 0).groupby(e.run_id).sum().astype(float)
-    out["cells_before_optimal"] = e.cells.where(before, 0).groupby(e.run_id).sum().astype(float)
-    out["greedy_optimal_from"] = greedy_from.astype(float)
-    out["greedy_censored"] = greedy_from.isna()
-    out["decisions_to_greedy_optimal"] = e.decisions.where(upto_greedy, 0).groupby(e.run_id).sum().astype(float)
-    out["truncated"] = g.truncated.sum().astype(int)
-    out["total_decisions"] = g.decisions.sum().astype(int)
+    """The per-run metrics of ``run_metrics`` from the episode rows alone (numpy reductions over each run's rows)."""
+    run_ids = episodes["run_id"]
+    names: Any
+    if isinstance(run_ids.dtype, pd.CategoricalDtype) and run_ids.cat.categories.is_monotonic_increasing:
+        codes, names = run_ids.cat.codes.to_numpy(), run_ids.cat.categories
+    else:
+        codes, names = pd.factorize(run_ids.to_numpy(dtype=object), sort=True)
+    episode = episodes["episode"].to_numpy()
+    if episode.dtype.kind not in "iu":
+        episode = episode.astype(np.int64)
+    # Rows sorted by run (in run id order) and episode: already so when read by load_results.
+    ordered = len(codes) < 2 or bool(
+        np.all((codes[1:] > codes[:-1]) | ((codes[1:] == codes[:-1]) & (episode[1:] >= episode[:-1])))
+    )
+    take = None if ordered else np.lexsort((episode, codes))
+
+    def column(name: str) -> np.ndarray:
+        values = episodes[name]
+        if name in ("optimal", "truncated", "greedy_optimal") and values.dtype != bool:
+            values = values.eq(True)  # None where an env does not define it
+        array = values.to_numpy()
+        return array if take is None else array[take]
+
+    if take is not None:
+        codes, episode = codes[take], episode[take]
+    starts = np.flatnonzero(np.r_[True, codes[1:] != codes[:-1]])
+    counts = np.diff(np.r_[starts, len(codes)])
+    run_codes = codes[starts]
+    out = pd.DataFrame(index=pd.Index(np.asarray(names)[run_codes], name="run_id"))
+    for name in (c for c in episodes.columns if c not in _EPISODE_VALUE_COLUMNS and c != "run_id"):
+        out[name] = _labels(episodes[name], take, starts, counts)
+    decisions, cells = column("decisions"), column("cells")  # summed in int64 (reduceat's dtype), not copied
+    never = episode.dtype.type(np.iinfo(episode.dtype).max)  # of the episode's own dtype (int32 when read)
+    first = np.minimum.reduceat(np.where(column("optimal"), episode, never), starts)
+    first_found = first < never
+    first_float = np.where(first_found, first, np.nan)
+    before = episode < np.repeat(first, counts)
+    last_episode = np.maximum.reduceat(episode, starts)
+    last_false = np.maximum.reduceat(np.where(column("greedy_optimal"), episode.dtype.type(-1), episode), starts)
+    greedy_from = np.where(last_false < 0, 1.0, last_false + 1.0)
+    greedy_from[last_false == last_episode] = np.nan
+    upto_greedy = episode <= np.repeat(np.where(np.isnan(greedy_from), np.inf, greedy_from), counts)
+    out["episodes"] = counts.astype(np.int64)
+    total_decisions = np.add.reduceat(decisions, starts, dtype=np.int64)
+    out["decisions_per_episode"] = total_decisions / counts
+    out["cells_per_episode"] = np.add.reduceat(cells, starts, dtype=np.int64) / counts
+    out["first_optimal"] = first_float
+    out["censored"] = ~first_found
+    out["decisions_before_optimal"] = np.add.reduceat(np.where(before, decisions, 0), starts, dtype=np.int64).astype(float)
+    out["cells_before_optimal"] = np.add.reduceat(np.where(before, cells, 0), starts, dtype=np.int64).astype(float)
+    out["greedy_optimal_from"] = greedy_from
+    out["greedy_censored"] = np.isnan(greedy_from)
+    to_greedy = np.add.reduceat(np.where(upto_greedy, decisions, 0), starts, dtype=np.int64)
+    out["decisions_to_greedy_optimal"] = to_greedy.astype(float)
+    out["truncated"] = np.add.reduceat(column("truncated"), starts, dtype=np.int64)
+    out["total_decisions"] = total_decisions
+    del decisions, cells, before, upto_greedy
     for window in (EARLY, LATE):
-        for key, series in _window(e, run_index, *window).items():
+        for key, series in _window(column, codes, episode, run_codes, *window).items():
             out[key] = series
     return out.reset_index()
+
+
+def _labels(values: pd.Series, take: np.ndarray | None, starts: np.ndarray, counts: np.ndarray) -> np.ndarray:
+    """Each run's label value (its first non-missing one; labels are constant within a run) as a plain array."""
+    if isinstance(values.dtype, pd.CategoricalDtype):
+        codes = values.cat.codes.to_numpy()
+        codes = codes if take is None else codes[take]
+        first = np.asarray(values.cat.categories.take(codes[starts], allow_fill=True))
+        if (codes[starts] >= 0).all():
+            return first
+        plain = np.asarray(values.to_numpy())
+    else:
+        plain = values.to_numpy()
+        first = plain[starts] if take is None else plain[take[starts]]
+        if not pd.isna(first).any():
+            return first
+    plain = plain if take is None else plain[take]
+    return pd.Series(plain).groupby(np.repeat(np.arange(len(starts)), counts)).first().to_numpy()
+
+
+def _window(
+    column: Any, codes: np.ndarray, episode: np.ndarray, run_codes: np.ndarray, lo: int, hi: int
+) -> dict[str, np.ndarray]:
+    """Per run: mean over the window's episodes of per-episode fractions, and decision-weighted fractions."""
+    rows = np.flatnonzero((episode >= lo) & (episode <= hi))
+    key = codes[rows]
+    decisions = pd.Series(column("decisions")[rows])
+    fraction_of = decisions.where(decisions > 0).to_numpy()
+    total = decisions.groupby(key).sum().reindex(run_codes).to_numpy()
+    total = np.where(total > 0, total, np.nan)
+    out: dict[str, np.ndarray] = {}
+    for name, source in (*((x, x) for x in EMOTIONS), ("eqeps", "random_moves")):
+        values = pd.Series(column(source)[rows])
+        out[f"{name}_{lo}_{hi}"] = (values / fraction_of).groupby(key).mean().reindex(run_codes).to_numpy()
+        out[f"{name}_{lo}_{hi}_weighted"] = values.groupby(key).sum().reindex(run_codes).to_numpy() / total
+    out[f"decisions_{lo}_{hi}"] = decisions.groupby(key).mean().reindex(run_codes).to_numpy()
+    return out
+
+
+def rows_where(frame: pd.DataFrame, mask: pd.Series | np.ndarray, columns: Sequence[str] | None = None) -> pd.DataFrame:
+    """
+    The rows of ``frame`` where ``mask`` holds (``columns``: only those), copying no more than those rows: a slice
+    (a view) when they are contiguous (one agent's runs are: rows are in run id order, and a run id starts with its
+    agent's name), else a copy of the selected rows of the selected columns.
+    """
+    where = np.flatnonzero(np.asarray(mask))
+    if len(where) and where[-1] - where[0] + 1 == len(where):
+        part = frame.iloc[where[0] : where[-1] + 1]
+        return part if columns is None else part[list(columns)]
+    names = frame.columns if columns is None else list(columns)
+    return pd.DataFrame({name: frame[name].iloc[where] for name in names})
+
+
+def plain_labels(frame: pd.DataFrame) -> pd.DataFrame:
+    """``frame`` with its categorical columns as plain values (for small tables grouped by label with pandas)."""
+    categorical = [c for c in frame.columns if isinstance(frame[c].dtype, pd.CategoricalDtype)]
+    return frame.assign(**{c: np.asarray(frame[c]) for c in categorical}) if categorical else frame
 
 
 def profile(episodes: pd.DataFrame) -> pd.DataFrame:
@@ -186,25 +318,24 @@ def profile(episodes: pd.DataFrame) -> pd.DataFrame:
     Per episode number: the mean over runs of each emotion's fraction of decisions and of the equivalent epsilon,
     with a 95% band of the mean (mean +- 1.96 standard errors over runs: ``_lo`` / ``_hi``), and the
     decision-weighted fraction (all decisions of that episode number pooled over runs: ``_weighted``).
+
+    One column at a time (memory: a few columns of ``episodes``, whatever its length).
     """
-    fractions = episodes[[*EMOTIONS]].div(episodes.decisions, axis=0)
-    fractions["equivalent_epsilon"] = episodes.random_moves / episodes.decisions
-    fractions["episode"] = episodes.episode
-    grouped = fractions.groupby("episode")
-    mean = grouped.mean()
-    half = 1.96 * grouped.sem().fillna(0.0)
-    sums = episodes.assign(equivalent_epsilon=episodes.random_moves).groupby("episode")
-    totals = sums.decisions.sum()
-    weighted = sums[[*EMOTIONS, "equivalent_epsilon"]].sum().div(totals, axis=0)
-    return pd.concat(
-        [
-            mean.add_suffix("_mean"),
-            (mean - half).add_suffix("_lo"),
-            (mean + half).add_suffix("_hi"),
-            weighted.add_suffix("_weighted"),
-        ],
-        axis=1,
-    )
+    episode = episodes.episode.to_numpy()
+    decisions = episodes.decisions.to_numpy()
+    totals = pd.Series(decisions.astype(np.int64)).groupby(episode).sum()
+    parts: dict[str, dict[str, pd.Series]] = {"mean": {}, "lo": {}, "hi": {}, "weighted": {}}
+    for name, source in (*((x, x) for x in EMOTIONS), ("equivalent_epsilon", "random_moves")):
+        values = episodes[source].to_numpy()
+        grouped = pd.Series(values / decisions).groupby(episode)
+        mean = grouped.mean()
+        half = 1.96 * grouped.sem().fillna(0.0)
+        parts["mean"][name], parts["lo"][name], parts["hi"][name] = mean, mean - half, mean + half
+        summed = pd.Series(values.astype(np.int64) if values.dtype.kind in "iu" else values).groupby(episode).sum()
+        parts["weighted"][name] = summed / totals
+    out = pd.concat([pd.DataFrame(series).add_suffix(f"_{kind}") for kind, series in parts.items()], axis=1)
+    out.index = out.index.astype(np.int64).rename("episode")
+    return out
 
 
 def window_mean(prof: pd.DataFrame, column: str, first: int, last: int, kind: str = "mean") -> float:

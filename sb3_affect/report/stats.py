@@ -69,27 +69,82 @@ def iqm(values: npt.ArrayLike) -> float:
     return float(sps.trim_mean(data, 0.25)) if len(data) else math.nan
 
 
+#: Bootstrap resamples are drawn this many values at a time (memory: 8 bytes each), whatever the sample size.
+BLOCK_CELLS = 4_000_000
+
+
+def _comparisons(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For each value of ``a``: where it falls in ``b`` sorted (values of ``b`` below it, and at most it) and ``b``'s order."""
+    order = np.argsort(b, kind="stable")
+    b_sorted = b[order]
+    return np.searchsorted(b_sorted, a, side="left"), np.searchsorted(b_sorted, a, side="right"), order
+
+
 def probability_of_improvement(x: npt.ArrayLike, y: npt.ArrayLike, lower_is_better: bool = True) -> float:
-    """P(X better than Y) + 0.5 P(tie) over all pairs (the Mann-Whitney U statistic divided by n_x n_y)."""
-    a, b = np.asarray(x, dtype=float)[:, None], np.asarray(y, dtype=float)[None, :]
-    better = (a < b) if lower_is_better else (a > b)
-    return float(better.mean() + 0.5 * (a == b).mean())
+    """
+    P(X better than Y) + 0.5 P(tie) over all pairs (the Mann-Whitney U statistic divided by n_x n_y).
+
+    Counted with a sort (O(n log n), not over every pair): 10,000 runs against 90,000 cost milliseconds.
+    """
+    a, b = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
+    below, not_above, _ = _comparisons(a, np.sort(b))
+    pairs = len(a) * len(b)
+    better = int(((len(b) - not_above) if lower_is_better else below).sum())
+    ties = int((not_above - below).sum())
+    return float(better / pairs + 0.5 * (ties / pairs))
 
 
 def bootstrap_ci(
     values: npt.ArrayLike, statistic: str = "mean", n_boot: int = 2000, confidence: float = 0.95, seed: int = 0
 ) -> tuple[float, float, float]:
-    """(point estimate, low, high) of the mean or IQM with a percentile bootstrap over the values (seeded)."""
+    """
+    (point estimate, low, high) of the mean or IQM with a percentile bootstrap over the values (seeded).
+
+    Resamples are drawn in blocks of rows (one seeded stream, so the same numbers as one draw): memory stays
+    ``BLOCK_CELLS`` values whatever the sample size.
+    """
     data = np.asarray(values, dtype=float)
     data = data[~np.isnan(data)]
     if len(data) == 0:
         return math.nan, math.nan, math.nan
     fn = _statistic(statistic)
     rng = np.random.default_rng(seed)
-    samples = data[rng.integers(0, len(data), size=(n_boot, len(data)))]
-    boots = sps.trim_mean(samples, 0.25, axis=1) if statistic == "iqm" else samples.mean(axis=1)
+    if statistic == "iqm":
+        boots = _iqm_resamples(data, n_boot, rng)
+    else:
+        block = max(1, BLOCK_CELLS // len(data))
+        parts = []
+        for first in range(0, n_boot, block):
+            parts.append(data[rng.integers(0, len(data), size=(min(block, n_boot - first), len(data)))].mean(axis=1))
+        boots = np.concatenate(parts)
     tail = (1 - confidence) / 2 * 100
     return float(fn(data)), float(np.percentile(boots, tail)), float(np.percentile(boots, 100 - tail))
+
+
+def _iqm_resamples(data: np.ndarray, n_boot: int, rng: np.random.Generator) -> np.ndarray:
+    """
+    The IQM (scipy's 25%-trimmed mean) of ``n_boot`` resamples, each counted through how often it draws each value
+    of ``data`` sorted once: the middle half of a resample is the span of its cumulative counts between n/4 and 3n/4,
+    so a resample costs O(n), not a partition.
+    """
+    n = len(data)
+    order = np.argsort(data, kind="stable")
+    values = data[order]
+    low = int(0.25 * n)  # as scipy.stats.trim_mean cuts
+    high = n - low
+    boots = np.empty(n_boot)
+    for rep in range(n_boot):
+        drawn = np.bincount(rng.integers(0, n, n), minlength=n)[order]
+        end = np.cumsum(drawn)  # the resample sorted: value i fills positions end[i] - drawn[i] .. end[i] - 1
+        first, last = np.searchsorted(end, low, side="right"), np.searchsorted(end, high, side="left")
+        if first == last:
+            total = values[first] * (high - low)
+        else:
+            summed = np.cumsum(values * drawn)
+            middle = summed[last - 1] - summed[first]
+            total = values[first] * (end[first] - low) + middle + values[last] * (high - end[last] + drawn[last])
+        boots[rep] = total / (high - low)
+    return boots
 
 
 def bootstrap_improvement(
@@ -100,16 +155,26 @@ def bootstrap_improvement(
     seed: int = 0,
     lower_is_better: bool = True,
 ) -> tuple[float, float, float]:
-    """Probability of improvement of X over Y with a percentile bootstrap CI (runs of each resampled separately)."""
+    """
+    Probability of improvement of X over Y with a percentile bootstrap CI (runs of each resampled separately).
+
+    Each resample is counted through how often it draws each run (``bincount``) against the comparisons of the
+    original values, done once: O(n) a resample instead of a sort.
+    """
     a, b = np.asarray(x, dtype=float), np.asarray(y, dtype=float)
     a, b = a[~np.isnan(a)], b[~np.isnan(b)]
     if len(a) == 0 or len(b) == 0:
         return math.nan, math.nan, math.nan
+    below, not_above, order = _comparisons(a, b)
+    pairs = len(a) * len(b)
     rng = np.random.default_rng(seed)
-    boots = [
-        _improvement_sorted(a[rng.integers(0, len(a), len(a))], np.sort(b[rng.integers(0, len(b), len(b))]), lower_is_better)
-        for _ in range(n_boot)
-    ]
+    boots = np.empty(n_boot)
+    for rep in range(n_boot):
+        weights = np.bincount(rng.integers(0, len(a), len(a)), minlength=len(a))
+        drawn = np.r_[0, np.cumsum(np.bincount(rng.integers(0, len(b), len(b)), minlength=len(b))[order])]
+        at_most, under = drawn[not_above], drawn[below]  # resampled b values <= / < each a value
+        better = (len(b) - at_most) if lower_is_better else under
+        boots[rep] = (int(weights @ better) + 0.5 * int(weights @ (at_most - under))) / pairs
     tail = (1 - confidence) / 2 * 100
     return (
         probability_of_improvement(a, b, lower_is_better),
@@ -118,13 +183,24 @@ def bootstrap_improvement(
     )
 
 
-def _improvement_sorted(a: np.ndarray, b_sorted: np.ndarray, lower_is_better: bool) -> float:
-    """``probability_of_improvement`` in O(n log n) with ``b`` sorted (same value, via rank counts)."""
-    below = np.searchsorted(b_sorted, a, side="left")  # b values < a
-    not_above = np.searchsorted(b_sorted, a, side="right")  # b values <= a
-    ties = not_above - below
-    better = (len(b_sorted) - not_above) if lower_is_better else below
-    return float((better.sum() + 0.5 * ties.sum()) / (len(a) * len(b_sorted)))
+def bootstrap_profile(
+    values: npt.ArrayLike, taus: npt.ArrayLike, n_boot: int = 200, confidence: float = 0.95, seed: int = 0
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """
+    Performance profile: the fraction of values <= each tau, with percentile bootstrap bands (runs resampled,
+    seeded; each resample counted through ``bincount`` and one sort of the values).
+
+    :return: ``(fraction, low, high)``, one entry per tau
+    """
+    data = np.sort(np.asarray(values, dtype=float))
+    at = np.searchsorted(data, np.asarray(taus, dtype=float), side="right")  # values <= tau
+    rng = np.random.default_rng(seed)
+    boots = np.empty((n_boot, len(at)))
+    for rep in range(n_boot):
+        drawn = np.r_[0, np.cumsum(np.bincount(rng.integers(0, len(data), len(data)), minlength=len(data)))]
+        boots[rep] = drawn[at] / len(data)
+    tail = (1 - confidence) / 2 * 100
+    return at / len(data), np.percentile(boots, tail, axis=0), np.percentile(boots, 100 - tail, axis=0)
 
 
 def _statistic(name: str) -> Callable[[np.ndarray], float]:

@@ -94,6 +94,8 @@ def table_v_section(ctx: ReportContext) -> None:
 
 def figures_3_4_section(ctx: ReportContext) -> None:
     ctx.doc.h("Figures 3 and 4")
+    largest = int(ctx.metrics.groupby(["agent", "epsilon"]).size().max())
+    dots = f" (a seeded sample of {figures.DOTS_PER_CELL:,} per cell)" if largest > figures.DOTS_PER_CELL else ""
     f3 = figures.metric_vs_epsilon(
         ctx.metrics,
         "decisions_per_episode",
@@ -101,7 +103,7 @@ def figures_3_4_section(ctx: ReportContext) -> None:
         "Fig. 3: steps per episode vs ε",
         ctx.figure("fig3_steps_per_episode"),
     )
-    ctx.doc.img(f3, "Fig. 3: mean steps per episode against ε; band: bootstrap 95% CI over runs; dots: runs")
+    ctx.doc.img(f3, f"Fig. 3: mean steps per episode against ε; band: bootstrap 95% CI over runs; dots: runs{dots}")
     f4 = figures.metric_vs_epsilon(
         ctx.metrics,
         "decisions_before_optimal",
@@ -114,7 +116,8 @@ def figures_3_4_section(ctx: ReportContext) -> None:
     ctx.doc.img(
         f4,
         "Fig. 4: steps before the first walked optimal path, per run (the paper's totals are x runs); band: bootstrap "
-        "95% CI; crosses: censored runs (never found it; plotted at all their steps, a lower bound)",
+        "95% CI; crosses: censored runs (never found it; plotted at all their steps, a lower bound)"
+        + (f"; dots: runs{dots}" if dots else ""),
     )
     f4g = figures.metric_vs_epsilon(
         ctx.metrics.assign(censored=ctx.metrics.greedy_censored),

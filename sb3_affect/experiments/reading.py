@@ -1,0 +1,177 @@
+"""
+Reading a results folder column-wise (the read side of ``ResultsStore``): one row per run from the chunks' footers
+and the run files, and the episode columns as numpy arrays, without a Python object per episode.
+
+A results folder of 180,000 runs of 200 episodes is 36 M episode rows: ``read_folder`` allocates each wanted column
+once at its final size (int32 counts, bool flags, float64 otherwise) and fills it chunk by chunk, so its peak memory is
+the columns themselves plus one chunk. Rows come in one canonical order whatever the layout and the batching: runs by
+run id, each run's episodes in the order stored (episode order).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from sb3_affect.experiments.chunks import BOOL_COLUMNS, INT_COLUMNS, META_KEY, chunk_table
+
+#: The columns of the run table besides the labels (one column per label, ``replicate`` included).
+RUN_COLUMNS = ("run_id", "agent", "algo", "seed", "decisions", "episodes", "wall_seconds", "max_timesteps")
+
+
+def column_dtype(column: str) -> type:
+    """The dtype of an episode column once read: int32 counts, bool flags, float64 otherwise (NaN: not defined)."""
+    if column in INT_COLUMNS:
+        return np.int32
+    if column in BOOL_COLUMNS:
+        return np.bool_
+    return np.float64
+
+
+def typed(column: str, values: list[Any]) -> np.ndarray:
+    """A JSON episode column as the chunks' dtype (None: NaN, or False for flags)."""
+    dtype = column_dtype(column)
+    if dtype is np.int32:
+        return np.asarray(values, dtype=np.int32)
+    if dtype is np.bool_:
+        return np.asarray([bool(v) for v in values], dtype=bool)
+    return np.asarray([np.nan if v is None else v for v in values], dtype=np.float64)
+
+
+def run_row(rid: str, config: dict[str, Any], decisions: int | None, episodes: int, wall: float | None) -> dict[str, Any]:
+    """One row of the run table from a run file's config and timings."""
+    return {
+        "run_id": rid,
+        "agent": config["agent"],
+        "algo": config["algo"],
+        "seed": config["seed"],
+        **config["labels"],
+        "decisions": decisions,
+        "episodes": episodes,
+        "wall_seconds": wall,
+        "max_timesteps": config.get("max_timesteps"),
+    }
+
+
+def _chunk_footer(path: Path, with_runs: bool) -> tuple[dict[str, Any], np.ndarray | None]:
+    """A chunk's footer and (``with_runs``) its ``run`` column, opening the file once."""
+    import pyarrow.parquet as pq
+
+    handle = pq.ParquetFile(path)
+    meta = dict(json.loads((handle.schema_arrow.metadata or {})[META_KEY]))
+    run = handle.read(columns=["run"]).column("run").to_numpy() if with_runs else None
+    return meta, run
+
+
+def read_folder(
+    json_files: Sequence[Path], chunk_files: Sequence[Path], columns: Sequence[str] | None, root: Path
+) -> tuple[pd.DataFrame, dict[str, np.ndarray]]:
+    """
+    The run table of a results folder and (unless ``columns`` is None) its episode columns.
+
+    :param json_files: the run files (``DIR/runs/*.json``)
+    :param chunk_files: the chunks (``DIR/chunks/*.parquet``)
+    :param columns: the episode columns wanted, or None for the run table only (chunks: footers only)
+    :param root: the folder (for error messages)
+    :return: ``(runs, data)``: ``runs`` one row per finished run sorted by run id (``RUN_COLUMNS`` and the labels);
+        ``data`` the episode columns and ``run`` (int32, the row in ``runs``), each run's rows together
+    """
+    rows: list[dict[str, Any]] = []
+    json_parts: list[dict[str, np.ndarray]] = []
+    json_counts: list[int] = []
+    for path in json_files:
+        record = json.loads(path.read_text())
+        if record.get("status", "ok") != "ok":
+            continue
+        config, episodes, timings = record["config"], record["episodes"], record.get("timings", {})
+        count = len(episodes["episode"])
+        rows.append(run_row(record["run_id"], config, timings.get("decisions"), count, timings.get("wall_seconds")))
+        json_counts.append(count)
+        if columns is not None:
+            json_parts.append({column: typed(column, episodes[column]) for column in columns})
+    frames = [pd.DataFrame(rows)] if rows else []
+    lengths = [np.array(json_counts, dtype=np.int64)]
+    chunks: list[tuple[Path, int, np.ndarray]] = []  # (file, its first run's row in the read order, run starts)
+    total = len(rows)
+    for path in chunk_files:
+        meta, run = _chunk_footer(path, columns is not None)
+        base, count = meta["base"], len(meta["runs"])
+        ids, seeds, replicates, decisions = (list(values) for values in zip(*meta["runs"])) if count else ([],) * 4
+        episodes_per_run: Any = base["episodes"]  # the footer only: the batch's episode budget
+        if run is not None:
+            if np.any(np.diff(run) < 0):
+                raise ValueError(f"{root}: a run's episodes are not stored together in {path.name}")
+            per_run = np.bincount(run, minlength=count).astype(np.int64)
+            episodes_per_run = per_run
+            lengths.append(per_run)
+            chunks.append((path, total, np.r_[0, np.cumsum(per_run)[:-1]]))
+        frames.append(
+            pd.DataFrame(
+                {
+                    "run_id": ids,
+                    "agent": base["agent"],
+                    "algo": base["algo"],
+                    "seed": seeds,
+                    **base["labels"],
+                    "replicate": replicates,
+                    "decisions": decisions,
+                    "episodes": episodes_per_run,
+                    "wall_seconds": meta["timings"]["wall_seconds"] / max(1, count),
+                    "max_timesteps": [base.get("max_timesteps")] * count,
+                },
+                index=pd.RangeIndex(count),
+            )
+        )
+        total += count
+    runs = pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(columns=list(RUN_COLUMNS))
+    order = np.argsort(runs["run_id"].to_numpy(dtype=object), kind="stable") if total else np.zeros(0, np.int64)
+    runs = runs.iloc[order].reset_index(drop=True)
+    if columns is None:
+        return runs, {}
+    counts = np.concatenate(lengths) if total else np.zeros(0, np.int64)
+    sorted_counts = counts[order]
+    rank = np.empty(total, dtype=np.int64)
+    rank[order] = np.arange(total)
+    start = np.r_[0, np.cumsum(sorted_counts)[:-1]].astype(np.int64)[rank]  # each run's first row, in read order
+    size = int(counts.sum())
+    data: dict[str, np.ndarray] = {"run": np.repeat(np.arange(total, dtype=np.int32), sorted_counts)}
+    for column in columns:
+        data[column] = np.empty(size, dtype=column_dtype(column))
+    for index, part in enumerate(json_parts):
+        rows_of_run = slice(start[index], start[index] + counts[index])
+        for column in columns:
+            data[column][rows_of_run] = part[column]
+    for path, first, run_starts in chunks:
+        table = chunk_table(path, columns)
+        run = table.pop("run").astype(np.int64)
+        where = start[first + run] + (np.arange(len(run)) - run_starts[run])
+        for column in columns:
+            data[column][where] = table.pop(column)
+    return runs, data
+
+
+def episode_table(runs: pd.DataFrame, data: dict[str, np.ndarray], run_columns: Sequence[str]) -> pd.DataFrame:
+    """
+    One row per episode: ``run_columns`` of each row's run (categoricals, but ``seed``), then the episode columns.
+
+    Consumes ``data`` (each column is moved into the frame, so the peak is the table plus one column).
+    """
+    run = data.pop("run")
+    frame = pd.DataFrame(index=pd.RangeIndex(len(run)))
+    for key in run_columns:
+        values = runs[key]
+        if key == "seed":
+            frame[key] = values.to_numpy()[run]
+        elif key == "run_id" and values.is_unique:  # sorted and unique: the run's row is its code
+            frame[key] = pd.Categorical.from_codes(run, categories=pd.Index(values.to_numpy()))
+        else:
+            categories = pd.Categorical(values)
+            frame[key] = pd.Categorical.from_codes(categories.codes[run], categories=categories.categories)
+    for name in list(data):
+        frame[name] = data.pop(name)
+    return frame

@@ -1,0 +1,412 @@
+"""
+The tabular agents' settings: each agent's hyperparameters, their defaults and their validation, without torch.
+
+One dataclass per agent class (``QLearningSettings`` for ``QLearning``, ...). The agent's constructor takes its
+defaults from it (``gamma: float = QLearningSettings.gamma``) and checks its arguments with the functions below
+(``check_tabular``, ``check_exploration_rate``, ...); a settings object runs the same checks in the same order when
+it is built. So a settings object holds exactly what the constructor accepts, normalised as the agent stores it, and
+a bad value is the same error (argument, value, what is allowed) either way. The compiled engine reads a settings
+object where it would read a model's attributes (``sb3_affect.kernel.inputs``): a sweep of the package's agents
+runs without building an SB3 model, or importing torch.
+
+Only the hyperparameters the learning loop reads are settings. SB3's own arguments (``seed``, ``device``,
+``verbose``, ``policy_kwargs``, ``tensorboard_log``, ``stats_window_size``) and objects (``emotion_callback``) are
+not: where they are given, the model is built.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+
+from sb3_affect.appraisal import ACT_MODES, UNITS, check_choice
+from sb3_affect.behaviour import TABLE_III, validate_behaviour_table
+from sb3_affect.emotions import COMPARISONS, Emotion
+from sb3_affect.personalities import PERSONALITIES, check_personality
+from sb3_affect.validation import check_number, check_rate
+
+#: A number, or an SB3-style schedule of the remaining progress.
+Rate = float | Callable[[float], float]
+
+ENGINES = ("auto", "python", "compiled")
+TIE_BREAKS = ("random", "first")
+MULTI_CELLS = ("steps", "jump")
+DECAYS = ("linear", "exponential")
+
+
+# -- the checks (each agent's constructor calls those of its own arguments) -------------------------------------------
+def check_positive_int(name: str, value: Any, minimum: int = 1) -> int:
+    """Validate an integer argument ``>= minimum``."""
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise TypeError(f"{name} must be an integer >= {minimum}, got {value!r}")
+    if value < minimum:
+        raise ValueError(f"{name}={value} must be >= {minimum}")
+    return int(value)
+
+
+def check_tabular(
+    learning_rate: Rate, gamma: float, q_init: float, max_episode_decisions: int, engine: str, tie_break: str
+) -> tuple[str, str, float, float, int]:
+    """``TabularQAlgorithm``'s arguments: ``(engine, tie_break, gamma, q_init, max_episode_decisions)`` as stored."""
+    engine = check_choice("engine", engine, ENGINES)
+    tie_break = check_choice("tie_break", tie_break, TIE_BREAKS)
+    check_rate("learning_rate", learning_rate, 0.0, 1.0, low_open=True)
+    gamma = check_number("gamma", gamma, 0.0, 1.0)
+    q_init = check_number("q_init", q_init, -1e300, 1e300)
+    if isinstance(max_episode_decisions, bool) or not isinstance(max_episode_decisions, (int, np.integer)):
+        raise TypeError(f"max_episode_decisions must be an integer >= 1, got {max_episode_decisions!r}")
+    if max_episode_decisions < 1:
+        raise ValueError(f"max_episode_decisions={max_episode_decisions} must be >= 1")
+    return engine, tie_break, gamma, q_init, int(max_episode_decisions)
+
+
+def check_exploration_rate(exploration_rate: Rate) -> Rate:
+    """Epsilon: a number in [0, 1] or a schedule."""
+    check_rate("exploration_rate", exploration_rate, 0.0, 1.0)
+    return exploration_rate
+
+
+def check_decaying(initial: float, final: float, episodes: int, decay: str) -> tuple[float, float, int, str]:
+    """``DecayingEpsilonGreedy``'s decay: ``(initial, final, episodes, decay)`` as stored."""
+    initial = check_number("exploration_initial_eps", initial, 0.0, 1.0)
+    final = check_number("exploration_final_eps", final, 0.0, 1.0)
+    episodes = check_positive_int("exploration_decay_episodes", episodes)
+    decay = check_choice("decay", decay, DECAYS)
+    if decay == "exponential" and min(initial, final) <= 0:
+        raise ValueError("decay='exponential' needs exploration_initial_eps > 0 and exploration_final_eps > 0")
+    return initial, final, episodes, decay
+
+
+def check_boltzmann(temperature: Rate, final: float | None, episodes: int, decay: str) -> tuple[Rate, float | None, int, str]:
+    """``Boltzmann``'s temperature: ``(temperature, temperature_final, decay episodes, decay)`` as stored."""
+    check_rate("temperature", temperature, 0.0, 1e300, low_open=True)
+    if final is not None:
+        if callable(temperature):
+            raise ValueError("give either a temperature schedule or temperature_final, not both")
+        final = check_number("temperature_final", final, 0.0, 1e300, low_open=True)
+    episodes = check_positive_int("temperature_decay_episodes", episodes)
+    return temperature, final, episodes, check_choice("decay", decay, DECAYS)
+
+
+def check_speeds(multi_cell: str, speeds: Sequence[int]) -> tuple[str, list[int]]:
+    """``SpeedEpsilonGreedy``'s ``multi_cell`` and ``speeds`` as stored."""
+    multi_cell = check_choice("multi_cell", multi_cell, MULTI_CELLS)
+    if isinstance(speeds, (str, bytes)) or not isinstance(speeds, Sequence):
+        raise TypeError(f"speeds must be a sequence of integers >= 0, got {speeds!r}")
+    if not speeds or not all(isinstance(k, int) and not isinstance(k, bool) and k >= 0 for k in speeds):
+        raise ValueError(f"speeds={speeds!r} is invalid: use a non-empty sequence of integers >= 0")
+    return multi_cell, [int(k) for k in speeds]
+
+
+def check_affect(
+    multi_cell: str,
+    personality: str,
+    comparison: str,
+    act: str,
+    units: str,
+    behaviour_table: Mapping[Emotion, Any] | None,
+    emotion_callback: Any = None,
+) -> tuple[str, str, str, str, str, dict[str, list[Any]]]:
+    """
+    ``AffectQ``'s options: ``(multi_cell, personality, comparison, act, units, behaviour_table)`` as stored (the
+    table as ``{emotion name: [random_direction, speeds]}``). ``emotion_callback`` is only checked against
+    ``personality`` here; its type is the constructor's to check.
+    """
+    multi_cell = check_choice("multi_cell", multi_cell, MULTI_CELLS)
+    personality = check_personality(personality)
+    if emotion_callback is not None and personality != "neutral":
+        raise ValueError("give either a personality or an emotion_callback (with its own appraiser), not both")
+    comparison = check_choice("comparison", comparison, COMPARISONS)
+    act = check_choice("act", act, ACT_MODES)
+    units = check_choice("units", units, UNITS)
+    table = TABLE_III if behaviour_table is None else behaviour_table
+    stored = {e.name.lower(): list(b) for e, b in validate_behaviour_table(table).items()}
+    return multi_cell, personality, comparison, act, units, stored
+
+
+def episode_decay(initial: float, final: float, episodes: int, kind: str, episode: int) -> float:
+    """
+    The value of a decay after ``episode`` finished episodes of the run.
+
+    ``linear``: from ``initial`` to ``final`` in a straight line over ``episodes`` episodes, then ``final``.
+    ``exponential``: ``initial * (final / initial) ** (episode / episodes)`` (a constant factor per episode; both
+    values must be > 0), then ``final``.
+    """
+    if episode >= episodes:
+        return final
+    fraction = episode / episodes
+    if kind == "linear":
+        return initial + (final - initial) * fraction
+    return initial * math.exp(fraction * math.log(final / initial))
+
+
+def temperature_at(
+    temperature: Rate, final: float | None, episodes: int, decay: str, finished_episodes: int, progress: float
+) -> float:
+    """Boltzmann's temperature of an episode that starts after ``finished_episodes`` episodes at this progress."""
+    if final is None:
+        return float(temperature(progress)) if callable(temperature) else float(temperature)
+    assert not callable(temperature)
+    return episode_decay(float(temperature), final, episodes, decay, finished_episodes)
+
+
+# -- one dataclass per agent -----------------------------------------------------------------------------------------
+@dataclass
+class TabularSettings:
+    """
+    The settings every tabular agent has (``TabularQAlgorithm``'s; see its parameters).
+
+    :param learning_rate: alpha in Eq. 1, in (0, 1]; a float or a schedule of the remaining progress
+    :param gamma: discount factor, in [0, 1]
+    :param q_init: initial value of every Q-table entry
+    :param max_episode_decisions: the safety cap on an episode's decisions
+    :param engine: ``"auto"``, ``"python"`` or ``"compiled"``
+    :param tie_break: greedy ties while learning: ``"random"`` or ``"first"``
+    """
+
+    learning_rate: Rate = 1.0
+    gamma: float = 0.8
+    q_init: float = 0.0
+    max_episode_decisions: int = 20_000
+    engine: str = "auto"
+    tie_break: str = "random"
+
+    #: how the agent decides, as the kernel groups agents: "epsilon", "affect", "boltzmann", "ucb" ("": no kernel)
+    family: ClassVar[str] = ""
+    #: the agent class: ``"module:Class"`` where it is defined
+    agent: ClassVar[str] = "sb3_affect.tabular:TabularQAlgorithm"
+    #: packages that export the class too (``from sb3_affect import QLearning``)
+    exported_from: ClassVar[tuple[str, ...]] = ("sb3_affect",)
+
+    def __post_init__(self) -> None:
+        self._check()
+
+    def _check(self) -> None:
+        """Validate and normalise the fields, in the order the agent's constructors do (subclasses: theirs first)."""
+        self.engine, self.tie_break, self.gamma, self.q_init, self.max_episode_decisions = check_tabular(
+            self.learning_rate, self.gamma, self.q_init, self.max_episode_decisions, self.engine, self.tie_break
+        )
+
+    @classmethod
+    def names(cls) -> tuple[str, ...]:
+        """The constructor arguments that are settings."""
+        return tuple(f.name for f in dataclasses.fields(cls) if f.init)
+
+
+@dataclass
+class QLearningSettings(TabularSettings):
+    """
+    ``QLearning``'s settings (and ``TabularSettings``').
+
+    :param exploration_rate: epsilon, in [0, 1]; a float or a schedule of the remaining progress
+    """
+
+    exploration_rate: Rate = 0.1
+
+    family: ClassVar[str] = "epsilon"
+    agent: ClassVar[str] = "sb3_affect.qlearning:QLearning"
+
+    def _check(self) -> None:
+        self.exploration_rate = check_exploration_rate(self.exploration_rate)
+        super()._check()
+
+
+@dataclass
+class OptimisticQLearningSettings(QLearningSettings):
+    """``OptimisticQLearning``'s settings: ``QLearning``'s with other defaults."""
+
+    q_init: float = 100.0
+    exploration_rate: Rate = 0.0
+
+    agent: ClassVar[str] = "sb3_affect.baselines.optimistic:OptimisticQLearning"
+    exported_from: ClassVar[tuple[str, ...]] = ("sb3_affect.baselines",)
+
+
+@dataclass
+class SpeedEpsilonGreedySettings(QLearningSettings):
+    """
+    ``SpeedEpsilonGreedy``'s settings (and ``QLearningSettings``').
+
+    :param speeds: cells a decision moves, drawn uniformly (non-empty, integers >= 0)
+    :param multi_cell: ``"steps"`` or ``"jump"``
+    """
+
+    speeds: Sequence[int] = (1, 2)
+    multi_cell: str = "steps"
+
+    agent: ClassVar[str] = "sb3_affect.baselines.speed:SpeedEpsilonGreedy"
+    exported_from: ClassVar[tuple[str, ...]] = ("sb3_affect.baselines",)
+
+    def _check(self) -> None:
+        self.multi_cell, self.speeds = check_speeds(self.multi_cell, self.speeds)
+        super()._check()
+
+
+@dataclass
+class DecayingEpsilonGreedySettings(TabularSettings):
+    """
+    ``DecayingEpsilonGreedy``'s settings (and ``TabularSettings``'): epsilon decays over the run's episodes.
+
+    :param exploration_initial_eps: epsilon of the first episode, in [0, 1]
+    :param exploration_final_eps: epsilon once the decay is over, in [0, 1]
+    :param exploration_decay_episodes: episodes the decay lasts (>= 1)
+    :param decay: ``"linear"`` or ``"exponential"``
+    """
+
+    exploration_initial_eps: float = 1.0
+    exploration_final_eps: float = 0.05
+    exploration_decay_episodes: int = 50
+    decay: str = "linear"
+
+    family: ClassVar[str] = "epsilon"
+    agent: ClassVar[str] = "sb3_affect.baselines.decaying:DecayingEpsilonGreedy"
+    exported_from: ClassVar[tuple[str, ...]] = ("sb3_affect.baselines",)
+
+    def _check(self) -> None:
+        values = check_decaying(
+            self.exploration_initial_eps, self.exploration_final_eps, self.exploration_decay_episodes, self.decay
+        )
+        self.exploration_initial_eps, self.exploration_final_eps, self.exploration_decay_episodes, self.decay = values
+        check_exploration_rate(self.exploration_initial_eps)  # QLearning's check of the epsilon it is given
+        super()._check()
+
+    def epsilon_at(self, finished_episodes: int) -> float:
+        """Epsilon of an episode that starts after ``finished_episodes`` finished episodes of the run."""
+        return episode_decay(
+            self.exploration_initial_eps,
+            self.exploration_final_eps,
+            self.exploration_decay_episodes,
+            self.decay,
+            finished_episodes,
+        )
+
+
+@dataclass
+class BoltzmannSettings(TabularSettings):
+    """
+    ``Boltzmann``'s settings (and ``TabularSettings``'): a fixed, scheduled or episode-decaying temperature.
+
+    :param temperature: T > 0 (the first episode's when ``temperature_final`` is given); a float or a schedule
+    :param temperature_final: None (no decay) or the temperature once the decay is over (> 0)
+    :param temperature_decay_episodes: episodes the decay lasts (>= 1)
+    :param decay: ``"exponential"`` or ``"linear"``
+    """
+
+    temperature: Rate = 1.0
+    temperature_final: float | None = None
+    temperature_decay_episodes: int = 100
+    decay: str = "exponential"
+
+    family: ClassVar[str] = "boltzmann"
+    agent: ClassVar[str] = "sb3_affect.baselines.boltzmann:Boltzmann"
+    exported_from: ClassVar[tuple[str, ...]] = ("sb3_affect.baselines",)
+
+    def _check(self) -> None:
+        self.temperature, self.temperature_final, self.temperature_decay_episodes, self.decay = check_boltzmann(
+            self.temperature, self.temperature_final, self.temperature_decay_episodes, self.decay
+        )
+        super()._check()
+
+    def temperature_at(self, finished_episodes: int, progress_remaining: float = 1.0) -> float:
+        """The temperature of an episode that starts after ``finished_episodes`` episodes at this progress."""
+        return temperature_at(
+            self.temperature,
+            self.temperature_final,
+            self.temperature_decay_episodes,
+            self.decay,
+            finished_episodes,
+            progress_remaining,
+        )
+
+
+@dataclass
+class UCBQLearningSettings(TabularSettings):
+    """
+    ``UCBQLearning``'s settings (and ``TabularSettings``').
+
+    :param exploration_coef: the weight c >= 0 of the bonus
+    """
+
+    exploration_coef: float = 1.0
+
+    family: ClassVar[str] = "ucb"
+    agent: ClassVar[str] = "sb3_affect.baselines.ucb:UCBQLearning"
+    exported_from: ClassVar[tuple[str, ...]] = ("sb3_affect.baselines",)
+
+    def _check(self) -> None:
+        self.exploration_coef = check_number("exploration_coef", self.exploration_coef, 0.0, 1e300)
+        super()._check()
+
+
+@dataclass
+class AffectQSettings(TabularSettings):
+    """
+    ``AffectQ``'s settings (and ``TabularSettings``'): the reading of Table II, the appraisal, the behaviour table,
+    the personality.
+
+    :param comparison: ``"literal"`` or ``"valence"``
+    :param act: ``"episode"`` or ``"remaining"``
+    :param units: ``"cells"`` or ``"decisions"``
+    :param behaviour_table: emotion -> ``Behaviour(random_direction, speeds)``; None: Table III
+    :param personality: ``"neutral"``, ``"optimistic"`` or ``"pessimistic"``
+    :param multi_cell: ``"steps"`` or ``"jump"``
+    """
+
+    comparison: str = "literal"
+    act: str = "episode"
+    units: str = "cells"
+    behaviour_table: Mapping[Emotion, Any] | None = None
+    personality: str = "neutral"
+    multi_cell: str = "steps"
+
+    #: the behaviour table as the agent stores it (``{emotion name: [random_direction, speeds]}``)
+    stored_behaviour_table: dict[str, list[Any]] = field(init=False, repr=False, compare=False, default_factory=dict)
+
+    family: ClassVar[str] = "affect"
+    agent: ClassVar[str] = "sb3_affect.affectq:AffectQ"
+
+    def _check(self) -> None:
+        self.multi_cell, self.personality, self.comparison, self.act, self.units, table = check_affect(
+            self.multi_cell, self.personality, self.comparison, self.act, self.units, self.behaviour_table
+        )
+        self.stored_behaviour_table = table
+        super()._check()
+
+    @property
+    def norm_scale(self) -> float:
+        """The personality's bias on the norm (``sb3_affect.personalities``)."""
+        return PERSONALITIES[self.personality]
+
+    def behaviour_rows(self) -> list[tuple[bool, list[int]]]:
+        """``(random_direction, speeds)`` per emotion, in ``Emotion`` order (as ``AffectQ._behaviour``)."""
+        table = self.stored_behaviour_table
+        return [(bool(r), [int(k) for k in speeds]) for r, speeds in (table[e.name.lower()] for e in Emotion)]
+
+
+#: The package's tabular agents that the compiled engine runs, by settings class.
+AGENT_SETTINGS: tuple[type[TabularSettings], ...] = (
+    QLearningSettings,
+    AffectQSettings,
+    DecayingEpsilonGreedySettings,
+    BoltzmannSettings,
+    UCBQLearningSettings,
+    OptimisticQLearningSettings,
+    SpeedEpsilonGreedySettings,
+)
+
+
+def settings_class(module: str, name: str) -> type[TabularSettings] | None:
+    """
+    The settings class of the agent ``module:name`` names (where it is defined or a package that exports it), without
+    importing it; None for any other class.
+    """
+    for settings in AGENT_SETTINGS:
+        home, _, cls_name = settings.agent.partition(":")
+        if name == cls_name and module in (home, *settings.exported_from):
+            return settings
+    return None

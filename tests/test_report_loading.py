@@ -1,0 +1,124 @@
+"""
+The report's column-wise loader and vectorised metrics give the numbers of the record-by-record path (JSON, chunks and
+mixed folders), and the scalable statistics give the numbers of their direct definitions.
+"""
+
+from __future__ import annotations
+
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from sb3_affect.experiments import ResultsStore, run_sweep
+from sb3_affect.report import stats
+from sb3_affect.report.mechanism import bimodality
+from sb3_affect.report.metrics import REPORT_COLUMNS, episodes_frame, load_results, load_runs, profile, rows_where, run_metrics
+
+ROOT = Path(__file__).resolve().parents[1]
+SMOKE = ROOT / "experiments" / "smoke.yaml"
+
+
+@pytest.fixture(scope="module")
+def mixed(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A folder holding Parquet chunks (smoke, 2 seeds) and run files of other runs (smoke, 1 seed, logs on)."""
+    base = tmp_path_factory.mktemp("loading")
+    run_sweep(SMOKE, base / "chunked", workers=1, overrides=["episodes=12"], progress=False)
+    run_sweep(SMOKE, base / "json", workers=1, overrides=["episodes=12", "seeds=[7]", "logs=[csv]"], progress=False)
+    folder = base / "mixed"
+    shutil.copytree(base / "chunked", folder)
+    for path in (base / "json" / "runs").glob("*.json"):
+        shutil.copy(path, folder / "runs" / path.name)
+    assert list((folder / "chunks").glob("*.parquet")) and list((folder / "runs").glob("*.json"))
+    return folder
+
+
+def test_loader_and_metrics_equal_the_record_path_on_a_mixed_folder(mixed: Path) -> None:
+    results = load_results(mixed)
+    records = load_runs(mixed)
+    assert len(results.runs) == len(records) == 8 + 4 and results.runs.run_id.is_monotonic_increasing
+    reference = episodes_frame(records)
+    e = results.episodes
+    assert list(e.columns[:4]) == ["run_id", "agent", "epsilon", "replicate"] and "seed" not in e.columns
+    assert e.episode.dtype == np.int32 and e.optimal.dtype == bool and isinstance(e.run_id.dtype, pd.CategoricalDtype)
+    for column in REPORT_COLUMNS:  # the same rows in the same order (runs by run id, episodes in order)
+        np.testing.assert_array_equal(e[column].to_numpy(), reference[column].to_numpy(), err_msg=column)
+    np.testing.assert_array_equal(e.run_id.astype(str).to_numpy(), reference.run_id.to_numpy())
+    fast = run_metrics(results.episodes, results.runs)
+    slow = run_metrics(reference, records)  # string run ids, object labels: the generic path
+    pd.testing.assert_frame_equal(fast, slow)
+    shuffled = reference.sample(frac=1.0, random_state=0)  # rows in any order: sorted by run and episode first
+    pd.testing.assert_frame_equal(run_metrics(shuffled, records), slow)
+    pd.testing.assert_frame_equal(profile(e), profile(reference))
+    aff = e.agent == "affective"
+    assert bimodality(rows_where(e, aff), 1, 12) == bimodality(reference[reference.agent == "affective"], 1, 12)
+
+
+def test_runs_that_finished_no_episode_are_kept_censored(mixed: Path) -> None:
+    results = load_results(mixed)
+    ghost = results.runs.iloc[[0]].assign(run_id="zz-no-episodes", decisions=777, episodes=0)
+    metrics = run_metrics(results.episodes, pd.concat([results.runs, ghost], ignore_index=True)).set_index("run_id")
+    row = metrics.loc["zz-no-episodes"]
+    assert row.censored and row.decisions_before_optimal == 777 and row.episodes == 0 and row.seed == ghost.seed.iloc[0]
+
+
+def test_rows_where_copies_only_the_rows_asked(mixed: Path) -> None:
+    e = load_results(mixed).episodes
+    contiguous = rows_where(e, e.agent == "affective", ("episode", "decisions"))
+    scattered = rows_where(e, e.epsilon == 0.9, ("episode", "decisions"))
+    for part, mask in ((contiguous, e.agent == "affective"), (scattered, e.epsilon == 0.9)):
+        pd.testing.assert_frame_equal(part, e.loc[mask, ["episode", "decisions"]])
+    assert rows_where(e, e.agent == "affective").shape[1] == e.shape[1]
+
+
+def test_status_counts_from_the_footers(mixed: Path) -> None:
+    name, per_agent = ResultsStore(mixed).progress()
+    assert name == "smoke" and per_agent == {"epsilon-greedy": (4, 4, 0), "affective": (4, 4, 0)}
+
+
+def _pairwise(x: np.ndarray, y: np.ndarray, lower_is_better: bool) -> float:
+    a, b = x[:, None], y[None, :]
+    better = (a < b) if lower_is_better else (a > b)
+    return float(better.mean() + 0.5 * (a == b).mean())
+
+
+def test_probability_of_improvement_equals_the_pairwise_count() -> None:
+    rng = np.random.default_rng(1)
+    x, y = rng.integers(0, 30, 301).astype(float), rng.integers(5, 40, 203).astype(float)  # many ties
+    for lower in (True, False):
+        assert stats.probability_of_improvement(x, y, lower) == _pairwise(x, y, lower)
+
+
+def test_bootstrap_improvement_equals_resampling_each_pair() -> None:
+    rng = np.random.default_rng(2)
+    x, y = rng.integers(0, 20, 57).astype(float), rng.integers(3, 25, 41).astype(float)
+    point, low, high = stats.bootstrap_improvement(x, y, n_boot=300, seed=5)
+    draws = np.random.default_rng(5)
+    boots = []
+    for _ in range(300):  # each resample's pairs counted one by one: (better + half the ties) / pairs
+        a, b = x[draws.integers(0, 57, 57)][:, None], y[draws.integers(0, 41, 41)][None, :]
+        boots.append((int((a < b).sum()) + 0.5 * int((a == b).sum())) / (57 * 41))
+    tail = (1 - 0.95) / 2 * 100  # as bootstrap_improvement computes it (not exactly 2.5)
+    expected = (_pairwise(x, y, True), float(np.percentile(boots, tail)), float(np.percentile(boots, 100 - tail)))
+    assert (point, low, high) == expected
+
+
+def test_bootstrap_ci_in_blocks_equals_one_draw(monkeypatch: pytest.MonkeyPatch) -> None:
+    values = np.random.default_rng(3).exponential(10.0, 501)
+    whole = stats.bootstrap_ci(values, "iqm", n_boot=400, seed=7)
+    monkeypatch.setattr(stats, "BLOCK_CELLS", 501 * 7)  # blocks of 7 resamples
+    assert stats.bootstrap_ci(values, "iqm", n_boot=400, seed=7) == whole
+    samples = values[np.random.default_rng(7).integers(0, 501, size=(400, 501))]
+    boots = np.sort(samples, axis=1)[:, 125:376].mean(axis=1)  # the 25%-trimmed mean of 501 values
+    assert whole[1] == pytest.approx(np.percentile(boots, 2.5)) and whole[2] == pytest.approx(np.percentile(boots, 97.5))
+
+
+def test_bootstrap_profile_bands_hold_the_fraction() -> None:
+    values = np.random.default_rng(4).lognormal(5.0, 1.0, 400)
+    taus = np.array([50.0, 150.0, 400.0, 1e6])
+    fraction, low, high = stats.bootstrap_profile(values, taus, n_boot=200, seed=0)
+    np.testing.assert_array_equal(fraction, [(values <= t).mean() for t in taus])
+    assert np.all(low <= fraction) and np.all(fraction <= high) and high[-1] == low[-1] == 1.0
+    assert np.array_equal(stats.bootstrap_profile(values, taus, n_boot=200, seed=0)[1], low)  # seeded
