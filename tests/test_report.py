@@ -176,3 +176,10 @@ def test_report_end_to_end_from_the_smoke_sweep(tmp_path: Path) -> None:
 def test_report_refuses_a_folder_without_results(tmp_path: Path) -> None:
     with pytest.raises(FileNotFoundError, match="holds no results"):
         build_report(tmp_path)
+
+
+def test_html_inline_markup_renders_emphasis_bold_and_code_but_not_arithmetic() -> None:
+    from sb3_affect.report.document import _inline
+
+    rendered = _inline("A *step* is one decision; **bold** and `code`; 2 * 3 * 4; a*b*c <x>")
+    assert rendered == "A <i>step</i> is one decision; <b>bold</b> and <code>code</code>; 2 * 3 * 4; a*b*c &lt;x&gt;"

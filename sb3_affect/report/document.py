@@ -5,6 +5,7 @@ from __future__ import annotations
 import base64
 import html
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -120,11 +121,15 @@ class Document:
         return "\n".join(parts)
 
 
+_EMPHASIS = re.compile(r"(?<![\w*])\*(?=\S)([^*]+?)(?<=\S)\*(?![\w*])")
+
+
 def _inline(text: str) -> str:
-    """Escape, then render **bold** and `code` spans."""
+    """Escape, then render **bold**, *emphasis* and `code` spans."""
     out = html.escape(text)
     pieces = out.split("**")
     out = "".join(f"<b>{p}</b>" if i % 2 else p for i, p in enumerate(pieces))
+    out = _EMPHASIS.sub(r"<i>\1</i>", out)
     pieces = out.split("`")
     return "".join(f"<code>{p}</code>" if i % 2 else p for i, p in enumerate(pieces))
 
