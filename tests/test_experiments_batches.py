@@ -25,10 +25,16 @@ from sb3_affect.report.metrics import load_results
 SMOKE = EXPERIMENTS / "smoke.yaml"
 
 
-def smoke_file(tmp_path: Path, seeds: int, episodes: int) -> Path:
-    """smoke.yaml with other seeds and episodes, as a file (the launcher subprocess takes no --set here)."""
+def smoke_file(tmp_path: Path, seeds: int, episodes: int, size: int | None = None) -> Path:
+    """smoke.yaml with other seeds, episodes (and grid size), as a file (the launcher subprocess takes no --set here)."""
     path = tmp_path / "smoke.yaml"
-    path.write_text(SMOKE.read_text().replace("episodes: 20", f"episodes: {episodes}").replace("seeds: 2", f"seeds: {seeds}"))
+    text = SMOKE.read_text().replace("episodes: 20", f"episodes: {episodes}").replace("seeds: 2", f"seeds: {seeds}")
+    if size is not None:
+        env = "env: {id: sb3_affect/GridPursuit-v0}"
+        assert env in text
+        kwargs = f"{{size: {size}, goal: [{size - 1}, {size - 1}]}}"
+        text = text.replace(env, f"env: {{id: sb3_affect/GridPursuit-v0, kwargs: {kwargs}}}")
+    path.write_text(text)
     return path
 
 
@@ -49,7 +55,7 @@ def wait_until(condition: object, timeout: float, what: str) -> None:
 
 @linux_only
 def test_sigkill_then_resume_with_chunks_loses_and_duplicates_nothing(tmp_path: Path) -> None:
-    sweep, out = smoke_file(tmp_path, seeds=20, episodes=10), tmp_path / "out"
+    sweep, out = smoke_file(tmp_path, seeds=20, episodes=10, size=60), tmp_path / "out"  # batches of a tenth of a second
     first = launcher(sweep, out)  # --workers 2: 80 runs in batches of 5
     try:
         wait_until(lambda: (out / "chunks").exists() and any((out / "chunks").glob("[!.]*.parquet")), 120, "a chunk")
@@ -72,7 +78,9 @@ def test_sigkill_then_resume_with_chunks_loses_and_duplicates_nothing(tmp_path: 
 
 @linux_only
 def test_batch_whose_worker_dies_is_recorded_per_run_and_retried(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    sweep, out = smoke_file(tmp_path, seeds=40, episodes=10), tmp_path / "out"
+    # A 60 x 60 grid: a batch of 10 runs takes a few tenths of a second on the kernel, so the kill lands mid-batch
+    # (on the default grid a batch lasts milliseconds and may have sent its result before the kill).
+    sweep, out = smoke_file(tmp_path, seeds=40, episodes=10, size=60), tmp_path / "out"
     proc = launcher(sweep, out)
     try:
         # After sweep.json the launcher's children are batch workers (the kwargs check ran before it).
