@@ -3,14 +3,15 @@ Run a sweep: skip finished runs, execute the rest on a backend, store each resul
 
 The runs are cut into jobs (``batches``): tabular runs of this package's agents on its envs go in batches of one
 cell each (one ``engine.simulate`` call, stored as one Parquet chunk), any other run is a job of its own (one JSON
-file). Fork, import and scheduling costs are paid once per job.
+file). Import and scheduling costs are paid once per job, the fork once per worker.
 
 Backends:
 
-* ``local``: one forked process per job, at most ``workers`` at a time. A job that raises is recorded with its
-  traceback (for each of its runs); a worker that dies (``os._exit``, a signal, out of memory) is recorded as failed
-  with its exit code, without touching the other jobs. Ctrl-C stops every worker before the launcher exits; workers
-  also die with the launcher if it is killed (Linux ``PR_SET_PDEATHSIG``).
+* ``local`` (``local_pool``): forked worker processes, at most ``workers`` at a time; a worker runs batch after
+  batch, a single run gets a fresh process of its own. A job that raises is recorded with its traceback (for each of
+  its runs); a worker that dies (``os._exit``, a signal, out of memory) is recorded as failed with its exit code, for
+  its job only. Ctrl-C stops every worker before the launcher exits; workers also die with the launcher if it is
+  killed (Linux ``PR_SET_PDEATHSIG``).
 * ``ray``: one Ray core task per job (``pip install sb3-affect[ray]``), on the cluster at ``ray_address`` (the code
   shipped with the job, node versions checked, at most ``workers`` tasks at a time if given; see ``ray_cluster``) or on
   a private instance started for the sweep (dashboard off, bound to 127.0.0.1). Results and logs are written by the
@@ -23,25 +24,20 @@ same per-episode records on either backend.
 from __future__ import annotations
 
 import contextlib
-import multiprocessing
-import multiprocessing.connection
 import os
 import signal
 import threading
 import time
 import traceback
-from collections import deque
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from sb3_affect.experiments.batches import Batch, Job, Single, batch_size, batchable, split_cell
+from sb3_affect.experiments.local_pool import OnFailure, OnResult, run_local
 from sb3_affect.experiments.schema import Cell, load_sweep
 from sb3_affect.experiments.store import SWEEP_SCHEMA, ResultsStore, cell_run_ids
-
-OnResult = Callable[[Job, dict[str, Any]], None]
-OnFailure = Callable[[Job, str], None]
 
 
 @dataclass
@@ -55,111 +51,6 @@ class SweepSummary:
     failed: int
     seconds: float
     out_dir: Path
-
-
-_STOP_SIGNALS = {signal.SIGINT, signal.SIGTERM}
-
-
-def _die_with_parent() -> None:
-    """Ask Linux to kill this worker when the launcher dies (best effort; no-op elsewhere)."""
-    with contextlib.suppress(Exception):
-        import ctypes
-
-        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
-
-
-def _worker(job: Job, conn: Any, launcher: int) -> None:
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the launcher decides what Ctrl-C does
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # and stops a worker with SIGTERM (not the launcher's handler)
-    signal.pthread_sigmask(signal.SIG_UNBLOCK, _STOP_SIGNALS)  # blocked by the launcher around the fork
-    _die_with_parent()
-    if os.getppid() != launcher:  # the launcher died before the line above took effect
-        os._exit(1)
-    try:
-        message: tuple[str, Any] = ("ok", job.execute())
-    except BaseException:
-        message = ("error", traceback.format_exc())
-    conn.send(message)
-    conn.close()
-
-
-def _describe_exit(code: int | None) -> str:
-    if code is not None and code < 0:
-        with contextlib.suppress(ValueError):
-            return f"killed by {signal.Signals(-code).name}"
-    return f"exit code {code}"
-
-
-def _preload(jobs: list[Job]) -> None:
-    """
-    Load here, once, what every forked worker of a batch would otherwise load again: the compiled engine's kernels
-    (no torch), ``simulate``, the Parquet writer and the package versions the chunks record. pandas too: the chunks
-    are written from NumPy arrays, but pyarrow's ``pa.array`` imports pandas on its first call (0.3-0.6 s a worker).
-    """
-    if not any(isinstance(job, Batch) for job in jobs):
-        return
-    import pandas  # noqa: F401
-    import pyarrow.parquet  # noqa: F401
-
-    import sb3_affect.engine  # noqa: F401
-    from sb3_affect.experiments.runner import package_versions
-    from sb3_affect.kernel import warm_up
-
-    warm_up()
-    package_versions()
-
-
-def run_local(jobs: list[Job], workers: int, on_result: OnResult, on_failure: OnFailure) -> None:
-    """Run ``jobs`` in forked worker processes, ``workers`` at a time."""
-    _preload(jobs)
-    context = multiprocessing.get_context("fork")
-    queue = deque(jobs)
-    running: dict[str, tuple[Any, Any, Job]] = {}
-    try:
-        while queue or running:
-            while queue and len(running) < workers:
-                job = queue.popleft()
-                receiver, sender = context.Pipe(duplex=False)
-                process = context.Process(target=_worker, args=(job, sender, os.getpid()), name=f"sb3-affect:{job.name}")
-                # Ctrl-C or SIGTERM during the fork would be swallowed by an at-fork hook ("Exception ignored"): hold them
-                # until the fork is done, then they stop the launcher as anywhere else.
-                previous = signal.pthread_sigmask(signal.SIG_BLOCK, _STOP_SIGNALS)
-                try:
-                    process.start()
-                    sender.close()
-                    running[job.name] = (process, receiver, job)
-                finally:
-                    signal.pthread_sigmask(signal.SIG_SETMASK, previous)
-            waitables = [r for _, r, _ in running.values()] + [p.sentinel for p, _, _ in running.values()]
-            multiprocessing.connection.wait(waitables, timeout=1.0)
-            for key, (process, receiver, job) in list(running.items()):
-                message = None
-                if receiver.poll():
-                    try:
-                        message = receiver.recv()
-                    except (EOFError, OSError):
-                        message = None
-                elif process.is_alive():
-                    continue
-                process.join(timeout=30)
-                receiver.close()
-                del running[key]
-                if message is None:
-                    on_failure(job, f"the worker process died before returning a result ({_describe_exit(process.exitcode)})")
-                elif message[0] == "ok":
-                    on_result(job, message[1])
-                else:
-                    on_failure(job, message[1])
-    finally:
-        for process, _receiver, _ in running.values():
-            if process.is_alive():
-                process.terminate()
-        for process, receiver, _ in running.values():
-            process.join(timeout=3)
-            if process.is_alive():
-                process.kill()
-                process.join()
-            receiver.close()
 
 
 @contextlib.contextmanager

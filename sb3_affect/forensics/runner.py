@@ -52,11 +52,11 @@ def _init_worker(driver: int) -> None:
 
     import torch
 
-    from sb3_affect.experiments.launcher import _die_with_parent
+    from sb3_affect.experiments.local_pool import die_with_parent
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the driver decides what Ctrl-C does (it terminates the pool)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)  # and pool.terminate()'s SIGTERM ends a worker at once, mid-kernel
-    _die_with_parent()  # and a worker does not outlive a killed driver
+    die_with_parent()  # and a worker does not outlive a killed driver
     if os.getppid() != driver:  # the driver died before the line above took effect
         os._exit(1)
     torch.set_num_threads(1)
