@@ -130,3 +130,43 @@ def test_folder_of_one_json_file_per_run_is_still_read_resumed_and_reported(
     same = ["run_id", "agent", "algo", "seed", "epsilon", "replicate", "decisions", "episodes", "max_timesteps"]
     pd.testing.assert_frame_equal(from_json.runs[same], from_chunks.runs[same])
     assert summary_numbers(old) == summary_numbers(chunked)
+
+
+def test_batch_workers_take_batch_after_batch_and_single_runs_get_a_process_each(tmp_path: Path) -> None:
+    from test_experiments_local import sweep_file
+
+    # 4 single runs (a user's class: one process each), then 4 AffectQ batches of one run (one worker, forked once)
+    sweep, out = sweep_file(tmp_path, ["none"], seeds=4), tmp_path / "out"
+    summary = run_sweep(sweep, out, workers=1, progress=False)
+    assert (summary.finished, summary.failed) == (8, 0)
+    batch_pids = [chunk_meta(path)["timings"]["pid"] for path in (out / "chunks").glob("[!.]*.parquet")]
+    single_pids = [json.loads(path.read_text())["timings"]["pid"] for path in (out / "runs").glob("[!.]*.json")]
+    assert len(batch_pids) == 4 and len(set(batch_pids)) == 1
+    assert len(single_pids) == 4 and len(set(single_pids)) == 4
+    assert not (set(batch_pids) | set(single_pids)) & {os.getpid()}
+    assert not set(batch_pids) & set(single_pids)
+    reference = tmp_path / "reference"
+    run_sweep(sweep, reference, workers=2, progress=False)  # other workers, other batch sizes: the same runs
+    assert contents(out) == contents(reference)
+
+
+@pytest.mark.parametrize("n", [0, 1, 7, 8, 9, 4097])
+def test_chunk_columns_are_the_arrow_arrays_of_pa_array(n: int) -> None:
+    """``arrow_array`` builds a chunk's columns from their bytes (no pandas): the arrays ``pa.array`` gives."""
+    import numpy as np
+    import pyarrow as pa
+
+    from sb3_affect.experiments.chunks import arrow_array
+
+    rng = np.random.default_rng(n)
+    cases = [
+        (pa.int32(), rng.integers(-5, 10**6, n), np.int32),
+        (pa.float64(), np.r_[rng.normal(size=n)[: max(0, n - 2)], [np.nan, -0.0][: min(n, 2)]], np.float64),
+        (pa.bool_(), rng.random(n) < 0.3, bool),
+    ]
+    for kind, values, dtype in cases:
+        made = arrow_array(values, kind)
+        made.validate(full=True)
+        expected = pa.array(values.astype(dtype))
+        assert made.type == kind and made.null_count == 0 and len(made) == n, kind
+        assert made.to_numpy(zero_copy_only=False).tobytes() == expected.to_numpy(zero_copy_only=False).tobytes(), kind

@@ -194,7 +194,8 @@ def test_each_agents_defaults_are_its_settings(settings: Any) -> None:
 
 
 def test_import_and_a_sweep_of_tabular_agents_never_import_torch(tmp_path: Path) -> None:
-    """Checked in the launcher (its forked workers inherit its modules)."""
+    """Checked in the launcher (its forked workers inherit its modules), and in a batch run as a worker runs it: neither
+    imports pandas either (the chunks are written from NumPy arrays)."""
     sweep = tmp_path / "mini.yaml"
     sweep.write_text(
         textwrap.dedent(
@@ -220,10 +221,17 @@ heavy = ("sb3_affect.forensics.analysis", "sb3_affect.report", "scipy")
 loaded["parser"] = sorted(m for m in heavy if m in sys.modules)
 from sb3_affect.experiments import run_sweep
 summary = run_sweep({str(sweep)!r}, {str(tmp_path / "out")!r}, workers=2, progress=False)
-loaded["sweep"] = sorted(m for m in ("torch", "stable_baselines3") if m in sys.modules)
+loaded["sweep"] = sorted(m for m in ("torch", "stable_baselines3", "pandas") if m in sys.modules)
+from sb3_affect.experiments.launcher import plan_jobs
+from sb3_affect.experiments.schema import load_sweep
+from sb3_affect.experiments.store import ResultsStore, cell_run_ids
+cells = load_sweep({str(sweep)!r}).cells()
+batch = plan_jobs(cells, [cell_run_ids(c) for c in cells], ResultsStore({str(tmp_path / "empty")!r}), 2, [])[0]
+assert type(batch).__name__ == "Batch" and batch.execute()["chunk"][:4] == b"PAR1"  # what a worker does, here
+loaded["batch"] = sorted(m for m in ("torch", "stable_baselines3", "pandas") if m in sys.modules)
 print(json.dumps({{**loaded, "finished": summary.finished, "failed": summary.failed}}))
 """
     done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=300, check=True)
     result = json.loads(done.stdout.strip().splitlines()[-1])
-    assert result == {"import": [], "parser": [], "sweep": [], "finished": 15, "failed": 0}, done.stderr
+    assert result == {"import": [], "parser": [], "sweep": [], "batch": [], "finished": 15, "failed": 0}, done.stderr
     assert sb3_affect.QLearning is QLearning  # the lazy names are the classes

@@ -37,6 +37,20 @@ def run_config(base: dict[str, Any], seed: int, replicate: int) -> dict[str, Any
     return {**base, "seed": seed, "labels": {**base["labels"], "replicate": replicate}}
 
 
+def arrow_array(values: np.ndarray, kind: Any) -> Any:
+    """
+    ``values`` as an Arrow array of type ``kind`` (``pa.int32()``, ``pa.float64()`` or ``pa.bool_()``; no nulls) from
+    its bytes: what ``pa.array(values.astype(...))`` gives, without importing pandas (``pa.array`` does on first use).
+    """
+    import pyarrow as pa
+
+    if kind == pa.bool_():
+        data = np.packbits(np.asarray(values, dtype=bool), bitorder="little")  # Arrow's booleans: one bit each, LSB first
+    else:
+        data = np.ascontiguousarray(values, dtype=np.int32 if kind == pa.int32() else np.float64)
+    return pa.Array.from_buffers(kind, len(values), [None, pa.py_buffer(data)])
+
+
 def encode_chunk(
     name: str,
     base: dict[str, Any],
@@ -71,16 +85,12 @@ def encode_chunk(
     lengths = np.array([ends[block[seed]] - starts[block[seed]] for _, seed, _ in runs], dtype=np.int64)
     decisions = np.asarray(episodes["decisions"], dtype=np.int64)
     totals = [int(decisions[starts[block[seed]] : ends[block[seed]]].sum()) for _, seed, _ in runs]
-    arrays: dict[str, Any] = {"run": pa.array(np.repeat(np.arange(len(runs), dtype=np.int32), lengths))}
+    arrays: dict[str, Any] = {"run": arrow_array(np.repeat(np.arange(len(runs), dtype=np.int32), lengths), pa.int32())}
     for column in EPISODE_COLUMNS:
         values = np.asarray(episodes[column])
         values = values if take is None else values[take]
-        if column in INT_COLUMNS:
-            arrays[column] = pa.array(values.astype(np.int32))
-        elif column in BOOL_COLUMNS:
-            arrays[column] = pa.array(values.astype(bool))
-        else:
-            arrays[column] = pa.array(values.astype(np.float64))
+        kind = pa.int32() if column in INT_COLUMNS else pa.bool_() if column in BOOL_COLUMNS else pa.float64()
+        arrays[column] = arrow_array(values, kind)
     meta = {
         "schema": CHUNK_SCHEMA,
         "batch": name,

@@ -101,12 +101,11 @@ def describe_exit(code: int | None) -> str:
 def preload(jobs: list[Job]) -> None:
     """
     Load here, once, what every forked worker would otherwise load again: the compiled engine's kernels (no torch),
-    ``simulate``, the Parquet writer and the package versions the chunks record. pandas too: the chunks are written
-    from NumPy arrays, but pyarrow's ``pa.array`` imports pandas on its first call (0.3-0.6 s a worker).
+    ``simulate``, the Parquet writer and the package versions the chunks record (no pandas: the chunks are written
+    from NumPy arrays).
     """
     if not any(isinstance(job, Batch) for job in jobs):
         return
-    import pandas  # noqa: F401
     import pyarrow.parquet  # noqa: F401
 
     import sb3_affect.engine  # noqa: F401

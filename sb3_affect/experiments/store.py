@@ -25,13 +25,12 @@ from collections.abc import Collection, Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-import pandas as pd
-
 from sb3_affect.episode_log import EPISODE_COLUMNS
 from sb3_affect.experiments.chunks import chunk_meta, chunk_records
-from sb3_affect.experiments.reading import RUN_COLUMNS, episode_table, read_folder
 
 if TYPE_CHECKING:
+    import pandas as pd
+
     from sb3_affect.experiments.schema import Cell
 
 SCHEMA = 1
@@ -309,6 +308,8 @@ class ResultsStore:
         ``seed``, one column per label (``replicate`` included), ``decisions`` (every decision of the run),
         ``episodes`` (finished episodes), ``wall_seconds`` (a batch's runs: their share of it), ``max_timesteps``.
         """
+        from sb3_affect.experiments.reading import read_folder  # (pandas: not on the launcher's path)
+
         return read_folder(self._json_files(), self._chunk_files(), None, self.root)[0]
 
     def results(self, columns: Sequence[str] | None = None, seed: bool = True) -> tuple[pd.DataFrame, pd.DataFrame]:
@@ -322,6 +323,8 @@ class ResultsStore:
             and one column per label (categoricals but ``seed``), then the episode columns (integers as int32, flags
             as bool, the rest float64); runs in run id order, each run's rows together in episode order
         """
+        from sb3_affect.experiments.reading import RUN_COLUMNS, episode_table, read_folder
+
         runs, data = read_folder(
             self._json_files(), self._chunk_files(), EPISODE_COLUMNS if columns is None else tuple(columns), self.root
         )
