@@ -136,24 +136,25 @@ def learn_compiled(model: Any, env: Any, total_timesteps: int, callback: BaseCal
 def _close_episodes(model: Any, run: KernelRun, finished: int) -> None:
     """``TabularQAlgorithm._close_episode`` for the kernel's ``finished`` episodes (the logger aside), in bulk."""
     ints, floats = run.out_i[:finished], run.out_f[:finished]
-    rows = np.empty((finished, 14), dtype=object)  # numpy turns each value into the Python int, float or bool
     first = len(model._episode_rows) + 1
-    rows[:, 0] = np.arange(first, first + finished)
-    rows[:, 1] = ints[:, loop.O_DECISIONS]
-    rows[:, 2] = ints[:, loop.O_CELLS]
-    rows[:, 3] = floats[:, 0]
-    rows[:, 4] = ints[:, loop.O_OPTIMAL].astype(bool)
     truncated = ints[:, loop.O_TRUNCATED].astype(bool)
-    rows[:, 5] = truncated
-    rows[:, 6] = ints[:, loop.O_RANDOM]
-    rows[:, 7] = ints[:, loop.O_WAITS]
-    rows[:, 8:12] = ints[:, loop.O_JOY : loop.O_ANGER + 1]
-    rows[:, 12] = ints[:, loop.O_GREEDY].astype(bool)
-    rows[:, 13] = floats[:, 1]
+    columns = [  # each as Python ints, floats or bools (``tolist``), in the order of ``EPISODE_COLUMNS``' rows
+        range(first, first + finished),
+        ints[:, loop.O_DECISIONS].tolist(),
+        ints[:, loop.O_CELLS].tolist(),
+        floats[:, 0].tolist(),
+        ints[:, loop.O_OPTIMAL].astype(bool).tolist(),
+        truncated.tolist(),
+        ints[:, loop.O_RANDOM].tolist(),
+        ints[:, loop.O_WAITS].tolist(),
+        *(ints[:, column].tolist() for column in range(loop.O_JOY, loop.O_ANGER + 1)),
+        ints[:, loop.O_GREEDY].astype(bool).tolist(),
+        floats[:, 1].tolist(),
+    ]
     enabled = gc.isenabled()
     gc.disable()  # thousands of new row lists at once: no collection passes in between (they hold no cycles)
     try:
-        model._episode_rows.extend(rows.tolist())
+        model._episode_rows.extend(map(list, zip(*columns)))
     finally:
         if enabled:
             gc.enable()
