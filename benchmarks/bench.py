@@ -7,7 +7,8 @@ kernel, the kernel's cold and warm start, and the wall time of the paper protoco
     python benchmarks/bench.py --large         # also the paper protocol with 10,000 seeds per cell through simulate
     python benchmarks/bench.py --smoke         # seconds: tiny sizes, no protocol (what the test suite runs)
 
-Every figure is the median of repeated runs in this one process; ratios are between figures of the same run.
+Every figure is the median of repeated runs in this one process. The learn loops are measured in paired rounds (the
+bare loop, then each learn loop, back to back); a ratio to the bare loop is the median of the rounds' ratios.
 """
 
 from __future__ import annotations
@@ -54,6 +55,14 @@ def bare_loop(env: gym.Env, steps: int, epsilon: float = 0.1, alpha: float = 1.0
         if terminated or truncated:
             s = int(env.reset()[0])
     return steps
+
+
+def bare_loop_rate(steps: int) -> float:
+    """Decisions per second of ``bare_loop`` (the env built outside the timed part, as ``learn_rate``'s model is)."""
+    env = gym.make(ENV_ID)
+    start = time.perf_counter()
+    bare_loop(env, steps)
+    return steps / (time.perf_counter() - start)
 
 
 def timed(fn: Callable[[], int], repeats: int) -> float:
@@ -151,16 +160,25 @@ def main(argv: list[str] | None = None) -> int:
     rows: list[tuple[str, float, str]] = []
     learn_rate(QLearning, 10)()  # load (or compile) the kernel before timing it
     learn_rate(AffectQ, 10)()
-    bare = timed(lambda: bare_loop(gym.make(ENV_ID), steps), repeats)
+    # Paired rounds: each round measures the bare loop and then the four learn loops, back to back, so a ratio compares
+    # figures taken under the same machine conditions (a shared VM's speed drifts by tens of percent over minutes);
+    # a figure is the median over rounds, a ratio the median of the rounds' ratios.
+    measures = {
+        "bare": lambda: bare_loop_rate(steps),
+        "q_py": learn_rate(QLearning, steps, exploration_rate=0.1, engine="python"),
+        "a_py": learn_rate(AffectQ, steps, engine="python"),
+        "q_c": learn_rate(QLearning, steps, exploration_rate=0.1),
+        "a_c": learn_rate(AffectQ, steps),
+    }
+    rounds = [{key: fn() for key, fn in measures.items()} for _ in range(repeats)]
+    rate = {key: statistics.median(r[key] for r in rounds) for key in measures}
+    ratio = {key: statistics.median(r[key] / r["bare"] for r in rounds) for key in measures}
+    bare, q_py, a_py, q_rate, a_rate = (rate[key] for key in ("bare", "q_py", "a_py", "q_c", "a_c"))
     rows.append(("bare pure-Python loop (decisions/s)", bare, "floor"))
-    q_py = median_rate(learn_rate(QLearning, steps, exploration_rate=0.1, engine="python"), repeats)
-    rows.append(("QLearning.learn, Python engine (decisions/s)", q_py, f"{q_py / bare:.2f} x bare (target >= 0.5)"))
-    a_py = median_rate(learn_rate(AffectQ, steps, engine="python"), repeats)
-    rows.append(("AffectQ.learn, Python engine (decisions/s)", a_py, f"{a_py / bare:.2f} x bare (target >= 0.3)"))
-    q_rate = median_rate(learn_rate(QLearning, steps, exploration_rate=0.1), repeats)
-    rows.append(("QLearning.learn, compiled (decisions/s)", q_rate, f"{q_rate / bare:.1f} x bare (target >= 20)"))
-    a_rate = median_rate(learn_rate(AffectQ, steps), repeats)
-    rows.append(("AffectQ.learn, compiled (decisions/s)", a_rate, f"{a_rate / bare:.1f} x bare (target >= 8)"))
+    rows.append(("QLearning.learn, Python engine (decisions/s)", q_py, f"{ratio['q_py']:.2f} x bare (target >= 0.5)"))
+    rows.append(("AffectQ.learn, Python engine (decisions/s)", a_py, f"{ratio['a_py']:.2f} x bare (target >= 0.3)"))
+    rows.append(("QLearning.learn, compiled (decisions/s)", q_rate, f"{ratio['q_c']:.1f} x bare (target >= 20)"))
+    rows.append(("AffectQ.learn, compiled (decisions/s)", a_rate, f"{ratio['a_c']:.1f} x bare (target >= 8)"))
     d_rate = timed(dqn_rate(dqn_steps), max(1, repeats // 2))
     rows.append(("SB3 DQN.learn (steps/s, 1 torch thread)", d_rate, "reference"))
     rows.append(("QLearning (Python engine) / DQN", q_py / d_rate, "target >= 100"))
