@@ -19,7 +19,7 @@ from sb3_affect.appraisal import Appraiser
 from sb3_affect.baselines import Boltzmann, SpeedEpsilonGreedy, UCBQLearning, softmax_action
 from sb3_affect.engine import simulate
 from sb3_affect.envs.grid_pursuit import RIGHT
-from sb3_affect.kernel import loop
+from sb3_affect.kernel import choice
 from sb3_affect.kernel.agents import COMPENSATED_SUM
 from sb3_affect.kernel.mt19937 import STATE_SIZE, randbelow, random01, seed_key, seed_state, state_from_rng
 
@@ -55,7 +55,7 @@ def test_softmax_matches_the_python_draw_and_its_sum() -> None:
         q = rng.normal(0, 30, size=(1, 4))
         inv_t, u = float(rng.uniform(0.01, 3)), float(rng.random())
         expected = softmax_action(q[0].tolist(), inv_t, u)
-        assert loop.softmax_action(q, 0, inv_t, u, COMPENSATED_SUM, weights) == expected
+        assert choice.softmax_action(q, 0, inv_t, u, COMPENSATED_SUM, weights) == expected
 
 
 # -- the engine option ------------------------------------------------------------------------------------------------
