@@ -223,7 +223,7 @@ from sb3_affect.experiments import run_sweep
 summary = run_sweep({str(sweep)!r}, {str(tmp_path / "out")!r}, workers=2, progress=False)
 loaded["sweep"] = sorted(m for m in ("torch", "stable_baselines3", "pandas") if m in sys.modules)
 from sb3_affect.experiments.launcher import plan_jobs
-from sb3_affect.experiments.schema import load_sweep
+from sb3_affect.experiments.sweep_file import load_sweep
 from sb3_affect.experiments.store import ResultsStore, cell_run_ids
 cells = load_sweep({str(sweep)!r}).cells()
 batch = plan_jobs(cells, [cell_run_ids(c) for c in cells], ResultsStore({str(tmp_path / "empty")!r}), 2, [])[0]

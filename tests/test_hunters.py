@@ -17,7 +17,8 @@ from sb3_affect.baselines import Boltzmann, SpeedEpsilonGreedy, UCBQLearning
 from sb3_affect.envs import HUNTER_PURSUIT_ID, make_parallel
 from sb3_affect.envs.hunter_pursuit import STAY, HunterPursuitEnv
 from sb3_affect.experiments import run_sweep
-from sb3_affect.experiments.schema import SweepError, load_sweep
+from sb3_affect.experiments.schema import SweepError
+from sb3_affect.experiments.sweep_file import load_sweep
 from sb3_affect.report import build_report
 from sb3_affect.stepping import DecisionStepper
 from sb3_affect.team import TEAM_COLUMNS, HunterTeam, HunterView

@@ -2,8 +2,9 @@
 
 from sb3_affect.experiments.launcher import SweepSummary, run_sweep
 from sb3_affect.experiments.runner import execute_run
-from sb3_affect.experiments.schema import Sweep, SweepError, load_sweep
+from sb3_affect.experiments.schema import Sweep, SweepError
 from sb3_affect.experiments.store import ResultsStore, StoreError, run_id
+from sb3_affect.experiments.sweep_file import load_sweep
 
 __all__ = [
     "ResultsStore",

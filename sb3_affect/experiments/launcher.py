@@ -36,8 +36,9 @@ from typing import Any
 
 from sb3_affect.experiments.batches import Batch, Job, Single, batch_size, batchable, split_cell
 from sb3_affect.experiments.local_pool import OnFailure, OnResult, run_local
-from sb3_affect.experiments.schema import Cell, load_sweep
+from sb3_affect.experiments.schema import Cell
 from sb3_affect.experiments.store import SWEEP_SCHEMA, ResultsStore, cell_run_ids
+from sb3_affect.experiments.sweep_file import load_sweep
 
 
 @dataclass

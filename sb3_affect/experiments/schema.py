@@ -21,28 +21,27 @@ A multi-agent env (``sb3_affect/HunterPursuit-v0``, one hunter per ``team`` memb
       - name: mixed
         team: [{algo: AffectQ}, {algo: QLearning, kwargs: {exploration_rate: $epsilon}}]
         grid: {epsilon: [0.1]}
+
+Reading a file, its ``--set`` overrides and the messages of a file that does not validate: ``sweep_file``.
 """
 
 from __future__ import annotations
 
-import difflib
 import hashlib
 import importlib
 import itertools
 import json
 import re
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
-import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from sb3_affect.experiments.algos import SHORT_NAMES, check_algo, is_tabular, resolve_class
 
-__all__ = ["SHORT_NAMES", "AgentSpec", "Cell", "EnvSpec", "MemberSpec", "Sweep", "SweepError", "load_sweep", "resolve_class"]
+__all__ = ["SHORT_NAMES", "AgentSpec", "Cell", "EnvSpec", "MemberSpec", "Sweep", "SweepError", "resolve_class"]
 
-_REFERENCE = re.compile(r"^\$([A-Za-z_][A-Za-z0-9_]*)$")
+KWARG_REFERENCE = re.compile(r"^\$([A-Za-z_][A-Za-z0-9_]*)$")
 
 
 class SweepError(ValueError):
@@ -166,7 +165,7 @@ class AgentSpec(BaseModel):
         places = [("kwargs", self.kwargs)] + [(f"team[{i}].kwargs", m.kwargs) for i, m in enumerate(self.team or [])]
         for where, kwargs in places:
             for key, raw in kwargs.items():
-                match = _REFERENCE.match(raw) if isinstance(raw, str) else None
+                match = KWARG_REFERENCE.match(raw) if isinstance(raw, str) else None
                 if match and match.group(1) not in self.grid:
                     raise ValueError(
                         f"{where}.{key}={raw!r} refers to no grid label; the grid has {sorted(self.grid) or 'none'}"
@@ -180,7 +179,7 @@ class AgentSpec(BaseModel):
     def kwargs_at(self, point: dict[str, Any], kwargs: dict[str, Any] | None = None) -> dict[str, Any]:
         out = {}
         for key, raw in (self.kwargs if kwargs is None else kwargs).items():
-            match = _REFERENCE.match(raw) if isinstance(raw, str) else None
+            match = KWARG_REFERENCE.match(raw) if isinstance(raw, str) else None
             out[key] = point[match.group(1)] if match else raw
         return out
 
@@ -311,159 +310,3 @@ def derive_seeds(sweep: str, agent: str, point: dict[str, Any], count: int) -> l
         int.from_bytes(hashlib.sha256(f"{head}{replicate}]".encode()).digest()[:4], "big") & 0x7FFFFFFF
         for replicate in range(count)
     ]
-
-
-def _override_path(assignment: str, data: dict[str, Any]) -> tuple[list[Any], Any]:
-    """
-    Check the key path of one ``--set key.path=value`` against the schema; return the path (list items as ints) and
-    the parsed value. A key the schema does not know is named with the keys allowed there (and the closest one).
-    A kwarg bound to a grid label (``$label``) can not be overridden: run ids and labels come from the grid, so the
-    override would run one value under another value's label; the error says which grid to set instead.
-    """
-    if "=" not in assignment:
-        raise SweepError(f"--set {assignment!r}: use key=value, e.g. --set seeds=5")
-    raw_path, _, raw = assignment.partition("=")
-    keys: list[Any] = raw_path.strip().split(".")
-    try:
-        value = yaml.safe_load(raw)
-    except yaml.YAMLError as error:
-        raise SweepError(f"--set {assignment!r}: the value is not valid YAML ({error})") from None
-
-    def unknown(key: str, allowed: list[str], where: str) -> SweepError:
-        close = difflib.get_close_matches(key, allowed, n=1)
-        hint = f"; did you mean {close[0]!r}?" if close else ""
-        return SweepError(
-            f"--set {assignment!r}: {key!r} is not a key of {where}{hint} (allowed: {', '.join(allowed)})"
-        )
-
-    top = list(Sweep.model_fields)
-    if keys[0] not in top:
-        raise unknown(keys[0], top, "a sweep file")
-    if keys[0] == "env" and len(keys) > 1 and keys[1] not in EnvSpec.model_fields:
-        raise unknown(keys[1], list(EnvSpec.model_fields), "env")
-    if keys[0] in ("name", "episodes", "seeds", "max_timesteps", "logs") and len(keys) > 1:
-        raise SweepError(f"--set {assignment!r}: {keys[0]!r} is a single value; use --set {keys[0]}=VALUE")
-    if keys[0] == "agents" and len(keys) > 1:
-        agents: list[Any] = data["agents"] if isinstance(data.get("agents"), list) else []
-        names = [a.get("name") if isinstance(a, dict) else None for a in agents]
-        if keys[1] in names:  # an agent by name: agents.affective.kwargs.gamma=0.9
-            keys[1] = names.index(keys[1])
-        elif keys[1].isdigit() and int(keys[1]) < len(agents):
-            keys[1] = int(keys[1])
-        else:
-            raise SweepError(
-                f"--set {assignment!r}: no agent {keys[1]!r}; give an index 0..{len(agents) - 1} or a name "
-                f"({', '.join(str(n) for n in names)})"
-            )
-        if len(keys) > 2 and keys[2] not in AgentSpec.model_fields:
-            raise unknown(keys[2], list(AgentSpec.model_fields), f"agents[{keys[1]}]")
-        if len(keys) == 4 and keys[2] == "kwargs":
-            agent = agents[keys[1]] if isinstance(agents[keys[1]], dict) else {}
-            bound = (agent.get("kwargs") or {}).get(keys[3])
-            match = _REFERENCE.match(bound) if isinstance(bound, str) else None
-            if match and value != bound:
-                label = match.group(1)
-                raise SweepError(
-                    f"--set {assignment!r}: kwargs.{keys[3]} of agent {names[keys[1]]!r} takes its value from the grid "
-                    f"label {label!r}, which names its runs and labels its results; set the grid instead, e.g. "
-                    f"--set agents.{names[keys[1]]}.grid.{label}=[{raw.strip()}]"
-                )
-    return keys, value
-
-
-def _apply_override(data: dict[str, Any], assignment: str) -> list[Any]:
-    """
-    ``key.path=value`` (value parsed as YAML; list items by index or agent name, e.g. ``agents.0.kwargs.gamma=0.9``).
-
-    :return: the key path it set (agents by index), to tell which validation errors the override caused
-    """
-    keys, value = _override_path(assignment, data)
-    target: Any = data
-    for key in keys[:-1]:
-        target = target[int(key)] if isinstance(target, list) else target.setdefault(key, {})
-    last = keys[-1]
-    if isinstance(target, list):
-        target[int(last)] = value
-    else:
-        target[last] = value
-    return keys
-
-
-def _overlaps(location: tuple[Any, ...], keys: list[Any]) -> bool:
-    """Whether a validation error at ``location`` concerns the key path an override set (one is a prefix of the other)."""
-    n = min(len(location), len(keys))
-    return n > 0 and [str(k) for k in location[:n]] == [str(k) for k in keys[:n]]
-
-
-def _key_path(location: tuple[Any, ...], data: dict[str, Any]) -> str:
-    """Render a pydantic error location as a readable key path, naming agents by their name."""
-    parts: list[str] = []
-    node: Any = data
-    for item in location:
-        if isinstance(item, int) and isinstance(node, list) and item < len(node):
-            name = node[item].get("name") if isinstance(node[item], dict) else None
-            parts[-1] = f"{parts[-1]}[{item}]" + (f" ({name})" if name else "") if parts else f"[{item}]"
-            node = node[item]
-        else:
-            parts.append(str(item))
-            node = node.get(item) if isinstance(node, dict) else None
-    return ".".join(parts)
-
-
-def load_sweep(path: str | Path, overrides: tuple[str, ...] | list[str] = (), *, build: bool = True) -> Sweep:
-    """
-    Read, override and validate a sweep file; every problem is a ``SweepError`` naming the file and the key.
-
-    :param build: also build the env and each agent once (without training, in a short-lived child process), so
-        that an unknown or impossible kwarg is reported now rather than by every run of the sweep
-    """
-    path = Path(path)
-    try:
-        text = path.read_text()
-    except OSError as error:
-        raise SweepError(f"{path}: can not read the sweep file ({error.strerror})") from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as error:
-        mark = getattr(error, "problem_mark", None)
-        where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
-        problem = getattr(error, "problem", None) or str(error)
-        raise SweepError(f"{path}: malformed YAML{where}: {problem}") from None
-    if not isinstance(data, dict):
-        raise SweepError(f"{path}: a sweep file must be a YAML mapping with name, episodes, seeds and agents")
-    overridden: list[tuple[str, list[Any]]] = []
-    for assignment in overrides:
-        try:
-            overridden.append((assignment, _apply_override(data, assignment)))
-        except SweepError as error:
-            raise SweepError(f"{error} [sweep file: {path}]") from None
-        except (KeyError, IndexError, ValueError, TypeError, AttributeError) as error:
-            raise SweepError(f"--set {assignment!r} does not apply to {path} ({error})") from None
-    try:
-        sweep = Sweep.model_validate(data)
-    except ValidationError as error:
-        lines, from_file = [], False
-        for item in error.errors():
-            location = tuple(item["loc"])
-            key = _key_path(location, data) or "(top level)"
-            value = item.get("input")
-            shown = "" if isinstance(value, (dict, list)) or item["type"] == "missing" else f" (got {value!r})"
-            message = item["msg"].removeprefix("Value error, ")
-            setters = [a for a, keys in overridden if _overlaps(location, keys)]
-            from_file = from_file or not setters
-            lines.append(f"  {key}: {message}{shown}" + (f" [from --set {setters[-1]}]" if setters else ""))
-        allowed = "allowed top-level keys: " + ", ".join(Sweep.model_fields)
-        what = "invalid sweep file" if from_file else "invalid --set value"
-        raise SweepError(f"{path}: {what}\n" + "\n".join(lines) + f"\n  ({allowed})") from None
-    if build:
-        from sb3_affect.experiments.runner import check_configs_in_child
-
-        index = {agent.name: i for i, agent in enumerate(sweep.agents)}
-        problems = check_configs_in_child([cell.config(0) for cell in sweep.cells()])
-        if problems:
-            lines = [
-                f"  {f'agents[{index[agent]}] ({agent}).kwargs' if agent in index else 'env.kwargs'}: {message}"
-                for agent, message in problems
-            ]
-            raise SweepError(f"{path}: invalid sweep file\n" + "\n".join(lines))
-    return sweep
