@@ -212,8 +212,8 @@ def test_suite_runs_and_summary_ranks(tmp_path: Any) -> None:
 def test_experiment_files_validate(name: str) -> None:
     from pathlib import Path
 
-    from sb3_affect.experiments.schema import resolve_class
     from sb3_affect.experiments.sweep_file import load_sweep
+    from sb3_affect.registry import resolve_class
 
     sweep = load_sweep(Path(__file__).resolve().parents[1] / "experiments" / f"{name}.yaml")
     for agent in sweep.agents:

@@ -111,7 +111,7 @@ def batchable(base: dict[str, Any], logs: bool) -> bool:
     """Whether the runs of a cell can run as batches (see the module docstring)."""
     if logs or base.get("max_timesteps") is not None or not package_env(base["env_id"]):
         return False
-    from sb3_affect.experiments.algos import known_settings, resolve_class
+    from sb3_affect.registry import known_settings, resolve_class
 
     if known_settings(base["algo"]) is not None:  # the package's agents, known by name (not imported: no torch)
         return True
