@@ -2,8 +2,8 @@
 A model's run state as the kernel's arrays (``KernelRun``), and back.
 
 Read at the start of a compiled ``learn``: the Q-table, the random generator's MT19937 state, the episode in
-progress, the appraisal (known map, power fit, elapsed counters, ``last_act``), UCB counts, the env's geometry and its
-time limit. ``write_back`` returns all of it to the Python objects, so the Python loop can continue from there.
+progress, the appraisal (known map, power fit, elapsed counters, ``last_act``), UCB counts, the env's transition
+table and its time limit. ``write_back`` returns all of it to the Python objects, so the Python loop can continue from there.
 """
 
 from __future__ import annotations
@@ -17,23 +17,23 @@ from gymnasium.wrappers import TimeLimit
 from stable_baselines3.common.monitor import Monitor
 
 from sb3_affect.kernel import loop
-from sb3_affect.kernel.agents import AgentSpec
-from sb3_affect.kernel.inputs import Geometry, config_arrays, unwrap
+from sb3_affect.kernel.agents import KernelAgent
+from sb3_affect.kernel.inputs import TableArrays, kernel_config, unwrap
 from sb3_affect.kernel.mt19937 import state_from_rng, state_to_rng
+from sb3_affect.settings import TabularSettings
 
-__all__ = ["Geometry", "KernelRun", "affect_arrays", "config_arrays"]
+__all__ = ["KernelRun", "empty_appraisal"]
 
 
-def affect_arrays(
-    n_states: int, n_actions: int, max_pred: int
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """An empty known map: ``dist``, ``edge``, ``pred``, ``pred_n``, ``goal``."""
-    return (
+def empty_appraisal(n_states: int, n_actions: int, max_pred: int, episodes: int) -> loop.Appraisal:
+    """An empty known map (``dist``, ``edge``, ``pred``, ``pred_n``, ``goal``) and room for ``episodes`` fit values."""
+    return loop.Appraisal(
         np.full(n_states, math.inf),
         np.zeros((n_states, n_actions), dtype=np.bool_),
         np.zeros((n_states, max_pred), dtype=np.int64),
         np.zeros(n_states, dtype=np.int64),
         np.zeros(n_states, dtype=np.bool_),
+        np.zeros(episodes),
     )
 
 
@@ -43,20 +43,21 @@ class KernelRun:
 
     :param model: the tabular model (its episode in progress already begun)
     :param env: the model's single env (wrapped)
-    :param spec: the agent as the kernel runs it
+    :param settings: the model's settings (``compiled_settings``)
+    :param agent: the agent as the kernel runs it
     """
 
-    def __init__(self, model: Any, env: Any, spec: AgentSpec) -> None:
-        self.model, self.spec = model, spec
+    def __init__(self, model: Any, env: Any, settings: TabularSettings, agent: KernelAgent) -> None:
+        self.model, self.agent = model, agent
         self.base, wrappers = unwrap(env)
         self.monitor = next((w for w in wrappers if isinstance(w, Monitor)), None)
         self.time_limit = next((w for w in wrappers if isinstance(w, TimeLimit)), None)
-        self.geo = geo = Geometry.of(self.base)
-        self.size = geo.size
+        self.table = table = TableArrays.of(self.base)
+        self.width = table.width
         self.obs_start = int(model.observation_space.start)
         self.act_start = int(model.action_space.start)
         limit = 0 if self.time_limit is None else int(self.time_limit._max_episode_steps)
-        self.icfg, self.fcfg = config_arrays(model, spec, geo, limit)
+        self.config = kernel_config(settings, agent, table, limit)
         self.q = np.array(model._q, dtype=np.float64)
         n_states, n_actions = self.q.shape
         self.mt, self.gauss = state_from_rng(model._rng)
@@ -76,13 +77,14 @@ class KernelRun:
         ist[loop.I_GREEDY] = -1
         ist[loop.I_TL_ELAPSED] = 0 if self.time_limit is None else int(self.time_limit._elapsed_steps or 0)
         self.cells_at_start = int(ist[loop.I_CELLS])
-        self.dist, self.edge, self.pred, self.pred_n, self.goal = affect_arrays(n_states, n_actions, geo.max_pred)
-        self.fit_vals = np.zeros(64)
-        if spec.kind == loop.AFFECT:
+        self.dist, self.edge, self.pred, self.pred_n, self.goal, self.fit_vals = empty_appraisal(
+            n_states, n_actions, table.max_pred, 64
+        )
+        if agent.kind == loop.AFFECT:
             self._read_appraisal()
         self.ucb_n = np.zeros((n_states, n_actions), dtype=np.int64)
         self.ucb_tot = np.zeros(n_states, dtype=np.int64)
-        if spec.kind == loop.UCB:
+        if agent.kind == loop.UCB:
             self.ucb_n[:] = np.asarray(model.counts, dtype=np.int64)
             self.ucb_tot[:] = np.asarray(model._totals, dtype=np.int64)
         self.out_i = np.zeros((1, loop.N_OUT_I), dtype=np.int64)
@@ -95,7 +97,7 @@ class KernelRun:
         callback = self.model.emotion_callback
         appraiser = callback.appraiser
         known = appraiser.known
-        trans = self.geo.trans
+        trans = self.table.trans
         self.dist[:] = np.asarray(known.distance, dtype=np.float64)
         for g in known.goals:
             self.goal[g] = True
@@ -125,7 +127,7 @@ class KernelRun:
 
         callback = self.model.emotion_callback
         appraiser = callback.appraiser
-        trans = self.geo.trans
+        trans = self.table.trans
         known = KnownMap(len(self.dist))
         known.distance = self.dist.tolist()
         known.goals = {int(g) for g in np.flatnonzero(self.goal)}
@@ -156,12 +158,19 @@ class KernelRun:
             grown[: self.fit_vals.shape[0]] = self.fit_vals
             self.fit_vals = grown
         cells_before = int(self.ist[loop.I_CELLS])
+        state = loop.RunState(self.q, self.mt, self.ist, self.fst, self.ucb_n, self.ucb_tot)
+        appraisal = loop.Appraisal(self.dist, self.edge, self.pred, self.pred_n, self.goal, self.fit_vals)
+        episodes = loop.Episodes(alpha, p, self.out_i, self.out_f)
         finished, stop = loop.run(
-            self.q, self.geo.trans, self.geo.tdist, self.icfg, self.fcfg,
-            self.spec.beh_rand, self.spec.beh_speeds, self.spec.beh_n, self.ucb_n, self.ucb_tot,
-            self.mt, self.ist, self.fst, self.dist, self.edge, self.pred, self.pred_n, self.goal, self.fit_vals,
-            alpha, p, int(total_timesteps), int(max_episodes), self.out_i, self.out_f,
-        )  # fmt: skip
+            self.table.env,
+            self.config,
+            self.agent.behaviour,
+            state,
+            appraisal,
+            episodes,
+            int(total_timesteps),
+            int(max_episodes),
+        )
         stepped = int(self.out_i[:finished, loop.O_CELLS].sum()) - (cells_before if finished else 0)
         self.monitor_cells += stepped + int(self.ist[loop.I_CELLS]) - (0 if finished else cells_before)
         return int(finished), int(stop)
@@ -172,12 +181,12 @@ class KernelRun:
         monitor = self.monitor
         if monitor is None:
             return
-        limit = int(self.icfg[loop.C_TIME_LIMIT])
+        limit = self.config.time_limit
         seen = ~truncated | ((cells >= limit) if limit > 0 else False)  # the safety cap: the env saw no episode end
         lengths = cells[seen].tolist()
         if not lengths:
             return
-        step, goal = self.geo.step_reward, self.geo.goal_reward
+        step, goal = self.table.step_reward, self.table.goal_reward
         # the Monitor sums each episode's rewards with Python's sum: once per distinct (length, truncated) pair
         keys, inverse = np.unique(cells[seen] * 2 + truncated[seen], return_inverse=True)
         sums = [sum([step] * (key // 2 - 1) + [step if key % 2 else goal]) for key in keys.tolist()]
@@ -198,9 +207,9 @@ class KernelRun:
         model, ist = self.model, self.ist
         model._q = self.q.tolist()
         state_to_rng(model._rng, self.mt, self.gauss)
-        if self.spec.kind == loop.AFFECT:
+        if self.agent.kind == loop.AFFECT:
             self._write_appraisal()
-        if self.spec.kind == loop.UCB:
+        if self.agent.kind == loop.UCB:
             model.counts = self.ucb_n.tolist()
             model._totals = self.ucb_tot.tolist()
         s = int(ist[loop.I_STATE])
@@ -219,7 +228,7 @@ class KernelRun:
         if self.time_limit is not None:
             self.time_limit._elapsed_steps = int(ist[loop.I_TL_ELAPSED])  # type: ignore[assignment]
         if self.monitor is not None:
-            self.monitor.rewards = [self.geo.step_reward] * int(ist[loop.I_CELLS])
+            self.monitor.rewards = [self.table.step_reward] * int(ist[loop.I_CELLS])
             self.monitor.needs_reset = False
             self.monitor.total_steps += self.monitor_cells
 
