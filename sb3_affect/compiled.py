@@ -28,7 +28,7 @@ from stable_baselines3.common.monitor import Monitor
 
 from sb3_affect.compiled_state import KernelRun
 from sb3_affect.episode_log import COLUMN, EPISODE_COLUMNS
-from sb3_affect.kernel import loop
+from sb3_affect.kernel import arrays
 from sb3_affect.kernel.agents import KernelAgent, kernel_agent
 from sb3_affect.kernel.inputs import env_reason, unwrap
 from sb3_affect.settings import TabularSettings
@@ -170,21 +170,21 @@ def _close_episodes(model: Any, run: KernelRun, finished: int) -> None:
     """``TabularQAlgorithm._close_episode`` for the kernel's ``finished`` episodes (the logger aside), in bulk."""
     ints, floats = run.out_i[:finished], run.out_f[:finished]
     first = len(model._episode_rows) + 1
-    truncated = ints[:, loop.O_TRUNCATED].astype(bool)
+    truncated = ints[:, arrays.O_TRUNCATED].astype(bool)
     by_name = {  # each as Python ints, floats or bools (``tolist``)
         "episode": range(first, first + finished),
-        "decisions": ints[:, loop.O_DECISIONS].tolist(),
-        "cells": ints[:, loop.O_CELLS].tolist(),
+        "decisions": ints[:, arrays.O_DECISIONS].tolist(),
+        "cells": ints[:, arrays.O_CELLS].tolist(),
         "reward": floats[:, 0].tolist(),
-        "optimal": ints[:, loop.O_OPTIMAL].astype(bool).tolist(),
+        "optimal": ints[:, arrays.O_OPTIMAL].astype(bool).tolist(),
         "truncated": truncated.tolist(),
-        "random_moves": ints[:, loop.O_RANDOM].tolist(),
-        "waits": ints[:, loop.O_WAITS].tolist(),
-        "joy": ints[:, loop.O_JOY].tolist(),
-        "sadness": ints[:, loop.O_SADNESS].tolist(),
-        "fear": ints[:, loop.O_FEAR].tolist(),
-        "anger": ints[:, loop.O_ANGER].tolist(),
-        "greedy_optimal": ints[:, loop.O_GREEDY].astype(bool).tolist(),
+        "random_moves": ints[:, arrays.O_RANDOM].tolist(),
+        "waits": ints[:, arrays.O_WAITS].tolist(),
+        "joy": ints[:, arrays.O_JOY].tolist(),
+        "sadness": ints[:, arrays.O_SADNESS].tolist(),
+        "fear": ints[:, arrays.O_FEAR].tolist(),
+        "anger": ints[:, arrays.O_ANGER].tolist(),
+        "greedy_optimal": ints[:, arrays.O_GREEDY].astype(bool).tolist(),
         "norm": floats[:, 1].tolist(),
     }
     columns = [by_name[name] for name in EPISODE_COLUMNS]
@@ -202,16 +202,16 @@ def _close_episodes(model: Any, run: KernelRun, finished: int) -> None:
     stamp = round(time.time() - model.start_time / 1e9, 6)
     for j in range(finished - keep, finished):
         buffer.append(
-            {"r": float(floats[j, 0]), "l": int(ints[j, loop.O_DECISIONS]), "c": int(ints[j, loop.O_CELLS]), "t": stamp}
+            {"r": float(floats[j, 0]), "l": int(ints[j, arrays.O_DECISIONS]), "c": int(ints[j, arrays.O_CELLS]), "t": stamp}
         )
-    run.monitor_episodes(ints[:, loop.O_CELLS], truncated)
+    run.monitor_episodes(ints[:, arrays.O_CELLS], truncated)
 
 
 def _record(model: Any, run: KernelRun, log_interval: int | None) -> None:
     """The logger keys of an episode end (only the last episode before a dump matters: records overwrite)."""
     logger = model.logger  # recorded whenever a logger exists, as SB3 does (per chunk of episodes, never per decision)
     row = model._episode_rows[-1]
-    if run.agent.kind == loop.AFFECT:
+    if run.agent.kind == arrays.AFFECT:
         names = ("joy", "sadness", "fear", "anger")
         counts = [row[COLUMN[name]] for name in names]
         total = sum(counts)

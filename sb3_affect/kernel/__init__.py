@@ -8,6 +8,7 @@ the identical episode log, Q-table, random-generator state and appraisal. Module
 - ``mt19937``: CPython's ``random.Random`` (MT19937) in numba, the stream both engines draw from;
 - ``affect``: the appraisal (known map, power fit) and Table II;
 - ``loop``: the decision loop (every agent kind, the env's moves, Eq. 1, the episode rows);
+- ``arrays``: the decision loop's arguments (named tuples of arrays) and the indices of its scalars;
 - ``agents``: what the kernel needs to know about an agent, read from its settings object (``sb3_affect.settings``);
 - ``inputs``: an env's transition table as arrays (``sb3_affect.envs.transition_table``), a batch's inputs;
 - ``batch``: many fresh runs in one call (``simulate``).

@@ -14,14 +14,14 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from sb3_affect.kernel import loop
+from sb3_affect.kernel import arrays
 
 
 class KernelAgent(NamedTuple):
     """An agent as the kernel runs it."""
 
     kind: int
-    behaviour: loop.BehaviourRows
+    behaviour: arrays.BehaviourRows
     valence: bool
     act_episode: bool
     units_cells: bool
@@ -29,7 +29,7 @@ class KernelAgent(NamedTuple):
     ucb_coef: float
 
 
-def behaviour_arrays(rows: list[tuple[bool, list[int]]]) -> loop.BehaviourRows:
+def behaviour_arrays(rows: list[tuple[bool, list[int]]]) -> arrays.BehaviourRows:
     """``(random direction, speeds)`` per emotion as the kernel's arrays."""
     width = max(len(speeds) for _, speeds in rows)
     beh_rand = np.zeros(4, dtype=np.int64)
@@ -39,11 +39,11 @@ def behaviour_arrays(rows: list[tuple[bool, list[int]]]) -> loop.BehaviourRows:
         beh_rand[i] = int(random_direction)
         beh_speeds[i, : len(speeds)] = speeds
         beh_n[i] = len(speeds)
-    return loop.BehaviourRows(beh_rand, beh_speeds, beh_n)
+    return arrays.BehaviourRows(beh_rand, beh_speeds, beh_n)
 
 
 #: The kernel's kind of each family of agents (``TabularSettings.family``).
-FAMILY_KINDS = {"epsilon": loop.EPSILON, "affect": loop.AFFECT, "boltzmann": loop.BOLTZMANN, "ucb": loop.UCB}
+FAMILY_KINDS = {"epsilon": arrays.EPSILON, "affect": arrays.AFFECT, "boltzmann": arrays.BOLTZMANN, "ucb": arrays.UCB}
 
 
 def kernel_agent(settings: Any) -> KernelAgent | str:
@@ -52,7 +52,7 @@ def kernel_agent(settings: Any) -> KernelAgent | str:
     if kind is None:
         return f"{type(settings).__name__} are not the settings of an agent the kernel implements"
     behaviour = behaviour_arrays(settings.behaviour_rows())
-    if kind != loop.AFFECT:
+    if kind != arrays.AFFECT:
         return KernelAgent(kind, behaviour, False, True, True, 1.0, float(getattr(settings, "exploration_coef", 0.0)))
     return KernelAgent(
         kind,

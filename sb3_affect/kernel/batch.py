@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numba import njit
 
-from sb3_affect.kernel import loop
+from sb3_affect.kernel import arrays, loop
 from sb3_affect.kernel.inputs import BatchInputs
 from sb3_affect.kernel.mt19937 import STATE_SIZE, seed_key, seed_state
 
@@ -31,15 +31,15 @@ def run_seeds(keys, key_lengths, q_init, n_actions, env, config, behaviour, max_
     first ``pred_n[v]`` entries are read).
     """
     n_states = env.trans.shape[0]
-    state = loop.RunState(
+    state = arrays.RunState(
         np.empty((n_states, n_actions)),
         np.empty(STATE_SIZE, dtype=np.int64),
-        np.empty(loop.N_IST, dtype=np.int64),
-        np.empty(loop.N_FST),
+        np.empty(arrays.N_IST, dtype=np.int64),
+        np.empty(arrays.N_FST),
         np.empty((n_states, n_actions), dtype=np.int64),
         np.empty(n_states, dtype=np.int64),
     )
-    appraisal = loop.Appraisal(
+    appraisal = arrays.Appraisal(
         np.empty(n_states),
         np.empty((n_states, n_actions), dtype=np.bool_),
         np.zeros((n_states, max_pred), dtype=np.int64),
@@ -47,19 +47,19 @@ def run_seeds(keys, key_lengths, q_init, n_actions, env, config, behaviour, max_
         np.empty(n_states, dtype=np.bool_),
         np.zeros(episodes),
     )
-    work = loop.work_space(n_states, n_actions)
+    work = arrays.work_space(n_states, n_actions)
     ist, fst = state.ist, state.fst
     total_timesteps = episodes * config.cap
     for r in range(keys.shape[0]):
         state.q[:] = q_init
         seed_state(state.mt, keys[r], key_lengths[r])
         ist[:] = 0
-        ist[loop.I_STATE] = config.start
-        ist[loop.I_CHANGED] = 1
-        ist[loop.I_GREEDY] = -1
+        ist[arrays.I_STATE] = config.start
+        ist[arrays.I_CHANGED] = 1
+        ist[arrays.I_GREEDY] = -1
         fst[:] = 0.0
-        fst[loop.S_NORM] = math.nan
-        fst[loop.S_LAST_ACT] = math.inf
+        fst[arrays.S_NORM] = math.nan
+        fst[arrays.S_LAST_ACT] = math.inf
         appraisal.dist[:] = math.inf
         appraisal.edge[:] = False
         appraisal.pred_n[:] = 0
@@ -68,7 +68,7 @@ def run_seeds(keys, key_lengths, q_init, n_actions, env, config, behaviour, max_
         state.ucb_tot[:] = 0
         work.seen[:] = 0
         lo, hi = r * episodes, (r + 1) * episodes
-        rows = loop.Episodes(alpha_e, p_e, out_i[lo:hi], out_f[lo:hi])
+        rows = arrays.Episodes(alpha_e, p_e, out_i[lo:hi], out_f[lo:hi])
         loop.decision_loop(env, config, behaviour, state, appraisal, rows, work, total_timesteps, episodes)
 
 
@@ -102,7 +102,7 @@ def batch_columns(inputs: BatchInputs, seeds: Sequence[int], episodes: int) -> d
         keys[r, : len(w)] = w
         lengths[r] = len(w)
     n_rows = len(words) * episodes
-    out_i = np.zeros((n_rows, loop.N_OUT_I), dtype=np.int64)
+    out_i = np.zeros((n_rows, arrays.N_OUT_I), dtype=np.int64)
     out_f = np.zeros((n_rows, 2))
     behaviour = inputs.agent.behaviour
     run_seeds(
@@ -126,18 +126,18 @@ def batch_columns(inputs: BatchInputs, seeds: Sequence[int], episodes: int) -> d
     return {
         "seed": seed_column,
         "episode": np.tile(np.arange(1, episodes + 1, dtype=np.int64), len(words)),
-        "decisions": col_i[loop.O_DECISIONS],
-        "cells": col_i[loop.O_CELLS],
+        "decisions": col_i[arrays.O_DECISIONS],
+        "cells": col_i[arrays.O_CELLS],
         "reward": col_f[0],
-        "optimal": col_i[loop.O_OPTIMAL].astype(bool),
-        "truncated": col_i[loop.O_TRUNCATED].astype(bool),
-        "random_moves": col_i[loop.O_RANDOM].astype(np.float64),
-        "waits": col_i[loop.O_WAITS],
-        "joy": col_i[loop.O_JOY],
-        "sadness": col_i[loop.O_SADNESS],
-        "fear": col_i[loop.O_FEAR],
-        "anger": col_i[loop.O_ANGER],
-        "greedy_optimal": col_i[loop.O_GREEDY].astype(bool),
+        "optimal": col_i[arrays.O_OPTIMAL].astype(bool),
+        "truncated": col_i[arrays.O_TRUNCATED].astype(bool),
+        "random_moves": col_i[arrays.O_RANDOM].astype(np.float64),
+        "waits": col_i[arrays.O_WAITS],
+        "joy": col_i[arrays.O_JOY],
+        "sadness": col_i[arrays.O_SADNESS],
+        "fear": col_i[arrays.O_FEAR],
+        "anger": col_i[arrays.O_ANGER],
+        "greedy_optimal": col_i[arrays.O_GREEDY].astype(bool),
         "norm": col_f[1],
     }
 
@@ -151,20 +151,20 @@ def warm_up() -> None:
 
     env = GridPursuitEnv(size=3, goal=(2, 2))
     table = TableArrays.of(env)
-    agent = KernelAgent(loop.AFFECT, behaviour_arrays([(True, [1, 2])] + [(False, [1])] * 3), False, True, True, 1.0, 0.0)
+    agent = KernelAgent(arrays.AFFECT, behaviour_arrays([(True, [1, 2])] + [(False, [1])] * 3), False, True, True, 1.0, 0.0)
     config = kernel_config(AffectQSettings(max_episode_decisions=50), agent, table, 0)
     alpha, p = np.ones(1), np.zeros(1)
-    out_i, out_f = np.zeros((1, loop.N_OUT_I), dtype=np.int64), np.zeros((1, 2))
+    out_i, out_f = np.zeros((1, arrays.N_OUT_I), dtype=np.int64), np.zeros((1, 2))
     keys, lengths = np.zeros((1, 1), dtype=np.int64), np.ones(1, dtype=np.int64)
     run_seeds(keys, lengths, 0.0, 4, table.env, config, agent.behaviour, 2, alpha, p, 1, out_i, out_f)
     mt = np.zeros(STATE_SIZE, dtype=np.int64)
     seed_state(mt, keys[0], 1)
-    ist = np.zeros(loop.N_IST, dtype=np.int64)
-    ist[loop.I_GREEDY] = -1
-    fst = np.zeros(loop.N_FST)
-    fst[loop.S_NORM] = np.nan
-    state = loop.RunState(np.zeros((9, 4)), mt, ist, fst, np.zeros((9, 4), dtype=np.int64), np.zeros(9, dtype=np.int64))
-    appraisal = loop.Appraisal(
+    ist = np.zeros(arrays.N_IST, dtype=np.int64)
+    ist[arrays.I_GREEDY] = -1
+    fst = np.zeros(arrays.N_FST)
+    fst[arrays.S_NORM] = np.nan
+    state = arrays.RunState(np.zeros((9, 4)), mt, ist, fst, np.zeros((9, 4), dtype=np.int64), np.zeros(9, dtype=np.int64))
+    appraisal = arrays.Appraisal(
         np.full(9, np.inf),
         np.zeros((9, 4), dtype=np.bool_),
         np.zeros((9, 2), dtype=np.int64),
@@ -172,4 +172,4 @@ def warm_up() -> None:
         np.zeros(9, dtype=np.bool_),
         np.zeros(4),
     )
-    loop.run(table.env, config, agent.behaviour, state, appraisal, loop.Episodes(alpha, p, out_i, out_f), 50, 1)
+    loop.run(table.env, config, agent.behaviour, state, appraisal, arrays.Episodes(alpha, p, out_i, out_f), 50, 1)

@@ -23,7 +23,7 @@ import numpy as np
 from gymnasium.wrappers import OrderEnforcing, PassiveEnvChecker, TimeLimit
 
 from sb3_affect.envs.transition_table import TransitionTable
-from sb3_affect.kernel import loop
+from sb3_affect.kernel import arrays
 from sb3_affect.kernel.agents import COMPENSATED_SUM, KernelAgent, kernel_agent
 from sb3_affect.registry import known_settings
 
@@ -62,14 +62,14 @@ class TableArrays:
         self.max_pred = max(1, int(into.max()))
 
     @property
-    def env(self) -> loop.EnvTable:
+    def env(self) -> arrays.EnvTable:
         """The kernel's ``EnvTable``."""
-        return loop.EnvTable(self.trans, self.tdist)
+        return arrays.EnvTable(self.trans, self.tdist)
 
 
-def kernel_config(settings: Any, agent: KernelAgent, table: TableArrays, time_limit: int) -> loop.Config:
+def kernel_config(settings: Any, agent: KernelAgent, table: TableArrays, time_limit: int) -> arrays.Config:
     """The kernel's ``Config`` for an agent of these settings on an env of this table."""
-    return loop.Config(
+    return arrays.Config(
         kind=int(agent.kind),
         goal=table.goal,
         start=table.start,
@@ -125,7 +125,7 @@ class BatchInputs(NamedTuple):
 
     agent: KernelAgent
     table: TableArrays
-    config: loop.Config
+    config: arrays.Config
     alpha: np.ndarray  # learning rate per episode
     p: np.ndarray  # exploration parameter per episode
     q_init: float
