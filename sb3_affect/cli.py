@@ -108,17 +108,16 @@ def _print_status(root: Path) -> None:
     from sb3_affect.experiments import ResultsStore
 
     store = ResultsStore(root)
-    name, per_agent = store.progress()  # agent -> (runs, done, failed)
+    name, per_agent, rejected = store.progress()  # agent -> (runs, done, failed); files that do not count
     total, done, failed = (sum(counts[i] for counts in per_agent.values()) for i in range(3))
     print(f"sweep {name!r} in {store.root}: {done}/{total} runs done, {failed} failed")
     for agent, (runs, done_agent, failed_agent) in per_agent.items():
         print(f"  {agent:24s} {done_agent:5d}/{runs:<5d} done  {failed_agent} failed")
-    lock = store.root / ".lock"
-    if lock.exists():
-        owner = store.lock_owner()
-        recorded = lock.read_text().split()[:1] or ["?"]
-        state = "running" if owner is not None else "gone: stale lock, the next run takes it over"
-        print(f"  locked by launcher pid {recorded[0]} ({state})")
+    for path, why in rejected:
+        print(f"  not counted: {path} {why}; the next run moves it to damaged/ and runs its runs again")
+    owner = store.lock_owner()
+    if owner is not None:
+        print(f"  in use by launcher pid {owner} (running)")
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
