@@ -82,8 +82,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_status(args: argparse.Namespace) -> int:
+    from sb3_affect.experiments import ResultsStore
+
     root = _existing_folder(args.dir, "status")
-    if (root / "sweep.json").exists():
+    if ResultsStore(root).saved_sweep() is not None:  # sweep.json, or a copy of it when it was deleted
         _print_status(root)
         return 0
     # A `replicate` folder: one sweep folder per part (paper/, dqn/, ...).

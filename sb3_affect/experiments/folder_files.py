@@ -25,6 +25,7 @@ class DamagedFile(ValueError):
 
 
 _T = TypeVar("_T")
+_REDO = "move it out of the folder, then rerun its sweep (the same `sb3-affect run` command) to run its runs again"
 
 
 def guarded(path: Path, read: Callable[[Path], _T]) -> _T:
@@ -32,15 +33,15 @@ def guarded(path: Path, read: Callable[[Path], _T]) -> _T:
     try:
         return read(path)
     except OSError as error:
-        raise DamagedFile(f"{path}: can not be read ({error.strerror or error})") from None
+        if error.errno is not None:
+            raise DamagedFile(f"{path}: can not be read ({error.strerror or error})") from None
+        text = " ".join(str(error).split())  # pyarrow's errors of a garbled file (several lines)
+        raise DamagedFile(f"{path}: damaged data ({type(error).__name__}: {text}); {_REDO}") from None
     except Exception as error:
         if not isinstance(error, (ValueError, KeyError, TypeError)) and not type(error).__module__.startswith("pyarrow"):
             raise
-        text = str(error).splitlines()[0] if str(error) else ""
-        raise DamagedFile(
-            f"{path}: damaged data ({type(error).__name__}: {text}); rerun its sweep into the folder (the same "
-            "`sb3-affect run` command), which moves it to damaged/ and runs its runs again"
-        ) from None
+        text = " ".join(str(error).split())
+        raise DamagedFile(f"{path}: damaged data ({type(error).__name__}: {text}); {_REDO}") from None
 
 
 @dataclass
@@ -94,9 +95,11 @@ def check_chunk(path: Path) -> dict[str, Any]:
     try:
         meta = chunk_meta(path)
     except OSError as error:
-        raise DamagedFile(f"can not be read ({error.strerror or error})") from None
+        if error.errno is not None:
+            raise DamagedFile(f"can not be read ({error.strerror or error})") from None
+        raise DamagedFile(f"is not a readable chunk ({type(error).__name__}: {' '.join(str(error).split())})") from None
     except Exception as error:  # pyarrow's ArrowInvalid (a truncated or garbled file), a footer without our key
-        text = str(error).splitlines()[0] if str(error) else type(error).__name__
+        text = " ".join(str(error).split()) or type(error).__name__
         raise DamagedFile(f"is not a readable chunk ({type(error).__name__}: {text})") from None
     base, runs, timings = meta.get("base"), meta.get("runs"), meta.get("timings")
     if not isinstance(base, dict) or not isinstance(base.get("agent"), str) or not isinstance(base.get("labels"), dict):

@@ -200,7 +200,8 @@ class ResultsStore:
                     target = self.damaged / f"{path.parent.name}-{path.stem}.{count}{path.suffix}"
                 os.replace(path, target)
             except OSError as error:
-                raise StoreError(f"{path} {why}, and can not be moved aside ({error.strerror or error}); move it yourself") from None
+                reason = error.strerror or error
+                raise StoreError(f"{path} {why}, and can not be moved aside ({reason}); move it yourself") from None
             lines.append(f"{path} {why}: moved to {target}, its runs will be run again")
         return lines
 

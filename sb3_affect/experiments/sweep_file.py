@@ -75,7 +75,7 @@ def _override_path(assignment: str, data: dict[str, Any]) -> tuple[list[Any], An
     raw_path, _, raw = assignment.partition("=")
     keys: list[Any] = raw_path.strip().split(".")
     try:
-        value = yaml.load(raw, Loader=_StrictLoader)  # noqa: S506 - a safe loader
+        value = yaml.load(raw, Loader=_StrictLoader)  # a safe loader
     except yaml.YAMLError as error:
         raise SweepError(f"--set {assignment!r}: the value is not valid YAML ({error})") from None
     _check_size(value, f"--set {assignment!r}")
@@ -181,7 +181,7 @@ def load_sweep(path: str | Path, overrides: tuple[str, ...] | list[str] = (), *,
     except UnicodeDecodeError as error:
         raise SweepError(f"{path}: the sweep file is not UTF-8 text ({error})") from None
     try:
-        data = yaml.load(text, Loader=_StrictLoader)  # noqa: S506 - a safe loader
+        data = yaml.load(text, Loader=_StrictLoader)  # a safe loader
     except RecursionError:
         raise SweepError(f"{path}: malformed YAML: nested too deeply") from None
     except yaml.YAMLError as error:
