@@ -24,9 +24,15 @@ import torch as th
 from gymnasium import spaces
 from stable_baselines3.common.utils import ConstantSchedule, FloatSchedule, LinearSchedule, check_for_correct_spaces
 
+from sb3_affect.agent_checks import MAX_TABLE_ENTRIES, check_table_size
+
 PLAIN_MEMBER = "sb3_affect.json"
 FORMAT = 1
 _SPACE_KEYS = ("observation_space", "action_space")
+#: The largest JSON member (``data``, ``sb3_affect.json``) a file may declare, before anything is read.
+MAX_JSON_BYTES = 64 * 2**20
+#: Room in ``policy.pth`` beyond the Q-table's own bytes (torch's zip container and names).
+POLICY_OVERHEAD_BYTES = 2**20
 
 
 class ModelFileError(ValueError):
@@ -46,6 +52,8 @@ def space_from_plain(plain: Any, where: str) -> spaces.Discrete:
     n, start = plain.get("n"), plain.get("start", 0)
     if not isinstance(n, int) or isinstance(n, bool) or n < 1 or not isinstance(start, int) or isinstance(start, bool):
         raise ModelFileError(f"{where}: invalid Discrete space {plain!r}")
+    if n > MAX_TABLE_ENTRIES or abs(start) > 2**62:
+        raise ModelFileError(f"{where}: Discrete space of n={n:,} (start={start}) is larger than a Q-table can be")
     return spaces.Discrete(n, start=start)
 
 
@@ -177,6 +185,44 @@ def _open(path: Any) -> tuple[zipfile.ZipFile, str]:
         raise ModelFileError(f"{where}: can not read the model file ({error})") from None
 
 
+def _check_declared_size(archive: zipfile.ZipFile, name: str, limit: int, where: str) -> None:
+    """Refuse a member whose declared size is over ``limit`` (a zip bomb: reading stops at the declared size)."""
+    try:
+        info = archive.getinfo(name)
+    except KeyError:
+        return
+    if info.file_size > limit:
+        raise ModelFileError(
+            f"{where}: the {name!r} entry expands to {info.file_size:,} bytes ({info.compress_size:,} compressed), "
+            f"more than the {limit:,} a model of this size needs"
+        )
+
+
+def _check_values(cls: Any, restored: dict[str, Any], where: str) -> None:
+    """
+    The saved values, checked as the constructor checks its arguments (the agent's settings class), and no saved
+    entry may replace a method or property of the class (``predict: "x"``).
+    """
+    for key in restored:
+        attribute = getattr(cls, key, None)
+        if key.startswith("__") or callable(attribute) or isinstance(attribute, property):
+            raise ModelFileError(f"{where}: the saved entry {key!r} names a method of {cls.__name__}, not a saved value")
+    settings = getattr(cls, "settings_class", None)
+    if settings is None:
+        return
+    given = {name: restored[name] for name in settings.names() if name in restored}
+    table = given.get("behaviour_table")
+    if isinstance(table, dict) and all(isinstance(k, str) for k in table):  # stored by emotion name: as given
+        from sb3_affect.emotions import Emotion
+
+        names = {e.name.lower(): e for e in Emotion}
+        given["behaviour_table"] = {names.get(k, k): v for k, v in table.items()}
+    try:
+        settings(**given)
+    except (TypeError, ValueError) as error:
+        raise ModelFileError(f"{where}: a saved value is not allowed: {error}") from None
+
+
 def _read(archive: zipfile.ZipFile, name: str, where: str) -> bytes:
     try:
         return archive.read(name)
@@ -198,6 +244,8 @@ def load_safe(cls: Any, path: Any, env: Any = None, device: Any = "auto", force_
     archive, where = _open(path)
     optin = f"if you trust this file, load it with {cls.__name__}.load(path, safe=False)"
     with archive:
+        for name in ("data", PLAIN_MEMBER):
+            _check_declared_size(archive, name, MAX_JSON_BYTES, where)
         data = _json(_read(archive, "data", where), "data", where)
         if not isinstance(data, dict):
             raise ModelFileError(f"{where}: the 'data' entry is not a JSON object")
@@ -207,11 +255,19 @@ def load_safe(cls: Any, path: Any, env: Any = None, device: Any = "auto", force_
                 f"it means unpickling code from it, which safe loading refuses; {optin}"
             )
         twin = _json(_read(archive, PLAIN_MEMBER, where), PLAIN_MEMBER, where)
+        if not isinstance(twin, dict) or twin.get("format") != FORMAT:
+            raise ModelFileError(
+                f"{where}: unsupported {PLAIN_MEMBER} format {twin.get('format') if isinstance(twin, dict) else twin!r}"
+            )
+        observation_space = space_from_plain(twin.get("observation_space"), where)
+        action_space = space_from_plain(twin.get("action_space"), where)
+        try:
+            check_table_size(observation_space.n, action_space.n, f"{where}: observation space {observation_space}")
+        except ValueError as error:
+            raise ModelFileError(str(error)) from None
+        table_bytes = int(observation_space.n) * int(action_space.n) * 8
+        _check_declared_size(archive, "policy.pth", table_bytes + POLICY_OVERHEAD_BYTES, where)
         policy_bytes = _read(archive, "policy.pth", where)
-    if not isinstance(twin, dict) or twin.get("format") != FORMAT:
-        raise ModelFileError(
-            f"{where}: unsupported {PLAIN_MEMBER} format {twin.get('format') if isinstance(twin, dict) else twin!r}"
-        )
     expected = f"{cls.__module__}:{cls.__qualname__}"
     if twin.get("algorithm") != expected:
         saved = str(twin.get("algorithm", "?")).rpartition(":")[2]
@@ -222,8 +278,6 @@ def load_safe(cls: Any, path: Any, env: Any = None, device: Any = "auto", force_
             f"{where}: policy {twin.get('policy')!r} is not one of {sorted(cls.policy_aliases)}; a custom policy class "
             f"can only be unpickled; {optin}"
         )
-    observation_space = space_from_plain(twin.get("observation_space"), where)
-    action_space = space_from_plain(twin.get("action_space"), where)
     values, derived = twin.get("values", {}), set(twin.get("derived", []))
     restored: dict[str, Any] = {}
     for key, stored in data.items():
@@ -239,6 +293,7 @@ def load_safe(cls: Any, path: Any, env: Any = None, device: Any = "auto", force_
     if "policy_kwargs" in restored and not isinstance(restored["policy_kwargs"], dict):
         raise ModelFileError(f"{where}: policy_kwargs must be a JSON object")
     (restored.get("policy_kwargs") or {}).pop("device", None)
+    _check_values(cls, restored, where)
 
     if env is not None:
         env = cls._wrap_env(env, restored.get("verbose", 0))

@@ -27,10 +27,12 @@ from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, Schedule
 from stable_baselines3.common.vec_env import DummyVecEnv
 
+from sb3_affect.agent_checks import check_table_size, check_total_timesteps
 from sb3_affect.episode_log import Geometry, env_geometry, make_frame
 from sb3_affect.goals import GoalTest, positive_terminal_reward
 from sb3_affect.loop import close_episode, run_loop
 from sb3_affect.policies import TabularQPolicy, check_not_gym_tuple
+from sb3_affect.qtable import VisitedRows
 from sb3_affect.serialization import add_plain_description, load_safe
 from sb3_affect.settings import ENGINES, MULTI_CELLS, TIE_BREAKS, TabularSettings, check_tabular
 
@@ -129,6 +131,7 @@ class TabularQAlgorithm(BaseAlgorithm):
             )
         if not isinstance(action_space, spaces.Discrete):
             raise TypeError(f"action space {action_space} is not supported: tabular agents need a Discrete action space")
+        check_table_size(observation_space.n, action_space.n, f"observation space {observation_space}")
 
     # -- set-up ------------------------------------------------------------------------------------------------
     def _setup_model(self) -> None:
@@ -224,6 +227,7 @@ class TabularQAlgorithm(BaseAlgorithm):
         :param progress_bar: show a progress bar (tqdm and rich)
         :return: the trained model
         """
+        total_timesteps = check_total_timesteps(total_timesteps)
         if reset_num_timesteps:
             self._episode_rows = []
             self._truncated_episodes = 0
@@ -246,11 +250,13 @@ class TabularQAlgorithm(BaseAlgorithm):
         env = self._single_env()
         self._geometry: Geometry | None = env_geometry(env)
         self._greedy_optimal: bool | None = None
-        q: list[list[float]] = self.policy.q_table.tolist()
+        compiled = self._use_kernel(env, callback)
+        # The kernel reads the whole table; the Python loop makes a row the first time it visits its state.
+        q: Any = self.policy.q_table.tolist() if compiled else VisitedRows(self.policy.q_table)
         self._q = q
         self._update_schedules()
         try:
-            if self._use_kernel(env, callback):
+            if compiled:
                 from sb3_affect.kernel.bridge import learn_compiled
 
                 learn_compiled(self, env, total_timesteps, callback, log_interval)
@@ -348,7 +354,9 @@ class TabularQAlgorithm(BaseAlgorithm):
     def _sync_policy(self) -> None:
         """Write the loop's Python Q-table back into the policy's tensor."""
         q = getattr(self, "_q", None)
-        if q is not None:
+        if isinstance(q, VisitedRows):
+            q.write_back()
+        elif q is not None:
             self.policy.q_table.copy_(th.tensor(q, dtype=th.float64))
 
     def predict(
