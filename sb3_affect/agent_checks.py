@@ -47,9 +47,8 @@ def check_total_timesteps(total_timesteps: Any) -> int:
     value = total_timesteps
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
         raise TypeError(f"total_timesteps must be a whole number of decisions >= 0, got {value!r}")
-    if isinstance(value, (float, np.floating)):
-        if not math.isfinite(value) or value != math.floor(value):
-            raise ValueError(f"total_timesteps={value!r} must be a whole number of decisions >= 0")
+    if isinstance(value, (float, np.floating)) and (not math.isfinite(value) or value != math.floor(value)):
+        raise ValueError(f"total_timesteps={value!r} must be a whole number of decisions >= 0")
     if value < 0:
         raise ValueError(f"total_timesteps={value!r} must be >= 0 (0 takes no decision)")
     return int(value)

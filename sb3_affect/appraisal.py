@@ -70,7 +70,7 @@ class PowerFit:
         return fit
 
 
-class _Rows(dict):  # type: ignore[type-arg]
+class _Rows(dict):
     """
     One container per state, made the first time the state is used (a dict underneath: a map of millions of states
     holds only the rows of the states the agent has seen). Indexed and iterated as a list of ``n_states`` rows; an

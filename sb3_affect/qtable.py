@@ -6,12 +6,10 @@ state of the whole table).
 
 from __future__ import annotations
 
-from typing import Any
-
 import torch as th
 
 
-class VisitedRows(dict):  # type: ignore[type-arg]
+class VisitedRows(dict):
     """
     ``rows[state]``: the Q-values of ``state`` as a Python list (what the loop reads and updates in place), read from
     ``table`` the first time the state is used. ``write_back`` copies the visited rows into ``table``.
