@@ -61,7 +61,7 @@ def test_learn_with_a_fractional_count_is_refused_not_spun_forever() -> None:
 @pytest.mark.parametrize("bad", [-1, 3.7, 0.99, True, 225, math.nan, [0, 999], np.array([[1], [-2]]), "x", None])
 def test_predict_refuses_observations_outside_the_space(cls: type, bad: object) -> None:
     model = cls("Grid", gym.make(ENV_ID), seed=0)
-    with pytest.raises(ValueError, match="observation .* (outside the observation space|not a whole number|not a state)"):
+    with pytest.raises(ValueError, match=r"observation .* (outside the observation space|not a whole number|not a state)"):
         model.predict(bad, deterministic=True)
     with pytest.raises(ValueError, match="observation"):
         model.predict(bad, deterministic=False)
