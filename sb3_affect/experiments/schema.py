@@ -39,7 +39,7 @@ import json
 import math
 import re
 from dataclasses import dataclass
-from typing import Annotated, Any
+from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
 
@@ -243,7 +243,7 @@ class Sweep(BaseModel):
     episodes: int = Field(
         gt=0, le=MAX_EPISODES, description=f"episodes per run (1 to {MAX_EPISODES:,}); a run stops after this many"
     )
-    seeds: Annotated[int, Field(gt=0, le=MAX_SEEDS)] | list[Annotated[int, Field(ge=0, le=MAX_SEED)]] = Field(
+    seeds: int | list[int] = Field(
         description=f"a count N (1 to {MAX_SEEDS:,}; seeds derived by sha256 of sweep, agent, grid point and replicate) "
         f"or an explicit list of distinct integers in [0, 2**32 - 1], the same for every grid point; at most "
         f"{MAX_RUNS:,} runs in all (grid points x seeds over the agents)"
@@ -265,6 +265,11 @@ class Sweep(BaseModel):
     def _some_seeds(cls, value: int | list[int]) -> int | list[int]:
         if isinstance(value, int) and value <= 0:
             raise ValueError(f"seeds={value} must be a positive count or a non-empty list of integers")
+        if isinstance(value, int) and value > MAX_SEEDS:
+            raise ValueError(f"seeds={value:,} is more than the {MAX_SEEDS:,} seeds allowed per grid point")
+        bad = [seed for seed in value if not 0 <= seed <= MAX_SEED] if isinstance(value, list) else []
+        if bad:
+            raise ValueError(f"seeds: {bad[0]} is not a seed; seeds are integers in [0, 2**32 - 1] (NumPy's)")
         if isinstance(value, list) and (not value or len(set(value)) != len(value)):
             raise ValueError("seeds must be a non-empty list of distinct integers")
         if isinstance(value, list) and len(value) > MAX_SEEDS:
