@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import sys
 import threading
@@ -128,8 +129,15 @@ def _cmd_report(args: argparse.Namespace) -> int:
     root = _existing_folder(args.dir, "report")
     if not any(root.iterdir()):
         raise UsageError(f"{args.dir}: the folder is empty; run a sweep into it (`sb3-affect run FILE --out {args.dir}`)")
+    out = Path(args.out) if args.out else root
+    _check_out(str(out))
+    unwritable = f"{out}: not writable, so the report can not be written there; write it elsewhere with --out DIR"
+    if out.exists() and not os.access(out, os.W_OK | os.X_OK):
+        raise UsageError(unwritable)
     try:
-        path = build_report(root)
+        path = build_report(root, out=out)
+    except PermissionError as error:
+        raise UsageError(f"{unwritable} ({error.strerror}: {error.filename})") from None
     except (FileNotFoundError, ValueError) as error:  # no results in a layout the report knows, or no finished run
         raise UsageError(f"{args.dir}: no report can be built: {error}") from None
     print(f"report: {path} and {path.with_suffix('.html')} (open it in a browser)")
@@ -220,6 +228,9 @@ def build_parser() -> argparse.ArgumentParser:
         "A `replicate` folder gives the full report; a single sweep folder the sections its runs allow.",
     )
     report.add_argument("dir", metavar="DIR", help="a results folder (the --out of `run` or `replicate`)")
+    report.add_argument(
+        "--out", metavar="OUT", default=None, help="write the report here instead of into DIR (e.g. DIR is read-only)"
+    )
     report.set_defaults(func=_cmd_report)
     replicate = sub.add_parser(
         "replicate",

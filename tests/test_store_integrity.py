@@ -163,3 +163,48 @@ def test_saved_sweep_is_read_without_importing(folder: tuple[Path, Path, dict[st
     status(out, capsys)
     main(["report", str(out)])
     assert not (tmp_path / "PWNED").exists()
+
+
+def _read_only(folder: Path) -> Any:
+    """Make ``folder`` read-only for real: chmod for a normal user, a read-only bind mount for root (None: can not)."""
+    import os
+    import subprocess
+
+    if os.geteuid() != 0:
+        folder.chmod(0o555)
+        return lambda: folder.chmod(0o755)
+    if subprocess.run(["mount", "--bind", str(folder), str(folder)], capture_output=True).returncode != 0:
+        return None
+    if subprocess.run(["mount", "-o", "remount,ro,bind", str(folder)], capture_output=True).returncode != 0:
+        subprocess.run(["umount", str(folder)], check=False)
+        return None
+    return lambda: subprocess.run(["umount", str(folder)], check=False)
+
+
+def test_report_of_a_read_only_folder_names_it_and_writes_elsewhere(
+    folder: tuple[Path, Path, dict[str, Any]], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    _, out, _ = folder
+    undo = _read_only(out)
+    if undo is None:
+        pytest.skip("can not make a folder read-only here")
+    try:
+        capsys.readouterr()
+        assert main(["report", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and str(out) in err and "--out" in err and "Traceback" not in err
+        elsewhere = tmp_path / "report"
+        assert main(["report", str(out), "--out", str(elsewhere)]) == 0
+        assert (elsewhere / "report.html").exists()
+    finally:
+        undo()
+
+
+def test_a_sweep_into_a_replication_folder_is_refused(folder: tuple[Path, Path, dict[str, Any]], tmp_path: Path) -> None:
+    sweep, out, _ = folder
+    replication = tmp_path / "runs"
+    replication.mkdir()
+    shutil.copytree(out, replication / "paper")
+    with pytest.raises(StoreError, match=f"holds a replication .*paper/.*--out {replication / 'faults'}"):
+        run_sweep(sweep, replication, workers=1, progress=False)
+    assert not (replication / "sweep.json").exists()

@@ -359,11 +359,13 @@ class ResultsStore:
 
 
 def replication_parts(root: Path) -> list[str]:
-    """The sub-folders of ``root`` that hold a sweep (``sb3-affect replicate`` writes one per part), or []."""
+    """The sub-folders of ``root`` that hold a sweep (``sb3-affect replicate`` writes one per part, and
+    ``replicate.json``), or []."""
     try:
-        return sorted(f"{p.name}/" for p in root.iterdir() if (p / "sweep.json").exists())
+        parts = sorted(f"{p.name}/" for p in root.iterdir() if (p / "sweep.json").exists())
     except OSError:
         return []
+    return parts or (["replicate.json"] if (root / "replicate.json").exists() else [])
 
 
 def _agent_names(resolved: dict[str, Any]) -> list[str]:
