@@ -36,7 +36,11 @@ POLICY_OVERHEAD_BYTES = 2**20
 
 
 class ModelFileError(ValueError):
-    """A model file that is missing, corrupt, foreign or can not be loaded safely."""
+    """A model file that is missing, corrupt, foreign or can not be loaded safely (one line: the causes quoted in it,
+    torch's and zipfile's, are folded onto it)."""
+
+    def __init__(self, message: str) -> None:
+        super().__init__(" ".join(str(message).split()))
 
 
 # -- plain forms ------------------------------------------------------------------------------------------------------
@@ -240,7 +244,23 @@ def _json(raw: bytes, name: str, where: str) -> Any:
 
 
 def load_safe(cls: Any, path: Any, env: Any = None, device: Any = "auto", force_reset: bool = True, **kwargs: Any) -> Any:
-    """Rebuild a ``cls`` model from ``path`` without unpickling anything (see the module docstring)."""
+    """
+    Rebuild a ``cls`` model from ``path`` without unpickling anything (see the module docstring). Whatever the file
+    holds, the outcome is a model or a ``ModelFileError`` naming the file (a value of the wrong type anywhere in its
+    JSON included), never another exception from deep inside the rebuild.
+    """
+    where = str(path if isinstance(path, (str, pathlib.Path)) else getattr(path, "name", "<file object>"))
+    try:
+        return _load_safe(cls, path, env, device, force_reset, **kwargs)
+    except (ModelFileError, FileNotFoundError):
+        raise
+    except (TypeError, ValueError, KeyError, IndexError, AttributeError, OverflowError, RuntimeError) as error:
+        if env is not None and "spaces" in str(error).lower():  # check_for_correct_spaces: the caller's env, not the file
+            raise
+        raise ModelFileError(f"{where}: not a model this loader can rebuild ({type(error).__name__}: {error})") from None
+
+
+def _load_safe(cls: Any, path: Any, env: Any, device: Any, force_reset: bool, **kwargs: Any) -> Any:
     archive, where = _open(path)
     optin = f"if you trust this file, load it with {cls.__name__}.load(path, safe=False)"
     with archive:
@@ -268,6 +288,11 @@ def load_safe(cls: Any, path: Any, env: Any = None, device: Any = "auto", force_
         table_bytes = int(observation_space.n) * int(action_space.n) * 8
         _check_declared_size(archive, "policy.pth", table_bytes + POLICY_OVERHEAD_BYTES, where)
         policy_bytes = _read(archive, "policy.pth", where)
+        if len(policy_bytes) < table_bytes:  # torch stores a tensor's bytes whole: the declared table is not in it
+            raise ModelFileError(
+                f"{where}: policy.pth holds {len(policy_bytes):,} bytes, fewer than the {table_bytes:,} of the "
+                f"{observation_space.n} x {action_space.n} Q-table the file declares"
+            )
     expected = f"{cls.__module__}:{cls.__qualname__}"
     if twin.get("algorithm") != expected:
         saved = str(twin.get("algorithm", "?")).rpartition(":")[2]
