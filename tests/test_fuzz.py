@@ -6,6 +6,7 @@ traceback), imports no module, runs nothing, and stays within bounded time and m
 
 from __future__ import annotations
 
+import contextlib
 import io
 import json
 import resource
@@ -49,8 +50,9 @@ scalars = st.one_of(
     st.sampled_from(["QLearning", "AffectQ", "$e", "fuzzmod:Marker", "subprocess:Popen", "collections:OrderedDict",
                      "sb3_affect/GridPursuit-v0", "fuzzmod:Env-v0", ".hidden", "x" * 300, "1e12", "-7"]),
 )
-values = st.recursive(scalars, lambda inner: st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=8), inner, max_size=4),
-                      max_leaves=12)
+values = st.recursive(
+    scalars, lambda inner: st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=8), inner, max_size=4), max_leaves=12
+)
 KEY_PATHS = [
     ("name",), ("episodes",), ("seeds",), ("max_timesteps",), ("logs",), ("env",), ("env", "id"), ("env", "kwargs"),
     ("env", "kwargs", "size"), ("agents",), ("agents", 0), ("agents", 0, "name"), ("agents", 0, "algo"),
@@ -84,10 +86,8 @@ def sweep_texts(draw: st.DrawFn) -> str:
         ]))
     data = json.loads(json.dumps(VALID))
     for path in draw(st.lists(st.sampled_from(KEY_PATHS), min_size=1, max_size=3)):
-        try:
+        with contextlib.suppress(KeyError, IndexError, TypeError):
             _set(data, path, draw(values))
-        except (KeyError, IndexError, TypeError):
-            pass
     return yaml.safe_dump(data)
 
 
@@ -144,17 +144,13 @@ def test_fuzzed_saved_sweeps_import_nothing(data: st.DataObject, fuzzmod: Path) 
     """A results folder's ``sweep.json`` (what ``status`` and ``report`` read) is validated without any import."""
     saved = json.loads(json.dumps(VALID))
     for path in data.draw(st.lists(st.sampled_from(KEY_PATHS), min_size=1, max_size=3)):
-        try:
+        with contextlib.suppress(KeyError, IndexError, TypeError):
             _set(saved, path, data.draw(values))
-        except (KeyError, IndexError, TypeError):
-            pass
     sys.modules.pop("fuzzmod", None)  # (the sweep-file fuzz may have imported it: a sweep file names code to run)
     (fuzzmod / "IMPORTED").unlink(missing_ok=True)
     modules = set(sys.modules)
-    try:
+    with contextlib.suppress(ValueError):
         Sweep.validate_saved(saved)
-    except ValueError:
-        pass
     assert not _new_modules(modules), _new_modules(modules)
     assert not (fuzzmod / "IMPORTED").exists() and not (fuzzmod / "INSTANTIATED").exists()
 
@@ -198,7 +194,7 @@ def model_files(draw: st.DrawFn, raw: bytes) -> bytes:
         return _zip(members)
     name = draw(st.sampled_from(["data", "sb3_affect.json"]))
     document = json.loads(members[name])
-    keys = sorted(document) + ["predict", "learn", "__class__", "observation_space"]
+    keys = [*sorted(document), "predict", "learn", "__class__", "observation_space"]
     for key in draw(st.lists(st.sampled_from(keys), min_size=1, max_size=3)):
         document[key] = draw(values)
     if name == "sb3_affect.json" and draw(st.booleans()):
