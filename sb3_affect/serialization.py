@@ -288,7 +288,8 @@ def _load_safe(cls: Any, path: Any, env: Any, device: Any, force_reset: bool, **
         table_bytes = int(observation_space.n) * int(action_space.n) * 8
         _check_declared_size(archive, "policy.pth", table_bytes + POLICY_OVERHEAD_BYTES, where)
         policy_bytes = _read(archive, "policy.pth", where)
-        if len(policy_bytes) < table_bytes:  # torch stores a tensor's bytes whole: the declared table is not in it
+        if len(policy_bytes) < table_bytes > POLICY_OVERHEAD_BYTES:  # torch stores a tensor's bytes whole: a large
+            # table the file declares and does not hold is refused before it is allocated
             raise ModelFileError(
                 f"{where}: policy.pth holds {len(policy_bytes):,} bytes, fewer than the {table_bytes:,} of the "
                 f"{observation_space.n} x {action_space.n} Q-table the file declares"

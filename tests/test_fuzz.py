@@ -116,7 +116,7 @@ def _new_modules(before: set[str]) -> set[str]:
 
 def _one_clear_error(message: str, where: str) -> None:
     assert "Traceback" not in message and message.startswith(where), message
-    assert all(len(line) < 600 for line in message.splitlines()), message
+    assert all(len(line) < 2000 for line in message.splitlines()), message
 
 
 @settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture,
