@@ -168,7 +168,7 @@ class ResultsStore:
                 same = set(previous["runs"]) == wanted
             if not same:
                 raise StoreError(refusal.format(name=previous.get("name", "?")))
-        files = self.check_files((lambda rid, agent: rid in wanted) if wanted else None)
+        files = self._check_files((lambda rid, agent: rid in wanted) if wanted else None)
         if previous is None and any("another sweep" in why for _, why in files.rejected):
             raise StoreError(refusal.format(name="its sweep.json is gone; its files name other runs"))
         for name in ("sweep.json", *IDENTITY_COPIES):
@@ -252,7 +252,7 @@ class ResultsStore:
     def _chunk_files(self) -> list[Path]:
         return sorted(p for p in self.chunks.glob("*.parquet") if not p.name.startswith("."))
 
-    def check_files(self, belongs: Callable[[str, str], bool] | None) -> FolderFiles:
+    def _check_files(self, belongs: Callable[[str, str], bool] | None) -> FolderFiles:
         """Every run file and chunk, read and sorted out (``folder_files.sort_files``)."""
         return sort_files(self._json_files(), self._chunk_files(), belongs)
 
@@ -270,10 +270,10 @@ class ResultsStore:
             runs.update(dict.fromkeys(cell_run_ids(cell), cell.base["agent"]))
         return runs
 
-    def checked(self) -> FolderFiles:
+    def _checked(self) -> FolderFiles:
         """The files that count; StoreError naming the first that does not (a rerun sets them aside)."""
         runs = self._sweep_runs()
-        files = self.check_files(None if runs is None else lambda rid, agent: runs.get(rid) == agent)
+        files = self._check_files(None if runs is None else lambda rid, agent: runs.get(rid) == agent)
         if files.rejected:
             path, why = files.rejected[0]
             more = f" (and {len(files.rejected) - 1} more)" if len(files.rejected) > 1 else ""
@@ -296,7 +296,7 @@ class ResultsStore:
         totals = {agent: 0 for agent in _agent_names(resolved)}
         for agent in runs.values():
             totals[agent] = totals.get(agent, 0) + 1
-        files = self.check_files(lambda rid, agent: runs.get(rid) == agent)
+        files = self._check_files(lambda rid, agent: runs.get(rid) == agent)
         done_ids = files.done_ids()
         done = {name: 0 for name in totals}
         for rid in done_ids:
@@ -309,7 +309,7 @@ class ResultsStore:
 
     def done_ids(self) -> set[str]:
         """Every finished run, in either layout (chunks: from their footers only), of the files that count."""
-        return self.check_files(None).done_ids()
+        return self._check_files(None).done_ids()
 
     def failed_ids(self) -> set[str]:
         return {p.stem for p in self.failed.glob("*.json") if not p.name.startswith(".")}
@@ -317,7 +317,7 @@ class ResultsStore:
     def load_runs(self) -> list[dict[str, Any]]:
         """Every finished run as a record of the JSON layout (``run_id``, ``config``, ``episodes`` lists, ...): for
         small folders; large ones read ``runs_frame`` and ``episodes_frame``."""
-        files = self.checked()
+        files = self._checked()
         records = [json.loads(p.read_text()) for p in files.run_files]
         for path in files.chunk_files:
             records.extend(guarded(path, chunk_records))
@@ -331,7 +331,7 @@ class ResultsStore:
         """
         from sb3_affect.experiments.reading import read_folder  # (pandas: not on the launcher's path)
 
-        files = self.checked()
+        files = self._checked()
         return read_folder(list(files.run_files), list(files.chunk_files), None, self.root)[0]
 
     def results(self, columns: Sequence[str] | None = None, seed: bool = True) -> tuple[pd.DataFrame, pd.DataFrame]:
@@ -347,7 +347,7 @@ class ResultsStore:
         """
         from sb3_affect.experiments.reading import RUN_COLUMNS, episode_table, read_folder
 
-        files = self.checked()
+        files = self._checked()
         wanted = EPISODE_COLUMNS if columns is None else tuple(columns)
         runs, data = read_folder(list(files.run_files), list(files.chunk_files), wanted, self.root)
         labels = [c for c in runs.columns if c not in RUN_COLUMNS]
