@@ -263,10 +263,18 @@ class ResultsStore:
             return None
         if isinstance(resolved.get("runs"), dict):  # a folder written before chunks lists every run
             return {rid: c["agent"] for rid, c in resolved["runs"].items()}
+        from pydantic import ValidationError
+
         from sb3_affect.experiments.schema import Sweep
 
+        try:
+            sweep = Sweep.validate_saved(resolved["sweep"])
+        except ValidationError as error:
+            first = error.errors()[0]
+            where = ".".join(str(part) for part in first["loc"])
+            raise StoreError(f"{self.root / 'sweep.json'}: the saved sweep is not valid ({where}: {first['msg']})") from None
         runs: dict[str, str] = {}
-        for cell in Sweep.validate_saved(resolved["sweep"]).cells():
+        for cell in sweep.cells():
             runs.update(dict.fromkeys(cell_run_ids(cell), cell.base["agent"]))
         return runs
 
