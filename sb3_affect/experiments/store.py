@@ -367,13 +367,16 @@ class ResultsStore:
 
 
 def replication_parts(root: Path) -> list[str]:
-    """The sub-folders of ``root`` that hold a sweep (``sb3-affect replicate`` writes one per part, and
-    ``replicate.json``), or []."""
-    try:
-        parts = sorted(f"{p.name}/" for p in root.iterdir() if (p / "sweep.json").exists())
-    except OSError:
+    """
+    The sweep sub-folders of ``root`` when it holds a replication (``sb3-affect replicate``'s folder: marked by its
+    ``replicate.json``, or, written before that record, by a ``paper/`` sweep), else [].
+    """
+    if not (root / "replicate.json").exists() and not (root / "paper" / "sweep.json").exists():
         return []
-    return parts or (["replicate.json"] if (root / "replicate.json").exists() else [])
+    try:
+        return sorted(f"{p.name}/" for p in root.iterdir() if (p / "sweep.json").exists()) or ["replicate.json"]
+    except OSError:
+        return ["replicate.json"]
 
 
 def _agent_names(resolved: dict[str, Any]) -> list[str]:
