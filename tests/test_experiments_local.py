@@ -418,42 +418,54 @@ _RACER = """
 import json, os, sys, time
 from pathlib import Path
 from sb3_affect.experiments import ResultsStore, StoreError
-out, log, go = Path(sys.argv[1]), Path(sys.argv[2]), float(sys.argv[3])
-while time.time() < go:
-    pass
-try:
-    with ResultsStore(out).lock():
-        with log.open("a") as handle:
-            handle.write(json.dumps(["in", os.getpid(), time.time()]) + "\\n")
-        time.sleep(0.3)
-        with log.open("a") as handle:
-            handle.write(json.dumps(["out", os.getpid(), time.time()]) + "\\n")
-except StoreError:
-    pass
+out, log, go, rounds, stale = Path(sys.argv[1]), Path(sys.argv[2]), float(sys.argv[3]), int(sys.argv[4]), sys.argv[5]
+for r in range(rounds):
+    start = go + 0.4 * r
+    if stale != "none" and sys.argv[6] == "0":  # the first racer leaves what a dead launcher of the pid-file lock left
+        while time.time() < start - 0.12:
+            pass
+        (out / ".lock").write_text("" if stale == "empty" else stale)
+    while time.time() < start:
+        pass
+    try:
+        with ResultsStore(out).lock():
+            with log.open("a") as handle:
+                handle.write(json.dumps(["in", r, os.getpid(), time.time()]) + "\\n")
+            time.sleep(0.08)
+            with log.open("a") as handle:
+                handle.write(json.dumps(["out", r, os.getpid(), time.time()]) + "\\n")
+    except StoreError:
+        pass
 """
 
 
 @pytest.mark.parametrize("stale", ["none", "empty", "dead pid"])
 def test_racing_launchers_never_both_hold_the_lock(tmp_path: Path, stale: str) -> None:
-    """4 real processes race on ``ResultsStore.lock()``, started together, 6 times: never two holders at once."""
+    """
+    4 real processes race on ``ResultsStore.lock()`` in 25 rounds, all starting each round at the same instant (with
+    a stale lock file of the pid-file era before each round, or none): never two holders at once.
+    """
     dead = subprocess.Popen(["true"])
     dead.wait()
-    for trial in range(6):
-        out, log = tmp_path / f"out{trial}", tmp_path / f"log{trial}"
-        out.mkdir()
-        if stale != "none":  # what a launcher of the pid-file lock left behind
-            (out / ".lock").write_text("" if stale == "empty" else str(dead.pid))
-        go = time.time() + 1.0
-        racers = [subprocess.Popen([sys.executable, "-c", _RACER, str(out), str(log), str(go)]) for _ in range(4)]
-        for racer in racers:
-            assert racer.wait(timeout=60) == 0
-        events = sorted((json.loads(line) for line in log.read_text().splitlines()), key=lambda e: e[2])
-        holders = 0
-        for kind, _, _ in events:
-            holders += 1 if kind == "in" else -1
-            assert holders <= 1, f"trial {trial}: two launchers held the lock at once: {events}"
-        assert sum(kind == "in" for kind, _, _ in events) >= 1
-        assert unlocked(out)
+    out, log, rounds = tmp_path / "out", tmp_path / "log", 25
+    out.mkdir()
+    mark = {"none": "none", "empty": "empty", "dead pid": str(dead.pid)}[stale]
+    go = time.time() + 3.0  # time for the 4 interpreters to start
+    racers = [
+        subprocess.Popen([sys.executable, "-c", _RACER, str(out), str(log), str(go), str(rounds), mark, str(i)])
+        for i in range(4)
+    ]
+    for racer in racers:
+        assert racer.wait(timeout=120) == 0
+    events = sorted((json.loads(line) for line in log.read_text().splitlines()), key=lambda e: e[3])
+    holders, overlaps = 0, []
+    for kind, r, pid, _ in events:
+        holders += 1 if kind == "in" else -1
+        if holders > 1:
+            overlaps.append((r, pid))
+    assert overlaps == [], f"two launchers held the lock at once in rounds {sorted({r for r, _ in overlaps})}"
+    assert sum(kind == "in" for kind, *_ in events) >= rounds // 2  # the rounds did race for the lock
+    assert unlocked(out)
 
 
 def test_two_sweeps_started_at_once_one_is_refused(tmp_path: Path) -> None:
