@@ -19,6 +19,21 @@ ACTION_NAMES: tuple[str, ...] = ("up", "down", "left", "right")
 
 Cell = tuple[int, int]
 
+#: The largest grid side: a grid of MAX_SIZE x MAX_SIZE cells (a million states) is built in Python lists, as is the
+#: agents' Q-table of it; checked before anything is built.
+MAX_SIZE = 1000
+
+
+def check_size(size: Any) -> int:
+    """A grid side: an integer in [2, ``MAX_SIZE``]."""
+    if isinstance(size, bool) or not isinstance(size, (int, np.integer)):
+        raise TypeError(f"size must be an integer in [2, {MAX_SIZE}], got {size!r}")
+    if size < 2:
+        raise ValueError(f"size={size} is too small: the grid needs size >= 2")
+    if size > MAX_SIZE:
+        raise ValueError(f"size={size} is too large: at most {MAX_SIZE} ({MAX_SIZE}x{MAX_SIZE} cells)")
+    return int(size)
+
 
 def _as_cell(name: str, value: Any, size: int) -> Cell:
     """Validate a (row, col) pair inside a size x size grid."""
@@ -120,11 +135,7 @@ class GridPursuitEnv(gym.Env[Any, Any]):
         step_reward: float = 0.0,
         render_mode: str | None = None,
     ) -> None:
-        if isinstance(size, bool) or not isinstance(size, (int, np.integer)):
-            raise TypeError(f"size must be an integer >= 2, got {size!r}")
-        if size < 2:
-            raise ValueError(f"size={size} is too small: the grid needs size >= 2")
-        self.size = int(size)
+        self.size = check_size(size)
         start_cell = _as_cell("start", start, self.size)
         goal_cell = _as_cell("goal", goal, self.size)
         if start_cell == goal_cell:

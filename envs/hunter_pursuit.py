@@ -12,7 +12,7 @@ from gymnasium import spaces
 from gymnasium.utils import seeding
 from pettingzoo import ParallelEnv
 
-from sb3_affect.envs.grid_pursuit import MOVES, _as_cell, build_transitions, distances_to
+from sb3_affect.envs.grid_pursuit import MOVES, _as_cell, build_transitions, check_size, distances_to
 from sb3_affect.envs.maze import load_maze
 
 #: The action that leaves a hunter where it is (0-3 are ``MOVES``: up, down, left, right).
@@ -115,9 +115,7 @@ class HunterPursuitEnv(ParallelEnv):
             starts = starts if starts is not None else (parsed.start,)
         if starts is None:
             starts = KUREMOTO_STARTS
-        if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 2:
-            raise ValueError(f"size must be an integer >= 2, got {size!r}")
-        self.size = int(size)
+        self.size = check_size(size)
         if isinstance(starts, (str, bytes)) or not isinstance(starts, Sequence) or len(starts) < 1:
             raise ValueError(f"starts must be a non-empty list of (row, col) cells, one per hunter, got {starts!r}")
         self.starts = tuple(_as_cell(f"starts[{i}]", s, self.size) for i, s in enumerate(starts))

@@ -10,7 +10,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from sb3_affect.envs.grid_pursuit import MOVES, _as_cell, build_transitions, distances_to
+from sb3_affect.envs.grid_pursuit import MOVES, _as_cell, build_transitions, check_size, distances_to
 from sb3_affect.envs.maze import load_maze
 
 PREY_MODES = ("random", "evade", "static")
@@ -91,9 +91,7 @@ class MovingPursuitEnv(gym.Env[Any, Any]):
         if maze is not None:
             parsed = load_maze(maze)
             size, start, prey_start, obstacles = parsed.size, parsed.start, parsed.goal, parsed.obstacles
-        if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 2:
-            raise ValueError(f"size must be an integer >= 2, got {size!r}")
-        self.size = int(size)
+        self.size = check_size(size)
         self.start = _as_cell("start", start, self.size)
         self.prey_start = _as_cell("prey_start", prey_start, self.size)
         if self.start == self.prey_start:

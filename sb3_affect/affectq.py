@@ -13,7 +13,7 @@ from sb3_affect.appraisal import Appraiser
 from sb3_affect.behaviour import Behaviour
 from sb3_affect.callbacks import EmotionCallback
 from sb3_affect.emotions import Emotion
-from sb3_affect.episode_log import COLUMN
+from sb3_affect.episode_log import COLUMN, Rows
 from sb3_affect.goals import GoalTest
 from sb3_affect.personalities import PersonalityAppraiser
 from sb3_affect.policies import TabularQPolicy, greedy_action
@@ -211,7 +211,7 @@ class AffectQ(TabularQAlgorithm):
         assert self.emotion_callback is not None
         return self.emotion_callback.goal
 
-    def _decide(self, state: int, q: list[list[float]]) -> tuple[int, int, bool]:
+    def _decide(self, state: int, q: Rows) -> tuple[int, int, bool]:
         rng = self._rng
         assert self.emotion_callback is not None
         random_direction, speeds = self._behaviour[self.emotion_callback.feel(state)]

@@ -70,17 +70,47 @@ class PowerFit:
         return fit
 
 
+class _Rows(dict):
+    """
+    One container per state, made the first time the state is used (a dict underneath: a map of millions of states
+    holds only the rows of the states the agent has seen). Indexed and iterated as a list of ``n_states`` rows; an
+    unseen state iterates as an empty row that is not stored.
+    """
+
+    def __init__(self, n_states: int, make: type) -> None:
+        super().__init__()
+        self.n_states, self.make = n_states, make
+
+    def __missing__(self, state: int) -> Any:
+        if not 0 <= state < self.n_states:
+            raise IndexError(f"state {state} is outside the map's {self.n_states} states")
+        row = self[state] = self.make()
+        return row
+
+    def __len__(self) -> int:
+        return self.n_states
+
+    def __iter__(self) -> Any:
+        get, empty = self.get, self.make()
+        return (get(state, empty) for state in range(self.n_states))
+
+    def seen(self) -> list[int]:
+        """The states that have a row, in order."""
+        return sorted(dict.keys(self))
+
+
 class KnownMap:
     """
     The transitions the agent has actually experienced, and the shortest known distance (in cells) from each cell
     to a goal it has reached. Edges are only ever added, so distances only decrease; each new edge propagates the
-    decrease backwards (incremental BFS), which costs nothing once the map stops growing.
+    decrease backwards (incremental BFS), which costs nothing once the map stops growing. Successors and
+    predecessors are kept for the states seen only (``_Rows``).
     """
 
     def __init__(self, n_states: int) -> None:
         self.n_states = n_states
-        self.successors: list[set[int]] = [set() for _ in range(n_states)]
-        self.predecessors: list[list[int]] = [[] for _ in range(n_states)]
+        self.successors: Any = _Rows(n_states, set)
+        self.predecessors: Any = _Rows(n_states, list)
         self.distance: list[float] = [INF] * n_states
         self.goals: set[int] = set()
 
@@ -113,7 +143,9 @@ class KnownMap:
                     stack.append(u)
 
     def state(self) -> dict[str, Any]:
-        edges = [[s, t] for s in range(self.n_states) for t in sorted(self.successors[s])]
+        rows = self.successors
+        states = rows.seen() if isinstance(rows, _Rows) else range(self.n_states)
+        edges = [[s, t] for s in states for t in sorted(rows[s])]
         return {"n_states": self.n_states, "edges": edges, "goals": sorted(self.goals)}
 
     @classmethod

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
@@ -72,8 +73,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 
 def _cmd_status(args: argparse.Namespace) -> int:
+    from sb3_affect.experiments import ResultsStore
+
     root = _existing_folder(args.dir, "status")
-    if (root / "sweep.json").exists():
+    if ResultsStore(root).saved_sweep() is not None:  # sweep.json, or a copy of it when it was deleted
         _print_status(root)
         return 0
     # A `replicate` folder: one sweep folder per part (paper/, dqn/, ...).
@@ -98,17 +101,16 @@ def _print_status(root: Path) -> None:
     from sb3_affect.experiments import ResultsStore
 
     store = ResultsStore(root)
-    name, per_agent = store.progress()  # agent -> (runs, done, failed)
+    name, per_agent, rejected = store.progress()  # agent -> (runs, done, failed); files that do not count
     total, done, failed = (sum(counts[i] for counts in per_agent.values()) for i in range(3))
     print(f"sweep {name!r} in {store.root}: {done}/{total} runs done, {failed} failed")
     for agent, (runs, done_agent, failed_agent) in per_agent.items():
         print(f"  {agent:24s} {done_agent:5d}/{runs:<5d} done  {failed_agent} failed")
-    lock = store.root / ".lock"
-    if lock.exists():
-        owner = store.lock_owner()
-        recorded = lock.read_text().split()[:1] or ["?"]
-        state = "running" if owner is not None else "gone: stale lock, the next run takes it over"
-        print(f"  locked by launcher pid {recorded[0]} ({state})")
+    for path, why in rejected:
+        print(f"  not counted: {path} {why}; the next run moves it to damaged/ and runs its runs again")
+    owner = store.lock_owner()
+    if owner is not None:
+        print(f"  in use by launcher pid {owner} (running)")
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
@@ -117,8 +119,15 @@ def _cmd_report(args: argparse.Namespace) -> int:
     root = _existing_folder(args.dir, "report")
     if not any(root.iterdir()):
         raise UsageError(f"{args.dir}: the folder is empty; run a sweep into it (`sb3-affect run FILE --out {args.dir}`)")
+    out = Path(args.out) if args.out else root
+    _check_out(str(out))
+    unwritable = f"{out}: not writable, so the report can not be written there; write it elsewhere with --out DIR"
+    if out.exists() and not os.access(out, os.W_OK | os.X_OK):
+        raise UsageError(unwritable)
     try:
-        path = build_report(root)
+        path = build_report(root, out=out)
+    except PermissionError as error:
+        raise UsageError(f"{unwritable} ({error.strerror}: {error.filename})") from None
     except (FileNotFoundError, ValueError) as error:  # no results in a layout the report knows, or no finished run
         raise UsageError(f"{args.dir}: no report can be built: {error}") from None
     print(f"report: {path} and {path.with_suffix('.html')} (open it in a browser)")
@@ -212,6 +221,9 @@ def build_parser() -> argparse.ArgumentParser:
         "A `replicate` folder gives the full report; a single sweep folder the sections its runs allow.",
     )
     report.add_argument("dir", metavar="DIR", help="a results folder (the --out of `run` or `replicate`)")
+    report.add_argument(
+        "--out", metavar="OUT", default=None, help="write the report here instead of into DIR (e.g. DIR is read-only)"
+    )
     report.set_defaults(func=_cmd_report)
     replicate = sub.add_parser(
         "replicate",

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple, Protocol
 
 from sb3_affect.envs.transition_table import TransitionTable
 
@@ -58,7 +58,13 @@ def env_geometry(env: Any) -> Geometry | None:
         return None
 
 
-def greedy_walks_shortest_path(q: Sequence[Sequence[float]], geometry: Geometry) -> bool:
+class Rows(Protocol):
+    """A Q-table read row by row: ``q[state]`` is the state's Q-values (a list of rows, or a mapping of rows)."""
+
+    def __getitem__(self, state: int, /) -> list[float]: ...
+
+
+def greedy_walks_shortest_path(q: Rows, geometry: Geometry) -> bool:
     """
     Whether the greedy policy of ``q`` walks a shortest path from the start whatever way its ties are broken:
     every action in the arg-max set of every cell it can reach must bring it one cell closer to the goal.

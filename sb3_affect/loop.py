@@ -19,6 +19,7 @@ from stable_baselines3.common.callbacks import BaseCallback, ConvertCallback
 from sb3_affect.episode_log import EPISODE_COLUMNS, greedy_walks_shortest_path
 
 if TYPE_CHECKING:
+    from sb3_affect.qtable import LoopTable
     from sb3_affect.tabular import TabularQAlgorithm
 
 #: The ``dones`` of a one-env VecEnv step (read-only, shared).
@@ -31,7 +32,7 @@ NOT_DONE.flags.writeable = False
 def run_loop(
     model: TabularQAlgorithm,
     env: Any,
-    q: list[list[float]],
+    q: LoopTable,
     total_timesteps: int,
     callback: BaseCallback,
     log_interval: int | None,
@@ -154,7 +155,7 @@ def run_loop(
 
 
 def q_update(
-    q: list[list[float]], s: int, action: int, reward: float, s2: int, terminated: bool, alpha: float, gamma: float
+    q: LoopTable, s: int, action: int, reward: float, s2: int, terminated: bool, alpha: float, gamma: float
 ) -> bool:
     """
     Eq. 1 for ``q[s][action]`` after a move to ``s2`` with ``reward`` (``multi_cell="jump"``: the whole move, its

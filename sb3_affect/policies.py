@@ -12,6 +12,8 @@ from gymnasium import spaces
 from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import PyTorchObs
 
+from sb3_affect.agent_checks import check_observation, check_table_size
+
 _GYM_TUPLE_ERROR = (
     "You have passed a tuple to the predict() function instead of a Numpy array or a Dict. "
     "You are probably mixing Gym API with SB3 VecEnv API: `obs, info = env.reset()` (Gym) "
@@ -67,6 +69,7 @@ class TabularQPolicy(BasePolicy):
                 "TabularQPolicy supports Discrete observation and action spaces only, "
                 f"got observation_space={observation_space}, action_space={action_space}"
             )
+        check_table_size(observation_space.n, action_space.n)
         self.q_init = float(q_init)
         self.n_states = int(observation_space.n)
         self.n_actions = int(action_space.n)
@@ -79,6 +82,23 @@ class TabularQPolicy(BasePolicy):
         data = super()._get_constructor_parameters()
         data.update(q_init=self.q_init)
         return data
+
+    def check_observation(self, observation: Any) -> None:
+        """Refuse an observation that is not a state of the observation space (``agent_checks.check_observation``)."""
+        check_not_gym_tuple(observation)
+        if not isinstance(observation, dict):
+            check_observation(observation, self.n_states, self.obs_start)
+
+    def predict(
+        self,
+        observation: Any,
+        state: Any = None,
+        episode_start: Any = None,
+        deterministic: bool = False,
+    ) -> tuple[np.ndarray, Any]:
+        """SB3's ``predict``, once the observation is checked to be states of the observation space."""
+        self.check_observation(observation)
+        return super().predict(observation, state, episode_start, deterministic)
 
     def forward(self, obs: th.Tensor, deterministic: bool = True) -> th.Tensor:
         return self._predict(obs, deterministic)
@@ -103,7 +123,7 @@ class TabularQPolicy(BasePolicy):
         One ``pick(state)`` per observation, shaped as ``predict`` returns actions: shape ``()`` for a single
         observation, ``(n,)`` for a batch (SB3's DQN does the same in its exploration branch).
         """
-        check_not_gym_tuple(observation)
+        self.check_observation(observation)
         obs = np.asarray(observation)
         states = [int(s) for s in obs.reshape(-1)]
         if self.is_vectorized_observation(obs):

@@ -8,6 +8,7 @@ import numpy as np
 from stable_baselines3.common.type_aliases import GymEnv, Schedule
 from stable_baselines3.common.utils import FloatSchedule
 
+from sb3_affect.episode_log import Rows
 from sb3_affect.policies import TabularQPolicy, check_not_gym_tuple, greedy_action
 from sb3_affect.settings import QLearningSettings, TabularSettings, check_exploration_rate
 from sb3_affect.tabular import TabularQAlgorithm
@@ -109,7 +110,7 @@ class QLearning(TabularQAlgorithm):
     def _episode_exploration(self) -> float:
         return self._epsilon
 
-    def _decide(self, state: int, q: list[list[float]]) -> tuple[int, int, bool]:
+    def _decide(self, state: int, q: Rows) -> tuple[int, int, bool]:
         rng = self._rng
         if rng.random() < self._epsilon:
             return rng.randrange(len(q[state])), 1, True

@@ -5,7 +5,8 @@ algorithm, and what each name stands for. Nothing here imports torch or SB3.
 A name is either a short name of ``AGENTS`` (``"QLearning"``, ``"AffectQ"``, a baseline's class name, ``"DQN"``, ...)
 or a ``package.module:Class`` path (``package.module.Class`` is accepted too). The package's own tabular agents are
 known without importing them (``known_settings``: their settings class, ``sb3_affect.settings``); any other class is
-imported to be checked (``resolve_class``): a dotted name imports code, as rl-zoo3's ``--gym-packages`` does.
+imported to be checked (``resolve_class``): a dotted name imports code, as rl-zoo3's ``--gym-packages`` does, and must
+name a subclass of SB3's ``BaseAlgorithm`` (checked before anything is made of it).
 """
 
 from __future__ import annotations
@@ -48,8 +49,19 @@ def known_settings(algo: str | type) -> type[TabularSettings] | None:
     return settings
 
 
+_BASE_ALGORITHM = "stable_baselines3.common.base_class.BaseAlgorithm"
+
+
+def is_algorithm(cls: type) -> bool:
+    """Whether ``cls`` subclasses SB3's ``BaseAlgorithm`` (by its MRO: SB3 is not imported to tell)."""
+    return any(f"{base.__module__}.{base.__qualname__}" == _BASE_ALGORITHM for base in cls.__mro__)
+
+
 def resolve_class(algo: str) -> type:
-    """The class ``algo`` names (a short name or ``package.module:Class``); imports its module. ValueError if none."""
+    """
+    The algorithm class ``algo`` names (a short name or ``package.module:Class``); imports its module. ValueError if
+    it names none, or a class that is not an SB3 algorithm (a ``BaseAlgorithm`` subclass).
+    """
     module_name, attr = split_algo(algo)
     if not module_name or not attr:
         raise ValueError(f"{algo!r} is not a known algorithm ({', '.join(AGENTS)}) nor a 'package.module:Class' path")
@@ -60,6 +72,11 @@ def resolve_class(algo: str) -> type:
     cls = getattr(module, attr, None)
     if not isinstance(cls, type):
         raise ValueError(f"{algo!r}: {module_name} has no class {attr!r}")
+    if not is_algorithm(cls):
+        raise ValueError(
+            f"{algo!r} is not a Stable-Baselines3 algorithm: the class must subclass "
+            "stable_baselines3.common.base_class.BaseAlgorithm"
+        )
     return cls
 
 

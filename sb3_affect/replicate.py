@@ -5,8 +5,13 @@ then the engine studies (large-N, reading ablation, moving and evading prey and 
 
 from __future__ import annotations
 
+import contextlib
+import json
+import threading
 import time
+from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
 #: Launcher sweeps: (name of experiments/<name>.yaml and of the results folder, description).
@@ -63,11 +68,13 @@ def main(
     beyond_seeds = beyond_seeds or BEYOND_SEEDS
     engine_episodes = engine_episodes or ENGINE_EPISODES
     out_dir = Path(out_dir)
+    record = _Record(out_dir)
     timings: dict[str, float] = {}
     for name, description in PARTS:
         print(f"== {description}: {experiments / f'{name}.yaml'} -> {out_dir / name}", flush=True)
         summary = run_sweep(experiments / f"{name}.yaml", out_dir / name, workers=workers)
-        timings[f"{name} ({description})"] = summary.seconds
+        key = f"{name} ({description})"
+        timings[key] = record.part(key, summary.seconds, done_before=summary.skipped, todo=summary.total - summary.skipped)
         print(
             f"   {summary.finished} runs now, {summary.skipped} already done, {summary.failed} failed, "
             f"{summary.seconds:.1f} s",
@@ -81,12 +88,72 @@ def main(
     for name, description, cells, seeds in studies:
         print(f"== {description} -> {out_dir / name}", flush=True)
         start = time.perf_counter()
-        table, _ = run_cells(out_dir / name, cells, seeds, engine_episodes, workers=workers)
-        timings[description] = time.perf_counter() - start
-        print(f"   {len(table)} runs, {timings[description]:.1f} s", flush=True)
+        with _heartbeat(description):
+            table, meta = run_cells(out_dir / name, cells, seeds, engine_episodes, workers=workers)
+        seconds = time.perf_counter() - start
+        # The study's own record of the run that computed it (a complete study is read back, not recomputed).
+        timings[description] = record.set(description, float(meta.get("wall_seconds", seconds)))
+        print(f"   {len(table)} runs, {seconds:.1f} s", flush=True)
     start = time.perf_counter()
     report = build_report(out_dir, timings=timings)
     timings["report"] = time.perf_counter() - start
     print("wall time: " + ", ".join(f"{name} {seconds:.1f} s" for name, seconds in timings.items()))
     print(f"report: {report} (and {report.with_suffix('.html')})")
     return report
+
+
+#: Seconds between the lines an engine study prints while it runs (it has no progress bar of its own).
+HEARTBEAT_SECONDS = 15.0
+
+
+@contextlib.contextmanager
+def _heartbeat(what: str, every: float | None = None) -> Iterator[None]:
+    """Print ``still running: <what>, N s`` every ``every`` seconds while the block runs (a long silent step)."""
+    interval = HEARTBEAT_SECONDS if every is None else every
+    stop = threading.Event()
+    start = time.perf_counter()
+
+    def beat() -> None:
+        while not stop.wait(interval):
+            print(f"   still running: {what}, {time.perf_counter() - start:.0f} s", flush=True)
+
+    thread = threading.Thread(target=beat, name="sb3-affect:heartbeat", daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        thread.join()
+
+
+class _Record:
+    """
+    ``OUT/replicate.json``: the wall time of each part over the runs that did its work, so that a resumed replicate
+    reports the time the results took (a part finished earlier keeps its time; a part resumed adds the resume's). It
+    also marks the folder as a replication, into which ``sb3-affect run`` refuses to write a sweep.
+    """
+
+    def __init__(self, out_dir: Path) -> None:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        self.path = out_dir / "replicate.json"
+        try:
+            saved = json.loads(self.path.read_text())
+        except (OSError, ValueError):
+            saved = {}
+        timings = saved.get("timings") if isinstance(saved, dict) else None
+        self.timings: dict[str, Any] = dict(timings) if isinstance(timings, dict) else {}
+
+    def part(self, key: str, seconds: float, done_before: int, todo: int) -> float:
+        previous = self.timings.get(key)
+        if not isinstance(previous, (int, float)):
+            return self.set(key, seconds)
+        if todo == 0:  # nothing left to do: the time is the earlier runs'
+            return float(previous)
+        return self.set(key, previous + seconds if done_before else seconds)
+
+    def set(self, key: str, seconds: float) -> float:
+        self.timings[key] = seconds
+        tmp = self.path.with_name(f".{self.path.name}.tmp")
+        tmp.write_text(json.dumps({"timings": self.timings}, indent=1))
+        tmp.replace(self.path)
+        return seconds

@@ -24,13 +24,23 @@ import torch as th
 from gymnasium import spaces
 from stable_baselines3.common.utils import ConstantSchedule, FloatSchedule, LinearSchedule, check_for_correct_spaces
 
+from sb3_affect.agent_checks import MAX_TABLE_ENTRIES, check_table_size
+
 PLAIN_MEMBER = "sb3_affect.json"
 FORMAT = 1
 _SPACE_KEYS = ("observation_space", "action_space")
+#: The largest JSON member (``data``, ``sb3_affect.json``) a file may declare, before anything is read.
+MAX_JSON_BYTES = 64 * 2**20
+#: Room in ``policy.pth`` beyond the Q-table's own bytes (torch's zip container and names).
+POLICY_OVERHEAD_BYTES = 2**20
 
 
 class ModelFileError(ValueError):
-    """A model file that is missing, corrupt, foreign or can not be loaded safely."""
+    """A model file that is missing, corrupt, foreign or can not be loaded safely (one line: the causes quoted in it,
+    torch's and zipfile's, are folded onto it)."""
+
+    def __init__(self, message: str) -> None:
+        super().__init__(" ".join(str(message).split()))
 
 
 # -- plain forms ------------------------------------------------------------------------------------------------------
@@ -46,6 +56,8 @@ def space_from_plain(plain: Any, where: str) -> spaces.Discrete:
     n, start = plain.get("n"), plain.get("start", 0)
     if not isinstance(n, int) or isinstance(n, bool) or n < 1 or not isinstance(start, int) or isinstance(start, bool):
         raise ModelFileError(f"{where}: invalid Discrete space {plain!r}")
+    if n > MAX_TABLE_ENTRIES or abs(start) > 2**62:
+        raise ModelFileError(f"{where}: Discrete space of n={n:,} (start={start}) is larger than a Q-table can be")
     return spaces.Discrete(n, start=start)
 
 
@@ -177,6 +189,44 @@ def _open(path: Any) -> tuple[zipfile.ZipFile, str]:
         raise ModelFileError(f"{where}: can not read the model file ({error})") from None
 
 
+def _check_declared_size(archive: zipfile.ZipFile, name: str, limit: int, where: str) -> None:
+    """Refuse a member whose declared size is over ``limit`` (a zip bomb: reading stops at the declared size)."""
+    try:
+        info = archive.getinfo(name)
+    except KeyError:
+        return
+    if info.file_size > limit:
+        raise ModelFileError(
+            f"{where}: the {name!r} entry expands to {info.file_size:,} bytes ({info.compress_size:,} compressed), "
+            f"more than the {limit:,} a model of this size needs"
+        )
+
+
+def _check_values(cls: Any, restored: dict[str, Any], where: str) -> None:
+    """
+    The saved values, checked as the constructor checks its arguments (the agent's settings class), and no saved
+    entry may replace a method or property of the class (``predict: "x"``).
+    """
+    for key in restored:
+        attribute = getattr(cls, key, None)
+        if key.startswith("__") or callable(attribute) or isinstance(attribute, property):
+            raise ModelFileError(f"{where}: the saved entry {key!r} names a method of {cls.__name__}, not a saved value")
+    settings = getattr(cls, "settings_class", None)
+    if settings is None:
+        return
+    given = {name: restored[name] for name in settings.names() if name in restored}
+    table = given.get("behaviour_table")
+    if isinstance(table, dict) and all(isinstance(k, str) for k in table):  # stored by emotion name: as given
+        from sb3_affect.emotions import Emotion
+
+        names = {e.name.lower(): e for e in Emotion}
+        given["behaviour_table"] = {names.get(k, k): v for k, v in table.items()}
+    try:
+        settings(**given)
+    except (TypeError, ValueError) as error:
+        raise ModelFileError(f"{where}: a saved value is not allowed: {error}") from None
+
+
 def _read(archive: zipfile.ZipFile, name: str, where: str) -> bytes:
     try:
         return archive.read(name)
@@ -194,10 +244,28 @@ def _json(raw: bytes, name: str, where: str) -> Any:
 
 
 def load_safe(cls: Any, path: Any, env: Any = None, device: Any = "auto", force_reset: bool = True, **kwargs: Any) -> Any:
-    """Rebuild a ``cls`` model from ``path`` without unpickling anything (see the module docstring)."""
+    """
+    Rebuild a ``cls`` model from ``path`` without unpickling anything (see the module docstring). Whatever the file
+    holds, the outcome is a model or a ``ModelFileError`` naming the file (a value of the wrong type anywhere in its
+    JSON included), never another exception from deep inside the rebuild.
+    """
+    where = str(path if isinstance(path, (str, pathlib.Path)) else getattr(path, "name", "<file object>"))
+    try:
+        return _load_safe(cls, path, env, device, force_reset, **kwargs)
+    except (ModelFileError, FileNotFoundError):
+        raise
+    except (TypeError, ValueError, KeyError, IndexError, AttributeError, OverflowError, RuntimeError) as error:
+        if env is not None and "spaces" in str(error).lower():  # check_for_correct_spaces: the caller's env, not the file
+            raise
+        raise ModelFileError(f"{where}: not a model this loader can rebuild ({type(error).__name__}: {error})") from None
+
+
+def _load_safe(cls: Any, path: Any, env: Any, device: Any, force_reset: bool, **kwargs: Any) -> Any:
     archive, where = _open(path)
     optin = f"if you trust this file, load it with {cls.__name__}.load(path, safe=False)"
     with archive:
+        for name in ("data", PLAIN_MEMBER):
+            _check_declared_size(archive, name, MAX_JSON_BYTES, where)
         data = _json(_read(archive, "data", where), "data", where)
         if not isinstance(data, dict):
             raise ModelFileError(f"{where}: the 'data' entry is not a JSON object")
@@ -207,11 +275,25 @@ def load_safe(cls: Any, path: Any, env: Any = None, device: Any = "auto", force_
                 f"it means unpickling code from it, which safe loading refuses; {optin}"
             )
         twin = _json(_read(archive, PLAIN_MEMBER, where), PLAIN_MEMBER, where)
+        if not isinstance(twin, dict) or twin.get("format") != FORMAT:
+            raise ModelFileError(
+                f"{where}: unsupported {PLAIN_MEMBER} format {twin.get('format') if isinstance(twin, dict) else twin!r}"
+            )
+        observation_space = space_from_plain(twin.get("observation_space"), where)
+        action_space = space_from_plain(twin.get("action_space"), where)
+        try:
+            check_table_size(observation_space.n, action_space.n, f"{where}: observation space {observation_space}")
+        except ValueError as error:
+            raise ModelFileError(str(error)) from None
+        table_bytes = int(observation_space.n) * int(action_space.n) * 8
+        _check_declared_size(archive, "policy.pth", table_bytes + POLICY_OVERHEAD_BYTES, where)
         policy_bytes = _read(archive, "policy.pth", where)
-    if not isinstance(twin, dict) or twin.get("format") != FORMAT:
-        raise ModelFileError(
-            f"{where}: unsupported {PLAIN_MEMBER} format {twin.get('format') if isinstance(twin, dict) else twin!r}"
-        )
+        if len(policy_bytes) < table_bytes > POLICY_OVERHEAD_BYTES:  # torch stores a tensor's bytes whole: a large
+            # table the file declares and does not hold is refused before it is allocated
+            raise ModelFileError(
+                f"{where}: policy.pth holds {len(policy_bytes):,} bytes, fewer than the {table_bytes:,} of the "
+                f"{observation_space.n} x {action_space.n} Q-table the file declares"
+            )
     expected = f"{cls.__module__}:{cls.__qualname__}"
     if twin.get("algorithm") != expected:
         saved = str(twin.get("algorithm", "?")).rpartition(":")[2]
@@ -222,8 +304,6 @@ def load_safe(cls: Any, path: Any, env: Any = None, device: Any = "auto", force_
             f"{where}: policy {twin.get('policy')!r} is not one of {sorted(cls.policy_aliases)}; a custom policy class "
             f"can only be unpickled; {optin}"
         )
-    observation_space = space_from_plain(twin.get("observation_space"), where)
-    action_space = space_from_plain(twin.get("action_space"), where)
     values, derived = twin.get("values", {}), set(twin.get("derived", []))
     restored: dict[str, Any] = {}
     for key, stored in data.items():
@@ -239,6 +319,7 @@ def load_safe(cls: Any, path: Any, env: Any = None, device: Any = "auto", force_
     if "policy_kwargs" in restored and not isinstance(restored["policy_kwargs"], dict):
         raise ModelFileError(f"{where}: policy_kwargs must be a JSON object")
     (restored.get("policy_kwargs") or {}).pop("device", None)
+    _check_values(cls, restored, where)
 
     if env is not None:
         env = cls._wrap_env(env, restored.get("verbose", 0))

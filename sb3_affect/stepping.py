@@ -31,6 +31,7 @@ from stable_baselines3.common.callbacks import ConvertCallback
 from stable_baselines3.common.type_aliases import MaybeCallback
 
 from sb3_affect.loop import episode_end_info, keep_episode, q_update, step_locals
+from sb3_affect.qtable import LoopTable
 from sb3_affect.tabular import TabularQAlgorithm
 
 
@@ -63,7 +64,7 @@ class DecisionStepper:
             total_timesteps, callback, reset_num_timesteps, tb_log_name, False, new_episode=True
         )
         assert m._q is not None
-        self.q: list[list[float]] = m._q
+        self.q: LoopTable = m._q
         # what run_loop does before its loop
         self.log_interval = log_interval
         self._observe = m._transition_hook()

@@ -27,10 +27,12 @@ from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, Schedule
 from stable_baselines3.common.vec_env import DummyVecEnv
 
-from sb3_affect.episode_log import Geometry, env_geometry, make_frame
+from sb3_affect.agent_checks import check_table_size, check_total_timesteps
+from sb3_affect.episode_log import Geometry, Rows, env_geometry, make_frame
 from sb3_affect.goals import GoalTest, positive_terminal_reward
 from sb3_affect.loop import close_episode, run_loop
 from sb3_affect.policies import TabularQPolicy, check_not_gym_tuple
+from sb3_affect.qtable import LoopTable, VisitedRows
 from sb3_affect.registry import known_settings
 from sb3_affect.serialization import add_plain_description, load_safe
 from sb3_affect.settings import ENGINES, MULTI_CELLS, TIE_BREAKS, TabularSettings, check_tabular
@@ -130,6 +132,7 @@ class TabularQAlgorithm(BaseAlgorithm):
             )
         if not isinstance(action_space, spaces.Discrete):
             raise TypeError(f"action space {action_space} is not supported: tabular agents need a Discrete action space")
+        check_table_size(observation_space.n, action_space.n, f"observation space {observation_space}")
 
     # -- set-up ------------------------------------------------------------------------------------------------
     def _setup_model(self) -> None:
@@ -145,7 +148,7 @@ class TabularQAlgorithm(BaseAlgorithm):
             version, internal, gauss = self._rng_state
             self._rng.setstate((version, tuple(internal), gauss))
         self.policy.rng = self._rng
-        self._q: list[list[float]] | None = None  # the loop's table, only while learn runs
+        self._q: LoopTable | None = None  # the loop's table, only while learn runs
 
     def _excluded_save_params(self) -> list[str]:
         return [*super()._excluded_save_params(), "_rng", "_q", "_tie_first"]
@@ -158,7 +161,7 @@ class TabularQAlgorithm(BaseAlgorithm):
             rng.seed(seed)  # in place: the policy shares this generator
 
     # -- what subclasses define ----------------------------------------------------------------------------------
-    def _decide(self, state: int, q: list[list[float]]) -> tuple[int, int, bool]:
+    def _decide(self, state: int, q: Rows) -> tuple[int, int, bool]:
         """Return ``(action, cells to move, whether the direction was random)`` for a decision in ``state``."""
         raise NotImplementedError
 
@@ -249,14 +252,18 @@ class TabularQAlgorithm(BaseAlgorithm):
         :param progress_bar: show a progress bar (tqdm and rich)
         :return: the trained model
         """
+        total_timesteps = check_total_timesteps(total_timesteps)
         total_timesteps, callback = self._start_learn(
             total_timesteps, callback, reset_num_timesteps, tb_log_name, progress_bar, new_episode=False
         )
         env = self._single_env()
+        compiled = self._use_kernel(env, callback)
+        if compiled:  # the kernel reads the whole table (the Python loop makes a row the first time it visits a state)
+            self._q = self.policy.q_table.tolist()
         q = self._q
         assert q is not None
         try:
-            if self._use_kernel(env, callback):
+            if compiled:
                 from sb3_affect.compiled import learn_compiled
 
                 learn_compiled(self, env, total_timesteps, callback, log_interval)
@@ -304,7 +311,8 @@ class TabularQAlgorithm(BaseAlgorithm):
         callback.on_training_start(locals(), globals())
         self._geometry: Geometry | None = env_geometry(self._single_env())
         self._greedy_optimal: bool | None = None
-        self._q = self.policy.q_table.tolist()
+        # the Python loop's view of the table: a row is read from the tensor the first time its state is visited
+        self._q = VisitedRows(self.policy.q_table)
         self._update_schedules()
         return total_timesteps, callback
 
@@ -325,7 +333,7 @@ class TabularQAlgorithm(BaseAlgorithm):
         return reason is None
 
     def _run_loop(
-        self, env: Any, q: list[list[float]], total_timesteps: int, callback: BaseCallback, log_interval: int | None
+        self, env: Any, q: LoopTable, total_timesteps: int, callback: BaseCallback, log_interval: int | None
     ) -> None:
         """The reference decision loop, ``sb3_affect.loop.run_loop`` (its compiled twin: ``sb3_affect.kernel``)."""
         run_loop(self, env, q, total_timesteps, callback, log_interval)
@@ -394,7 +402,9 @@ class TabularQAlgorithm(BaseAlgorithm):
     def _sync_policy(self) -> None:
         """Write the loop's Python Q-table back into the policy's tensor."""
         q = getattr(self, "_q", None)
-        if q is not None:
+        if isinstance(q, VisitedRows):
+            q.write_back()
+        elif q is not None:
             self.policy.q_table.copy_(th.tensor(q, dtype=th.float64))
 
     def predict(

@@ -148,3 +148,34 @@ def test_replicate_says_where_the_report_is(tmp_path: Path, capsys: pytest.Captu
     html = tmp_path / "runs" / "report.html"
     assert html.exists() and f"Open {html} in a browser" in out.splitlines()[-1]
     assert json.loads((tmp_path / "runs" / "paper" / "sweep.json").read_text())["name"] == "paper"
+
+
+@pytest.mark.slow
+def test_resumed_replicate_keeps_the_times_of_its_runs_and_refuses_a_sweep(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    files = tmp_path / "files"
+    tiny(files, "paper")
+    monkeypatch.setattr(replicate, "EXPERIMENTS", files)
+    monkeypatch.setattr(replicate, "PARTS", (("paper", "a tiny paper protocol"),))
+    for name, value in (("LARGE_SEEDS", 1), ("ABLATION_SEEDS", 1), ("BEYOND_SEEDS", 1), ("ENGINE_EPISODES", 5)):
+        monkeypatch.setattr(replicate, name, value)
+    runs = tmp_path / "runs"
+    assert main(["replicate", "--out", str(runs), "--workers", "2"]) == 0
+    first = json.loads((runs / "replicate.json").read_text())["timings"]
+    assert first["paper (a tiny paper protocol)"] > 0 and len(first) == 4
+    assert main(["replicate", "--out", str(runs), "--workers", "2"]) == 0  # a resume: nothing left to do
+    assert json.loads((runs / "replicate.json").read_text())["timings"] == first
+    # A newcomer's `run experiments/smoke.yaml --out runs` (forgetting /smoke) is refused: the folder is a replication.
+    err = error(capsys, ["run", str(tiny(files, "smoke")), "--out", str(runs), "--no-progress"])
+    assert "holds a replication" in err and f"--out {runs / 'smoke'}" in err
+    assert not (runs / "sweep.json").exists() and not (runs / "chunks").exists()
+
+
+def test_heartbeat_prints_while_a_silent_step_runs(capsys: pytest.CaptureFixture[str]) -> None:
+    import time
+
+    with replicate._heartbeat("a silent study", every=0.05):
+        time.sleep(0.3)
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) >= 3 and all(line.startswith("   still running: a silent study, ") for line in lines)

@@ -118,7 +118,7 @@ def test_folder_of_one_json_file_per_run_is_still_read_resumed_and_reported(
     saved = json.loads((old / "sweep.json").read_text())
     runs = {r["run_id"]: r["config"] for r in ResultsStore(old).load_runs()}
     (old / "sweep.json").write_text(json.dumps({"name": saved["name"], "sweep": saved["sweep"], "runs": runs}))
-    assert list((old / "chunks").glob("*")) == [] and len(list((old / "runs").glob("*.json"))) == 8
+    assert list((old / "chunks").glob("*.parquet")) == [] and len(list((old / "runs").glob("*.json"))) == 8
     assert main(["status", str(old)]) == 0
     assert "8/8 runs done, 0 failed" in capsys.readouterr().out
     assert run_sweep(SMOKE, old, workers=2, overrides=overrides, progress=False).skipped == 8  # the same sweep

@@ -51,6 +51,24 @@ class Faulty(QLearning):
         return super().learn(*args, **kwargs)
 
 
+def unlocked(out: Path) -> bool:
+    """No launcher holds ``out``'s lock (the lock file stays; its owner record is gone)."""
+    from sb3_affect.experiments.folder_lock import is_locked
+
+    return not is_locked(out) and not (out / ".lock.owner").exists()
+
+
+def hold_lock(out: Path) -> subprocess.Popen[str]:
+    """A real process holding ``out``'s lock until killed (returns once it holds it)."""
+    code = (
+        "import sys, time; from pathlib import Path; from sb3_affect.experiments.folder_lock import hold\n"
+        "with hold(Path(sys.argv[1])):\n    print('held', flush=True); time.sleep(120)\n"
+    )
+    proc = subprocess.Popen([sys.executable, "-c", code, str(out)], stdout=subprocess.PIPE, text=True)
+    assert proc.stdout is not None and proc.stdout.readline().strip() == "held"
+    return proc
+
+
 def sweep_file(tmp_path: Path, faults: list[str], seeds: int = 2, pause: float = 0.0, name: str = "faults") -> Path:
     path = tmp_path / f"{name}.yaml"
     path.write_text(
@@ -146,7 +164,7 @@ def test_smoke_sweep_end_to_end(tmp_path: Path, capsys: pytest.CaptureFixture[st
     assert one["timings"]["wall_seconds"] > 0 and "stable_baselines3" in one["versions"]
     assert any(v > 0 for v in one["episodes"]["joy"])
     assert json.loads((out / "sweep.json").read_text())["name"] == "smoke"
-    assert not (out / ".lock").exists()
+    assert unlocked(out)
     no_partial_files(out)
     # Rerunning skips everything; `status` counts the runs.
     summary = run_sweep(EXPERIMENTS / "smoke.yaml", out, workers=2, overrides=["episodes=10"], progress=False)
@@ -210,7 +228,7 @@ def test_different_sweep_into_same_dir_is_refused(tmp_path: Path, capsys: pytest
     assert main(["run", str(other), "--out", str(out), "--no-progress"]) == 2
     assert "different sweep" in capsys.readouterr().err
     assert contents(out) == before
-    assert not (out / ".lock").exists()
+    assert unlocked(out)
 
 
 def test_stale_lock_of_dead_launcher_is_taken_over(tmp_path: Path) -> None:
@@ -218,10 +236,11 @@ def test_stale_lock_of_dead_launcher_is_taken_over(tmp_path: Path) -> None:
     dead = subprocess.Popen(["true"])
     dead.wait()
     out.mkdir()
-    (out / ".lock").write_text(str(dead.pid))
+    (out / ".lock").write_text(str(dead.pid))  # the pid file of an earlier version, or an empty one: no lock held
+    (out / ".lock.owner").write_text(str(dead.pid))
     summary = run_sweep(sweep, out, workers=1, progress=False)
     assert summary.finished == 2
-    assert not (out / ".lock").exists()
+    assert unlocked(out)
 
 
 @linux_only
@@ -234,26 +253,26 @@ def test_lock_of_a_reused_pid_is_stale(tmp_path: Path) -> None:
 
 def test_live_lock_is_refused(tmp_path: Path) -> None:
     sweep, out = sweep_file(tmp_path, ["none"], seeds=1), tmp_path / "out"
-    holder = subprocess.Popen(["sleep", "30"])
+    out.mkdir()
+    holder = hold_lock(out)
     try:
-        out.mkdir()
-        (out / ".lock").write_text(str(holder.pid))
         with pytest.raises(StoreError, match=f"in use by another launcher \\(pid {holder.pid}\\)"):
             run_sweep(sweep, out, workers=1, progress=False)
-        assert (out / ".lock").read_text() == str(holder.pid)
+        assert (out / ".lock.owner").read_text().split()[0] == str(holder.pid)
         assert not (out / "runs").exists()
     finally:
         holder.kill()
         holder.wait()
+    assert run_sweep(sweep, out, workers=1, progress=False).finished == 2  # the kernel released the dead holder's lock
 
 
 def test_full_disk_gives_clear_error_and_loses_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     sweep, out = sweep_file(tmp_path, ["none"], seeds=4), tmp_path / "out"
     real_fsync, writes = os.fsync, []
 
-    def fsync(fd: int) -> None:  # sweep.json and 3 runs fit, then the disk is full
+    def fsync(fd: int) -> None:  # sweep.json (and its 2 copies) and 3 runs fit, then the disk is full
         writes.append(fd)
-        if len(writes) > 4:
+        if len(writes) > 6:
             raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
         real_fsync(fd)
 
@@ -264,7 +283,7 @@ def test_full_disk_gives_clear_error_and_loses_nothing(tmp_path: Path, monkeypat
     kept = contents(out)
     assert len(kept) == 3
     no_partial_files(out)
-    assert not (out / ".lock").exists()
+    assert unlocked(out)
     summary = run_sweep(sweep, out, workers=2, progress=False)
     assert (summary.skipped, summary.finished) == (3, 5)
     assert {k: v for k, v in contents(out).items() if k in kept} == kept
@@ -284,7 +303,7 @@ def test_really_full_disk(tmp_path: Path, capsys: pytest.CaptureFixture[str]) ->
         kept = contents(out)
         assert 0 < len(kept) < 8
         no_partial_files(out)
-        assert not (out / ".lock").exists()
+        assert unlocked(out)
         subprocess.run(["mount", "-o", "remount,size=4m", str(out)], check=True)
         summary = run_sweep(sweep, out, workers=2, progress=False)
         assert (summary.skipped, summary.finished) == (len(kept), 8 - len(kept))
@@ -353,7 +372,10 @@ def test_sigkill_launcher_then_resume_gives_the_uninterrupted_results(
             first.wait()
     done_before = len(contents(out))
     assert 2 <= done_before < 8
-    assert (out / ".lock").read_text().split()[0] == str(first.pid)  # stale: taken over below
+    assert (out / ".lock.owner").read_text().split()[0] == str(first.pid)  # its record stays, its lock is gone:
+    from sb3_affect.experiments.folder_lock import is_locked
+
+    assert not is_locked(out)
     summary = run_sweep(sweep, out, workers=2, progress=False)
     assert summary.skipped == done_before and summary.finished == 8 - done_before and summary.failed == 0
     no_partial_files(out)
@@ -385,8 +407,75 @@ def test_ctrl_c_stops_workers_and_leaves_no_partial_files(tmp_path: Path, stop: 
     assert proc.returncode == code, err
     assert word in err and "rerun the same command to resume" in err
     assert not any(running(pid) for pid in workers), "orphan worker processes"
-    assert not (out / ".lock").exists()
+    assert unlocked(out)
     no_partial_files(out)
     done = len(contents(out))
     summary = run_sweep(sweep, out, workers=2, progress=False)
     assert summary.skipped == done and len(contents(out)) == 12
+
+
+_RACER = """
+import json, os, sys, time
+from pathlib import Path
+from sb3_affect.experiments import ResultsStore, StoreError
+out, log, go, rounds, stale = Path(sys.argv[1]), Path(sys.argv[2]), float(sys.argv[3]), int(sys.argv[4]), sys.argv[5]
+for r in range(rounds):
+    start = go + 0.4 * r
+    if stale != "none" and sys.argv[6] == "0":  # the first racer leaves what a dead launcher of the pid-file lock left
+        while time.time() < start - 0.12:
+            pass
+        (out / ".lock").write_text("" if stale == "empty" else stale)
+    while time.time() < start:
+        pass
+    try:
+        with ResultsStore(out).lock():
+            with log.open("a") as handle:
+                handle.write(json.dumps(["in", r, os.getpid(), time.time()]) + "\\n")
+            time.sleep(0.08)
+            with log.open("a") as handle:
+                handle.write(json.dumps(["out", r, os.getpid(), time.time()]) + "\\n")
+    except StoreError:
+        pass
+"""
+
+
+@pytest.mark.parametrize("stale", ["none", "empty", "dead pid"])
+def test_racing_launchers_never_both_hold_the_lock(tmp_path: Path, stale: str) -> None:
+    """
+    4 real processes race on ``ResultsStore.lock()`` in 25 rounds, all starting each round at the same instant (with
+    a stale lock file of the pid-file era before each round, or none): never two holders at once.
+    """
+    dead = subprocess.Popen(["true"])
+    dead.wait()
+    out, log, rounds = tmp_path / "out", tmp_path / "log", 25
+    out.mkdir()
+    mark = {"none": "none", "empty": "empty", "dead pid": str(dead.pid)}[stale]
+    go = time.time() + 3.0  # time for the 4 interpreters to start
+    racers = [
+        subprocess.Popen([sys.executable, "-c", _RACER, str(out), str(log), str(go), str(rounds), mark, str(i)])
+        for i in range(4)
+    ]
+    for racer in racers:
+        assert racer.wait(timeout=120) == 0
+    events = sorted((json.loads(line) for line in log.read_text().splitlines()), key=lambda e: e[3])
+    holders, overlaps = 0, []
+    for kind, r, pid, _ in events:
+        holders += 1 if kind == "in" else -1
+        if holders > 1:
+            overlaps.append((r, pid))
+    assert overlaps == [], f"two launchers held the lock at once in rounds {sorted({r for r, _ in overlaps})}"
+    assert sum(kind == "in" for kind, *_ in events) >= rounds // 2  # the rounds did race for the lock
+    assert unlocked(out)
+
+
+def test_two_sweeps_started_at_once_one_is_refused(tmp_path: Path) -> None:
+    """A paper-like and a smoke-like sweep into one folder, started together: one runs, the other is refused."""
+    first, second = sweep_file(tmp_path, ["none"], seeds=2, pause=0.5), sweep_file(tmp_path, ["none"], seeds=2, name="other")
+    out = tmp_path / "out"
+    procs = [launcher(first, out), launcher(second, out)]
+    codes = [proc.wait(timeout=120) for proc in procs]
+    errs = [proc.stderr.read() if proc.stderr else "" for proc in procs]
+    assert sorted(codes) == [0, 2], errs
+    assert any("in use by another launcher" in e or "different sweep" in e for e in errs), errs
+    runs = contents(out)
+    assert len(runs) == 4 and len({r["config"]["sweep"] for r in runs.values()}) == 1

@@ -5,7 +5,7 @@ mixed folders), and the scalable statistics give the numbers of their direct def
 
 from __future__ import annotations
 
-import shutil
+import json
 from pathlib import Path
 
 import numpy as np
@@ -23,15 +23,18 @@ SMOKE = ROOT / "experiments" / "smoke.yaml"
 
 @pytest.fixture(scope="module")
 def mixed(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A folder holding Parquet chunks (smoke, 2 seeds) and run files of other runs (smoke, 1 seed, logs on)."""
-    base = tmp_path_factory.mktemp("loading")
-    run_sweep(SMOKE, base / "chunked", workers=1, overrides=["episodes=12"], progress=False)
-    run_sweep(SMOKE, base / "json", workers=1, overrides=["episodes=12", "seeds=[7]", "logs=[csv]"], progress=False)
-    folder = base / "mixed"
-    shutil.copytree(base / "chunked", folder)
-    for path in (base / "json" / "runs").glob("*.json"):
-        shutil.copy(path, folder / "runs" / path.name)
-    assert list((folder / "chunks").glob("*.parquet")) and list((folder / "runs").glob("*.json"))
+    """
+    A folder of one sweep (smoke, 3 seeds) holding both layouts: its runs first ran one file each (logs on), then all
+    but replicate 2's files were removed and the rerun (logs off: the same sweep) stored them in Parquet chunks.
+    """
+    folder = tmp_path_factory.mktemp("loading") / "mixed"
+    overrides = ["episodes=12", "seeds=3"]
+    run_sweep(SMOKE, folder, workers=1, overrides=[*overrides, "logs=[csv]"], progress=False)
+    for path in (folder / "runs").glob("[!.]*.json"):
+        if json.loads(path.read_text())["config"]["labels"]["replicate"] != 2:
+            path.unlink()
+    assert run_sweep(SMOKE, folder, workers=1, overrides=overrides, progress=False).finished == 8
+    assert len(list((folder / "chunks").glob("*.parquet"))) >= 1 and len(list((folder / "runs").glob("*.json"))) == 4
     return folder
 
 
@@ -74,8 +77,8 @@ def test_rows_where_copies_only_the_rows_asked(mixed: Path) -> None:
 
 
 def test_status_counts_from_the_footers(mixed: Path) -> None:
-    name, per_agent = ResultsStore(mixed).progress()
-    assert name == "smoke" and per_agent == {"epsilon-greedy": (4, 4, 0), "affective": (4, 4, 0)}
+    name, per_agent, not_counted = ResultsStore(mixed).progress()
+    assert name == "smoke" and per_agent == {"epsilon-greedy": (6, 6, 0), "affective": (6, 6, 0)} and not_counted == []
 
 
 def _pairwise(x: np.ndarray, y: np.ndarray, lower_is_better: bool) -> float:

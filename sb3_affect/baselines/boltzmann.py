@@ -9,6 +9,7 @@ import numpy as np
 from stable_baselines3.common.type_aliases import GymEnv, Schedule
 from stable_baselines3.common.utils import FloatSchedule
 
+from sb3_affect.episode_log import Rows
 from sb3_affect.policies import TabularQPolicy, check_not_gym_tuple
 from sb3_affect.settings import BoltzmannSettings, check_boltzmann, temperature_at
 from sb3_affect.tabular import TabularQAlgorithm
@@ -146,7 +147,7 @@ class Boltzmann(TabularQAlgorithm):
     def _episode_exploration(self) -> float:
         return self._inv_temperature
 
-    def _decide(self, state: int, q: list[list[float]]) -> tuple[int, int, bool]:
+    def _decide(self, state: int, q: Rows) -> tuple[int, int, bool]:
         row = q[state]
         action = softmax_action(row, self._inv_temperature, self._rng.random())
         return action, 1, row[action] != max(row)

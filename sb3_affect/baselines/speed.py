@@ -7,6 +7,7 @@ from typing import Any
 
 from stable_baselines3.common.type_aliases import GymEnv, Schedule
 
+from sb3_affect.episode_log import Rows
 from sb3_affect.policies import TabularQPolicy, greedy_action
 from sb3_affect.qlearning import QLearning
 from sb3_affect.settings import SpeedEpsilonGreedySettings, check_speeds
@@ -87,7 +88,7 @@ class SpeedEpsilonGreedy(QLearning):
             _init_setup_model=_init_setup_model,
         )
 
-    def _decide(self, state: int, q: list[list[float]]) -> tuple[int, int, bool]:
+    def _decide(self, state: int, q: Rows) -> tuple[int, int, bool]:
         rng = self._rng
         speeds = self.speeds
         cells = speeds[0] if len(speeds) == 1 else speeds[rng.randrange(len(speeds))]

@@ -7,6 +7,7 @@ from typing import Any
 
 from stable_baselines3.common.type_aliases import GymEnv, Schedule
 
+from sb3_affect.episode_log import Rows
 from sb3_affect.policies import TabularQPolicy
 from sb3_affect.settings import UCBQLearningSettings
 from sb3_affect.tabular import TabularQAlgorithm
@@ -95,7 +96,7 @@ class UCBQLearning(TabularQAlgorithm):
     def _exploration_value(self) -> float:
         return self.exploration_coef
 
-    def _decide(self, state: int, q: list[list[float]]) -> tuple[int, int, bool]:
+    def _decide(self, state: int, q: Rows) -> tuple[int, int, bool]:
         assert self.counts is not None
         n = self.counts[state]
         row = q[state]

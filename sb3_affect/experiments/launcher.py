@@ -24,6 +24,7 @@ same per-episode records on either backend.
 from __future__ import annotations
 
 import os
+import sys
 import time
 import traceback
 from dataclasses import dataclass
@@ -152,7 +153,8 @@ def run_sweep(
 
         raise _store_error(store.root, error) from None
     with store.lock():
-        store.prepare(resolved, [rid for ids in cell_ids for rid in ids])
+        for line in store.prepare(resolved, [rid for ids in cell_ids for rid in ids]):
+            print(f"sb3-affect: {line}", file=sys.stderr, flush=True)
         jobs = plan_jobs(cells, cell_ids, store, workers, sweep.logs)
         todo = sum(job.size for job in jobs)
         counts = {"finished": 0, "failed": 0}

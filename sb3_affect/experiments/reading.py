@@ -19,6 +19,7 @@ import numpy as np
 import pandas as pd
 
 from sb3_affect.experiments.chunks import BOOL_COLUMNS, INT_COLUMNS, META_KEY, chunk_table
+from sb3_affect.experiments.folder_files import guarded
 
 #: The columns of the run table besides the labels (one column per label, ``replicate`` included).
 RUN_COLUMNS = ("run_id", "agent", "algo", "seed", "decisions", "episodes", "wall_seconds", "max_timesteps")
@@ -85,7 +86,7 @@ def read_folder(
     json_parts: list[dict[str, np.ndarray]] = []
     json_counts: list[int] = []
     for path in json_files:
-        record = json.loads(path.read_text())
+        record = guarded(path, lambda p: json.loads(p.read_text()))
         if record.get("status", "ok") != "ok":
             continue
         config, episodes, timings = record["config"], record["episodes"], record.get("timings", {})
@@ -99,7 +100,7 @@ def read_folder(
     chunks: list[tuple[Path, int, np.ndarray]] = []  # (file, its first run's row in the read order, run starts)
     total = len(rows)
     for path in chunk_files:
-        meta, run = _chunk_footer(path, columns is not None)
+        meta, run = guarded(path, lambda p: _chunk_footer(p, columns is not None))
         base, count = meta["base"], len(meta["runs"])
         ids, seeds, replicates, decisions = (list(values) for values in zip(*meta["runs"])) if count else ([],) * 4
         episodes_per_run: Any = base["episodes"]  # the footer only: the batch's episode budget
@@ -147,7 +148,7 @@ def read_folder(
         for column in columns:
             data[column][rows_of_run] = part[column]
     for path, first, run_starts in chunks:
-        table = chunk_table(path, columns)
+        table = guarded(path, lambda p: chunk_table(p, columns))
         run = table.pop("run").astype(np.int64)
         where = start[first + run] + (np.arange(len(run)) - run_starts[run])
         for column in columns:

@@ -127,7 +127,10 @@ def check_configs(configs: list[dict[str, Any]]) -> list[tuple[str, str]]:
     problems: list[tuple[str, str]] = []
     env_checked: set[str] = set()
     seen: set[str] = set()
+    failed_agents: set[str] = set()  # one problem per agent, not one per grid point
     for config in configs:
+        if config["agent"] in failed_agents:
+            continue
         env_key = json.dumps([config["env_id"], config["env_kwargs"]], sort_keys=True)
         if env_key not in env_checked:
             env_checked.add(env_key)
@@ -155,8 +158,31 @@ def check_configs(configs: list[dict[str, Any]]) -> list[tuple[str, str]]:
         except Exception as error:
             labels = {k: v for k, v in config["labels"].items() if k != "replicate"}
             where = f" at {labels}" if labels else ""
-            problems.append((config["agent"], f"{config['algo']} can not be built{where}: {type(error).__name__}: {error}"))
+            hint = _kwarg_hint(config, error)
+            failed_agents.add(config["agent"])
+            problems.append(
+                (config["agent"], f"{config['algo']} can not be built{where}: {type(error).__name__}: {error}{hint}")
+            )
     return problems
+
+
+def _kwarg_hint(config: dict[str, Any], error: Exception) -> str:
+    """For an unknown keyword argument: ``; did you mean 'gamma'?`` (the closest argument of the class), else ''."""
+    import difflib
+    import inspect
+    import re
+
+    match = re.search(r"unexpected keyword argument '([^']+)'", str(error))
+    if not isinstance(error, TypeError) or match is None or "team" in config:
+        return ""
+    from sb3_affect.registry import resolve_class
+
+    try:
+        parameters = list(inspect.signature(resolve_class(config["algo"])).parameters)
+    except (ValueError, TypeError):
+        return ""
+    close = difflib.get_close_matches(match.group(1), [p for p in parameters if not p.startswith("_")], n=1)
+    return f"; did you mean {close[0]!r}?" if close else ""
 
 
 def check_configs_in_child(configs: list[dict[str, Any]]) -> list[tuple[str, str]]:

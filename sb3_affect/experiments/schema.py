@@ -23,6 +23,11 @@ A multi-agent env (``sb3_affect/HunterPursuit-v0``, one hunter per ``team`` memb
         grid: {epsilon: [0.1]}
 
 Reading a file, its ``--set`` overrides and the messages of a file that does not validate: ``sweep_file``.
+
+Validating a file imports the modules its ``algo`` and ``env.id`` paths name (as rl-zoo3's ``--gym-packages`` does):
+only run sweep files you trust. A results folder's saved sweep is validated without importing anything
+(``Sweep.validate_saved``), so ``status`` and ``report`` run no code a folder names. Sizes are checked from the
+numbers before anything is allocated: ``MAX_SEEDS``, ``MAX_GRID_POINTS``, ``MAX_RUNS``, ``MAX_EPISODES``.
 """
 
 from __future__ import annotations
@@ -31,17 +36,34 @@ import hashlib
 import importlib
 import itertools
 import json
+import math
 import re
 from dataclasses import dataclass
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
 
 from sb3_affect.registry import check_algo, known_settings, resolve_class
 
 __all__ = ["AgentSpec", "Cell", "EnvSpec", "MemberSpec", "Sweep", "SweepError"]
 
 KWARG_REFERENCE = re.compile(r"^\$([A-Za-z_][A-Za-z0-9_]*)$")
+#: Names of sweeps and agents: they name files, so no leading dot (hidden files) and at most 64 characters.
+NAME_PATTERN = r"^[A-Za-z0-9_+-][A-Za-z0-9_.+-]{0,63}$"
+#: Limits checked from the numbers before anything is allocated.
+MAX_SEEDS = 1_000_000  # seeds per grid point (a count, or the length of a list)
+MAX_SEED = 2**32 - 1  # seeds are NumPy seeds: integers in [0, 2**32 - 1]
+MAX_GRID_POINTS = 100_000  # grid points per agent (the product of its grid's lengths)
+MAX_RUNS = 2_000_000  # runs per sweep (grid points x seeds, summed over the agents)
+MAX_EPISODES = 1_000_000  # episodes per run
+MAX_TIMESTEPS = 10**10  # decisions per run
+#: The validation context of a saved sweep: nothing is imported (``Sweep.validate_saved``).
+SAVED = {"imports": False}
+
+
+def _imports(info: ValidationInfo) -> bool:
+    """Whether this validation may import the modules a file names (not for a results folder's saved sweep)."""
+    return not (isinstance(info.context, dict) and info.context.get("imports") is False)
 
 
 class SweepError(ValueError):
@@ -79,7 +101,9 @@ class EnvSpec(BaseModel):
 
     @field_validator("id")
     @classmethod
-    def _registered(cls, value: str) -> str:
+    def _registered(cls, value: str, info: ValidationInfo) -> str:
+        if not _imports(info):
+            return value
         import gymnasium as gym
 
         import sb3_affect  # noqa: F401  (registers the package's envs)
@@ -111,8 +135,8 @@ class MemberSpec(BaseModel):
 
     @field_validator("algo")
     @classmethod
-    def _tabular(cls, value: str) -> str:
-        if not is_tabular(value):
+    def _tabular(cls, value: str, info: ValidationInfo) -> str:
+        if _imports(info) and not is_tabular(value):
             raise ValueError(f"team members are tabular agents of this package (QLearning, AffectQ, baselines), not {value!r}")
         return value
 
@@ -122,14 +146,14 @@ class AgentSpec(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
     name: str = Field(
-        min_length=1,
-        pattern=r"^[A-Za-z0-9_.+-]+$",
-        description="unique within the file; names the runs (letters, digits, _ . + -) and groups them in the report",
+        pattern=NAME_PATTERN,
+        description="unique within the file; names the runs (letters, digits, _ . + -, not starting with a dot, at most "
+        "64 characters) and groups them in the report",
     )
     algo: str | None = Field(
         default=None,
-        description="QLearning, AffectQ, DQN, PPO, A2C or an importable 'package.module:Class' (an SB3 algorithm); "
-        "give algo or team",
+        description="QLearning, AffectQ, DQN, PPO, A2C or an importable 'package.module:Class' (a subclass of SB3's "
+        "BaseAlgorithm; validating the file imports that module, so run only files you trust); give algo or team",
     )
     kwargs: dict[str, Any] = Field(
         default_factory=dict,
@@ -138,7 +162,7 @@ class AgentSpec(BaseModel):
     grid: dict[str, list[Any]] = Field(
         default_factory=dict,
         description="label -> list of values; every combination is one grid point, run once per seed. A label no "
-        "kwarg uses only replicates the agent",
+        f"kwarg uses only replicates the agent. At most {MAX_GRID_POINTS:,} grid points per agent",
     )
     team: list[MemberSpec] | None = Field(
         default=None,
@@ -148,8 +172,8 @@ class AgentSpec(BaseModel):
 
     @field_validator("algo")
     @classmethod
-    def _importable(cls, value: str | None) -> str | None:
-        if value is not None:
+    def _importable(cls, value: str | None, info: ValidationInfo) -> str | None:
+        if value is not None and _imports(info):
             check_algo(value)
         return value
 
@@ -164,10 +188,19 @@ class AgentSpec(BaseModel):
     @field_validator("grid")
     @classmethod
     def _non_empty(cls, value: dict[str, list[Any]]) -> dict[str, list[Any]]:
+        points = 1
         for key, values in value.items():
             if not values:
                 raise ValueError(f"grid.{key} is empty: give at least one value")
+            points *= len(values)
+            if points > MAX_GRID_POINTS:
+                sizes = " x ".join(str(len(v)) for v in value.values())
+                raise ValueError(f"the grid has {sizes} points, more than the {MAX_GRID_POINTS:,} allowed per agent")
         return value
+
+    def point_count(self) -> int:
+        """The number of grid points (from the grid's lengths, nothing built)."""
+        return math.prod(len(values) for values in self.grid.values())
 
     @model_validator(mode="after")
     def _references(self) -> AgentSpec:
@@ -202,18 +235,24 @@ class Sweep(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
     name: str = Field(
-        min_length=1,
-        pattern=r"^[A-Za-z0-9_.+-]+$",
-        description="the sweep's name (letters, digits, _ . + -); enters the derived seeds and the run files",
+        pattern=NAME_PATTERN,
+        description="the sweep's name (letters, digits, _ . + -, not starting with a dot, at most 64 characters); "
+        "enters the derived seeds and the run files",
     )
     env: EnvSpec = Field(default_factory=EnvSpec, description="the environment section (below)")
-    episodes: int = Field(gt=0, description="episodes per run; a run stops after this many finished episodes")
+    episodes: int = Field(
+        gt=0, le=MAX_EPISODES, description=f"episodes per run (1 to {MAX_EPISODES:,}); a run stops after this many"
+    )
     seeds: int | list[int] = Field(
-        description="a count N (seeds derived by sha256 of sweep, agent, grid point and replicate) or an explicit list "
-        "of distinct integers, the same for every grid point"
+        description=f"a count N (1 to {MAX_SEEDS:,}; seeds derived by sha256 of sweep, agent, grid point and replicate) "
+        f"or an explicit list of distinct integers in [0, 2**32 - 1], the same for every grid point; at most "
+        f"{MAX_RUNS:,} runs in all (grid points x seeds over the agents)"
     )
     max_timesteps: int | None = Field(
-        default=None, gt=0, description="optional cap on a run's decisions (env steps), e.g. for DQN; null: no cap"
+        default=None,
+        gt=0,
+        le=MAX_TIMESTEPS,
+        description="optional cap on a run's decisions (env steps), e.g. for DQN; null: no cap",
     )
     logs: list[str] = Field(
         default_factory=list,
@@ -226,9 +265,21 @@ class Sweep(BaseModel):
     def _some_seeds(cls, value: int | list[int]) -> int | list[int]:
         if isinstance(value, int) and value <= 0:
             raise ValueError(f"seeds={value} must be a positive count or a non-empty list of integers")
+        if isinstance(value, int) and value > MAX_SEEDS:
+            raise ValueError(f"seeds={value:,} is more than the {MAX_SEEDS:,} seeds allowed per grid point")
+        bad = [seed for seed in value if not 0 <= seed <= MAX_SEED] if isinstance(value, list) else []
+        if bad:
+            raise ValueError(f"seeds: {bad[0]} is not a seed; seeds are integers in [0, 2**32 - 1] (NumPy's)")
         if isinstance(value, list) and (not value or len(set(value)) != len(value)):
             raise ValueError("seeds must be a non-empty list of distinct integers")
+        if isinstance(value, list) and len(value) > MAX_SEEDS:
+            raise ValueError(f"seeds: {len(value):,} seeds, more than the {MAX_SEEDS:,} allowed")
         return value
+
+    @classmethod
+    def validate_saved(cls, data: Any) -> Sweep:
+        """Validate a results folder's saved sweep without importing any module it names (no algo or env check)."""
+        return cls.model_validate(data, context=SAVED)
 
     @field_validator("logs")
     @classmethod
@@ -251,6 +302,10 @@ class Sweep(BaseModel):
                 raise ValueError(f"agents[{i}] ({agent.name}): a team needs a multi-agent env id, not {self.env.id!r}")
         if multi and self.max_timesteps is not None:
             raise ValueError("max_timesteps is not supported for teams: their runs are counted in episodes")
+        replicates = self.seeds if isinstance(self.seeds, int) else len(self.seeds)
+        runs = sum(agent.point_count() for agent in self.agents) * replicates
+        if runs > MAX_RUNS:
+            raise ValueError(f"the sweep has {runs:,} runs (grid points x seeds), more than the {MAX_RUNS:,} allowed")
         return self
 
     def cells(self) -> list[Cell]:

@@ -7,9 +7,13 @@ Layout of a results folder ``DIR``::
     DIR/sweep.json          the resolved sweep; a different sweep into DIR is refused
     DIR/chunks/<batch>.parquet  the finished runs of one batch: one row per episode, per-run data in the footer
     DIR/runs/<id>.json      one finished run executed on its own: config, per-episode columns, timings, versions
+    DIR/chunks/.sweep, DIR/runs/.sweep  copies of sweep.json: deleting one file does not forget the sweep
     DIR/failed/<id>.json    a run that raised or whose worker died: config and traceback (retried on resume)
+    DIR/damaged/            files set aside by the launcher (unreadable, of another sweep, copies); their runs rerun
     DIR/logs/<id>/          per-run SB3 logger output, when the sweep asks for it
-    DIR/.lock               the pid (and start time) of the launcher using DIR
+    DIR/.lock, .lock.owner  the launcher's lock (``folder_lock``) and its pid
+
+A run counts as done only when the file holding it reads back whole (``folder_files``).
 """
 
 from __future__ import annotations
@@ -21,12 +25,14 @@ import json
 import os
 import re
 import tempfile
-from collections.abc import Collection, Iterable, Iterator, Sequence
+from collections.abc import Callable, Collection, Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from sb3_affect.episode_log import EPISODE_COLUMNS
-from sb3_affect.experiments.chunks import chunk_meta, chunk_records
+from sb3_affect.experiments import folder_lock
+from sb3_affect.experiments.chunks import chunk_records
+from sb3_affect.experiments.folder_files import FolderFiles, guarded, sort_files
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -101,6 +107,9 @@ def _store_error(folder: Path, error: OSError) -> StoreError:
     return StoreError(f"{folder}: {error.strerror or error}")
 
 
+IDENTITY_COPIES = ("chunks/.sweep", "runs/.sweep")
+
+
 class ResultsStore:
     """A results folder (see the module docstring)."""
 
@@ -110,38 +119,62 @@ class ResultsStore:
         self.chunks = self.root / "chunks"
         self._failed: set[str] | None = None  # failure records known to write_chunk (those it may have to remove)
         self.failed = self.root / "failed"
+        self.damaged = self.root / "damaged"
         self.logs = self.root / "logs"
 
+    # -- the sweep's identity ----------------------------------------------------------------------------------
+    def saved_sweep(self) -> dict[str, Any] | None:
+        """The resolved sweep run here: ``sweep.json``, or a copy of it when it was deleted; None when none is left."""
+        for path in (self.root / "sweep.json", *(self.root / copy for copy in IDENTITY_COPIES)):
+            try:
+                saved = json.loads(path.read_text())
+            except (OSError, ValueError):
+                continue
+            if isinstance(saved, dict) and isinstance(saved.get("sweep"), dict):
+                return saved
+        return None
+
     # -- set-up ------------------------------------------------------------------------------------------------
-    def prepare(self, resolved_sweep: dict[str, Any], run_ids: Collection[str] = ()) -> None:
+    def prepare(self, resolved_sweep: dict[str, Any], run_ids: Collection[str] = ()) -> list[str]:
         """
-        Create the folders, refuse a different sweep, save the resolved sweep, clear stale temp files.
+        Create the folders, refuse a different sweep, save the resolved sweep (and its copies), clear stale temp
+        files, and set aside every file that does not count (``folder_files``): its runs are not done.
 
         :param resolved_sweep: ``{"name", "sweep" (the validated file), ...}``; a folder holding another is refused
-        :param run_ids: every run id of the sweep, compared with the run list of a folder written before chunks
+        :param run_ids: every run id of the sweep: a file holding another run is set aside (and, in a folder whose
+            sweep records are all gone, means the folder holds another sweep: refused)
+        :return: one line per file set aside (its path, why, where it went)
         """
+        replication = replication_parts(self.root)
+        if replication and not (self.root / "sweep.json").exists():
+            raise StoreError(
+                f"{self.root} holds a replication (sweeps in {', '.join(replication)}), which a sweep run into it "
+                f"would mix with; give the sweep a folder of its own, e.g. --out {self.root / resolved_sweep['name']}"
+            )
         try:
             for folder in (self.root, self.runs, self.chunks, self.failed):
                 folder.mkdir(parents=True, exist_ok=True)
         except OSError as error:
             raise _store_error(self.root, error) from None
-        saved = self.root / "sweep.json"
-        if saved.exists():
-            try:
-                previous = json.loads(saved.read_text())
-            except (OSError, ValueError):
-                previous = None
+        refusal = (
+            f"{self.root} already holds the results of a different sweep ({{name!r}}, or the same file with other "
+            "settings); resume only with the same file and --set options, or use another --out"
+        )
+        previous = self.saved_sweep()
+        wanted = set(run_ids)
+        if previous is not None:
             same = _identity(previous) == _identity(resolved_sweep)
-            if same and isinstance(previous.get("runs"), dict) and run_ids:  # a folder of the one-file-per-run era
-                same = set(previous["runs"]) == set(run_ids)
+            if same and isinstance(previous.get("runs"), dict) and wanted:  # a folder of the one-file-per-run era
+                same = set(previous["runs"]) == wanted
             if not same:
-                name = (previous or {}).get("name", "?")
-                raise StoreError(
-                    f"{self.root} already holds the results of a different sweep ({name!r}, or the same file with "
-                    "other settings); resume only with the same file and --set options, or use another --out"
-                )
-        else:
-            _write_atomic(saved, resolved_sweep)
+                raise StoreError(refusal.format(name=previous.get("name", "?")))
+        files = self._check_files((lambda rid, agent: rid in wanted) if wanted else None)
+        if previous is None and any("another sweep" in why for _, why in files.rejected):
+            raise StoreError(refusal.format(name="its sweep.json is gone; its files name other runs"))
+        for name in ("sweep.json", *IDENTITY_COPIES):
+            path = self.root / name
+            if previous is None or not path.exists():
+                _write_atomic(path, previous or resolved_sweep)
         for folder in (self.runs, self.chunks, self.failed):
             for stale in folder.glob(".tmp-*"):
                 with contextlib.suppress(OSError):
@@ -152,56 +185,40 @@ class ResultsStore:
             probe.unlink()
         except OSError as error:
             raise _store_error(self.runs, error) from None
+        return self._set_aside(files.rejected)
+
+    def _set_aside(self, rejected: list[tuple[Path, str]]) -> list[str]:
+        """Move each rejected file into ``DIR/damaged/`` (never over an earlier one); one line per file."""
+        lines = []
+        for path, why in rejected:
+            try:
+                self.damaged.mkdir(exist_ok=True)
+                target = self.damaged / f"{path.parent.name}-{path.name}"
+                count = 1
+                while target.exists():
+                    count += 1
+                    target = self.damaged / f"{path.parent.name}-{path.stem}.{count}{path.suffix}"
+                os.replace(path, target)
+            except OSError as error:
+                reason = error.strerror or error
+                raise StoreError(f"{path} {why}, and can not be moved aside ({reason}); move it yourself") from None
+            lines.append(f"{path} {why}: moved to {target}, its runs will be run again")
+        return lines
 
     def lock_owner(self) -> int | None:
-        """The pid of the live launcher holding ``DIR/.lock``, or None (no lock, or a stale one)."""
-        try:
-            fields = (self.root / ".lock").read_text().split()
-        except OSError:
-            return None
-        try:
-            pid = int(fields[0])
-        except (IndexError, ValueError):
-            return None
-        if not _alive(pid):
-            return None
-        # A recorded start time that differs: the launcher died and its pid was reused by another process.
-        if len(fields) > 1 and _start_time(pid) not in (None, fields[1]):
-            return None
-        return pid
+        """The pid of the live launcher holding the folder's lock, or None (nobody holds it)."""
+        return folder_lock.recorded_owner(self.root) if folder_lock.is_locked(self.root) else None
 
     @contextlib.contextmanager
     def lock(self) -> Iterator[None]:
-        """
-        Hold ``DIR/.lock`` (our pid and start time) while running; a lock whose launcher is gone is stale and taken over.
-        """
-        path = self.root / ".lock"
-        mine = f"{os.getpid()} {_start_time(os.getpid()) or ''}".strip()
-        for _ in range(3):
-            try:
-                fd = os.open(path, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
-            except FileExistsError:
-                pid = self.lock_owner()
-                if pid is not None:
-                    raise StoreError(
-                        f"{self.root} is in use by another launcher (pid {pid}); wait for it or stop it first"
-                    ) from None
-                with contextlib.suppress(FileNotFoundError):
-                    path.unlink()  # stale: its launcher is gone
-                continue
-            except OSError as error:
-                raise _store_error(self.root, error) from None
-            with os.fdopen(fd, "w") as handle:
-                handle.write(mine)
-            break
-        else:  # pragma: no cover - a race with another launcher taking the stale lock first
-            raise StoreError(f"{self.root} is in use by another launcher")
+        """Hold the folder's lock while running (``folder_lock``); StoreError at once if another launcher holds it."""
         try:
-            yield
-        finally:
-            with contextlib.suppress(OSError):
-                if path.read_text().strip() == mine:
-                    path.unlink()
+            with folder_lock.hold(self.root):
+                yield
+        except folder_lock.FolderBusy as busy:
+            raise StoreError(f"{self.root} is in use by another launcher ({busy}); wait for it or stop it first") from None
+        except OSError as error:
+            raise _store_error(self.root, error) from None
 
     # -- writing -----------------------------------------------------------------------------------------------
     def write_run(self, rid: str, config: dict[str, Any], result: dict[str, Any]) -> None:
@@ -235,61 +252,72 @@ class ResultsStore:
     def _chunk_files(self) -> list[Path]:
         return sorted(p for p in self.chunks.glob("*.parquet") if not p.name.startswith("."))
 
-    def progress(self) -> tuple[str, dict[str, tuple[int, int, int]]]:
-        """
-        The saved sweep's name and, per agent, ``(runs, finished, failed)`` (failed: recorded and not finished since),
-        from ``sweep.json``, the chunks' footers and the file names: no run's data is read. ``FileNotFoundError``
-        when no sweep was run here.
-        """
-        resolved = json.loads((self.root / "sweep.json").read_text())
-        listed = resolved.get("runs") if isinstance(resolved.get("runs"), dict) else None
-        if listed is not None:  # a folder written before chunks lists every run
-            totals: dict[str, int] = {}
-            for config in listed.values():
-                totals[config["agent"]] = totals.get(config["agent"], 0) + 1
-        else:
-            from sb3_affect.experiments.schema import Sweep
+    def _check_files(self, belongs: Callable[[str, str], bool] | None) -> FolderFiles:
+        """Every run file and chunk, read and sorted out (``folder_files.sort_files``)."""
+        return sort_files(self._json_files(), self._chunk_files(), belongs)
 
-            sweep = Sweep.model_validate(resolved["sweep"])
-            replicates = sweep.seeds if isinstance(sweep.seeds, int) else len(sweep.seeds)
-            totals = {agent.name: len(agent.points()) * replicates for agent in sweep.agents}
-        done = {name: 0 for name in totals}
-        done_ids: set[str] = set()
-        failures = list(self.failed.glob("[!.]*.json"))
-        files = [p.stem for p in self._json_files()]
-        for path in self._chunk_files():
-            meta = chunk_meta(path)
-            done[meta["base"]["agent"]] += len(meta["runs"])
-            if failures:  # only to tell a failure since retried: no set of every run id otherwise
-                done_ids.update(run[0] for run in meta["runs"])
-        if files:
-            agent_of = {rid: c["agent"] for rid, c in listed.items()} if listed is not None else self._agents_of_runs()
-            for rid in files:
-                if rid in agent_of:
-                    done[agent_of[rid]] += 1
-                    done_ids.add(rid)
-        failed = {name: 0 for name in totals}
-        for path in failures:
-            if path.stem not in done_ids:
-                with contextlib.suppress(OSError, ValueError, KeyError):
-                    failed[json.loads(path.read_text())["config"]["agent"]] += 1
-        return resolved["name"], {name: (totals[name], done[name], failed[name]) for name in totals}
+    def _sweep_runs(self) -> dict[str, str] | None:
+        """Run id -> agent of every run of the saved sweep (its file validated without importing anything)."""
+        resolved = self.saved_sweep()
+        if resolved is None:
+            return None
+        if isinstance(resolved.get("runs"), dict):  # a folder written before chunks lists every run
+            return {rid: c["agent"] for rid, c in resolved["runs"].items()}
+        from pydantic import ValidationError
 
-    def _agents_of_runs(self) -> dict[str, str]:
         from sb3_affect.experiments.schema import Sweep
 
-        resolved = json.loads((self.root / "sweep.json").read_text())
+        try:
+            sweep = Sweep.validate_saved(resolved["sweep"])
+        except ValidationError as error:
+            first = error.errors()[0]
+            where = ".".join(str(part) for part in first["loc"])
+            raise StoreError(f"{self.root / 'sweep.json'}: the saved sweep is not valid ({where}: {first['msg']})") from None
         runs: dict[str, str] = {}
-        for cell in Sweep.model_validate(resolved["sweep"]).cells():
+        for cell in sweep.cells():
             runs.update(dict.fromkeys(cell_run_ids(cell), cell.base["agent"]))
         return runs
 
+    def _checked(self) -> FolderFiles:
+        """The files that count; StoreError naming the first that does not (a rerun sets them aside)."""
+        runs = self._sweep_runs()
+        files = self._check_files(None if runs is None else lambda rid, agent: runs.get(rid) == agent)
+        if files.rejected:
+            path, why = files.rejected[0]
+            more = f" (and {len(files.rejected) - 1} more)" if len(files.rejected) > 1 else ""
+            raise StoreError(
+                f"{path} {why}{more}; rerun the sweep into {self.root} (the same `sb3-affect run` command) to move it "
+                "to damaged/ and run its runs again"
+            )
+        return files
+
+    def progress(self) -> tuple[str, dict[str, tuple[int, int, int]], list[tuple[Path, str]]]:
+        """
+        The saved sweep's name; per agent ``(runs, finished, failed)`` (failed: recorded and not finished since),
+        counting only the runs of files that count; and ``(path, why)`` of each file that does not. Reads the chunks'
+        footers and the run files, imports nothing the folder names. ``FileNotFoundError`` when no sweep was run here.
+        """
+        resolved = self.saved_sweep()
+        if resolved is None:
+            raise FileNotFoundError(f"{self.root / 'sweep.json'}: no sweep was run here")
+        runs = self._sweep_runs() or {}
+        totals = {agent: 0 for agent in _agent_names(resolved)}
+        for agent in runs.values():
+            totals[agent] = totals.get(agent, 0) + 1
+        files = self._check_files(lambda rid, agent: runs.get(rid) == agent)
+        done_ids = files.done_ids()
+        done = {name: 0 for name in totals}
+        for rid in done_ids:
+            done[runs[rid]] += 1
+        failed = {name: 0 for name in totals}
+        for path in self.failed.glob("[!.]*.json"):
+            if path.stem not in done_ids and path.stem in runs:
+                failed[runs[path.stem]] += 1
+        return resolved["name"], {name: (totals[name], done[name], failed[name]) for name in totals}, files.rejected
+
     def done_ids(self) -> set[str]:
-        """Every finished run, in either layout (chunks: from their footers only)."""
-        done = {p.stem for p in self._json_files()}
-        for path in self._chunk_files():
-            done.update(run[0] for run in chunk_meta(path)["runs"])
-        return done
+        """Every finished run, in either layout (chunks: from their footers only), of the files that count."""
+        return self._check_files(None).done_ids()
 
     def failed_ids(self) -> set[str]:
         return {p.stem for p in self.failed.glob("*.json") if not p.name.startswith(".")}
@@ -297,9 +325,10 @@ class ResultsStore:
     def load_runs(self) -> list[dict[str, Any]]:
         """Every finished run as a record of the JSON layout (``run_id``, ``config``, ``episodes`` lists, ...): for
         small folders; large ones read ``runs_frame`` and ``episodes_frame``."""
-        records = [json.loads(p.read_text()) for p in self._json_files()]
-        for path in self._chunk_files():
-            records.extend(chunk_records(path))
+        files = self._checked()
+        records = [json.loads(p.read_text()) for p in files.run_files]
+        for path in files.chunk_files:
+            records.extend(guarded(path, chunk_records))
         return sorted((r for r in records if r.get("status", "ok") == "ok"), key=lambda r: r["run_id"])
 
     def runs_frame(self) -> pd.DataFrame:
@@ -310,7 +339,8 @@ class ResultsStore:
         """
         from sb3_affect.experiments.reading import read_folder  # (pandas: not on the launcher's path)
 
-        return read_folder(self._json_files(), self._chunk_files(), None, self.root)[0]
+        files = self._checked()
+        return read_folder(list(files.run_files), list(files.chunk_files), None, self.root)[0]
 
     def results(self, columns: Sequence[str] | None = None, seed: bool = True) -> tuple[pd.DataFrame, pd.DataFrame]:
         """
@@ -325,15 +355,33 @@ class ResultsStore:
         """
         from sb3_affect.experiments.reading import RUN_COLUMNS, episode_table, read_folder
 
-        runs, data = read_folder(
-            self._json_files(), self._chunk_files(), EPISODE_COLUMNS if columns is None else tuple(columns), self.root
-        )
+        files = self._checked()
+        wanted = EPISODE_COLUMNS if columns is None else tuple(columns)
+        runs, data = read_folder(list(files.run_files), list(files.chunk_files), wanted, self.root)
         labels = [c for c in runs.columns if c not in RUN_COLUMNS]
         return runs, episode_table(runs, data, ["run_id", "agent", *(["seed"] if seed else []), *labels])
 
     def episodes_frame(self, columns: Sequence[str] | None = None) -> pd.DataFrame:
         """The episode table of ``results``."""
         return self.results(columns)[1]
+
+
+def replication_parts(root: Path) -> list[str]:
+    """
+    The sweep sub-folders of ``root`` when it holds a replication (``sb3-affect replicate``'s folder: marked by its
+    ``replicate.json``, or, written before that record, by a ``paper/`` sweep), else [].
+    """
+    if not (root / "replicate.json").exists() and not (root / "paper" / "sweep.json").exists():
+        return []
+    try:
+        return sorted(f"{p.name}/" for p in root.iterdir() if (p / "sweep.json").exists()) or ["replicate.json"]
+    except OSError:
+        return ["replicate.json"]
+
+
+def _agent_names(resolved: dict[str, Any]) -> list[str]:
+    agents = resolved["sweep"].get("agents") or []
+    return [a["name"] for a in agents if isinstance(a, dict) and isinstance(a.get("name"), str)]
 
 
 def _identity(resolved: Any) -> Any:
@@ -344,21 +392,3 @@ def _identity(resolved: Any) -> Any:
     if not isinstance(resolved, dict) or not isinstance(resolved.get("sweep"), dict):
         return resolved
     return {"name": resolved.get("name"), "sweep": {k: v for k, v in resolved["sweep"].items() if k != "logs"}}
-
-
-def _alive(pid: int) -> bool:
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
-
-
-def _start_time(pid: int) -> str | None:
-    """When ``pid`` started (clock ticks since boot, Linux ``/proc``), to tell a reused pid from the launcher's."""
-    try:
-        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[19]
-    except (OSError, IndexError):
-        return None

@@ -3,11 +3,16 @@ Reading a sweep file: ``load_sweep`` parses the YAML, applies ``--set key.path=v
 against the schema of ``schema``, naming the keys allowed where one is unknown), validates the result and turns
 every problem into one ``SweepError`` that names the file, the key (agents by name) and whether the file or an
 override caused it; it then builds the env and each agent once, so that a bad kwarg is reported before anything runs.
+
+The YAML is read strictly: a key given twice in one mapping is an error (not "the last wins"), and a file that
+expands to more than ``MAX_VALUES`` values (YAML aliases repeat what they name: a few hundred bytes can stand for
+billions) or nests deeper than ``MAX_DEPTH`` is refused before anything walks it.
 """
 
 from __future__ import annotations
 
 import difflib
+from collections.abc import Hashable
 from pathlib import Path
 from typing import Any
 
@@ -17,6 +22,45 @@ from pydantic import ValidationError
 from sb3_affect.experiments.schema import KWARG_REFERENCE, AgentSpec, EnvSpec, Sweep, SweepError
 
 __all__ = ["load_sweep"]
+
+#: Limits of a sweep file: its size in bytes, the values it expands to (aliases counted each time) and its nesting.
+MAX_BYTES, MAX_VALUES, MAX_DEPTH = 1_000_000, 100_000, 50
+
+
+class _StrictLoader(yaml.SafeLoader):
+    """PyYAML's safe loader, refusing a key given twice in one mapping (merge keys ``<<`` aside)."""
+
+    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Hashable, Any]:
+        seen: dict[Any, int] = {}
+        for key_node, _ in node.value:
+            if key_node.tag == "tag:yaml.org,2002:merge" or not isinstance(key_node, yaml.ScalarNode):
+                continue
+            key = self.construct_object(key_node)
+            if key in seen:
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"duplicate key {key!r} (first given at line {seen[key] + 1})", key_node.start_mark
+                )
+            seen[key] = key_node.start_mark.line
+        return super().construct_mapping(node, deep=deep)
+
+
+def _check_size(data: Any, where: str) -> None:
+    """Refuse data that expands to more than ``MAX_VALUES`` values or nests deeper than ``MAX_DEPTH`` (iteratively)."""
+    stack: list[tuple[Any, str, int]] = [(data, "", 0)]
+    count = 0
+    while stack:
+        value, key, depth = stack.pop()
+        count += 1
+        if count > MAX_VALUES or depth > MAX_DEPTH:
+            what = f"more than {MAX_VALUES:,} values" if count > MAX_VALUES else f"nesting deeper than {MAX_DEPTH}"
+            raise SweepError(
+                f"{where}: {key or '(top level)'}: the file expands to {what} (YAML aliases repeat what they name); "
+                "a sweep file needs far fewer"
+            )
+        if isinstance(value, dict):
+            stack.extend((v, f"{key}.{k}" if key else str(k), depth + 1) for k, v in value.items())
+        elif isinstance(value, list):
+            stack.extend((v, f"{key}[{i}]", depth + 1) for i, v in enumerate(value))
 
 
 def _override_path(assignment: str, data: dict[str, Any]) -> tuple[list[Any], Any]:
@@ -31,9 +75,10 @@ def _override_path(assignment: str, data: dict[str, Any]) -> tuple[list[Any], An
     raw_path, _, raw = assignment.partition("=")
     keys: list[Any] = raw_path.strip().split(".")
     try:
-        value = yaml.safe_load(raw)
+        value = yaml.load(raw, Loader=_StrictLoader)  # a safe loader
     except yaml.YAMLError as error:
         raise SweepError(f"--set {assignment!r}: the value is not valid YAML ({error})") from None
+    _check_size(value, f"--set {assignment!r}")
 
     def unknown(key: str, allowed: list[str], where: str) -> SweepError:
         close = difflib.get_close_matches(key, allowed, n=1)
@@ -125,11 +170,20 @@ def load_sweep(path: str | Path, overrides: tuple[str, ...] | list[str] = (), *,
     """
     path = Path(path)
     try:
-        text = path.read_text()
+        with path.open("rb") as handle:
+            raw = handle.read(MAX_BYTES + 1)
     except OSError as error:
         raise SweepError(f"{path}: can not read the sweep file ({error.strerror})") from None
+    if len(raw) > MAX_BYTES:
+        raise SweepError(f"{path}: the sweep file is larger than {MAX_BYTES:,} bytes; a sweep file is a few lines of YAML")
     try:
-        data = yaml.safe_load(text)
+        text = raw.decode()
+    except UnicodeDecodeError as error:
+        raise SweepError(f"{path}: the sweep file is not UTF-8 text ({error})") from None
+    try:
+        data = yaml.load(text, Loader=_StrictLoader)  # a safe loader
+    except RecursionError:
+        raise SweepError(f"{path}: malformed YAML: nested too deeply") from None
     except yaml.YAMLError as error:
         mark = getattr(error, "problem_mark", None)
         where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
@@ -137,6 +191,7 @@ def load_sweep(path: str | Path, overrides: tuple[str, ...] | list[str] = (), *,
         raise SweepError(f"{path}: malformed YAML{where}: {problem}") from None
     if not isinstance(data, dict):
         raise SweepError(f"{path}: a sweep file must be a YAML mapping with name, episodes, seeds and agents")
+    _check_size(data, str(path))
     overridden: list[tuple[str, list[Any]]] = []
     for assignment in overrides:
         try:
@@ -145,6 +200,7 @@ def load_sweep(path: str | Path, overrides: tuple[str, ...] | list[str] = (), *,
             raise SweepError(f"{error} [sweep file: {path}]") from None
         except (KeyError, IndexError, ValueError, TypeError, AttributeError) as error:
             raise SweepError(f"--set {assignment!r} does not apply to {path} ({error})") from None
+    _check_size(data, str(path))
     try:
         sweep = Sweep.model_validate(data)
     except ValidationError as error:
@@ -153,7 +209,8 @@ def load_sweep(path: str | Path, overrides: tuple[str, ...] | list[str] = (), *,
             location = tuple(item["loc"])
             key = _key_path(location, data) or "(top level)"
             value = item.get("input")
-            shown = "" if isinstance(value, (dict, list)) or item["type"] == "missing" else f" (got {value!r})"
+            text = repr(value) if len(repr(value)) <= 80 else f"{repr(value)[:77]}..."
+            shown = "" if isinstance(value, (dict, list)) or item["type"] == "missing" else f" (got {text})"
             message = item["msg"].removeprefix("Value error, ")
             setters = [a for a, keys in overridden if _overlaps(location, keys)]
             from_file = from_file or not setters
