@@ -10,6 +10,11 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 from gymnasium.utils import seeding
+
+from sb3_affect.extras import require_extra
+
+require_extra("hunters", "the multi-agent pursuit env (HunterPursuit)")
+
 from pettingzoo import ParallelEnv
 
 from sb3_affect.envs.grid_pursuit import MOVES, _as_cell, build_transitions, distances_to

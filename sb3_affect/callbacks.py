@@ -25,16 +25,18 @@ two ways:
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 from stable_baselines3.common.callbacks import BaseCallback
 
 from sb3_affect.appraisal import Appraiser
 from sb3_affect.emotions import EMOTION_NAMES, Emotion, EmotionRule, make_table_ii
 from sb3_affect.episode_log import Geometry, deterministic_walk_is_shortest, env_geometry, make_frame
 from sb3_affect.goals import GoalTest, positive_terminal_reward
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 
 class EmotionCallback(BaseCallback):

@@ -244,6 +244,16 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)  # --help, --version and usage errors end here, having imported little
+    from sb3_affect.extras import MissingExtraError
+
+    try:
+        return _dispatch(args)
+    except MissingExtraError as error:  # a study tool whose extra is not installed: one line saying which
+        print(f"sb3-affect: error: {error}", file=sys.stderr)
+        return 2
+
+
+def _dispatch(args: argparse.Namespace) -> int:
     from sb3_affect.experiments.ray_cluster import ClusterLost, RayClusterError
     from sb3_affect.experiments.schema import SweepError
     from sb3_affect.experiments.store import StoreError

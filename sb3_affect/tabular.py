@@ -13,6 +13,7 @@ import math
 import os
 import random
 import time
+import warnings
 from operator import itemgetter
 from typing import Any, ClassVar, TypeVar
 
@@ -39,6 +40,28 @@ SelfTabular = TypeVar("SelfTabular", bound="TabularQAlgorithm")
 __all__ = ["ENGINES", "MULTI_CELLS", "TIE_BREAKS", "TabularQAlgorithm"]
 
 _S = TabularSettings  # the defaults of the settings (one source: ``sb3_affect.settings``)
+
+
+_NUMBA_WARNED = False
+
+
+def _numba_usable(engine: str) -> bool:
+    """
+    Whether numba imports here. ``engine="auto"`` without it runs the Python loop (one warning per process);
+    ``engine="compiled"`` raises an error naming what is missing.
+    """
+    global _NUMBA_WARNED
+    from sb3_affect.extras import numba_problem
+
+    problem = numba_problem()
+    if problem is None:
+        return True
+    if engine == "compiled":
+        raise ModuleNotFoundError(f"engine='compiled' needs numba: {problem}; pip install numba, or use engine='python'")
+    if not _NUMBA_WARNED:
+        _NUMBA_WARNED = True
+        warnings.warn(f"{problem}: engine='auto' runs the Python loop (same results, slower)", RuntimeWarning, stacklevel=3)
+    return False
 
 
 class TabularQAlgorithm(BaseAlgorithm):
@@ -269,7 +292,7 @@ class TabularQAlgorithm(BaseAlgorithm):
         Gymnasium's and SB3's standard wrappers only) and the callbacks (none, ``StopTrainingOnMaxEpisodes``, the
         progress bar, or callbacks marked ``episode_level = True``) all allow it.
         """
-        if self.engine == "python":
+        if self.engine == "python" or not _numba_usable(self.engine):
             return False
         from sb3_affect.kernel.bridge import compiled_reason
 
