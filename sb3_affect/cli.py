@@ -178,7 +178,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="run (or resume) an experiment sweep",
         description="Run every run of an experiment file that DIR does not hold yet (rerun the same command to resume).",
     )
-    run.add_argument("file", help="experiment YAML, e.g. experiments/smoke.yaml (see the experiment-file reference)")
+    run.add_argument(
+        "file",
+        help="experiment YAML, e.g. experiments/smoke.yaml, or the name of a sweep shipped with the package, e.g. paper "
+        "(see the experiment-file reference)",
+    )
     run.add_argument("--out", required=True, metavar="DIR", help="results folder (created; an earlier run's folder resumes)")
     run.add_argument(
         "--workers",
