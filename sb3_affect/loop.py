@@ -88,10 +88,12 @@ def run_loop(
         before = reward_sum
         # 2. move k cells, one Eq. 1 update per cell (multi_cell="jump": one for the whole move, below)
         start_cell, jump_reward = s, 0.0
+        cell_rewards: list[float] = []  # this decision's rewards, one per cell (callbacks that discount per cell)
         for _ in range(k):
             obs, r, terminated, truncated, info = env.step(action + act_start)
             s2 = int(obs) - obs_start
             reward = float(r)
+            cell_rewards.append(reward)
             if jump:
                 jump_reward += reward
             else:
@@ -161,6 +163,7 @@ def run_loop(
             cb_locals["dones"] = DONE if done else NOT_DONE
             cb_locals["infos"] = [info]
             cb_locals["actions"] = np.array([action + act_start])
+            cb_locals["cell_rewards"] = cell_rewards
             update_locals(cb_locals)
             if not on_step():
                 break

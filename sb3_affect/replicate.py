@@ -52,12 +52,11 @@ def main(
     :return: the path of report.md
     """
     from sb3_affect.experiments import run_sweep
+    from sb3_affect.experiments.sweep_file import shipped_sweeps_folder
     from sb3_affect.report import build_report
     from sb3_affect.report.ablation import ablation_cells
     from sb3_affect.report.baselines import beyond_cells
     from sb3_affect.report.largen import large_cells, run_cells
-
-    from sb3_affect.experiments.sweep_file import shipped_sweeps_folder
 
     experiments = Path(experiments or EXPERIMENTS or shipped_sweeps_folder())
     large_seeds = large_seeds or LARGE_SEEDS

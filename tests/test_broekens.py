@@ -87,10 +87,12 @@ def test_observes_sb3_dqn_ppo_and_a2c_and_logs_affect_keys(tmp_path) -> None:
 
 
 def test_algorithms_without_values_and_bad_gamma_are_refused() -> None:
-    from stable_baselines3 import SAC
+    from sb3_contrib import ARS
 
     with pytest.raises(ValueError, match="gamma=2"):
         BroekensCallback(gamma=2)
+    with pytest.raises(TypeError, match="value_fn must be a callable"):
+        BroekensCallback(value_fn=3.0)  # type: ignore[arg-type]
     pendulum = gym.make("Pendulum-v1")
-    with pytest.raises(TypeError, match="needs a value-based algorithm"):
-        SAC("MlpPolicy", pendulum, seed=0).learn(10, callback=BroekensCallback())
+    with pytest.raises(TypeError, match=r"needs a value-based algorithm.*ARS has no Q-table.*pass value_fn="):
+        ARS("LinearPolicy", pendulum, n_delta=2, seed=0).learn(10, callback=BroekensCallback())

@@ -42,7 +42,7 @@ def test_auto_engine_without_numba_runs_the_python_loop_with_one_warning(cls: ty
 def test_compiled_engine_without_numba_names_it(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setitem(sys.modules, "numba", None)
     model = QLearning("Grid", gym.make(GRID, **SMALL), seed=0, engine="compiled")
-    with pytest.raises(ModuleNotFoundError, match="engine='compiled' needs numba.*pip install numba"):
+    with pytest.raises(ModuleNotFoundError, match=r"engine='compiled' needs numba.*pip install numba"):
         model.learn(10)
 
 
@@ -59,7 +59,7 @@ def test_require_extra_names_the_extra_and_the_missing_module(monkeypatch: pytes
                                                 r"pip install \"sb3-affect\[report\]\""):
         require_extra("report", "the report")
     require_extra("experiments", "the launcher")  # installed: no error
-    with pytest.raises(ValueError, match="extra='reports' is not an extra of sb3-affect; known: .*report"):
+    with pytest.raises(ValueError, match=r"extra='reports' is not an extra of sb3-affect; known: .*report"):
         missing_modules("reports")
 
 
@@ -78,7 +78,9 @@ def _run_blocked(blocked: str, argv: list[str], cwd: Path) -> subprocess.Complet
         ("yaml", ["status", "."], "experiments"),
     ],
 )
-def test_cli_without_an_extra_says_in_one_line_which_to_install(blocked: str, argv: list[str], extra: str, tmp_path: Path) -> None:
+def test_cli_without_an_extra_says_in_one_line_which_to_install(
+    blocked: str, argv: list[str], extra: str, tmp_path: Path
+) -> None:
     (tmp_path / "sweep.json").write_text("{}")
     result = _run_blocked(blocked, argv, tmp_path)
     assert result.returncode == 2, result.stderr
