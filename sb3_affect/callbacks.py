@@ -126,8 +126,8 @@ class EmotionCallback(BaseCallback):
                 f"EmotionCallback: {type(space).__name__} observations have no cells, so the appraisal has no map and "
                 "act (the known distance to the goal) is never known; Table II (comparison='literal' or 'valence') "
                 "needs it. Readings that work here: your own emotion_rule(appraisal) using norm and exp1 only (act is "
-                "inf), e.g. emotion_rule=lambda a: Emotion.JOY if a is None or a.exp1 <= a.norm else Emotion.FEAR. Spaces with a "
-                f"map: Discrete, and MultiDiscrete up to {MAX_MAPPED_CELLS:,} cells"
+                "inf), e.g. emotion_rule=lambda a: Emotion.JOY if a is None or a.exp1 <= a.norm else Emotion.FEAR. "
+                f"Spaces with a map: Discrete, and MultiDiscrete up to {MAX_MAPPED_CELLS:,} cells"
             )
         if self.appraiser is None:
             self.appraiser = Appraiser(1, act=self.act, units=self.units)  # no map: one placeholder cell
