@@ -226,8 +226,8 @@ class BroekensCallback(BaseCallback):
         """RecurrentPPO's value-LSTM states for the next observation (``index``: one env's, for its last observation)."""
         states = self.locals.get("lstm_states") if self.locals else None
         if states is None:  # training start: the states the next rollout begins with
-            states = self.model._last_lstm_states
-            dones = np.asarray(self.model._last_episode_starts)
+            states = getattr(self.model, "_last_lstm_states")  # noqa: B009  (RecurrentPPO's, not BaseAlgorithm's)
+            dones = np.asarray(getattr(self.model, "_last_episode_starts"))  # noqa: B009
         h, c = states.vf
         device = self.model.device
         if index is not None:  # a truncated episode's last observation continues its episode
