@@ -40,7 +40,7 @@ import numpy as np
 import torch as th
 from stable_baselines3.common.callbacks import BaseCallback
 
-from sb3_affect.callbacks import logger_file_folder
+from sb3_affect.callbacks import check_step_locals, logger_file_folder
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -261,6 +261,7 @@ class BroekensCallback(BaseCallback):
         self._csv_path = self._episode_csv()
 
     def _on_step(self) -> bool:
+        check_step_locals(self)
         dones = np.asarray(self.locals["dones"], dtype=bool).reshape(-1)
         rewards = np.asarray(self.locals["rewards"], dtype=float).reshape(-1)
         infos = self.locals["infos"]

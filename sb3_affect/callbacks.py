@@ -212,6 +212,7 @@ class EmotionCallback(BaseCallback):
         self.emotion = emotion
 
     def _on_step(self) -> bool:
+        check_step_locals(self)
         dones = np.asarray(self.locals["dones"]).reshape(-1)
         rewards = np.asarray(self.locals["rewards"], dtype=float).reshape(-1)
         infos = self.locals["infos"]
@@ -335,6 +336,16 @@ class _Lane:
         self.state = state
         self.decisions = self.cells = 0
         self.reward = 0.0
+
+
+def check_step_locals(callback: BaseCallback) -> None:
+    """A RuntimeError when the algorithm calls ``on_step`` without the step's VecEnv results (ARS does)."""
+    if "dones" not in callback.locals or "new_obs" not in callback.locals:
+        raise RuntimeError(
+            f"{type(callback).__name__}: {type(callback.model).__name__} calls its callbacks without the step's "
+            "observations (new_obs, rewards, dones, infos: SB3's on-policy and off-policy algorithms pass them, ARS "
+            "does not), so there is nothing to appraise"
+        )
 
 
 def _env_obs(obs: Any, index: int) -> Any:
