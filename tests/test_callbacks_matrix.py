@@ -66,7 +66,7 @@ def applies(algo: type, name: str) -> bool:
     """Whether the algorithm takes the env: its action space, and Dict observations (CrossQ has no MultiInputPolicy)."""
     if algo in CONTINUOUS_ONLY and name in ("FrozenLake", "CartPole"):
         return False
-    return not (algo in DISCRETE_ONLY and name == "Pendulum" or algo is CrossQ and name == "Dict")
+    return not ((algo in DISCRETE_ONLY and name == "Pendulum") or (algo is CrossQ and name == "Dict"))
 
 
 def make_env(name: str, algo: type) -> Any:
