@@ -248,13 +248,18 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)  # --help, --version and usage errors end here, having imported little
-    from sb3_affect.extras import MissingExtraError
+    from sb3_affect.extras import MissingExtraError, require_extra
 
     try:
+        require_extra(_EXTRA_OF.get(args.command, "experiments"), f"sb3-affect {args.command}")
         return _dispatch(args)
     except MissingExtraError as error:  # a study tool whose extra is not installed: one line saying which
         print(f"sb3-affect: error: {error}", file=sys.stderr)
         return 2
+
+
+#: The extra each command needs (``run`` and ``status``: the launcher's).
+_EXTRA_OF = {"report": "report", "replicate": "report", "forensics": "report"}
 
 
 def _dispatch(args: argparse.Namespace) -> int:
