@@ -193,8 +193,21 @@ def _json(raw: bytes, name: str, where: str) -> Any:
         raise ModelFileError(f"{where}: the {name!r} entry is not valid JSON ({error})") from None
 
 
-def load_safe(cls: Any, path: Any, env: Any = None, device: Any = "auto", force_reset: bool = True, **kwargs: Any) -> Any:
-    """Rebuild a ``cls`` model from ``path`` without unpickling anything (see the module docstring)."""
+def load_safe(
+    cls: Any,
+    path: Any,
+    env: Any = None,
+    device: Any = "auto",
+    force_reset: bool = True,
+    custom_objects: dict[str, Any] | None = None,
+    **kwargs: Any,
+) -> Any:
+    """
+    Rebuild a ``cls`` model from ``path`` without unpickling anything (see the module docstring).
+
+    :param custom_objects: values replacing saved entries of the same name, as SB3 applies them: the entry is not
+        read at all (a pickled one is not unpickled); names the file does not hold are ignored
+    """
     archive, where = _open(path)
     optin = f"if you trust this file, load it with {cls.__name__}.load(path, safe=False)"
     with archive:
@@ -226,8 +239,11 @@ def load_safe(cls: Any, path: Any, env: Any = None, device: Any = "auto", force_
     action_space = space_from_plain(twin.get("action_space"), where)
     values, derived = twin.get("values", {}), set(twin.get("derived", []))
     restored: dict[str, Any] = {}
+    custom = custom_objects or {}
     for key, stored in data.items():
-        if not (isinstance(stored, dict) and ":serialized:" in stored):
+        if key in custom:
+            restored[key] = custom[key]
+        elif not (isinstance(stored, dict) and ":serialized:" in stored):
             restored[key] = stored
         elif key in (*_SPACE_KEYS, "policy_class") or key in derived:
             continue

@@ -451,7 +451,8 @@ class TabularQAlgorithm(BaseAlgorithm):
         :param path: the model file (``.zip`` may be left out)
         :param env: the env to continue training on (its spaces must match); None to only predict
         :param device: torch device
-        :param custom_objects: legacy loader only: objects replacing pickled ones
+        :param custom_objects: values replacing saved entries of the same name (as SB3 applies them; the safe loader
+            never unpickles the replaced entry), e.g. rl-zoo3's ``{"learning_rate": 0.0, "lr_schedule": ...}``
         :param print_system_info: legacy loader only: print the saving and the current system info
         :param force_reset: reset the env before the next ``learn`` (SB3 convention)
         :param safe: load without unpickling (default); False for SB3's legacy loader
@@ -468,6 +469,4 @@ class TabularQAlgorithm(BaseAlgorithm):
                 force_reset=force_reset,
                 **kwargs,
             )
-        if custom_objects:
-            raise ValueError("custom_objects only applies to the legacy loader: pass safe=False for a file you trust")
-        return load_safe(cls, path, env=env, device=device, force_reset=force_reset, **kwargs)
+        return load_safe(cls, path, env=env, device=device, force_reset=force_reset, custom_objects=custom_objects, **kwargs)
