@@ -79,6 +79,20 @@ def _algo(argv: list[str]) -> str | None:
     return None
 
 
+def _eval_env_kwargs(conf: Path, argv: list[str]) -> list[str]:
+    """
+    ``--eval-env-kwargs`` for the file's ``env_kwargs`` of the env being trained: the zoo gives the evaluation env the
+    file's env keywords (its time limit) only when ``--env-kwargs`` is on the command line, so pass them explicitly.
+    """
+    import yaml
+
+    if "--env-kwargs" in argv or "--eval-env-kwargs" in argv or "--env" not in argv:
+        return []
+    env_id = argv[argv.index("--env") + 1] if argv.index("--env") + 1 < len(argv) else ""
+    env_kwargs = (yaml.safe_load(conf.read_text()).get(env_id) or {}).get("env_kwargs") or {}
+    return ["--eval-env-kwargs", *(f"{key}:{value!r}" for key, value in env_kwargs.items())] if env_kwargs else []
+
+
 def main(argv: list[str] | None = None) -> None:
     """``python -m sb3_affect.zoo COMMAND ARGS``: the zoo's command with the package's agents registered."""
     args = list(sys.argv[1:] if argv is None else argv)
@@ -88,7 +102,8 @@ def main(argv: list[str] | None = None) -> None:
     register_with_zoo()
     algo = _algo(rest)
     if command == "train" and algo in ("qlearning", "affectq") and "--conf-file" not in rest and "-conf" not in rest:
-        rest += ["--conf-file", str(HYPERPARAMS_FOLDER / f"{algo}.yml")]
+        conf = HYPERPARAMS_FOLDER / f"{algo}.yml"
+        rest += ["--conf-file", str(conf), *_eval_env_kwargs(conf, rest)]
     output = None
     if command in ("plot_train", "all_plots"):
         if "--output" in rest:  # ours: save the figure (the zoo only shows it)
