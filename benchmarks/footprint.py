@@ -46,6 +46,30 @@ def import_seconds(venv: Path, statement: str, repeats: int) -> float:
     return statistics.median(times[1:])
 
 
+def self_times(venv: Path, statement: str) -> dict[str, int]:
+    """``-X importtime``: each module's own import time (microseconds)."""
+    err = subprocess.run([str(venv / "bin" / "python"), "-X", "importtime", "-c", statement], cwd="/", check=True,
+                         capture_output=True, text=True).stderr
+    times = {}
+    for line in err.splitlines():
+        if line.startswith("import time:") and "self [us]" not in line:
+            parts = line.split("|")
+            times[parts[2].strip()] = int(parts[0].split(":")[1])
+    return times
+
+
+def added_import_seconds(venv: Path, repeats: int) -> tuple[int, float]:
+    """The modules ``from sb3_affect import EmotionCallback`` imports beyond ``import stable_baselines3``, and the
+    median of their summed own import times (steadier than wall times on a busy machine)."""
+    sums, count = [], 0
+    for _ in range(repeats):
+        base = self_times(venv, "import stable_baselines3")
+        added = {m: t for m, t in self_times(venv, "from sb3_affect import EmotionCallback").items() if m not in base}
+        sums.append(sum(added.values()) / 1e6)
+        count = len(added)
+    return count, statistics.median(sums)
+
+
 def fresh(venv: Path) -> tuple[set[str], float]:
     subprocess.run([sys.executable, "-m", "venv", "--clear", str(venv)], check=True)
     pip(venv, TORCH)
@@ -78,8 +102,11 @@ def main() -> None:
     affect = import_seconds(core, "from sb3_affect import EmotionCallback", args.repeats)
     contrib_time = import_seconds(contrib, "import sb3_contrib", args.repeats)
     print(f"import times (median of {args.repeats}): import stable_baselines3 {sb3:.2f} s; "
-          f"from sb3_affect import EmotionCallback {affect:.2f} s (+{affect - sb3:.2f} s); import sb3_contrib "
+          f"from sb3_affect import EmotionCallback {affect:.2f} s ({affect - sb3:+.2f} s); import sb3_contrib "
           f"{contrib_time:.2f} s")
+    count, seconds = added_import_seconds(core, args.repeats)
+    print(f"from sb3_affect import EmotionCallback imports {count} modules beyond import stable_baselines3, "
+          f"{seconds:.3f} s of import time (-X importtime, median of {args.repeats})")
 
 
 if __name__ == "__main__":
