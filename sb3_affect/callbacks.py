@@ -4,10 +4,12 @@ Emotions as an SB3 callback.
 ``EmotionCallback`` appraises every decision, feels one emotion (Table II) and logs the emotion profile. It works in
 two ways:
 
-* **Observer** (any SB3 algorithm on a Discrete-observation env, e.g. DQN): attach it to ``learn``. SB3 calls
+* **Observer** (any SB3 algorithm, e.g. DQN or PPO, on a VecEnv of any size): attach it to ``learn``. SB3 calls
   ``_on_step`` after each ``env.step``; the callback reads ``new_obs``/``dones``/``infos`` from the algorithm's
-  locals, updates its appraisal and feels the emotion of the *next* decision. It only watches: it logs ``affect/*``
-  keys and keeps ``episode_log``.
+  locals, updates each env's appraisal and feels the emotion of its *next* decision. It only watches: it logs
+  ``affect/*`` keys (means over the stats window) and keeps ``episode_log`` (written beside a file-writing logger).
+  The appraisal's map needs a cell per observation: Discrete and MultiDiscrete spaces have one; on other spaces
+  only an ``emotion_rule`` that needs no map (no ``act``) can run.
 * **Driver of AffectQ** (the affect hook): an SB3 callback runs after ``env.step``, too late to steer the step it
   follows. AffectQ therefore calls the callback's hook methods directly, in this order, for every decision::
 
