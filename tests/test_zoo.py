@@ -7,9 +7,8 @@ offline, and the envs' registered time limit.
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
+import warnings
+from collections.abc import Callable
 from pathlib import Path
 
 import gymnasium as gym
@@ -21,20 +20,31 @@ from sb3_affect import AffectQ, QLearning
 from sb3_affect.envs import GRID_PURSUIT_ID, MAX_EPISODE_STEPS
 from sb3_affect.settings import TabularSettings
 from sb3_affect.zoo import HYPERPARAMS_FOLDER, sample_affectq_params, sample_qlearning_params
+from sb3_affect.zoo import main as zoo_main
 
 
-def zoo(args: list[str], cwd: Path) -> str:
-    env = {**os.environ, "MPLBACKEND": "Agg", "PYTHONWARNINGS": "ignore"}
-    result = subprocess.run([sys.executable, "-m", "sb3_affect.zoo", *args], cwd=cwd, env=env, capture_output=True,
-                            text=True, timeout=600)
-    assert result.returncode == 0, result.stdout[-2000:] + result.stderr[-3000:]
-    return result.stdout
+@pytest.fixture
+def zoo(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> Callable[[list[str], Path], str]:
+    """``python -m sb3_affect.zoo ARGS`` in ``cwd``, in this process (the zoo's modules run as ``__main__``)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+
+    def run(args: list[str], cwd: Path) -> str:
+        monkeypatch.chdir(cwd)
+        capsys.readouterr()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            zoo_main(args)
+        return capsys.readouterr().out
+
+    return run
 
 
 @pytest.mark.parametrize(
     ("algo", "env_id", "video"), [("affectq", GRID_PURSUIT_ID, True), ("qlearning", "FrozenLake-v1", False)]
 )
-def test_zoo_trains_enjoys_records_and_plots(algo: str, env_id: str, video: bool, tmp_path: Path) -> None:
+def test_zoo_trains_enjoys_records_and_plots(algo: str, env_id: str, video: bool, tmp_path: Path, zoo) -> None:
     common = ["--algo", algo, "--env", env_id, "-f", "logs"]
     out = zoo(["train", *common, "-n", "1000", "--eval-freq", "500", "--eval-episodes", "2", "--seed", "0"], tmp_path)
     run = tmp_path / "logs" / algo / f"{env_id.replace('/', '-')}_1"
@@ -71,7 +81,7 @@ def test_optuna_samplers_give_valid_agents(sampler, cls) -> None:
         cls("Grid", gym.make(GRID_PURSUIT_ID, size=4, goal=(2, 2)), seed=0, **params).learn(50)
 
 
-def test_zoo_optimizes_qlearning_with_its_sampler(tmp_path: Path) -> None:
+def test_zoo_optimizes_qlearning_with_its_sampler(tmp_path: Path, zoo) -> None:
     out = zoo(["train", "--algo", "qlearning", "--env", "FrozenLake-v1", "-f", "logs", "-n", "400",
                "--optimize-hyperparameters", "--n-trials", "2", "--n-jobs", "1", "--sampler", "random", "--pruner",
                "none", "--n-evaluations", "1", "--eval-episodes", "2", "--seed", "0"], tmp_path)
