@@ -109,7 +109,8 @@ from sb3_affect import AffectQ, BroekensCallback, EmotionCallback, QLearning
 from sb3_affect.extras import EXTRAS, missing_modules
 assert "site-packages" in sb3_affect.__file__, sb3_affect.__file__
 for cls in (QLearning, AffectQ):
-    model = cls("Grid", gym.make("sb3_affect/GridPursuit-v0", size=5, goal=(2, 3)), seed=0).learn(400)
+    # the Python loop: the compiled engine's first compilation in a new install takes 20-40 s (tested elsewhere)
+    model = cls("Grid", gym.make("sb3_affect/GridPursuit-v0", size=5, goal=(2, 3)), seed=0, engine="python").learn(400)
     model.save(f"{cls.__name__}.zip")
     loaded = cls.load(f"{cls.__name__}.zip")
     assert (loaded.q_table == model.q_table).all()
@@ -145,11 +146,15 @@ def test_core_wheel_names_the_extra_a_study_command_needs(core: Path, tmp_path: 
 
 
 def test_wheel_runs_shipped_sweeps_by_name_and_by_their_source_path(full: Path, tmp_path: Path) -> None:
-    for sweep, out in (("smoke", "by_name"), ("experiments/smoke.yaml", "by_path")):
-        result = run(full, ["-m", "sb3_affect", "run", sweep, "--out", out, "--workers", "1", "--no-progress",
-                            "--set", "episodes=5", "--set", "seeds=1"], tmp_path)
-        assert result.returncode == 0, result.stderr
-        assert (tmp_path / out / "sweep.json").exists()
+    result = run(full, ["-m", "sb3_affect", "run", "smoke", "--out", "by_name", "--workers", "1", "--no-progress",
+                        "--set", "episodes=5", "--set", "seeds=1"], tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert (tmp_path / "by_name" / "sweep.json").exists()
+    # by its source path: the shipped file is found and read (the override it is given is then refused)
+    result = run(full, ["-m", "sb3_affect", "run", "experiments/smoke.yaml", "--out", "by_path", "--set", "seeds=0"],
+                 tmp_path)
+    assert result.returncode == 2 and "seeds" in result.stderr and "can not read" not in result.stderr, result.stderr
+    assert "sb3_affect/sweeps/smoke.yaml" in result.stderr
     result = run(full, ["-m", "sb3_affect", "run", "nosuch", "--out", "x"], tmp_path)
     assert result.returncode == 2 and "give a YAML path or a shipped sweep: ablation, " in result.stderr
 
