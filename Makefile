@@ -20,8 +20,8 @@ $(STAMP): pyproject.toml
 	@$(PY) -c "import torch" 2>/dev/null && echo "== torch already installed" || { \
 		echo "== installing CPU torch (1-3 min) ..."; \
 		$(PY) -m pip install -q torch==2.13.0 || $(PY) -m pip install -q torch --index-url https://download.pytorch.org/whl/cpu; }
-	@echo "== installing sb3-affect and its test and docs tools (1-3 min) ..."
-	@PYTHONWARNINGS="ignore:Editable installation" $(PY) -m pip install -q -e '.[test,docs]'
+	@echo "== installing sb3-affect with all its extras and its test and docs tools (1-3 min) ..."
+	@PYTHONWARNINGS="ignore:Editable installation" $(PY) -m pip install -q -e '.[all,test,docs]'
 	@echo "== installing the optional Ray extra (1-2 min) ..."
 	@PYTHONWARNINGS="ignore:Editable installation" $(PY) -m pip install -q -e '.[ray]' || echo "note: the optional Ray extra could not be installed; Ray tests will be skipped"
 	@touch $(STAMP)

@@ -33,20 +33,40 @@ def make_parallel(env_id: str, **kwargs: Any) -> Any:
     return getattr(importlib.import_module(module), name)(**kwargs)
 
 
+#: The registered time limit of the package's envs, in env steps (cells): the tabular agents' default decision cap
+#: (``max_episode_decisions``, 20,000) at their highest speed (2 cells a decision), so that it never ends an episode
+#: the agents' own cap would not, while every rollout and evaluation of other code (SB3's ``evaluate_policy``,
+#: rl-zoo3) ends. ``gym.make(id, max_episode_steps=N)`` sets another.
+MAX_EPISODE_STEPS = 40_000
+
+
 def register_envs() -> None:
-    """Register the package's envs with Gymnasium (idempotent)."""
+    """Register the package's envs with Gymnasium (idempotent), each with the time limit ``MAX_EPISODE_STEPS``."""
     if GRID_PURSUIT_ID not in registry:
-        register(id=GRID_PURSUIT_ID, entry_point="sb3_affect.envs.grid_pursuit:GridPursuitEnv")
+        register(
+            id=GRID_PURSUIT_ID,
+            entry_point="sb3_affect.envs.grid_pursuit:GridPursuitEnv",
+            max_episode_steps=MAX_EPISODE_STEPS,
+        )
     if MOVING_PURSUIT_ID not in registry:
-        register(id=MOVING_PURSUIT_ID, entry_point="sb3_affect.envs.moving_pursuit:MovingPursuitEnv")
+        register(
+            id=MOVING_PURSUIT_ID,
+            entry_point="sb3_affect.envs.moving_pursuit:MovingPursuitEnv",
+            max_episode_steps=MAX_EPISODE_STEPS,
+        )
     if MAZE_PURSUIT_ID not in registry:
-        register(id=MAZE_PURSUIT_ID, entry_point="sb3_affect.envs.maze_pursuit:MazePursuitEnv")
+        register(
+            id=MAZE_PURSUIT_ID,
+            entry_point="sb3_affect.envs.maze_pursuit:MazePursuitEnv",
+            max_episode_steps=MAX_EPISODE_STEPS,
+        )
 
 
 __all__ = [
     "ACTION_NAMES",
     "GRID_PURSUIT_ID",
     "HUNTER_PURSUIT_ID",
+    "MAX_EPISODE_STEPS",
     "MAZE_PURSUIT_ID",
     "MOVES",
     "MOVING_PURSUIT_ID",

@@ -10,7 +10,13 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 from gymnasium.utils import seeding
-from pettingzoo import ParallelEnv
+
+try:
+    from pettingzoo import ParallelEnv
+except ImportError as error:  # one line naming the extra (the envs import nothing of the package but the envs)
+    raise ImportError(
+        f"the multi-agent pursuit env (HunterPursuit) needs the 'hunters' extra ({error}): pip install \"sb3-affect[hunters]\""
+    ) from None
 
 from sb3_affect.envs.grid_pursuit import MOVES, _as_cell, build_transitions, check_size, distances_to
 from sb3_affect.envs.maze import load_maze

@@ -180,7 +180,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="run (or resume) an experiment sweep",
         description="Run every run of an experiment file that DIR does not hold yet (rerun the same command to resume).",
     )
-    run.add_argument("file", help="experiment YAML, e.g. experiments/smoke.yaml (see the experiment-file reference)")
+    run.add_argument(
+        "file",
+        help="experiment YAML, e.g. experiments/smoke.yaml, or the name of a sweep shipped with the package, e.g. paper "
+        "(see the experiment-file reference)",
+    )
     run.add_argument("--out", required=True, metavar="DIR", help="results folder (created; an earlier run's folder resumes)")
     run.add_argument(
         "--workers",
@@ -249,6 +253,21 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)  # --help, --version and usage errors end here, having imported little
+    from sb3_affect.extras import MissingExtraError, require_extra
+
+    try:
+        require_extra(_EXTRA_OF.get(args.command, "experiments"), f"sb3-affect {args.command}")
+        return _dispatch(args)
+    except MissingExtraError as error:  # a study tool whose extra is not installed: one line saying which
+        print(f"sb3-affect: error: {error}", file=sys.stderr)
+        return 2
+
+
+#: The extra each command needs (``run`` and ``status``: the launcher's).
+_EXTRA_OF = {"report": "report", "replicate": "report", "forensics": "report"}
+
+
+def _dispatch(args: argparse.Namespace) -> int:
     from sb3_affect.experiments.ray_cluster import ClusterLost, RayClusterError
     from sb3_affect.experiments.schema import SweepError
     from sb3_affect.experiments.signals import Terminated

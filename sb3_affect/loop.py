@@ -90,10 +90,12 @@ def run_loop(
         before = reward_sum
         # 2. move k cells, one Eq. 1 update per cell (multi_cell="jump": one for the whole move, below)
         start_cell, jump_reward = s, 0.0
+        cell_rewards: list[float] = []  # this decision's rewards, one per cell (callbacks that discount per cell)
         for _ in range(k):
             obs, r, terminated, truncated, info = env.step(action + act_start)
             s2 = int(obs) - obs_start
             reward = float(r)
+            cell_rewards.append(reward)
             if jump:
                 jump_reward += reward
             elif q_update(q, s, action, reward, s2, terminated, alpha, gamma):
@@ -147,6 +149,7 @@ def run_loop(
         if call_back:
             model.num_timesteps = t
             step_locals(cb_locals, s + obs_start, step_reward, done, info, action + act_start)
+            cb_locals["cell_rewards"] = cell_rewards  # each cell's reward (an emotion model may discount per cell)
             update_locals(cb_locals)
             if not on_step():
                 break

@@ -13,7 +13,8 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
+#: The folder of the sweep files; None: those installed with the package (``experiments/`` of the source tree).
+EXPERIMENTS: Path | None = None
 #: Launcher sweeps: (name of experiments/<name>.yaml and of the results folder, description).
 PARTS = (
     ("paper", "the paper's protocol (360 runs)"),
@@ -48,7 +49,7 @@ def main(
 
     :param out_dir: the replicate folder
     :param workers: processes (default: usable CPUs)
-    :param experiments: the folder holding the experiment files (default: the project's ``experiments/``)
+    :param experiments: the folder holding the experiment files (default: the ones installed with the package)
     :param large_seeds: seeds per cell of the large-N study (default ``LARGE_SEEDS``)
     :param ablation_seeds: seeds per cell of the reading ablation (default ``ABLATION_SEEDS``)
     :param beyond_seeds: seeds per agent and task beyond the paper (default ``BEYOND_SEEDS``)
@@ -56,13 +57,13 @@ def main(
     :return: the path of report.md
     """
     from sb3_affect.experiments import run_sweep
+    from sb3_affect.experiments.sweep_file import shipped_sweeps_folder
     from sb3_affect.report import build_report
     from sb3_affect.report.ablation import ablation_cells
     from sb3_affect.report.baselines import beyond_cells
     from sb3_affect.report.largen import large_cells, run_cells
 
-    experiments = Path(experiments or EXPERIMENTS)
-    experiments = Path(experiments or EXPERIMENTS)
+    experiments = Path(experiments or EXPERIMENTS or shipped_sweeps_folder())
     large_seeds = large_seeds or LARGE_SEEDS
     ablation_seeds = ablation_seeds or ABLATION_SEEDS
     beyond_seeds = beyond_seeds or BEYOND_SEEDS

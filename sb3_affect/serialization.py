@@ -243,15 +243,26 @@ def _json(raw: bytes, name: str, where: str) -> Any:
         raise ModelFileError(f"{where}: the {name!r} entry is not valid JSON ({error})") from None
 
 
-def load_safe(cls: Any, path: Any, env: Any = None, device: Any = "auto", force_reset: bool = True, **kwargs: Any) -> Any:
+def load_safe(
+    cls: Any,
+    path: Any,
+    env: Any = None,
+    device: Any = "auto",
+    force_reset: bool = True,
+    custom_objects: dict[str, Any] | None = None,
+    **kwargs: Any,
+) -> Any:
     """
     Rebuild a ``cls`` model from ``path`` without unpickling anything (see the module docstring). Whatever the file
     holds, the outcome is a model or a ``ModelFileError`` naming the file (a value of the wrong type anywhere in its
     JSON included), never another exception from deep inside the rebuild.
+
+    :param custom_objects: values replacing saved entries of the same name, as SB3 applies them: the entry is not
+        read at all (a pickled one is not unpickled); names the file does not hold are ignored
     """
     where = str(path if isinstance(path, (str, pathlib.Path)) else getattr(path, "name", "<file object>"))
     try:
-        return _load_safe(cls, path, env, device, force_reset, **kwargs)
+        return _load_safe(cls, path, env, device, force_reset, custom_objects, **kwargs)
     except (ModelFileError, FileNotFoundError):
         raise
     except (TypeError, ValueError, KeyError, IndexError, AttributeError, OverflowError, RuntimeError) as error:
@@ -260,7 +271,9 @@ def load_safe(cls: Any, path: Any, env: Any = None, device: Any = "auto", force_
         raise ModelFileError(f"{where}: not a model this loader can rebuild ({type(error).__name__}: {error})") from None
 
 
-def _load_safe(cls: Any, path: Any, env: Any, device: Any, force_reset: bool, **kwargs: Any) -> Any:
+def _load_safe(
+    cls: Any, path: Any, env: Any, device: Any, force_reset: bool, custom_objects: dict[str, Any] | None, **kwargs: Any
+) -> Any:
     archive, where = _open(path)
     optin = f"if you trust this file, load it with {cls.__name__}.load(path, safe=False)"
     with archive:
@@ -306,8 +319,11 @@ def _load_safe(cls: Any, path: Any, env: Any, device: Any, force_reset: bool, **
         )
     values, derived = twin.get("values", {}), set(twin.get("derived", []))
     restored: dict[str, Any] = {}
+    custom = custom_objects or {}
     for key, stored in data.items():
-        if not (isinstance(stored, dict) and ":serialized:" in stored):
+        if key in custom:
+            restored[key] = custom[key]
+        elif not (isinstance(stored, dict) and ":serialized:" in stored):
             restored[key] = stored
         elif key in (*_SPACE_KEYS, "policy_class") or key in derived:
             continue

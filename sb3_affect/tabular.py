@@ -13,6 +13,7 @@ import math
 import os
 import random
 import time
+import warnings
 from operator import itemgetter
 from typing import Any, ClassVar, TypeVar
 
@@ -42,6 +43,28 @@ SelfTabular = TypeVar("SelfTabular", bound="TabularQAlgorithm")
 __all__ = ["ENGINES", "MULTI_CELLS", "TIE_BREAKS", "TabularQAlgorithm"]
 
 _S = TabularSettings  # the defaults of the settings (one source: ``sb3_affect.settings``)
+
+
+_NUMBA_WARNED = False
+
+
+def _numba_usable(engine: str) -> bool:
+    """
+    Whether numba imports here. ``engine="auto"`` without it runs the Python loop (one warning per process);
+    ``engine="compiled"`` raises an error naming what is missing.
+    """
+    global _NUMBA_WARNED
+    from sb3_affect.extras import numba_problem
+
+    problem = numba_problem()
+    if problem is None:
+        return True
+    if engine == "compiled":
+        raise ModuleNotFoundError(f"engine='compiled' needs numba: {problem}; pip install numba, or use engine='python'")
+    if not _NUMBA_WARNED:
+        _NUMBA_WARNED = True
+        warnings.warn(f"{problem}: engine='auto' runs the Python loop (same results, slower)", RuntimeWarning, stacklevel=3)
+    return False
 
 
 class TabularQAlgorithm(BaseAlgorithm):
@@ -323,7 +346,7 @@ class TabularQAlgorithm(BaseAlgorithm):
         Gymnasium's and SB3's standard wrappers only) and the callbacks (none, ``StopTrainingOnMaxEpisodes``, the
         progress bar, or callbacks marked ``episode_level = True``) all allow it.
         """
-        if self.engine == "python":
+        if self.engine == "python" or not _numba_usable(self.engine):
             return False
         from sb3_affect.compiled import compiled_reason
 
@@ -484,7 +507,8 @@ class TabularQAlgorithm(BaseAlgorithm):
         :param path: the model file (``.zip`` may be left out)
         :param env: the env to continue training on (its spaces must match); None to only predict
         :param device: torch device
-        :param custom_objects: legacy loader only: objects replacing pickled ones
+        :param custom_objects: values replacing saved entries of the same name (as SB3 applies them; the safe loader
+            never unpickles the replaced entry), e.g. rl-zoo3's ``{"learning_rate": 0.0, "lr_schedule": ...}``
         :param print_system_info: legacy loader only: print the saving and the current system info
         :param force_reset: reset the env before the next ``learn`` (SB3 convention)
         :param safe: load without unpickling (default); False for SB3's legacy loader
@@ -501,6 +525,4 @@ class TabularQAlgorithm(BaseAlgorithm):
                 force_reset=force_reset,
                 **kwargs,
             )
-        if custom_objects:
-            raise ValueError("custom_objects only applies to the legacy loader: pass safe=False for a file you trust")
-        return load_safe(cls, path, env=env, device=device, force_reset=force_reset, **kwargs)
+        return load_safe(cls, path, env=env, device=device, force_reset=force_reset, custom_objects=custom_objects, **kwargs)

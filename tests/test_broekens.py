@@ -87,10 +87,56 @@ def test_observes_sb3_dqn_ppo_and_a2c_and_logs_affect_keys(tmp_path) -> None:
 
 
 def test_algorithms_without_values_and_bad_gamma_are_refused() -> None:
-    from stable_baselines3 import SAC
+    from sb3_contrib import ARS
 
     with pytest.raises(ValueError, match="gamma=2"):
         BroekensCallback(gamma=2)
+    with pytest.raises(TypeError, match="value_fn must be a callable"):
+        BroekensCallback(value_fn=3.0)  # type: ignore[arg-type]
     pendulum = gym.make("Pendulum-v1")
-    with pytest.raises(TypeError, match="needs a value-based algorithm"):
-        SAC("MlpPolicy", pendulum, seed=0).learn(10, callback=BroekensCallback())
+    with pytest.raises(TypeError, match=r"needs a value-based algorithm.*ARS has no Q-table.*pass value_fn="):
+        ARS("LinearPolicy", pendulum, n_delta=2, seed=0).learn(10, callback=BroekensCallback())
+
+
+def constant_value(model, obs) -> float:
+    """V = 10 everywhere: the TD error of a step is then fixed by its rewards alone."""
+    return 10.0
+
+
+def _episodes(model, callback: BroekensCallback, episodes: int) -> tuple[pd.DataFrame, pd.DataFrame]:
+    log = observe(model, episodes, callback)
+    return log, model.episode_log
+
+
+def test_a_wait_fires_no_emotion_and_is_not_a_step() -> None:
+    from sb3_affect.baselines import SpeedEpsilonGreedy
+
+    model = SpeedEpsilonGreedy("Grid", grid(step_reward=-1.0), seed=0, gamma=0.9, speeds=(0, 1), engine="python")
+    log, agent = _episodes(model, BroekensCallback(value_fn=constant_value), 10)
+    assert agent.waits.sum() > 0
+    assert (log.steps == agent.decisions - agent.waits).all()  # waits are not steps
+    ended = ~agent.truncated
+    moves = log.steps[ended]
+    # every move but the last: delta = -1 + 0.9 * 10 - 10 = -2; the last enters the goal: 100 - 10 = 90
+    assert np.allclose((log.distress * log.steps)[ended], 2.0 * (moves - 1))
+    assert np.allclose(log.goal_joy[ended], 90.0) and np.allclose((log.joy * log.steps)[ended], 90.0)
+    assert np.allclose((log.hope * log.steps)[ended], 10.0 * (moves - 1))  # a terminal state anticipates nothing
+
+
+@pytest.mark.parametrize(("multi_cell", "move_delta", "goal_deltas"), [
+    ("steps", -1 - 0.9 * 1 + 0.81 * 10 - 10, (100 - 10, -1 + 0.9 * 100 - 10)),  # discounted per cell, as the updates
+    ("jump", -2 + 0.9 * 10 - 10, (100 - 10, -1 + 100 - 10)),  # one update for the whole move: discounted once
+])
+def test_a_two_cell_move_is_discounted_as_the_agent_discounts(multi_cell: str, move_delta: float,
+                                                               goal_deltas: tuple[float, float]) -> None:
+    from sb3_affect.baselines import SpeedEpsilonGreedy
+
+    model = SpeedEpsilonGreedy("Grid", grid(step_reward=-1.0), seed=0, gamma=0.9, speeds=(2,), multi_cell=multi_cell,
+                               engine="python")
+    log, agent = _episodes(model, BroekensCallback(value_fn=constant_value), 10)
+    ended = ~agent.truncated
+    assert ended.any() and (agent.cells > agent.decisions).all()
+    steps = log.steps[ended]
+    assert np.allclose((log.distress * log.steps)[ended], -move_delta * (steps - 1))
+    goal_joy = log.goal_joy[ended].to_numpy()
+    assert all(min(abs(g - d) for d in goal_deltas) < 1e-9 for g in goal_joy)

@@ -1,15 +1,21 @@
-"""EmotionCallback observing a real SB3 DQN (not a mock) on GridPursuit."""
+"""EmotionCallback observing real SB3 algorithms (not mocks): GridPursuit, CartPole, a (row, column) grid, a VecEnv."""
 
 from __future__ import annotations
 
+import math
+
 import gymnasium as gym
+import numpy as np
 import pandas as pd
+import pytest
 import torch as th
-from stable_baselines3 import DQN
+from stable_baselines3 import DQN, PPO
 from stable_baselines3.common.callbacks import CallbackList, StopTrainingOnMaxEpisodes
+from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.logger import configure
 
-from sb3_affect import EPISODE_COLUMNS, EmotionCallback
+from sb3_affect import Emotion, EmotionCallback
+from sb3_affect.callbacks import EMOTION_CALLBACK_COLUMNS
 
 
 def test_emotion_callback_on_dqn_logs_a_profile(tmp_path) -> None:
@@ -20,8 +26,8 @@ def test_emotion_callback_on_dqn_logs_a_profile(tmp_path) -> None:
     emotions = EmotionCallback()
     model.learn(3000, callback=CallbackList([emotions, StopTrainingOnMaxEpisodes(12)]), log_interval=1)
     log = emotions.episode_log
-    assert tuple(log.columns) == EPISODE_COLUMNS
-    assert len(log) == 12
+    assert tuple(log.columns) == EMOTION_CALLBACK_COLUMNS
+    assert len(log) == 12 and (log.env == 0).all()
     assert (log[["joy", "sadness", "fear", "anger"]].sum(axis=1) == log.decisions).all()
     assert (log.cells == log.decisions).all()
     assert ((log.reward == 100.0) == ~log.truncated).all() and (log.decisions[log.truncated] == 60).all()
@@ -36,11 +42,73 @@ def test_emotion_callback_on_dqn_logs_a_profile(tmp_path) -> None:
         assert key in frame.columns, key
 
 
-def test_emotion_callback_refuses_non_discrete_observations() -> None:
-    model = DQN("MlpPolicy", "CartPole-v1", learning_starts=10)
-    try:
-        model.learn(20, callback=EmotionCallback())
-    except TypeError as error:
-        assert "Discrete observation space" in str(error)
-    else:  # pragma: no cover
-        raise AssertionError("EmotionCallback accepted a Box observation space")
+def test_table_ii_on_observations_without_cells_is_refused_naming_what_works() -> None:
+    for comparison in ("literal", "valence"):
+        model = DQN("MlpPolicy", "CartPole-v1", learning_starts=10)
+        with pytest.raises(TypeError, match=r"Box observations have no cells.*Readings that work here: your own "
+                                            r"emotion_rule.*Spaces with a map: Discrete, and MultiDiscrete"):
+            model.learn(20, callback=EmotionCallback(comparison=comparison))
+
+
+def past_norm(appraisal) -> Emotion:
+    return Emotion.JOY if appraisal is None or appraisal.exp1 <= appraisal.norm else Emotion.FEAR
+
+
+def test_a_map_free_rule_on_box_observations_counts_every_decision(tmp_path) -> None:
+    env = gym.make("CartPole-v1", max_episode_steps=30)
+    model = PPO("MlpPolicy", env, n_steps=64, n_epochs=1, seed=0, policy_kwargs={"net_arch": [8]})
+    emotions = EmotionCallback(emotion_rule=past_norm)
+    model.learn(640, callback=emotions)
+    log = emotions.episode_log
+    assert (log[["joy", "sadness", "fear", "anger"]].sum(axis=1) == log.decisions).all()
+    # fear: exactly the decisions taken after the episode ran past the norm (the first is appraised at elapsed 0)
+    past = [max(0, d - math.floor(n) - 1) if n == n else 0 for d, n in zip(log.decisions, log.norm)]
+    assert log.fear.tolist() == past and log.fear.sum() > 0
+
+
+def test_multidiscrete_observations_get_a_map_and_vecenv_lanes_their_own_appraisal(tmp_path) -> None:
+    """A grid seen as (row, column): the flat cell index gives the same map as the Discrete grid."""
+
+    class RowColumn(gym.ObservationWrapper):
+        def __init__(self, env: gym.Env) -> None:
+            super().__init__(env)
+            self.size = env.unwrapped.size
+            self.observation_space = gym.spaces.MultiDiscrete([self.size, self.size])
+
+        def observation(self, observation):
+            return np.array(divmod(int(observation), self.size))
+
+    kwargs = {"size": 4, "goal": (2, 2), "max_episode_steps": 40}
+    env = make_vec_env("sb3_affect/GridPursuit-v0", n_envs=2, seed=0, env_kwargs=kwargs, wrapper_class=RowColumn)
+    model = DQN("MlpPolicy", env, learning_starts=20, seed=0, policy_kwargs={"net_arch": [8]})
+    model.set_logger(configure(str(tmp_path), ["csv"]))
+    emotions = EmotionCallback()
+    model.learn(800, callback=emotions, log_interval=1)
+    log = emotions.episode_log
+    assert set(log.env) == {0, 1}
+    lanes = emotions._lanes
+    assert lanes[0].appraiser is emotions.appraiser and lanes[1].appraiser is not lanes[0].appraiser
+    for index, lane in enumerate(lanes):  # each env's norm fits that env's own finished episodes
+        assert lane.appraiser.fit.values == log.cells[log.env == index].astype(float).tolist()
+        assert 2 * 4 + 2 in lane.appraiser.known.goals  # the goal cell (2, 2), flattened
+    written = pd.read_csv(tmp_path / "emotion_episodes.csv")
+    assert tuple(written.columns) == EMOTION_CALLBACK_COLUMNS and len(written) == len(log)
+    # affect/* at each dump: the mean over the last episodes (the stats window), as rollout/ep_len_mean
+    progress = pd.read_csv(tmp_path / "progress.csv").dropna(subset=["affect/joy"])
+    last = progress.iloc[-1]
+    window = log.tail(model._stats_window_size)
+    assert last["affect/joy"] == pytest.approx((window.joy / window.decisions).mean())
+    assert last["rollout/ep_len_mean"] == pytest.approx(window.decisions.mean())
+
+
+def test_no_goal_ever_seen_warns_once_saying_how_to_pass_goal() -> None:
+    from sb3_contrib.common.envs import InvalidActionEnvDiscrete
+
+    env = gym.wrappers.TimeLimit(InvalidActionEnvDiscrete(dim=20, n_invalid_actions=10), max_episode_steps=5)
+    model = DQN("MlpPolicy", env, learning_starts=10, seed=0, policy_kwargs={"net_arch": [8]})
+    message = r"none of the first 3 episodes reached the goal.*pass EmotionCallback\(goal="
+    with pytest.warns(RuntimeWarning, match=message) as record:
+        model.learn(200, callback=EmotionCallback(warn_after=3))
+    assert len([w for w in record if "reached the goal" in str(w.message)]) == 1
+    with pytest.raises(ValueError, match="warn_after=0 must be an integer >= 1"):
+        EmotionCallback(warn_after=0)

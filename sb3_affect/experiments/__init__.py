@@ -1,5 +1,9 @@
 """Experiment sweeps: YAML files, the launcher, the results store, local and Ray backends."""
 
+from sb3_affect.extras import require_extra
+
+require_extra("experiments", "the experiment launcher and results store")
+
 from sb3_affect.experiments.launcher import SweepSummary, run_sweep
 from sb3_affect.experiments.runner import execute_run
 from sb3_affect.experiments.schema import Sweep, SweepError

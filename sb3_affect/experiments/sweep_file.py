@@ -21,7 +21,36 @@ from pydantic import ValidationError
 
 from sb3_affect.experiments.schema import KWARG_REFERENCE, AgentSpec, EnvSpec, Sweep, SweepError
 
-__all__ = ["load_sweep"]
+__all__ = ["load_sweep", "resolve_sweep_path", "shipped_sweeps", "shipped_sweeps_folder"]
+
+
+def shipped_sweeps_folder() -> Path:
+    """The folder of the sweep files installed with the package (``experiments/`` of the source tree)."""
+    from importlib.resources import files
+
+    return Path(str(files("sb3_affect.sweeps")))
+
+
+def shipped_sweeps() -> dict[str, Path]:
+    """The sweep files installed with the package, by name (``paper``, ``smoke``, ...)."""
+    return {path.stem: path for path in sorted(shipped_sweeps_folder().glob("*.yaml"))}
+
+
+def resolve_sweep_path(path: str | Path) -> Path:
+    """
+    The file a sweep argument names: an existing path as it is; otherwise the shipped sweep of that name, given
+    by name (``paper``) or by its path in the source tree (``experiments/paper.yaml``, which works from an
+    installed wheel in any folder). Anything else is returned unchanged (``load_sweep`` says it can not be read).
+    """
+    given = Path(path)
+    if given.exists():
+        return given
+    shipped = shipped_sweeps()
+    by_name = given.suffix == "" and len(given.parts) == 1
+    by_source_path = given.suffix in (".yaml", ".yml") and given.parts[:-1] == ("experiments",)
+    if (by_name or by_source_path) and given.stem in shipped:
+        return shipped[given.stem]
+    return given
 
 #: Limits of a sweep file: its size in bytes, the values it expands to (aliases counted each time) and its nesting.
 MAX_BYTES, MAX_VALUES, MAX_DEPTH = 1_000_000, 100_000, 50
@@ -168,12 +197,15 @@ def load_sweep(path: str | Path, overrides: tuple[str, ...] | list[str] = (), *,
     :param build: also build the env and each agent once (without training, in a short-lived child process), so
         that an unknown or impossible kwarg is reported now rather than by every run of the sweep
     """
-    path = Path(path)
+    path = resolve_sweep_path(path)
     try:
         with path.open("rb") as handle:
             raw = handle.read(MAX_BYTES + 1)
     except OSError as error:
-        raise SweepError(f"{path}: can not read the sweep file ({error.strerror})") from None
+        names = ", ".join(shipped_sweeps())
+        raise SweepError(
+            f"{path}: can not read the sweep file ({error.strerror}); give a YAML path or a shipped sweep: {names}"
+        ) from None
     if len(raw) > MAX_BYTES:
         raise SweepError(f"{path}: the sweep file is larger than {MAX_BYTES:,} bytes; a sweep file is a few lines of YAML")
     try:

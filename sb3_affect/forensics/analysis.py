@@ -20,6 +20,10 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from sb3_affect.extras import require_extra
+
+require_extra("report", "the forensics")
+
 import numpy as np
 import pandas as pd
 

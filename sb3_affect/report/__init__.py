@@ -1,5 +1,9 @@
 """The replication report: the paper's tables and figures from our runs, beside the paper's own numbers."""
 
+from sb3_affect.extras import require_extra
+
+require_extra("report", "the report")
+
 from sb3_affect.report.build import build_report
 from sb3_affect.report.stats import (
     bootstrap_ci,

@@ -1,0 +1,125 @@
+"""
+rl-zoo3 and the Hugging Face Hub with the tabular agents: the zoo's own train, enjoy, record_video and plot_train
+(tiny budgets, real files), the Optuna samplers, the safe loader with the zoo's custom_objects, the Hub packaging
+offline, and the envs' registered time limit.
+"""
+
+from __future__ import annotations
+
+import json
+import warnings
+from collections.abc import Callable
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+import optuna
+import pytest
+
+from sb3_affect import AffectQ, QLearning
+from sb3_affect.envs import GRID_PURSUIT_ID, MAX_EPISODE_STEPS
+from sb3_affect.settings import TabularSettings
+from sb3_affect.zoo import HYPERPARAMS_FOLDER, sample_affectq_params, sample_qlearning_params
+from sb3_affect.zoo import main as zoo_main
+
+
+@pytest.fixture
+def zoo(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> Callable[[list[str], Path], str]:
+    """``python -m sb3_affect.zoo ARGS`` in ``cwd``, in this process (the zoo's modules run as ``__main__``)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+
+    def run(args: list[str], cwd: Path) -> str:
+        monkeypatch.chdir(cwd)
+        capsys.readouterr()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            zoo_main(args)
+        return capsys.readouterr().out
+
+    return run
+
+
+@pytest.mark.parametrize(
+    ("algo", "env_id", "video"), [("affectq", GRID_PURSUIT_ID, True), ("qlearning", "FrozenLake-v1", False)]
+)
+def test_zoo_trains_enjoys_records_and_plots(algo: str, env_id: str, video: bool, tmp_path: Path, zoo) -> None:
+    common = ["--algo", algo, "--env", env_id, "-f", "logs"]
+    out = zoo(["train", *common, "-n", "1000", "--eval-freq", "500", "--eval-episodes", "2", "--seed", "0"], tmp_path)
+    run = tmp_path / "logs" / algo / f"{env_id.replace('/', '-')}_1"
+    assert "Eval num_timesteps=1000" in out and (run / f"{env_id.replace('/', '-')}.zip").exists()
+    assert (run / "0.monitor.csv").exists() and (tmp_path / "logs" / algo / f"{env_id.replace('/', '-')}_1").is_dir()
+    out = zoo(["enjoy", *common, "--no-render", "-n", "600", "--seed", "0"], tmp_path)  # >= one time limit
+    assert "Episode Reward" in out and "Episode Length" in out, out[-500:]
+    if video:
+        zoo(["record_video", *common, "-n", "20", "--seed", "0"], tmp_path)
+        assert list((run / "videos").glob("*.mp4"))
+    zoo(["plot_train", *common, "-w", "2", "-y", "length", "--output", "curve.png"], tmp_path)
+    assert (tmp_path / "curve.png").stat().st_size > 1000
+
+
+def test_hyperparameter_files_build_every_agent_on_every_env() -> None:
+    import yaml
+
+    for algo, cls in (("qlearning", QLearning), ("affectq", AffectQ)):
+        table = yaml.safe_load((HYPERPARAMS_FOLDER / f"{algo}.yml").read_text())
+        assert {GRID_PURSUIT_ID, "sb3_affect/MazePursuit-v0", "sb3_affect/MovingPursuit-v0", "FrozenLake-v1",
+                "CliffWalking-v1", "Taxi-v4"} <= set(table)
+        for env_id, params in table.items():
+            params = dict(params)
+            params.pop("n_timesteps")
+            env = gym.make(env_id, **params.pop("env_kwargs", {}))
+            cls(env=env, **params).learn(20)
+
+
+@pytest.mark.parametrize(("sampler", "cls"), [(sample_qlearning_params, QLearning), (sample_affectq_params, AffectQ)])
+def test_optuna_samplers_give_valid_agents(sampler, cls) -> None:
+    study = optuna.create_study(sampler=optuna.samplers.RandomSampler(seed=0))
+    for _ in range(5):
+        params = sampler(study.ask(), 4, 1, {})
+        cls("Grid", gym.make(GRID_PURSUIT_ID, size=4, goal=(2, 2)), seed=0, **params).learn(50)
+
+
+def test_zoo_optimizes_qlearning_with_its_sampler(tmp_path: Path, zoo) -> None:
+    out = zoo(["train", "--algo", "qlearning", "--env", "FrozenLake-v1", "-f", "logs", "-n", "400",
+               "--optimize-hyperparameters", "--n-trials", "2", "--n-jobs", "1", "--sampler", "random", "--pruner",
+               "none", "--n-evaluations", "1", "--eval-episodes", "2", "--seed", "0"], tmp_path)
+    assert "Number of finished trials:  2" in out and "exploration_rate: " in out and "gamma: " in out
+
+
+def test_safe_loader_applies_custom_objects_as_sb3_does(tmp_path: Path) -> None:
+    model = AffectQ("Grid", gym.make(GRID_PURSUIT_ID, size=4, goal=(2, 2)), seed=0, learning_rate=0.5).learn(200)
+    model.save(tmp_path / "m")
+    zoo_objects = {"learning_rate": 0.0, "lr_schedule": lambda _: 0.0, "clip_range": lambda _: 0.0}  # rl-zoo3's enjoy
+    loaded = AffectQ.load(tmp_path / "m", custom_objects=zoo_objects, seed=3)
+    assert loaded.learning_rate == 0.0 and loaded.lr_schedule(1.0) == 0.0
+    assert not hasattr(loaded, "clip_range")  # names the file does not hold are ignored, as in SB3
+    assert (loaded.q_table == model.q_table).all() and loaded.seed == 3
+    assert AffectQ.load(tmp_path / "m").learning_rate == 0.5
+
+
+def test_hub_packaging_offline_names_sb3_affect_and_how_to_load(tmp_path: Path) -> None:
+    from sb3_affect.hub import package_model
+
+    model = QLearning("Grid", gym.make(GRID_PURSUIT_ID, size=4, goal=(2, 2), max_episode_steps=50), seed=0).learn(2000)
+    folder = package_model(model, tmp_path / "hub", GRID_PURSUIT_ID, repo_id="someone/qlearning-grid",
+                           eval_env=gym.make(GRID_PURSUIT_ID, size=4, goal=(2, 2), max_episode_steps=50),
+                           n_eval_episodes=3)
+    card = (folder / "README.md").read_text()
+    assert "sb3-affect" in card and "from sb3_affect import QLearning" in card and "QLearning.load(path)" in card
+    assert 'repo_id="someone/qlearning-grid"' in card and "tags:" in card and "mean_reward" in card
+    results = json.loads((folder / "results.json").read_text())
+    assert results["n_eval_episodes"] == 3 and np.isfinite(results["mean_reward"])
+    assert json.loads((folder / "config.json").read_text())["gamma"] == model.gamma
+    loaded = QLearning.load(folder / "qlearning-sb3_affect-GridPursuit-v0.zip")
+    assert (loaded.q_table == model.q_table).all()
+
+
+def test_package_envs_are_registered_with_a_time_limit_the_agents_cap_never_reaches() -> None:
+    assert gym.spec(GRID_PURSUIT_ID).max_episode_steps == MAX_EPISODE_STEPS
+    assert 2 * TabularSettings().max_episode_decisions <= MAX_EPISODE_STEPS  # at most 2 cells a decision
+    env = gym.make(GRID_PURSUIT_ID, max_episode_steps=7)  # evaluations of a stuck policy end
+    env.reset(seed=0)
+    truncated = [env.step(0)[3] for _ in range(7)]
+    assert truncated == [False] * 6 + [True]
