@@ -4,7 +4,7 @@ and write one JSON per run (the launcher's run-file format) under OUT/runs, then
 
     python experiments/baselines_run.py --tune --out runs/baselines-tuning --workers 2
     python experiments/baselines_run.py --out runs/baselines --workers 2
-    python -m sb3_affect.baselines.summary runs/baselines
+    python -m sb3_affect.report.baseline_summary runs/baselines
 """
 
 from __future__ import annotations

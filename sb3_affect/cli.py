@@ -127,8 +127,11 @@ def _cmd_report(args: argparse.Namespace) -> int:
     root = _existing_folder(args.dir, "report")
     if not any(root.iterdir()):
         raise UsageError(f"{args.dir}: the folder is empty; run a sweep into it (`sb3-affect run FILE --out {args.dir}`)")
+    from sb3_affect.replicate import forensics_extra
+
+    extra = forensics_extra(root / "forensics")  # the forensics section, when the folder holds its results
     try:
-        path = build_report(root)
+        path = build_report(root, extra_sections=[extra] if extra is not None else [], command=" ".join(sys.argv))
     except (FileNotFoundError, ValueError) as error:  # no results in a layout the report knows, or no finished run
         raise UsageError(f"{args.dir}: no report can be built: {error}") from None
     print(f"report: {path} and {path.with_suffix('.html')} (open it in a browser)")
@@ -140,7 +143,10 @@ def _cmd_replicate(args: argparse.Namespace) -> int:
 
     _check_out(args.out)
     start = time.perf_counter()
-    report = replicate(out_dir=Path(args.out), workers=args.workers, large_seeds=args.large_seeds)
+    report = replicate(
+        out_dir=Path(args.out), workers=args.workers, large_seeds=args.large_seeds, forensics=not args.no_forensics,
+        command=" ".join(["sb3-affect", *sys.argv[1:]]),
+    )
     minutes, seconds = divmod(time.perf_counter() - start, 60)
     print(f"done in {int(minutes)} min {seconds:.0f} s. Open {report.with_suffix('.html')} in a browser to read the report.")
     return 0
@@ -148,17 +154,18 @@ def _cmd_replicate(args: argparse.Namespace) -> int:
 
 def _replicate_help() -> str:
     """``replicate --help``: what it runs (from ``sb3_affect.replicate.PARTS``, so it can not drift) and writes."""
-    from sb3_affect.replicate import PARTS, STUDIES
+    from sb3_affect.replicate import FORENSICS, MINUTES, PARTS, STUDIES, part_description
 
     lines = [
         "The main job (`make replicate` runs it): runs these sweeps and engine studies, each into its own sub-folder",
         "of OUT, then writes one report from all of them.",
         "",
-        *(f"  OUT/{name + '/':11s} experiments/{name}.yaml: {description}" for name, description in PARTS),
-        *(f"  OUT/{name + '/':11s} {description}" for name, description in STUDIES),
-        f"  {'OUT/report.html':15s} the report (also report.md, tables/*.csv, figures/*.png): open it in a browser",
+        *(f"  OUT/{name + '/':16s} experiments/{name}.yaml: {part_description(name, d)}" for name, d in PARTS),
+        *(f"  OUT/{name + '/':16s} {description.format(**FORENSICS)}" for name, description in STUDIES),
+        f"  {'OUT/report.html':20s} the report (also report.md, tables/*.csv, figures/*.png): open it in a browser",
         "",
-        "About 10-12 minutes on 2 cores. Interrupted? Rerun the same command: finished runs are kept and skipped.",
+        f"{MINUTES[0].upper() + MINUTES[1:]} on 2 idle cores. Interrupted? Rerun the same command: finished runs are kept",
+        "and skipped.",
     ]
     return "\n".join(lines)
 
@@ -234,6 +241,9 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         metavar="N",
         help="seeds per cell of the large-N study (default: 1000)",
+    )
+    replicate.add_argument(
+        "--no-forensics", action="store_true", help="leave out the replication forensics (the report says so)"
     )
     replicate.set_defaults(func=_cmd_replicate)
     from sb3_affect.forensics.command import add_forensics_parser

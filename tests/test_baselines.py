@@ -176,7 +176,7 @@ def test_baselines_save_and_load(tmp_path: Any) -> None:
 
 def test_suite_runs_and_summary_ranks(tmp_path: Any) -> None:
     from sb3_affect.baselines.suite import agents, execute_to, load_algo, report_configs
-    from sb3_affect.baselines.summary import bootstrap_ci, load_runs, markdown, run_metrics, summarise
+    from sb3_affect.report.baseline_summary import bootstrap_ci, load_run_records, markdown, record_metrics, summarise
 
     assert load_algo("sb3_affect.baselines:UCBQLearning") is UCBQLearning
     configs = [c for c in report_configs(("static", "moving-7x7"), range(2)) if c["agent"] in ("affective", "ucb")]
@@ -191,10 +191,10 @@ def test_suite_runs_and_summary_ranks(tmp_path: Any) -> None:
     }
     for config in configs:
         execute_to({**config, "episodes": 15}, str(tmp_path))
-    records = load_runs(tmp_path)
+    records = load_run_records(tmp_path)
     assert len(records) == 8
     moving = next(r for r in records if r["config"]["labels"]["task"] == "moving-7x7")
-    metrics = run_metrics(moving)
+    metrics = record_metrics(moving)
     cells, truncated = moving["episodes"]["cells"], moving["episodes"]["truncated"]
     flags = [not t and c <= 6 for c, t in zip(cells, truncated)]  # capture distance (0, 0) -> (3, 3)
     first = flags.index(True) if True in flags else len(cells)

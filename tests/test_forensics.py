@@ -44,7 +44,7 @@ def test_cell_summary_matches_the_report_definitions() -> None:
     assert summary["walked_decisions_before"] == pytest.approx(metrics.decisions_before_optimal.sum())
     assert summary["walked_cells_before"] == pytest.approx(metrics.cells_before_optimal.sum())
     assert summary["greedy_found"] == (~metrics.greedy_censored).sum()
-    assert summary["greedy_first"] == pytest.approx(np.nansum(metrics.greedy_optimal_from))
+    assert summary["greedy_first"] == pytest.approx(np.nansum(metrics.greedy_stays_optimal_from))
 
 
 def test_printed_numbers_are_the_papers() -> None:

@@ -118,11 +118,11 @@ def test_run_metrics_definitions() -> None:
     metrics = run_metrics(pd.concat([found, never])).set_index("run_id")
     assert metrics.at["found", "first_optimal"] == 3
     assert metrics.at["found", "decisions_before_optimal"] == 80  # episodes 1 and 2
-    assert metrics.at["found", "greedy_optimal_from"] == 4  # stays optimal from episode 4 to the end
+    assert metrics.at["found", "greedy_stays_optimal_from"] == 4  # stays optimal from episode 4 to the end
     assert not metrics.at["found", "censored"]
     assert metrics.at["never", "censored"] and math.isnan(metrics.at["never", "first_optimal"])
     assert metrics.at["never", "decisions_before_optimal"] == 60  # censored: all its steps
-    assert metrics.at["never", "greedy_optimal_from"] == 1
+    assert metrics.at["never", "greedy_stays_optimal_from"] == 1
     assert metrics.at["found", "decisions_per_episode"] == pytest.approx(26.5)
     assert metrics.at["found", "decisions_to_greedy_optimal"] == 50 + 30 + 12 + 14  # episodes 1-4
     assert metrics.at["never", "decisions_to_greedy_optimal"] == 40  # greedy optimal after episode 1

@@ -1,12 +1,12 @@
 """
-Issue 7's report section: every agent ranked on decisions per episode, cells per episode and steps before the
+The fair-baselines report section: every agent ranked on decisions per episode, cells per episode and steps before the
 optimal path (bootstrap 95% CIs), on the static task and on moving prey, and the personalities' emotion profiles.
 
-The numbers come from ``sb3_affect.baselines.summary`` (definitions there and in docs/beyond_the_paper.md); this module
+The numbers come from ``sb3_affect.report.baseline_summary`` (definitions there and in docs/beyond_the_paper.md); this module
 only assembles the markdown, so the report build can add it::
 
     from sb3_affect.report.baselines import baselines_section
-    text = baselines_section(["runs/issue7", "runs/issue7-baselines_moving7", "runs/issue7-baselines_moving"])
+    text = baselines_section(["runs/baselines", "runs/baselines_moving7", "runs/baselines_moving"])
 """
 
 from __future__ import annotations
@@ -19,13 +19,14 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from sb3_affect.baselines.summary import emotion_profile, load_runs, markdown, profile_markdown, summarise
+from sb3_affect.report.baseline_summary import emotion_profile, markdown, profile_markdown, summarise
 from sb3_affect.report.context import ReportContext
 from sb3_affect.report.document import fmt
 from sb3_affect.report.largen import Cell, study
+from sb3_affect.report.metrics import load_run_records
 from sb3_affect.report.stats import bootstrap_ci
 
-#: Issue 7 results folders a replicate folder may hold (experiments/baselines*.yaml).
+#: Fair-baselines results folders a replicate folder may hold (experiments/baselines*.yaml).
 BASELINE_FOLDERS = ("baselines", "baselines_moving7", "baselines_moving")
 
 INTRO = (
@@ -39,7 +40,7 @@ INTRO = (
 
 def baselines_section(run_dirs: Sequence[str | Path], title: str = "Beyond the paper: fair baselines and moving prey") -> str:
     """The section as markdown (empty string when none of ``run_dirs`` holds runs)."""
-    records = [record for folder in run_dirs if Path(folder).exists() for record in load_runs(folder)]
+    records = [record for folder in run_dirs if Path(folder).exists() for record in load_run_records(folder)]
     if not records:
         return ""
     text = f"## {title}\n\n{INTRO}\n\n{markdown(summarise(records))}"
@@ -116,7 +117,7 @@ def beyond_table(m: pd.DataFrame) -> pd.DataFrame:
 
 
 def beyond_section(ctx: ReportContext) -> None:
-    """Moving prey, evading prey and mazes (engine study), then issue 7's fair-baselines folders when present."""
+    """Moving prey, evading prey and mazes (engine study), then the fair-baselines folders when present."""
     ctx.doc.h("Beyond the paper: moving prey, evading prey, mazes and fair baselines")
     found = study(ctx.root, "beyond")
     if found is None:
@@ -144,4 +145,5 @@ def beyond_section(ctx: ReportContext) -> None:
         ctx.doc.ul(ranks)
     dirs = [ctx.root / name for name in BASELINE_FOLDERS if (ctx.root / name / "runs").is_dir()]
     if dirs:
-        ctx.doc.md(baselines_section(dirs, title="Fair baselines (issue 7)").replace("## ", "### ", 1))
+        title = "Fair baselines: tuned, decaying, optimistic and speed-matched agents"
+        ctx.doc.md(baselines_section(dirs, title=title).replace("## ", "### ", 1))

@@ -1,5 +1,5 @@
 """
-The project's own checks, apart from the paper's claims: the speed-matched ε-greedy (issue 7), and rliable's
+The project's own checks, apart from the paper's claims: the speed-matched ε-greedy (a fair baseline), and rliable's
 interquartile means with stratified bootstrap CIs, probabilities of improvement and performance profiles.
 """
 
@@ -108,7 +108,7 @@ def speed_matched(m: pd.DataFrame) -> list[str]:
 
 
 def with_speed_matched(ctx: ReportContext) -> pd.DataFrame:
-    """Per-run metrics of the large-N study (else the paper sweep), with the issue 7 speed-matched runs if needed."""
+    """Per-run metrics of the large-N study (else the paper sweep), with the baselines folder's speed-matched runs."""
     m = ctx.large if ctx.large is not None else ctx.metrics
     if SPEED_AGENT not in set(m.agent) and "baselines" in ctx.folders:
         results = load_results(ctx.folders["baselines"])

@@ -1,5 +1,5 @@
 """
-The report's side-by-side of the two emotion models on the same runs (issue 16): the paper's (Badoy & Teknomo:
+The report's side-by-side of the two emotion models on the same runs (the two-hunter sweeps): the paper's (Badoy & Teknomo:
 appraisal of step counts, one emotion per decision) and Broekens, Jacobs & Jonker's (2015: joy/distress from the TD
 error, hope/fear from the learned value; ``sb3_affect.broekens``), for every hunter of the two-hunter runs.
 

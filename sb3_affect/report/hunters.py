@@ -1,5 +1,5 @@
 """
-The report's two-hunter section (issue 16): affective, epsilon-greedy and mixed teams of independent learners on
+The report's two-hunter section: affective, epsilon-greedy and mixed teams of independent learners on
 Kuremoto's pursuit problem (static prey) and on a random-walking prey, with bootstrap CIs and a verdict.
 
 Entry point: ``hunters_section(run_dirs, out) -> (markdown, [(figure path, caption)])``; ``run_dirs`` are results
