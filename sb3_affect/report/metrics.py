@@ -334,14 +334,16 @@ def profile(episodes: pd.DataFrame) -> pd.DataFrame:
     """
     Per episode number: the mean over runs of each emotion's fraction of decisions and of the equivalent epsilon,
     with a 95% band of the mean (mean +- 1.96 standard errors over runs: ``_lo`` / ``_hi``), and the
-    decision-weighted fraction (all decisions of that episode number pooled over runs: ``_weighted``).
+    decision-weighted fraction (all decisions of that episode number pooled over runs: ``_weighted``) with its 95%
+    band over runs (the ratio estimator's delta-method standard error: ``_weighted_lo`` / ``_weighted_hi``).
 
     One column at a time (memory: a few columns of ``episodes``, whatever its length).
     """
     episode = episodes.episode.to_numpy()
     decisions = episodes.decisions.to_numpy()
     totals = pd.Series(decisions.astype(np.int64)).groupby(episode).sum()
-    parts: dict[str, dict[str, pd.Series]] = {"mean": {}, "lo": {}, "hi": {}, "weighted": {}}
+    kinds = ("mean", "lo", "hi", "weighted", "weighted_lo", "weighted_hi")
+    parts: dict[str, dict[str, pd.Series]] = {kind: {} for kind in kinds}
     for name, source in (*((x, x) for x in EMOTIONS), ("equivalent_epsilon", "random_moves")):
         values = episodes[source].to_numpy()
         grouped = pd.Series(values / decisions).groupby(episode)
@@ -349,7 +351,13 @@ def profile(episodes: pd.DataFrame) -> pd.DataFrame:
         half = 1.96 * grouped.sem().fillna(0.0)
         parts["mean"][name], parts["lo"][name], parts["hi"][name] = mean, mean - half, mean + half
         summed = pd.Series(values.astype(np.int64) if values.dtype.kind in "iu" else values).groupby(episode).sum()
-        parts["weighted"][name] = summed / totals
+        ratio = summed / totals
+        parts["weighted"][name] = ratio
+        # the ratio's 95% band over runs (delta method): se = sd(x_i - R d_i) / (sqrt(n) mean(d_i)) per episode
+        residual = pd.Series(values - ratio.reindex(episode).to_numpy() * decisions).groupby(episode)
+        per_run_decisions = pd.Series(decisions.astype(float)).groupby(episode).mean()
+        half_weighted = 1.96 * (residual.std(ddof=1) / np.sqrt(residual.count()) / per_run_decisions).fillna(0.0)
+        parts["weighted_lo"][name], parts["weighted_hi"][name] = ratio - half_weighted, ratio + half_weighted
     out = pd.concat([pd.DataFrame(series).add_suffix(f"_{kind}") for kind, series in parts.items()], axis=1)
     out.index = out.index.astype(np.int64).rename("episode")
     return out

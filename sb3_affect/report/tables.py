@@ -112,6 +112,14 @@ def figures_3_4_section(ctx: ReportContext) -> None:
         ctx.figure("fig4_steps_before_optimal"),
         log=True,
         mark_censored=True,
+        reference={
+            f"paper, ε-greedy per run ({paper.TABLE_V['Mean'][0] / paper.SEEDS_PER_CELL:,.0f}: Table V / 20)": (
+                paper.TABLE_V["Mean"][0] / paper.SEEDS_PER_CELL
+            ),
+            f"paper, affective per run ({paper.TABLE_V['Mean'][1] / paper.SEEDS_PER_CELL:,.0f})": (
+                paper.TABLE_V["Mean"][1] / paper.SEEDS_PER_CELL
+            ),
+        },
     )
     ctx.doc.img(
         f4,

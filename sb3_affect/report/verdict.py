@@ -11,8 +11,9 @@ import pandas as pd
 
 from sb3_affect.report import claims
 from sb3_affect.report.claims import Judgement
-from sb3_affect.report.context import ReportContext
+from sb3_affect.report.context import AFFECTIVE, STANDARD, ReportContext
 from sb3_affect.report.document import sig
+from sb3_affect.report.judgement import per_epsilon
 
 WHY_SADNESS_FEAR = (
     "Sadness and fear can not occur under Table II as printed. exp1 is \"initially equal to the average value, and "
@@ -96,6 +97,25 @@ def tests_table(judged: list[Judgement]) -> pd.DataFrame:
     return pd.DataFrame(rows).set_index("claim") if rows else pd.DataFrame()
 
 
+def units_table(m: pd.DataFrame) -> pd.DataFrame:
+    """Per ε: the affective agent's lead before the first walked optimal path in decisions (time) and in cells (distance)."""
+    rows = {}
+    for column, unit in (("decisions_before_optimal", "decisions"), ("cells_before_optimal", "cells")):
+        if column not in m.columns:
+            continue
+        diffs, _ = per_epsilon(m, column, "")
+        base = m[m.agent == STANDARD].groupby("epsilon")[column].mean()
+        for eps, d in diffs.items():
+            row = rows.setdefault(f"{eps:.1f}", {})
+            row[f"ε-greedy, {unit}"] = sig(float(base[eps]))
+            row[f"affective, {unit}"] = sig(float(m[(m.agent == AFFECTIVE) & (m.epsilon == eps)][column].mean()))
+            row[f"lead in {unit} [95% CI]"] = d.text()
+            row[f"lead in {unit}, share"] = f"{d.value / base[eps]:.1%}" if base[eps] else "n/a"
+    table = pd.DataFrame.from_dict(rows, orient="index")
+    table.index.name = "ε"
+    return table
+
+
 def speed_matched_sentences(ctx: ReportContext) -> list[str]:
     """The affective agent against the speed-matched ε-greedy (large-N study, else the baselines folder)."""
     from sb3_affect.report.checks import speed_matched, with_speed_matched
@@ -128,6 +148,15 @@ def verdict_section(ctx: ReportContext) -> None:
         "p-value, as the paper did. Raw and adjusted p-values are side by side in the appendix."
     )
     ctx.table("verdict", verdict_table(judged_main, other, n, n_other), "Verdict on the paper's claims")
+    main = ctx.large if ctx.large is not None else ctx.metrics
+    units = units_table(main)
+    if "lead in cells [95% CI]" in units.columns:
+        ctx.table(
+            "lead_in_decisions_and_cells",
+            units,
+            f"Time and distance: the affective agent's lead before the first walked optimal path, per ε, in decisions and "
+            f"in cells (per run, {n} seeds per cell; Welch 95% CIs)",
+        )
     speed = speed_matched_sentences(ctx)
     if speed:
         ctx.doc.p(
