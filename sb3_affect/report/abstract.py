@@ -23,14 +23,17 @@ def abstract_sentences(judged_main: list[claims.Judgement], n: int, runs: int) -
     held = [j.label for j in judged_main if words[judged_main.index(j)] == "reproduced"]
     first = (
         f"We reran Badoy and Teknomo's grid-pursuit experiment (ε-greedy Q-learning against the affective agent, 9 ε "
-        f"values, 200 episodes) at the paper's 20 seeds per cell and at {n} seeds per cell ({runs:,} runs in the "
+        f"values, 200 episodes) at the paper's 20 seeds per cell and at {n:,} seeds per cell ({runs:,} runs in the "
         "verdict), and judged each of the paper's claims with a rule written down before the numbers."
     )
+    not_held = sum(w.startswith("not reproduced") for w in words)
+    rest = len(words) - _count(words, "reproduced") - not_held
     second = (
-        f"{_count(words, 'reproduced')} of {len(words)} claims are reproduced"
-        + (f" ({'; '.join(held[:4])}{'; ...' if len(held) > 4 else ''})" if held else "")
-        + f", {sum(w.startswith('not reproduced') for w in words)} are not, and the rest are partly reproduced or "
-        "inconclusive."
+        f"Of {len(words)} claims, {_count(words, 'reproduced')} are reproduced"
+        + (f" ({'; '.join(held[:3])}{'; ...' if len(held) > 3 else ''})" if held else "")
+        + f", {not_held} are not"
+        + (f", and {rest} hold in part (direction only, partly, or inconclusive)" if rest else "")
+        + "."
     )
     table_iv = by_key.get("table_iv")
     third = (
@@ -58,7 +61,7 @@ def headline_table(
     others = {j.key: j for j in other or []}
     rows = {}
     for j in judged_main:
-        row = {f"{n} seeds": claims.verdict_word(j.verdict)}
+        row = {f"{n:,} seeds": claims.verdict_word(j.verdict)}
         if other is not None:
             row[f"{n_other} seeds"] = claims.verdict_word(others[j.key].verdict) if j.key in others else ""
         rows[j.label] = row

@@ -193,9 +193,13 @@ def judge_table_v(m: pd.DataFrame, column: str = "decisions_before_optimal", def
 
     def decide(j: Judgement) -> str:
         robust_sig = sum(significant(t) for t in robust)
-        size = "" if j.size else f"; size differs (paper / ours {sig(ratio)}, outside the {where})"
+        if j.direction and primary.p < ALPHA and j.size:
+            return f"reproduced: the paper's test significant (one-tailed p {pval(primary.p)}), size inside the {where}"
         if j.direction and primary.p < ALPHA:
-            return f"reproduced: the paper's test significant (one-tailed p {pval(primary.p)}){size}"
+            return (
+                f"direction reproduced: the paper's test significant (one-tailed p {pval(primary.p)}); size differs "
+                f"(paper / ours {sig(ratio)}, outside the {where})"
+            )
         if j.direction and robust_sig:
             return "not reproduced by the paper's test (p " + pval(primary.p) + "); a robust test is significant"
         if j.direction:

@@ -10,7 +10,7 @@ import pandas as pd
 
 from sb3_affect.report import figures
 from sb3_affect.report.context import AFFECTIVE, ReportContext
-from sb3_affect.report.document import fmt
+from sb3_affect.report.document import fmt, sig
 from sb3_affect.report.metrics import EMOTIONS, profile, rows_where, window_mean
 
 #: An episode longer than this many decisions is "long" (the shortest path is 12 cells, 6 to 12 decisions).
@@ -167,6 +167,7 @@ def mechanism_section(ctx: ReportContext) -> None:
         "fraction is close to the share of episodes with any joy). Per decision, the agent is random most of the time "
         "even late in training, which is why its steps per episode stay far above the 12-cell optimum."
     )
+    joy_section(ctx)
     ctx.doc.h("Fig. 5 under both weightings", 3)
     prof = profile(aff)
     prof.to_csv(ctx.out / "tables" / "profile_per_episode.csv")
@@ -200,3 +201,31 @@ def mechanism_section(ctx: ReportContext) -> None:
     )
     f6 = figures.equivalent_epsilon(prof, ctx.figure("fig6_equivalent_epsilon"))
     ctx.doc.img(f6, "Fig. 6: equivalent ε (fraction of random-direction decisions) per episode, both weightings")
+
+
+def joy_section(ctx: ReportContext) -> None:
+    """Joy near-absorbing, and where late episodes cross the norm (traced runs, ``report.joy_trace``)."""
+    from sb3_affect.report import joy_trace
+
+    if ctx.verdict_refusal():
+        return
+    frame = joy_trace.traced(ctx.root / "joy_trace")
+    b = joy_trace.summary(frame)
+    ctx.doc.h("Joy is near-absorbing; where late episodes cross the norm", 3)
+    path = joy_trace.norm_figure(frame, ctx.figure("norm_crossings"), ctx.cache.get("shortest path"))
+    ctx.doc.p(
+        f"Traced decision by decision ({int(b['runs'])} runs of the paper's affective agent, seeds 0-"
+        f"{int(b['runs']) - 1}, {joy_trace.EPISODES} episodes; the episode log keeps only counts): of "
+        f"{int(b['joy decisions']):,} joy decisions, {sig(b['exits per joy decision'])} per decision are followed by "
+        f"another emotion in the same episode, and {b['share of joy episodes that ever leave joy']:.1%} of the episodes "
+        "that feel joy ever leave it. Joy is near-absorbing, not absorbing: act can fall when a newly seen transition "
+        "shortens the known remaining path. In episodes "
+        f"{joy_trace.LATE[0]}-{joy_trace.LATE[1]}, {b['share of late episodes that cross the norm']:.1%} of the episodes "
+        f"still cross the norm although Q has long converged: the norm has fallen to {sig(b['late norm, median'])} cells "
+        f"(median), barely above the shortest path, and the crossing comes at decision "
+        f"{sig(b['first joy decision in crossing late episodes, median'])} (median) of an episode that without joy takes "
+        f"{sig(b['late decisions without crossing, median'])} decisions: near the goal, once act has met a norm that "
+        "leaves a greedy walk little room. From there joy turns the end of the episode into a random walk "
+        f"({sig(b['decisions of crossing late episodes, median'])} decisions, median)."
+    )
+    ctx.doc.img(path, "The norm per episode and, for the episodes that cross it, the decision at which joy starts")

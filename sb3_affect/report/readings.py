@@ -79,8 +79,10 @@ def readings_section(ctx: ReportContext) -> None:
         "remaining; units: cells or decisions; docs/definitions.md). Each column judges every claim with the same logic "
         f"as the verdict on that reading's affective runs ({n} seeds per cell, reading ablation) beside the paper "
         f"sweep's ε-greedy runs; the default reading is `{DEFAULT}`. Never-found runs are censored here too "
-        "(Kaplan-Meier restricted mean), so a reading whose runs sometimes never find the path is not scored as "
-        "if they found it at the last episode."
+        "(Kaplan-Meier restricted mean to the last episode, with its median in the verdict table). With censoring "
+        "only at the last episode that restricted mean equals the mean that scores never-found runs as the last "
+        "episode: it is a lower bound on the mean first optimal episode, while the mean over the runs that found the "
+        "path alone is biased low."
     )
     ctx.table("claims_by_reading", table, "Each claim's verdict under each reading (first words; 27.35: the KM mean)")
     ctx.table(

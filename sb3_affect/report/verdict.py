@@ -54,12 +54,12 @@ def verdict_table(judged: list[Judgement], other: list[Judgement] | None, n: int
         row = {
             "the paper says (source)": f"\"{j.quote}\" ({j.source})",
             "paper's numbers": j.paper,
-            f"ours, time (decisions), {n} seeds per cell [95% CI]": j.ours,
+            f"ours, time (decisions), {n:,} seeds per cell [95% CI]": j.ours,
             "ours, distance (cells)": j.cells or "n/a",
             "paper / ours": sig(j.ratio) if j.ratio is not None else "n/a",
             "paper's number inside the 20-seed predictive interval": _mark(j.size),
             "direction as the paper": _mark(j.direction),
-            f"verdict ({n} seeds)": j.verdict,
+            f"verdict ({n:,} seeds)": j.verdict,
         }
         if other is not None:
             row[f"verdict ({n_other} seeds, paper protocol)"] = others[j.key].verdict if j.key in others else ""
@@ -99,7 +99,7 @@ def tests_table(judged: list[Judgement]) -> pd.DataFrame:
 
 def units_table(m: pd.DataFrame) -> pd.DataFrame:
     """Per ε: the affective agent's lead before the first walked optimal path in decisions (time) and in cells (distance)."""
-    rows = {}
+    rows: dict[str, dict[str, str]] = {}
     for column, unit in (("decisions_before_optimal", "decisions"), ("cells_before_optimal", "cells")):
         if column not in m.columns:
             continue
@@ -135,7 +135,7 @@ def verdict_section(ctx: ReportContext) -> None:
         return
     judged_main, n, other, n_other = judged(ctx)
     ctx.doc.p(
-        f"Each claim of the paper, quoted with where it is printed, judged on our runs ({n} seeds per cell"
+        f"Each claim of the paper, quoted with where it is printed, judged on our runs ({n:,} seeds per cell"
         + (f"; the verdict at the paper's protocol, {n_other} seeds per cell, is in the last column" if other else "")
         + "). Time and distance side by side: a *decision* is one unit of time (the paper's step); the affective agent "
         "moves 0, 1 or 2 *cells* per decision, so its lead in decisions is larger than its lead in cells. Size: the "
@@ -155,7 +155,7 @@ def verdict_section(ctx: ReportContext) -> None:
             "lead_in_decisions_and_cells",
             units,
             f"Time and distance: the affective agent's lead before the first walked optimal path, per ε, in decisions and "
-            f"in cells (per run, {n} seeds per cell; Welch 95% CIs)",
+            f"in cells (per run, {n:,} seeds per cell; Welch 95% CIs)",
         )
     speed = speed_matched_sentences(ctx)
     if speed:
@@ -184,8 +184,9 @@ def reasons(judged_main: list[Judgement]) -> list[str]:
         )
     if any(k.startswith("printed_") for k in keys):
         out.append(
-            "The printed means: our ε-greedy agent and the paper's differ in size (the ratios above); no reading of the "
-            "paper the forensics tried reaches the printed ε-greedy numbers either."
+            "The printed means: our agents and the paper's differ in size (the ratios above), the ε-greedy agent's "
+            "included, which no reading of the affective agent's appraisal can change; the replication forensics asks "
+            "which implementation could have printed them."
         )
     if "episodes_to_optimal" in keys:
         out.append("27.35 episodes: the number depends on the reading of the appraisal (claims x readings table).")
@@ -211,6 +212,6 @@ def tests_section(ctx: ReportContext) -> None:
     ctx.table(
         "verdict_tests",
         tests_table(judged_main),
-        f"Every test of the verdict at {n} seeds per cell: raw and Holm-adjusted p-values (one family per claim)",
+        f"Every test of the verdict at {n:,} seeds per cell: raw and Holm-adjusted p-values (one family per claim)",
         4,
     )
