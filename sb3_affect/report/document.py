@@ -43,7 +43,7 @@ def sig(value: float, digits: int = 3) -> str:
     value = float(value)
     if math.isinf(value):
         return "inf" if value > 0 else "-inf"
-    if abs(value) >= 10 ** (digits - 1) or abs(value) >= 1e3:
+    if abs(value) >= 10 ** (digits - 1) or abs(value) >= 1e3 or (value.is_integer() and abs(value) < 1e3):
         return f"{value:,.0f}"
     if value == 0:
         return "0"
