@@ -102,7 +102,7 @@ def main(
     :return: the path of report.md
     """
     from sb3_affect.experiments import run_sweep
-    from sb3_affect.report import build_report
+    from sb3_affect.report import build_report, paper
     from sb3_affect.report.ablation import ablation_cells
     from sb3_affect.report.baselines import beyond_cells
     from sb3_affect.report.largen import LONG_EPISODES, large_cells, long_cells, run_cells, speed_one_cells
@@ -126,7 +126,7 @@ def main(
         )
     speed_seeds = min(SPEED_ONE_SEEDS, large_seeds)
     long_seeds = min(LONG_SEEDS, large_seeds)
-    long_episodes = LONG_EPISODES if engine_episodes == ENGINE_EPISODES else engine_episodes * 10
+    long_episodes = engine_episodes * LONG_EPISODES // paper.EPISODES  # 2,000 at the paper's 200 (10 x as long)
     studies = (
         ("large", f"large-N study, {large_seeds} seeds per cell (engine)", large_cells(), large_seeds, engine_episodes),
         ("ablation_engine", f"reading ablation, {ablation_seeds} seeds per cell (engine)", ablation_cells(), ablation_seeds,

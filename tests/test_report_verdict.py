@@ -97,7 +97,8 @@ def test_holm_runs_within_each_claim_and_the_papers_own_test_is_judged_raw() -> 
     assert len(fig3.tests) == 9  # one family: the ε values of the claim
     table_v = next(j for j in judged if j.key == "table_v:walked")
     assert table_v.primary is table_v.tests[0] and table_v.primary.p < 0.05 <= table_v.primary.p * len(table_v.tests)
-    assert table_v.verdict.startswith("reproduced: the paper's test significant")  # raw p, as the paper judged it
+    assert table_v.verdict.startswith("direction reproduced: the paper's test significant")  # raw p, as the paper judged it
+    assert "size differs (paper / ours 0.09" in table_v.verdict  # synthetic sizes far from the paper's
 
 
 def test_a_true_null_is_equivalence_not_absence_of_evidence() -> None:
@@ -192,12 +193,14 @@ def test_replicate_writes_every_part_and_the_record(tmp_path: Path, monkeypatch:
         text = smoke.replace("name: smoke", f"name: {name}").replace("episodes: 20", "episodes: 5")
         (experiments / f"{name}.yaml").write_text(text)
     report = main(tmp_path / "out", workers=1, experiments=experiments, large_seeds=1, ablation_seeds=1, beyond_seeds=1,
-                  engine_episodes=5)
+                  engine_episodes=5, forensics=False)
     text = report.read_text()
     assert "No verdict: too few runs" in text
-    for part in ("large", "ablation_engine", "beyond"):
+    for part in ("large", "ablation_engine", "speed_one", "long", "beyond"):
         assert (tmp_path / "out" / part / "runs.csv.gz").exists(), part
+    assert int(pd.read_csv(tmp_path / "out" / "long" / "runs.csv.gz").episodes.max()) == 50  # 10 x the engine episodes
     assert "evading prey 7x7 / affective" in text and "maze: rooms / speed-epsilon-greedy" in text
     assert "Readings ranked by distance" in text
     wall = pd.read_csv(tmp_path / "out" / "tables" / "wall_times.csv")
-    assert len(wall) == 6 and (wall["wall seconds"] >= 0).all()  # 3 sweeps + 3 engine studies
+    assert len(wall) == 8 and (wall["wall seconds"] >= 0).all()  # 3 sweeps + 5 engine studies
+    assert "Replication forensics: not run" in text

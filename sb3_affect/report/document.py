@@ -125,7 +125,7 @@ class Document:
         parts = [
             "<!DOCTYPE html><html><head><meta charset='utf-8'>",
             f"<title>{html.escape(self.title)}</title>",
-            "<style>body{font-family:sans-serif;max-width:1000px;margin:2em auto;line-height:1.45}"
+            "<style>body{font-family:sans-serif;max-width:1300px;margin:2em auto;line-height:1.45}"
             "table{border-collapse:collapse;margin:0.5em 0 1.2em}td,th{border:1px solid #ccc;padding:3px 8px;"
             "text-align:right;vertical-align:top}td.text{text-align:left}th{background:#f3f3f3}td:first-child,th:first-child{text-align:left}"
             "img{max-width:100%}figcaption,caption{font-style:italic;color:#444}</style></head><body>",

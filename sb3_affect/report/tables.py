@@ -123,8 +123,9 @@ def figures_3_4_section(ctx: ReportContext) -> None:
     )
     ctx.doc.img(
         f4,
-        "Fig. 4: steps before the first walked optimal path, per run (the paper's totals are x runs); band: bootstrap "
-        "95% CI; crosses: censored runs (never found it; plotted at all their steps, a lower bound)"
+        "Fig. 4: steps before the first walked optimal path, per run (the paper's Table V totals are sums over a "
+        "cell's 20 runs: its lines divide them by 20); band: bootstrap 95% CI; crosses: censored runs (never found "
+        "it; plotted at all their steps, a lower bound)"
         + (f"; dots: runs{dots}" if dots else ""),
     )
     f4g = figures.metric_vs_epsilon(
