@@ -169,7 +169,7 @@ def test_seeds_needed_and_adastop_on_a_clear_difference() -> None:
     runs = _runs(30)
     needed = seeds_needed(runs, n=10, repetitions=4)
     share = "share of 4 10-seed subsamples with that verdict"
-    assert set(needed.columns) >= {"verdict at 30 seeds", share, "reading"}
+    assert set(needed.columns) >= {"verdict at 30 seeds", share, "reading"}  # (30: no thousands separator)
     assert needed.loc["Four emotions shape behaviour (sadness and fear included)", share] == 1.0  # always the same
     assert np.isnan(needed.loc["Table IV, the paper's test: paired t over the 9 ε values not significant", share])
     table = adastop_table(runs, "decisions_per_episode")
@@ -204,3 +204,61 @@ def test_replicate_writes_every_part_and_the_record(tmp_path: Path, monkeypatch:
     wall = pd.read_csv(tmp_path / "out" / "tables" / "wall_times.csv")
     assert len(wall) == 8 and (wall["wall seconds"] >= 0).all()  # 3 sweeps + 5 engine studies
     assert "Replication forensics: not run" in text
+
+
+def test_claims_by_reading_judges_each_reading_with_the_verdict_logic() -> None:
+    """Two readings: one whose affective runs match the crossover data, one that never finds the path (censored)."""
+    from sb3_affect.report.readings import claims_by_reading, emotion_shares, reading_runs
+
+    runs = _runs(20)
+    standard = runs[runs.agent == "epsilon-greedy"]
+    found = runs[runs.agent == "affective"].assign(comparison="literal", act="episode", units="cells")
+    never = found.assign(act="remaining", first_optimal=np.nan, censored=True, fear_1_10=0.4, fear_1_10_weighted=0.4)
+    table = claims_by_reading(reading_runs(pd.concat([found, never], ignore_index=True), standard))
+    assert list(table.columns) == ["literal / episode / cells", "literal / remaining / cells"]
+    row = table.loc["27.35 episodes until the optimal path (affective)"]
+    mean = found.first_optimal.mean()  # no censoring: the KM restricted mean is the plain mean
+    assert row["literal / episode / cells"].startswith(f"not reproduced ({mean:.1f} [")
+    assert row["literal / remaining / cells"].startswith("not reproduced (200")  # all censored at the last episode
+    four = table.loc["Four emotions shape behaviour (sadness and fear included)"]
+    assert four["literal / episode / cells"] == "not reproduced" and four["literal / remaining / cells"] == "reproduced"
+    shares = emotion_shares(pd.concat([found, never], ignore_index=True))
+    assert shares.at["literal / remaining / cells", "fear 1-10"] == pytest.approx(0.4)
+
+
+def test_the_speed_ablation_table_puts_decisions_beside_cells() -> None:
+    from sb3_affect.report.speed import speed_table
+
+    runs = _runs(20)
+    standard = runs.agent == "epsilon-greedy"  # ε-greedy moves one cell per decision
+    runs.loc[standard, "cells_per_episode"] = runs.loc[standard, "decisions_per_episode"]
+    runs.loc[standard, "cells_before_optimal"] = runs.loc[standard, "decisions_before_optimal"]
+    slow = runs[runs.agent == "affective"].assign(agent="affective-speed-1")
+    slow["cells_per_episode"] = slow.decisions_per_episode  # one cell per decision
+    slow["cells_before_optimal"] = slow.decisions_before_optimal
+    table = speed_table(runs, slow)
+    assert list(table.index) == [
+        "decisions per episode", "cells per episode", "decisions before the optimal path", "cells before the optimal path",
+    ]
+    # at speed 1 a decision is a cell: its lead is the same in both units
+    one = "ε-greedy minus affective, speed fixed at 1"
+    assert table.at["decisions before the optimal path", one] == table.at["cells before the optimal path", one]
+    two = "ε-greedy minus affective (1 or 2 cells)"
+    assert table.at["decisions before the optimal path", two] != table.at["cells before the optimal path", two]
+
+
+def test_fig5_and_fig6_windows_move_the_verdicts() -> None:
+    from sb3_affect.report.windows import EARLY_WINDOWS, LATE_WINDOWS, window_verdicts
+
+    runs = _runs(20)
+    aff = runs[runs.agent == "affective"].copy()
+    for lo, hi in (*EARLY_WINDOWS, *LATE_WINDOWS):
+        early = hi <= 30
+        for suffix in ("", "_weighted"):
+            aff[f"joy_{lo}_{hi}{suffix}"] = 0.3 if early else 0.1  # only joy and anger: joy share = equivalent ε
+            aff[f"anger_{lo}_{hi}{suffix}"] = 0.7 if early else 0.9
+        aff[f"eqeps_{lo}_{hi}"] = (0.3 if early else 0.1) + np.random.default_rng(lo + hi).normal(0, 0.01, len(aff))
+    table = window_verdicts(aff)
+    assert len(table) == len(EARLY_WINDOWS) * len(LATE_WINDOWS)
+    assert (table["Fig. 5 (per-episode)"] == "not reproduced").all()  # a joy share of 0.3 is not dominance
+    assert (table["Fig. 6"] == "reproduced").all()  # while 0.3 -> 0.1 is Fig. 6 exactly

@@ -91,13 +91,13 @@ def seeds_needed(
     for j in full:
         share = hits[j.label] / repetitions if n < available else math.nan
         rows[j.label] = {
-            f"verdict at {available} seeds": target[j.label],
+            f"verdict at {available:,} seeds": target[j.label],
             f"share of {repetitions} {n}-seed subsamples with that verdict": share if j.seed_dependent else math.nan,
             "reading": (
                 "fixed by the design (the 9 ε values), not by the seed count"
                 if not j.seed_dependent
-                else ("a 20-seed replication would usually agree" if share >= AGREEMENT else "a 20-seed replication is "
-                      "as likely to disagree as not" if share >= 0.5 else "a 20-seed replication would usually disagree")
+                else ("a 20-seed replication would usually agree" if share >= AGREEMENT else "a 20-seed replication "
+                      "would agree more often than not" if share >= 0.5 else "a 20-seed replication would usually disagree")
             ),
         }
     table = pd.DataFrame.from_dict(rows, orient="index")
