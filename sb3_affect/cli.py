@@ -131,7 +131,8 @@ def _cmd_report(args: argparse.Namespace) -> int:
 
     extra = forensics_extra(root / "forensics")  # the forensics section, when the folder holds its results
     try:
-        path = build_report(root, extra_sections=[extra] if extra is not None else [], command=" ".join(sys.argv))
+        command = " ".join(["sb3-affect", *sys.argv[1:]])
+        path = build_report(root, extra_sections=[extra] if extra is not None else [], command=command)
     except (FileNotFoundError, ValueError) as error:  # no results in a layout the report knows, or no finished run
         raise UsageError(f"{args.dir}: no report can be built: {error}") from None
     print(f"report: {path} and {path.with_suffix('.html')} (open it in a browser)")
