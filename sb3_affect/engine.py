@@ -32,7 +32,7 @@ SIMULATE_COLUMNS: tuple[str, ...] = ("seed", *EPISODE_COLUMNS)
 
 
 def _resolve(algo: str | type) -> type:
-    from sb3_affect.experiments.algos import resolve_class
+    from sb3_affect.registry import resolve_class
     from sb3_affect.tabular import TabularQAlgorithm
 
     cls: Any = resolve_class(algo) if isinstance(algo, str) else algo
@@ -103,9 +103,10 @@ def simulate_columns(
     kwargs = dict(algo_kwargs or {})
     own = kwargs.get("engine", "auto")
     if engine != "python" and own != "python":
-        from sb3_affect.kernel.inputs import agent_settings_class, settings_inputs
+        from sb3_affect.kernel.inputs import settings_inputs
+        from sb3_affect.registry import known_settings
 
-        if agent_settings_class(algo) is not None:  # the package's agent: no model (nor torch, when named)
+        if known_settings(algo) is not None:  # the package's agent: no model (nor torch, when named)
             _check_args(episodes, engine, seeds)
             inputs = settings_inputs(algo, kwargs, env_id, env_kwargs, episodes)
             if inputs is not None and not seeds:

@@ -103,7 +103,7 @@ class HunterTeam:
     """
 
     def __init__(self, env: HunterPursuitEnv, members: Sequence[tuple[str | type, Mapping[str, Any]]], seed: int = 0) -> None:
-        from sb3_affect.experiments.schema import resolve_class
+        from sb3_affect.registry import resolve_class
 
         if not isinstance(env, HunterPursuitEnv):
             raise TypeError(f"env must be a HunterPursuitEnv, got {type(env).__name__}")

@@ -25,10 +25,10 @@ import sb3_affect
 from sb3_affect import AffectQ, Behaviour, Emotion, QLearning
 from sb3_affect.baselines import Boltzmann, DecayingEpsilonGreedy, OptimisticQLearning, SpeedEpsilonGreedy, UCBQLearning
 from sb3_affect.engine import simulate
-from sb3_affect.experiments.algos import known_settings
 from sb3_affect.experiments.runner import check_configs, settings_checkable
 from sb3_affect.kernel.batch import batch_reason
 from sb3_affect.kernel.inputs import BatchInputs, batch_inputs, settings_inputs
+from sb3_affect.registry import known_settings
 from sb3_affect.settings import AGENT_SETTINGS, AffectQSettings
 
 GRID, MAZE = "sb3_affect/GridPursuit-v0", "sb3_affect/MazePursuit-v0"

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from sb3_affect.experiments.chunks import encode_chunk, run_config
-from sb3_affect.experiments.runner import execute_run, package_versions
+from sb3_affect.experiments.runner import execute_run, package_env, package_versions
 
 #: The most runs one batch holds (bounds a worker's memory and the work a crash or Ctrl-C throws away).
 MAX_BATCH = 2000
@@ -100,18 +100,11 @@ class Single:
 Job = Batch | Single
 
 
-def package_env(env_id: str) -> bool:
-    """Whether ``env_id`` is one of the package's single-agent envs (``sb3_affect/...``, not a multi-agent one)."""
-    from sb3_affect.envs import PARALLEL_ENVS
-
-    return str(env_id).startswith("sb3_affect/") and env_id not in PARALLEL_ENVS
-
-
 def batchable(base: dict[str, Any], logs: bool) -> bool:
     """Whether the runs of a cell can run as batches (see the module docstring)."""
     if logs or base.get("max_timesteps") is not None or not package_env(base["env_id"]):
         return False
-    from sb3_affect.experiments.algos import known_settings, resolve_class
+    from sb3_affect.registry import known_settings, resolve_class
 
     if known_settings(base["algo"]) is not None:  # the package's agents, known by name (not imported: no torch)
         return True

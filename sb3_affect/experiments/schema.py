@@ -37,15 +37,24 @@ from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
-from sb3_affect.experiments.algos import SHORT_NAMES, check_algo, is_tabular, resolve_class
+from sb3_affect.registry import check_algo, known_settings, resolve_class
 
-__all__ = ["SHORT_NAMES", "AgentSpec", "Cell", "EnvSpec", "MemberSpec", "Sweep", "SweepError", "resolve_class"]
+__all__ = ["AgentSpec", "Cell", "EnvSpec", "MemberSpec", "Sweep", "SweepError"]
 
 KWARG_REFERENCE = re.compile(r"^\$([A-Za-z_][A-Za-z0-9_]*)$")
 
 
 class SweepError(ValueError):
     """A sweep file that can not be run; the message names the file, the key path and what is allowed."""
+
+
+def is_tabular(algo: str) -> bool:
+    """Whether ``algo`` names a tabular agent (a ``TabularQAlgorithm``); imports only classes of other packages."""
+    if known_settings(algo) is not None:
+        return True
+    from sb3_affect.tabular import TabularQAlgorithm
+
+    return issubclass(resolve_class(algo), TabularQAlgorithm)
 
 
 def is_multi_agent(env_id: str) -> bool:

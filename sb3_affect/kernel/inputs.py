@@ -22,6 +22,7 @@ from gymnasium.wrappers import OrderEnforcing, PassiveEnvChecker, TimeLimit
 
 from sb3_affect.kernel import loop
 from sb3_affect.kernel.agents import COMPENSATED_SUM, AgentSpec, agent_spec, episode_schedule
+from sb3_affect.registry import known_settings
 
 
 class Geometry:
@@ -151,21 +152,6 @@ def batch_inputs(agent: Any, env: Any, episodes: int) -> BatchInputs:
     return BatchInputs(spec, geo, icfg, fcfg, alpha, p, float(agent.q_init), n_actions, int(agent.max_episode_decisions))
 
 
-def agent_settings_class(algo: str | type) -> Any:
-    """The settings class of the package's agent ``algo`` (a class, or its ``algo`` name: not imported), or None."""
-    from sb3_affect.settings import AGENT_SETTINGS
-
-    if isinstance(algo, str):
-        from sb3_affect.experiments.algos import known_settings
-
-        return known_settings(algo)
-    settings = getattr(algo, "settings_class", None)
-    # the class itself, not a subclass (which may change the loop and inherits its parent's settings class)
-    if settings not in AGENT_SETTINGS or settings.agent != f"{algo.__module__}:{algo.__qualname__}":
-        return None
-    return settings
-
-
 def settings_inputs(
     algo: str | type, kwargs: Mapping[str, Any], env_id: str, env_kwargs: Mapping[str, Any] | None, episodes: int
 ) -> BatchInputs | None:
@@ -173,7 +159,7 @@ def settings_inputs(
     The kernel inputs of fresh runs of ``algo`` with ``kwargs`` on ``gym.make(env_id, **env_kwargs)``, without a model;
     None where the model-based path must decide (see the module docstring). Bad kwargs raise the constructor's error.
     """
-    settings_cls = agent_settings_class(algo)
+    settings_cls = known_settings(algo)
     if settings_cls is None or not set(kwargs) <= set(settings_cls.names()):
         return None
     env = gym.make(env_id, **dict(env_kwargs or {}))  # first, as for a model: a bad env is the first error
