@@ -169,7 +169,7 @@ def judge_long_run(m: pd.DataFrame, long: pd.DataFrame | None = None) -> Judgeme
         "long_run",
         "Long run: the affective agent takes fewer steps than the standard agent",
         "no numbers printed",
-        f"{n} runs per cell of {int(data.episodes.max())} episodes; steps per episode in episodes {span}: affective "
+        f"{n:,} runs per cell of {int(data.episodes.max()):,} episodes; steps per episode in episodes {span}: affective "
         f"{sig(float(np.nanmean(reference)))}; ε-greedy minus affective "
         + ", ".join(f"ε {e:.1f}: {d.text()}" for e, d in diffs.items()),
         cells=("cells per episode, ε-greedy minus affective "

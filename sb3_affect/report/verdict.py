@@ -57,7 +57,7 @@ def verdict_table(judged: list[Judgement], other: list[Judgement] | None, n: int
             f"ours, time (decisions), {n:,} seeds per cell [95% CI]": j.ours,
             "ours, distance (cells)": j.cells or "n/a",
             "paper / ours": sig(j.ratio) if j.ratio is not None else "n/a",
-            "paper's number inside the 20-seed predictive interval": _mark(j.size),
+            "size as the paper (inside the 20-seed predictive interval; Fig. 6: within ±0.05)": _mark(j.size),
             "direction as the paper": _mark(j.direction),
             f"verdict ({n:,} seeds)": j.verdict,
         }
