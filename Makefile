@@ -40,7 +40,7 @@ docs: venv
 	@echo "docs: open $(DOCS_OUT)/index.html"
 
 replicate: venv
-	@echo "== the main job: the sweeps listed by 'sb3-affect replicate --help', then the report; about 10-12 min on 2 cores (rerun to resume)"
+	@echo "== the main job: the parts listed by 'sb3-affect replicate --help' (with its wall time), then the report (rerun to resume)"
 	$(VENV)/bin/sb3-affect replicate --out $(OUT)
 
 bench: venv

@@ -124,8 +124,12 @@ def _cmd_report(args: argparse.Namespace) -> int:
     unwritable = f"{out}: not writable, so the report can not be written there; write it elsewhere with --out DIR"
     if out.exists() and not os.access(out, os.W_OK | os.X_OK):
         raise UsageError(unwritable)
+    from sb3_affect.replicate import forensics_extra
+
+    extra = forensics_extra(root / "forensics")  # the forensics section, when the folder holds its results
     try:
-        path = build_report(root, out=out)
+        command = " ".join(["sb3-affect", *sys.argv[1:]])
+        path = build_report(root, out=out, extra_sections=[extra] if extra is not None else [], command=command)
     except PermissionError as error:
         raise UsageError(f"{unwritable} ({error.strerror}: {error.filename})") from None
     except (FileNotFoundError, ValueError) as error:  # no results in a layout the report knows, or no finished run
@@ -142,7 +146,10 @@ def _cmd_replicate(args: argparse.Namespace) -> int:
 
     _check_out(args.out)
     start = time.perf_counter()
-    report = replicate(out_dir=Path(args.out), workers=args.workers, large_seeds=args.large_seeds)
+    report = replicate(
+        out_dir=Path(args.out), workers=args.workers, large_seeds=args.large_seeds, forensics=not args.no_forensics,
+        command=" ".join(["sb3-affect", *sys.argv[1:]]),
+    )
     minutes, seconds = divmod(time.perf_counter() - start, 60)
     print(f"done in {int(minutes)} min {seconds:.0f} s. Open {report.with_suffix('.html')} in a browser to read the report.")
     return 0
@@ -150,17 +157,18 @@ def _cmd_replicate(args: argparse.Namespace) -> int:
 
 def _replicate_help() -> str:
     """``replicate --help``: what it runs (from ``sb3_affect.replicate.PARTS``, so it can not drift) and writes."""
-    from sb3_affect.replicate import PARTS, STUDIES
+    from sb3_affect.replicate import FORENSICS, MINUTES, PARTS, STUDIES, part_description
 
     lines = [
         "The main job (`make replicate` runs it): runs these sweeps and engine studies, each into its own sub-folder",
         "of OUT, then writes one report from all of them.",
         "",
-        *(f"  OUT/{name + '/':11s} experiments/{name}.yaml: {description}" for name, description in PARTS),
-        *(f"  OUT/{name + '/':11s} {description}" for name, description in STUDIES),
-        f"  {'OUT/report.html':15s} the report (also report.md, tables/*.csv, figures/*.png): open it in a browser",
+        *(f"  OUT/{name + '/':16s} experiments/{name}.yaml: {part_description(name, d)}" for name, d in PARTS),
+        *(f"  OUT/{name + '/':16s} {description.format(**FORENSICS)}" for name, description in STUDIES),
+        f"  {'OUT/report.html':20s} the report (also report.md, tables/*.csv, figures/*.png): open it in a browser",
         "",
-        "About 10-12 minutes on 2 cores. Interrupted? Rerun the same command: finished runs are kept and skipped.",
+        f"{MINUTES[0].upper() + MINUTES[1:]} on 2 idle cores. Interrupted? Rerun the same command: finished runs are kept",
+        "and skipped.",
     ]
     return "\n".join(lines)
 
@@ -243,6 +251,9 @@ def build_parser() -> argparse.ArgumentParser:
         default=None,
         metavar="N",
         help="seeds per cell of the large-N study (default: 1000)",
+    )
+    replicate.add_argument(
+        "--no-forensics", action="store_true", help="leave out the replication forensics (the report says so)"
     )
     replicate.set_defaults(func=_cmd_replicate)
     from sb3_affect.forensics.command import add_forensics_parser

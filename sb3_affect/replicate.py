@@ -1,12 +1,15 @@
 """
-The main job: the paper's protocol and the DQN comparison through the launcher (run files), issue 7's fair baselines,
-then the engine studies (large-N, reading ablation, moving and evading prey and mazes), then one report.
+The main job: the paper's protocol and the DQN comparison through the launcher (run files), the fair baselines,
+then the engine studies (large-N, reading ablation, speed ablation, long runs, moving and evading prey and mazes),
+the replication forensics at a reduced size, then one report (the forensics section passed in from here: the report
+layer does not import the forensics).
 """
 
 from __future__ import annotations
 
 import contextlib
 import json
+import sys
 import threading
 import time
 from collections.abc import Iterator
@@ -17,20 +20,65 @@ from typing import Any
 EXPERIMENTS: Path | None = None
 #: Launcher sweeps: (name of experiments/<name>.yaml and of the results folder, description).
 PARTS = (
-    ("paper", "the paper's protocol (360 runs)"),
-    ("dqn", "SB3 DQN beside the tabular agents, equal seeds and budget (35 runs)"),
-    ("baselines", "fair baselines beside both paper agents (issue 7)"),
-    ("hunters", "two hunters on Kuremoto's pursuit problem (issue 16)"),
-    ("hunters_moving", "two hunters, moving prey (issue 16)"),
+    ("paper", "the paper's protocol ({runs} runs)"),
+    ("dqn", "SB3 DQN beside the tabular agents, equal seeds and budget ({runs} runs)"),
+    ("baselines", "fair baselines beside both paper agents"),
+    ("hunters", "two hunters on Kuremoto's pursuit problem"),
+    ("hunters_moving", "two hunters, moving prey"),
 )
 #: Sizes of the engine studies (seeds per cell; episodes per run), read when ``main`` runs.
 LARGE_SEEDS, ABLATION_SEEDS, BEYOND_SEEDS, ENGINE_EPISODES = 1000, 20, 10, 200
+#: Seeds per cell of the speed ablation and of the long-run study (whose runs have ``largen.LONG_EPISODES`` episodes).
+SPEED_ONE_SEEDS, LONG_SEEDS = 500, 50
+#: The forensics' size inside the main job (``sb3-affect forensics`` alone defaults to 3 / 4 / 100).
+FORENSICS = {"screen_reps": 2, "leaders": 4, "reps": 30}
+#: The main job's wall time on 2 idle cores, as the help and the docs quote it (measured: see the README).
+MINUTES = "about 8-10 minutes"
 #: Engine studies: (results folder, description), for the help.
 STUDIES = (
-    ("large", "the paper's 18 cells and the speed-matched ε-greedy at 1,000 seeds per cell (engine)"),
-    ("ablation_engine", "the 8 readings of the appraisal x 9 ε x 20 seeds (engine)"),
-    ("beyond", "moving prey, evading prey and mazes, 10 seeds (engine)"),
+    ("large", f"the paper's 18 cells and the speed-matched ε-greedy at {LARGE_SEEDS:,} seeds per cell (engine)"),
+    ("ablation_engine", f"the 8 readings of the appraisal x 9 ε x {ABLATION_SEEDS} seeds (engine)"),
+    ("speed_one", f"the affective agent with speed fixed at 1 cell, 9 ε labels x {SPEED_ONE_SEEDS} seeds (engine)"),
+    ("long", f"both paper agents, 9 ε x {LONG_SEEDS} seeds, runs of 2,000 episodes (engine)"),
+    ("beyond", f"moving prey, evading prey and mazes, {BEYOND_SEEDS} seeds (engine)"),
+    ("forensics", "the replication forensics at a reduced size: {screen_reps} screen and {reps} leader replications"),
 )
+
+
+def sweep_runs(path: Path) -> int | None:
+    """
+    How many runs an experiment file asks for: seeds x the grid points of each agent (read with yaml alone, so the
+    help stays fast; the launcher's ``Sweep.run_configs`` gives the same count). None when it can not be read.
+    """
+    import math
+
+    import yaml
+
+    try:
+        data = yaml.safe_load(Path(path).read_text())
+        seeds = data["seeds"]
+        agents = data["agents"].values() if isinstance(data["agents"], dict) else data["agents"]
+        per_agent = [math.prod(len(v) for v in (agent.get("grid") or {}).values()) for agent in agents]
+    except (OSError, yaml.YAMLError, KeyError, TypeError, AttributeError):
+        return None
+    return (len(seeds) if isinstance(seeds, list) else int(seeds)) * sum(per_agent)
+
+
+def part_description(name: str, description: str, experiments: Path | None = None) -> str:
+    """A part's description with its run count read from its experiment file (one source for that number)."""
+    if "{runs}" not in description:
+        return description
+    from sb3_affect.experiments.sweep_file import shipped_sweeps_folder
+
+    runs = sweep_runs(Path(experiments or EXPERIMENTS or shipped_sweeps_folder()) / f"{name}.yaml")
+    return description.format(runs=runs if runs is not None else "?")
+
+
+def forensics_extra(folder: Path) -> Any:
+    """The forensics section for ``build_report(extra_sections=...)`` (None when ``folder`` holds no results)."""
+    from sb3_affect.forensics.section import has_results, report_section
+
+    return report_section(folder) if has_results(folder) else None
 
 
 def main(
@@ -41,6 +89,8 @@ def main(
     ablation_seeds: int | None = None,
     beyond_seeds: int | None = None,
     engine_episodes: int | None = None,
+    forensics: bool = True,
+    command: str | None = None,
 ) -> Path:
     """
     Run the sweeps of ``SWEEPS`` into ``out_dir/<name>`` (resuming what is there) and the engine studies into
@@ -54,14 +104,16 @@ def main(
     :param ablation_seeds: seeds per cell of the reading ablation (default ``ABLATION_SEEDS``)
     :param beyond_seeds: seeds per agent and task beyond the paper (default ``BEYOND_SEEDS``)
     :param engine_episodes: episodes per run of the engine studies (default the paper's 200; fewer for quick checks)
+    :param forensics: run the replication forensics (size ``FORENSICS``) into ``out_dir/forensics``
+    :param command: the command line to record (default: this process's)
     :return: the path of report.md
     """
     from sb3_affect.experiments import run_sweep
     from sb3_affect.experiments.sweep_file import shipped_sweeps_folder
-    from sb3_affect.report import build_report
+    from sb3_affect.report import build_report, paper
     from sb3_affect.report.ablation import ablation_cells
     from sb3_affect.report.baselines import beyond_cells
-    from sb3_affect.report.largen import large_cells, run_cells
+    from sb3_affect.report.largen import LONG_EPISODES, large_cells, long_cells, run_cells, speed_one_cells
 
     experiments = Path(experiments or EXPERIMENTS or shipped_sweeps_folder())
     large_seeds = large_seeds or LARGE_SEEDS
@@ -72,6 +124,7 @@ def main(
     record = _Record(out_dir)
     timings: dict[str, float] = {}
     for name, description in PARTS:
+        description = part_description(name, description, experiments)
         print(f"== {description}: {experiments / f'{name}.yaml'} -> {out_dir / name}", flush=True)
         summary = run_sweep(experiments / f"{name}.yaml", out_dir / name, workers=workers)
         key = f"{name} ({description})"
@@ -81,22 +134,53 @@ def main(
             f"{summary.seconds:.1f} s",
             flush=True,
         )
+    speed_seeds = min(SPEED_ONE_SEEDS, large_seeds)
+    long_seeds = min(LONG_SEEDS, large_seeds)
+    long_episodes = engine_episodes * LONG_EPISODES // paper.EPISODES  # 2,000 at the paper's 200 (10 x as long)
     studies = (
-        ("large", f"large-N study, {large_seeds} seeds per cell (engine)", large_cells(), large_seeds),
-        ("ablation_engine", f"reading ablation, {ablation_seeds} seeds per cell (engine)", ablation_cells(), ablation_seeds),
-        ("beyond", f"moving and evading prey, mazes, {beyond_seeds} seeds (engine)", beyond_cells(), beyond_seeds),
+        ("large", f"large-N study, {large_seeds} seeds per cell (engine)", large_cells(), large_seeds, engine_episodes),
+        ("ablation_engine", f"reading ablation, {ablation_seeds} seeds per cell (engine)", ablation_cells(), ablation_seeds,
+         engine_episodes),
+        ("speed_one", f"speed ablation, {speed_seeds} seeds per cell (engine)", speed_one_cells(), speed_seeds,
+         engine_episodes),
+        ("long", f"long runs, {long_seeds} seeds per cell x {long_episodes} episodes (engine)", long_cells(), long_seeds,
+         long_episodes),
+        ("beyond", f"moving and evading prey, mazes, {beyond_seeds} seeds (engine)", beyond_cells(), beyond_seeds,
+         engine_episodes),
     )
-    for name, description, cells, seeds in studies:
+    for name, description, cells, seeds, episodes in studies:
         print(f"== {description} -> {out_dir / name}", flush=True)
         start = time.perf_counter()
         with _heartbeat(description):
-            table, meta = run_cells(out_dir / name, cells, seeds, engine_episodes, workers=workers)
+            table, meta = run_cells(out_dir / name, cells, seeds, episodes, workers=workers)
         seconds = time.perf_counter() - start
         # The study's own record of the run that computed it (a complete study is read back, not recomputed).
         timings[description] = record.set(description, float(meta.get("wall_seconds", seconds)))
         print(f"   {len(table)} runs, {seconds:.1f} s", flush=True)
+    extra = []
+    if forensics:
+        from sb3_affect.forensics.analysis import run_forensics
+
+        description = "replication forensics ({screen_reps} screen, {leaders} leaders x {reps} replications)"
+        description = description.format(**FORENSICS)
+        print(f"== {description} -> {out_dir / 'forensics'}", flush=True)
+        start = time.perf_counter()
+        with _heartbeat(description):
+            run_forensics(
+                out_dir / "forensics",
+                screen_reps=FORENSICS["screen_reps"],
+                leaders=FORENSICS["leaders"],
+                reps=FORENSICS["reps"],
+                workers=workers or len(_cpus()),
+                progress=False,
+            )
+        timings[description] = record.set(description, time.perf_counter() - start)
+        print(f"   {timings[description]:.1f} s", flush=True)
+        section = forensics_extra(out_dir / "forensics")
+        if section is not None:
+            extra.append(section)
     start = time.perf_counter()
-    report = build_report(out_dir, timings=timings)
+    report = build_report(out_dir, timings=timings, extra_sections=extra, command=command or " ".join(sys.argv))
     timings["report"] = time.perf_counter() - start
     print("wall time: " + ", ".join(f"{name} {seconds:.1f} s" for name, seconds in timings.items()))
     print(f"report: {report} (and {report.with_suffix('.html')})")
@@ -158,3 +242,9 @@ class _Record:
         tmp.write_text(json.dumps({"timings": self.timings}, indent=1))
         tmp.replace(self.path)
         return seconds
+
+
+def _cpus() -> set[int]:
+    import os
+
+    return os.sched_getaffinity(0) if hasattr(os, "sched_getaffinity") else set(range(os.cpu_count() or 1))

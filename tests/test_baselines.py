@@ -180,8 +180,8 @@ def test_baseline_sweep_runs_and_summary_ranks(tmp_path: Any) -> None:
 
     import yaml
 
-    from sb3_affect.baselines.summary import bootstrap_ci, load_runs, markdown, run_metrics, summarise
     from sb3_affect.experiments import run_sweep
+    from sb3_affect.report.baseline_summary import bootstrap_ci, load_run_records, markdown, record_metrics, summarise
 
     experiments = Path(__file__).resolve().parents[1] / "experiments"
     for name in ("baselines", "baselines_moving7"):
@@ -192,10 +192,10 @@ def test_baseline_sweep_runs_and_summary_ranks(tmp_path: Any) -> None:
         path.write_text(yaml.safe_dump(spec))
         summary = run_sweep(path, tmp_path / name, workers=1, progress=False)
         assert (summary.total, summary.failed) == (4, 0)
-    records = load_runs(tmp_path / "baselines") + load_runs(tmp_path / "baselines_moving7")
+    records = load_run_records(tmp_path / "baselines") + load_run_records(tmp_path / "baselines_moving7")
     assert len(records) == 8
     moving = next(r for r in records if r["config"]["env_kwargs"].get("size") == 7)
-    metrics = run_metrics(moving)
+    metrics = record_metrics(moving)
     cells, truncated = moving["episodes"]["cells"], moving["episodes"]["truncated"]
     flags = [not t and c <= 6 for c, t in zip(cells, truncated)]  # capture distance (0, 0) -> (3, 3)
     first = flags.index(True) if True in flags else len(cells)

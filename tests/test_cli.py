@@ -12,6 +12,8 @@ from sb3_affect import replicate
 from sb3_affect.cli import main
 from sb3_affect.experiments import SweepError, load_sweep, run_sweep
 
+ROOT = Path(__file__).resolve().parents[1]
+
 EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
 
 TINY = """\
@@ -128,9 +130,19 @@ def test_help_describes_every_argument(capsys: pytest.CaptureFixture[str]) -> No
     assert "a results folder (the --out of `run` or `replicate`)" in helps["status"]
     assert "a results folder (the --out of `run` or `replicate`)" in helps["report"]
     assert "report.html" in helps["report"]
+    text = " ".join(helps["replicate"].split())
     for name, description in replicate.PARTS:
-        assert f"experiments/{name}.yaml: {description}" in helps["replicate"]
+        assert f"experiments/{name}.yaml: {replicate.part_description(name, description)}" in helps["replicate"]
     assert "open it in a browser" in helps["replicate"] and "results folder (default: runs)" in helps["replicate"]
+    # one source for each fact: the run counts are read from the experiment files, the wall time from MINUTES
+    files = {name: ROOT / "experiments" / f"{name}.yaml" for name in ("paper", "dqn")}
+    runs = {name: len(load_sweep(path, build=False).run_configs()) for name, path in files.items()}
+    assert f"the paper's protocol ({runs['paper']} runs)" in helps["replicate"]
+    assert f"equal seeds and budget ({runs['dqn']} runs)" in helps["replicate"]
+    assert replicate.MINUTES[1:] in text
+    for page in ("README.md", "docs/getting_started.md"):
+        assert f"{replicate.MINUTES} on 2 idle cores" in (ROOT / page).read_text(), page
+    assert "min" not in (ROOT / "Makefile").read_text().split("replicate: venv")[1].split("\n\n")[0]
     assert "parallel runs, >= 1" in helps["run"]
 
 
@@ -143,7 +155,7 @@ def test_replicate_says_where_the_report_is(tmp_path: Path, capsys: pytest.Captu
     monkeypatch.setattr(replicate, "PARTS", (("paper", "a tiny paper protocol"),))
     for name, value in (("LARGE_SEEDS", 1), ("ABLATION_SEEDS", 1), ("BEYOND_SEEDS", 1), ("ENGINE_EPISODES", 5)):
         monkeypatch.setattr(replicate, name, value)  # the engine studies at toy size
-    assert main(["replicate", "--out", str(tmp_path / "runs"), "--workers", "2"]) == 0
+    assert main(["replicate", "--out", str(tmp_path / "runs"), "--workers", "2", "--no-forensics"]) == 0
     out = capsys.readouterr().out
     html = tmp_path / "runs" / "report.html"
     assert html.exists() and f"Open {html} in a browser" in out.splitlines()[-1]

@@ -155,7 +155,7 @@ def test_cli_reports_schema_error_without_running(tmp_path: Path, capsys: pytest
     [
         ("paper.yaml", 360, {"epsilon-greedy": 180, "affective": 180}),
         ("smoke.yaml", 8, {"epsilon-greedy": 4, "affective": 4}),
-        ("dqn.yaml", 30, {"dqn-const": 10, "dqn-default": 5, "epsilon-greedy": 10, "affective": 5}),
+        ("dqn.yaml", 30, {"dqn-const": 10, "dqn-sb3-exploration-schedule": 5, "epsilon-greedy": 10, "affective": 5}),
         ("ablation.yaml", 1440, {"affective": 1440}),
     ],
 )

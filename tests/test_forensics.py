@@ -19,7 +19,7 @@ from sb3_affect.forensics import STATISTICS, CandidateSpace, Protocol, Reading, 
 from sb3_affect.forensics.analysis import REJECT_FACTOR, _steps_ratio
 from sb3_affect.forensics.runner import run_units, simulate_unit
 from sb3_affect.forensics.scoring import log_likelihood, posterior
-from sb3_affect.forensics.section import forensics_section
+from sb3_affect.forensics.section import forensics_section, report_section
 from sb3_affect.forensics.statistics import candidate_statistics, cell_summary
 from sb3_affect.forensics.store import SummaryStore
 from sb3_affect.report import build_report, paper
@@ -44,7 +44,7 @@ def test_cell_summary_matches_the_report_definitions() -> None:
     assert summary["walked_decisions_before"] == pytest.approx(metrics.decisions_before_optimal.sum())
     assert summary["walked_cells_before"] == pytest.approx(metrics.cells_before_optimal.sum())
     assert summary["greedy_found"] == (~metrics.greedy_censored).sum()
-    assert summary["greedy_first"] == pytest.approx(np.nansum(metrics.greedy_optimal_from))
+    assert summary["greedy_first"] == pytest.approx(np.nansum(metrics.greedy_stays_optimal_from))
 
 
 def test_printed_numbers_are_the_papers() -> None:
@@ -147,8 +147,11 @@ def test_self_check_recovers_the_candidate_that_printed_the_numbers(tmp_path: Pa
     smoke = tmp_path / "smoke"
     run_sweep(ROOT / "experiments" / "smoke.yaml", smoke, workers=1, progress=False)
     shutil.copytree(tmp_path / "f", smoke / "forensics")
-    text = build_report(smoke).read_text()
+    text = build_report(smoke).read_text()  # the report alone never imports the forensics: no section
+    assert "## Replication forensics" not in text and "Replication forensics: not run" in text
+    text = build_report(smoke, extra_sections=[report_section(smoke / "forensics")]).read_text()  # passed in from above
     assert "## Replication forensics" in text and "figures/forensics_statistics.png" in text
+    assert "Replication forensics: included" in text
     assert (smoke / "figures" / "forensics_statistics.png").exists()
     # resumable: everything is on disk, nothing is simulated again
     units = [(s, r) for s in (truth.standard, *[c.affective for c in space.candidates()]) for r in range(3)]

@@ -2,7 +2,11 @@
 
 from __future__ import annotations
 
+import hashlib
 import math
+import os
+import re
+import subprocess
 from pathlib import Path
 
 import matplotlib.image as mpimg
@@ -118,11 +122,11 @@ def test_run_metrics_definitions() -> None:
     metrics = run_metrics(pd.concat([found, never])).set_index("run_id")
     assert metrics.at["found", "first_optimal"] == 3
     assert metrics.at["found", "decisions_before_optimal"] == 80  # episodes 1 and 2
-    assert metrics.at["found", "greedy_optimal_from"] == 4  # stays optimal from episode 4 to the end
+    assert metrics.at["found", "greedy_stays_optimal_from"] == 4  # stays optimal from episode 4 to the end
     assert not metrics.at["found", "censored"]
     assert metrics.at["never", "censored"] and math.isnan(metrics.at["never", "first_optimal"])
     assert metrics.at["never", "decisions_before_optimal"] == 60  # censored: all its steps
-    assert metrics.at["never", "greedy_optimal_from"] == 1
+    assert metrics.at["never", "greedy_stays_optimal_from"] == 1
     assert metrics.at["found", "decisions_per_episode"] == pytest.approx(26.5)
     assert metrics.at["found", "decisions_to_greedy_optimal"] == 50 + 30 + 12 + 14  # episodes 1-4
     assert metrics.at["never", "decisions_to_greedy_optimal"] == 40  # greedy optimal after episode 1
@@ -171,6 +175,48 @@ def test_report_end_to_end_from_the_smoke_sweep(tmp_path: Path) -> None:
     for table in ("table_iv", "table_v_walked", "table_v_greedy", "kaplan_meier_paper", "rliable", "profile_windows"):
         frame = pd.read_csv(out / "tables" / f"{table}.csv")
         assert len(frame) > 0
+    windows = pd.read_csv(out / "tables" / "profile_windows.csv").iloc[:, 0]
+    assert windows.str.startswith("episodes 1-10").all()  # only the windows 20-episode runs reach: no empty rows
+    assert "The smallest (agent, ε) cell has 2 runs (a verdict needs 5)" in text
+    assert "Episodes truncated by the safety cap (20,000 decisions)" in text  # read from the agents' settings
+    assert re.search(r"is a shortest path \((\d+) cells on this task\)", text)  # read from the sweep's env
+    # the record: a lock file of every installed package, checksums of every run table, forensics not run
+    lock = (out / "packages.lock").read_text().splitlines()
+    assert any(line.startswith("numpy==") for line in lock) and any(line.lower().startswith("sb3-affect==") for line in lock)
+    sums = [line.split("  ") for line in (out / "checksums.sha256").read_text().splitlines()]
+    assert len(sums) == len(list((out / "chunks").glob("*.parquet"))) + len(list((out / "runs").glob("*.json"))) > 0
+    for digest, name in sums:
+        assert hashlib.sha256((out / name).read_bytes()).hexdigest() == digest
+    assert "Replication forensics: not run" in text and "packages.lock" in text
+
+
+def test_the_record_takes_no_commit_from_a_repository_around_an_installed_package(tmp_path: Path) -> None:
+    """A package folder inside some other git repository (site-packages in a project) has no commit of its own."""
+    from sb3_affect.report.record import commit
+
+    site = tmp_path / "project" / "venv" / "site-packages" / "sb3_affect"
+    site.mkdir(parents=True)
+    subprocess.run(["git", "init", "-q", str(tmp_path / "project")], check=True)
+    assert commit(site).startswith("none")
+    checkout = tmp_path / "checkout"
+    (checkout / "sb3_affect").mkdir(parents=True)
+    (checkout / "pyproject.toml").write_text("[project]\nname = 'sb3-affect'\n")
+    subprocess.run(["git", "init", "-q", str(checkout)], check=True)
+    env = {"GIT_AUTHOR_NAME": "t", "GIT_AUTHOR_EMAIL": "t@t", "GIT_COMMITTER_NAME": "t", "GIT_COMMITTER_EMAIL": "t@t"}
+    subprocess.run(["git", "-C", str(checkout), "add", "."], check=True)
+    subprocess.run(["git", "-C", str(checkout), "commit", "-qm", "x"], check=True, env={**os.environ, **env})
+    head = subprocess.run(["git", "-C", str(checkout), "rev-parse", "HEAD"], capture_output=True, text=True).stdout.strip()
+    assert commit(checkout / "sb3_affect") == head
+
+
+def test_the_report_layer_imports_nothing_above_it() -> None:
+    """report is below forensics, cli and replicate: not even a lazy import inside a function."""
+    above = re.compile(r"^\s*(from|import) sb3_affect\.(forensics|cli|replicate)\b", re.MULTILINE)
+    for path in (ROOT / "sb3_affect" / "report").glob("*.py"):
+        assert not above.search(path.read_text()), path.name
+    study = re.compile(r"^\s*(from|import) sb3_affect\.(engine|experiments|report|forensics|cli|replicate)\b", re.MULTILINE)
+    for path in (ROOT / "sb3_affect" / "baselines").glob("*.py"):  # the agents layer reads no results
+        assert not study.search(path.read_text()), path.name
 
 
 def test_report_refuses_a_folder_without_results(tmp_path: Path) -> None:

@@ -15,7 +15,15 @@ import pytest
 from sb3_affect.experiments import ResultsStore, run_sweep
 from sb3_affect.report import stats
 from sb3_affect.report.mechanism import bimodality
-from sb3_affect.report.metrics import REPORT_COLUMNS, episodes_frame, load_results, load_runs, profile, rows_where, run_metrics
+from sb3_affect.report.metrics import (
+    REPORT_COLUMNS,
+    episodes_frame,
+    load_results,
+    load_run_records,
+    profile,
+    rows_where,
+    run_metrics,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 SMOKE = ROOT / "experiments" / "smoke.yaml"
@@ -40,7 +48,7 @@ def mixed(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def test_loader_and_metrics_equal_the_record_path_on_a_mixed_folder(mixed: Path) -> None:
     results = load_results(mixed)
-    records = load_runs(mixed)
+    records = load_run_records(mixed)
     assert len(results.runs) == len(records) == 8 + 4 and results.runs.run_id.is_monotonic_increasing
     reference = episodes_frame(records)
     e = results.episodes

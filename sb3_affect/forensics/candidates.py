@@ -222,7 +222,7 @@ class CandidateSpace:
     @classmethod
     def default(cls) -> CandidateSpace:
         """
-        The issue's space: the 8 readings x alpha x gamma x (when the installed agents support them) both ways of
+        The default space: the 8 readings x alpha x gamma x (when the installed agents support them) both ways of
         moving 2 cells, with random tie-breaking; plus first-index tie-breaking probed at the tutorial's values
         (alpha 1, gamma 0.8) with the default reading and 2-cell steps. First-index ties freeze both agents at the
         start (every Q is 0, the first action walks into the wall), so their episodes run to the safety cap: one such

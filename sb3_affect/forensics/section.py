@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -166,6 +166,27 @@ def _figure(folder: Path, table: pd.DataFrame, path: Path) -> Path | None:
     fig.savefig(path, dpi=100)
     plt.close(fig)
     return path
+
+
+def report_section(folder: str | Path) -> Any:
+    """
+    The forensics as a report section, for ``build_report(..., extra_sections=[report_section(folder)])``: the layer
+    above both (``sb3_affect.replicate``, the CLI) wires it, so the report never imports the forensics.
+    """
+    folder = Path(folder)
+
+    def forensics_report_section(ctx: Any) -> None:
+        run = json.loads((folder / "run.json").read_text())
+        section = forensics_section(folder, ctx.out / "figures")
+        ctx.doc.md(section.markdown)
+        for figure_path, caption in section.figures:
+            ctx.doc.img(figure_path, caption)
+        ctx.cache["forensics"] = (
+            f"included ({folder}: {run['screen_reps']} screen replications, {run['leaders']} leaders x {run['reps']} "
+            f"replications, {float(run['seconds']):.0f} s)"
+        )
+
+    return forensics_report_section
 
 
 def write_standalone(folder: str | Path) -> Path:

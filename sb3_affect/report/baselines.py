@@ -1,12 +1,12 @@
 """
-Issue 7's report section: every agent ranked on decisions per episode, cells per episode and steps before the
+The fair-baselines report section: every agent ranked on decisions per episode, cells per episode and steps before the
 optimal path (bootstrap 95% CIs), on the static task and on moving prey, and the personalities' emotion profiles.
 
-The numbers come from ``sb3_affect.baselines.summary`` (definitions there and in docs/beyond_the_paper.md); this module
+The numbers come from ``sb3_affect.report.baseline_summary`` (definitions there and in docs/beyond_the_paper.md); this module
 only assembles the markdown, so the report build can add it::
 
     from sb3_affect.report.baselines import baselines_section
-    text = baselines_section(["runs/issue7", "runs/issue7-baselines_moving7", "runs/issue7-baselines_moving"])
+    text = baselines_section(["runs/baselines", "runs/baselines_moving7", "runs/baselines_moving"])
 """
 
 from __future__ import annotations
@@ -19,13 +19,14 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from sb3_affect.baselines.summary import emotion_profile, load_runs, markdown, profile_markdown, summarise
+from sb3_affect.report.baseline_summary import emotion_profile, markdown, profile_markdown, summarise
 from sb3_affect.report.context import ReportContext
 from sb3_affect.report.document import fmt
 from sb3_affect.report.largen import Cell, study
+from sb3_affect.report.metrics import load_run_records
 from sb3_affect.report.stats import bootstrap_ci
 
-#: Issue 7 results folders a replicate folder may hold (experiments/baselines*.yaml).
+#: Fair-baselines results folders a replicate folder may hold (experiments/baselines*.yaml).
 BASELINE_FOLDERS = ("baselines", "baselines_moving7", "baselines_moving")
 
 INTRO = (
@@ -39,7 +40,7 @@ INTRO = (
 
 def baselines_section(run_dirs: Sequence[str | Path], title: str = "Beyond the paper: fair baselines and moving prey") -> str:
     """The section as markdown (empty string when none of ``run_dirs`` holds runs)."""
-    records = [record for folder in run_dirs if Path(folder).exists() for record in load_runs(folder)]
+    records = [record for folder in run_dirs if Path(folder).exists() for record in load_run_records(folder)]
     if not records:
         return ""
     text = f"## {title}\n\n{INTRO}\n\n{markdown(summarise(records))}"
@@ -116,7 +117,7 @@ def beyond_table(m: pd.DataFrame) -> pd.DataFrame:
 
 
 def beyond_section(ctx: ReportContext) -> None:
-    """Moving prey, evading prey and mazes (engine study), then issue 7's fair-baselines folders when present."""
+    """Moving prey, evading prey and mazes (engine study), then the fair-baselines folders when present."""
     ctx.doc.h("Beyond the paper: moving prey, evading prey, mazes and fair baselines")
     found = study(ctx.root, "beyond")
     if found is None:
@@ -125,23 +126,32 @@ def beyond_section(ctx: ReportContext) -> None:
         m, meta = found
         ctx.doc.p(
             f"Each task, {meta['seeds']} seeds per agent, {meta['episodes']} episodes ({fmt(meta['wall_seconds'], 1)} s "
-            "through the engine). Moving prey: the hunter starts at (0, 0), the prey at (3, 3) and moves after a hunter "
-            "move with probability 0.5, at random or away from the hunter (evading); optimal means a capture within the "
+            "through the engine). Moving prey: the hunter starts at (0, 0), the prey at (3, 3) and moves after every "
+            "cell the hunter moves, with probability 0.5, at random or away from the hunter (evading): once per cell, so "
+            "a 2-cell decision gives the prey two chances to move; optimal means a capture within the "
             "prey's starting distance. Mazes: shipped maps `wall` (shortest path 24) and `rooms` (21), static goal. "
             f"Episodes are cut at {BEYOND_CAP:,} decisions (truncated, counted in the table; an evading prey can keep a "
-            "nearly greedy hunter chasing for tens of thousands of decisions). Means over runs with bootstrap 95% CIs; "
-            "lower is better."
+            "nearly greedy hunter chasing for tens of thousands of decisions: where a row has truncated episodes its "
+            "means are lower bounds). The speed-matched and fixed-ε agents use ε = 0.01, tuned on the static task at the "
+            "edge of its grid and not re-tuned per task. Means over runs with bootstrap 95% CIs; lower is better; "
+            "ranked in decisions (time) and in cells (distance)."
         )
         ctx.table("beyond", beyond_table(m), "Tasks beyond the paper")
         ranks = []
         for task, g in m.groupby("task", sort=False):
-            means = g.groupby("agent").decisions_per_episode.mean().sort_values()
-            place = list(means.index).index("affective") + 1 if "affective" in means.index else 0
-            ranks.append(
-                f"{task}: fewest decisions per episode {means.index[0]} ({fmt(float(means.iloc[0]), 1)}); affective "
-                f"ranks {place} of {len(means)} ({fmt(float(means.get('affective', math.nan)), 1)})"
-            )
+            parts = []
+            for column, unit in (("decisions_per_episode", "decisions"), ("cells_per_episode", "cells")):
+                means = g.groupby("agent")[column].mean().sort_values()
+                place = list(means.index).index("affective") + 1 if "affective" in means.index else 0
+                parts.append(
+                    f"fewest {unit} per episode {means.index[0]} ({fmt(float(means.iloc[0]), 1)}), affective ranks "
+                    f"{place} of {len(means)} ({fmt(float(means.get('affective', math.nan)), 1)})"
+                )
+            truncated = int(g.truncated.sum())
+            note = f" ({truncated} truncated episodes: lower bounds)" if truncated else ""
+            ranks.append(f"{task}: " + "; in cells: ".join(parts) + note)
         ctx.doc.ul(ranks)
     dirs = [ctx.root / name for name in BASELINE_FOLDERS if (ctx.root / name / "runs").is_dir()]
     if dirs:
-        ctx.doc.md(baselines_section(dirs, title="Fair baselines (issue 7)").replace("## ", "### ", 1))
+        title = "Fair baselines: tuned, decaying, optimistic and speed-matched agents"
+        ctx.doc.md(baselines_section(dirs, title=title).replace("## ", "### ", 1))

@@ -3,8 +3,9 @@
 (paper/, dqn/, ablation/, baselines*/, beyond/, large/).
 
 The report is the list ``SECTIONS`` of section functions, each ``section(ctx: ReportContext) -> None`` adding its
-blocks to ``ctx.doc`` (see ``report.context``). To add a section, write the function in its own module and append
-it to ``SECTIONS`` (or pass ``sections=`` to ``build_report``).
+blocks to ``ctx.doc`` (see ``report.context``): the main text, then ``APPENDIX``. To add a section, write the function
+in its own module and append it to ``SECTIONS`` (or pass ``sections=`` to ``build_report``); a layer above the report
+(the forensics, wired by ``sb3_affect.replicate``) passes its own with ``extra_sections=``.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import pandas as pd
 
 from sb3_affect.report import largen
 from sb3_affect.report.ablation import ablation_section
+from sb3_affect.report.abstract import abstract_section
 from sb3_affect.report.baselines import beyond_section
 from sb3_affect.report.checks import checks_section
 from sb3_affect.report.context import ReportContext
@@ -24,15 +26,18 @@ from sb3_affect.report.dqn import dqn_section, learning_curves_section
 from sb3_affect.report.evidence import evidence_section
 from sb3_affect.report.mechanism import mechanism_section
 from sb3_affect.report.metrics import load_results, run_metrics
+from sb3_affect.report.readings import readings_section
 from sb3_affect.report.record import record_section
+from sb3_affect.report.speed import speed_one_section
 from sb3_affect.report.survival import survival_section
 from sb3_affect.report.tables import figures_3_4_section, table_iv_section, table_v_section
-from sb3_affect.report.verdict import verdict_section
+from sb3_affect.report.verdict import tests_section, verdict_section
+from sb3_affect.report.windows import windows_section
 
 Section = Callable[[ReportContext], None]
 #: Sub-folders of a replicate folder the sections may read (``ctx.folders[name]``).
 FOLDERS = ("dqn", "ablation", "baselines", "baselines_moving7", "baselines_moving", "beyond", "hunters", "hunters_moving")
-#: Issue 16 results folders (experiments/hunters*.yaml): two hunters, and the two emotion models side by side.
+#: Two-hunter results folders (experiments/hunters*.yaml): two hunters, and the two emotion models side by side.
 HUNTER_FOLDERS = ("hunters", "hunters_moving")
 
 
@@ -50,7 +55,37 @@ def overview_section(ctx: ReportContext) -> None:
     refusal = ctx.verdict_refusal()
     if refusal:
         ctx.doc.p(f"**Too few runs for a verdict**: {refusal}. The tables below are descriptive only.")
-    ctx.doc.p(f"Episodes truncated by the safety cap (20,000 decisions): {int(m.truncated.sum())}.")
+    cap, shortest = task_facts(ctx.paper.folder)
+    ctx.cache["shortest path"] = shortest
+    cap_text = f"{cap:,} decisions" if cap else "the agents' cap"
+    ctx.doc.p(f"Episodes truncated by the safety cap ({cap_text}): {int(m.truncated.sum())}.")
+
+
+def task_facts(folder: Path) -> tuple[int | None, int | None]:
+    """The safety cap on an episode's decisions and the task's shortest path in cells, from the sweep's own file."""
+    import json
+
+    from sb3_affect.settings import TabularSettings
+
+    try:
+        sweep = json.loads((Path(folder) / "sweep.json").read_text())["sweep"]
+    except (OSError, ValueError, KeyError):
+        return None, None
+    default = TabularSettings.max_episode_decisions
+    caps = {int(a.get("kwargs", {}).get("max_episode_decisions", default)) for a in sweep["agents"]}
+    shortest = None
+    try:
+        import gymnasium as gym
+
+        import sb3_affect  # noqa: F401  (registers the envs)
+
+        env = gym.make(sweep["env"]["id"], **sweep["env"].get("kwargs", {}))
+        length = getattr(env.unwrapped, "shortest_path_length", None)
+        shortest = None if length is None else int(length)
+        env.close()
+    except Exception:  # an env the report can not build: the fact is left out, not guessed
+        shortest = None
+    return (caps.pop() if len(caps) == 1 else None), shortest
 
 
 def _if_paper_agents(section: Section) -> Section:
@@ -79,45 +114,56 @@ def agents_section(ctx: ReportContext) -> None:
     ctx.table("agents", summary, "Per-agent summary (means over runs)")
 
 
-def hunters_sections(ctx: ReportContext) -> None:
-    """Issue 16's sections (two hunters; the two emotion models), when a folder holds team runs."""
+def _hunter_dirs(ctx: ReportContext) -> list[Path]:
     dirs = [ctx.root / name for name in HUNTER_FOLDERS if (ctx.root / name / "runs").is_dir()]
     if "team" in ctx.episodes.columns or (ctx.paper.runs.algo == "team").any():  # a single folder of team runs
         dirs.append(ctx.paper.folder)
-    if not dirs:
-        return
-    from sb3_affect.report.emotion_models import emotion_models_section
+    return dirs
+
+
+def hunters_sections(ctx: ReportContext) -> None:
+    """The two-hunter section, when a folder holds team runs."""
     from sb3_affect.report.hunters import hunters_section
 
-    for section in (hunters_section, emotion_models_section):
-        text, images = section(dirs, ctx.out)
-        ctx.doc.md(text)
-        for path, caption in images:
-            ctx.doc.img(path, caption)
+    dirs = _hunter_dirs(ctx)
+    if dirs:
+        _add(ctx, *hunters_section(dirs, ctx.out))
 
 
-def forensics_summary_section(ctx: ReportContext) -> None:
-    """Issue 13's summary, when ``sb3-affect forensics --out DIR/forensics`` has written results."""
-    from sb3_affect.forensics.section import forensics_section, has_results
+def emotion_models_sections(ctx: ReportContext) -> None:
+    """The two emotion models side by side on the two-hunter runs (appendix)."""
+    from sb3_affect.report.emotion_models import emotion_models_section
 
-    folder = ctx.root / "forensics"
-    if not has_results(folder):
-        return
-    forensics = forensics_section(folder, ctx.out / "figures")
-    ctx.doc.md(forensics.markdown)
-    for figure_path, caption in forensics.figures:
-        ctx.doc.img(figure_path, caption)
+    dirs = _hunter_dirs(ctx)
+    if dirs:
+        _add(ctx, *emotion_models_section(dirs, ctx.out))
+
+
+def _add(ctx: ReportContext, text: str, images: list[tuple[Path, str]]) -> None:
+    ctx.doc.md(text)
+    for path, caption in images:
+        ctx.doc.img(path, caption)
+
+
+def appendix_heading(ctx: ReportContext) -> None:
+    ctx.doc.h("Appendix", 1)
+    ctx.doc.p(
+        "The long tables behind the verdict: every test with raw and Holm-adjusted p-values, the seed-count study, "
+        "AdaStop, DQN, the second emotion model, the reproducibility record and the definitions."
+    )
 
 
 def definitions_section(ctx: ReportContext) -> None:
     ctx.doc.h("Definitions")
+    shortest = ctx.cache.get("shortest path")
     ctx.doc.ul(
         [
             "Steps per episode: mean decisions per episode.",
-            "Optimal path (walked): an episode whose path from start to goal is a shortest path (12 cells).",
+            "Optimal path (walked): an episode whose path from start to goal is a shortest path"
+            + (f" ({shortest} cells on this task)." if shortest else "."),
             "Steps before the optimal path (walked): decisions summed over the episodes before the first optimal one "
             "(all decisions for runs that never find it: censored).",
-            "Greedy optimal from: the first episode after which every greedy choice from the start walks a shortest "
+            "Greedy stays optimal from: the first episode after which every greedy choice from the start walks a shortest "
             "path until the end of the run; steps until then: decisions of episodes 1 to that one.",
             "Equivalent ε: fraction of decisions whose direction was random (joy), per episode.",
             "Emotion profile: fraction of decisions in each emotion; averaged over runs per episode (each episode "
@@ -126,12 +172,15 @@ def definitions_section(ctx: ReportContext) -> None:
     )
 
 
-#: The report, in order.
+#: The main text, in order (``extra_sections`` of ``build_report`` follow it, then ``APPENDIX``).
 SECTIONS: list[Section] = [
+    abstract_section,
     overview_section,
     agents_section,
     verdict_section,
-    evidence_section,
+    readings_section,
+    speed_one_section,
+    windows_section,
     mechanism_section,
     _if_paper_agents(table_iv_section),
     _if_paper_agents(table_v_section),
@@ -139,11 +188,17 @@ SECTIONS: list[Section] = [
     survival_section,
     checks_section,
     learning_curves_section,
-    dqn_section,
     beyond_section,
     hunters_sections,
     ablation_section,
-    forensics_summary_section,
+]
+#: The appendix, in order.
+APPENDIX: list[Section] = [
+    appendix_heading,
+    tests_section,
+    evidence_section,
+    dqn_section,
+    emotion_models_sections,
     record_section,
     definitions_section,
 ]
@@ -166,6 +221,8 @@ def build_report(
     ablation_dir: Path | None = None,
     sections: Sequence[Section] | None = None,
     timings: dict[str, float] | None = None,
+    extra_sections: Sequence[Section] = (),
+    command: str = "",
 ) -> Path:
     """
     Write ``report.md``, ``report.html`` (self-contained), ``tables/*.csv`` and ``figures/*.png``.
@@ -174,8 +231,11 @@ def build_report(
     :param out: where to write (default: ``run_dir``)
     :param dqn_dir: results of experiments/dqn.yaml (default: ``run_dir/dqn`` when present)
     :param ablation_dir: results of experiments/ablation.yaml (default: ``run_dir/ablation`` when present)
-    :param sections: the sections in order (default: ``SECTIONS``)
+    :param sections: the sections in order (default: ``SECTIONS``, then ``extra_sections``, then ``APPENDIX``)
     :param timings: wall seconds of each part of the run that produced the folder (reproducibility record)
+    :param extra_sections: sections from layers above the report (e.g. the forensics), placed before the appendix;
+        each may set ``ctx.cache["forensics"]`` to say what it included (reproducibility record)
+    :param command: the command line that produced the folder (reproducibility record)
     :return: the path of report.md
     """
     run_dir = Path(run_dir)
@@ -203,8 +263,9 @@ def build_report(
         large=large,
         large_meta=meta,
         timings=dict(timings or {}),
+        command=command,
     )
-    for section in sections if sections is not None else SECTIONS:
+    for section in sections if sections is not None else [*SECTIONS, *extra_sections, *APPENDIX]:
         section(ctx)
     md = out / "report.md"
     md.write_text(ctx.doc.markdown(out))

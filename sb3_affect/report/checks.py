@@ -1,5 +1,5 @@
 """
-The project's own checks, apart from the paper's claims: the speed-matched ε-greedy (issue 7), and rliable's
+The project's own checks, apart from the paper's claims: the speed-matched ε-greedy (a fair baseline), and rliable's
 interquartile means with stratified bootstrap CIs, probabilities of improvement and performance profiles.
 """
 
@@ -15,7 +15,7 @@ from rliable import metrics as rmetrics
 from scipy import stats as sps
 
 from sb3_affect.report.context import AFFECTIVE, STANDARD, ReportContext
-from sb3_affect.report.document import fmt
+from sb3_affect.report.document import fmt, pval
 from sb3_affect.report.figures import save
 from sb3_affect.report.largen import SPEED_AGENT
 from sb3_affect.report.metrics import load_results, run_metrics
@@ -90,25 +90,25 @@ def profile_figure(m: pd.DataFrame, path: str, column: str = "decisions_before_o
 
 
 def speed_matched(m: pd.DataFrame) -> list[str]:
-    """Sentences comparing the affective agent with the speed-matched ε-greedy (Welch CI, Mann-Whitney U)."""
+    """Sentences comparing the affective agent with the speed-matched ε-greedy (Welch t-test with its Welch CI)."""
     aff, speed = m[m.agent == AFFECTIVE], m[m.agent == SPEED_AGENT]
     out = []
     for column, label in METRICS:
         a, s = aff[column].to_numpy(float), speed[column].to_numpy(float)
         if len(a) < 2 or len(s) < 2:
             continue
-        ci = sps.ttest_ind(a, s, equal_var=False).confidence_interval(0.95)
-        p = float(sps.mannwhitneyu(a, s).pvalue)
+        welch = sps.ttest_ind(a, s, equal_var=False)
+        ci, p = welch.confidence_interval(0.95), float(welch.pvalue)
         out.append(
             f"{label}: affective {fmt(float(a.mean()), 1)}, speed-matched ε-greedy {fmt(float(s.mean()), 1)}; "
             f"difference {fmt(float(a.mean() - s.mean()), 1)} [95% CI {fmt(float(ci.low), 1)}, {fmt(float(ci.high), 1)}], "
-            f"Mann-Whitney p = {fmt(p, 3)} ({len(a)} and {len(s)} runs)"
+            f"Welch p {pval(p)} ({len(a):,} and {len(s):,} runs)"
         )
     return out
 
 
 def with_speed_matched(ctx: ReportContext) -> pd.DataFrame:
-    """Per-run metrics of the large-N study (else the paper sweep), with the issue 7 speed-matched runs if needed."""
+    """Per-run metrics of the large-N study (else the paper sweep), with the baselines folder's speed-matched runs."""
     m = ctx.large if ctx.large is not None else ctx.metrics
     if SPEED_AGENT not in set(m.agent) and "baselines" in ctx.folders:
         results = load_results(ctx.folders["baselines"])

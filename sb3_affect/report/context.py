@@ -38,6 +38,8 @@ class ReportContext:
     :param large_meta: its seeds, episodes and wall time
     :param judgements: the claims judged (filled by the verdict section)
     :param timings: wall time of each sweep (for the reproducibility record)
+    :param cache: results computed once and shared between sections (e.g. the verdict)
+    :param command: the command line that produced the folder (for the reproducibility record)
     """
 
     doc: Document
@@ -50,6 +52,8 @@ class ReportContext:
     large_meta: dict[str, Any] | None = None
     judgements: list[Any] = field(default_factory=list)
     timings: dict[str, float] = field(default_factory=dict)
+    cache: dict[str, Any] = field(default_factory=dict)
+    command: str = ""
 
     @property
     def episodes(self) -> pd.DataFrame:
@@ -59,6 +63,13 @@ class ReportContext:
         """Write ``tables/<name>.csv`` and add the table to the document."""
         frame.to_csv(self.out / "tables" / f"{name}.csv")
         self.doc.table(frame, caption + f" (tables/{name}.csv)", digits)
+
+    def study(self, name: str) -> pd.DataFrame | None:
+        """The per-run table of the engine study ``root/<name>`` (``report.largen``), or None."""
+        from sb3_affect.report.largen import study
+
+        found = study(self.root, name)
+        return found[0] if found else None
 
     def figure(self, name: str) -> Path:
         return self.out / "figures" / f"{name}.png"
@@ -81,9 +92,9 @@ class ReportContext:
         episodes = int(m.episodes.max())
         problems = []
         if per_cell < MIN_RUNS_PER_CELL:
-            problems.append(f"{per_cell} runs in its smallest (agent, ε) cell (a verdict needs {MIN_RUNS_PER_CELL})")
+            problems.append(f"the smallest (agent, ε) cell has {per_cell} runs (a verdict needs {MIN_RUNS_PER_CELL})")
         if epsilons < MIN_EPSILONS:
-            problems.append(f"{epsilons} ε values (the paper's protocol has {MIN_EPSILONS})")
+            problems.append(f"there are {epsilons} ε values (the paper's protocol has {MIN_EPSILONS})")
         if episodes < MIN_EPISODES:
-            problems.append(f"{episodes} episodes per run (the paper's protocol has {MIN_EPISODES})")
+            problems.append(f"runs have {episodes} episodes (the paper's protocol has {MIN_EPISODES})")
         return "; ".join(problems) or None

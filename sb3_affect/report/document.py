@@ -13,7 +13,10 @@ import pandas as pd
 
 
 def fmt(value: object, digits: int = 2) -> str:
-    """A table cell: blank for missing values, thousands separators for big numbers."""
+    """
+    A table cell: blank for missing values; ``digits`` decimals below 1,000, whole numbers with thousands separators
+    from 1,000 on (a count of decisions has no meaningful decimals there), scientific notation for tiny values.
+    """
     if value is None:
         return ""
     if isinstance(value, bool):
@@ -23,7 +26,7 @@ def fmt(value: object, digits: int = 2) -> str:
             return ""
         if isinstance(value, float) and math.isinf(value):
             return "inf"
-        if abs(value) >= 1e5:
+        if abs(value) >= 1e3:
             return f"{value:,.0f}"
         if isinstance(value, int) or float(value).is_integer():
             return f"{value:,.0f}"
@@ -31,6 +34,38 @@ def fmt(value: object, digits: int = 2) -> str:
             return f"{value:.2e}"
         return f"{value:,.{digits}f}"
     return str(value)
+
+
+def sig(value: float, digits: int = 3) -> str:
+    """``value`` to ``digits`` significant digits (whole numbers with separators from 1,000 on; blank for NaN)."""
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return ""
+    value = float(value)
+    if math.isinf(value):
+        return "inf" if value > 0 else "-inf"
+    if abs(value) >= 10 ** (digits - 1) or abs(value) >= 1e3 or (value.is_integer() and abs(value) < 1e3):
+        return f"{value:,.0f}"
+    if value == 0:
+        return "0"
+    if abs(value) < 1e-3:
+        return f"{value:.{max(digits - 1, 1)}e}"
+    decimals = max(digits - 1 - math.floor(math.log10(abs(value))), 0)
+    return f"{value:.{decimals}f}"
+
+
+def pval(p: float) -> str:
+    """A p-value: 3 significant digits, ``< 1e-300`` where it underflows (never "0")."""
+    if p is None or (isinstance(p, float) and math.isnan(p)):
+        return ""
+    if p < 1e-300:
+        return "< 1e-300"
+    if p < 1e-4:
+        return f"{p:.2e}"
+    return f"{p:.3g}" if p < 0.001 else f"{p:.4f}".rstrip("0").rstrip(".") if p < 1 else "1"
+
+
+#: Table columns holding p-values (formatted by ``pval``).
+_P_COLUMN = re.compile(r"^(p|p \(.*\)|P\(T<=t\).*|P (one|two)-tail|p, .*)$")
 
 
 @dataclass
@@ -90,7 +125,7 @@ class Document:
         parts = [
             "<!DOCTYPE html><html><head><meta charset='utf-8'>",
             f"<title>{html.escape(self.title)}</title>",
-            "<style>body{font-family:sans-serif;max-width:1000px;margin:2em auto;line-height:1.45}"
+            "<style>body{font-family:sans-serif;max-width:1300px;margin:2em auto;line-height:1.45}"
             "table{border-collapse:collapse;margin:0.5em 0 1.2em}td,th{border:1px solid #ccc;padding:3px 8px;"
             "text-align:right;vertical-align:top}td.text{text-align:left}th{background:#f3f3f3}td:first-child,th:first-child{text-align:left}"
             "img{max-width:100%}figcaption,caption{font-style:italic;color:#444}</style></head><body>",
@@ -137,7 +172,11 @@ def _inline(text: str) -> str:
 def _cells(frame: pd.DataFrame, digits: int) -> tuple[list[str], list[list[str]]]:
     index_name = frame.index.name or ""
     header: list[str] = [str(index_name), *[str(c) for c in frame.columns]]
-    rows = [[str(idx), *[fmt(v, digits) for v in row]] for idx, row in zip(frame.index, frame.itertuples(index=False))]
+    is_p = [bool(_P_COLUMN.match(str(c))) for c in frame.columns]
+    rows = [
+        [str(idx), *[pval(v) if p and isinstance(v, float) else fmt(v, digits) for v, p in zip(row, is_p)]]
+        for idx, row in zip(frame.index, frame.itertuples(index=False))
+    ]
     return header, rows
 
 
@@ -146,7 +185,7 @@ def _numeric(cell: str) -> bool:
     try:
         float(cell.replace(",", ""))
     except ValueError:
-        return cell in ("", "inf", "yes", "no", "n/a")
+        return cell in ("", "inf", "yes", "no", "n/a", "< 1e-300")
     return True
 
 

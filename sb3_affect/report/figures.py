@@ -23,6 +23,15 @@ COLOURS = {
 }
 
 
+STYLES = ("-", "--", "-.", ":")
+
+
+def distinct(n: int) -> list[tuple[float, float, float, float]]:
+    """``n`` colours that are told apart and never red (the affective agent's): viridis, dark to light."""
+    cmap = plt.get_cmap("viridis")
+    return [cmap(0.92 * i / max(n - 1, 1)) for i in range(n)]
+
+
 def save(fig: plt.Figure, path: Path | str) -> Path:
     """Write the figure as a PNG (tight layout, 110 dpi) and close it."""
     fig.tight_layout()
@@ -40,6 +49,7 @@ def metric_vs_epsilon(
     agents: tuple[str, ...] = ("epsilon-greedy", "affective"),
     log: bool = False,
     mark_censored: bool = False,
+    reference: dict[str, float] | None = None,
 ) -> Path:
     """
     Per-run ``column`` against epsilon: mean over runs with its bootstrap 95% CI band, and every run as a dot
@@ -70,6 +80,8 @@ def metric_vs_epsilon(
                 alpha=0.8,
                 label=f"{agent}: censored run (never found it; all its steps)",
             )
+    for (label, value), style in zip((reference or {}).items(), STYLES[1:]):
+        ax.axhline(value, color="black", ls=style, lw=1, label=label)
     ax.set_xlabel("epsilon (the affective agent ignores it)")
     ax.set_ylabel(ylabel)
     ax.set_title(title)
@@ -102,8 +114,12 @@ def emotion_profile(prof: pd.DataFrame, path: Path, title: str = "Fig. 5: emotio
         axes[0].plot(prof.index, prof[f"{emotion}_mean"], color=colour, ls=style, label=emotion)
         axes[0].fill_between(prof.index, prof[f"{emotion}_lo"], prof[f"{emotion}_hi"], color=colour, alpha=0.2)
         axes[1].plot(prof.index, prof[f"{emotion}_weighted"], color=colour, ls=style, label=emotion)
+        if f"{emotion}_weighted_lo" in prof.columns:
+            axes[1].fill_between(
+                prof.index, prof[f"{emotion}_weighted_lo"], prof[f"{emotion}_weighted_hi"], color=colour, alpha=0.2
+            )
     axes[0].set_title("mean of per-episode fractions (each episode counts once)", fontsize=9)
-    axes[1].set_title("decision-weighted (each decision counts once)", fontsize=9)
+    axes[1].set_title("decision-weighted (each decision counts once; 95% band over runs)", fontsize=9)
     axes[0].set_ylabel("fraction of decisions")
     for ax in axes:
         ax.set_xlabel("episode")
@@ -125,8 +141,10 @@ def equivalent_epsilon(prof: pd.DataFrame, path: Path) -> Path:
         alpha=0.2,
         label="95% band of the mean (runs)",
     )
-    ax.axhline(0.3, color="grey", ls="--", lw=1, label="paper: starts ~0.3")
-    ax.axhline(0.1, color="grey", ls=":", lw=1, label="paper: falls to ~0.1")
+    last = int(prof.index.max()) if len(prof) else 200
+    ax.hlines(0.3, 1, min(10, last), color="black", lw=2.5, label="paper: about 0.3 early (episodes 1-10)")
+    if last >= 181:
+        ax.hlines(0.1, 181, last, color="black", lw=2.5, ls="--", label="paper: 0.1 near the end (episodes 181-200)")
     ax.set_xlabel("episode")
     ax.set_ylabel("equivalent epsilon")
     ax.set_ylim(-0.02, 1.02)
@@ -162,13 +180,15 @@ def episode_quantiles(
 def learning_curves(episodes: pd.DataFrame, path: Path, title: str, groups: list[tuple[str, pd.DataFrame]]) -> Path:
     """Decisions per episode over episodes: median over runs with the quartile band, one line per group."""
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
-    palette = [plt.get_cmap("tab10")(i) for i in range(10)]
-    styles = ("-", "--", "-.", ":")
-    for i, (label, data) in enumerate(groups):
+    others = [label for label, _ in groups if label not in COLOURS]
+    palette = distinct(len(others))
+    for label, data in groups:
         numbers, (q25, median, q75) = episode_quantiles(data.episode.to_numpy(), data.decisions.to_numpy())
-        colour = COLOURS.get(label, palette[i % len(palette)])
-        ax.plot(numbers, median, color=colour, label=label, lw=1.5, ls=styles[(i // len(palette)) % len(styles)])
-        ax.fill_between(numbers, q25, q75, color=colour, alpha=0.12)
+        own = label in COLOURS
+        colour = COLOURS[label] if own else palette[others.index(label)]
+        style = "-" if own else STYLES[others.index(label) % len(STYLES)]
+        ax.plot(numbers, median, color=colour, label=label, lw=2.2 if own else 1.2, ls=style)
+        ax.fill_between(numbers, q25, q75, color=colour, alpha=0.12 if own else 0.05)
     ax.axhline(12, color="black", lw=0.8, ls=":", label="12 (shortest path in cells)")
     ax.set_yscale("log")
     ax.set_xlabel("episode")

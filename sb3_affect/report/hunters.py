@@ -1,5 +1,5 @@
 """
-The report's two-hunter section (issue 16): affective, epsilon-greedy and mixed teams of independent learners on
+The report's two-hunter section: affective, epsilon-greedy and mixed teams of independent learners on
 Kuremoto's pursuit problem (static prey) and on a random-walking prey, with bootstrap CIs and a verdict.
 
 Entry point: ``hunters_section(run_dirs, out) -> (markdown, [(figure path, caption)])``; ``run_dirs`` are results
@@ -161,6 +161,12 @@ def learning_figure(runs: list[dict[str, Any]], path: Path) -> Path:
     return path
 
 
+def _seed_text(metrics: pd.DataFrame) -> str:
+    counts = metrics.groupby(["task", "team"]).size()
+    low, high = int(counts.min()), int(counts.max())
+    return f"{low} runs" if low == high else f"{low} to {high} runs"
+
+
 def hunters_section(run_dirs: Sequence[str | Path], out: str | Path) -> tuple[str, list[tuple[Path, str]]]:
     """
     The section as markdown, and its figures as ``(path, caption)`` (written under ``out/figures``; the table also as
@@ -195,11 +201,12 @@ def hunters_section(run_dirs: Sequence[str | Path], out: str | Path) -> tuple[st
         "",
         markdown_table(table),
         "",
-        "### Verdict (two hunters)",
+        "### Exploratory checks (two hunters)",
         "",
-        f"Of {len(found)} checks, the runs support {held} and do not support {len(found) - held}. "
+        f"Of {len(found)} checks, the runs support {held} and do not support {len(found) - held}. These are exploratory: "
+        f"{_seed_text(metrics)} per team, no correction for the {len(found)} comparisons. "
         "P(X better) is the probability that a run of X beats a run of the epsilon-greedy team (bootstrap 95% CI); "
-        "a claim is supported when the whole interval is above 0.5.",
+        "a check is supported when the whole interval is above 0.5.",
         "",
         *[f"- **{'Supported' if ok else 'Not supported'}**: {claim}. {evidence}." for claim, ok, evidence in found],
         "",

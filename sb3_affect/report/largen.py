@@ -27,8 +27,13 @@ PAPER_ENV = ("sb3_affect/GridPursuit-v0", {"size": 15, "start": [0, 0], "goal": 
 COMMON = {"learning_rate": 1.0, "gamma": 0.8, "q_init": 0.0}
 AFFECT_DEFAULT = {"comparison": "literal", "act": "episode", "units": "cells"}
 SPEED_AGENT = "speed-epsilon-greedy"
-#: The speed-matched epsilon-greedy (issue 7): the tuned epsilon 0.01, 1 or 2 cells per decision.
+#: The speed-matched epsilon-greedy (a fair baseline): the tuned epsilon 0.01, 1 or 2 cells per decision.
 SPEED_KWARGS = {"exploration_rate": 0.01, "speeds": [1, 2]}
+#: The speed ablation: the affective agent with every emotion's speed fixed at 1 cell (Table III's directions kept).
+SPEED_ONE_AGENT = "affective-speed-1"
+SPEED_ONE_TABLE = {"joy": [True, [1]], "sadness": [False, [1]], "fear": [False, [1]], "anger": [False, [1]]}
+#: Episodes per run of the long-run study (the paper's "in the long run", tested directly).
+LONG_EPISODES = 2000
 CHUNK = 50
 
 
@@ -75,14 +80,45 @@ def large_cells() -> list[Cell]:
     return out
 
 
+def speed_one_cells() -> list[Cell]:
+    """The speed ablation: AffectQ with every speed fixed at 1 cell, at every ε label (seeds of its own)."""
+    kwargs = {**COMMON, **AFFECT_DEFAULT, "behaviour_table": SPEED_ONE_TABLE}
+    return [
+        Cell(SPEED_ONE_AGENT, "AffectQ", kwargs, {"epsilon": eps}, "speed-one", {"epsilon": eps}) for eps in paper.EPSILONS
+    ]
+
+
+def long_cells() -> list[Cell]:
+    """The long-run study: both paper agents at every ε (seeds of its own; run with ``LONG_EPISODES`` episodes)."""
+    return [
+        Cell(cell.agent, cell.algo, cell.kwargs, cell.labels, "long", cell.point)
+        for cell in large_cells()
+        if cell.agent != SPEED_AGENT
+    ]
+
+
+def _kwargs(kwargs: dict[str, Any]) -> dict[str, Any]:
+    """A cell's kwargs for the engine: a behaviour table by emotion name becomes one keyed by ``Emotion``."""
+    table = kwargs.get("behaviour_table")
+    if not isinstance(table, dict) or not table or not all(isinstance(k, str) for k in table):
+        return kwargs
+    from sb3_affect.behaviour import Behaviour
+    from sb3_affect.emotions import Emotion
+
+    converted = {
+        Emotion[name.upper()]: Behaviour(bool(r), tuple(int(k) for k in speeds)) for name, (r, speeds) in table.items()
+    }
+    return {**kwargs, "behaviour_table": converted}
+
+
 def _chunk(job: tuple[Cell, list[int], int]) -> pd.DataFrame:
     from sb3_affect.engine import simulate
     from sb3_affect.experiments.schema import derive_seed
-    from sb3_affect.report.metrics import run_metrics
+    from sb3_affect.report.metrics import EARLY, LATE, run_metrics
 
     cell, replicates, episodes = job
     seeds = [derive_seed(cell.sweep, cell.agent, cell.point, r) for r in replicates]
-    frame = simulate(cell.algo, cell.kwargs, cell.env_id, cell.env_kwargs, seeds, episodes)
+    frame = simulate(cell.algo, _kwargs(cell.kwargs), cell.env_id, cell.env_kwargs, seeds, episodes)
     bound = _capture_distance(cell.env_id, cell.env_kwargs)
     if bound is not None:  # moving prey: optimal = a capture within the prey's starting distance
         frame["optimal"] = ~frame.truncated.astype(bool) & (frame.cells <= bound)
@@ -92,13 +128,14 @@ def _chunk(job: tuple[Cell, list[int], int]) -> pd.DataFrame:
     frame["agent"] = cell.agent
     for key, value in cell.labels.items():
         frame[key] = value
-    return run_metrics(frame)
+    last = (max(episodes - 199, 1), episodes)  # the last 200 episodes of a long run
+    return run_metrics(frame, windows=(EARLY, LATE) if last[0] <= LATE[0] else (EARLY, LATE, last))
 
 
 def _capture_distance(env_id: str, env_kwargs: dict[str, Any]) -> int | None:
     if "MovingPursuit" not in env_id:
         return None
-    from sb3_affect.baselines.summary import capture_distance
+    from sb3_affect.report.baseline_summary import capture_distance
 
     return capture_distance({"env_id": env_id, "env_kwargs": env_kwargs})
 

@@ -10,7 +10,7 @@ import pandas as pd
 
 from sb3_affect.report import figures
 from sb3_affect.report.context import AFFECTIVE, ReportContext
-from sb3_affect.report.document import fmt
+from sb3_affect.report.document import fmt, sig
 from sb3_affect.report.metrics import EMOTIONS, profile, rows_where, window_mean
 
 #: An episode longer than this many decisions is "long" (the shortest path is 12 cells, 6 to 12 decisions).
@@ -131,10 +131,11 @@ def mechanism_section(ctx: ReportContext) -> None:
     ctx.doc.p(
         "The appraisal compares act (decisions' cells so far plus the shortest known remaining path) with the norm "
         "(the power-law fit of past episode lengths). A decision that moves k cells adds k to the elapsed part and "
-        "removes at most k from the known remaining part, so act never falls within an episode. Once act reaches the "
-        "norm the agent feels joy, and joy moves in a random direction, so the rest of the episode is a random walk "
-        "on the 15 x 15 grid until it stumbles on the goal. An episode is therefore either short and greedy (anger "
-        "all the way) or long and random (joy from the crossing on): the per-episode decisions are bimodal."
+        "removes at most k from the known remaining part; act can fall only when a newly seen transition shortens the "
+        "known remaining path, which a random walk rarely does. So once act reaches the norm the agent feels joy and "
+        "joy is near-absorbing: joy moves in a random direction, and the rest of the episode is mostly a random walk "
+        "on the grid until it stumbles on the goal. An episode is therefore either short and greedy (anger all the "
+        "way) or long and mostly random (joy from the crossing on): the per-episode decisions are bimodal."
     )
     path = figures.decisions_histogram(
         aff.decisions.to_numpy()[aff.episode.to_numpy() >= first].astype(float),
@@ -166,15 +167,18 @@ def mechanism_section(ctx: ReportContext) -> None:
         "fraction is close to the share of episodes with any joy). Per decision, the agent is random most of the time "
         "even late in training, which is why its steps per episode stay far above the 12-cell optimum."
     )
+    joy_section(ctx)
     ctx.doc.h("Fig. 5 under both weightings", 3)
     prof = profile(aff)
     prof.to_csv(ctx.out / "tables" / "profile_per_episode.csv")
     rows = {}
-    for lo, hi in WINDOWS:
+    for lo, hi in (w for w in WINDOWS if w[1] <= last):  # a short folder shows only the windows its runs reach
         for kind, label in (("mean", "mean of per-episode fractions"), ("weighted", "decision-weighted")):
             rows[(f"episodes {lo}-{hi}", label)] = {
                 name: window_mean(prof, name, lo, hi, kind) for name in (*EMOTIONS, "equivalent_epsilon")
             }
+    if not rows:
+        return
     table = pd.DataFrame.from_dict(rows, orient="index")
     table.index = [f"{w} / {k}" for w, k in table.index]
     table.index.name = "window / weighting"
@@ -183,12 +187,13 @@ def mechanism_section(ctx: ReportContext) -> None:
     silent = [e for e in EMOTIONS if float(prof[f"{e}_mean"].max()) == 0.0]
     note = f" ({' and '.join(silent)} never occur: their lines lie on 0)" if silent else ""
     ctx.doc.img(f5, f"Fig. 5: fraction of decisions in each emotion per episode, both weightings{note}")
-    late_mean = rows[(f"episodes {WINDOWS[-1][0]}-{WINDOWS[-1][1]}", "mean of per-episode fractions")]
-    late_weighted = rows[(f"episodes {WINDOWS[-1][0]}-{WINDOWS[-1][1]}", "decision-weighted")]
+    late = next(w for w in reversed(WINDOWS) if w[1] <= last)
+    late_mean = rows[(f"episodes {late[0]}-{late[1]}", "mean of per-episode fractions")]
+    late_weighted = rows[(f"episodes {late[0]}-{late[1]}", "decision-weighted")]
     ctx.doc.p(
         "Reconciling with the paper's \"joy early, anger later\": averaging per-episode fractions (each episode counts "
         f"once, as the paper's figure does), late episodes are mostly anger (joy {fmt(late_mean['joy'], 3)}, anger "
-        f"{fmt(late_mean['anger'], 3)} in episodes {WINDOWS[-1][0]}-{WINDOWS[-1][1]}), because most late episodes are "
+        f"{fmt(late_mean['anger'], 3)} in episodes {late[0]}-{late[1]}), because most late episodes are "
         "short greedy ones. Weighting by decisions (each decision counts once), joy stays the dominant emotion "
         f"(joy {fmt(late_weighted['joy'], 3)}, anger {fmt(late_weighted['anger'], 3)}), because the few random-walk "
         "episodes hold most of the decisions. Both are true: the agent exploits in most episodes and explores in most "
@@ -196,3 +201,31 @@ def mechanism_section(ctx: ReportContext) -> None:
     )
     f6 = figures.equivalent_epsilon(prof, ctx.figure("fig6_equivalent_epsilon"))
     ctx.doc.img(f6, "Fig. 6: equivalent ε (fraction of random-direction decisions) per episode, both weightings")
+
+
+def joy_section(ctx: ReportContext) -> None:
+    """Joy near-absorbing, and where late episodes cross the norm (traced runs, ``report.joy_trace``)."""
+    from sb3_affect.report import joy_trace
+
+    if ctx.verdict_refusal():
+        return
+    frame = joy_trace.traced(ctx.root / "joy_trace")
+    b = joy_trace.summary(frame)
+    ctx.doc.h("Joy is near-absorbing; where late episodes cross the norm", 3)
+    path = joy_trace.norm_figure(frame, ctx.figure("norm_crossings"), ctx.cache.get("shortest path"))
+    ctx.doc.p(
+        f"Traced decision by decision ({int(b['runs'])} runs of the paper's affective agent, seeds 0-"
+        f"{int(b['runs']) - 1}, {joy_trace.EPISODES} episodes; the episode log keeps only counts): of "
+        f"{int(b['joy decisions']):,} joy decisions, {sig(b['exits per joy decision'])} per decision are followed by "
+        f"another emotion in the same episode, and {b['share of joy episodes that ever leave joy']:.1%} of the episodes "
+        "that feel joy ever leave it. Joy is near-absorbing, not absorbing: act can fall when a newly seen transition "
+        "shortens the known remaining path. In episodes "
+        f"{joy_trace.LATE[0]}-{joy_trace.LATE[1]}, {b['share of late episodes that cross the norm']:.1%} of the episodes "
+        f"still cross the norm although Q has long converged: the norm has fallen to {sig(b['late norm, median'])} cells "
+        f"(median), barely above the shortest path, and the crossing comes at decision "
+        f"{sig(b['first joy decision in crossing late episodes, median'])} (median) of an episode that without joy takes "
+        f"{sig(b['late decisions without crossing, median'])} decisions: near the goal, once act has met a norm that "
+        "leaves a greedy walk little room. From there joy turns the end of the episode into a random walk "
+        f"({sig(b['decisions of crossing late episodes, median'])} decisions, median)."
+    )
+    ctx.doc.img(path, "The norm per episode and, for the episodes that cross it, the decision at which joy starts")

@@ -45,11 +45,21 @@ class Results:
     runs: pd.DataFrame
 
 
-def load_runs(run_dir: Path) -> list[dict[str, Any]]:
-    """Every finished run of a results folder as run records with their episode lists (small folders only)."""
-    from sb3_affect.experiments.store import ResultsStore
+def load_run_records(run_dir: str | Path) -> list[dict[str, Any]]:
+    """
+    Every finished (``status == "ok"``) run of a results folder as run records with their episode lists (small
+    folders only): chunks and ``runs/*.json`` of a results folder, or loose ``run_dir/*.json`` run files.
+    """
+    root = Path(run_dir)
+    if (root / "runs").is_dir() or (root / "chunks").is_dir():
+        from sb3_affect.experiments.store import ResultsStore
 
-    return [r for r in ResultsStore(run_dir).load_runs() if r.get("status", "ok") == "ok"]
+        records = ResultsStore(root).load_runs()
+    else:
+        import json
+
+        records = [json.loads(f.read_text()) for f in sorted(root.glob("*.json"))]
+    return [r for r in records if r.get("status", "ok") == "ok"]
 
 
 def load_results(run_dir: Path, columns: Sequence[str] = REPORT_COLUMNS) -> Results:
@@ -67,7 +77,7 @@ def load_results(run_dir: Path, columns: Sequence[str] = REPORT_COLUMNS) -> Resu
 
 
 def episodes_frame(runs: list[dict[str, Any]]) -> pd.DataFrame:
-    """One row per episode of run records (``load_runs``), with the run's agent, seed and labels as columns."""
+    """One row per episode of run records (``load_run_records``), with the run's agent, seed and labels as columns."""
     frames = []
     for run in runs:
         config = run["config"]
@@ -105,7 +115,11 @@ _EPISODE_VALUE_COLUMNS = (
 )
 
 
-def run_metrics(episodes: pd.DataFrame, runs: pd.DataFrame | Sequence[dict[str, Any]] | None = None) -> pd.DataFrame:
+def run_metrics(
+    episodes: pd.DataFrame,
+    runs: pd.DataFrame | Sequence[dict[str, Any]] | None = None,
+    windows: Sequence[tuple[int, int]] = (EARLY, LATE),
+) -> pd.DataFrame:
     """
     The metrics of docs/definitions.md, one row per run, sorted by run id (vectorised: numpy reductions over each
     run's rows, no loop over runs):
@@ -113,21 +127,23 @@ def run_metrics(episodes: pd.DataFrame, runs: pd.DataFrame | Sequence[dict[str, 
     - ``decisions_per_episode``, ``cells_per_episode``: means over the run's episodes (the paper's "steps" are decisions)
     - ``first_optimal``: first episode whose path is a shortest path; ``censored`` when none is
     - ``decisions_before_optimal`` / ``cells_before_optimal``: summed over the episodes before it (censored: all)
-    - ``greedy_optimal_from``: first episode after which the greedy policy from the start always walks a shortest path
+    - ``greedy_stays_optimal_from``: first episode after which the greedy policy from the start always walks a shortest path
       (NaN, ``greedy_censored``, when it is not optimal after the last episode)
-    - ``decisions_to_greedy_optimal``: decisions of episodes 1 .. ``greedy_optimal_from`` (censored: all)
+    - ``decisions_to_greedy_optimal``: decisions of episodes 1 .. ``greedy_stays_optimal_from`` (censored: all)
     - ``truncated``: episodes ended by the safety cap
     - ``total_decisions``: every decision of the run, the unfinished last episode included (from the run table)
     - window features (``EARLY``, ``LATE``): ``joy_1_10`` (mean of per-episode fractions), ``joy_1_10_weighted``
       (decision-weighted), the same for every emotion and ``eqeps`` (random-direction decisions), ``decisions_181_200``
+      and ``cells_181_200`` (mean decisions and cells per episode of the window)
 
     :param episodes: one row per episode (``Results.episodes``, or any frame with ``run_id``, the episode columns and
         label columns)
-    :param runs: the run table (``Results.runs``) or run records (``load_runs``): adds each run's total decisions,
+    :param runs: the run table (``Results.runs``) or run records (``load_run_records``): adds each run's total decisions,
         its ``seed`` when ``episodes`` has none, and the runs that finished no episode at all (e.g. a DQN that never
         reached the goal within its step budget): censored, with all their decisions before the optimal path
+    :param windows: the (first, last) episode windows of the window features (default ``EARLY`` and ``LATE``)
     """
-    rows = _vector_metrics(episodes) if len(episodes) else pd.DataFrame()
+    rows = _vector_metrics(episodes, windows) if len(episodes) else pd.DataFrame()
     table = _run_table(runs)
     if table is None or not len(table):
         return rows
@@ -192,7 +208,7 @@ def _run_table(runs: pd.DataFrame | Sequence[dict[str, Any]] | None) -> pd.DataF
     return pd.DataFrame(rows) if rows else None
 
 
-def _vector_metrics(episodes: pd.DataFrame) -> pd.DataFrame:
+def _vector_metrics(episodes: pd.DataFrame, windows: Sequence[tuple[int, int]] = (EARLY, LATE)) -> pd.DataFrame:
     """The per-run metrics of ``run_metrics`` from the episode rows alone (numpy reductions over each run's rows)."""
     run_ids = episodes["run_id"]
     names: Any
@@ -243,14 +259,14 @@ def _vector_metrics(episodes: pd.DataFrame) -> pd.DataFrame:
     out["censored"] = ~first_found
     out["decisions_before_optimal"] = np.add.reduceat(np.where(before, decisions, 0), starts, dtype=np.int64).astype(float)
     out["cells_before_optimal"] = np.add.reduceat(np.where(before, cells, 0), starts, dtype=np.int64).astype(float)
-    out["greedy_optimal_from"] = greedy_from
+    out["greedy_stays_optimal_from"] = greedy_from
     out["greedy_censored"] = np.isnan(greedy_from)
     to_greedy = np.add.reduceat(np.where(upto_greedy, decisions, 0), starts, dtype=np.int64)
     out["decisions_to_greedy_optimal"] = to_greedy.astype(float)
     out["truncated"] = np.add.reduceat(column("truncated"), starts, dtype=np.int64)
     out["total_decisions"] = total_decisions
     del decisions, cells, before, upto_greedy
-    for window in (EARLY, LATE):
+    for window in windows:
         for key, series in _window(column, codes, episode, run_codes, *window).items():
             out[key] = series
     return out.reset_index()
@@ -290,6 +306,7 @@ def _window(
         out[f"{name}_{lo}_{hi}"] = (values / fraction_of).groupby(key).mean().reindex(run_codes).to_numpy()
         out[f"{name}_{lo}_{hi}_weighted"] = values.groupby(key).sum().reindex(run_codes).to_numpy() / total
     out[f"decisions_{lo}_{hi}"] = decisions.groupby(key).mean().reindex(run_codes).to_numpy()
+    out[f"cells_{lo}_{hi}"] = pd.Series(column("cells")[rows]).groupby(key).mean().reindex(run_codes).to_numpy()
     return out
 
 
@@ -317,14 +334,16 @@ def profile(episodes: pd.DataFrame) -> pd.DataFrame:
     """
     Per episode number: the mean over runs of each emotion's fraction of decisions and of the equivalent epsilon,
     with a 95% band of the mean (mean +- 1.96 standard errors over runs: ``_lo`` / ``_hi``), and the
-    decision-weighted fraction (all decisions of that episode number pooled over runs: ``_weighted``).
+    decision-weighted fraction (all decisions of that episode number pooled over runs: ``_weighted``) with its 95%
+    band over runs (the ratio estimator's delta-method standard error: ``_weighted_lo`` / ``_weighted_hi``).
 
     One column at a time (memory: a few columns of ``episodes``, whatever its length).
     """
     episode = episodes.episode.to_numpy()
     decisions = episodes.decisions.to_numpy()
     totals = pd.Series(decisions.astype(np.int64)).groupby(episode).sum()
-    parts: dict[str, dict[str, pd.Series]] = {"mean": {}, "lo": {}, "hi": {}, "weighted": {}}
+    kinds = ("mean", "lo", "hi", "weighted", "weighted_lo", "weighted_hi")
+    parts: dict[str, dict[str, pd.Series]] = {kind: {} for kind in kinds}
     for name, source in (*((x, x) for x in EMOTIONS), ("equivalent_epsilon", "random_moves")):
         values = episodes[source].to_numpy()
         grouped = pd.Series(values / decisions).groupby(episode)
@@ -332,7 +351,13 @@ def profile(episodes: pd.DataFrame) -> pd.DataFrame:
         half = 1.96 * grouped.sem().fillna(0.0)
         parts["mean"][name], parts["lo"][name], parts["hi"][name] = mean, mean - half, mean + half
         summed = pd.Series(values.astype(np.int64) if values.dtype.kind in "iu" else values).groupby(episode).sum()
-        parts["weighted"][name] = summed / totals
+        ratio = summed / totals
+        parts["weighted"][name] = ratio
+        # the ratio's 95% band over runs (delta method): se = sd(x_i - R d_i) / (sqrt(n) mean(d_i)) per episode
+        residual = pd.Series(values - ratio.reindex(episode).to_numpy() * decisions).groupby(episode)
+        per_run_decisions = pd.Series(decisions.astype(float)).groupby(episode).mean()
+        half_weighted = 1.96 * (residual.std(ddof=1) / np.sqrt(residual.count()) / per_run_decisions).fillna(0.0)
+        parts["weighted_lo"][name], parts["weighted_hi"][name] = ratio - half_weighted, ratio + half_weighted
     out = pd.concat([pd.DataFrame(series).add_suffix(f"_{kind}") for kind, series in parts.items()], axis=1)
     out.index = out.index.astype(np.int64).rename("episode")
     return out

@@ -104,6 +104,14 @@ QUOTES: dict[str, tuple[str, str]] = {
         "Q-learning agent.",
         "Sec. VI (Conclusion)",
     ),
+    "printed_iv": (
+        "Mean: 67.02 (epsilon-greedy selection), 56.28 (proposed)",
+        "Table IV, row Mean",
+    ),
+    "printed_v": (
+        "Mean: 110190.20 (epsilon-greedy selection), 99357.56 (proposed)",
+        "Table V, row Mean",
+    ),
     "four_emotions": (
         "we propose using four basic emotions: joy, sadness, fear, and anger to influence a Q-learning agent.",
         "Abstract; Table II",

@@ -19,8 +19,8 @@ from lifelines.statistics import logrank_test
 from lifelines.utils import median_survival_times, restricted_mean_survival_time
 
 from sb3_affect.report.context import AFFECTIVE, STANDARD, ReportContext
-from sb3_affect.report.document import fmt
-from sb3_affect.report.figures import COLOURS, save
+from sb3_affect.report.document import fmt, pval
+from sb3_affect.report.figures import COLOURS, STYLES, distinct, save
 
 
 def km(durations: np.ndarray, observed: np.ndarray, horizon: float) -> dict[str, float]:
@@ -69,12 +69,13 @@ def km_table(m: pd.DataFrame) -> pd.DataFrame:
 def km_figure(m: pd.DataFrame, path: str, title: str) -> str:
     """Fraction of runs that have not yet found the optimal path, per episode (KM curves with 95% bands)."""
     fig, ax = plt.subplots(figsize=(7.0, 4.2))
-    cmap = plt.get_cmap("Blues")
-    for eps in sorted(m[m.agent == STANDARD].epsilon.unique()):
+    values = sorted(m[m.agent == STANDARD].epsilon.unique())
+    palette = distinct(len(values))
+    for i, eps in enumerate(values):
         g = m[(m.agent == STANDARD) & (m.epsilon == eps)]
         label = f"ε-greedy {eps:.1f}"
         fitter = KaplanMeierFitter().fit(g.first_optimal.fillna(g.episodes), ~g.censored.astype(bool), label=label)
-        fitter.plot_survival_function(ax=ax, ci_show=False, color=cmap(0.3 + 0.7 * eps), lw=1.2)
+        fitter.plot_survival_function(ax=ax, ci_show=False, color=palette[i], lw=1.3, ls=STYLES[i % len(STYLES)])
     g = m[m.agent == AFFECTIVE]
     fitter = KaplanMeierFitter().fit(g.first_optimal.fillna(g.episodes), ~g.censored.astype(bool), label="affective (all ε)")
     fitter.plot_survival_function(ax=ax, ci_show=True, color=COLOURS[AFFECTIVE], lw=2.2, show_censors=True)
@@ -114,7 +115,7 @@ def survival_section(ctx: ReportContext) -> None:
         )
         ctx.doc.p(
             f"Log-rank test, affective (all ε pooled) against ε-greedy (all ε pooled), {label}: "
-            f"statistic {fmt(float(test.test_statistic))}, p = {fmt(float(test.p_value), 3)}. "
+            f"statistic {fmt(float(test.test_statistic))}, p {pval(float(test.p_value))}. "
             f"Censored runs: affective {int(aff.censored.sum())} of {len(aff)}, ε-greedy {int(std.censored.sum())} of "
             f"{len(std)}."
         )

@@ -112,11 +112,20 @@ def figures_3_4_section(ctx: ReportContext) -> None:
         ctx.figure("fig4_steps_before_optimal"),
         log=True,
         mark_censored=True,
+        reference={
+            f"paper, ε-greedy per run ({paper.TABLE_V['Mean'][0] / paper.SEEDS_PER_CELL:,.0f}: Table V / 20)": (
+                paper.TABLE_V["Mean"][0] / paper.SEEDS_PER_CELL
+            ),
+            f"paper, affective per run ({paper.TABLE_V['Mean'][1] / paper.SEEDS_PER_CELL:,.0f})": (
+                paper.TABLE_V["Mean"][1] / paper.SEEDS_PER_CELL
+            ),
+        },
     )
     ctx.doc.img(
         f4,
-        "Fig. 4: steps before the first walked optimal path, per run (the paper's totals are x runs); band: bootstrap "
-        "95% CI; crosses: censored runs (never found it; plotted at all their steps, a lower bound)"
+        "Fig. 4: steps before the first walked optimal path, per run (the paper's Table V totals are sums over a "
+        "cell's 20 runs: its lines divide them by 20); band: bootstrap 95% CI; crosses: censored runs (never found "
+        "it; plotted at all their steps, a lower bound)"
         + (f"; dots: runs{dots}" if dots else ""),
     )
     f4g = figures.metric_vs_epsilon(

@@ -1,16 +1,16 @@
 """
-Rank the agents of issue 7's comparison: decisions per episode, cells per episode and steps before the optimal path,
+Rank the agents of the fair-baselines comparison: decisions per episode, cells per episode and steps before the optimal path,
 each a mean over runs with a percentile-bootstrap 95% confidence interval.
 
-Reads the launcher's results (``ResultsStore.load_runs``: chunks and run files, ``docs/interfaces.md``); groups by
+Reads the launcher's results (``report.metrics.load_run_records``: chunks and run files, ``docs/interfaces.md``); groups by
 task (``labels["task"]``, else the sweep name) and ``config["agent"]``. "Optimal" is the episode log's ``optimal``
 column (a shortest path from the start) except on envs that define ``capture_distance``
 (``sb3_affect/MovingPursuit-v0``), where it is an optimal capture: captured within ``capture_distance`` cells (see
 ``MovingPursuitEnv``). Steps before the optimal path: decisions summed over the episodes before the first optimal
 one; a run that never finds it contributes all its decisions and is counted as censored.
 
-    python -m sb3_affect.baselines.summary runs/baselines [--markdown report.md]
-    python -m sb3_affect.baselines.summary runs/baselines-tuning --tuning
+    python -m sb3_affect.report.baseline_summary runs/baselines [--markdown report.md]
+    python -m sb3_affect.report.baseline_summary runs/baselines-tuning --tuning
 """
 
 from __future__ import annotations
@@ -25,20 +25,10 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from sb3_affect.report.metrics import load_run_records
+
 METRICS = ("decisions_per_episode", "cells_per_episode", "steps_before_optimal")
 _CAPTURE: dict[str, int | None] = {}
-
-
-def load_runs(folder: str | Path) -> list[dict[str, Any]]:
-    """Every ``status == "ok"`` run record of a results folder (chunks and ``runs/*.json``), or of ``folder/*.json``."""
-    root = Path(folder)
-    if (root / "runs").is_dir() or (root / "chunks").is_dir():
-        from sb3_affect.experiments.store import ResultsStore
-
-        return ResultsStore(root).load_runs()
-    files = sorted(root.glob("*.json"))
-    records = [json.loads(f.read_text()) for f in files]
-    return [r for r in records if r.get("status", "ok") == "ok"]
 
 
 def capture_distance(config: dict[str, Any]) -> int | None:
@@ -65,8 +55,8 @@ def optimal_flags(record: dict[str, Any]) -> list[bool]:
     return [bool(v) if v is not None and v == v else False for v in episodes["optimal"]]
 
 
-def run_metrics(record: dict[str, Any]) -> dict[str, Any]:
-    """One run's numbers."""
+def record_metrics(record: dict[str, Any]) -> dict[str, Any]:
+    """One run record's numbers (a dict; ``report.metrics.run_metrics`` is the table of the paper's metrics)."""
     config = record["config"]
     episodes = record["episodes"]
     decisions = [int(d) for d in episodes["decisions"]]
@@ -83,7 +73,7 @@ def run_metrics(record: dict[str, Any]) -> dict[str, Any]:
         "steps_before_optimal": float(sum(decisions[: len(decisions) if first is None else first])),
         "censored": first is None,
         "episodes_to_optimal": math.nan if first is None else first + 1,
-        "greedy_optimal_episode": (greedy.index(True) + 1) if True in greedy else math.nan,
+        "first_greedy_optimal_episode": (greedy.index(True) + 1) if True in greedy else math.nan,
         "truncated": int(sum(bool(t) for t in episodes["truncated"])),
         **{f"label:{k}": v for k, v in config.get("labels", {}).items() if k not in ("task", "replicate")},
     }
@@ -105,7 +95,7 @@ def bootstrap_ci(
 
 def summarise(records: Iterable[dict[str, Any]], by: Sequence[str] = ("task", "agent")) -> pd.DataFrame:
     """One row per group: runs, each metric's mean and 95% CI, censored runs, episodes to optimal (found runs)."""
-    frame = pd.DataFrame([run_metrics(r) for r in records])
+    frame = pd.DataFrame([record_metrics(r) for r in records])
     rows = []
     for key, group in frame.groupby(list(by), sort=False):
         row: dict[str, Any] = dict(zip(by, key if isinstance(key, tuple) else (key,)))
@@ -115,7 +105,7 @@ def summarise(records: Iterable[dict[str, Any]], by: Sequence[str] = ("task", "a
             row[metric], row[f"{metric}_low"], row[f"{metric}_high"] = mean, low, high
         row["censored"] = int(group["censored"].sum())
         row["episodes_to_optimal"] = float(group["episodes_to_optimal"].mean())
-        row["greedy_optimal_episode"] = float(group["greedy_optimal_episode"].mean())
+        row["first_greedy_optimal_episode"] = float(group["first_greedy_optimal_episode"].mean())
         row["truncated"] = int(group["truncated"].sum())
         rows.append(row)
     out = pd.DataFrame(rows)
@@ -137,7 +127,7 @@ def markdown(summary: pd.DataFrame, focus: str = "affective") -> str:
             f"### {task}",
             "",
             "| rank | agent | runs | decisions/episode [95% CI] | cells/episode [95% CI] | steps before optimal [95% CI] "
-            "| censored | episodes to optimal | greedy optimal from episode |",
+            "| censored | episodes to optimal | first greedy-optimal episode |",
             "|---|---|---|---|---|---|---|---|---|",
         ]
         table = table.sort_values("decisions_per_episode").reset_index(drop=True)
@@ -145,7 +135,7 @@ def markdown(summary: pd.DataFrame, focus: str = "affective") -> str:
             lines.append(
                 f"| {int(str(rank)) + 1} | {row['agent']} | {row['runs']} | {_ci(row, 'decisions_per_episode')} | "
                 f"{_ci(row, 'cells_per_episode')} | {_ci(row, 'steps_before_optimal', 0)} | {row['censored']} | "
-                f"{row['episodes_to_optimal']:.1f} | {row['greedy_optimal_episode']:.1f} |"
+                f"{row['episodes_to_optimal']:.1f} | {row['first_greedy_optimal_episode']:.1f} |"
             )
         if focus in set(table["agent"]):
             me = table[table["agent"] == focus].iloc[0]
@@ -169,7 +159,7 @@ def emotion_profile(records: Iterable[dict[str, Any]], prefix: str = "affective"
         if not config["agent"].startswith(prefix):
             continue
         episodes = record["episodes"]
-        row = {"task": run_metrics(record)["task"], "agent": config["agent"], "decisions": sum(episodes["decisions"])}
+        row = {"task": record_metrics(record)["task"], "agent": config["agent"], "decisions": sum(episodes["decisions"])}
         for emotion in ("joy", "sadness", "fear", "anger"):
             row[emotion] = sum(episodes[emotion])
         rows.append(row)
@@ -196,7 +186,7 @@ def profile_markdown(profile: pd.DataFrame) -> str:
 
 def tuning_choice(records: Iterable[dict[str, Any]]) -> pd.DataFrame:
     """Tuning runs: per agent and grid value, mean decisions per episode; the best value per agent is flagged."""
-    frame = pd.DataFrame([run_metrics(r) for r in records])
+    frame = pd.DataFrame([record_metrics(r) for r in records])
     label = [c for c in frame.columns if c.startswith("label:")]
     value = frame[label].bfill(axis=1).iloc[:, 0] if label else pd.Series(math.nan, index=frame.index)
     frame = frame.assign(value=value)
@@ -211,7 +201,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser.add_argument("--markdown", help="also write the ranking as markdown to this file")
     parser.add_argument("--tuning", action="store_true", help="the folder holds tuning runs: show the grid")
     args = parser.parse_args(argv)
-    records = load_runs(args.folder)
+    records = load_run_records(args.folder)
     if args.tuning:
         print(tuning_choice(records).to_string(index=False))
         return
