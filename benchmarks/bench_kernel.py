@@ -1,5 +1,5 @@
 """
-Per-cell ``simulate`` throughput of the compiled kernel (issue 11): decisions per second of ``engine.simulate`` on one
+Per-cell ``simulate`` throughput of the compiled kernel: decisions per second of ``engine.simulate`` on one
 core, for the three kinds of cell of the paper protocol (``experiments/paper.yaml``: GridPursuit 15 x 15, 200
 episodes per run) - epsilon-greedy Q-learning at epsilon 0.1 (short episodes) and 0.9 (long, mostly random) and the
 affective agent (the known map and the power fit on every decision).

@@ -1,5 +1,5 @@
 """
-Issue 2's summary, default definitions: 20 seeds x 200 episodes per agent, in-process (no launcher).
+The core summary of both paper agents, default definitions: 20 seeds x 200 episodes per agent, in-process (no launcher).
 
     python experiments/core_summary.py [--seeds 20] [--episodes 200]
 """

@@ -1,4 +1,4 @@
-"""The fair baselines of issue 7: they learn the paper's task and each explores the way its docstring says."""
+"""The fair baselines: they learn the paper's task and each explores the way its docstring says."""
 
 from __future__ import annotations
 

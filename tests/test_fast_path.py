@@ -1,5 +1,5 @@
 """
-The sweep path without torch (issue 11): ``import sb3_affect`` and a sweep of the package's tabular agents import
+The sweep path without torch: ``import sb3_affect`` and a sweep of the package's tabular agents import
 neither torch nor SB3; the kernel's inputs computed from an agent's settings (no model) equal those of a built model,
 for every agent the kernel runs, on both grid envs; bad kwargs give the constructor's own error on both paths; and
 each agent's settings hold exactly its constructor's defaults.

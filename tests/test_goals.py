@@ -1,5 +1,5 @@
 """
-What a goal is on envs that are not the package's own (issue 10, defect 12): ``sb3_affect.goals`` on Gymnasium's
+What a goal is on envs that are not the package's own: ``sb3_affect.goals`` on Gymnasium's
 FrozenLake, CliffWalking and Taxi, through AffectQ and through an observing EmotionCallback.
 """
 

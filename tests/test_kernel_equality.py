@@ -1,5 +1,5 @@
 """
-The compiled engine's contract (issue 11): for the same seed it gives the identical episode log, Q-table, random
+The compiled engine's contract: for the same seed it gives the identical episode log, Q-table, random
 generator state and appraisal as the Python loop, for every agent, reading and env it runs, over 100 seeds each.
 """
 

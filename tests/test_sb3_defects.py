@@ -1,5 +1,5 @@
 """
-Issue 10's defects, one test each (each fails on the code before the fix): the tabular agents behave as SB3
+SB3-compatibility defects, one test each (each fails on the code before the fix): the tabular agents behave as SB3
 algorithms and lose nothing a user sets.
 """
 
