@@ -10,6 +10,7 @@ loop (``engine="python"``) or its compiled twin in ``sb3_affect.kernel`` (same s
 from __future__ import annotations
 
 import math
+import operator
 import time
 from typing import TYPE_CHECKING, Any
 
@@ -21,6 +22,9 @@ from sb3_affect.episode_log import EPISODE_COLUMNS, greedy_walks_shortest_path
 if TYPE_CHECKING:
     from sb3_affect.qtable import LoopTable
     from sb3_affect.tabular import TabularQAlgorithm
+
+#: A row's values in the order of ``EPISODE_COLUMNS`` (from the row by column name).
+_ROW_VALUES = operator.itemgetter(*EPISODE_COLUMNS)
 
 #: The ``dones`` of a one-env VecEnv step (read-only, shared).
 DONE = np.array([True])
@@ -263,7 +267,7 @@ def close_episode(
         "greedy_optimal": greedy,
         "norm": norm,
     }
-    model._episode_rows.append([row[name] for name in EPISODE_COLUMNS])
+    model._episode_rows.append(list(_ROW_VALUES(row)))
     if truncated:
         model._truncated_episodes += 1
     model._episode_num += 1
