@@ -4,9 +4,7 @@ from __future__ import annotations
 
 import argparse
 import os
-import signal
 import sys
-import threading
 import time
 from pathlib import Path
 
@@ -48,20 +46,12 @@ def _existing_folder(directory: str, command: str) -> Path:
     return path
 
 
-class Terminated(KeyboardInterrupt):
-    """SIGTERM (``kill``, a batch scheduler): stop like Ctrl-C, workers first, then exit 143."""
-
-
-def _on_sigterm(signum: int, frame: object) -> None:
-    raise Terminated()
-
-
 def _cmd_run(args: argparse.Namespace) -> int:
     from sb3_affect.experiments import run_sweep
+    from sb3_affect.experiments.signals import stop_on_sigterm
 
     _check_out(args.out)
-    if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGTERM, _on_sigterm)
+    stop_on_sigterm()
     summary = run_sweep(
         args.file,
         args.out,
@@ -145,7 +135,10 @@ def _cmd_report(args: argparse.Namespace) -> int:
 
 
 def _cmd_replicate(args: argparse.Namespace) -> int:
+    from sb3_affect.experiments.signals import stop_on_sigterm
     from sb3_affect.replicate import main as replicate
+
+    stop_on_sigterm()
 
     _check_out(args.out)
     start = time.perf_counter()
@@ -258,6 +251,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)  # --help, --version and usage errors end here, having imported little
     from sb3_affect.experiments.ray_cluster import ClusterLost, RayClusterError
     from sb3_affect.experiments.schema import SweepError
+    from sb3_affect.experiments.signals import Terminated
     from sb3_affect.experiments.store import StoreError
 
     try:

@@ -118,14 +118,14 @@ def simulate_columns(
     cls = _resolve(algo)
     _check_args(episodes, engine, seeds)
     if engine != "python" and own != "python":
-        from sb3_affect.kernel.batch import batch_reason
+        from sb3_affect.compiled import batch_reason
         from sb3_affect.kernel.inputs import batch_inputs
 
         env = gym.make(env_id, **(env_kwargs or {}))
         template = cls("Grid", env, seed=0, **kwargs)
         reason = batch_reason(template, episodes)
         if reason is None:
-            inputs = batch_inputs(template, template._single_env(), episodes)
+            inputs = batch_inputs(template.compiled_settings(), template._single_env(), episodes)
             env.close()
             return _batch_frame(inputs, seeds, episodes)
         env.close()

@@ -174,26 +174,27 @@ def test_baselines_save_and_load(tmp_path: Any) -> None:
         assert len(loaded.episode_log) == 3
 
 
-def test_suite_runs_and_summary_ranks(tmp_path: Any) -> None:
-    from sb3_affect.baselines.suite import agents, execute_to, load_algo, report_configs
-    from sb3_affect.baselines.summary import bootstrap_ci, load_runs, markdown, run_metrics, summarise
+def test_baseline_sweep_runs_and_summary_ranks(tmp_path: Any) -> None:
+    """The comparison's sweep file, cut to two agents, two tasks and two seeds, through the launcher; then the ranking."""
+    from pathlib import Path
 
-    assert load_algo("sb3_affect.baselines:UCBQLearning") is UCBQLearning
-    configs = [c for c in report_configs(("static", "moving-7x7"), range(2)) if c["agent"] in ("affective", "ucb")]
-    assert {c["agent"] for c in configs} == {"affective", "ucb"} and len(configs) == 8
-    assert set(agents()) >= {
-        "epsilon-greedy-best",
-        "epsilon-decay",
-        "boltzmann",
-        "ucb",
-        "optimistic-q100",
-        "speed-epsilon-greedy",
-    }
-    for config in configs:
-        execute_to({**config, "episodes": 15}, str(tmp_path))
-    records = load_runs(tmp_path)
+    import yaml
+
+    from sb3_affect.baselines.summary import bootstrap_ci, load_runs, markdown, run_metrics, summarise
+    from sb3_affect.experiments import run_sweep
+
+    experiments = Path(__file__).resolve().parents[1] / "experiments"
+    for name in ("baselines", "baselines_moving7"):
+        spec = yaml.safe_load((experiments / f"{name}.yaml").read_text())
+        spec["agents"] = [a for a in spec["agents"] if a["name"] in ("affective", "ucb")]
+        spec["seeds"], spec["episodes"] = [0, 1], 15
+        path = tmp_path / f"{name}.yaml"
+        path.write_text(yaml.safe_dump(spec))
+        summary = run_sweep(path, tmp_path / name, workers=1, progress=False)
+        assert (summary.total, summary.failed) == (4, 0)
+    records = load_runs(tmp_path / "baselines") + load_runs(tmp_path / "baselines_moving7")
     assert len(records) == 8
-    moving = next(r for r in records if r["config"]["labels"]["task"] == "moving-7x7")
+    moving = next(r for r in records if r["config"]["env_kwargs"].get("size") == 7)
     metrics = run_metrics(moving)
     cells, truncated = moving["episodes"]["cells"], moving["episodes"]["truncated"]
     flags = [not t and c <= 6 for c, t in zip(cells, truncated)]  # capture distance (0, 0) -> (3, 3)

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from sb3_affect.experiments.chunks import encode_chunk, run_config
-from sb3_affect.experiments.runner import execute_run, package_versions
+from sb3_affect.experiments.runner import execute_run, package_env, package_versions
 
 #: The most runs one batch holds (bounds a worker's memory and the work a crash or Ctrl-C throws away).
 MAX_BATCH = 2000
@@ -98,13 +98,6 @@ class Single:
 
 
 Job = Batch | Single
-
-
-def package_env(env_id: str) -> bool:
-    """Whether ``env_id`` is one of the package's single-agent envs (``sb3_affect/...``, not a multi-agent one)."""
-    from sb3_affect.envs import PARALLEL_ENVS
-
-    return str(env_id).startswith("sb3_affect/") and env_id not in PARALLEL_ENVS
 
 
 def batchable(base: dict[str, Any], logs: bool) -> bool:

@@ -23,14 +23,10 @@ same per-episode records on either backend.
 
 from __future__ import annotations
 
-import contextlib
 import os
-import signal
 import sys
-import threading
 import time
 import traceback
-from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -53,19 +49,6 @@ class SweepSummary:
     failed: int
     seconds: float
     out_dir: Path
-
-
-@contextlib.contextmanager
-def _sigint_ignored() -> Iterator[None]:
-    """Ignore SIGINT while starting child processes (they keep ignoring it); restore our handler afterwards."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGINT, previous)
 
 
 def _ray_batch(job: Batch) -> tuple[str, Any]:
@@ -91,7 +74,7 @@ def run_ray(
     handled in :mod:`sb3_affect.experiments.ray_cluster`. A batch is one task (``Batch.execute``), a lone run one
     ``ray_cluster.execute_task``.
     """
-    from sb3_affect.experiments import ray_cluster
+    import sb3_affect.experiments.ray_cluster as ray_cluster
     from sb3_affect.experiments.runner import package_versions
 
     with ray_cluster.connect(address, workers, timeout) as session:

@@ -28,20 +28,10 @@ from dataclasses import dataclass
 from typing import Any
 
 from sb3_affect.experiments.batches import Batch, Job
+from sb3_affect.experiments.signals import STOP_SIGNALS, worker_signals
 
 OnResult = Callable[[Job, dict[str, Any]], None]
 OnFailure = Callable[[Job, str], None]
-
-STOP_SIGNALS = {signal.SIGINT, signal.SIGTERM}
-
-
-def die_with_parent() -> None:
-    """Ask Linux to kill this worker when the launcher dies (best effort; no-op elsewhere)."""
-    with contextlib.suppress(Exception):
-        import ctypes
-
-        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
-
 
 #: glibc's ``mallopt`` parameters and the size below which a batch worker keeps freed memory for its next batch
 M_TRIM_THRESHOLD, M_MMAP_THRESHOLD, KEEP_BELOW = -1, -3, 1 << 30
@@ -70,14 +60,9 @@ def _execute(job: Job) -> tuple[str, Any]:
 
 def _worker(first: Job, conn: Any, launcher: int) -> None:
     """A worker's life: ``first``, then (a batch worker) every job the launcher sends, until it sends None."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the launcher decides what Ctrl-C does
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # and stops a worker with SIGTERM (not the launcher's handler)
-    signal.pthread_sigmask(signal.SIG_UNBLOCK, STOP_SIGNALS)  # blocked by the launcher around the fork
-    die_with_parent()
+    worker_signals(launcher)  # Ctrl-C is the launcher's; its SIGTERM stops the worker; the worker dies with it
     if isinstance(first, Batch):
         keep_freed_memory()
-    if os.getppid() != launcher:  # the launcher died before the line above took effect
-        os._exit(1)
     job: Job | None = first
     while job is not None:
         conn.send(_execute(job))

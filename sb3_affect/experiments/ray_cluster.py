@@ -200,12 +200,12 @@ class RaySession:
 
 
 def _private_init(ray: Any, workers: int) -> None:
-    from sb3_affect.experiments.launcher import _sigint_ignored
+    from sb3_affect.experiments.signals import sigint_ignored
 
     # Ctrl-C in a terminal sends SIGINT to the whole process group: the instance's processes inherit "ignore SIGINT"
     # from here, so that only this driver reacts (cancels the tasks and shuts the instance down). address="local": a
     # new instance whatever RAY_ADDRESS or an earlier `ray start` says.
-    with _sigint_ignored():
+    with sigint_ignored():
         ray.init(address="local", num_cpus=workers, include_dashboard=False, log_to_driver=False, _node_ip_address="127.0.0.1")
 
 

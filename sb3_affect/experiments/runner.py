@@ -95,12 +95,18 @@ def build_model(config: dict[str, Any]) -> tuple[Any, bool]:
     return cls(policy, env, seed=config["seed"], **kwargs), False
 
 
+def package_env(env_id: str) -> bool:
+    """Whether ``env_id`` is one of the package's single-agent envs (``sb3_affect/...``, not a multi-agent one)."""
+    from sb3_affect.envs import PARALLEL_ENVS
+
+    return str(env_id).startswith("sb3_affect/") and env_id not in PARALLEL_ENVS
+
+
 def settings_checkable(config: dict[str, Any]) -> bool:
     """
     Whether ``check_configs`` can check a config without building its model (so without torch): one of the package's
     agents, given settings only (``sb3_affect.settings``), on one of its single-agent grid envs.
     """
-    from sb3_affect.experiments.batches import package_env
     from sb3_affect.registry import known_settings
 
     if "team" in config or not package_env(config["env_id"]):

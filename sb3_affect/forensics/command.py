@@ -40,17 +40,14 @@ def add_forensics_parser(sub: Any) -> argparse.ArgumentParser:
 def forensics_command(args: argparse.Namespace) -> int:
     """Run the forensics and print where the report is."""
     import dataclasses
-    import signal
-    import threading
 
-    from sb3_affect.cli import _on_sigterm
+    from sb3_affect.experiments.signals import stop_on_sigterm
     from sb3_affect.forensics.analysis import run_forensics
     from sb3_affect.forensics.candidates import CandidateSpace
 
     if args.workers < 1:
         raise SystemExit(f"sb3-affect forensics: error: --workers={args.workers} must be >= 1")
-    if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGTERM, _on_sigterm)  # `kill`: stop like Ctrl-C (the pool's workers first), exit 143
+    stop_on_sigterm()  # `kill`: stop like Ctrl-C (the pool's workers first), exit 143
     space = CandidateSpace.default()
     if args.alphas:
         space = dataclasses.replace(space, alphas=args.alphas)

@@ -48,17 +48,11 @@ def simulate_unit(
 
 
 def _init_worker(driver: int) -> None:
-    import signal
-
     import torch
 
-    from sb3_affect.experiments.local_pool import die_with_parent
+    from sb3_affect.experiments.signals import worker_signals
 
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the driver decides what Ctrl-C does (it terminates the pool)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # and pool.terminate()'s SIGTERM ends a worker at once, mid-kernel
-    die_with_parent()  # and a worker does not outlive a killed driver
-    if os.getppid() != driver:  # the driver died before the line above took effect
-        os._exit(1)
+    worker_signals(driver)  # Ctrl-C is the driver's (it terminates the pool), whose SIGTERM ends a worker at once
     torch.set_num_threads(1)
 
 
