@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from typing import TypeAlias
 
+import numpy as np
 import torch as th
 
 
@@ -32,8 +33,11 @@ class VisitedRows(dict):
     def write_back(self) -> None:
         """Copy every visited row into the tensor (the one truth outside ``learn``)."""
         if self:
-            states = list(self)
-            self.table[states] = th.tensor([self[s] for s in states], dtype=self.table.dtype)
+            # Through NumPy (the tensor's own memory): torch's indexed assignment may run on its thread pool, which
+            # hangs in a process forked from one that used the pool (the launcher's workers).
+            table = self.table.detach().numpy()
+            states = np.fromiter(self.keys(), dtype=np.int64, count=len(self))
+            table[states] = np.array(list(self.values()), dtype=table.dtype)
 
     def __repr__(self) -> str:
         return f"VisitedRows({len(self)} of {self.n_states} states)"
