@@ -52,8 +52,10 @@ def sweep_runs(path: Path) -> int | None:
     """
     import math
 
-    import yaml
-
+    try:
+        import yaml
+    except ImportError:  # without the experiments extra the help gives no count (running a part says what to install)
+        return None
     try:
         data = yaml.safe_load(Path(path).read_text())
         seeds = data["seeds"]
@@ -64,13 +66,20 @@ def sweep_runs(path: Path) -> int | None:
     return (len(seeds) if isinstance(seeds, list) else int(seeds)) * sum(per_agent)
 
 
+def sweeps_folder(experiments: Path | None = None) -> Path:
+    """The folder of the sweep files: ``experiments``, else ``EXPERIMENTS``, else those installed with the package."""
+    if experiments or EXPERIMENTS:
+        return Path(experiments or EXPERIMENTS)  # type: ignore[arg-type]
+    from importlib.resources import files  # (not the launcher's own helper: --help must not need the launcher's extra)
+
+    return Path(str(files("sb3_affect.sweeps")))
+
+
 def part_description(name: str, description: str, experiments: Path | None = None) -> str:
     """A part's description with its run count read from its experiment file (one source for that number)."""
     if "{runs}" not in description:
         return description
-    from sb3_affect.experiments.sweep_file import shipped_sweeps_folder
-
-    runs = sweep_runs(Path(experiments or EXPERIMENTS or shipped_sweeps_folder()) / f"{name}.yaml")
+    runs = sweep_runs(sweeps_folder(experiments) / f"{name}.yaml")
     return description.format(runs=runs if runs is not None else "?")
 
 
@@ -109,13 +118,12 @@ def main(
     :return: the path of report.md
     """
     from sb3_affect.experiments import run_sweep
-    from sb3_affect.experiments.sweep_file import shipped_sweeps_folder
     from sb3_affect.report import build_report, paper
     from sb3_affect.report.ablation import ablation_cells
     from sb3_affect.report.baselines import beyond_cells
     from sb3_affect.report.largen import LONG_EPISODES, large_cells, long_cells, run_cells, speed_one_cells
 
-    experiments = Path(experiments or EXPERIMENTS or shipped_sweeps_folder())
+    experiments = sweeps_folder(experiments)
     large_seeds = large_seeds or LARGE_SEEDS
     ablation_seeds = ablation_seeds or ABLATION_SEEDS
     beyond_seeds = beyond_seeds or BEYOND_SEEDS

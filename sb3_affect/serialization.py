@@ -335,7 +335,7 @@ def _load_safe(
     if "policy_kwargs" in restored and not isinstance(restored["policy_kwargs"], dict):
         raise ModelFileError(f"{where}: policy_kwargs must be a JSON object")
     (restored.get("policy_kwargs") or {}).pop("device", None)
-    _check_values(cls, restored, where)
+    _check_values(cls, {k: v for k, v in restored.items() if k not in custom}, where)  # the file's, not the caller's
 
     if env is not None:
         env = cls._wrap_env(env, restored.get("verbose", 0))
