@@ -18,16 +18,16 @@ def learning_curves_section(ctx: ReportContext) -> None:
     if not ctx.has_paper_agents:
         return
     ctx.doc.h("Learning curves")
-    e = ctx.episodes
-    curve = ("episode", "decisions")  # each group's two columns only
-    standard = e.agent == STANDARD
+    curve = ("episode", "decisions")  # each group's two columns only, one agent's rows read at a time
+    e = ctx.paper.agent_episodes(STANDARD, curve)
     m = ctx.metrics
     groups = [  # the ε values from the run table: a boolean index of a categorical column would copy it
-        (f"ε-greedy ε={fmt(eps, 1)}", rows_where(e, standard & (e.epsilon == eps), curve))
+        (f"ε-greedy ε={fmt(eps, 1)}", rows_where(e, e.epsilon == eps, curve).copy())
         for eps in sorted(m.epsilon[(m.agent == STANDARD) & (m.episodes > 0)].unique())
     ]
-    groups.append((AFFECTIVE, rows_where(e, e.agent == AFFECTIVE, curve)))
-    path = figures.learning_curves(e, ctx.figure("learning_curves"), "Steps per episode over episodes", groups)
+    del e
+    groups.append((AFFECTIVE, ctx.paper.agent_episodes(AFFECTIVE, curve)))
+    path = figures.learning_curves(groups[-1][1], ctx.figure("learning_curves"), "Steps per episode over episodes", groups)
     ctx.doc.img(path, "Decisions per episode over episodes: median over runs and quartile band (log scale)")
 
 
