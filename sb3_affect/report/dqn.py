@@ -10,7 +10,7 @@ import pandas as pd
 from sb3_affect.report import figures
 from sb3_affect.report.context import AFFECTIVE, STANDARD, ReportContext
 from sb3_affect.report.document import fmt
-from sb3_affect.report.metrics import load_results, plain_labels, rows_where, run_metrics
+from sb3_affect.report.metrics import load_results, plain_labels, run_metrics
 from sb3_affect.report.stats import bootstrap_ci
 
 
@@ -18,16 +18,14 @@ def learning_curves_section(ctx: ReportContext) -> None:
     if not ctx.has_paper_agents:
         return
     ctx.doc.h("Learning curves")
-    curve = ("episode", "decisions")  # each group's two columns only, one agent's rows read at a time
-    e = ctx.paper.agent_episodes(STANDARD, curve)
+    curve = ("episode", "decisions")  # each group's two columns only, one group's rows read at a time
     m = ctx.metrics
-    groups = [  # the ε values from the run table: a boolean index of a categorical column would copy it
-        (f"ε-greedy ε={fmt(eps, 1)}", rows_where(e, e.epsilon == eps, curve).copy())
+    groups = [  # the ε values from the run table
+        (f"ε-greedy ε={fmt(eps, 1)}", figures.curve_of(ctx.paper.agent_episodes(STANDARD, curve, labels={"epsilon": eps})))
         for eps in sorted(m.epsilon[(m.agent == STANDARD) & (m.episodes > 0)].unique())
     ]
-    del e
-    groups.append((AFFECTIVE, ctx.paper.agent_episodes(AFFECTIVE, curve)))
-    path = figures.learning_curves(groups[-1][1], ctx.figure("learning_curves"), "Steps per episode over episodes", groups)
+    groups.append((AFFECTIVE, figures.curve_of(ctx.paper.agent_episodes(AFFECTIVE, curve))))
+    path = figures.learning_curves(pd.DataFrame(), ctx.figure("learning_curves"), "Steps per episode over episodes", groups)
     ctx.doc.img(path, "Decisions per episode over episodes: median over runs and quartile band (log scale)")
 
 
