@@ -395,8 +395,8 @@ class ResultsStore:
         }
         for json_part, chunk_part in file_parts(run_files, chunk_files, runs_per_part):
             runs, data = read_folder(json_part, chunk_part, wanted, self.root)
-            labels = [c for c in runs.columns if c not in RUN_COLUMNS]
-            yield runs, episode_table(runs, data, ["run_id", "agent", *(["seed"] if seed else []), *labels])
+            named = [c for c in runs.columns if c not in RUN_COLUMNS]
+            yield runs, episode_table(runs, data, ["run_id", "agent", *(["seed"] if seed else []), *named])
 
     def episodes_frame(self, columns: Sequence[str] | None = None) -> pd.DataFrame:
         """The episode table of ``results``."""

@@ -18,13 +18,18 @@ def learning_curves_section(ctx: ReportContext) -> None:
     if not ctx.has_paper_agents:
         return
     ctx.doc.h("Learning curves")
-    curve = ("episode", "decisions")  # each group's two columns only, one group's rows read at a time
     m = ctx.metrics
-    groups = [  # the ε values from the run table
-        (f"ε-greedy ε={fmt(eps, 1)}", figures.curve_of(ctx.paper.agent_episodes(STANDARD, curve, labels={"epsilon": eps})))
+
+    def curve(agent: str, labels: dict[str, float] | None = None) -> tuple[np.ndarray, list[np.ndarray]]:
+        """A group's curve from its two columns only (quantiles: the rows' order does not matter)."""
+        data = ctx.paper.agent_columns(agent, ("episode", "decisions"), labels)
+        return figures.episode_quantiles(data["episode"], data["decisions"])
+
+    groups: list[tuple[str, tuple[np.ndarray, list[np.ndarray]]]] = [  # the ε values from the run table
+        (f"ε-greedy ε={fmt(eps, 1)}", curve(STANDARD, {"epsilon": eps}))
         for eps in sorted(m.epsilon[(m.agent == STANDARD) & (m.episodes > 0)].unique())
     ]
-    groups.append((AFFECTIVE, figures.curve_of(ctx.paper.agent_episodes(AFFECTIVE, curve))))
+    groups.append((AFFECTIVE, curve(AFFECTIVE)))
     path = figures.learning_curves(pd.DataFrame(), ctx.figure("learning_curves"), "Steps per episode over episodes", groups)
     ctx.doc.img(path, "Decisions per episode over episodes: median over runs and quartile band (log scale)")
 

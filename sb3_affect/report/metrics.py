@@ -118,18 +118,35 @@ class Results:
         if not pieces:
             return pd.DataFrame()
         names = list(pieces[0])
-        data = {name: _joined([piece.pop(name) for piece in pieces]) for name in names}
-        run_id = data["run_id"]
+        run_id = _joined([piece["run_id"] for piece in pieces])
         order = np.argsort(run_id.codes, kind="stable")  # run id order (sorted categories), episodes kept in order
+        del run_id
         frame = pd.DataFrame(index=pd.RangeIndex(len(order)))
-        for name in names:
-            values = data.pop(name)
-            if isinstance(values, pd.Categorical):
-                values = pd.Categorical.from_codes(values.codes[order], dtype=values.dtype)
-                frame[name] = values.remove_unused_categories() if name == "run_id" else values
+        for name in names:  # one column joined at a time, its pieces let go
+            joined = _joined([piece.pop(name) for piece in pieces])
+            if isinstance(joined, pd.Categorical):
+                column = pd.Categorical.from_codes(joined.codes[order], dtype=joined.dtype)
+                frame[name] = column.remove_unused_categories() if name == "run_id" else column
             else:
-                frame[name] = values[order]
+                frame[name] = joined[order]
+            del joined
         return frame
+
+    def agent_columns(self, agent: str, columns: Sequence[str], labels: dict[str, Any] | None = None) -> dict[str, np.ndarray]:
+        """
+        ``columns`` of ``agent``'s episode rows (``labels``: of the runs with these label values) as arrays, in no
+        particular order (for reductions that do not depend on it: counts, quantiles), read a part at a time.
+        """
+        pieces: dict[str, list[np.ndarray]] = {name: [] for name in columns}
+        for _, part in self.parts(tuple(columns), agent, RUNS_PER_PART, labels):
+            keep = np.ones(len(part), bool)
+            for key, value in (labels or {}).items():
+                keep &= np.asarray(part[key] == value) if key in part.columns else False
+            for name in columns:
+                values = part[name].to_numpy()
+                pieces[name].append(values if keep.all() else values[keep])
+            del part
+        return {name: np.concatenate(arrays) if arrays else np.zeros(0) for name, arrays in pieces.items()}
 
     def last_episode(self, agent: str) -> int:
         """The largest episode number of ``agent``'s runs (0: none)."""
