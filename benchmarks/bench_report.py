@@ -11,6 +11,10 @@ Each measure runs the command in a fresh process and records its wall time and p
 ``load_results`` + ``run_metrics`` alone. The report writes into the folder it is given, so it runs on a scratch
 folder whose ``chunks/`` links to the measured one: the measured folder is never written. Results:
 ``benchmarks/results_report.csv``.
+
+The report's target on the paper's protocol at 10,000 seeds (180,000 runs, 36 M episodes): <= 30 s and <= 1 GB peak
+on 2 cores (``TARGET``); each report of a folder that large is marked met or missed. ``--repeat N`` measures each
+command N times (every run is printed and written, not the best).
 """
 
 from __future__ import annotations
@@ -18,6 +22,7 @@ from __future__ import annotations
 import argparse
 import csv
 import json
+import os
 import shutil
 import subprocess
 import sys
@@ -39,6 +44,17 @@ LOAD = (
     "results = load_results(sys.argv[1])\n"
     "run_metrics(results.episodes, results.runs)\n"
 )
+
+
+#: The report's target: (runs at least, wall seconds at most, peak MB at most).
+TARGET = (180_000, 30.0, 1024.0)
+
+
+def verdict(name: str, runs: int, result: dict[str, float]) -> str:
+    """'met' / 'missed' for a report of a folder as large as the target's, else ''."""
+    if name != "report" or runs < TARGET[0]:
+        return ""
+    return "met" if result["wall_s"] <= TARGET[1] and result["peak_mb"] <= TARGET[2] else "missed"
 
 
 def measure(command: list[str]) -> dict[str, float]:
@@ -79,6 +95,7 @@ def main() -> None:
     parser.add_argument("--workers", type=int, default=2, help="workers of the sweeps --seeds runs")
     parser.add_argument("--keep", default=None, help="keep the scratch folders here (default: a temporary folder)")
     parser.add_argument("--out", default=str(ROOT / "benchmarks" / "results_report.csv"))
+    parser.add_argument("--repeat", type=int, default=1, help="measure each command this many times (every run kept)")
     args = parser.parse_args()
     if not args.seeds and not args.folder:
         parser.error("give --seeds N or --folder DIR (repeatable)")
@@ -100,12 +117,19 @@ def main() -> None:
             ("load_results + run_metrics", [sys.executable, "-c", LOAD, str(folder)]),
             ("report", [sys.executable, "-m", "sb3_affect", "report", str(scratch)]),
         ):
-            result = measure(command)
-            rows.append({"measure": name, "folder": str(folder), "runs": runs, **result})
-            print(f"{name:28s} {runs:>8,d} runs  {result['wall_s']:8.2f} s  peak {result['peak_mb']:8.1f} MB", flush=True)
+            for _ in range(max(1, args.repeat)):
+                result = measure(command)
+                target = verdict(name, runs, result)
+                load = round(os.getloadavg()[0], 2)
+                rows.append({"measure": name, "folder": str(folder), "runs": runs, **result, "load": load, "target": target})
+                print(
+                    f"{name:28s} {runs:>8,d} runs  {result['wall_s']:8.2f} s  peak {result['peak_mb']:8.1f} MB  "
+                    f"load {load:5.2f}  {target and f'target (<= {TARGET[1]:.0f} s, <= {TARGET[2]:.0f} MB): {target}'}",
+                    flush=True,
+                )
     out = Path(args.out)
     with out.open("w", newline="") as handle:
-        writer = csv.DictWriter(handle, fieldnames=["measure", "folder", "runs", "wall_s", "peak_mb"])
+        writer = csv.DictWriter(handle, fieldnames=["measure", "folder", "runs", "wall_s", "peak_mb", "load", "target"])
         writer.writeheader()
         writer.writerows(rows)
     print(f"-> {out}")

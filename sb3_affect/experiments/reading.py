@@ -69,6 +69,32 @@ def _chunk_footer(path: Path, with_runs: bool) -> tuple[dict[str, Any], np.ndarr
     return meta, run
 
 
+def file_parts(
+    json_files: Sequence[Path], chunk_files: dict[Path, dict[str, Any]], runs_per_part: int | None
+) -> list[tuple[list[Path], list[Path]]]:
+    """
+    The files of a folder in parts of about ``runs_per_part`` runs (whole chunks, counted from their footers; run
+    files ``runs_per_part`` at a time), for ``read_folder`` one part at a time; None: one part of every file.
+    """
+    if runs_per_part is None:
+        return [(list(json_files), list(chunk_files))]
+    size = max(1, runs_per_part)
+    parts: list[tuple[list[Path], list[Path]]] = [
+        (list(json_files[i : i + size]), []) for i in range(0, len(json_files), size)
+    ]
+    part: list[Path] = []
+    count = 0
+    for path, meta in chunk_files.items():
+        part.append(path)
+        count += len(meta["runs"])
+        if count >= size:
+            parts.append(([], part))
+            part, count = [], 0
+    if part:
+        parts.append(([], part))
+    return parts or [([], [])]
+
+
 def read_folder(
     json_files: Sequence[Path], chunk_files: Sequence[Path], columns: Sequence[str] | None, root: Path
 ) -> tuple[pd.DataFrame, dict[str, np.ndarray]]:

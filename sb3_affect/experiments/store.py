@@ -361,6 +361,43 @@ class ResultsStore:
         labels = [c for c in runs.columns if c not in RUN_COLUMNS]
         return runs, episode_table(runs, data, ["run_id", "agent", *(["seed"] if seed else []), *labels])
 
+    def checked_files(self) -> FolderFiles:
+        """The files that count (``results_parts`` takes them, so a reader checks the folder once)."""
+        return self._checked()
+
+    def results_parts(
+        self,
+        columns: Sequence[str] | None = None,
+        seed: bool = True,
+        agent: str | None = None,
+        runs_per_part: int | None = None,
+        files: FolderFiles | None = None,
+        labels: dict[str, Any] | None = None,
+    ) -> Iterator[tuple[pd.DataFrame, pd.DataFrame]]:
+        """
+        ``results`` a part of the folder at a time: the runs of ``agent`` only (None: every agent), about
+        ``runs_per_part`` runs a part (whole chunks; None: one part), each part as ``results`` gives it (its runs in
+        run id order). A reader that reduces run by run holds one part at a time.
+
+        :param files: the folder's files (``checked_files``), to check the folder once over several reads
+        :param labels: read only the chunks of cells with these label values (run files: all; a reader filters rows)
+        """
+        from sb3_affect.experiments.reading import RUN_COLUMNS, episode_table, file_parts, read_folder
+
+        files = self._checked() if files is None else files
+        wanted = EPISODE_COLUMNS if columns is None else tuple(columns)
+        run_files = [path for path, owner in files.run_files.items() if agent is None or owner == agent]
+        chunk_files = {
+            p: meta
+            for p, meta in files.chunk_files.items()
+            if (agent is None or meta["base"]["agent"] == agent)
+            and all(meta["base"]["labels"].get(k) == v for k, v in (labels or {}).items())
+        }
+        for json_part, chunk_part in file_parts(run_files, chunk_files, runs_per_part):
+            runs, data = read_folder(json_part, chunk_part, wanted, self.root)
+            named = [c for c in runs.columns if c not in RUN_COLUMNS]
+            yield runs, episode_table(runs, data, ["run_id", "agent", *(["seed"] if seed else []), *named])
+
     def episodes_frame(self, columns: Sequence[str] | None = None) -> pd.DataFrame:
         """The episode table of ``results``."""
         return self.results(columns)[1]

@@ -116,7 +116,7 @@ def agents_section(ctx: ReportContext) -> None:
 
 def _hunter_dirs(ctx: ReportContext) -> list[Path]:
     dirs = [ctx.root / name for name in HUNTER_FOLDERS if (ctx.root / name / "runs").is_dir()]
-    if "team" in ctx.episodes.columns or (ctx.paper.runs.algo == "team").any():  # a single folder of team runs
+    if "team" in ctx.paper.runs.columns or (ctx.paper.runs.algo == "team").any():  # a single folder of team runs
         dirs.append(ctx.paper.folder)
     return dirs
 
@@ -248,9 +248,9 @@ def build_report(
     (out / "tables").mkdir(parents=True, exist_ok=True)
     (out / "figures").mkdir(parents=True, exist_ok=True)
     results = load_results(paper_dir)
-    if results.episodes.empty:
+    if not len(results.runs) or not int(results.runs.episodes.sum()):
         raise ValueError(f"{paper_dir / 'runs'} holds no finished runs")
-    metrics = run_metrics(results.episodes, results.runs)
+    metrics = results.metrics()  # part by part: one part's episode rows in memory at a time
     meta = largen.large_meta(run_dir)
     large = pd.read_csv(run_dir / "large" / "runs.csv.gz") if meta else None
     ctx = ReportContext(

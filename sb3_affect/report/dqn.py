@@ -10,7 +10,7 @@ import pandas as pd
 from sb3_affect.report import figures
 from sb3_affect.report.context import AFFECTIVE, STANDARD, ReportContext
 from sb3_affect.report.document import fmt
-from sb3_affect.report.metrics import load_results, plain_labels, rows_where, run_metrics
+from sb3_affect.report.metrics import load_results, plain_labels, run_metrics
 from sb3_affect.report.stats import bootstrap_ci
 
 
@@ -18,16 +18,19 @@ def learning_curves_section(ctx: ReportContext) -> None:
     if not ctx.has_paper_agents:
         return
     ctx.doc.h("Learning curves")
-    e = ctx.episodes
-    curve = ("episode", "decisions")  # each group's two columns only
-    standard = e.agent == STANDARD
     m = ctx.metrics
-    groups = [  # the ε values from the run table: a boolean index of a categorical column would copy it
-        (f"ε-greedy ε={fmt(eps, 1)}", rows_where(e, standard & (e.epsilon == eps), curve))
+
+    def curve(agent: str, labels: dict[str, float] | None = None) -> tuple[np.ndarray, list[np.ndarray]]:
+        """A group's curve from its two columns only (quantiles: the rows' order does not matter)."""
+        data = ctx.paper.agent_columns(agent, ("episode", "decisions"), labels)
+        return figures.episode_quantiles(data["episode"], data["decisions"])
+
+    groups: list[tuple[str, tuple[np.ndarray, list[np.ndarray]]]] = [  # the ε values from the run table
+        (f"ε-greedy ε={fmt(eps, 1)}", curve(STANDARD, {"epsilon": eps}))
         for eps in sorted(m.epsilon[(m.agent == STANDARD) & (m.episodes > 0)].unique())
     ]
-    groups.append((AFFECTIVE, rows_where(e, e.agent == AFFECTIVE, curve)))
-    path = figures.learning_curves(e, ctx.figure("learning_curves"), "Steps per episode over episodes", groups)
+    groups.append((AFFECTIVE, curve(AFFECTIVE)))
+    path = figures.learning_curves(pd.DataFrame(), ctx.figure("learning_curves"), "Steps per episode over episodes", groups)
     ctx.doc.img(path, "Decisions per episode over episodes: median over runs and quartile band (log scale)")
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from pathlib import Path
 
 import matplotlib
@@ -177,13 +178,26 @@ def episode_quantiles(
     return episodes, out
 
 
-def learning_curves(episodes: pd.DataFrame, path: Path, title: str, groups: list[tuple[str, pd.DataFrame]]) -> Path:
-    """Decisions per episode over episodes: median over runs with the quartile band, one line per group."""
+def curve_of(data: pd.DataFrame) -> tuple[np.ndarray, list[np.ndarray]]:
+    """A group's learning curve (``episode_quantiles`` of its decisions per episode): a group of ``learning_curves``."""
+    return episode_quantiles(data.episode.to_numpy(), data.decisions.to_numpy())
+
+
+def learning_curves(
+    episodes: pd.DataFrame,
+    path: Path,
+    title: str,
+    groups: Sequence[tuple[str, pd.DataFrame | tuple[np.ndarray, list[np.ndarray]]]],
+) -> Path:
+    """
+    Decisions per episode over episodes: median over runs with the quartile band, one line per group (its episode
+    rows, or its curve: ``curve_of`` them).
+    """
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
     others = [label for label, _ in groups if label not in COLOURS]
     palette = distinct(len(others))
     for label, data in groups:
-        numbers, (q25, median, q75) = episode_quantiles(data.episode.to_numpy(), data.decisions.to_numpy())
+        numbers, (q25, median, q75) = data if isinstance(data, tuple) else curve_of(data)
         own = label in COLOURS
         colour = COLOURS[label] if own else palette[others.index(label)]
         style = "-" if own else STYLES[others.index(label) % len(STYLES)]

@@ -11,7 +11,7 @@ import pandas as pd
 from sb3_affect.report import figures
 from sb3_affect.report.context import AFFECTIVE, ReportContext
 from sb3_affect.report.document import fmt, sig
-from sb3_affect.report.metrics import EMOTIONS, profile, rows_where, window_mean
+from sb3_affect.report.metrics import EMOTIONS, profile, window_mean
 
 #: An episode longer than this many decisions is "long" (the shortest path is 12 cells, 6 to 12 decisions).
 LONG = 20
@@ -114,15 +114,29 @@ def bimodality(episodes: pd.DataFrame, first: int = SETTLED[0], last: int = SETT
     return out
 
 
+#: Episode numbers per part of ``agent_profile`` (the profile is per episode number: parts give the same numbers).
+PROFILE_EPISODES = 50
+
+
+def agent_profile(ctx: ReportContext, agent: str, last: int) -> pd.DataFrame:
+    """``profile`` of ``agent``'s episodes, ``PROFILE_EPISODES`` episode numbers at a time (a few columns in memory)."""
+    columns = ("episode", "decisions", *EMOTIONS, "random_moves")
+    parts = [
+        profile(ctx.paper.agent_episodes(agent, columns, lo, lo + PROFILE_EPISODES - 1))
+        for lo in range(1, last + 1, PROFILE_EPISODES)
+    ]
+    return pd.concat(parts) if len(parts) > 1 else parts[0]
+
+
 def mechanism_section(ctx: ReportContext) -> None:
     """Bimodal episodes, the meaning of equivalent epsilon, and Fig. 5 under both weightings."""
     ctx.doc.h("Why the affective agent behaves as it does")
-    aff = rows_where(ctx.episodes, ctx.episodes.agent == AFFECTIVE) if len(ctx.episodes) else ctx.episodes
-    if aff.empty:
+    last = ctx.paper.last_episode(AFFECTIVE)
+    if not last:
         ctx.doc.p("Skipped: no affective runs.")
         return
-    last = int(aff.episode.max())
     first = SETTLED[0] if last >= SETTLED[1] else max(1, last // 4)
+    aff = ctx.paper.agent_episodes(AFFECTIVE, ("episode", "decisions", "joy"), first, last)  # the settled window only
     b = bimodality(aff, first, last)
 
     def ci(key: str, digits: int = 3) -> str:
@@ -169,7 +183,8 @@ def mechanism_section(ctx: ReportContext) -> None:
     )
     joy_section(ctx)
     ctx.doc.h("Fig. 5 under both weightings", 3)
-    prof = profile(aff)
+    del aff
+    prof = agent_profile(ctx, AFFECTIVE, last)
     prof.to_csv(ctx.out / "tables" / "profile_per_episode.csv")
     rows = {}
     for lo, hi in (w for w in WINDOWS if w[1] <= last):  # a short folder shows only the windows its runs reach

@@ -11,8 +11,8 @@ from __future__ import annotations
 
 import math
 import warnings
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Iterator, Sequence
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -26,23 +26,183 @@ EARLY, LATE = (1, 10), (181, 200)
 REPORT_COLUMNS = ("episode", "decisions", "cells", "optimal", "truncated", "random_moves", *EMOTIONS, "greedy_optimal")
 
 
+#: Runs read at a time by the chunk-wise readers (``Results.metrics``, ``Results.parts``): about 2 M episode rows.
+RUNS_PER_PART = 10_000
+
+
 @dataclass
 class Results:
     """
-    A results folder's finished runs.
+    A results folder's finished runs: the run table at once, the episode rows when asked for.
 
     :param folder: the results folder
-    :param episodes: one row per episode: ``run_id``, ``agent`` and one column per label (categoricals), then the
-        episode columns read (``REPORT_COLUMNS``: int32 counts, bool flags, float64 ``random_moves``); runs in run id
-        order, each run's episodes together and in order
     :param runs: one row per finished run, sorted by run id (``ResultsStore.runs_frame``: ``run_id``, ``agent``,
         ``algo``, ``seed``, the labels, ``decisions`` (every decision, an unfinished last episode included),
         ``episodes``, ``wall_seconds``, ``max_timesteps``)
+    :param columns: the episode columns read (default ``REPORT_COLUMNS``)
+
+    ``episodes`` is every episode row at once (read on first use, then kept): one row per episode, ``run_id``,
+    ``agent`` and one column per label (categoricals), then the episode columns (int32 counts, bool flags, float64
+    ``random_moves``); runs in run id order, each run's episodes together and in order. A large folder is read
+    a part at a time instead: ``metrics`` (the per-run metrics, part by part) and ``agent_episodes`` (one agent's
+    rows, only the columns asked for).
     """
 
     folder: Path
-    episodes: pd.DataFrame
     runs: pd.DataFrame
+    columns: tuple[str, ...] = REPORT_COLUMNS
+    files: Any = None
+    _episodes: pd.DataFrame | None = field(default=None, repr=False)
+
+    @property
+    def episodes(self) -> pd.DataFrame:
+        if self._episodes is None:
+            self._episodes = next(iter(self.parts(self.columns)))[1]
+        return self._episodes
+
+    def parts(
+        self,
+        columns: Sequence[str],
+        agent: str | None = None,
+        runs_per_part: int | None = None,
+        labels: dict[str, Any] | None = None,
+    ) -> Iterator[tuple[pd.DataFrame, pd.DataFrame]]:
+        """
+        ``(runs, episodes)`` of ``agent``'s runs (None: every run), about ``runs_per_part`` runs at a time (``labels``:
+        at least the runs with these label values; their chunks only).
+        """
+        from sb3_affect.experiments.store import ResultsStore
+
+        store = ResultsStore(self.folder)
+        if self.files is None:
+            self.files = store.checked_files()
+        yield from store.results_parts(columns, False, agent, runs_per_part, self.files, labels)
+
+    def agent_episodes(
+        self,
+        agent: str,
+        columns: Sequence[str],
+        first: int | None = None,
+        last: int | None = None,
+        labels: dict[str, Any] | None = None,
+    ) -> pd.DataFrame:
+        """
+        The rows of ``episodes`` of ``agent``'s runs whose episode is within ``first..last`` (None: no bound), with
+        ``run_id``, ``agent``, the labels and ``columns`` only, in the same order; read ``RUNS_PER_PART`` runs at a
+        time, so only the rows kept are held (``run_id``: a categorical of the runs kept, in run id order).
+        ``labels``: only the runs with these label values.
+        """
+        wanted = tuple(dict.fromkeys(("episode", *columns)))
+        pieces: list[dict[str, Any]] = []
+        for _, part in self.parts(wanted, agent, RUNS_PER_PART, labels):
+            episode = part.episode.to_numpy()
+            keep = np.ones(len(part), bool) if first is None else episode >= first
+            if last is not None:
+                keep &= episode <= last
+            for key, value in (labels or {}).items():
+                keep &= np.asarray(part[key] == value) if key in part.columns else False
+            rows = None if keep.all() else np.flatnonzero(keep)
+            piece: dict[str, Any] = {}
+            for name in part.columns:
+                if name in wanted and name not in columns:
+                    continue
+                values = part[name]
+                if isinstance(values.dtype, pd.CategoricalDtype):  # codes and categories: no object per row
+                    codes = values.cat.codes.to_numpy()
+                    piece[name] = (codes if rows is None else codes[rows], values.cat.categories)
+                else:
+                    array = values.to_numpy()
+                    piece[name] = array if rows is None else array[rows]
+            pieces.append(piece)
+            del part
+        if not pieces:
+            return pd.DataFrame()
+        names = list(pieces[0])
+        run_id = _joined([piece["run_id"] for piece in pieces])
+        order = np.argsort(run_id.codes, kind="stable")  # run id order (sorted categories), episodes kept in order
+        del run_id
+        frame = pd.DataFrame(index=pd.RangeIndex(len(order)))
+        for name in names:  # one column joined at a time, its pieces let go
+            joined = _joined([piece.pop(name) for piece in pieces])
+            if isinstance(joined, pd.Categorical):
+                column = pd.Categorical.from_codes(joined.codes[order], dtype=joined.dtype)
+                frame[name] = column.remove_unused_categories() if name == "run_id" else column
+            else:
+                frame[name] = joined[order]
+            del joined
+        return frame
+
+    def agent_columns(self, agent: str, columns: Sequence[str], labels: dict[str, Any] | None = None) -> dict[str, np.ndarray]:
+        """
+        ``columns`` of ``agent``'s episode rows (``labels``: of the runs with these label values) as arrays, in no
+        particular order (for reductions that do not depend on it: counts, quantiles), read a part at a time.
+        """
+        pieces: dict[str, list[np.ndarray]] = {name: [] for name in columns}
+        for _, part in self.parts(tuple(columns), agent, RUNS_PER_PART, labels):
+            keep = np.ones(len(part), bool)
+            for key, value in (labels or {}).items():
+                keep &= np.asarray(part[key] == value) if key in part.columns else False
+            for name in columns:
+                values = part[name].to_numpy()
+                pieces[name].append(values if keep.all() else values[keep])
+            del part
+        return {name: np.concatenate(arrays) if arrays else np.zeros(0) for name, arrays in pieces.items()}
+
+    def last_episode(self, agent: str) -> int:
+        """The largest episode number of ``agent``'s runs (0: none)."""
+        parts = self.parts(("episode",), agent, RUNS_PER_PART)
+        return max((int(part.episode.max()) for _, part in parts if len(part)), default=0)
+
+    def metrics(
+        self, agent: str | None = None, windows: Sequence[tuple[int, int]] = (EARLY, LATE), with_runs: bool = True
+    ) -> pd.DataFrame:
+        """
+        ``run_metrics`` of the folder's runs (``agent``'s only, when given), computed ``RUNS_PER_PART`` runs at a
+        time: the same table as ``run_metrics(episodes, runs)`` (``with_runs``; else ``run_metrics(episodes)``), with
+        one part's episode rows in memory at a time.
+        """
+        columns = tuple(dict.fromkeys((*self.columns, *_METRIC_COLUMNS)))
+        frames = [
+            run_metrics(episodes, runs if with_runs else None, windows)
+            for runs, episodes in self.parts(columns, agent, RUNS_PER_PART)
+        ]
+        return join_parts(frames)
+
+
+def _joined(pieces: list[Any]) -> Any:
+    """Arrays joined end to end; ``(codes, categories)`` pieces as one categorical over their sorted categories."""
+    if not isinstance(pieces[0], tuple):
+        return np.concatenate(pieces)
+    categories = pieces[0][1]
+    for _, more in pieces[1:]:
+        categories = categories.union(more)
+    categories = categories.sort_values()
+    codes = np.concatenate([np.where(c >= 0, categories.get_indexer(cats)[c], -1).astype(np.int32) for c, cats in pieces])
+    return pd.Categorical.from_codes(codes, categories=categories)
+
+
+#: The episode columns ``run_metrics`` reads.
+_METRIC_COLUMNS = ("episode", "decisions", "cells", "optimal", "truncated", "random_moves", *EMOTIONS, "greedy_optimal")
+
+
+def join_parts(frames: Sequence[pd.DataFrame]) -> pd.DataFrame:
+    """
+    Per-run tables of parts of a folder (``run_metrics`` of each part) as one, in ``run_metrics``'s order: the runs
+    with episodes by run id, then those without any (``episodes == 0``) by run id.
+    """
+    frames = [f for f in frames if len(f.columns)]
+    if not frames:
+        return pd.DataFrame()
+    if len(frames) == 1:
+        return frames[0]
+    order = next((list(f.columns) for f in frames if "first_optimal" in f.columns), list(frames[0].columns))
+    with warnings.catch_warnings():  # parts without a column (no runs without episodes) are expected
+        warnings.simplefilter("ignore", FutureWarning)
+        out = pd.concat(frames, ignore_index=True)
+    out = out[order + [c for c in out.columns if c not in order]]
+    empty = (out.episodes == 0).to_numpy() if "first_optimal" in out.columns else np.zeros(len(out), bool)
+    rank = np.lexsort((out.run_id.to_numpy(dtype=object).astype(str), empty))
+    return out.iloc[rank].reset_index(drop=True)
 
 
 def load_run_records(run_dir: str | Path) -> list[dict[str, Any]]:
@@ -67,13 +227,17 @@ def load_results(run_dir: Path, columns: Sequence[str] = REPORT_COLUMNS) -> Resu
     The finished runs of ``run_dir`` (Parquet chunks, one JSON file per run, or both) as a ``Results``: the report's
     one loader.
 
-    Read column-wise by ``ResultsStore.results``: only ``columns``, each allocated once at its final size, no Python
-    object per run or episode (about 40 bytes an episode with the default columns: 1.5 GB for 36 M episodes).
+    The run table is read at once (the chunks' footers and ``run`` column); the episode columns (only ``columns``, read
+    column-wise by ``ResultsStore.results_parts``, each allocated once at its final size) when a section asks: all of
+    them (``Results.episodes``: about 40 bytes an episode, 1.5 GB for 36 M episodes), or a part at a time.
     """
+    from sb3_affect.experiments.reading import read_folder
     from sb3_affect.experiments.store import ResultsStore
 
-    runs, episodes = ResultsStore(run_dir).results(columns, seed=False)
-    return Results(Path(run_dir), episodes, runs)
+    store = ResultsStore(run_dir)
+    files = store.checked_files()
+    runs = read_folder(list(files.run_files), list(files.chunk_files), (), Path(run_dir))[0]  # episodes: counted
+    return Results(Path(run_dir), runs, tuple(columns), files)
 
 
 def episodes_frame(runs: list[dict[str, Any]]) -> pd.DataFrame:

@@ -15,7 +15,6 @@ from sb3_affect.report import claims
 from sb3_affect.report.claims_emotions import judge_fig5, judge_fig6
 from sb3_affect.report.context import AFFECTIVE, ReportContext
 from sb3_affect.report.inference import holm, mean_ci
-from sb3_affect.report.metrics import rows_where, run_metrics
 
 EARLY_WINDOWS = ((1, 5), (1, 10), (1, 20), (11, 30))
 LATE_WINDOWS = ((151, 200), (181, 200), (191, 200))
@@ -45,12 +44,11 @@ def window_verdicts(aff: pd.DataFrame) -> pd.DataFrame:
 
 
 def windows_section(ctx: ReportContext) -> None:
-    if ctx.verdict_refusal() or not len(ctx.episodes):
+    if ctx.verdict_refusal():
         return
-    episodes = rows_where(ctx.episodes, ctx.episodes.agent == AFFECTIVE)
-    if episodes.empty or int(episodes.episode.max()) < max(w[1] for w in LATE_WINDOWS):
+    if ctx.paper.last_episode(AFFECTIVE) < max(w[1] for w in LATE_WINDOWS):
         return
-    aff = run_metrics(episodes, windows=(*EARLY_WINDOWS, *LATE_WINDOWS))
+    aff = ctx.paper.metrics(AFFECTIVE, windows=(*EARLY_WINDOWS, *LATE_WINDOWS), with_runs=False)  # part by part
     ctx.doc.h("Fig. 5 against Fig. 6, and the windows", 3)
     ctx.doc.p(
         "With only joy and anger possible, an episode's joy share is its equivalent ε. So Fig. 6's \"about 0.3\" early "
