@@ -104,8 +104,8 @@ def env_reason(env: Any) -> str | None:
     base, wrappers = unwrap(env)
     if type(base) is MovingPursuitEnv:
         return (
-            "MovingPursuit's prey draws from the env's NumPy generator, which the kernel does not reproduce "
-            "(the Python engine runs it)"
+            "MovingPursuit runs on its own kernel in simulate (sb3_affect.kernel.moving); learn steps it on the "
+            "Python loop"
         )
     if type(base) not in (GridPursuitEnv, MazePursuitEnv):
         return f"the env {type(base).__name__} is not one of the package's own grid envs (GridPursuit, MazePursuit)"
