@@ -71,6 +71,11 @@ class TeamRun(NamedTuple):
     pcg: np.ndarray
     dist: np.ndarray
 
+    @property
+    def decisions(self) -> int:
+        """Decisions of all hunters (each hunter takes one per round)."""
+        return int(self.out_i[:, :, team.O_DECISIONS].sum())
+
 
 def team_inputs(agents: Sequence[Any], env: Any, episodes: int) -> TeamInputs | str:
     """
@@ -260,3 +265,14 @@ def team_columns(inputs: TeamInputs, run: TeamRun) -> dict[str, list[Any]]:
         for name, index in BROEKENS_OUT:
             columns[f"{agent}/broekens_{name}"] = _plain(run.out_f[m, :, index])
     return columns
+
+
+def warm_up() -> None:
+    """Load (the first time on a machine: compile) the team kernel, on a 3 x 3 grid with two hunters of each family."""
+    from sb3_affect.envs.hunter_pursuit import HunterPursuitEnv
+    from sb3_affect.settings import AffectQSettings, QLearningSettings
+
+    env = HunterPursuitEnv(size=3, starts=[(0, 0), (2, 2)], prey_start=(1, 1))
+    inputs = team_inputs([AffectQSettings(), QLearningSettings()], env, 1)
+    assert not isinstance(inputs, str), inputs
+    run_team(inputs, 0, 1)
