@@ -222,7 +222,7 @@ def hunter_columns(inputs: TeamInputs, run: TeamRun, m: int) -> dict[str, list[A
         "reward": floats[:, team.F_REWARD].tolist(),
         "optimal": ints[:, team.O_OPTIMAL].astype(bool).tolist() if geometry else nan,
         "truncated": ints[:, team.O_TRUNCATED].astype(bool).tolist(),
-        "random_moves": ints[:, team.O_RANDOM].tolist(),
+        "random_moves": ints[:, team.O_RANDOM].astype(np.float64).tolist(),
         "waits": ints[:, team.O_WAITS].tolist(),
         "joy": ints[:, team.O_JOY].tolist(),
         "sadness": ints[:, team.O_SADNESS].tolist(),

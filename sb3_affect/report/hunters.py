@@ -24,14 +24,24 @@ BASELINE = "epsilon-greedy"
 LATE = 20  # the last episodes, for "after learning"
 
 
+#: The last ``team_runs`` answer, by the files it read (their names, sizes and modification times): the report's two
+#: sections on the same runs read them once.
+_LAST: dict[tuple[Any, ...], list[dict[str, Any]]] = {}
+
+
 def team_runs(run_dirs: Sequence[str | Path]) -> list[dict[str, Any]]:
     """Every finished team run (a run file whose config has ``team``) of the folders (``DIR/runs/*.json``)."""
+    paths = [path for folder in run_dirs for path in sorted((Path(folder) / "runs").glob("[!.]*.json"))]
+    key = tuple((str(path), path.stat().st_mtime_ns, path.stat().st_size) for path in paths)
+    if key in _LAST:
+        return _LAST[key]
     runs = []
-    for folder in run_dirs:
-        for path in sorted((Path(folder) / "runs").glob("[!.]*.json")):
-            record = json.loads(path.read_text())
-            if record.get("status", "ok") == "ok" and "team" in record.get("config", {}):
-                runs.append(record)
+    for path in paths:
+        record = json.loads(path.read_bytes())
+        if record.get("status", "ok") == "ok" and "team" in record.get("config", {}):
+            runs.append(record)
+    _LAST.clear()
+    _LAST[key] = runs
     return runs
 
 
