@@ -18,12 +18,12 @@ PARTS = (
     ("hunters_moving", "two hunters, moving prey (issue 16)"),
 )
 #: Sizes of the engine studies (seeds per cell; episodes per run), read when ``main`` runs.
-LARGE_SEEDS, ABLATION_SEEDS, BEYOND_SEEDS, ENGINE_EPISODES = 1000, 20, 10, 200
+LARGE_SEEDS, ABLATION_SEEDS, BEYOND_SEEDS, ENGINE_EPISODES = 1000, 20, 1000, 200
 #: Engine studies: (results folder, description), for the help.
 STUDIES = (
     ("large", "the paper's 18 cells and the speed-matched ε-greedy at 1,000 seeds per cell (engine)"),
     ("ablation_engine", "the 8 readings of the appraisal x 9 ε x 20 seeds (engine)"),
-    ("beyond", "moving prey, evading prey and mazes, 10 seeds (engine)"),
+    ("beyond", "moving prey, evading prey and mazes, 1,000 seeds (engine)"),
 )
 
 

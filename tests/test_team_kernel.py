@@ -49,8 +49,9 @@ CASES: list[tuple[str, list[tuple[str, dict[str, Any]]], dict[str, Any], int]] =
     ("surround-static", [AFFECT, EPS], {**SMALL, "capture": "surround", "max_cycles": 150}, 6),
     ("surround-evade-three", [AFFECT, EPS, AFFECT], {**THREE, "prey": "evade", "capture": "surround", "max_cycles": 60}, 6),
     ("all-static", [AFFECT, AFFECT], {**SMALL, "observation": "all"}, 6),
-    ("all-random-three", [AFFECT, EPS, EPS], {**THREE, "size": 5, "prey_start": (2, 2), "prey": "random",
-                                              "observation": "all", "max_cycles": 80}, 5),
+    ("all-random", [AFFECT, EPS], {"size": 5, "starts": [(0, 0), (4, 4)], "prey_start": (2, 2), "prey": "random",
+                                   "observation": "all", "max_cycles": 80}, 5),
+    ("all-three", [AFFECT, EPS, AFFECT], {**THREE, "observation": "all", "max_cycles": 80}, 5),
     ("random-three", [EPS, AFFECT, EPS], {**THREE, "prey": "random"}, 8),
     ("obstacles-rewards", [AFFECT, EPS], {**SMALL, "obstacles": [(1, 1), (2, 2), (4, 3)], "goal_reward": 50.0,
                                           "step_reward": -1.0}, 8),
@@ -125,3 +126,16 @@ def test_team_sweeps_run_in_team_batches(tmp_path: Path) -> None:
     config = record["config"]
     assert record["episodes"] == execute_run(config)["episodes"]
     assert team_settings_inputs([("AffectQ", {"device": "cpu"}), EPS], HUNTER_PURSUIT_ID, {}, 5) is None  # a model's
+
+
+def test_teams_whose_known_maps_would_not_fit_run_on_the_python_team() -> None:
+    """Three affective hunters observing all cells and a moving prey: 25**4 observations, known maps over 1 GB."""
+    env_kwargs = {"size": 5, "starts": [(0, 0), (4, 4), (0, 4)], "prey_start": (2, 2), "prey": "random", "observation": "all"}
+    members = [AFFECT, AFFECT, AFFECT]
+    assert team_settings_inputs(members, HUNTER_PURSUIT_ID, env_kwargs, 2) is None
+    config = {
+        "agent": "a", "algo": "team", "algo_kwargs": {}, "env_id": HUNTER_PURSUIT_ID, "env_kwargs": env_kwargs,
+        "episodes": 2, "labels": {}, "max_timesteps": None, "seed": 1, "sweep": "t",
+        "team": [{"algo": a, "kwargs": k} for a, k in members],
+    }  # fmt: skip
+    assert len(execute_run(config)["episodes"]["decisions"]) == 2
