@@ -30,6 +30,7 @@ $(STAMP): pyproject.toml
 test: venv
 	$(PY) -m ruff check .
 	$(PY) -m mypy
+	$(VENV)/bin/lint-imports --no-logo
 	$(MAKE) --no-print-directory docs
 	$(PY) -m pytest -q
 

@@ -1,0 +1,59 @@
+"""
+The package's layers (docs/architecture.md). `lint-imports` (the `.importlinter` contracts, run by `make test`) checks
+the imports between the modules of ``sb3_affect``; these tests check what it can not see: the envs, which live in the
+top-level ``envs/`` folder, and what importing the core costs.
+"""
+
+from __future__ import annotations
+
+import ast
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+#: The core: what an agent is made of, importable without torch, numba or pandas.
+CORE = (
+    "sb3_affect.appraisal",
+    "sb3_affect.emotions",
+    "sb3_affect.behaviour",
+    "sb3_affect.personalities",
+    "sb3_affect.goals",
+    "sb3_affect.settings",
+    "sb3_affect.registry",
+    "sb3_affect.validation",
+    "sb3_affect.episode_log",
+    "sb3_affect.envs",
+)
+
+
+def _imported_modules(path: Path) -> set[str]:
+    names: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            names.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module and not node.level:
+            names.add(node.module)
+    return names
+
+
+@pytest.mark.parametrize("path", sorted((ROOT / "envs").glob("*.py")), ids=lambda p: p.name)
+def test_envs_import_nothing_of_the_package_but_the_envs(path: Path) -> None:
+    ours = {name for name in _imported_modules(path) if name.split(".")[0] == "sb3_affect"}
+    assert all(name.startswith("sb3_affect.envs") for name in ours), f"{path.name} imports {sorted(ours)}"
+
+
+def test_the_core_imports_no_torch_numba_pandas_or_study_module() -> None:
+    code = f"""
+import json, sys
+for name in {list(CORE)!r}:
+    __import__(name)
+heavy = ("torch", "stable_baselines3", "numba", "pandas")
+study = ("sb3_affect.experiments", "sb3_affect.report", "sb3_affect.forensics", "sb3_affect.kernel", "sb3_affect.tabular")
+print(json.dumps(sorted(m for m in sys.modules if m in heavy or m.startswith(study))))
+"""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT)
+    assert json.loads(out.stdout) == []
