@@ -136,12 +136,16 @@ def simulate_columns(
             inputs = batch_inputs(template, template._single_env(), episodes)
             env.close()
             return _batch_frame(inputs, seeds, episodes)
-        from sb3_affect.kernel.prey_batch import moving_batch_reason, moving_columns, moving_inputs
+        from sb3_affect.kernel.prey_batch import moving_batch_reason, moving_columns, moving_inputs, moving_reason
 
-        if moving_batch_reason(template) is None:  # MovingPursuit: the moving-prey kernel
-            prey_inputs = moving_inputs(template, template._single_env(), episodes)
-            env.close()
-            return pd.DataFrame(moving_columns(prey_inputs, seeds, episodes)) if seeds else _batch_frame(None, seeds, episodes)
+        if moving_reason(template._single_env()) is None:  # MovingPursuit: the moving-prey kernel, or why not
+            reason = moving_batch_reason(template)
+            if reason is None:
+                prey_inputs = moving_inputs(template, template._single_env(), episodes)
+                env.close()
+                if not seeds:
+                    return _batch_frame(None, seeds, episodes)
+                return pd.DataFrame(moving_columns(prey_inputs, seeds, episodes))
         env.close()
         if engine == "compiled" or own == "compiled":
             raise ValueError(f"engine='compiled' can not run this simulation: {reason}")
