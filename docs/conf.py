@@ -54,7 +54,7 @@ _EXTERNAL = (
 nitpick_ignore_regex = [
     (r"py:.*", _EXTERNAL + r"(\..*)?"),
     (r"py:class", r"sb3_affect\.tabular\.SelfTabular"),  # the TypeVar of ``load`` (SB3's convention)
-    (r"py:class", r"SelfAffectQ"),  # the TypeVar of ``AffectQ.learn`` (SB3's convention)
+    (r"py:class", r"(sb3_affect\.affectq\.)?SelfAffectQ"),  # the TypeVar of ``AffectQ.learn`` (SB3's convention)
     # internal types named in public signatures (a report section's context, a sweep's cell): described in interfaces
     (r"py:class", r"sb3_affect\.(report\.context\.ReportContext|experiments\.schema\.Cell)"),
     (r"py:.*", r"(collections\.abc|typing|pathlib|enum|types|os|argparse|io)\..*"),

@@ -8,6 +8,7 @@ from sb3_affect.envs.grid_pursuit import ACTION_NAMES, MOVES, GridPursuitEnv, bu
 from sb3_affect.envs.maze import Maze, MazeError, load_maze, maze_kwargs, parse_maze, shipped_mazes
 from sb3_affect.envs.maze_pursuit import MazePursuitEnv
 from sb3_affect.envs.moving_pursuit import MovingPursuitEnv
+from sb3_affect.envs.transition_table import TransitionTable
 
 GRID_PURSUIT_ID = "sb3_affect/GridPursuit-v0"
 MOVING_PURSUIT_ID = "sb3_affect/MovingPursuit-v0"
@@ -55,6 +56,7 @@ __all__ = [
     "MazeError",
     "MazePursuitEnv",
     "MovingPursuitEnv",
+    "TransitionTable",
     "build_transitions",
     "distances_to",
     "load_maze",

@@ -10,6 +10,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from sb3_affect.envs.transition_table import TransitionTable
+
 # The one place that defines the moves. Every agent, test and fast path uses these.
 UP, DOWN, LEFT, RIGHT = 0, 1, 2, 3
 MOVES: tuple[tuple[int, int], ...] = ((-1, 0), (1, 0), (0, -1), (0, 1))
@@ -164,6 +166,12 @@ class GridPursuitEnv(gym.Env[Any, Any]):
         self.observation_space = spaces.Discrete(self.size * self.size)
         self.action_space = spaces.Discrete(len(MOVES))
         self.state = self.start_state
+
+    def transition_table(self) -> TransitionTable:
+        """The env's moves as a table (``sb3_affect.envs.transition_table``): what lets the compiled engine step it."""
+        return TransitionTable(
+            self.transitions, self.distances, self.start_state, self.goal_state, self.goal_reward, self.step_reward, self.size
+        )
 
     # -- helpers ---------------------------------------------------------------------------------------------
     def to_state(self, cell: Sequence[int]) -> int:

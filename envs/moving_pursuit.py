@@ -153,6 +153,13 @@ class MovingPursuitEnv(gym.Env[Any, Any]):
         """An episode that captured the prey within ``capture_distance`` cells (see the class docstring)."""
         return bool(captured) and int(cells) <= self.capture_distance
 
+    def transition_table(self) -> str:
+        """Why this env has no transition table (``sb3_affect.envs.transition_table``) for the compiled engine."""
+        return (
+            "MovingPursuit's prey moves at random, so its moves are no fixed transition table: learn runs it on the "
+            "Python loop (simulate on the moving-prey kernel)"
+        )
+
     def _distances(self) -> list[list[float]]:
         if self._pair_distances is None:
             self._pair_distances = [distances_to(c, self.cell_transitions) for c in range(self.n_cells)]

@@ -6,15 +6,18 @@ from collections.abc import Mapping
 from typing import Any, TypeVar
 
 import numpy as np
+from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, Schedule
 
+from sb3_affect.appraisal import Appraiser
 from sb3_affect.behaviour import Behaviour
 from sb3_affect.callbacks import EmotionCallback
 from sb3_affect.emotions import Emotion
+from sb3_affect.episode_log import COLUMN
 from sb3_affect.goals import GoalTest
 from sb3_affect.personalities import PersonalityAppraiser
 from sb3_affect.policies import TabularQPolicy, greedy_action
-from sb3_affect.settings import AffectQSettings, check_affect
+from sb3_affect.settings import AffectQSettings, TabularSettings, check_affect
 from sb3_affect.tabular import TabularQAlgorithm
 
 _S = AffectQSettings  # the defaults (one source: ``sb3_affect.settings``)
@@ -173,9 +176,20 @@ class AffectQ(TabularQAlgorithm):
         :param progress_bar: show a progress bar (tqdm and rich)
         :return: the trained model
         """
-        assert self.emotion_callback is not None
-        self.emotion_callback.init_callback(self)
         return super().learn(total_timesteps, callback, log_interval, tb_log_name, reset_num_timesteps, progress_bar)
+
+    def _start_learn(
+        self,
+        total_timesteps: int,
+        callback: MaybeCallback,
+        reset_num_timesteps: bool,
+        tb_log_name: str | None,
+        progress_bar: bool,
+        new_episode: bool,
+    ) -> tuple[int, BaseCallback]:
+        assert self.emotion_callback is not None
+        self.emotion_callback.init_callback(self)  # bound to this model for logging
+        return super()._start_learn(total_timesteps, callback, reset_num_timesteps, tb_log_name, progress_bar, new_episode)
 
     def _new_run(self) -> None:
         assert self.emotion_callback is not None and self.emotion_callback.appraiser is not None
@@ -208,7 +222,40 @@ class AffectQ(TabularQAlgorithm):
 
     def _exploration_value(self) -> float:
         rows = self._episode_rows
-        return rows[-1][6] / rows[-1][1] if rows else 1.0
+        return rows[-1][COLUMN["random_moves"]] / rows[-1][COLUMN["decisions"]] if rows else 1.0
+
+    # -- the compiled engine ---------------------------------------------------------------------------------------
+    def compiled_settings(self) -> TabularSettings | str:
+        """
+        ``TabularQAlgorithm.compiled_settings``, with the appraisal and the behaviour the model runs: those of its
+        emotion callback and appraiser (the package's ``EmotionCallback`` with a Table II rule, and an ``Appraiser``
+        or ``PersonalityAppraiser``; the kernel can not call the hooks of others).
+        """
+        settings = super().compiled_settings()
+        if isinstance(settings, AffectQSettings):
+            appraiser = self.emotion_callback.appraiser  # type: ignore[union-attr]
+            settings.norm_scale = float(getattr(appraiser, "norm_scale", 1.0))
+        return settings
+
+    def _settings_values(self) -> dict[str, Any] | str:
+        callback = self.emotion_callback
+        if type(callback) is not EmotionCallback:
+            return f"the emotion callback is a {type(callback).__name__}, whose hooks the kernel can not call"
+        comparison = getattr(callback.emotion_rule, "table_ii_comparison", None)
+        if comparison is None:
+            return "the emotion callback has a custom emotion_rule, which the kernel can not call"
+        appraiser = callback.appraiser
+        if appraiser is None or type(appraiser) not in (Appraiser, PersonalityAppraiser):
+            return f"the appraiser is a {type(appraiser).__name__}, which the kernel can not call"
+        values = super()._settings_values()
+        assert isinstance(values, dict)
+        values.update(
+            comparison=comparison,
+            act=appraiser.act_mode,
+            units=appraiser.units,
+            behaviour_table=dict(zip(Emotion, self._behaviour)),
+        )
+        return values
 
     def predict(
         self,

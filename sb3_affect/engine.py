@@ -126,14 +126,14 @@ def simulate_columns(
     import pandas as pd
 
     if engine != "python" and own != "python":
-        from sb3_affect.kernel.batch import batch_reason
+        from sb3_affect.compiled import batch_reason
         from sb3_affect.kernel.inputs import batch_inputs
 
         env = gym.make(env_id, **(env_kwargs or {}))
         template = cls("Grid", env, seed=0, **kwargs)
         reason = batch_reason(template, episodes)
         if reason is None:
-            inputs = batch_inputs(template, template._single_env(), episodes)
+            inputs = batch_inputs(template.compiled_settings(), template._single_env(), episodes)
             env.close()
             return _batch_frame(inputs, seeds, episodes)
         from sb3_affect.kernel.prey_batch import moving_batch_reason, moving_columns, moving_inputs, moving_reason
@@ -141,7 +141,7 @@ def simulate_columns(
         if moving_reason(template._single_env()) is None:  # MovingPursuit: the moving-prey kernel, or why not
             reason = moving_batch_reason(template)
             if reason is None:
-                prey_inputs = moving_inputs(template, template._single_env(), episodes)
+                prey_inputs = moving_inputs(template.compiled_settings(), template._single_env(), episodes)
                 env.close()
                 if not seeds:
                     return _batch_frame(None, seeds, episodes)

@@ -5,6 +5,8 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, NamedTuple
 
+from sb3_affect.envs.transition_table import TransitionTable
+
 if TYPE_CHECKING:
     import pandas as pd
 
@@ -26,6 +28,9 @@ EPISODE_COLUMNS: tuple[str, ...] = (
     "norm",  # the appraisal norm in force during the episode (NaN when there was none)
 )
 
+#: Where each column sits in a row of the episode log (``row[COLUMN["decisions"]]``).
+COLUMN: dict[str, int] = {name: i for i, name in enumerate(EPISODE_COLUMNS)}
+
 
 class Geometry(NamedTuple):
     """What the path columns need to know about a grid env: its dynamics and true distances."""
@@ -37,8 +42,16 @@ class Geometry(NamedTuple):
 
 
 def env_geometry(env: Any) -> Geometry | None:
-    """The geometry of an env (possibly wrapped) that exposes it, as GridPursuit does; ``None`` otherwise."""
+    """
+    The geometry of an env (possibly wrapped) that exposes it: from its transition table
+    (``sb3_affect.envs.transition_table``), or its ``transitions``, ``distances``, ``start_state`` and
+    ``shortest_path_length``; ``None`` otherwise.
+    """
     base = getattr(env, "unwrapped", env)
+    describe = getattr(base, "transition_table", None)
+    table = describe() if callable(describe) else None
+    if isinstance(table, TransitionTable):
+        return Geometry(table.transitions, table.distances, int(table.start), table.shortest_path_length)
     try:
         return Geometry(base.transitions, base.distances, int(base.start_state), int(base.shortest_path_length))
     except AttributeError:

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback, ConvertCallback
 
-from sb3_affect.episode_log import greedy_walks_shortest_path
+from sb3_affect.episode_log import EPISODE_COLUMNS, greedy_walks_shortest_path
 
 if TYPE_CHECKING:
     from sb3_affect.tabular import TabularQAlgorithm
@@ -38,7 +38,8 @@ def run_loop(
 ) -> None:
     """
     Take decisions until ``total_timesteps`` (or a callback stops): decide, move ``k`` cells with their Eq. 1
-    updates, close finished episodes, call the callbacks.
+    updates, close finished episodes, call the callbacks. (``sb3_affect.stepping.DecisionStepper`` takes the same
+    steps one decision at a time, with the functions below.)
 
     :param model: the agent (its ``_decide``, appraisal hooks, schedules, counters and episode log)
     :param env: the single (Monitor-wrapped) Gymnasium env
@@ -94,13 +95,8 @@ def run_loop(
             reward = float(r)
             if jump:
                 jump_reward += reward
-            else:
-                row = q[s]
-                old = row[action]
-                new = old + alpha * ((reward if terminated else reward + gamma * max(q[s2])) - old)
-                if new != old:
-                    row[action] = new
-                    changed = True
+            elif q_update(q, s, action, reward, s2, terminated, alpha, gamma):
+                changed = True
             if observe is not None:
                 observe(s, s2, terminated and is_goal(reward, info))
             cells += 1
@@ -108,13 +104,8 @@ def run_loop(
             s = s2
             if terminated or truncated:
                 break
-        if jump and k > 0:
-            row = q[start_cell]
-            old = row[action]
-            new = old + alpha * ((jump_reward if terminated else jump_reward + gamma * max(q[s])) - old)
-            if new != old:
-                row[action] = new
-                changed = True
+        if jump and k > 0 and q_update(q, start_cell, action, jump_reward, s, terminated, alpha, gamma):
+            changed = True
         if k == 0:  # a wait: no env step, nothing of the previous step to report again
             waits += 1
             s2, reward, info = s, 0.0, {"wait": True}
@@ -127,9 +118,7 @@ def run_loop(
         if call_back:
             step_reward = reward if k == 1 else reward_sum - before
             if done:  # what a VecEnv adds to the last info of an episode (before the reset below)
-                info = {**info, "terminal_observation": s2 + obs_start}
-                if not terminated:
-                    info["TimeLimit.truncated"] = True
+                info = episode_end_info(info, s2 + obs_start, terminated)
         if done:
             model.num_timesteps = t
             model._close_episode(
@@ -156,23 +145,58 @@ def run_loop(
         # 4. callbacks, once per decision, with the locals of a one-env VecEnv step
         if call_back:
             model.num_timesteps = t
-            cb_locals["new_obs"] = np.array([s + obs_start])
-            cb_locals["rewards"] = np.array([step_reward], dtype=np.float32)
-            cb_locals["dones"] = DONE if done else NOT_DONE
-            cb_locals["infos"] = [info]
-            cb_locals["actions"] = np.array([action + act_start])
+            step_locals(cb_locals, s + obs_start, step_reward, done, info, action + act_start)
             update_locals(cb_locals)
             if not on_step():
                 break
     model.num_timesteps = t
+    keep_episode(model, s, obs_start, decisions, cells, random_moves, waits, reward_sum)
 
+
+def q_update(
+    q: list[list[float]], s: int, action: int, reward: float, s2: int, terminated: bool, alpha: float, gamma: float
+) -> bool:
+    """
+    Eq. 1 for ``q[s][action]`` after a move to ``s2`` with ``reward`` (``multi_cell="jump"``: the whole move, its
+    summed reward); returns whether the entry changed. (The kernel's twin: ``sb3_affect.kernel.loop.q_update``.)
+    """
+    row = q[s]
+    old = row[action]
+    new = old + alpha * ((reward if terminated else reward + gamma * max(q[s2])) - old)
+    if new != old:
+        row[action] = new
+        return True
+    return False
+
+
+def episode_end_info(info: dict[str, Any], terminal_obs: int, terminated: bool) -> dict[str, Any]:
+    """The info of an episode's last decision as a one-env VecEnv reports it (``terminal_observation``, truncation)."""
+    info = {**info, "terminal_observation": terminal_obs}
+    if not terminated:
+        info["TimeLimit.truncated"] = True
+    return info
+
+
+def step_locals(cb_locals: dict[str, Any], obs: int, reward: float, done: bool, info: dict[str, Any], action: int) -> None:
+    """Fill ``cb_locals`` with what a one-env VecEnv step gives SB3's callbacks after a decision."""
+    cb_locals["new_obs"] = np.array([obs])
+    cb_locals["rewards"] = np.array([reward], dtype=np.float32)
+    cb_locals["dones"] = DONE if done else NOT_DONE
+    cb_locals["infos"] = [info]
+    cb_locals["actions"] = np.array([action])
+
+
+def keep_episode(
+    model: TabularQAlgorithm, s: int, obs_start: int, decisions: int, cells: int, random_moves: int, waits: int, reward: float
+) -> None:
+    """Keep the episode in progress on the model, for the next ``learn`` (``reset_num_timesteps=False``) to continue."""
     model._episode_state = {
         "state": s,
         "decisions": decisions,
         "cells": cells,
         "random_moves": random_moves,
         "waits": waits,
-        "reward": reward_sum,
+        "reward": reward,
     }
     model._last_obs = np.array([s + obs_start])
 
@@ -218,21 +242,24 @@ def close_episode(
             assert model._q is not None, "_close_episode runs inside learn, on the loop's table"
             model._greedy_optimal = greedy_walks_shortest_path(model._q, geometry)
         greedy = model._greedy_optimal
-    model._episode_rows.append(
-        [
-            len(model._episode_rows) + 1,
-            decisions,
-            cells,
-            reward,
-            optimal,
-            truncated,
-            random_moves,
-            waits,
-            *counts,
-            greedy,
-            norm,
-        ]
-    )
+    joy, sadness, fear, anger = counts
+    row = {
+        "episode": len(model._episode_rows) + 1,
+        "decisions": decisions,
+        "cells": cells,
+        "reward": reward,
+        "optimal": optimal,
+        "truncated": truncated,
+        "random_moves": random_moves,
+        "waits": waits,
+        "joy": joy,
+        "sadness": sadness,
+        "fear": fear,
+        "anger": anger,
+        "greedy_optimal": greedy,
+        "norm": norm,
+    }
+    model._episode_rows.append([row[name] for name in EPISODE_COLUMNS])
     if truncated:
         model._truncated_episodes += 1
     model._episode_num += 1

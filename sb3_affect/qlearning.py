@@ -106,6 +106,9 @@ class QLearning(TabularQAlgorithm):
     def _exploration_value(self) -> float:
         return self._epsilon
 
+    def _episode_exploration(self) -> float:
+        return self._epsilon
+
     def _decide(self, state: int, q: list[list[float]]) -> tuple[int, int, bool]:
         rng = self._rng
         if rng.random() < self._epsilon:

@@ -6,8 +6,9 @@ defaults from it (``gamma: float = QLearningSettings.gamma``) and checks its arg
 (``check_tabular``, ``check_exploration_rate``, ...); a settings object runs the same checks in the same order when
 it is built. So a settings object holds exactly what the constructor accepts, normalised as the agent stores it, and
 a bad value is the same error (argument, value, what is allowed) either way. The compiled engine reads a settings
-object where it would read a model's attributes (``sb3_affect.kernel.inputs``): a sweep of the package's agents
-runs without building an SB3 model, or importing torch.
+object, never a model (``sb3_affect.kernel``): its family, its behaviour rows and its per-episode parameters
+(``behaviour_rows``, ``episode_parameters``); a sweep of the package's agents runs without building an SB3 model, or
+importing torch, and a model hands the kernel its settings (``TabularQAlgorithm.compiled_settings``).
 
 Only the hyperparameters the learning loop reads are settings. SB3's own arguments (``seed``, ``device``,
 ``verbose``, ``policy_kwargs``, ``tensorboard_log``, ``stats_window_size``) and objects (``emotion_callback``) are
@@ -197,6 +198,31 @@ class TabularSettings:
         """The constructor arguments that are settings."""
         return tuple(f.name for f in dataclasses.fields(cls) if f.init)
 
+    def behaviour_rows(self) -> list[tuple[bool, list[int]]]:
+        """
+        ``(random_direction, speeds)`` per emotion, in ``Emotion`` order. An agent without emotions: its speeds in the
+        first row (one cell a decision), the other rows unused.
+        """
+        return [(False, [1])] * 4
+
+    def episode_parameters(self, first: int, count: int) -> tuple[np.ndarray, np.ndarray] | None:
+        """
+        Learning rate and exploration parameter (epsilon, the inverse temperature, or 0 when the agent has none) of
+        the episodes that start after ``first``, ``first + 1``, ... finished episodes of the run; None when either
+        depends on the training progress (an SB3 schedule of the remaining progress), which only the model evaluates,
+        one episode at a time.
+        """
+        if callable(self.learning_rate):
+            return None
+        exploration = self.exploration_at(first, count)
+        if exploration is None:
+            return None
+        return np.full(count, float(self.learning_rate)), exploration
+
+    def exploration_at(self, first: int, count: int) -> np.ndarray | None:
+        """The exploration parameter of ``episode_parameters`` (None: a schedule of the progress)."""
+        return np.zeros(count)
+
 
 @dataclass
 class QLearningSettings(TabularSettings):
@@ -214,6 +240,11 @@ class QLearningSettings(TabularSettings):
     def _check(self) -> None:
         self.exploration_rate = check_exploration_rate(self.exploration_rate)
         super()._check()
+
+    def exploration_at(self, first: int, count: int) -> np.ndarray | None:
+        if callable(self.exploration_rate):
+            return None
+        return np.full(count, float(self.exploration_rate))
 
 
 @dataclass
@@ -245,6 +276,9 @@ class SpeedEpsilonGreedySettings(QLearningSettings):
     def _check(self) -> None:
         self.multi_cell, self.speeds = check_speeds(self.multi_cell, self.speeds)
         super()._check()
+
+    def behaviour_rows(self) -> list[tuple[bool, list[int]]]:
+        return [(False, [int(k) for k in self.speeds])] + [(False, [1])] * 3
 
 
 @dataclass
@@ -285,6 +319,9 @@ class DecayingEpsilonGreedySettings(TabularSettings):
             finished_episodes,
         )
 
+    def exploration_at(self, first: int, count: int) -> np.ndarray | None:
+        return np.array([self.epsilon_at(first + j) for j in range(count)], dtype=np.float64)
+
 
 @dataclass
 class BoltzmannSettings(TabularSettings):
@@ -322,6 +359,12 @@ class BoltzmannSettings(TabularSettings):
             finished_episodes,
             progress_remaining,
         )
+
+    def exploration_at(self, first: int, count: int) -> np.ndarray | None:
+        """The inverse temperature (a schedule of the progress without ``temperature_final``: None)."""
+        if self.temperature_final is None and callable(self.temperature):
+            return None
+        return np.array([1.0 / self.temperature_at(first + j) for j in range(count)], dtype=np.float64)
 
 
 @dataclass
@@ -366,6 +409,9 @@ class AffectQSettings(TabularSettings):
 
     #: the behaviour table as the agent stores it (``{emotion name: [random_direction, speeds]}``)
     stored_behaviour_table: dict[str, list[Any]] = field(init=False, repr=False, compare=False, default_factory=dict)
+    #: the appraisal's bias on the norm: the personality's (``sb3_affect.personalities``), or the one of a model's own
+    #: appraiser (``AffectQ.compiled_settings`` sets it)
+    norm_scale: float = field(init=False, repr=False, compare=False, default=1.0)
 
     family: ClassVar[str] = "affect"
     agent: ClassVar[str] = "sb3_affect.affectq:AffectQ"
@@ -375,12 +421,8 @@ class AffectQSettings(TabularSettings):
             self.multi_cell, self.personality, self.comparison, self.act, self.units, self.behaviour_table
         )
         self.stored_behaviour_table = table
+        self.norm_scale = PERSONALITIES[self.personality]
         super()._check()
-
-    @property
-    def norm_scale(self) -> float:
-        """The personality's bias on the norm (``sb3_affect.personalities``)."""
-        return PERSONALITIES[self.personality]
 
     def behaviour_rows(self) -> list[tuple[bool, list[int]]]:
         """``(random_direction, speeds)`` per emotion, in ``Emotion`` order (as ``AffectQ._behaviour``)."""

@@ -3,10 +3,11 @@
 
 ``TabularQAlgorithm.learn`` steps one Gymnasium env in a tight loop. When several agents share one world (the
 hunters of ``sb3_affect.team``), each needs to take a decision, wait while the world moves everyone, and learn from
-its own transitions. The stepper exposes exactly the pieces of ``learn`` for that, calling the agent's own code:
-``_decide`` (epsilon-greedy, the emotion's behaviour, ...), the same Eq. 1 update, the transition hook (the
-appraisal's ``observe``), ``_begin_episode``/``_close_episode`` (schedules, emotions, the episode log, the logger)
-and the SB3 callbacks with the locals ``learn`` gives them. Driving a single env with it gives the same episode log,
+its own transitions. The stepper exposes exactly the pieces of ``learn`` for that, calling the same code: ``learn``'s
+set-up (``_start_learn``), the agent's ``_decide`` (epsilon-greedy, the emotion's behaviour, ...), Eq. 1
+(``sb3_affect.loop.q_update``), the transition hook (the appraisal's ``observe``), ``_begin_episode`` and
+``_close_episode`` (schedules, emotions, the episode log, the logger) and the SB3 callbacks with the locals ``learn``
+gives them (``sb3_affect.loop.step_locals``). Driving a single env with it gives the same episode log,
 Q-table and random draws as ``learn`` (tests/test_hunters.py checks this)::
 
     stepper = DecisionStepper(model, total_timesteps=10**6)          # starts a run, as learn() does
@@ -22,17 +23,14 @@ Q-table and random draws as ``learn`` (tests/test_hunters.py checks this)::
 
 from __future__ import annotations
 
-import os
 from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 from stable_baselines3.common.callbacks import ConvertCallback
-from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.type_aliases import MaybeCallback
 
-from sb3_affect.episode_log import env_geometry
-from sb3_affect.loop import DONE, NOT_DONE
+from sb3_affect.loop import episode_end_info, keep_episode, q_update, step_locals
 from sb3_affect.tabular import TabularQAlgorithm
 
 
@@ -61,32 +59,11 @@ class DecisionStepper:
         if not isinstance(model, TabularQAlgorithm):
             raise TypeError(f"model must be a tabular agent of this package, got {type(model).__name__}")
         self.model = m = model
-        # what learn() does before its loop
-        if reset_num_timesteps:
-            m._episode_rows = []
-            m._truncated_episodes = 0
-            m._new_run()
-        m._episode_state = None
-        if getattr(m, "emotion_callback", None) is not None:  # AffectQ.learn binds it to the model for logging
-            m.emotion_callback.init_callback(m)  # type: ignore[attr-defined]
-        if tb_log_name is None:
-            tb_log_name = type(m).__name__
-        silent = not m._custom_logger and m.verbose == 0 and m.tensorboard_log is None
-        if silent:
-            m._logger, m._custom_logger = Logger(folder=os.environ.get("SB3_LOGDIR"), output_formats=[]), True
-        try:
-            self.total_timesteps, self.callback = m._setup_learn(
-                total_timesteps, callback, reset_num_timesteps, tb_log_name, False
-            )
-        finally:
-            if silent:
-                m._custom_logger = False
-        self.callback.on_training_start({"self": m, "total_timesteps": self.total_timesteps}, {})
-        m._geometry = env_geometry(m._single_env())
-        m._greedy_optimal = None
-        self.q: list[list[float]] = m.policy.q_table.tolist()
-        m._q = self.q
-        m._update_schedules()
+        self.total_timesteps, self.callback = m._start_learn(  # what learn() does before its loop
+            total_timesteps, callback, reset_num_timesteps, tb_log_name, False, new_episode=True
+        )
+        assert m._q is not None
+        self.q: list[list[float]] = m._q
         # what run_loop does before its loop
         self.log_interval = log_interval
         self._observe = m._transition_hook()
@@ -135,13 +112,8 @@ class DecisionStepper:
         reward = float(reward)
         if self._jump:
             self._jump_reward += reward
-        else:
-            row = q[s]
-            old = row[action]
-            new = old + self._alpha * ((reward if terminated else reward + self.model.gamma * max(q[s2])) - old)
-            if new != old:
-                row[action] = new
-                self._changed = True
+        elif q_update(q, s, action, reward, s2, terminated, self._alpha, self.model.gamma):
+            self._changed = True
         info = info if info is not None else {}
         if self._observe is not None:
             self._observe(s, s2, terminated and self._is_goal(reward, info))
@@ -159,14 +131,12 @@ class DecisionStepper:
         :return: whether the episode ended
         """
         m = self.model
-        if self._jump and self._k > 0:  # multi_cell="jump": one update from the decision's start cell to its end cell
-            q, gain = self.q, self._jump_reward
-            row = q[self._start_cell]
-            old = row[self._action]
-            new = old + self._alpha * ((gain if terminated else gain + m.gamma * max(q[self.s])) - old)
-            if new != old:
-                row[self._action] = new
-                self._changed = True
+        # multi_cell="jump": one update from the decision's start cell to its end cell
+        jump = self._jump and self._k > 0
+        if jump and q_update(
+            self.q, self._start_cell, self._action, self._jump_reward, self.s, terminated, self._alpha, m.gamma
+        ):
+            self._changed = True
         if self._k == 0:  # a wait: no env step, nothing of the previous step to report again
             self.waits += 1
             self._last = (self.s, 0.0, {"wait": True})
@@ -177,9 +147,7 @@ class DecisionStepper:
         s2, reward, info = self._last
         done = terminated or truncated or self.decisions >= m.max_episode_decisions
         if done and self._call_back:  # what a VecEnv adds to the last info of an episode
-            info = {**info, "terminal_observation": s2 + self._obs_start}
-            if not terminated:
-                info["TimeLimit.truncated"] = True
+            info = episode_end_info(info, s2 + self._obs_start, terminated)
         decision_reward, action = self._decision_reward, self._action  # before a reset starts the next episode
         if done:
             m.num_timesteps = self.t
@@ -200,13 +168,8 @@ class DecisionStepper:
             self._start(int(reset()))
         if self._call_back:
             m.num_timesteps = self.t
-            cb = self._locals
-            cb["new_obs"] = np.array([self.s + self._obs_start])
-            cb["rewards"] = np.array([decision_reward], dtype=np.float32)
-            cb["dones"] = DONE if done else NOT_DONE
-            cb["infos"] = [info]
-            cb["actions"] = np.array([action + self._act_start])
-            self.callback.update_locals(cb)
+            step_locals(self._locals, self.s + self._obs_start, decision_reward, done, info, action + self._act_start)
+            self.callback.update_locals(self._locals)
             if not self.callback.on_step():
                 self.continue_training = False
         return done
@@ -215,15 +178,7 @@ class DecisionStepper:
         """End the run as ``learn`` does: the Q-table written back to the policy, ``on_training_end`` called."""
         m = self.model
         m.num_timesteps = self.t
-        m._episode_state = {
-            "state": self.s,
-            "decisions": self.decisions,
-            "cells": self.cells,
-            "random_moves": self.random_moves,
-            "waits": self.waits,
-            "reward": self.reward_sum,
-        }
-        m._last_obs = np.array([self.s + self._obs_start])
+        keep_episode(m, self.s, self._obs_start, self.decisions, self.cells, self.random_moves, self.waits, self.reward_sum)
         m._sync_policy()
         m._q = None  # from now on the policy's tensor is the one truth, as after learn
         self.callback.on_training_end()

@@ -31,6 +31,7 @@ from sb3_affect.episode_log import Geometry, env_geometry, make_frame
 from sb3_affect.goals import GoalTest, positive_terminal_reward
 from sb3_affect.loop import close_episode, run_loop
 from sb3_affect.policies import TabularQPolicy, check_not_gym_tuple
+from sb3_affect.registry import known_settings
 from sb3_affect.serialization import add_plain_description, load_safe
 from sb3_affect.settings import ENGINES, MULTI_CELLS, TIE_BREAKS, TabularSettings, check_tabular
 
@@ -144,7 +145,7 @@ class TabularQAlgorithm(BaseAlgorithm):
             version, internal, gauss = self._rng_state
             self._rng.setstate((version, tuple(internal), gauss))
         self.policy.rng = self._rng
-        self._q: list[list[float]] | None = None  # the loop's table, only while learn runs (files from 0.1 held one)
+        self._q: list[list[float]] | None = None  # the loop's table, only while learn runs
 
     def _excluded_save_params(self) -> list[str]:
         return [*super()._excluded_save_params(), "_rng", "_q", "_tie_first"]
@@ -179,6 +180,30 @@ class TabularQAlgorithm(BaseAlgorithm):
     def _exploration_value(self) -> float:
         """The value logged as ``rollout/exploration_rate``."""
         return 0.0
+
+    def _episode_exploration(self) -> float:
+        """The exploration parameter of the episode in progress as the kernel takes it (epsilon, inverse temperature)."""
+        return 0.0
+
+    # -- the compiled engine ---------------------------------------------------------------------------------------
+    def compiled_settings(self) -> TabularSettings | str:
+        """
+        The settings (``sb3_affect.settings``) the compiled engine runs this model with, its hyperparameters as they
+        are now; or why the kernel can not run the model (a string): a class it does not implement (a subclass of
+        one of the package's agents may change the loop), or a callback or appraiser of the agent's own.
+        """
+        settings_cls = known_settings(type(self))
+        if settings_cls is None:
+            return (
+                f"{type(self).__name__} is not one of the agents the kernel implements (QLearning, AffectQ and the "
+                "baselines, not subclasses of them, which may change the loop)"
+            )
+        values = self._settings_values()
+        return values if isinstance(values, str) else settings_cls(**values)
+
+    def _settings_values(self) -> dict[str, Any] | str:
+        """The model's values of its settings' fields (subclasses: as the kernel would run them, or why it can not)."""
+        return {name: getattr(self, name) for name in self.settings_class.names()}
 
     def _update_schedules(self) -> None:
         """Called at each episode start, after the progress is updated."""
@@ -224,11 +249,45 @@ class TabularQAlgorithm(BaseAlgorithm):
         :param progress_bar: show a progress bar (tqdm and rich)
         :return: the trained model
         """
+        total_timesteps, callback = self._start_learn(
+            total_timesteps, callback, reset_num_timesteps, tb_log_name, progress_bar, new_episode=False
+        )
+        env = self._single_env()
+        q = self._q
+        assert q is not None
+        try:
+            if self._use_kernel(env, callback):
+                from sb3_affect.compiled import learn_compiled
+
+                learn_compiled(self, env, total_timesteps, callback, log_interval)
+            else:
+                self._run_loop(env, q, total_timesteps, callback, log_interval)
+        finally:
+            self._sync_policy()
+            self._q = None  # from now on the policy's tensor is the one truth (set_parameters, edits, save)
+        callback.on_training_end()
+        return self
+
+    def _start_learn(
+        self,
+        total_timesteps: int,
+        callback: MaybeCallback,
+        reset_num_timesteps: bool,
+        tb_log_name: str | None,
+        progress_bar: bool,
+        new_episode: bool,
+    ) -> tuple[int, BaseCallback]:
+        """
+        What a run does before its first decision (``learn``, and ``sb3_affect.stepping.DecisionStepper``): a new
+        run's episode log and history, SB3's ``_setup_learn`` (a silent logger when nothing is written), the callbacks'
+        ``on_training_start``, the env's geometry, the loop's Q-table (``self._q``) and the schedules. ``new_episode``:
+        start a new episode even when one is in progress. Returns SB3's ``(total_timesteps, callback)``.
+        """
         if reset_num_timesteps:
             self._episode_rows = []
             self._truncated_episodes = 0
             self._new_run()
-        if reset_num_timesteps or self._last_obs is None:
+        if new_episode or reset_num_timesteps or self._last_obs is None:
             self._episode_state = None  # SB3 resets the env: a new episode starts
         if tb_log_name is None:
             tb_log_name = type(self).__name__
@@ -243,24 +302,11 @@ class TabularQAlgorithm(BaseAlgorithm):
             if silent:
                 self._custom_logger = False
         callback.on_training_start(locals(), globals())
-        env = self._single_env()
-        self._geometry: Geometry | None = env_geometry(env)
+        self._geometry: Geometry | None = env_geometry(self._single_env())
         self._greedy_optimal: bool | None = None
-        q: list[list[float]] = self.policy.q_table.tolist()
-        self._q = q
+        self._q = self.policy.q_table.tolist()
         self._update_schedules()
-        try:
-            if self._use_kernel(env, callback):
-                from sb3_affect.kernel.bridge import learn_compiled
-
-                learn_compiled(self, env, total_timesteps, callback, log_interval)
-            else:
-                self._run_loop(env, q, total_timesteps, callback, log_interval)
-        finally:
-            self._sync_policy()
-            self._q = None  # from now on the policy's tensor is the one truth (set_parameters, edits, save)
-        callback.on_training_end()
-        return self
+        return total_timesteps, callback
 
     def _use_kernel(self, env: Any, callback: BaseCallback | None) -> bool:
         """
@@ -271,7 +317,7 @@ class TabularQAlgorithm(BaseAlgorithm):
         """
         if self.engine == "python":
             return False
-        from sb3_affect.kernel.bridge import compiled_reason
+        from sb3_affect.compiled import compiled_reason
 
         reason = compiled_reason(self, env, callback)
         if reason is not None and self.engine == "compiled":

@@ -24,9 +24,9 @@ import pytest
 import sb3_affect
 from sb3_affect import AffectQ, Behaviour, Emotion, QLearning
 from sb3_affect.baselines import Boltzmann, DecayingEpsilonGreedy, OptimisticQLearning, SpeedEpsilonGreedy, UCBQLearning
+from sb3_affect.compiled import batch_reason
 from sb3_affect.engine import simulate
 from sb3_affect.experiments.runner import check_configs, settings_checkable
-from sb3_affect.kernel.batch import batch_reason
 from sb3_affect.kernel.inputs import BatchInputs, batch_inputs, settings_inputs
 from sb3_affect.kernel.prey_batch import moving_settings_inputs
 from sb3_affect.registry import known_settings
@@ -75,20 +75,19 @@ def model_inputs(algo: str, kwargs: dict[str, Any], env_id: str, env_kwargs: dic
     cls = CLASSES[algo.rpartition(":")[2] or algo]
     model = cls("Grid", gym.make(env_id, **env_kwargs), seed=0, **kwargs)
     assert batch_reason(model, episodes) is None
-    return batch_inputs(model, model._single_env(), episodes)
+    return batch_inputs(model.compiled_settings(), model._single_env(), episodes)
 
 
 def same_inputs(a: BatchInputs, b: BatchInputs) -> None:
-    for name in ("beh_rand", "beh_speeds", "beh_n"):
-        np.testing.assert_array_equal(getattr(a.spec, name), getattr(b.spec, name), err_msg=name)
-    assert a.spec._replace(beh_rand=None, beh_speeds=None, beh_n=None) == b.spec._replace(
-        beh_rand=None, beh_speeds=None, beh_n=None
-    )
-    for name in ("icfg", "fcfg", "alpha", "p"):
+    for name in ("random", "speeds", "n"):
+        np.testing.assert_array_equal(getattr(a.agent.behaviour, name), getattr(b.agent.behaviour, name), err_msg=name)
+    assert a.agent._replace(behaviour=None) == b.agent._replace(behaviour=None)
+    assert a.config == b.config
+    for name in ("alpha", "p"):
         np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
     for name in ("trans", "tdist"):
-        np.testing.assert_array_equal(getattr(a.geometry, name), getattr(b.geometry, name), err_msg=name)
-    assert (a.geometry.start, a.geometry.goal, a.geometry.max_pred) == (b.geometry.start, b.geometry.goal, b.geometry.max_pred)
+        np.testing.assert_array_equal(getattr(a.table, name), getattr(b.table, name), err_msg=name)
+    assert (a.table.start, a.table.goal, a.table.max_pred) == (b.table.start, b.table.goal, b.table.max_pred)
     assert (a.q_init, a.n_actions, a.cap) == (b.q_init, b.n_actions, b.cap)
 
 

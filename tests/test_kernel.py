@@ -18,6 +18,7 @@ from sb3_affect import AffectQ, EmotionCallback, QLearning
 from sb3_affect.appraisal import Appraiser
 from sb3_affect.baselines import Boltzmann, SpeedEpsilonGreedy, UCBQLearning, softmax_action
 from sb3_affect.engine import simulate
+from sb3_affect.envs import TransitionTable
 from sb3_affect.envs.grid_pursuit import RIGHT
 from sb3_affect.kernel import choice
 from sb3_affect.kernel.agents import COMPENSATED_SUM
@@ -100,7 +101,7 @@ def test_auto_falls_back_and_compiled_names_the_reason() -> None:
     assert every.calls == 500
     with pytest.raises(ValueError, match="EveryDecision is called after every decision"):
         QLearning("Grid", gym.make(GRID, **SMALL), engine="compiled").learn(10, callback=EveryDecision())
-    with pytest.raises(ValueError, match="learn steps it on the Python loop"):
+    with pytest.raises(ValueError, match="learn runs it on the Python loop"):
         AffectQ("Grid", gym.make("sb3_affect/MovingPursuit-v0"), engine="compiled").learn(10)
     with pytest.raises(ValueError, match="wrapped in TransformReward"):
         env = gym.wrappers.TransformReward(gym.make(GRID, **SMALL), lambda r: 2 * r)
@@ -116,6 +117,49 @@ def test_auto_falls_back_and_compiled_names_the_reason() -> None:
         AffectQ("Grid", GRID, emotion_callback=EmotionCallback(appraiser=Mine(225)), engine="compiled").learn(10)
     moving = AffectQ("Grid", gym.make("sb3_affect/MovingPursuit-v0"), seed=0).learn(300)  # auto: the Python loop
     assert moving.num_timesteps == 300 and model.num_timesteps == 500
+
+
+class Ring(gym.Env[Any, Any]):
+    """A grid env that is no class of the package: a ring of ``n`` cells, left and right, the goal opposite the start."""
+
+    def __init__(self, n: int = 10, described: bool = True) -> None:
+        self.n, self.described = n, described
+        self.observation_space = gym.spaces.Discrete(n)
+        self.action_space = gym.spaces.Discrete(2)
+        self.moves = [[(s - 1) % n, (s + 1) % n] for s in range(n)]
+        self.distances = [float(min(abs(s - n // 2), n - abs(s - n // 2))) for s in range(n)]
+        self.state = 0
+
+    def transition_table(self) -> TransitionTable | str:
+        if not self.described:
+            return "the ring keeps its moves to itself"
+        return TransitionTable(self.moves, self.distances, 0, self.n // 2, 10.0, -1.0, self.n)
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None) -> tuple[int, dict[str, Any]]:
+        super().reset(seed=seed)
+        self.state = 0
+        return 0, {"cell": (0, 0)}
+
+    def step(self, action: Any) -> tuple[int, float, bool, bool, dict[str, Any]]:
+        s, t = self.state, self.moves[self.state][int(action)]
+        self.state = t
+        terminated = t == self.n // 2
+        return t, 10.0 if terminated else -1.0, terminated, False, {"cell": divmod(t, self.n), "moved": t != s}
+
+
+@pytest.mark.parametrize("cls", [QLearning, AffectQ])
+def test_an_env_that_describes_its_moves_runs_compiled_with_the_same_results(cls: type) -> None:
+    models = {}
+    for engine in ("python", "compiled"):
+        model = cls("Grid", Ring(), seed=3, engine=engine)
+        models[engine] = model.learn(10**5, callback=StopTrainingOnMaxEpisodes(40))
+    pd.testing.assert_frame_equal(models["python"].episode_log, models["compiled"].episode_log)
+    np.testing.assert_array_equal(models["python"].q_table, models["compiled"].q_table)
+    assert models["python"]._rng.getstate() == models["compiled"]._rng.getstate()
+    with pytest.raises(ValueError, match="the ring keeps its moves to itself"):
+        cls("Grid", Ring(described=False), engine="compiled").learn(10)
+    with pytest.raises(ValueError, match="does not describe its moves as a transition table"):
+        cls("Grid", gym.make("FrozenLake-v1"), engine="compiled").learn(10)
 
 
 def test_episode_level_callbacks_and_progress_bar_on_the_kernel() -> None:

@@ -1,5 +1,5 @@
 """
-Fair baselines for the affective agent (issue 7): SB3-style tabular agents on the same loop, env and episode log.
+Fair baselines for the affective agent: SB3-style tabular agents on the same loop, env and episode log.
 
 - ``DecayingEpsilonGreedy``: epsilon-greedy with epsilon decaying over episodes (plain-data schedule).
 - ``Boltzmann``: softmax exploration with a fixed, scheduled or episode-decaying temperature.

@@ -143,6 +143,9 @@ class Boltzmann(TabularQAlgorithm):
     def _exploration_value(self) -> float:
         return self._temperature
 
+    def _episode_exploration(self) -> float:
+        return self._inv_temperature
+
     def _decide(self, state: int, q: list[list[float]]) -> tuple[int, int, bool]:
         row = q[state]
         action = softmax_action(row, self._inv_temperature, self._rng.random())

@@ -10,86 +10,66 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit
 
-from sb3_affect.kernel import loop
-from sb3_affect.kernel.agents import episode_schedule
+from sb3_affect.kernel import arrays, loop
 from sb3_affect.kernel.inputs import BatchInputs
-from sb3_affect.kernel.mt19937 import STATE_SIZE, TW_SIZE, seed_key, seed_state
+from sb3_affect.kernel.mt19937 import STATE_SIZE, seed_key, seed_state
 
 if TYPE_CHECKING:
     import pandas as pd
 
 
 @njit(cache=True)
-def run_seeds(
-    keys, key_lengths, q_init, n_actions, trans, tdist, icfg, fcfg, beh_rand, beh_speeds, beh_n, max_pred,
-    alpha_e, p_e, episodes, total_timesteps, out_i, out_f,
-):  # fmt: skip
+def run_seeds(keys, key_lengths, q_init, n_actions, env, config, behaviour, max_pred, alpha_e, p_e, episodes, out_i, out_f):
     """
     Run ``episodes`` episodes from scratch for each seed key; rows of run ``r`` go to ``out[r * episodes ...]``.
     The arrays of a run are allocated once and reset for each run (the known map's ``pred`` needs no reset: only its
     first ``pred_n[v]`` entries are read).
     """
-    n_states = trans.shape[0]
-    q = np.empty((n_states, n_actions))
-    mt = np.empty(STATE_SIZE, dtype=np.int64)
-    ist = np.empty(loop.N_IST, dtype=np.int64)
-    fst = np.empty(loop.N_FST)
-    dist = np.empty(n_states)
-    edge = np.empty((n_states, n_actions), dtype=np.bool_)
-    pred = np.zeros((n_states, max_pred), dtype=np.int64)
-    pred_n = np.empty(n_states, dtype=np.int64)
-    goal = np.empty(n_states, dtype=np.bool_)
-    fit_vals = np.zeros(episodes)
-    ucb_n = np.empty((n_states, n_actions), dtype=np.int64)
-    ucb_tot = np.empty(n_states, dtype=np.int64)
-    work = np.empty(n_actions)
-    seen = np.zeros(n_states, dtype=np.int64)
-    stack = np.empty(n_states * n_actions + 1, dtype=np.int64)
-    queue = np.empty(n_states + 1, dtype=np.int64)
-    tw = np.empty(TW_SIZE, dtype=np.int64)
+    n_states = env.trans.shape[0]
+    state = arrays.RunState(
+        np.empty((n_states, n_actions)),
+        np.empty(STATE_SIZE, dtype=np.int64),
+        np.empty(arrays.N_IST, dtype=np.int64),
+        np.empty(arrays.N_FST),
+        np.empty((n_states, n_actions), dtype=np.int64),
+        np.empty(n_states, dtype=np.int64),
+    )
+    appraisal = arrays.Appraisal(
+        np.empty(n_states),
+        np.empty((n_states, n_actions), dtype=np.bool_),
+        np.zeros((n_states, max_pred), dtype=np.int64),
+        np.empty(n_states, dtype=np.int64),
+        np.empty(n_states, dtype=np.bool_),
+        np.zeros(episodes),
+    )
+    work = arrays.work_space(n_states, n_actions)
+    ist, fst = state.ist, state.fst
+    total_timesteps = episodes * config.cap
     for r in range(keys.shape[0]):
-        q[:] = q_init
-        seed_state(mt, keys[r], key_lengths[r])
+        state.q[:] = q_init
+        seed_state(state.mt, keys[r], key_lengths[r])
         ist[:] = 0
-        ist[loop.I_STATE] = icfg[loop.C_START]
-        ist[loop.I_CHANGED] = 1
-        ist[loop.I_GREEDY] = -1
+        ist[arrays.I_STATE] = config.start
+        ist[arrays.I_CHANGED] = 1
+        ist[arrays.I_GREEDY] = -1
         fst[:] = 0.0
-        fst[loop.S_NORM] = math.nan
-        fst[loop.S_LAST_ACT] = math.inf
-        dist[:] = math.inf
-        edge[:] = False
-        pred_n[:] = 0
-        goal[:] = False
-        ucb_n[:] = 0
-        ucb_tot[:] = 0
-        seen[:] = 0
+        fst[arrays.S_NORM] = math.nan
+        fst[arrays.S_LAST_ACT] = math.inf
+        appraisal.dist[:] = math.inf
+        appraisal.edge[:] = False
+        appraisal.pred_n[:] = 0
+        appraisal.goal[:] = False
+        state.ucb_n[:] = 0
+        state.ucb_tot[:] = 0
+        work.seen[:] = 0
         lo, hi = r * episodes, (r + 1) * episodes
-        loop.decision_loop(
-            icfg[loop.C_KIND], q, trans, tdist, icfg, fcfg, beh_rand, beh_speeds, beh_n, ucb_n, ucb_tot, mt, ist, fst,
-            dist, edge, pred, pred_n, goal, fit_vals, alpha_e, p_e, total_timesteps, episodes, out_i[lo:hi],
-            out_f[lo:hi], work, seen, stack, queue, tw,
-        )  # fmt: skip
-
-
-def batch_reason(model: Any, episodes: int) -> str | None:
-    """Why ``simulate`` can not run ``model``'s agent as one batch on the kernel (None: it can)."""
-    from sb3_affect.kernel.agents import agent_spec
-    from sb3_affect.kernel.bridge import compiled_reason
-
-    reason = compiled_reason(model, model._single_env(), None)
-    if reason is not None:
-        return reason
-    spec = agent_spec(model)
-    assert not isinstance(spec, str)
-    if episode_schedule(model, spec.kind, 0, 1) is None:
-        return "a schedule depends on the training progress, which only the Python side evaluates (one episode at a time)"
-    return None
+        rows = arrays.Episodes(alpha_e, p_e, out_i[lo:hi], out_f[lo:hi])
+        loop.decision_loop(env, config, behaviour, state, appraisal, rows, work, total_timesteps, episodes)
 
 
 def simulate_batch(inputs: BatchInputs, seeds: Sequence[int], episodes: int) -> pd.DataFrame:
@@ -113,7 +93,7 @@ def batch_columns(inputs: BatchInputs, seeds: Sequence[int], episodes: int) -> d
     are rows of one transposed copy of the kernel's output (contiguous; ``simulate_batch`` hands them to pandas
     without copying or merging them into blocks by dtype, which would copy every column once more).
     """
-    spec, geo = inputs.spec, inputs.geometry
+    table = inputs.table
     words = [seed_key(int(seed)) for seed in seeds]
     width = max((len(w) for w in words), default=1)
     keys = np.zeros((len(words), width), dtype=np.int64)
@@ -122,64 +102,74 @@ def batch_columns(inputs: BatchInputs, seeds: Sequence[int], episodes: int) -> d
         keys[r, : len(w)] = w
         lengths[r] = len(w)
     n_rows = len(words) * episodes
-    out_i = np.zeros((n_rows, loop.N_OUT_I), dtype=np.int64)
+    out_i = np.zeros((n_rows, arrays.N_OUT_I), dtype=np.int64)
     out_f = np.zeros((n_rows, 2))
+    behaviour = inputs.agent.behaviour
     run_seeds(
-        keys, lengths, inputs.q_init, inputs.n_actions, geo.trans, geo.tdist, inputs.icfg, inputs.fcfg,
-        spec.beh_rand, spec.beh_speeds, spec.beh_n, geo.max_pred, inputs.alpha, inputs.p,
-        episodes, episodes * inputs.cap, out_i, out_f,
-    )  # fmt: skip
+        keys,
+        lengths,
+        inputs.q_init,
+        inputs.n_actions,
+        table.env,
+        inputs.config,
+        behaviour,
+        table.max_pred,
+        inputs.alpha,
+        inputs.p,
+        episodes,
+        out_i,
+        out_f,
+    )
     seed_column = np.repeat(np.asarray([int(s) for s in seeds], dtype=np.int64), episodes)
     col_i = np.ascontiguousarray(out_i.T)
     col_f = np.ascontiguousarray(out_f.T)
     return {
         "seed": seed_column,
         "episode": np.tile(np.arange(1, episodes + 1, dtype=np.int64), len(words)),
-        "decisions": col_i[loop.O_DECISIONS],
-        "cells": col_i[loop.O_CELLS],
+        "decisions": col_i[arrays.O_DECISIONS],
+        "cells": col_i[arrays.O_CELLS],
         "reward": col_f[0],
-        "optimal": col_i[loop.O_OPTIMAL].astype(bool),
-        "truncated": col_i[loop.O_TRUNCATED].astype(bool),
-        "random_moves": col_i[loop.O_RANDOM].astype(np.float64),
-        "waits": col_i[loop.O_WAITS],
-        "joy": col_i[loop.O_JOY],
-        "sadness": col_i[loop.O_SADNESS],
-        "fear": col_i[loop.O_FEAR],
-        "anger": col_i[loop.O_ANGER],
-        "greedy_optimal": col_i[loop.O_GREEDY].astype(bool),
+        "optimal": col_i[arrays.O_OPTIMAL].astype(bool),
+        "truncated": col_i[arrays.O_TRUNCATED].astype(bool),
+        "random_moves": col_i[arrays.O_RANDOM].astype(np.float64),
+        "waits": col_i[arrays.O_WAITS],
+        "joy": col_i[arrays.O_JOY],
+        "sadness": col_i[arrays.O_SADNESS],
+        "fear": col_i[arrays.O_FEAR],
+        "anger": col_i[arrays.O_ANGER],
+        "greedy_optimal": col_i[arrays.O_GREEDY].astype(bool),
         "norm": col_f[1],
     }
 
 
 def warm_up() -> None:
     """Call ``run_seeds`` and ``loop.run`` once on a 3 x 3 grid, with the argument types the engines use."""
-    from sb3_affect.envs.grid_pursuit import build_transitions, distances_to
+    from sb3_affect.envs.grid_pursuit import GridPursuitEnv
+    from sb3_affect.kernel.agents import KernelAgent, behaviour_arrays
+    from sb3_affect.kernel.inputs import TableArrays, kernel_config
+    from sb3_affect.settings import AffectQSettings
 
-    table = build_transitions(3)
-    trans = np.asarray(table, dtype=np.int64)
-    tdist = np.asarray(distances_to(8, table), dtype=np.float64)
-    icfg = np.zeros(loop.N_ICFG, dtype=np.int64)
-    fields = [loop.C_KIND, loop.C_GOAL, loop.C_SHORTEST, loop.C_CAP, loop.C_ACT_EPISODE, loop.C_UNITS_CELLS]
-    icfg[fields] = (loop.AFFECT, 8, 4, 50, 1, 1)
-    fcfg = np.zeros(loop.N_FCFG)
-    fcfg[[loop.F_GAMMA, loop.F_GOAL_REWARD, loop.F_NORM_SCALE]] = (0.8, 100.0, 1.0)
-    beh_rand = np.array([1, 0, 0, 0], dtype=np.int64)
-    beh_speeds = np.ones((4, 2), dtype=np.int64)
-    beh_n = np.ones(4, dtype=np.int64)
+    env = GridPursuitEnv(size=3, goal=(2, 2))
+    table = TableArrays.of(env)
+    agent = KernelAgent(arrays.AFFECT, behaviour_arrays([(True, [1, 2])] + [(False, [1])] * 3), False, True, True, 1.0, 0.0)
+    config = kernel_config(AffectQSettings(max_episode_decisions=50), agent, table, 0)
     alpha, p = np.ones(1), np.zeros(1)
-    out_i, out_f = np.zeros((1, loop.N_OUT_I), dtype=np.int64), np.zeros((1, 2))
+    out_i, out_f = np.zeros((1, arrays.N_OUT_I), dtype=np.int64), np.zeros((1, 2))
     keys, lengths = np.zeros((1, 1), dtype=np.int64), np.ones(1, dtype=np.int64)
-    run_seeds(keys, lengths, 0.0, 4, trans, tdist, icfg, fcfg, beh_rand, beh_speeds, beh_n, 2, alpha, p, 1, 50, out_i, out_f)
+    run_seeds(keys, lengths, 0.0, 4, table.env, config, agent.behaviour, 2, alpha, p, 1, out_i, out_f)
     mt = np.zeros(STATE_SIZE, dtype=np.int64)
     seed_state(mt, keys[0], 1)
-    ist = np.zeros(loop.N_IST, dtype=np.int64)
-    ist[loop.I_GREEDY] = -1
-    fst = np.zeros(loop.N_FST)
-    fst[loop.S_NORM] = np.nan
-    dist, edge = np.full(9, np.inf), np.zeros((9, 4), dtype=np.bool_)
-    pred, pred_n, goal = np.zeros((9, 2), dtype=np.int64), np.zeros(9, dtype=np.int64), np.zeros(9, dtype=np.bool_)
-    ucb_n, ucb_tot = np.zeros((9, 4), dtype=np.int64), np.zeros(9, dtype=np.int64)
-    loop.run(
-        np.zeros((9, 4)), trans, tdist, icfg, fcfg, beh_rand, beh_speeds, beh_n, ucb_n, ucb_tot, mt, ist, fst,
-        dist, edge, pred, pred_n, goal, np.zeros(4), alpha, p, 50, 1, out_i, out_f,
-    )  # fmt: skip
+    ist = np.zeros(arrays.N_IST, dtype=np.int64)
+    ist[arrays.I_GREEDY] = -1
+    fst = np.zeros(arrays.N_FST)
+    fst[arrays.S_NORM] = np.nan
+    state = arrays.RunState(np.zeros((9, 4)), mt, ist, fst, np.zeros((9, 4), dtype=np.int64), np.zeros(9, dtype=np.int64))
+    appraisal = arrays.Appraisal(
+        np.full(9, np.inf),
+        np.zeros((9, 4), dtype=np.bool_),
+        np.zeros((9, 2), dtype=np.int64),
+        np.zeros(9, dtype=np.int64),
+        np.zeros(9, dtype=np.bool_),
+        np.zeros(4),
+    )
+    loop.run(table.env, config, agent.behaviour, state, appraisal, arrays.Episodes(alpha, p, out_i, out_f), 50, 1)

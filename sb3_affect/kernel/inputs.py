@@ -1,18 +1,20 @@
 """
-What a batch of fresh runs feeds the kernel (``BatchInputs``): the agent (``AgentSpec``), its configuration arrays, the
-per-episode learning rate and exploration, and the env's geometry. Nothing here imports torch or SB3.
+What a batch of fresh runs feeds the kernel (``BatchInputs``): the agent (``KernelAgent``), its configuration, the
+per-episode learning rate and exploration, and the env's transition table as arrays (``TableArrays``). Nothing here
+imports torch or SB3.
 
-``batch_inputs`` computes them from an *agent*, which is either a freshly built model or the agent's settings object
-(``sb3_affect.settings``): both carry the same attributes under the same names, so both go through the same code.
-``settings_inputs`` is the path without a model: from ``(algo, algo kwargs, env id, env kwargs)``, it validates the
-kwargs with the agent's own checks and builds the env with ``gym.make``; anything it can not vouch for (a class of
-your own, an argument that is not a setting, a schedule of the training progress, an env the kernel can not step) is
-left to the model-based path (it returns None).
+``batch_inputs`` computes them from an agent's settings object (``sb3_affect.settings``: given, or the one a freshly
+built model hands over). ``settings_inputs`` is the path without a model: from ``(algo, algo kwargs, env id, env
+kwargs)``, it validates the kwargs with the agent's own checks and builds the env with ``gym.make``; anything it can
+not vouch for (a class of your own, an argument that is not a setting, a schedule of the training progress, an env
+without a transition table) is left to the model-based path (it returns None).
+
+An env runs on the kernel when it describes its moves (``transition_table()``, see
+``sb3_affect.envs.transition_table``) and is wrapped only in wrappers that leave a step as it is.
 """
 
 from __future__ import annotations
 
-import sys
 from collections.abc import Mapping
 from typing import Any, NamedTuple
 
@@ -20,34 +22,37 @@ import gymnasium as gym
 import numpy as np
 from gymnasium.wrappers import OrderEnforcing, PassiveEnvChecker, TimeLimit
 
-from sb3_affect.kernel import loop
-from sb3_affect.kernel.agents import COMPENSATED_SUM, AgentSpec, agent_spec, episode_schedule
+from sb3_affect.envs.transition_table import TransitionTable
+from sb3_affect.kernel import arrays
+from sb3_affect.kernel.agents import COMPENSATED_SUM, KernelAgent, kernel_agent
 from sb3_affect.registry import known_settings
 
 
-class Geometry:
-    """The env's dynamics as arrays: ``trans[s, a]``, true distances, start, goal, rewards, predecessor capacity."""
+class TableArrays:
+    """An env's transition table as the kernel's arrays (``trans``, ``tdist``) and scalars, and the predecessor width."""
 
     @classmethod
-    def of(cls, base: Any) -> Geometry:
-        """The geometry of ``base``, kept on the env (its moves and rewards are fixed once it is built)."""
-        cached = getattr(base, "_sb3_affect_kernel_geometry", None)
-        if cached is None or cached.source is not base.transitions or cached.rewards != (base.goal_reward, base.step_reward):
-            cached = cls(base)
-            base._sb3_affect_kernel_geometry = cached
+    def of(cls, base: Any) -> TableArrays:
+        """The arrays of ``base``'s table, kept on the env (its moves and rewards are fixed once it is built)."""
+        table = base.transition_table()
+        cached = getattr(base, "_sb3_affect_kernel_table", None)
+        rewards = (table.goal_reward, table.step_reward)
+        if cached is None or cached.source is not table.transitions or cached.rewards != rewards:
+            cached = cls(table)
+            base._sb3_affect_kernel_table = cached
         return cached
 
-    def __init__(self, base: Any) -> None:
-        self.source = base.transitions
-        self.rewards = (base.goal_reward, base.step_reward)
-        self.trans = np.asarray(base.transitions, dtype=np.int64)
-        self.tdist = np.asarray(base.distances, dtype=np.float64)
-        self.start = int(base.start_state)
-        self.goal = int(base.goal_state)
-        self.shortest = int(base.shortest_path_length)
-        self.goal_reward = float(base.goal_reward)
-        self.step_reward = float(base.step_reward)
-        self.size = int(base.size)
+    def __init__(self, table: TransitionTable) -> None:
+        self.source = table.transitions
+        self.rewards = (table.goal_reward, table.step_reward)
+        self.trans = np.asarray(table.transitions, dtype=np.int64)
+        self.tdist = np.asarray(table.distances, dtype=np.float64)
+        self.start = int(table.start)
+        self.goal = int(table.goal)
+        self.shortest = int(table.shortest_path_length)
+        self.goal_reward = float(table.goal_reward)
+        self.step_reward = float(table.step_reward)
+        self.width = int(table.width)
         n_states = self.trans.shape[0]
         # the most distinct cells with a move into one cell: the width of the known map's predecessor table
         into = np.zeros(n_states, dtype=np.int64)
@@ -56,29 +61,33 @@ class Geometry:
                 into[t] += 1
         self.max_pred = max(1, int(into.max()))
 
+    @property
+    def env(self) -> arrays.EnvTable:
+        """The kernel's ``EnvTable``."""
+        return arrays.EnvTable(self.trans, self.tdist)
 
-def config_arrays(agent: Any, spec: AgentSpec, geo: Geometry, time_limit: int) -> tuple[np.ndarray, np.ndarray]:
-    """``icfg`` and ``fcfg`` of the kernel for ``agent`` (a model or its settings) on an env of geometry ``geo``."""
-    icfg = np.zeros(loop.N_ICFG, dtype=np.int64)
-    icfg[loop.C_KIND] = spec.kind
-    icfg[loop.C_GOAL] = geo.goal
-    icfg[loop.C_START] = geo.start
-    icfg[loop.C_SHORTEST] = geo.shortest
-    icfg[loop.C_TIME_LIMIT] = time_limit
-    icfg[loop.C_CAP] = agent.max_episode_decisions
-    icfg[loop.C_ACT_EPISODE] = spec.act_episode
-    icfg[loop.C_UNITS_CELLS] = spec.units_cells
-    icfg[loop.C_VALENCE] = spec.valence
-    icfg[loop.C_TIE_FIRST] = getattr(agent, "tie_break", "random") == "first"
-    icfg[loop.C_JUMP] = getattr(agent, "multi_cell", "steps") == "jump"
-    icfg[loop.C_COMPENSATED_SUM] = COMPENSATED_SUM
-    fcfg = np.zeros(loop.N_FCFG)
-    fcfg[loop.F_GAMMA] = agent.gamma
-    fcfg[loop.F_GOAL_REWARD] = geo.goal_reward
-    fcfg[loop.F_STEP_REWARD] = geo.step_reward
-    fcfg[loop.F_NORM_SCALE] = spec.norm_scale
-    fcfg[loop.F_UCB_COEF] = spec.ucb_coef
-    return icfg, fcfg
+
+def kernel_config(settings: Any, agent: KernelAgent, table: TableArrays, time_limit: int) -> arrays.Config:
+    """The kernel's ``Config`` for an agent of these settings on an env of this table."""
+    return arrays.Config(
+        kind=int(agent.kind),
+        goal=table.goal,
+        start=table.start,
+        shortest=table.shortest,
+        time_limit=int(time_limit),
+        cap=int(settings.max_episode_decisions),
+        act_episode=bool(agent.act_episode),
+        units_cells=bool(agent.units_cells),
+        valence=bool(agent.valence),
+        tie_first=settings.tie_break == "first",
+        jump=getattr(settings, "multi_cell", "steps") == "jump",
+        compensated_sum=COMPENSATED_SUM,
+        gamma=float(settings.gamma),
+        goal_reward=table.goal_reward,
+        step_reward=table.step_reward,
+        norm_scale=float(agent.norm_scale),
+        ucb_coef=float(agent.ucb_coef),
+    )
 
 
 # -- the env --------------------------------------------------------------------------------------------------------
@@ -91,31 +100,22 @@ def unwrap(env: Any) -> tuple[Any, list[Any]]:
     return env, wrappers
 
 
-def _monitor_class() -> Any:
-    """SB3's ``Monitor`` if SB3 is imported (otherwise no env can be wrapped in one: nothing to import)."""
-    module = sys.modules.get("stable_baselines3.common.monitor")
-    return None if module is None else module.Monitor
-
-
-def env_reason(env: Any) -> str | None:
-    """Why the kernel can not step ``env`` (None: it can)."""
-    from sb3_affect.envs import GridPursuitEnv, MazePursuitEnv, MovingPursuitEnv
-
+def env_reason(env: Any, also_allowed: tuple[type, ...] = ()) -> str | None:
+    """
+    Why the kernel can not step ``env`` (None: it can): its base env gives no transition table, or a wrapper other
+    than Gymnasium's standard ones (and ``also_allowed``) may change what a step does.
+    """
     base, wrappers = unwrap(env)
-    if type(base) is MovingPursuitEnv:
-        return (
-            "MovingPursuit runs on its own kernel in simulate (sb3_affect.kernel.moving); learn steps it on the "
-            "Python loop"
-        )
-    if type(base) not in (GridPursuitEnv, MazePursuitEnv):
-        return f"the env {type(base).__name__} is not one of the package's own grid envs (GridPursuit, MazePursuit)"
-    monitor = _monitor_class()
-    known = (TimeLimit, OrderEnforcing, PassiveEnvChecker) + (() if monitor is None else (monitor,))
+    describe = getattr(base, "transition_table", None)
+    table = describe() if callable(describe) else None
+    if isinstance(table, str):
+        return table
+    if not isinstance(table, TransitionTable):
+        return f"the env {type(base).__name__} does not describe its moves as a transition table (transition_table())"
+    known = (TimeLimit, OrderEnforcing, PassiveEnvChecker, *also_allowed)
     for wrapper in wrappers:
         if type(wrapper) not in known:
             return f"the env is wrapped in {type(wrapper).__name__}, which may change what a step does"
-        if monitor is not None and isinstance(wrapper, monitor) and wrapper.info_keywords:
-            return "the Monitor records info_keywords, which the kernel does not produce"
     return None
 
 
@@ -123,10 +123,9 @@ def env_reason(env: Any) -> str | None:
 class BatchInputs(NamedTuple):
     """Everything ``kernel.batch.simulate_batch`` needs besides the seeds: the same for every run of the batch."""
 
-    spec: AgentSpec
-    geometry: Geometry
-    icfg: np.ndarray
-    fcfg: np.ndarray
+    agent: KernelAgent
+    table: TableArrays
+    config: arrays.Config
     alpha: np.ndarray  # learning rate per episode
     p: np.ndarray  # exploration parameter per episode
     q_init: float
@@ -134,22 +133,27 @@ class BatchInputs(NamedTuple):
     cap: int  # max_episode_decisions
 
 
-def batch_inputs(agent: Any, env: Any, episodes: int) -> BatchInputs:
-    """
-    The kernel inputs of fresh runs of ``agent`` (a freshly built model, or the agent's settings) on ``env`` (the
-    model's env, or the one ``gym.make`` builds); the agent and the env must be ones the kernel runs.
-    """
-    spec = agent_spec(agent)
-    assert isinstance(spec, AgentSpec), spec
-    base, wrappers = unwrap(env)
-    geo = Geometry.of(base)
+def time_limit_of(wrappers: list[Any]) -> int:
+    """The ``max_episode_steps`` of the outermost time limit among ``wrappers`` (0: none)."""
     limits = [int(w._max_episode_steps) for w in wrappers if hasattr(w, "_max_episode_steps")]
-    icfg, fcfg = config_arrays(agent, spec, geo, limits[0] if limits else 0)
-    schedule = episode_schedule(agent, spec.kind, 0, episodes)
-    assert schedule is not None
-    alpha, p = schedule
+    return limits[0] if limits else 0
+
+
+def batch_inputs(settings: Any, env: Any, episodes: int) -> BatchInputs:
+    """
+    The kernel inputs of fresh runs of an agent of these ``settings`` on ``env`` (a model's env, or the one
+    ``gym.make`` builds); the agent and the env must be ones the kernel runs.
+    """
+    agent = kernel_agent(settings)
+    assert isinstance(agent, KernelAgent), agent
+    base, wrappers = unwrap(env)
+    table = TableArrays.of(base)
+    config = kernel_config(settings, agent, table, time_limit_of(wrappers))
+    parameters = settings.episode_parameters(0, episodes)
+    assert parameters is not None
+    alpha, p = parameters
     n_actions = int(env.action_space.n)
-    return BatchInputs(spec, geo, icfg, fcfg, alpha, p, float(agent.q_init), n_actions, int(agent.max_episode_decisions))
+    return BatchInputs(agent, table, config, alpha, p, float(settings.q_init), n_actions, int(settings.max_episode_decisions))
 
 
 def settings_inputs(
@@ -165,8 +169,7 @@ def settings_inputs(
     env = gym.make(env_id, **dict(env_kwargs or {}))  # first, as for a model: a bad env is the first error
     try:
         settings = settings_cls(**kwargs)
-        spec = agent_spec(settings)
-        if isinstance(spec, str) or episode_schedule(settings, spec.kind, 0, 1) is None:
+        if isinstance(kernel_agent(settings), str) or settings.episode_parameters(0, 1) is None:
             return None
         if env_reason(env) is not None or not isinstance(env.observation_space, gym.spaces.Discrete):
             return None

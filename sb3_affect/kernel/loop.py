@@ -3,8 +3,9 @@ The compiled decision loop: ``sb3_affect.loop.run_loop`` with the agent's ``_dec
 env's moves, in numba. ``sb3_affect/loop.py`` is the readable reference; this file does the same operations in the
 same order (same random draws, same floating-point expressions), so both give the same episode log and Q-table.
 
-State crosses the boundary as arrays. ``ist`` (int64) and ``fst`` (float64) hold the run's scalars at the indices
-below; the caller (``sb3_affect.kernel.bridge``) fills them from the model and writes them back after the call.
+State crosses the boundary as arrays, grouped in a few named tuples (``sb3_affect.kernel.arrays``; numba passes
+each as one argument): ``EnvTable``, ``Config``, ``BehaviourRows``, ``RunState``, ``Appraisal``, ``Episodes`` and
+``Work``. The caller fills them and reads them back after the call.
 """
 
 from __future__ import annotations
@@ -15,68 +16,62 @@ import numpy as np
 from numba import njit
 
 from sb3_affect.kernel.affect import fit_add, known_add, known_add_goal, start_norm, table_ii
-from sb3_affect.kernel.choice import greedy, row_max, softmax_action, ucb_action
-from sb3_affect.kernel.jit import kernel_jit
-from sb3_affect.kernel.mt19937 import TW_SIZE, bit_length, draw01, draw_below, temper_all
-from sb3_affect.kernel.mt19937 import N as MT_N
-
-# agent kinds
-EPSILON, AFFECT, BOLTZMANN, UCB = 0, 1, 2, 3
-
-# icfg: fixed configuration
-(
-    C_KIND,
-    C_GOAL,
-    C_START,
-    C_SHORTEST,
-    C_TIME_LIMIT,
-    C_CAP,
-    C_ACT_EPISODE,
-    C_UNITS_CELLS,
-    C_VALENCE,
-    C_TIE_FIRST,
-    C_JUMP,
-    C_COMPENSATED_SUM,
-) = range(12)
-N_ICFG = 12
-# fcfg: fixed float configuration
-F_GAMMA, F_GOAL_REWARD, F_STEP_REWARD, F_NORM_SCALE, F_UCB_COEF = range(5)
-N_FCFG = 5
-
-# ist: int run state
-(
-    I_T,
-    I_STATE,
-    I_DECISIONS,
+from sb3_affect.kernel.arrays import (
+    AFFECT,
+    BOLTZMANN,
+    EPSILON,
     I_CELLS,
-    I_RANDOM,
-    I_WAITS,
-    I_JOY,
-    I_SADNESS,
-    I_FEAR,
-    I_ANGER,
     I_CHANGED,
-    I_GREEDY,
-    I_TL_ELAPSED,
-    I_NFIT,
+    I_DECISIONS,
     I_EL_CELLS,
     I_EL_DECISIONS,
+    I_GREEDY,
+    I_JOY,
     I_LAST_ACTION,
     I_LAST_PREV,
     I_LAST_S2,
     I_LAST_TERMINATED,
-) = range(20)
-N_IST = 20
-# fst: float run state
-S_REWARD, S_NORM, S_LAST_ACT, S_LAST_REWARD, S_FIT0 = range(5)  # S_FIT0..S_FIT0+3: the power fit's running sums
-N_FST = 9
+    I_NFIT,
+    I_RANDOM,
+    I_STATE,
+    I_T,
+    I_TL_ELAPSED,
+    I_WAITS,
+    O_CELLS,
+    O_DECISIONS,
+    O_GREEDY,
+    O_JOY,
+    O_OPTIMAL,
+    O_RANDOM,
+    O_TRUNCATED,
+    O_WAITS,
+    S_FIT0,
+    S_LAST_ACT,
+    S_LAST_REWARD,
+    S_NORM,
+    S_REWARD,
+    STOP_EPISODES,
+    STOP_TIMESTEPS,
+    work_space,
+)
+from sb3_affect.kernel.choice import greedy, row_max, softmax_action, ucb_action
+from sb3_affect.kernel.jit import kernel_inline, kernel_jit
+from sb3_affect.kernel.mt19937 import N as MT_N
+from sb3_affect.kernel.mt19937 import bit_length, draw01, draw_below, temper_all
 
-# out_i columns (out_f: reward, norm)
-(O_DECISIONS, O_CELLS, O_OPTIMAL, O_TRUNCATED, O_RANDOM, O_WAITS, O_JOY, O_SADNESS, O_FEAR, O_ANGER, O_GREEDY) = range(11)
-N_OUT_I = 11
 
-# why run returned
-STOP_TIMESTEPS, STOP_EPISODES = 0, 1
+@kernel_inline
+def q_update(q, s, action, reward, s2, terminated, alpha, gamma):
+    """
+    Eq. 1 for ``q[s, action]`` after a move to ``s2`` with ``reward`` (the only place the kernel writes it); returns
+    whether the entry changed.
+    """
+    old = q[s, action]
+    new = old + alpha * ((reward if terminated else reward + gamma * row_max(q, s2)) - old)
+    if new != old:
+        q[s, action] = new
+        return True
+    return False
 
 
 @kernel_jit
@@ -109,63 +104,57 @@ def greedy_walks_shortest_path(
 
 
 @njit(cache=True)
-def run(
-    q, trans, tdist, icfg, fcfg, beh_rand, beh_speeds, beh_n, ucb_n, ucb_tot, mt, ist, fst,
-    dist, edge, pred, pred_n, goal, fit_vals, alpha_e, p_e, total_timesteps, max_episodes, out_i, out_f,
-):  # fmt: skip
+def run(env, config, behaviour, state, appraisal, episodes, total_timesteps, max_episodes):
     """
     Run decisions until ``num_timesteps`` reaches ``total_timesteps`` or ``max_episodes`` episodes have finished.
 
-    Episode ``j`` of this call (``j = 0``: the one in progress) learns with ``alpha_e[j]`` and explores with ``p_e[j]``
-    (epsilon, or the inverse temperature). Finished episodes are written to ``out_i``/``out_f``. After an episode ends
-    the next one is started (the env reset to its start, the appraisal's new norm), as the Python loop does.
-    Returns ``(episodes finished, STOP_TIMESTEPS or STOP_EPISODES)``.
+    Episode ``j`` of this call (``j = 0``: the one in progress) learns with ``episodes.alpha[j]`` and explores with
+    ``episodes.p[j]`` (epsilon, or the inverse temperature). After an episode ends the next one is started (the env
+    reset to its start, the appraisal's new norm), as the Python loop does. Returns ``(episodes finished,
+    STOP_TIMESTEPS or STOP_EPISODES)``.
 
     This allocates the work space and calls ``decision_loop``, the loop itself.
     """
-    n_states, n_actions = q.shape
-    work = np.empty(n_actions)
-    seen = np.zeros(n_states, dtype=np.int64)
-    stack = np.empty(n_states * n_actions + 1, dtype=np.int64)
-    queue = np.empty(n_states + 1, dtype=np.int64)
-    tw = np.empty(TW_SIZE, dtype=np.int64)
-    return decision_loop(
-        icfg[C_KIND], q, trans, tdist, icfg, fcfg, beh_rand, beh_speeds, beh_n, ucb_n, ucb_tot, mt, ist, fst,
-        dist, edge, pred, pred_n, goal, fit_vals, alpha_e, p_e, total_timesteps, max_episodes, out_i, out_f,
-        work, seen, stack, queue, tw,
-    )  # fmt: skip
+    n_states, n_actions = state.q.shape
+    work = work_space(n_states, n_actions)
+    return decision_loop(env, config, behaviour, state, appraisal, episodes, work, total_timesteps, max_episodes)
 
 
 @kernel_jit
-def decision_loop(
-    kind, q, trans, tdist, icfg, fcfg, beh_rand, beh_speeds, beh_n, ucb_n, ucb_tot, mt, ist, fst,
-    dist, edge, pred, pred_n, goal, fit_vals, alpha_e, p_e, total_timesteps, max_episodes, out_i, out_f,
-    work, seen, stack, queue, tw,
-):  # fmt: skip
+def decision_loop(env, config, behaviour, state, appraisal, episodes, work, total_timesteps, max_episodes):
     """
-    ``run``'s loop, for an agent of ``kind``. The run's scalars live in locals during the loop (the random stream's
-    index, the counters, the appraisal's norm and elapsed time) and go back to ``mt[N]``, ``ist`` and ``fst`` when it
-    returns. ``work`` (``n_actions`` floats), ``seen`` (``n_states`` zeros), ``stack`` (``n_states * n_actions + 1``)
-    and ``queue`` (``n_states + 1``) are work space, ``tw`` (``mt19937.TW_SIZE``) the random stream's tempered words.
+    ``run``'s loop (the arguments: the named tuples of this module).
+
+    Writes: ``state`` (the Q-table ``q``; the random stream ``mt``; ``ist`` and ``fst``, the run's scalars, which live
+    in locals during the loop and go back when it returns; UCB's ``ucb_n`` and ``ucb_tot``), ``appraisal`` (the
+    known map and the power fit, AffectQ only), ``episodes.rows_i`` and ``episodes.rows_f`` (one row per finished
+    episode) and ``work``. Reads only: ``env``, ``config``, ``behaviour``, ``episodes.alpha`` and ``episodes.p``.
     Q-table changes mark the greedy walk's answer out of date only in rows that walk read (``seen[s] == walks``):
     the walk reads no other row, so a change elsewhere can not change its answer.
     """
-    goal_state = icfg[C_GOAL]
-    start_state = icfg[C_START]
-    shortest = icfg[C_SHORTEST]
-    time_limit = icfg[C_TIME_LIMIT]
-    cap = icfg[C_CAP]
-    act_episode = icfg[C_ACT_EPISODE] != 0
-    units_cells = icfg[C_UNITS_CELLS] != 0
-    valence = icfg[C_VALENCE] != 0
-    tie_first = icfg[C_TIE_FIRST] != 0
-    jump = icfg[C_JUMP] != 0
-    compensated = icfg[C_COMPENSATED_SUM] != 0
-    gamma = fcfg[F_GAMMA]
-    goal_reward = fcfg[F_GOAL_REWARD]
-    step_reward = fcfg[F_STEP_REWARD]
-    norm_scale = fcfg[F_NORM_SCALE]
-    ucb_coef = fcfg[F_UCB_COEF]
+    trans, tdist = env
+    q, mt, ist, fst, ucb_n, ucb_tot = state
+    dist, edge, pred, pred_n, goal, fit_vals = appraisal
+    alpha_e, p_e, out_i, out_f = episodes
+    work_row, seen, stack, queue, tw = work
+    beh_rand, beh_speeds, beh_n = behaviour
+    kind = config.kind
+    goal_state = config.goal
+    start_state = config.start
+    shortest = config.shortest
+    time_limit = config.time_limit
+    cap = config.cap
+    act_episode = config.act_episode
+    units_cells = config.units_cells
+    valence = config.valence
+    tie_first = config.tie_first
+    jump = config.jump
+    compensated = config.compensated_sum
+    gamma = config.gamma
+    goal_reward = config.goal_reward
+    step_reward = config.step_reward
+    norm_scale = config.norm_scale
+    ucb_coef = config.ucb_coef
     n_actions = q.shape[1]
     action_shift = 32 - bit_length(n_actions)  # randrange(n_actions) draws this many bits fewer than 32
     speeds0 = beh_n[0]  # the epsilon family's speeds: row 0
@@ -239,11 +228,11 @@ def decision_loop(
         elif kind == BOLTZMANN:
             k = 1
             u, r = draw01(mt, tw, r)
-            action = softmax_action(q, s, p, u, compensated, work)
+            action = softmax_action(q, s, p, u, compensated, work_row)
             explored = q[s, action] != row_max(q, s)
         else:
             k = 1
-            action, r = ucb_action(q, s, ucb_n, ucb_tot[s], ucb_coef, mt, tw, r, work)
+            action, r = ucb_action(q, s, ucb_n, ucb_tot[s], ucb_coef, mt, tw, r, work_row)
             ucb_n[s, action] += 1
             ucb_tot[s] += 1
             explored = q[s, action] != row_max(q, s)
@@ -259,10 +248,7 @@ def decision_loop(
             if jump:
                 jump_reward += reward
             else:
-                old = q[s, action]
-                new = old + alpha * ((reward if terminated else reward + gamma * row_max(q, s2)) - old)
-                if new != old:
-                    q[s, action] = new
+                if q_update(q, s, action, reward, s2, terminated, alpha, gamma):
                     changed |= seen[s] == walks  # (only a row the last greedy walk read can change its answer)
             if kind == AFFECT:
                 el_cells += 1
@@ -276,12 +262,8 @@ def decision_loop(
             s = s2
             if terminated or truncated:
                 break
-        if jump and k > 0:
-            old = q[start_cell, action]
-            new = old + alpha * ((jump_reward if terminated else jump_reward + gamma * row_max(q, s)) - old)
-            if new != old:
-                q[start_cell, action] = new
-                changed |= seen[start_cell] == walks
+        if jump and k > 0 and q_update(q, start_cell, action, jump_reward, s, terminated, alpha, gamma):
+            changed |= seen[start_cell] == walks
         if k == 0:
             waits += 1
         if explored:

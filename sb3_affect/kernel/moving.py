@@ -225,7 +225,7 @@ def moving_loop(
             if jump:
                 jump_reward += reward
             else:
-                q_update(q, s, action, reward, terminated, s2, alpha, gamma)
+                q_update(q, s, action, reward, s2, terminated, alpha, gamma)
             if kind == AFFECT:
                 el_cells += 1
                 if terminated and reward > 0.0:
@@ -237,7 +237,7 @@ def moving_loop(
             if terminated or truncated:
                 break
         if jump and k > 0:
-            q_update(q, start_state, action, jump_reward, terminated, s, alpha, gamma)
+            q_update(q, start_state, action, jump_reward, s, terminated, alpha, gamma)
         if k == 0:
             waits += 1
         if explored:

@@ -19,7 +19,7 @@ import numpy as np
 from gymnasium.wrappers import OrderEnforcing, PassiveEnvChecker, TimeLimit
 
 from sb3_affect.kernel import moving
-from sb3_affect.kernel.agents import COMPENSATED_SUM, AgentSpec, agent_spec, episode_schedule
+from sb3_affect.kernel.agents import COMPENSATED_SUM, KernelAgent, kernel_agent
 from sb3_affect.kernel.inputs import unwrap
 from sb3_affect.kernel.mt19937 import STATE_SIZE, seed_key
 from sb3_affect.kernel.pcg64 import STATE_SIZE as PCG_SIZE
@@ -31,7 +31,7 @@ from sb3_affect.registry import known_settings
 class MovingInputs(NamedTuple):
     """Everything ``moving_columns`` needs besides the seeds: the same for every run of the batch."""
 
-    spec: AgentSpec
+    agent: KernelAgent
     icfg: np.ndarray
     fcfg: np.ndarray
     cell_trans: np.ndarray  # the cells' one-move table
@@ -88,45 +88,45 @@ def _far(base: Any) -> np.ndarray:
     return cached
 
 
-def moving_inputs(agent: Any, env: Any, episodes: int) -> MovingInputs:
+def moving_inputs(settings: Any, env: Any, episodes: int) -> MovingInputs:
     """
-    The kernel inputs of fresh runs of ``agent`` (a freshly built model, or the agent's settings) on ``env`` (a
-    MovingPursuit, ``moving_reason(env)`` None).
+    The kernel inputs of fresh runs of an agent of these ``settings`` (``sb3_affect.settings``: given, or the ones a
+    freshly built model hands over) on ``env`` (a MovingPursuit, ``moving_reason(env)`` None).
     """
-    spec = agent_spec(agent)
-    assert isinstance(spec, AgentSpec), spec
+    agent = kernel_agent(settings)
+    assert isinstance(agent, KernelAgent), agent
     base, wrappers = unwrap(env)
     limits = [int(w._max_episode_steps) for w in wrappers if hasattr(w, "_max_episode_steps")]
     icfg = np.zeros(moving.N_ICFG, dtype=np.int64)
-    icfg[moving.C_KIND] = spec.kind
+    icfg[moving.C_KIND] = agent.kind
     icfg[moving.C_N_CELLS] = base.n_cells
     icfg[moving.C_HUNTER_START] = base.hunter_start_cell
     icfg[moving.C_PREY_START] = base.prey_start_cell
     icfg[moving.C_PREY] = moving.PREY_KINDS[base.prey]
     icfg[moving.C_TIME_LIMIT] = limits[0] if limits else 0
-    icfg[moving.C_CAP] = agent.max_episode_decisions
-    icfg[moving.C_ACT_EPISODE] = spec.act_episode
-    icfg[moving.C_UNITS_CELLS] = spec.units_cells
-    icfg[moving.C_VALENCE] = spec.valence
-    icfg[moving.C_TIE_FIRST] = getattr(agent, "tie_break", "random") == "first"
-    icfg[moving.C_JUMP] = getattr(agent, "multi_cell", "steps") == "jump"
+    icfg[moving.C_CAP] = settings.max_episode_decisions
+    icfg[moving.C_ACT_EPISODE] = agent.act_episode
+    icfg[moving.C_UNITS_CELLS] = agent.units_cells
+    icfg[moving.C_VALENCE] = agent.valence
+    icfg[moving.C_TIE_FIRST] = getattr(settings, "tie_break", "random") == "first"
+    icfg[moving.C_JUMP] = getattr(settings, "multi_cell", "steps") == "jump"
     icfg[moving.C_COMPENSATED_SUM] = COMPENSATED_SUM
     fcfg = np.zeros(moving.N_FCFG)
-    fcfg[moving.F_GAMMA] = agent.gamma
+    fcfg[moving.F_GAMMA] = settings.gamma
     fcfg[moving.F_GOAL_REWARD] = base.goal_reward
     fcfg[moving.F_STEP_REWARD] = base.step_reward
-    fcfg[moving.F_NORM_SCALE] = spec.norm_scale
-    fcfg[moving.F_UCB_COEF] = spec.ucb_coef
+    fcfg[moving.F_NORM_SCALE] = agent.norm_scale
+    fcfg[moving.F_UCB_COEF] = agent.ucb_coef
     fcfg[moving.F_PREY_SPEED] = base.prey_speed
-    schedule = episode_schedule(agent, spec.kind, 0, episodes)
-    assert schedule is not None
-    alpha, p = schedule
+    parameters = settings.episode_parameters(0, episodes)
+    assert parameters is not None
+    alpha, p = parameters
     cell_trans = np.asarray(base.cell_transitions, dtype=np.int64)
     far = _far(base) if base.prey == "evade" else np.zeros((1, 1))
     succ_width, pred_width = known_widths(cell_trans, base.prey != "static")
     return MovingInputs(
-        spec, icfg, fcfg, cell_trans, far, alpha, p, float(agent.q_init), int(env.action_space.n),
-        int(agent.max_episode_decisions), succ_width, pred_width,
+        agent, icfg, fcfg, cell_trans, far, alpha, p, float(settings.q_init), int(env.action_space.n),
+        int(settings.max_episode_decisions), succ_width, pred_width,
     )  # fmt: skip
 
 
@@ -145,8 +145,7 @@ def moving_settings_inputs(
         if moving_reason(env) is not None:
             return None
         settings = settings_cls(**kwargs)
-        spec = agent_spec(settings)
-        if isinstance(spec, str) or episode_schedule(settings, spec.kind, 0, 1) is None:
+        if isinstance(kernel_agent(settings), str) or settings.episode_parameters(0, 1) is None:
             return None
         return moving_inputs(settings, env, episodes)
     finally:
@@ -155,7 +154,7 @@ def moving_settings_inputs(
 
 def run_moving(inputs: MovingInputs, seeds: Sequence[int], episodes: int) -> MovingRun:
     """Fresh runs of ``episodes`` episodes for each seed in one kernel call (``moving.run_seeds``)."""
-    spec = inputs.spec
+    behaviour = inputs.agent.behaviour
     words = [seed_key(int(seed)) for seed in seeds]
     width = max((len(w) for w in words), default=1)
     keys = np.zeros((len(words), width), dtype=np.int64)
@@ -176,7 +175,7 @@ def run_moving(inputs: MovingInputs, seeds: Sequence[int], episodes: int) -> Mov
     dist = np.empty(n_states)
     moving.run_seeds(
         keys, lengths, pcg_init, inputs.q_init, inputs.n_actions, inputs.cell_trans, inputs.far, inputs.icfg,
-        inputs.fcfg, spec.beh_rand, spec.beh_speeds, spec.beh_n, inputs.succ_width, inputs.pred_width, inputs.alpha,
+        inputs.fcfg, behaviour.random, behaviour.speeds, behaviour.n, inputs.succ_width, inputs.pred_width, inputs.alpha,
         inputs.p, episodes, episodes * inputs.cap, out_i, out_f, q, mt, pcg, dist,
     )  # fmt: skip
     return MovingRun(out_i, out_f, q, mt, pcg, dist)
@@ -215,9 +214,12 @@ def moving_batch_reason(model: Any) -> str | None:
     reason = moving_reason(model._single_env())
     if reason is not None:
         return reason
-    spec = agent_spec(model)
-    if isinstance(spec, str):
-        return spec
-    if episode_schedule(model, spec.kind, 0, 1) is None:
+    settings = model.compiled_settings()
+    if isinstance(settings, str):
+        return settings
+    agent = kernel_agent(settings)
+    if isinstance(agent, str):
+        return agent
+    if settings.episode_parameters(0, 1) is None:
         return "a schedule depends on the training progress, which only the Python side evaluates (one episode at a time)"
     return None

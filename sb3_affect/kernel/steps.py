@@ -1,8 +1,9 @@
 """
 The pieces of a decision that the kernels of moving prey (``kernel.moving``) and of hunter teams (``kernel.team``)
-share: the choice of direction and speed of every agent kind (``decide``), Eq. 1 (``q_update``) and the known map
-over observations (``obs_known_add``), each doing the same operations, with the same random draws in the same order,
-as its Python reference (``_decide`` of each agent class, ``loop.run_loop``'s update, ``appraisal.KnownMap.add``).
+share: the choice of direction and speed of every agent kind (``decide``) and the known map over observations
+(``obs_known_add``), each doing the same operations, with the same random draws in the same order, as its Python
+reference (``_decide`` of each agent class, ``appraisal.KnownMap.add``). Eq. 1 is the decision loop's own
+``q_update`` (``kernel.loop``), re-exported here.
 """
 
 from __future__ import annotations
@@ -12,25 +13,13 @@ import math
 import numpy as np
 
 from sb3_affect.kernel.affect import propagate, table_ii
+from sb3_affect.kernel.arrays import AFFECT, BOLTZMANN, EPSILON
 from sb3_affect.kernel.choice import greedy, row_max, softmax_action, ucb_action
 from sb3_affect.kernel.jit import kernel_inline, kernel_jit
+from sb3_affect.kernel.loop import q_update
 from sb3_affect.kernel.mt19937 import bit_length, draw01, draw_below
 
-# agent kinds (``kernel.agents.FAMILY_KINDS``)
-EPSILON, AFFECT, BOLTZMANN, UCB = 0, 1, 2, 3
-
-
-@kernel_inline
-def q_update(
-    q: np.ndarray, s: int, action: int, reward: float, terminated: bool, s2: int, alpha: float, gamma: float
-) -> bool:
-    """Eq. 1 on ``q[s, action]`` for the transition to ``s2``; returns whether the entry changed."""
-    old = q[s, action]
-    new = old + alpha * ((reward if terminated else reward + gamma * row_max(q, s2)) - old)
-    if new != old:
-        q[s, action] = new
-        return True
-    return False
+__all__ = ["AFFECT", "decide", "known_widths", "obs_known_add", "q_update"]
 
 
 @kernel_inline

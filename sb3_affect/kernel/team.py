@@ -252,7 +252,7 @@ def team_loop(
                     action = ist[m, I_ACTION]
                     if mcfg[m, K_JUMP] != 0:
                         fst[m, S_JUMP_REWARD] += reward
-                    elif q_update(q[m], s, action, reward, ended, s2, alpha_e[m, episode], mfcfg[m, G_GAMMA]):
+                    elif q_update(q[m], s, action, reward, s2, ended, alpha_e[m, episode], mfcfg[m, G_GAMMA]):
                         ist[m, I_CHANGED] = 1
                     if mcfg[m, K_KIND] == AFFECT:
                         ist[m, I_EL_CELLS] += 1
@@ -283,7 +283,7 @@ def team_loop(
             k = ist[m, I_K]
             jump = mcfg[m, K_JUMP] != 0 and k > 0
             if jump and q_update(
-                q[m], ist[m, I_START], ist[m, I_ACTION], fst[m, S_JUMP_REWARD], ended, ist[m, I_S],
+                q[m], ist[m, I_START], ist[m, I_ACTION], fst[m, S_JUMP_REWARD], ist[m, I_S], ended,
                 alpha_e[m, episode], mfcfg[m, G_GAMMA],
             ):  # fmt: skip
                 ist[m, I_CHANGED] = 1

@@ -16,7 +16,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from sb3_affect.kernel import team
-from sb3_affect.kernel.agents import COMPENSATED_SUM, agent_spec, episode_schedule
+from sb3_affect.kernel.agents import COMPENSATED_SUM, kernel_agent
 from sb3_affect.kernel.mt19937 import STATE_SIZE, TW_SIZE, seed_key, seed_state
 from sb3_affect.kernel.pcg64 import seeded_state
 from sb3_affect.kernel.steps import AFFECT
@@ -79,8 +79,8 @@ class TeamRun(NamedTuple):
 
 def team_inputs(agents: Sequence[Any], env: Any, episodes: int) -> TeamInputs | str:
     """
-    The kernel inputs of fresh team runs of ``agents`` (one per hunter: a freshly built model or the agent's
-    settings) on ``env`` (a ``HunterPursuitEnv``), or the reason the kernel can not run them.
+    The kernel inputs of fresh team runs of ``agents`` (one settings object per hunter, ``sb3_affect.settings``) on
+    ``env`` (a ``HunterPursuitEnv``), or the reason the kernel can not run them.
     """
     from sb3_affect.envs.hunter_pursuit import HunterPursuitEnv
 
@@ -91,10 +91,10 @@ def team_inputs(agents: Sequence[Any], env: Any, episodes: int) -> TeamInputs | 
     specs = []
     schedules = []
     for agent in agents:
-        spec = agent_spec(agent)
+        spec = kernel_agent(agent)
         if isinstance(spec, str):
             return spec
-        schedule = episode_schedule(agent, spec.kind, 0, episodes)
+        schedule = agent.episode_parameters(0, episodes)
         if schedule is None:
             return "a schedule depends on the training progress, which only the Python side evaluates"
         specs.append(spec)
@@ -120,7 +120,7 @@ def team_inputs(agents: Sequence[Any], env: Any, episodes: int) -> TeamInputs | 
     efcfg = np.array([env.goal_reward, env.step_reward, env.prey_speed], dtype=np.float64)
     mcfg = np.zeros((n, team.N_MCFG), dtype=np.int64)
     mfcfg = np.zeros((n, team.N_MFCFG))
-    speeds_width = max(spec.beh_speeds.shape[1] for spec in specs)
+    speeds_width = max(spec.behaviour.speeds.shape[1] for spec in specs)
     beh_rand = np.zeros((n, 4), dtype=np.int64)
     beh_speeds = np.zeros((n, 4, speeds_width), dtype=np.int64)
     beh_n = np.zeros((n, 4), dtype=np.int64)
@@ -136,9 +136,9 @@ def team_inputs(agents: Sequence[Any], env: Any, episodes: int) -> TeamInputs | 
             COMPENSATED_SUM,
         )
         mfcfg[m] = (agent.gamma, spec.norm_scale, spec.ucb_coef)
-        beh_rand[m] = spec.beh_rand
-        beh_speeds[m, :, : spec.beh_speeds.shape[1]] = spec.beh_speeds
-        beh_n[m] = spec.beh_n
+        beh_rand[m] = spec.behaviour.random
+        beh_speeds[m, :, : spec.behaviour.speeds.shape[1]] = spec.behaviour.speeds
+        beh_n[m] = spec.behaviour.n
     cell_trans = np.asarray(env.cell_transitions, dtype=np.int64)
     far = np.array([env.distances_to(h) for h in range(n_cells)]) if env.prey == "evade" else np.zeros((1, 1))
     return TeamInputs(

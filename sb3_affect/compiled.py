@@ -1,5 +1,7 @@
 """
-``learn`` on the compiled engine: when the kernel applies, and how a model's state goes into it and comes back.
+``learn`` on the compiled engine (``sb3_affect.kernel``): when the kernel applies, and how a model's state goes into
+it and comes back (``sb3_affect.compiled_state``). This is the agents' side of the kernel: the kernel itself knows
+settings objects and transition tables only; the SB3 objects (callbacks, the Monitor, the logger) are handled here.
 
 The kernel runs in chunks of whole episodes; between chunks this module does what the Python loop does at an episode
 end that the kernel can not (the episode rows, SB3's episode buffer, the Monitor's statistics, the logger, the
@@ -22,13 +24,16 @@ from stable_baselines3.common.callbacks import (
     ProgressBarCallback,
     StopTrainingOnMaxEpisodes,
 )
+from stable_baselines3.common.monitor import Monitor
 
-from sb3_affect.kernel import loop
-from sb3_affect.kernel.agents import agent_spec, current_exploration, episode_schedule
+from sb3_affect.compiled_state import KernelRun
+from sb3_affect.episode_log import COLUMN, EPISODE_COLUMNS
+from sb3_affect.kernel import arrays
+from sb3_affect.kernel.agents import KernelAgent, kernel_agent
 from sb3_affect.kernel.inputs import env_reason, unwrap
-from sb3_affect.kernel.state import KernelRun
+from sb3_affect.settings import TabularSettings
 
-__all__ = ["callback_reason", "compiled_reason", "env_reason", "learn_compiled", "unwrap"]
+__all__ = ["batch_reason", "callback_reason", "compiled_reason", "learn_compiled", "model_env_reason"]
 _CHUNK_EPISODES = 4096
 _PROGRESS_DECISIONS = 500_000
 
@@ -59,12 +64,39 @@ def callback_reason(callback: BaseCallback | None) -> str | None:
     return None
 
 
+def model_env_reason(env: Any) -> str | None:
+    """Why the kernel can not step a model's ``env`` (``kernel.inputs.env_reason``, SB3's Monitor allowed; None: it can)."""
+    reason = env_reason(env, (Monitor,))
+    if reason is None and any(isinstance(w, Monitor) and w.info_keywords for w in unwrap(env)[1]):
+        return "the Monitor records info_keywords, which the kernel does not produce"
+    return reason
+
+
+def compiled_agent(model: Any) -> tuple[TabularSettings, KernelAgent] | str:
+    """The model's settings and the agent the kernel runs, or why the kernel can not run it."""
+    settings = model.compiled_settings()
+    if isinstance(settings, str):
+        return settings
+    agent = kernel_agent(settings)
+    return agent if isinstance(agent, str) else (settings, agent)
+
+
 def compiled_reason(model: Any, env: Any, callback: BaseCallback | None) -> str | None:
     """Why ``model.learn`` can not run on the kernel with this env and these callbacks (None: it can)."""
-    spec = agent_spec(model)
-    if isinstance(spec, str):
-        return spec
-    return env_reason(env) or callback_reason(callback)
+    found = compiled_agent(model)
+    if isinstance(found, str):
+        return found
+    return model_env_reason(env) or callback_reason(callback)
+
+
+def batch_reason(model: Any, episodes: int) -> str | None:
+    """Why ``simulate`` can not run ``model``'s agent as one batch on the kernel (None: it can)."""
+    reason = compiled_reason(model, model._single_env(), None)
+    if reason is not None:
+        return reason
+    if model.compiled_settings().episode_parameters(0, 1) is None:
+        return "a schedule depends on the training progress, which only the Python side evaluates (one episode at a time)"
+    return None
 
 
 def _stop_remaining(leaves: list[BaseCallback]) -> int | None:
@@ -76,9 +108,10 @@ def learn_compiled(model: Any, env: Any, total_timesteps: int, callback: BaseCal
     """``sb3_affect.loop.run_loop`` on the kernel (see the module docstring)."""
     if model._episode_state is None:
         model._begin_episode(total_timesteps)
-    spec = agent_spec(model)
-    assert not isinstance(spec, str)
-    run = KernelRun(model, env, spec)
+    found = compiled_agent(model)
+    assert not isinstance(found, str), found
+    settings, agent = found
+    run = KernelRun(model, env, settings, agent)
     leaves = callback_leaves(callback)
     bars = [leaf for leaf in leaves if isinstance(leaf, ProgressBarCallback)]
     episodic = [leaf for leaf in leaves if not isinstance(leaf, ProgressBarCallback)]
@@ -101,14 +134,14 @@ def learn_compiled(model: Any, env: Any, total_timesteps: int, callback: BaseCal
                     max_episodes = to_dump + (max_episodes - to_dump) // log_interval * log_interval  # as all would
             if bars:
                 limit_t = min(limit_t, model.num_timesteps + _PROGRESS_DECISIONS)
-            schedule = episode_schedule(model, spec.kind, len(model._episode_rows), max_episodes)
-            if schedule is None:
+            parameters = settings.episode_parameters(len(model._episode_rows), max_episodes)
+            if parameters is None:
                 max_episodes = 1
                 alpha, p = np.empty(1), np.empty(1)
             else:
-                alpha, p = schedule
+                alpha, p = parameters
             alpha[0] = model._alpha
-            p[0] = current_exploration(model, spec.kind)
+            p[0] = model._episode_exploration()
             before = model.num_timesteps
             finished, _ = run.step(alpha, p, limit_t, max_episodes)
             model.num_timesteps = run.timesteps
@@ -137,20 +170,24 @@ def _close_episodes(model: Any, run: KernelRun, finished: int) -> None:
     """``TabularQAlgorithm._close_episode`` for the kernel's ``finished`` episodes (the logger aside), in bulk."""
     ints, floats = run.out_i[:finished], run.out_f[:finished]
     first = len(model._episode_rows) + 1
-    truncated = ints[:, loop.O_TRUNCATED].astype(bool)
-    columns = [  # each as Python ints, floats or bools (``tolist``), in the order of ``EPISODE_COLUMNS``' rows
-        range(first, first + finished),
-        ints[:, loop.O_DECISIONS].tolist(),
-        ints[:, loop.O_CELLS].tolist(),
-        floats[:, 0].tolist(),
-        ints[:, loop.O_OPTIMAL].astype(bool).tolist(),
-        truncated.tolist(),
-        ints[:, loop.O_RANDOM].tolist(),
-        ints[:, loop.O_WAITS].tolist(),
-        *(ints[:, column].tolist() for column in range(loop.O_JOY, loop.O_ANGER + 1)),
-        ints[:, loop.O_GREEDY].astype(bool).tolist(),
-        floats[:, 1].tolist(),
-    ]
+    truncated = ints[:, arrays.O_TRUNCATED].astype(bool)
+    by_name = {  # each as Python ints, floats or bools (``tolist``)
+        "episode": range(first, first + finished),
+        "decisions": ints[:, arrays.O_DECISIONS].tolist(),
+        "cells": ints[:, arrays.O_CELLS].tolist(),
+        "reward": floats[:, 0].tolist(),
+        "optimal": ints[:, arrays.O_OPTIMAL].astype(bool).tolist(),
+        "truncated": truncated.tolist(),
+        "random_moves": ints[:, arrays.O_RANDOM].tolist(),
+        "waits": ints[:, arrays.O_WAITS].tolist(),
+        "joy": ints[:, arrays.O_JOY].tolist(),
+        "sadness": ints[:, arrays.O_SADNESS].tolist(),
+        "fear": ints[:, arrays.O_FEAR].tolist(),
+        "anger": ints[:, arrays.O_ANGER].tolist(),
+        "greedy_optimal": ints[:, arrays.O_GREEDY].astype(bool).tolist(),
+        "norm": floats[:, 1].tolist(),
+    }
+    columns = [by_name[name] for name in EPISODE_COLUMNS]
     enabled = gc.isenabled()
     gc.disable()  # thousands of new row lists at once: no collection passes in between (they hold no cycles)
     try:
@@ -165,23 +202,24 @@ def _close_episodes(model: Any, run: KernelRun, finished: int) -> None:
     stamp = round(time.time() - model.start_time / 1e9, 6)
     for j in range(finished - keep, finished):
         buffer.append(
-            {"r": float(floats[j, 0]), "l": int(ints[j, loop.O_DECISIONS]), "c": int(ints[j, loop.O_CELLS]), "t": stamp}
+            {"r": float(floats[j, 0]), "l": int(ints[j, arrays.O_DECISIONS]), "c": int(ints[j, arrays.O_CELLS]), "t": stamp}
         )
-    run.monitor_episodes(ints[:, loop.O_CELLS], truncated)
+    run.monitor_episodes(ints[:, arrays.O_CELLS], truncated)
 
 
 def _record(model: Any, run: KernelRun, log_interval: int | None) -> None:
     """The logger keys of an episode end (only the last episode before a dump matters: records overwrite)."""
     logger = model.logger  # recorded whenever a logger exists, as SB3 does (per chunk of episodes, never per decision)
     row = model._episode_rows[-1]
-    if run.spec.kind == loop.AFFECT:
-        counts = row[8:12]
+    if run.agent.kind == arrays.AFFECT:
+        names = ("joy", "sadness", "fear", "anger")
+        counts = [row[COLUMN[name]] for name in names]
         total = sum(counts)
-        for name, count in zip(("joy", "sadness", "fear", "anger"), counts):
+        for name, count in zip(names, counts):
             logger.record(f"affect/{name}", count / total)
-        norm = row[13]
+        norm = row[COLUMN["norm"]]
         logger.record("affect/norm", norm if norm == norm else 0.0)
-    logger.record("affect/equivalent_epsilon", row[6] / row[1])
+    logger.record("affect/equivalent_epsilon", row[COLUMN["random_moves"]] / row[COLUMN["decisions"]])
     if log_interval is not None and model._episode_num % log_interval == 0:
         model.dump_logs()
 
@@ -198,7 +236,7 @@ def _call_back(
     """Call the episode-level callbacks with the locals of the last decision of the chunk (an episode end)."""
     obs_start, act_start = run.obs_start, run.act_start
     s2, prev = run.last_s2, run.last_prev
-    info: dict[str, Any] = {"cell": divmod(s2, run.size), "moved": s2 != prev}
+    info: dict[str, Any] = {"cell": divmod(s2, run.width), "moved": s2 != prev}
     if finished:
         if run.last_monitor_info is not None:
             info["episode"] = run.last_monitor_info

@@ -2,8 +2,8 @@
 A model's run state as the kernel's arrays (``KernelRun``), and back.
 
 Read at the start of a compiled ``learn``: the Q-table, the random generator's MT19937 state, the episode in
-progress, the appraisal (known map, power fit, elapsed counters, ``last_act``), UCB counts, the env's geometry and its
-time limit. ``write_back`` returns all of it to the Python objects, so the Python loop can continue from there.
+progress, the appraisal (known map, power fit, elapsed counters, ``last_act``), UCB counts, the env's transition
+table and its time limit. ``write_back`` returns all of it to the Python objects, so the Python loop can continue from there.
 """
 
 from __future__ import annotations
@@ -16,24 +16,24 @@ import numpy as np
 from gymnasium.wrappers import TimeLimit
 from stable_baselines3.common.monitor import Monitor
 
-from sb3_affect.kernel import loop
-from sb3_affect.kernel.agents import AgentSpec
-from sb3_affect.kernel.inputs import Geometry, config_arrays, unwrap
+from sb3_affect.kernel import arrays, loop
+from sb3_affect.kernel.agents import KernelAgent
+from sb3_affect.kernel.inputs import TableArrays, kernel_config, unwrap
 from sb3_affect.kernel.mt19937 import state_from_rng, state_to_rng
+from sb3_affect.settings import TabularSettings
 
-__all__ = ["Geometry", "KernelRun", "affect_arrays", "config_arrays"]
+__all__ = ["KernelRun", "empty_appraisal"]
 
 
-def affect_arrays(
-    n_states: int, n_actions: int, max_pred: int
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """An empty known map: ``dist``, ``edge``, ``pred``, ``pred_n``, ``goal``."""
-    return (
+def empty_appraisal(n_states: int, n_actions: int, max_pred: int, episodes: int) -> arrays.Appraisal:
+    """An empty known map (``dist``, ``edge``, ``pred``, ``pred_n``, ``goal``) and room for ``episodes`` fit values."""
+    return arrays.Appraisal(
         np.full(n_states, math.inf),
         np.zeros((n_states, n_actions), dtype=np.bool_),
         np.zeros((n_states, max_pred), dtype=np.int64),
         np.zeros(n_states, dtype=np.int64),
         np.zeros(n_states, dtype=np.bool_),
+        np.zeros(episodes),
     )
 
 
@@ -43,49 +43,51 @@ class KernelRun:
 
     :param model: the tabular model (its episode in progress already begun)
     :param env: the model's single env (wrapped)
-    :param spec: the agent as the kernel runs it
+    :param settings: the model's settings (``compiled_settings``)
+    :param agent: the agent as the kernel runs it
     """
 
-    def __init__(self, model: Any, env: Any, spec: AgentSpec) -> None:
-        self.model, self.spec = model, spec
+    def __init__(self, model: Any, env: Any, settings: TabularSettings, agent: KernelAgent) -> None:
+        self.model, self.agent = model, agent
         self.base, wrappers = unwrap(env)
         self.monitor = next((w for w in wrappers if isinstance(w, Monitor)), None)
         self.time_limit = next((w for w in wrappers if isinstance(w, TimeLimit)), None)
-        self.geo = geo = Geometry.of(self.base)
-        self.size = geo.size
+        self.table = table = TableArrays.of(self.base)
+        self.width = table.width
         self.obs_start = int(model.observation_space.start)
         self.act_start = int(model.action_space.start)
         limit = 0 if self.time_limit is None else int(self.time_limit._max_episode_steps)
-        self.icfg, self.fcfg = config_arrays(model, spec, geo, limit)
+        self.config = kernel_config(settings, agent, table, limit)
         self.q = np.array(model._q, dtype=np.float64)
         n_states, n_actions = self.q.shape
         self.mt, self.gauss = state_from_rng(model._rng)
-        self.ist = np.zeros(loop.N_IST, dtype=np.int64)
-        self.fst = np.zeros(loop.N_FST)
+        self.ist = np.zeros(arrays.N_IST, dtype=np.int64)
+        self.fst = np.zeros(arrays.N_FST)
         st = model._episode_state
         ist, fst = self.ist, self.fst
-        ist[loop.I_T] = model.num_timesteps
+        ist[arrays.I_T] = model.num_timesteps
         if st is None:
-            ist[loop.I_STATE] = int(np.asarray(model._last_obs).reshape(-1)[0]) - self.obs_start
+            ist[arrays.I_STATE] = int(np.asarray(model._last_obs).reshape(-1)[0]) - self.obs_start
         else:
-            ist[loop.I_STATE] = st["state"]
-            ist[loop.I_DECISIONS], ist[loop.I_CELLS] = st["decisions"], st["cells"]
-            ist[loop.I_RANDOM], ist[loop.I_WAITS] = st["random_moves"], st["waits"]
-            fst[loop.S_REWARD] = st["reward"]
-        ist[loop.I_CHANGED] = 1
-        ist[loop.I_GREEDY] = -1
-        ist[loop.I_TL_ELAPSED] = 0 if self.time_limit is None else int(self.time_limit._elapsed_steps or 0)
-        self.cells_at_start = int(ist[loop.I_CELLS])
-        self.dist, self.edge, self.pred, self.pred_n, self.goal = affect_arrays(n_states, n_actions, geo.max_pred)
-        self.fit_vals = np.zeros(64)
-        if spec.kind == loop.AFFECT:
+            ist[arrays.I_STATE] = st["state"]
+            ist[arrays.I_DECISIONS], ist[arrays.I_CELLS] = st["decisions"], st["cells"]
+            ist[arrays.I_RANDOM], ist[arrays.I_WAITS] = st["random_moves"], st["waits"]
+            fst[arrays.S_REWARD] = st["reward"]
+        ist[arrays.I_CHANGED] = 1
+        ist[arrays.I_GREEDY] = -1
+        ist[arrays.I_TL_ELAPSED] = 0 if self.time_limit is None else int(self.time_limit._elapsed_steps or 0)
+        self.cells_at_start = int(ist[arrays.I_CELLS])
+        self.dist, self.edge, self.pred, self.pred_n, self.goal, self.fit_vals = empty_appraisal(
+            n_states, n_actions, table.max_pred, 64
+        )
+        if agent.kind == arrays.AFFECT:
             self._read_appraisal()
         self.ucb_n = np.zeros((n_states, n_actions), dtype=np.int64)
         self.ucb_tot = np.zeros(n_states, dtype=np.int64)
-        if spec.kind == loop.UCB:
+        if agent.kind == arrays.UCB:
             self.ucb_n[:] = np.asarray(model.counts, dtype=np.int64)
             self.ucb_tot[:] = np.asarray(model._totals, dtype=np.int64)
-        self.out_i = np.zeros((1, loop.N_OUT_I), dtype=np.int64)
+        self.out_i = np.zeros((1, arrays.N_OUT_I), dtype=np.int64)
         self.out_f = np.zeros((1, 2))
         self.monitor_cells = 0
         self.last_monitor_info: dict[str, Any] | None = None
@@ -95,7 +97,7 @@ class KernelRun:
         callback = self.model.emotion_callback
         appraiser = callback.appraiser
         known = appraiser.known
-        trans = self.geo.trans
+        trans = self.table.trans
         self.dist[:] = np.asarray(known.distance, dtype=np.float64)
         for g in known.goals:
             self.goal[g] = True
@@ -112,20 +114,20 @@ class KernelRun:
         self.fit_vals = np.zeros(max(64, 2 * len(values)))
         self.fit_vals[: len(values)] = values
         fit = appraiser.fit
-        self.fst[loop.S_FIT0 : loop.S_FIT0 + 4] = (fit._sx, fit._sy, fit._sxx, fit._sxy)
-        self.ist[loop.I_NFIT] = len(values)
-        self.ist[loop.I_EL_CELLS] = appraiser.elapsed_cells
-        self.ist[loop.I_EL_DECISIONS] = appraiser.elapsed_decisions
-        self.ist[loop.I_JOY : loop.I_ANGER + 1] = callback.counts
-        self.fst[loop.S_NORM] = appraiser.norm
-        self.fst[loop.S_LAST_ACT] = appraiser.last_act
+        self.fst[arrays.S_FIT0 : arrays.S_FIT0 + 4] = (fit._sx, fit._sy, fit._sxx, fit._sxy)
+        self.ist[arrays.I_NFIT] = len(values)
+        self.ist[arrays.I_EL_CELLS] = appraiser.elapsed_cells
+        self.ist[arrays.I_EL_DECISIONS] = appraiser.elapsed_decisions
+        self.ist[arrays.I_JOY : arrays.I_ANGER + 1] = callback.counts
+        self.fst[arrays.S_NORM] = appraiser.norm
+        self.fst[arrays.S_LAST_ACT] = appraiser.last_act
 
     def _write_appraisal(self) -> None:
         from sb3_affect.appraisal import KnownMap, PowerFit
 
         callback = self.model.emotion_callback
         appraiser = callback.appraiser
-        trans = self.geo.trans
+        trans = self.table.trans
         known = KnownMap(len(self.dist))
         known.distance = self.dist.tolist()
         known.goals = {int(g) for g in np.flatnonzero(self.goal)}
@@ -133,37 +135,44 @@ class KernelRun:
             known.successors[int(s)].add(int(trans[s, a]))
         known.predecessors = [self.pred[v, : self.pred_n[v]].tolist() for v in range(len(self.dist))]
         appraiser.known = known
-        n = int(self.ist[loop.I_NFIT])
+        n = int(self.ist[arrays.I_NFIT])
         fit = PowerFit()
         fit.values = self.fit_vals[:n].tolist()
-        fit._sx, fit._sy, fit._sxx, fit._sxy = (float(v) for v in self.fst[loop.S_FIT0 : loop.S_FIT0 + 4])
+        fit._sx, fit._sy, fit._sxx, fit._sxy = (float(v) for v in self.fst[arrays.S_FIT0 : arrays.S_FIT0 + 4])
         appraiser.fit = fit
-        appraiser.norm = float(self.fst[loop.S_NORM])
-        appraiser.elapsed_cells = int(self.ist[loop.I_EL_CELLS])
-        appraiser.elapsed_decisions = int(self.ist[loop.I_EL_DECISIONS])
-        appraiser.last_act = float(self.fst[loop.S_LAST_ACT])
-        callback.counts = [int(v) for v in self.ist[loop.I_JOY : loop.I_ANGER + 1]]
+        appraiser.norm = float(self.fst[arrays.S_NORM])
+        appraiser.elapsed_cells = int(self.ist[arrays.I_EL_CELLS])
+        appraiser.elapsed_decisions = int(self.ist[arrays.I_EL_DECISIONS])
+        appraiser.last_act = float(self.fst[arrays.S_LAST_ACT])
+        callback.counts = [int(v) for v in self.ist[arrays.I_JOY : arrays.I_ANGER + 1]]
 
     # -- running -------------------------------------------------------------------------------------------------
     def step(self, alpha: np.ndarray, p: np.ndarray, total_timesteps: int, max_episodes: int) -> tuple[int, int]:
         """Run the kernel (see ``loop.run``); returns (episodes finished, why it stopped)."""
         if self.out_i.shape[0] < max_episodes:
-            self.out_i = np.zeros((max_episodes, loop.N_OUT_I), dtype=np.int64)
+            self.out_i = np.zeros((max_episodes, arrays.N_OUT_I), dtype=np.int64)
             self.out_f = np.zeros((max_episodes, 2))
-        need = int(self.ist[loop.I_NFIT]) + max_episodes
+        need = int(self.ist[arrays.I_NFIT]) + max_episodes
         if self.fit_vals.shape[0] < need:
             grown = np.zeros(max(need, 2 * self.fit_vals.shape[0]))
             grown[: self.fit_vals.shape[0]] = self.fit_vals
             self.fit_vals = grown
-        cells_before = int(self.ist[loop.I_CELLS])
+        cells_before = int(self.ist[arrays.I_CELLS])
+        state = arrays.RunState(self.q, self.mt, self.ist, self.fst, self.ucb_n, self.ucb_tot)
+        appraisal = arrays.Appraisal(self.dist, self.edge, self.pred, self.pred_n, self.goal, self.fit_vals)
+        episodes = arrays.Episodes(alpha, p, self.out_i, self.out_f)
         finished, stop = loop.run(
-            self.q, self.geo.trans, self.geo.tdist, self.icfg, self.fcfg,
-            self.spec.beh_rand, self.spec.beh_speeds, self.spec.beh_n, self.ucb_n, self.ucb_tot,
-            self.mt, self.ist, self.fst, self.dist, self.edge, self.pred, self.pred_n, self.goal, self.fit_vals,
-            alpha, p, int(total_timesteps), int(max_episodes), self.out_i, self.out_f,
-        )  # fmt: skip
-        stepped = int(self.out_i[:finished, loop.O_CELLS].sum()) - (cells_before if finished else 0)
-        self.monitor_cells += stepped + int(self.ist[loop.I_CELLS]) - (0 if finished else cells_before)
+            self.table.env,
+            self.config,
+            self.agent.behaviour,
+            state,
+            appraisal,
+            episodes,
+            int(total_timesteps),
+            int(max_episodes),
+        )
+        stepped = int(self.out_i[:finished, arrays.O_CELLS].sum()) - (cells_before if finished else 0)
+        self.monitor_cells += stepped + int(self.ist[arrays.I_CELLS]) - (0 if finished else cells_before)
         return int(finished), int(stop)
 
     def monitor_episodes(self, cells: np.ndarray, truncated: np.ndarray) -> None:
@@ -172,12 +181,12 @@ class KernelRun:
         monitor = self.monitor
         if monitor is None:
             return
-        limit = int(self.icfg[loop.C_TIME_LIMIT])
+        limit = self.config.time_limit
         seen = ~truncated | ((cells >= limit) if limit > 0 else False)  # the safety cap: the env saw no episode end
         lengths = cells[seen].tolist()
         if not lengths:
             return
-        step, goal = self.geo.step_reward, self.geo.goal_reward
+        step, goal = self.table.step_reward, self.table.goal_reward
         # the Monitor sums each episode's rewards with Python's sum: once per distinct (length, truncated) pair
         keys, inverse = np.unique(cells[seen] * 2 + truncated[seen], return_inverse=True)
         sums = [sum([step] * (key // 2 - 1) + [step if key % 2 else goal]) for key in keys.tolist()]
@@ -198,56 +207,56 @@ class KernelRun:
         model, ist = self.model, self.ist
         model._q = self.q.tolist()
         state_to_rng(model._rng, self.mt, self.gauss)
-        if self.spec.kind == loop.AFFECT:
+        if self.agent.kind == arrays.AFFECT:
             self._write_appraisal()
-        if self.spec.kind == loop.UCB:
+        if self.agent.kind == arrays.UCB:
             model.counts = self.ucb_n.tolist()
             model._totals = self.ucb_tot.tolist()
-        s = int(ist[loop.I_STATE])
-        greedy = int(ist[loop.I_GREEDY])
+        s = int(ist[arrays.I_STATE])
+        greedy = int(ist[arrays.I_GREEDY])
         model._greedy_optimal = None if greedy < 0 else bool(greedy)
         model._episode_state = {
             "state": s,
-            "decisions": int(ist[loop.I_DECISIONS]),
-            "cells": int(ist[loop.I_CELLS]),
-            "random_moves": int(ist[loop.I_RANDOM]),
-            "waits": int(ist[loop.I_WAITS]),
-            "reward": float(self.fst[loop.S_REWARD]),
+            "decisions": int(ist[arrays.I_DECISIONS]),
+            "cells": int(ist[arrays.I_CELLS]),
+            "random_moves": int(ist[arrays.I_RANDOM]),
+            "waits": int(ist[arrays.I_WAITS]),
+            "reward": float(self.fst[arrays.S_REWARD]),
         }
         model._last_obs = np.array([s + self.obs_start])
         self.base.state = s
         if self.time_limit is not None:
-            self.time_limit._elapsed_steps = int(ist[loop.I_TL_ELAPSED])  # type: ignore[assignment]
+            self.time_limit._elapsed_steps = int(ist[arrays.I_TL_ELAPSED])  # type: ignore[assignment]
         if self.monitor is not None:
-            self.monitor.rewards = [self.geo.step_reward] * int(ist[loop.I_CELLS])
+            self.monitor.rewards = [self.table.step_reward] * int(ist[arrays.I_CELLS])
             self.monitor.needs_reset = False
             self.monitor.total_steps += self.monitor_cells
 
     # -- the last decision (callback locals) -----------------------------------------------------------------------
     @property
     def timesteps(self) -> int:
-        return int(self.ist[loop.I_T])
+        return int(self.ist[arrays.I_T])
 
     @property
     def state(self) -> int:
-        return int(self.ist[loop.I_STATE])
+        return int(self.ist[arrays.I_STATE])
 
     @property
     def last_s2(self) -> int:
-        return int(self.ist[loop.I_LAST_S2])
+        return int(self.ist[arrays.I_LAST_S2])
 
     @property
     def last_prev(self) -> int:
-        return int(self.ist[loop.I_LAST_PREV])
+        return int(self.ist[arrays.I_LAST_PREV])
 
     @property
     def last_action(self) -> int:
-        return int(self.ist[loop.I_LAST_ACTION])
+        return int(self.ist[arrays.I_LAST_ACTION])
 
     @property
     def last_terminated(self) -> bool:
-        return bool(self.ist[loop.I_LAST_TERMINATED])
+        return bool(self.ist[arrays.I_LAST_TERMINATED])
 
     @property
     def last_reward(self) -> float:
-        return float(self.fst[loop.S_LAST_REWARD])
+        return float(self.fst[arrays.S_LAST_REWARD])
