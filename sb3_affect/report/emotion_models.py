@@ -30,6 +30,7 @@ def hunter_frames(runs: list[dict[str, Any]]) -> pd.DataFrame:
     numbers = ["episode", *(f"paper_{name}" for name in PAPER), *(f"broekens_{name}" for name in BROEKENS)]
     labels = ["task", "team", "hunter", "algo", "run"]
     parts: dict[str, list[Any]] = {name: [] for name in numbers + labels}
+    lengths: list[int] = []
     for record in runs:
         episodes, config = record["episodes"], record["config"]
         for i, member in enumerate(config["team"]):
@@ -43,12 +44,15 @@ def hunter_frames(runs: list[dict[str, Any]]) -> pd.DataFrame:
             run = record["run_id"] if "run_id" in record else f"{config['agent']}-{config['seed']}"
             values = (config["sweep"], config["agent"], hunter, member["algo"].rpartition(":")[2], run)
             for name, value in zip(labels, values):
-                parts[name].append([value] * len(decisions))
+                parts[name].append(value)
+            lengths.append(len(decisions))
     if not parts["episode"]:
         return pd.DataFrame()
     columns: dict[str, Any] = {name: np.concatenate(parts[name]) for name in numbers}
     for name in labels:
-        columns[name] = np.array([v for chunk in parts[name] for v in chunk], dtype=object)
+        one = np.empty(len(lengths), dtype=object)
+        one[:] = parts[name]
+        columns[name] = np.repeat(one, lengths)
     return pd.DataFrame(columns)
 
 
