@@ -10,7 +10,8 @@ once (``"surround"``: not into the prey's cell), checks the capture, gives the p
 one of its four moves; ``"evade"``: the candidate farthest from its nearest hunter, ties sorted, never onto a hunter)
 and checks a surround again. A hunter that moved in the step learns from it (``steps.q_update``, its appraisal's
 known map over its observations); the episode ends for everyone at a capture, at ``max_cycles`` env steps or at the
-team's cap of rounds. Hunter ``m``'s arrays are the ``m``-th of each stacked array.
+team's cap of rounds. Hunter ``m``'s arrays are the ``m``-th of each stacked array. The env's own pieces (the
+observations, the surround test, the prey's move) are in ``kernel.hunter_step``.
 """
 
 from __future__ import annotations
@@ -21,15 +22,12 @@ import numpy as np
 
 from sb3_affect.kernel.affect import fit_add, known_add_goal, start_norm
 from sb3_affect.kernel.choice import row_max
+from sb3_affect.kernel.hunter_step import PREY_STATIC, encode, surrounded, team_prey
 from sb3_affect.kernel.jit import kernel_inline, kernel_jit
 from sb3_affect.kernel.loop import greedy_walks_shortest_path
 from sb3_affect.kernel.mt19937 import N as MT_N
 from sb3_affect.kernel.mt19937 import temper_all
-from sb3_affect.kernel.pcg64 import integers, random01
 from sb3_affect.kernel.steps import AFFECT, decide, obs_known_add, q_update
-
-STAY = 4
-PREY_STATIC, PREY_RANDOM, PREY_EVADE = 0, 1, 2
 
 # ecfg: the env's configuration (int)
 E_N_CELLS, E_PREY_START, E_PREY, E_SURROUND, E_OBS_ALL, E_MAX_CYCLES, E_CAPTURE_DISTANCE, E_GEOMETRY = range(8)
@@ -52,97 +50,6 @@ N_OUT_F = 7
 # team_i[episode]: the team's row (team_f[episode]: its reward)
 T_ROUNDS, T_STEPS, T_OPTIMAL, T_TRUNCATED, T_CAPTURER = range(5)
 N_TEAM_I = 5
-
-
-@kernel_inline
-def encode(hunters: np.ndarray, prey: int, i: int, n_cells: int, obs_all: bool, prey_moves: bool) -> int:
-    """``HunterPursuitEnv.encode(i)``: hunter ``i``'s cell, the others' (``"all"``), the prey's (moving prey)."""
-    value = hunters[i]
-    if obs_all:
-        for j in range(hunters.shape[0]):
-            if j != i:
-                value = value * n_cells + hunters[j]
-    if prey_moves:
-        value = value * n_cells + prey
-    return value
-
-
-@kernel_inline
-def surrounded(hunters: np.ndarray, prey: int, cell_trans: np.ndarray) -> bool:
-    """``HunterPursuitEnv._surrounded``: every hunter on a different free neighbour of the prey."""
-    n = hunters.shape[0]
-    for i in range(n):
-        h = hunters[i]
-        for j in range(i):
-            if hunters[j] == h:
-                return False
-        if h == prey:
-            return False
-        neighbour = False
-        for a in range(cell_trans.shape[1]):
-            if cell_trans[prey, a] == h:
-                neighbour = True
-        if not neighbour:
-            return False
-    return True
-
-
-@kernel_jit
-def team_prey(
-    pcg: np.ndarray,
-    cell_trans: np.ndarray,
-    far: np.ndarray,
-    prey_kind: int,
-    speed: float,
-    hunters: np.ndarray,
-    prey: int,
-    ties: np.ndarray,
-) -> int:
-    """``HunterPursuitEnv._move_prey``: the prey's cell after its chance to move (``ties``: work space, 5 entries)."""
-    if speed <= 0.0 or random01(pcg) >= speed:
-        return prey
-    n_moves = cell_trans.shape[1]
-    if prey_kind == PREY_RANDOM:
-        target = cell_trans[prey, integers(pcg, n_moves)]
-    else:
-        # the candidates (staying or a move, not a hunter's cell) farthest from their nearest hunter; sorted ties
-        best = -math.inf
-        count = 0
-        for j in range(n_moves + 1):
-            c = prey if j == 0 else cell_trans[prey, j - 1]
-            occupied = False
-            d = math.inf
-            for i in range(hunters.shape[0]):
-                h = hunters[i]
-                occupied |= h == c
-                d = min(d, far[h, c])
-            if occupied:
-                continue
-            if d > best:
-                best = d
-                count = 0
-            if d == best:
-                at = count
-                dup = False
-                for i in range(count):
-                    if ties[i] == c:
-                        dup = True
-                        break
-                    if ties[i] > c:
-                        at = i
-                        break
-                if not dup:
-                    for i in range(count, at, -1):
-                        ties[i] = ties[i - 1]
-                    ties[at] = c
-                    count += 1
-        if count == 0:
-            return prey
-        target = ties[integers(pcg, count)]
-    for i in range(hunters.shape[0]):
-        if hunters[i] == target:
-            return prey
-    return target
 
 
 @kernel_jit

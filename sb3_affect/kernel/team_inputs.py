@@ -17,6 +17,7 @@ import numpy as np
 
 from sb3_affect.kernel import team
 from sb3_affect.kernel.agents import COMPENSATED_SUM, kernel_agent
+from sb3_affect.kernel.hunter_step import PREY_EVADE, PREY_RANDOM, PREY_STATIC
 from sb3_affect.kernel.mt19937 import STATE_SIZE, TW_SIZE, seed_key, seed_state
 from sb3_affect.kernel.pcg64 import seeded_state
 from sb3_affect.kernel.steps import AFFECT
@@ -26,7 +27,7 @@ from sb3_affect.team_seeds import member_seed
 #: The most bytes the known maps of a team's hunters may take (larger observation spaces run on the Python team).
 MAX_KNOWN_BYTES = 1 << 30
 N_ACTIONS = 4
-PREY = {"static": team.PREY_STATIC, "random": team.PREY_RANDOM, "evade": team.PREY_EVADE}
+PREY = {"static": PREY_STATIC, "random": PREY_RANDOM, "evade": PREY_EVADE}
 #: Broekens' columns of a hunter in a team run's record (``broekens.BROEKENS_COLUMNS[3:]``), with their ``out_f`` index.
 BROEKENS_OUT = (
     ("joy", team.F_B_JOY),
