@@ -154,8 +154,8 @@ class MovingPursuitEnv(gym.Env[Any, Any]):
     def transition_table(self) -> str:
         """Why this env has no transition table (``sb3_affect.envs.transition_table``) for the compiled engine."""
         return (
-            "MovingPursuit's prey draws from the env's NumPy generator, which the kernel does not reproduce "
-            "(the Python engine runs it)"
+            "MovingPursuit's prey moves at random, so its moves are no fixed transition table: learn runs it on the "
+            "Python loop (simulate on the moving-prey kernel)"
         )
 
     def _distances(self) -> list[list[float]]:

@@ -11,7 +11,8 @@ no SB3 model is built per seed, so a batch costs about what its decisions cost. 
 with their settings' arguments (``sb3_affect.settings``) on its grid envs no model is built at all, and neither torch
 nor SB3 is imported: the kernel's inputs come from the agent's settings, checked as its constructor checks them
 (``kernel.inputs.settings_inputs``); anything else (a class of your own, an SB3 argument such as ``device``, a
-schedule of the training progress, MovingPursuit) builds one model as a template. Memory: the table holds
+schedule of the training progress) builds one model as a template. MovingPursuit runs on its own kernel
+(``kernel.moving``, the prey drawing from a port of the env's NumPy generator, ``kernel.pcg64``). Memory: the table holds
 ``len(seeds) * episodes`` rows (about 130 bytes each); give large studies in batches.
 """
 
@@ -115,8 +116,15 @@ def simulate_columns(
                 from sb3_affect.kernel.batch import batch_columns
 
                 return batch_columns(inputs, seeds, episodes)
+            from sb3_affect.kernel.prey_batch import moving_columns, moving_settings_inputs
+
+            prey_inputs = moving_settings_inputs(algo, kwargs, env_id, env_kwargs, episodes)
+            if prey_inputs is not None:
+                return moving_columns(prey_inputs, seeds, episodes) if seeds else _batch_frame(None, seeds, episodes)
     cls = _resolve(algo)
     _check_args(episodes, engine, seeds)
+    import pandas as pd
+
     if engine != "python" and own != "python":
         from sb3_affect.compiled import batch_reason
         from sb3_affect.kernel.inputs import batch_inputs
@@ -128,10 +136,19 @@ def simulate_columns(
             inputs = batch_inputs(template.compiled_settings(), template._single_env(), episodes)
             env.close()
             return _batch_frame(inputs, seeds, episodes)
+        from sb3_affect.kernel.prey_batch import moving_batch_reason, moving_columns, moving_inputs, moving_reason
+
+        if moving_reason(template._single_env()) is None:  # MovingPursuit: the moving-prey kernel, or why not
+            reason = moving_batch_reason(template)
+            if reason is None:
+                prey_inputs = moving_inputs(template.compiled_settings(), template._single_env(), episodes)
+                env.close()
+                if not seeds:
+                    return _batch_frame(None, seeds, episodes)
+                return pd.DataFrame(moving_columns(prey_inputs, seeds, episodes))
         env.close()
         if engine == "compiled" or own == "compiled":
             raise ValueError(f"engine='compiled' can not run this simulation: {reason}")
-    import pandas as pd
     from stable_baselines3.common.callbacks import StopTrainingOnMaxEpisodes
     from stable_baselines3.common.logger import Logger
 
@@ -156,7 +173,7 @@ def _batch_frame(inputs: Any, seeds: list[Any], episodes: int) -> pd.DataFrame:
     """The rows of one kernel call for all seeds (``kernel.batch.simulate_batch``)."""
     import pandas as pd
 
-    if not seeds:
+    if not seeds or inputs is None:
         return pd.DataFrame(columns=list(SIMULATE_COLUMNS))
     from sb3_affect.kernel.batch import simulate_batch
 

@@ -27,7 +27,7 @@ PARTS = (
     ("hunters_moving", "two hunters, moving prey"),
 )
 #: Sizes of the engine studies (seeds per cell; episodes per run), read when ``main`` runs.
-LARGE_SEEDS, ABLATION_SEEDS, BEYOND_SEEDS, ENGINE_EPISODES = 1000, 20, 10, 200
+LARGE_SEEDS, ABLATION_SEEDS, BEYOND_SEEDS, ENGINE_EPISODES = 1000, 20, 1000, 200
 #: Seeds per cell of the speed ablation and of the long-run study (whose runs have ``largen.LONG_EPISODES`` episodes).
 SPEED_ONE_SEEDS, LONG_SEEDS = 500, 50
 #: The forensics' size inside the main job (``sb3-affect forensics`` alone defaults to 3 / 4 / 100).

@@ -28,8 +28,6 @@ a capturer made no more one-cell moves than the nearest hunter's shortest path).
 from __future__ import annotations
 
 import functools
-import hashlib
-import json
 import math
 from collections.abc import Mapping, Sequence
 from typing import Any
@@ -44,6 +42,7 @@ from sb3_affect.envs.hunter_pursuit import STAY, HunterPursuitEnv
 from sb3_affect.episode_log import EPISODE_COLUMNS
 from sb3_affect.stepping import DecisionStepper
 from sb3_affect.tabular import TabularQAlgorithm
+from sb3_affect.team_seeds import member_seed
 
 #: Columns of ``HunterTeam.episode_log``: the usual episode columns for the team, then who captured.
 TEAM_COLUMNS: tuple[str, ...] = (*EPISODE_COLUMNS, "capturer")
@@ -84,12 +83,6 @@ class HunterView(gym.Env[Any, Any]):
 
 def _same(value: Any) -> Any:
     return value
-
-
-def member_seed(seed: int, index: int) -> int:
-    """The seed of hunter ``index`` in a team run with ``seed`` (sha256: independent streams per hunter and run)."""
-    digest = hashlib.sha256(json.dumps(["hunter", int(seed), int(index)]).encode()).digest()
-    return int.from_bytes(digest[:4], "big") & 0x7FFFFFFF
 
 
 class HunterTeam:

@@ -28,6 +28,7 @@ from sb3_affect.compiled import batch_reason
 from sb3_affect.engine import simulate
 from sb3_affect.experiments.runner import check_configs, settings_checkable
 from sb3_affect.kernel.inputs import BatchInputs, batch_inputs, settings_inputs
+from sb3_affect.kernel.prey_batch import moving_settings_inputs
 from sb3_affect.registry import known_settings
 from sb3_affect.settings import AGENT_SETTINGS, AffectQSettings
 
@@ -153,7 +154,9 @@ def test_bad_kwargs_give_the_constructors_error_on_every_path(algo: str, kwargs:
 def test_what_the_settings_path_leaves_to_the_model() -> None:
     assert settings_inputs("AffectQ", {"device": "cpu"}, GRID, {}, 5) is None  # SB3's argument: build the model
     assert settings_inputs("QLearning", {"exploration_rate": lambda p: 0.1 * p}, GRID, {}, 5) is None  # progress schedule
-    assert settings_inputs("QLearning", {}, "sb3_affect/MovingPursuit-v0", {}, 5) is None  # the kernel can not step it
+    assert settings_inputs("QLearning", {}, "sb3_affect/MovingPursuit-v0", {}, 5) is None  # the moving-prey kernel's
+    assert moving_settings_inputs("QLearning", {}, "sb3_affect/MovingPursuit-v0", {}, 5) is not None
+    assert moving_settings_inputs("QLearning", {}, GRID, {}, 5) is None
     assert settings_inputs("DQN", {}, GRID, {}, 5) is None
     subclass = type("MyQ", (QLearning,), {})
     assert settings_inputs(subclass, {}, GRID, {}, 5) is None  # a subclass may change the loop

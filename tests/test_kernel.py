@@ -101,7 +101,7 @@ def test_auto_falls_back_and_compiled_names_the_reason() -> None:
     assert every.calls == 500
     with pytest.raises(ValueError, match="EveryDecision is called after every decision"):
         QLearning("Grid", gym.make(GRID, **SMALL), engine="compiled").learn(10, callback=EveryDecision())
-    with pytest.raises(ValueError, match="MovingPursuit's prey draws from the env's NumPy generator"):
+    with pytest.raises(ValueError, match="learn runs it on the Python loop"):
         AffectQ("Grid", gym.make("sb3_affect/MovingPursuit-v0"), engine="compiled").learn(10)
     with pytest.raises(ValueError, match="wrapped in TransformReward"):
         env = gym.wrappers.TransformReward(gym.make(GRID, **SMALL), lambda r: 2 * r)
@@ -272,8 +272,13 @@ def test_simulate_engine_choice() -> None:
     python = simulate("AffectQ", {}, GRID, SMALL, [5, 6], 5, engine="python")
     compiled = simulate("AffectQ", {}, GRID, SMALL, [5, 6], 5, engine="compiled")
     pd.testing.assert_frame_equal(compiled, python)
-    with pytest.raises(ValueError, match="MovingPursuit"):
-        simulate("QLearning", {}, "sb3_affect/MovingPursuit-v0", None, [1], 2, engine="compiled")
+    moving = "sb3_affect/MovingPursuit-v0"
+    pd.testing.assert_frame_equal(
+        simulate("QLearning", {}, moving, None, [1], 2, engine="compiled"),
+        simulate("QLearning", {}, moving, None, [1], 2, engine="python"),
+    )
+    with pytest.raises(ValueError, match="depends on the training progress"):
+        simulate("QLearning", {"exploration_rate": lambda p: 0.1 * p}, moving, None, [1], 2, engine="compiled")
     with pytest.raises(ValueError, match="engine='turbo'"):
         simulate("QLearning", {}, GRID, None, [1], 2, engine="turbo")
     assert len(simulate("QLearning", {}, GRID, None, [], 3)) == 0

@@ -27,6 +27,7 @@ CORE = (
     "sb3_affect.validation",
     "sb3_affect.episode_log",
     "sb3_affect.extras",
+    "sb3_affect.team_seeds",
     "sb3_affect.envs",
 )
 

@@ -4,8 +4,9 @@ single runs (``execute_run``, stored as one JSON file).
 
 A run goes into a batch when ``simulate`` computes exactly what ``execute_run`` would: a tabular agent class of this
 package on one of its envs, stopped by the episode count alone (no ``max_timesteps``), without per-run SB3 logs.
-The runs of a batch share one cell (agent and grid point: the same config but for seed and replicate). Anything else
-(DQN, a user's class, ``--logs``) runs on its own, as before.
+The runs of a batch share one cell (agent and grid point: the same config but for seed and replicate). Team runs of the
+package's agents go into team batches (``TeamBatch``: one worker runs them one after the other on the team kernel, each
+stored as its own run file). Anything else (DQN, a user's class, ``--logs``) runs on its own, as before.
 """
 
 from __future__ import annotations
@@ -67,6 +68,27 @@ class Batch:
 
 
 @dataclass(frozen=True)
+class TeamBatch(Batch):
+    """
+    Many team runs of one cell (hunters on HunterPursuit), executed one after the other in one long-lived worker on the
+    team kernel (``execute_run``'s compiled team path) and stored as one run file each, as single team runs are.
+    """
+
+    def execute(self) -> dict[str, Any]:
+        """Run the batch (in a worker): ``{"files": [(run id, run file bytes), ...], ...}`` (``store.run_file``)."""
+        from sb3_affect.experiments.store import run_file
+
+        start = time.perf_counter()
+        files = []
+        for rid, seed, replicate in self.runs:
+            config = run_config(self.base, seed, replicate)
+            files.append((rid, run_file(rid, config, execute_run(config))))
+        timings = {"wall_seconds": round(time.perf_counter() - start, 4), "pid": os.getpid(), "host": socket.gethostname()}
+        run_ids = [rid for rid, _, _ in self.runs]
+        return {"files": files, "run_ids": run_ids, "timings": timings, "versions": package_versions()}
+
+
+@dataclass(frozen=True)
 class Single:
     """
     One run executed on its own by ``execute_run`` (stored as one JSON file).
@@ -117,13 +139,28 @@ def batchable(base: dict[str, Any], logs: bool) -> bool:
     return issubclass(cls, TabularQAlgorithm) and cls.__module__.split(".")[0] == "sb3_affect"
 
 
+def team_batchable(base: dict[str, Any], logs: bool) -> bool:
+    """Whether the team runs of a cell can run as team batches: every hunter one of the package's agents given settings."""
+    if "team" not in base or logs or base.get("max_timesteps") is not None:
+        return False
+    from sb3_affect.registry import known_settings
+
+    for member in base["team"]:
+        settings = known_settings(member["algo"])
+        if settings is None or not set(member["kwargs"]) <= set(settings.names()):
+            return False
+    return True
+
+
 def batch_size(runs: int, workers: int) -> int:
     """Runs per batch: about ``BATCHES_PER_WORKER`` batches per worker, at most ``MAX_BATCH`` runs each."""
     return max(1, min(MAX_BATCH, math.ceil(runs / (BATCHES_PER_WORKER * workers))))
 
 
-def split_cell(base: dict[str, Any], runs: Sequence[tuple[str, int, int]], size: int) -> list[Batch]:
-    """Cut the runs still to do of one cell into near-equal batches of at most ``size`` runs."""
+def split_cell(
+    base: dict[str, Any], runs: Sequence[tuple[str, int, int]], size: int, kind: type[Batch] = Batch
+) -> list[Batch]:
+    """Cut the runs still to do of one cell into near-equal batches (of ``kind``) of at most ``size`` runs."""
     count = math.ceil(len(runs) / size) if runs else 0
     batches = []
     for index in range(count):
@@ -131,5 +168,5 @@ def split_cell(base: dict[str, Any], runs: Sequence[tuple[str, int, int]], size:
         digest = hashlib.sha256("\n".join(rid for rid, _, _ in part).encode()).hexdigest()[:12]
         labels = "-".join(f"{k}{v}" for k, v in base["labels"].items())
         prefix = re.sub(r"[^A-Za-z0-9_.+-]+", "_", f"{base['agent']}-{labels}".strip("-").replace("--", "-"))
-        batches.append(Batch(f"{prefix}-n{len(part)}-{digest}", base, part))
+        batches.append(kind(f"{prefix}-n{len(part)}-{digest}", base, part))
     return batches

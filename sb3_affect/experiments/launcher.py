@@ -31,7 +31,16 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from sb3_affect.experiments.batches import Batch, Job, Single, batch_size, batchable, split_cell
+from sb3_affect.experiments.batches import (
+    Batch,
+    Job,
+    Single,
+    TeamBatch,
+    batch_size,
+    batchable,
+    split_cell,
+    team_batchable,
+)
 from sb3_affect.experiments.local_pool import OnFailure, OnResult, run_local
 from sb3_affect.experiments.schema import Cell
 from sb3_affect.experiments.store import SWEEP_SCHEMA, ResultsStore, cell_run_ids
@@ -161,7 +170,9 @@ def run_sweep(
         bar = _progress(total, total - todo, sweep.name, progress)
 
         def on_result(job: Job, result: dict[str, Any]) -> None:
-            if isinstance(job, Batch):
+            if isinstance(job, TeamBatch):
+                store.write_run_files(result["files"])
+            elif isinstance(job, Batch):
                 store.write_chunk(job.name, result["chunk"], result["run_ids"])
             else:
                 store.write_run(job.run_id, job.config, result)
@@ -197,11 +208,14 @@ def plan_jobs(cells: list[Cell], cell_ids: list[list[str]], store: ResultsStore,
     formats = tuple(logs) or ("csv",)
     todo = [[(rid, cell.seeds[i], i) for i, rid in enumerate(ids) if rid not in done] for cell, ids in zip(cells, cell_ids)]
     can_batch = [batchable(cell.base, bool(logs)) for cell in cells]
-    size = batch_size(sum(len(runs) for runs, ok in zip(todo, can_batch) if ok), workers)
+    can_team = [team_batchable(cell.base, bool(logs)) for cell in cells]
+    size = batch_size(sum(len(runs) for runs, ok, team in zip(todo, can_batch, can_team) if ok or team), workers)
     jobs: list[Job] = []
-    for cell, runs, ok in zip(cells, todo, can_batch):
+    for cell, runs, ok, team in zip(cells, todo, can_batch, can_team):
         if ok:
             jobs.extend(split_cell(cell.base, runs, size))
+        elif team:
+            jobs.extend(split_cell(cell.base, runs, size, TeamBatch))
         else:
             jobs.extend(
                 Single(rid, cell.config(i), str(store.logs / rid) if logs else None, formats) for rid, _, i in runs

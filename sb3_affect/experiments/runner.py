@@ -238,6 +238,11 @@ def execute_run(config: dict[str, Any], log_dir: str | None = None, log_formats:
     ``EmotionCallback``. Training stops after ``config["episodes"]`` episodes (``StopTrainingOnMaxEpisodes``) or
     ``config["max_timesteps"]`` decisions, whichever comes first.
     """
+    start = time.perf_counter()
+    if "team" in config and log_dir is None:
+        record = _execute_team_compiled(config, start)
+        if record is not None:
+            return record
     import torch as th
 
     th.set_num_threads(1)
@@ -246,7 +251,6 @@ def execute_run(config: dict[str, Any], log_dir: str | None = None, log_formats:
 
     from sb3_affect.callbacks import EmotionCallback
 
-    start = time.perf_counter()
     if "team" in config:
         return _execute_team(config, log_dir, log_formats, start)
     model, tabular = build_model(config)
@@ -271,6 +275,35 @@ def execute_run(config: dict[str, Any], log_dir: str | None = None, log_formats:
         "timings": {
             "wall_seconds": round(time.perf_counter() - start, 4),
             "decisions": int(model.num_timesteps),
+            "pid": os.getpid(),
+            "host": socket.gethostname(),
+        },
+        "versions": package_versions(),
+    }
+
+
+def _execute_team_compiled(config: dict[str, Any], start: float) -> dict[str, Any] | None:
+    """
+    A team run on the team kernel (``sb3_affect.kernel.team``), without building a model (no torch): the same
+    record as ``_execute_team`` gives. None when the kernel can not run it (an agent or argument the kernel does not
+    know, a member's ``engine="python"``, a schedule of the training progress).
+    """
+    import sb3_affect  # noqa: F401
+    from sb3_affect.kernel.team_inputs import run_team, team_columns, team_settings_inputs
+
+    members = [(m["algo"], m["kwargs"]) for m in config["team"]]
+    if any(kwargs.get("engine", "auto") == "python" for _, kwargs in members):
+        return None
+    episodes = int(config["episodes"])
+    inputs = team_settings_inputs(members, config["env_id"], config["env_kwargs"], episodes)
+    if inputs is None:
+        return None
+    run = run_team(inputs, int(config["seed"]), episodes)
+    return {
+        "episodes": team_columns(inputs, run),
+        "timings": {
+            "wall_seconds": round(time.perf_counter() - start, 4),
+            "decisions": run.decisions,
             "pid": os.getpid(),
             "host": socket.gethostname(),
         },

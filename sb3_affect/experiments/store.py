@@ -99,6 +99,15 @@ def _write_atomic(path: Path, payload: dict[str, Any] | bytes) -> None:
         raise
 
 
+def run_file(rid: str, config: dict[str, Any], result: dict[str, Any]) -> bytes:
+    """
+    The bytes of a finished run's file (``runs/<id>.json``) in compact JSON: what ``ResultsStore.write_run`` stores,
+    encoded where the run ran (a worker) so that the launcher only writes it (``ResultsStore.write_run_files``).
+    """
+    payload = {"schema": SCHEMA, "run_id": rid, "config": config, "status": "ok", **result}
+    return json.dumps(payload, sort_keys=True, separators=(",", ":")).encode()
+
+
 def _store_error(folder: Path, error: OSError) -> StoreError:
     if error.errno == errno.ENOSPC:
         return StoreError(f"{folder}: the disk is full; finished runs are kept, free space and rerun to resume")
@@ -226,6 +235,32 @@ class ResultsStore:
         _write_atomic(self.runs / f"{rid}.json", payload)
         with contextlib.suppress(FileNotFoundError):
             (self.failed / f"{rid}.json").unlink()
+
+    def write_run_files(self, files: Sequence[tuple[str, bytes]]) -> None:
+        """
+        Store many finished runs at once (``(run id, run_file bytes)``): every file written to a temporary name, the
+        file system synced once (instead of once per file), then each renamed into place: a reader, even after a
+        crash, sees each run's whole file or none.
+        """
+        temporary = []
+        try:
+            for _, data in files:
+                fd, tmp = tempfile.mkstemp(dir=self.runs, prefix=".tmp-", suffix=".json")
+                temporary.append(tmp)
+                with os.fdopen(fd, "wb") as handle:
+                    handle.write(data)
+            os.sync()
+            for (rid, _), tmp in zip(files, temporary):
+                os.replace(tmp, self.runs / f"{rid}.json")
+                with contextlib.suppress(FileNotFoundError):
+                    (self.failed / f"{rid}.json").unlink()
+        except BaseException as error:  # a full disk, or Ctrl-C mid-write: never leave a partial file behind
+            for tmp in temporary:
+                with contextlib.suppress(OSError):
+                    os.unlink(tmp)
+            if isinstance(error, OSError):
+                raise _store_error(self.runs, error) from None
+            raise
 
     def write_chunk(self, name: str, data: bytes, run_ids: Iterable[str]) -> None:
         """Store a batch's chunk (``chunks.encode_chunk``) and forget earlier failures of its runs."""

@@ -23,25 +23,37 @@ EARLY, LATE = 10, 20
 
 
 def hunter_frames(runs: list[dict[str, Any]]) -> pd.DataFrame:
-    """One row per (run, hunter, episode): the paper model's fractions of decisions and Broekens' mean intensities."""
-    frames = []
+    """
+    One row per (run, hunter, episode): the paper model's fractions of decisions and Broekens' mean intensities.
+    Built column by column (one array per hunter and run, joined once), not as one small frame per hunter.
+    """
+    numbers = ["episode", *(f"paper_{name}" for name in PAPER), *(f"broekens_{name}" for name in BROEKENS)]
+    labels = ["task", "team", "hunter", "algo", "run"]
+    parts: dict[str, list[Any]] = {name: [] for name in numbers + labels}
+    lengths: list[int] = []
     for record in runs:
         episodes, config = record["episodes"], record["config"]
         for i, member in enumerate(config["team"]):
             hunter = f"hunter_{i}"
             decisions = np.asarray(episodes[f"{hunter}/decisions"], dtype=float)
-            frame = pd.DataFrame({"episode": episodes[f"{hunter}/episode"]})
+            parts["episode"].append(np.asarray(episodes[f"{hunter}/episode"], dtype=np.int64))
             for name in PAPER:
-                frame[f"paper_{name}"] = np.asarray(episodes[f"{hunter}/{name}"], dtype=float) / decisions
+                parts[f"paper_{name}"].append(np.asarray(episodes[f"{hunter}/{name}"], dtype=float) / decisions)
             for name in BROEKENS:
-                frame[f"broekens_{name}"] = np.asarray(episodes[f"{hunter}/broekens_{name}"], dtype=float)
-            frame["task"] = config["sweep"]
-            frame["team"] = config["agent"]
-            frame["hunter"] = hunter
-            frame["algo"] = member["algo"].rpartition(":")[2]
-            frame["run"] = record["run_id"] if "run_id" in record else f"{config['agent']}-{config['seed']}"
-            frames.append(frame)
-    return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
+                parts[f"broekens_{name}"].append(np.asarray(episodes[f"{hunter}/broekens_{name}"], dtype=float))
+            run = record["run_id"] if "run_id" in record else f"{config['agent']}-{config['seed']}"
+            values = (config["sweep"], config["agent"], hunter, member["algo"].rpartition(":")[2], run)
+            for name, value in zip(labels, values):
+                parts[name].append(value)
+            lengths.append(len(decisions))
+    if not parts["episode"]:
+        return pd.DataFrame()
+    columns: dict[str, Any] = {name: np.concatenate(parts[name]) for name in numbers}
+    for name in labels:
+        one = np.empty(len(lengths), dtype=object)
+        one[:] = parts[name]
+        columns[name] = np.repeat(one, lengths)
+    return pd.DataFrame(columns)
 
 
 def profile_table(frames: pd.DataFrame) -> pd.DataFrame:

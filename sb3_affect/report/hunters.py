@@ -24,14 +24,33 @@ BASELINE = "epsilon-greedy"
 LATE = 20  # the last episodes, for "after learning"
 
 
+def _column(values: list[Any]) -> np.ndarray:
+    """A record's column as an array (None, JSON's NaN, as NaN): a tenth of the memory of a list of Python numbers."""
+    return np.asarray(values, dtype=float) if None in values else np.asarray(values)
+
+
+#: The last ``team_runs`` answer, by the files it read (their names, sizes and modification times): the report's two
+#: sections on the same runs read them once.
+_LAST: dict[tuple[Any, ...], list[dict[str, Any]]] = {}
+
+
 def team_runs(run_dirs: Sequence[str | Path]) -> list[dict[str, Any]]:
-    """Every finished team run (a run file whose config has ``team``) of the folders (``DIR/runs/*.json``)."""
+    """
+    Every finished team run (a run file whose config has ``team``) of the folders (``DIR/runs/*.json``), its episode
+    columns as NumPy arrays (8,000 runs of 200 episodes: under 1 GB, against about 3 GB as lists).
+    """
+    paths = [path for folder in run_dirs for path in sorted((Path(folder) / "runs").glob("[!.]*.json"))]
+    key = tuple((str(path), path.stat().st_mtime_ns, path.stat().st_size) for path in paths)
+    if key in _LAST:
+        return _LAST[key]
     runs = []
-    for folder in run_dirs:
-        for path in sorted((Path(folder) / "runs").glob("[!.]*.json")):
-            record = json.loads(path.read_text())
-            if record.get("status", "ok") == "ok" and "team" in record.get("config", {}):
-                runs.append(record)
+    for path in paths:
+        record = json.loads(path.read_bytes())
+        if record.get("status", "ok") == "ok" and "team" in record.get("config", {}):
+            record["episodes"] = {name: _column(values) for name, values in record["episodes"].items()}
+            runs.append(record)
+    _LAST.clear()
+    _LAST[key] = runs
     return runs
 
 

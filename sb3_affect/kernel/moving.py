@@ -1,0 +1,347 @@
+"""
+The compiled decision loop on MovingPursuit (``sb3_affect.envs.moving_pursuit``): one tabular agent pursues a prey
+that random-walks or evades. ``sb3_affect/loop.py`` with the agent's ``_decide`` and the env's ``step`` is the
+reference; this loop does the same operations in the same order, so for the same seeds both give the identical episode
+log, Q-table, the agent's ``random.Random`` state (``kernel.mt19937``) and the env's NumPy generator state
+(``kernel.pcg64``: the prey's draws).
+
+The env's step, as ``MovingPursuitEnv.step``: the hunter moves one cell (``cell_trans``), a capture when it enters
+the prey's cell; otherwise, with probability ``prey_speed`` (one ``random()`` draw when the speed is above 0), the
+prey moves: ``"random"`` to one of its four moves (``integers(4)``), ``"evade"`` to the candidate (staying or a
+neighbour, never the hunter's cell) farthest from the hunter, ties sorted and drawn with ``integers``; never onto the
+hunter. The observation is ``hunter * n_cells + prey``. The appraisal's known map is over observations
+(``steps.obs_known_add``). The env has no fixed goal, so the ``optimal`` and ``greedy_optimal`` columns are NaN, as the
+Python loop gives them.
+
+State crosses the boundary as arrays: ``ist`` (int64) and ``fst`` (float64) at the indices below, ``mt`` the agent's
+MT19937 state, ``pcg`` the env's PCG64 state.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from sb3_affect.kernel.affect import fit_add, known_add_goal, start_norm
+from sb3_affect.kernel.jit import kernel_inline, kernel_jit
+from sb3_affect.kernel.mt19937 import STATE_SIZE, TW_SIZE, seed_state, temper_all
+from sb3_affect.kernel.mt19937 import N as MT_N
+from sb3_affect.kernel.pcg64 import integers, random01
+from sb3_affect.kernel.steps import AFFECT, decide, obs_known_add, q_update
+
+PREY_STATIC, PREY_RANDOM, PREY_EVADE = 0, 1, 2
+PREY_KINDS = {"static": PREY_STATIC, "random": PREY_RANDOM, "evade": PREY_EVADE}
+
+# icfg: fixed configuration
+(
+    C_KIND,
+    C_N_CELLS,
+    C_HUNTER_START,
+    C_PREY_START,
+    C_PREY,
+    C_TIME_LIMIT,
+    C_CAP,
+    C_ACT_EPISODE,
+    C_UNITS_CELLS,
+    C_VALENCE,
+    C_TIE_FIRST,
+    C_JUMP,
+    C_COMPENSATED_SUM,
+) = range(13)
+N_ICFG = 13
+# fcfg: fixed float configuration
+F_GAMMA, F_GOAL_REWARD, F_STEP_REWARD, F_NORM_SCALE, F_UCB_COEF, F_PREY_SPEED = range(6)
+N_FCFG = 6
+
+# ist: int run state
+(
+    I_T,
+    I_HUNTER,
+    I_PREY,
+    I_DECISIONS,
+    I_CELLS,
+    I_RANDOM,
+    I_WAITS,
+    I_JOY,
+    I_SADNESS,
+    I_FEAR,
+    I_ANGER,
+    I_TL_ELAPSED,
+    I_NFIT,
+    I_EL_CELLS,
+    I_EL_DECISIONS,
+) = range(15)
+N_IST = 15
+# fst: float run state
+S_REWARD, S_NORM, S_LAST_ACT, S_FIT0 = range(4)  # S_FIT0..S_FIT0+3: the power fit's running sums
+N_FST = 7
+
+# out_i columns (out_f: reward, norm)
+O_DECISIONS, O_CELLS, O_TRUNCATED, O_RANDOM, O_WAITS, O_JOY, O_SADNESS, O_FEAR, O_ANGER = range(9)
+N_OUT_I = 9
+
+
+@kernel_inline
+def move_prey(
+    pcg: np.ndarray,
+    cell_trans: np.ndarray,
+    far: np.ndarray,
+    prey_kind: int,
+    speed: float,
+    hunter: int,
+    prey: int,
+    ties: np.ndarray,
+) -> int:
+    """
+    ``MovingPursuitEnv._move_prey``: the prey's cell after its chance to move (``far[h, c]``: distance c -> h;
+    ``ties``: work space of ``n_moves + 1`` entries).
+    """
+    if speed <= 0.0 or random01(pcg) >= speed:
+        return prey
+    if prey_kind == PREY_RANDOM:
+        target = cell_trans[prey, integers(pcg, cell_trans.shape[1])]
+    else:
+        target = evade_target(pcg, cell_trans, far, hunter, prey, prey, ties)
+    return prey if target == hunter else target
+
+
+@kernel_jit
+def evade_target(
+    pcg: np.ndarray, cell_trans: np.ndarray, far: np.ndarray, hunter: int, prey: int, fallback: int, ties: np.ndarray
+) -> int:
+    """
+    The evading prey's move away from one hunter: among staying and the prey's moves, the cells other than the
+    hunter's farthest from it; ties sorted ascending (in ``ties``, ``n_moves + 1`` entries of work space), one drawn
+    with ``integers``. ``fallback`` when there is no candidate.
+    """
+    n_moves = cell_trans.shape[1]
+    best = -math.inf
+    count = 0
+    for j in range(n_moves + 1):
+        c = prey if j == 0 else cell_trans[prey, j - 1]
+        if c == hunter:
+            continue
+        d = far[hunter, c]
+        if d > best:
+            best = d
+            count = 0
+        if d == best:
+            # insert c into the sorted, distinct ties
+            at = count
+            dup = False
+            for i in range(count):
+                if ties[i] == c:
+                    dup = True
+                    break
+                if ties[i] > c:
+                    at = i
+                    break
+            if not dup:
+                for i in range(count, at, -1):
+                    ties[i] = ties[i - 1]
+                ties[at] = c
+                count += 1
+    if count == 0:
+        return fallback
+    return ties[integers(pcg, count)]
+
+
+@kernel_jit
+def moving_loop(
+    q, cell_trans, far, icfg, fcfg, beh_rand, beh_speeds, beh_n, ucb_n, ucb_tot, mt, pcg, ist, fst,
+    dist, succ, succ_n, pred, pred_n, goal, fit_vals, alpha_e, p_e, total_timesteps, max_episodes, out_i, out_f,
+    work, queue, tw, ties,
+):  # fmt: skip
+    """
+    Run decisions until ``ist[I_T]`` reaches ``total_timesteps`` or ``max_episodes`` episodes have finished; episode
+    ``j`` of this call (``j = 0``: the one in progress) learns with ``alpha_e[j]`` and explores with ``p_e[j]``.
+    Finished episodes go to ``out_i``/``out_f``. ``work`` (``n_actions`` floats) and ``queue`` (``n_states + 1``) are
+    work space (``ties``: ``n_moves + 1`` entries), ``tw`` (``mt19937.TW_SIZE``) the random stream's tempered words.
+    Returns the episodes finished.
+    """
+    kind = icfg[C_KIND]
+    n_cells = icfg[C_N_CELLS]
+    prey_kind = icfg[C_PREY]
+    time_limit = icfg[C_TIME_LIMIT]
+    cap = icfg[C_CAP]
+    act_episode = icfg[C_ACT_EPISODE] != 0
+    units_cells = icfg[C_UNITS_CELLS] != 0
+    valence = icfg[C_VALENCE] != 0
+    tie_first = icfg[C_TIE_FIRST] != 0
+    jump = icfg[C_JUMP] != 0
+    compensated = icfg[C_COMPENSATED_SUM] != 0
+    gamma = fcfg[F_GAMMA]
+    goal_reward = fcfg[F_GOAL_REWARD]
+    step_reward = fcfg[F_STEP_REWARD]
+    norm_scale = fcfg[F_NORM_SCALE]
+    ucb_coef = fcfg[F_UCB_COEF]
+    speed = fcfg[F_PREY_SPEED]
+    fsum = fst[S_FIT0 : S_FIT0 + 4]
+
+    r = mt[MT_N]
+    temper_all(mt, tw)
+    t = ist[I_T]
+    hunter = ist[I_HUNTER]
+    prey = ist[I_PREY]
+    decisions = ist[I_DECISIONS]
+    cells = ist[I_CELLS]
+    random_moves = ist[I_RANDOM]
+    waits = ist[I_WAITS]
+    tl_elapsed = ist[I_TL_ELAPSED]
+    el_cells = ist[I_EL_CELLS]
+    el_decisions = ist[I_EL_DECISIONS]
+    reward_sum = fst[S_REWARD]
+    norm = fst[S_NORM]
+    last_act = fst[S_LAST_ACT]
+    episode = 0
+    alpha = alpha_e[0]
+    p = p_e[0]
+    while t < total_timesteps:
+        s = hunter * n_cells + prey
+        elapsed = el_cells if units_cells else el_decisions
+        action, k, explored, emotion, last_act, r = decide(
+            kind, q, s, mt, tw, r, tie_first, beh_rand, beh_speeds, beh_n, p, compensated, ucb_n, ucb_tot, ucb_coef,
+            work, norm, elapsed, last_act, dist[s], act_episode, valence,
+        )  # fmt: skip
+        if kind == AFFECT:
+            el_decisions += 1
+            ist[I_JOY + emotion] += 1
+        start_state = s
+        jump_reward = 0.0
+        terminated = truncated = False
+        for _ in range(k):
+            # the env's step
+            hunter = cell_trans[hunter, action]
+            terminated = hunter == prey
+            if not terminated:
+                prey = move_prey(pcg, cell_trans, far, prey_kind, speed, hunter, prey, ties)
+            s2 = hunter * n_cells + prey
+            reward = goal_reward if terminated else step_reward
+            tl_elapsed += 1
+            truncated = time_limit > 0 and tl_elapsed >= time_limit
+            # the agent's update and appraisal
+            if jump:
+                jump_reward += reward
+            else:
+                q_update(q, s, action, reward, s2, terminated, alpha, gamma)
+            if kind == AFFECT:
+                el_cells += 1
+                if terminated and reward > 0.0:
+                    known_add_goal(dist, goal, pred, pred_n, s2, queue)
+                obs_known_add(dist, succ, succ_n, pred, pred_n, s, s2, queue)
+            cells += 1
+            reward_sum += reward
+            s = s2
+            if terminated or truncated:
+                break
+        if jump and k > 0:
+            q_update(q, start_state, action, jump_reward, s, terminated, alpha, gamma)
+        if k == 0:
+            waits += 1
+        if explored:
+            random_moves += 1
+        decisions += 1
+        t += 1
+        if terminated or truncated or decisions >= cap:
+            row = out_i[episode]
+            row[O_DECISIONS] = decisions
+            row[O_CELLS] = cells
+            row[O_TRUNCATED] = 0 if terminated else 1
+            row[O_RANDOM] = random_moves
+            row[O_WAITS] = waits
+            for e in range(4):
+                row[O_JOY + e] = ist[I_JOY + e]
+                ist[I_JOY + e] = 0
+            out_f[episode, 0] = reward_sum
+            out_f[episode, 1] = norm if kind == AFFECT else math.nan
+            if kind == AFFECT:
+                y = el_cells if units_cells else el_decisions
+                ist[I_NFIT] = fit_add(fit_vals, fsum, ist[I_NFIT], float(y))
+            episode += 1
+            # the next episode starts: the env's reset (its generator goes on), the appraisal's new norm
+            hunter = icfg[C_HUNTER_START]
+            prey = icfg[C_PREY_START]
+            decisions = cells = random_moves = waits = tl_elapsed = 0
+            reward_sum = 0.0
+            if kind == AFFECT:
+                el_cells = 0
+                el_decisions = 0
+                norm = start_norm(fit_vals, fsum, ist[I_NFIT], norm_scale)
+            if episode >= max_episodes:
+                break
+            alpha = alpha_e[episode]
+            p = p_e[episode]
+    mt[MT_N] = r
+    ist[I_T] = t
+    ist[I_HUNTER] = hunter
+    ist[I_PREY] = prey
+    ist[I_DECISIONS] = decisions
+    ist[I_CELLS] = cells
+    ist[I_RANDOM] = random_moves
+    ist[I_WAITS] = waits
+    ist[I_TL_ELAPSED] = tl_elapsed
+    ist[I_EL_CELLS] = el_cells
+    ist[I_EL_DECISIONS] = el_decisions
+    fst[S_REWARD] = reward_sum
+    fst[S_NORM] = norm
+    fst[S_LAST_ACT] = last_act
+    return episode
+
+
+@njit(cache=True)
+def run_seeds(
+    keys, key_lengths, pcg_init, q_init, n_actions, cell_trans, far, icfg, fcfg, beh_rand, beh_speeds, beh_n,
+    succ_width, pred_width, alpha_e, p_e, episodes, total_timesteps, out_i, out_f, q, mt, pcg, dist,
+):  # fmt: skip
+    """
+    ``episodes`` episodes of a fresh run for each seed (``keys``: the agent's ``random.Random`` seed words,
+    ``pcg_init``: the env's generator state after ``reset(seed=seed)``); rows of run ``r`` go to
+    ``out[r * episodes ...]``. The work arrays are allocated once and reset for each run; ``q``, ``mt``, ``pcg`` and
+    ``dist`` are the run's own and hold the last run's state when this returns.
+    """
+    n_cells = cell_trans.shape[0]
+    n_states = n_cells * n_cells
+    ist = np.empty(N_IST, dtype=np.int64)
+    fst = np.empty(N_FST)
+    succ = np.zeros((n_states, succ_width), dtype=np.int32)
+    succ_n = np.empty(n_states, dtype=np.int64)
+    pred = np.zeros((n_states, pred_width), dtype=np.int32)
+    pred_n = np.empty(n_states, dtype=np.int64)
+    goal = np.empty(n_states, dtype=np.bool_)
+    fit_vals = np.zeros(episodes)
+    ucb_n = np.empty((n_states, n_actions), dtype=np.int64)
+    ucb_tot = np.empty(n_states, dtype=np.int64)
+    work = np.empty(n_actions)
+    queue = np.empty(n_states + 1, dtype=np.int64)
+    tw = np.empty(TW_SIZE, dtype=np.int64)
+    ties = np.empty(cell_trans.shape[1] + 1, dtype=np.int64)
+    affect = icfg[C_KIND] == AFFECT
+    for r in range(keys.shape[0]):
+        q[:] = q_init
+        seed_state(mt, keys[r], key_lengths[r])
+        pcg[:] = pcg_init[r]
+        ist[:] = 0
+        ist[I_HUNTER] = icfg[C_HUNTER_START]
+        ist[I_PREY] = icfg[C_PREY_START]
+        fst[:] = 0.0
+        fst[S_NORM] = math.nan
+        fst[S_LAST_ACT] = math.inf
+        dist[:] = math.inf
+        if affect:
+            succ_n[:] = 0
+            pred_n[:] = 0
+            goal[:] = False
+        ucb_n[:] = 0
+        ucb_tot[:] = 0
+        lo, hi = r * episodes, (r + 1) * episodes
+        moving_loop(
+            q, cell_trans, far, icfg, fcfg, beh_rand, beh_speeds, beh_n, ucb_n, ucb_tot, mt, pcg, ist, fst,
+            dist, succ, succ_n, pred, pred_n, goal, fit_vals, alpha_e, p_e, total_timesteps, episodes, out_i[lo:hi],
+            out_f[lo:hi], work, queue, tw, ties,
+        )  # fmt: skip
+
+
+#: the MT19937 state's size, for callers allocating ``run_seeds``' ``mt``
+MT_STATE_SIZE = STATE_SIZE

@@ -1,0 +1,225 @@
+"""
+Many fresh runs of one agent on MovingPursuit in one kernel call (``sb3_affect.engine.simulate`` on the compiled
+engine; the loop is ``kernel.moving``).
+
+Each run starts as a new model does: the Q-table at ``q_init``, ``random.Random(seed)``'s state (seeded inside the
+kernel), the env's NumPy generator as ``env.reset(seed=seed)`` leaves it (``np.random.Generator(PCG64(seed))``,
+computed here per seed), an empty known map and power fit, hunter and prey at their starts. Nothing here imports torch
+or SB3.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Mapping, Sequence
+from typing import Any, NamedTuple
+
+import gymnasium as gym
+import numpy as np
+from gymnasium.wrappers import OrderEnforcing, PassiveEnvChecker, TimeLimit
+
+from sb3_affect.kernel import moving
+from sb3_affect.kernel.agents import COMPENSATED_SUM, KernelAgent, kernel_agent
+from sb3_affect.kernel.inputs import unwrap
+from sb3_affect.kernel.mt19937 import STATE_SIZE, seed_key
+from sb3_affect.kernel.pcg64 import STATE_SIZE as PCG_SIZE
+from sb3_affect.kernel.pcg64 import seeded_state
+from sb3_affect.kernel.steps import known_widths
+from sb3_affect.registry import known_settings
+
+
+class MovingInputs(NamedTuple):
+    """Everything ``moving_columns`` needs besides the seeds: the same for every run of the batch."""
+
+    agent: KernelAgent
+    icfg: np.ndarray
+    fcfg: np.ndarray
+    cell_trans: np.ndarray  # the cells' one-move table
+    far: np.ndarray  # far[h, c]: distance from cell c to cell h (the evading prey's)
+    alpha: np.ndarray  # learning rate per episode
+    p: np.ndarray  # exploration parameter per episode
+    q_init: float
+    n_actions: int
+    cap: int  # max_episode_decisions
+    succ_width: int
+    pred_width: int
+
+
+class MovingRun(NamedTuple):
+    """The rows of a batch and the state the last run left behind (its Q-table, generators and known distances)."""
+
+    out_i: np.ndarray
+    out_f: np.ndarray
+    q: np.ndarray
+    mt: np.ndarray
+    pcg: np.ndarray
+    dist: np.ndarray
+
+
+def _monitor_class() -> Any:
+    module = sys.modules.get("stable_baselines3.common.monitor")
+    return None if module is None else module.Monitor
+
+
+def moving_reason(env: Any) -> str | None:
+    """Why the moving-prey kernel can not step ``env`` (None: it can): a MovingPursuit with standard wrappers only."""
+    from sb3_affect.envs import MovingPursuitEnv
+
+    base, wrappers = unwrap(env)
+    if type(base) is not MovingPursuitEnv:
+        return f"the env {type(base).__name__} is not MovingPursuit"
+    monitor = _monitor_class()
+    known = (TimeLimit, OrderEnforcing, PassiveEnvChecker) + (() if monitor is None else (monitor,))
+    for wrapper in wrappers:
+        if type(wrapper) not in known:
+            return f"the env is wrapped in {type(wrapper).__name__}, which may change what a step does"
+        if monitor is not None and isinstance(wrapper, monitor) and wrapper.info_keywords:
+            return "the Monitor records info_keywords, which the kernel does not produce"
+    return None
+
+
+def _far(base: Any) -> np.ndarray:
+    cached = getattr(base, "_sb3_affect_kernel_far", None)
+    if cached is None:
+        from sb3_affect.envs import distances_to
+
+        cached = np.array([distances_to(h, base.cell_transitions) for h in range(base.n_cells)], dtype=np.float64)
+        base._sb3_affect_kernel_far = cached
+    return cached
+
+
+def moving_inputs(settings: Any, env: Any, episodes: int) -> MovingInputs:
+    """
+    The kernel inputs of fresh runs of an agent of these ``settings`` (``sb3_affect.settings``: given, or the ones a
+    freshly built model hands over) on ``env`` (a MovingPursuit, ``moving_reason(env)`` None).
+    """
+    agent = kernel_agent(settings)
+    assert isinstance(agent, KernelAgent), agent
+    base, wrappers = unwrap(env)
+    limits = [int(w._max_episode_steps) for w in wrappers if hasattr(w, "_max_episode_steps")]
+    icfg = np.zeros(moving.N_ICFG, dtype=np.int64)
+    icfg[moving.C_KIND] = agent.kind
+    icfg[moving.C_N_CELLS] = base.n_cells
+    icfg[moving.C_HUNTER_START] = base.hunter_start_cell
+    icfg[moving.C_PREY_START] = base.prey_start_cell
+    icfg[moving.C_PREY] = moving.PREY_KINDS[base.prey]
+    icfg[moving.C_TIME_LIMIT] = limits[0] if limits else 0
+    icfg[moving.C_CAP] = settings.max_episode_decisions
+    icfg[moving.C_ACT_EPISODE] = agent.act_episode
+    icfg[moving.C_UNITS_CELLS] = agent.units_cells
+    icfg[moving.C_VALENCE] = agent.valence
+    icfg[moving.C_TIE_FIRST] = getattr(settings, "tie_break", "random") == "first"
+    icfg[moving.C_JUMP] = getattr(settings, "multi_cell", "steps") == "jump"
+    icfg[moving.C_COMPENSATED_SUM] = COMPENSATED_SUM
+    fcfg = np.zeros(moving.N_FCFG)
+    fcfg[moving.F_GAMMA] = settings.gamma
+    fcfg[moving.F_GOAL_REWARD] = base.goal_reward
+    fcfg[moving.F_STEP_REWARD] = base.step_reward
+    fcfg[moving.F_NORM_SCALE] = agent.norm_scale
+    fcfg[moving.F_UCB_COEF] = agent.ucb_coef
+    fcfg[moving.F_PREY_SPEED] = base.prey_speed
+    parameters = settings.episode_parameters(0, episodes)
+    assert parameters is not None
+    alpha, p = parameters
+    cell_trans = np.asarray(base.cell_transitions, dtype=np.int64)
+    far = _far(base) if base.prey == "evade" else np.zeros((1, 1))
+    succ_width, pred_width = known_widths(cell_trans, base.prey != "static")
+    return MovingInputs(
+        agent, icfg, fcfg, cell_trans, far, alpha, p, float(settings.q_init), int(env.action_space.n),
+        int(settings.max_episode_decisions), succ_width, pred_width,
+    )  # fmt: skip
+
+
+def moving_settings_inputs(
+    algo: str | type, kwargs: Mapping[str, Any], env_id: str, env_kwargs: Mapping[str, Any] | None, episodes: int
+) -> MovingInputs | None:
+    """
+    ``kernel.inputs.settings_inputs`` for MovingPursuit: the kernel inputs of fresh runs of ``algo`` with ``kwargs``
+    without a model, or None where the model-based path must decide. Bad kwargs raise the constructor's error.
+    """
+    settings_cls = known_settings(algo)
+    if settings_cls is None or not set(kwargs) <= set(settings_cls.names()):
+        return None
+    env = gym.make(env_id, **dict(env_kwargs or {}))
+    try:
+        if moving_reason(env) is not None:
+            return None
+        settings = settings_cls(**kwargs)
+        if isinstance(kernel_agent(settings), str) or settings.episode_parameters(0, 1) is None:
+            return None
+        return moving_inputs(settings, env, episodes)
+    finally:
+        env.close()
+
+
+def run_moving(inputs: MovingInputs, seeds: Sequence[int], episodes: int) -> MovingRun:
+    """Fresh runs of ``episodes`` episodes for each seed in one kernel call (``moving.run_seeds``)."""
+    behaviour = inputs.agent.behaviour
+    words = [seed_key(int(seed)) for seed in seeds]
+    width = max((len(w) for w in words), default=1)
+    keys = np.zeros((len(words), width), dtype=np.int64)
+    lengths = np.zeros(len(words), dtype=np.int64)
+    for r, w in enumerate(words):
+        keys[r, : len(w)] = w
+        lengths[r] = len(w)
+    pcg_init = np.zeros((len(words), PCG_SIZE), dtype=np.uint64)
+    for r, seed in enumerate(seeds):
+        pcg_init[r] = seeded_state(int(seed))
+    n_rows = len(words) * episodes
+    out_i = np.zeros((n_rows, moving.N_OUT_I), dtype=np.int64)
+    out_f = np.zeros((n_rows, 2))
+    n_states = inputs.cell_trans.shape[0] ** 2
+    q = np.empty((n_states, inputs.n_actions))
+    mt = np.zeros(STATE_SIZE, dtype=np.int64)
+    pcg = np.zeros(PCG_SIZE, dtype=np.uint64)
+    dist = np.empty(n_states)
+    moving.run_seeds(
+        keys, lengths, pcg_init, inputs.q_init, inputs.n_actions, inputs.cell_trans, inputs.far, inputs.icfg,
+        inputs.fcfg, behaviour.random, behaviour.speeds, behaviour.n, inputs.succ_width, inputs.pred_width, inputs.alpha,
+        inputs.p, episodes, episodes * inputs.cap, out_i, out_f, q, mt, pcg, dist,
+    )  # fmt: skip
+    return MovingRun(out_i, out_f, q, mt, pcg, dist)
+
+
+def moving_columns(inputs: MovingInputs, seeds: Sequence[int], episodes: int) -> dict[str, np.ndarray]:
+    """
+    ``simulate``'s table for MovingPursuit as ``{column: array}``: the dtypes of the Python loop's episode log, with
+    ``optimal`` and ``greedy_optimal`` NaN (the env has no fixed goal).
+    """
+    run = run_moving(inputs, seeds, episodes)
+    col_i = np.ascontiguousarray(run.out_i.T)
+    col_f = np.ascontiguousarray(run.out_f.T)
+    n_rows = len(seeds) * episodes
+    return {
+        "seed": np.repeat(np.asarray([int(s) for s in seeds], dtype=np.int64), episodes),
+        "episode": np.tile(np.arange(1, episodes + 1, dtype=np.int64), len(seeds)),
+        "decisions": col_i[moving.O_DECISIONS],
+        "cells": col_i[moving.O_CELLS],
+        "reward": col_f[0],
+        "optimal": np.full(n_rows, np.nan),
+        "truncated": col_i[moving.O_TRUNCATED].astype(bool),
+        "random_moves": col_i[moving.O_RANDOM].astype(np.float64),
+        "waits": col_i[moving.O_WAITS],
+        "joy": col_i[moving.O_JOY],
+        "sadness": col_i[moving.O_SADNESS],
+        "fear": col_i[moving.O_FEAR],
+        "anger": col_i[moving.O_ANGER],
+        "greedy_optimal": np.full(n_rows, np.nan),
+        "norm": col_f[1],
+    }
+
+
+def moving_batch_reason(model: Any) -> str | None:
+    """Why ``simulate`` can not run a freshly built ``model`` on MovingPursuit as one kernel batch (None: it can)."""
+    reason = moving_reason(model._single_env())
+    if reason is not None:
+        return reason
+    settings = model.compiled_settings()
+    if isinstance(settings, str):
+        return settings
+    agent = kernel_agent(settings)
+    if isinstance(agent, str):
+        return agent
+    if settings.episode_parameters(0, 1) is None:
+        return "a schedule depends on the training progress, which only the Python side evaluates (one episode at a time)"
+    return None

@@ -1,0 +1,335 @@
+"""
+The compiled team of independent learners on HunterPursuit (``sb3_affect.team.HunterTeam`` driving each hunter's
+``DecisionStepper``, and ``envs.hunter_pursuit.HunterPursuitEnv``'s step, are the reference). For the same seeds it
+gives the identical team log, each hunter's episode log, Q-table and ``random.Random`` state, the env's NumPy
+generator state (``kernel.pcg64``: the prey's draws) and what a ``BroekensCallback`` observing each hunter records.
+
+A round: every hunter decides in agent order (``steps.decide``); the round lasts as many env steps as the longest
+decision, a hunter whose decision is over stays (``STAY``) and only observes. The env's step moves all hunters at
+once (``"surround"``: not into the prey's cell), checks the capture, gives the prey its chance to move (``"random"``:
+one of its four moves; ``"evade"``: the candidate farthest from its nearest hunter, ties sorted, never onto a hunter)
+and checks a surround again. A hunter that moved in the step learns from it (``steps.q_update``, its appraisal's
+known map over its observations); the episode ends for everyone at a capture, at ``max_cycles`` env steps or at the
+team's cap of rounds. Hunter ``m``'s arrays are the ``m``-th of each stacked array. The env's own pieces (the
+observations, the surround test, the prey's move) are in ``kernel.hunter_step``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from sb3_affect.kernel.affect import fit_add, known_add_goal, start_norm
+from sb3_affect.kernel.choice import row_max
+from sb3_affect.kernel.hunter_step import PREY_STATIC, encode, surrounded, team_prey
+from sb3_affect.kernel.jit import kernel_inline, kernel_jit
+from sb3_affect.kernel.loop import greedy_walks_shortest_path
+from sb3_affect.kernel.mt19937 import N as MT_N
+from sb3_affect.kernel.mt19937 import temper_all
+from sb3_affect.kernel.steps import AFFECT, decide, obs_known_add, q_update
+
+# ecfg: the env's configuration (int)
+E_N_CELLS, E_PREY_START, E_PREY, E_SURROUND, E_OBS_ALL, E_MAX_CYCLES, E_CAPTURE_DISTANCE, E_GEOMETRY = range(8)
+N_ECFG = 8
+# efcfg: the env's configuration (float)
+EF_GOAL_REWARD, EF_STEP_REWARD, EF_PREY_SPEED = range(3)
+N_EFCFG = 3
+# mcfg[m]: hunter m's configuration (int)
+K_KIND, K_CAP, K_ACT_EPISODE, K_UNITS_CELLS, K_VALENCE, K_TIE_FIRST, K_JUMP, K_COMPENSATED_SUM = range(8)
+N_MCFG = 8
+# mfcfg[m]: hunter m's configuration (float)
+G_GAMMA, G_NORM_SCALE, G_UCB_COEF = range(3)
+N_MFCFG = 3
+
+# out_i[m, episode]: each hunter's episode row (ints); out_f[m, episode]: its floats and Broekens' means
+(O_DECISIONS, O_CELLS, O_OPTIMAL, O_TRUNCATED, O_RANDOM, O_WAITS, O_JOY, O_SADNESS, O_FEAR, O_ANGER, O_GREEDY) = range(11)
+N_OUT_I = 11
+F_REWARD, F_NORM, F_B_JOY, F_B_DISTRESS, F_B_HOPE, F_B_FEAR, F_B_GOAL_JOY = range(7)
+N_OUT_F = 7
+# team_i[episode]: the team's row (team_f[episode]: its reward)
+T_ROUNDS, T_STEPS, T_OPTIMAL, T_TRUNCATED, T_CAPTURER = range(5)
+N_TEAM_I = 5
+
+
+@kernel_jit
+def team_loop(
+    ecfg, efcfg, mcfg, mfcfg, cell_trans, far, tdist, hunter_starts, beh_rand, beh_speeds, beh_n, alpha_e, p_e,
+    q, mt, tw, pcg, ucb_n, ucb_tot, dist, succ, succ_n, pred, pred_n, goal, fit_vals, fsum, episodes,
+    out_i, out_f, team_i, team_f, ist, fst, hunters, work, queue, seen, stack, ties,
+):  # fmt: skip
+    """
+    Run ``episodes`` team episodes of a fresh run (the arrays as a new team has them). ``ist`` (int64, hunters x
+    ``N_IST``) and ``fst`` (float64, hunters x ``N_FST``) are work space for the hunters' run state, ``hunters`` the
+    hunters' cells, ``work`` (``n_actions`` floats), ``queue`` (``n_states + 1``), ``seen`` (hunters x ``n_states``
+    zeros), ``stack`` (``n_states * n_actions + 1``) and ``ties`` (5) work space of the functions called.
+    """
+    n_cells = ecfg[E_N_CELLS]
+    prey_kind = ecfg[E_PREY]
+    surround = ecfg[E_SURROUND] != 0
+    obs_all = ecfg[E_OBS_ALL] != 0
+    max_cycles = ecfg[E_MAX_CYCLES]
+    geometry = ecfg[E_GEOMETRY] != 0
+    prey_moves = prey_kind != PREY_STATIC
+    goal_reward = efcfg[EF_GOAL_REWARD]
+    step_reward = efcfg[EF_STEP_REWARD]
+    speed = efcfg[EF_PREY_SPEED]
+    n = hunters.shape[0]
+    team_cap = mcfg[0, K_CAP]
+    for m in range(1, n):
+        team_cap = min(team_cap, mcfg[m, K_CAP])
+    shortest = np.int64(-1)
+    # the run starts: the env at its start, each hunter's first observation and Broekens' first value
+    prey = ecfg[E_PREY_START]
+    for m in range(n):
+        hunters[m] = hunter_starts[m]
+    for m in range(n):
+        temper_all(mt[m], tw[m])
+        ist[m, I_R] = mt[m, MT_N]
+        ist[m, I_S] = encode(hunters, prey, m, n_cells, obs_all, prey_moves)
+        ist[m, I_GREEDY] = -1
+        ist[m, I_CHANGED] = 1
+        fst[m, S_NORM] = math.nan
+        fst[m, S_LAST_ACT] = math.inf
+        fst[m, S_BV] = row_max(q[m], ist[m, I_S])
+    episode = 0
+    rounds = 0
+    steps = 0
+    team_reward = 0.0
+    while episode < episodes:
+        # every hunter decides
+        length = 0
+        for m in range(n):
+            kind = mcfg[m, K_KIND]
+            s = ist[m, I_S]
+            units_cells = mcfg[m, K_UNITS_CELLS] != 0
+            elapsed = ist[m, I_EL_CELLS] if units_cells else ist[m, I_EL_DECISIONS]
+            action, k, explored, emotion, last_act, r = decide(
+                kind, q[m], s, mt[m], tw[m], ist[m, I_R], mcfg[m, K_TIE_FIRST] != 0, beh_rand[m], beh_speeds[m],
+                beh_n[m], p_e[m, episode], mcfg[m, K_COMPENSATED_SUM] != 0, ucb_n[m], ucb_tot[m], mfcfg[m, G_UCB_COEF],
+                work, fst[m, S_NORM], elapsed, fst[m, S_LAST_ACT], dist[m, s], mcfg[m, K_ACT_EPISODE] != 0,
+                mcfg[m, K_VALENCE] != 0,
+            )  # fmt: skip
+            ist[m, I_R] = r
+            fst[m, S_LAST_ACT] = last_act
+            if kind == AFFECT:
+                ist[m, I_EL_DECISIONS] += 1
+                ist[m, I_JOY + emotion] += 1
+            ist[m, I_ACTION] = action
+            ist[m, I_K] = k
+            ist[m, I_EXPLORED] = 1 if explored else 0
+            ist[m, I_START] = s
+            ist[m, I_ENDED] = 0
+            fst[m, S_DECISION_REWARD] = 0.0
+            fst[m, S_JUMP_REWARD] = 0.0
+            length = max(length, k)
+        captured = truncated = False
+        capturer = -1
+        for j in range(length):
+            # the env's step: every hunter at once
+            for m in range(n):
+                before = hunters[m]
+                target = before if j >= ist[m, I_K] else cell_trans[before, ist[m, I_ACTION]]
+                if surround and target == prey:
+                    target = before
+                hunters[m] = target
+            steps += 1
+            if surround:
+                captured = surrounded(hunters, prey, cell_trans)
+            else:
+                for m in range(n):
+                    if hunters[m] == prey:
+                        captured = True
+            if not captured:
+                prey = team_prey(pcg, cell_trans, far, prey_kind, speed, hunters, prey, ties)
+                if surround:
+                    captured = surrounded(hunters, prey, cell_trans)
+            truncated = not captured and max_cycles > 0 and steps >= max_cycles
+            step_sum = 0.0
+            for m in range(n):
+                rewarded = captured and (surround or hunters[m] == prey)
+                reward = goal_reward if rewarded else step_reward
+                step_sum += reward
+                s2 = encode(hunters, prey, m, n_cells, obs_all, prey_moves)
+                if j < ist[m, I_K]:
+                    # the hunter's transition (DecisionStepper.transition)
+                    ended = captured and rewarded
+                    ist[m, I_ENDED] = 1 if ended else 0
+                    s = ist[m, I_S]
+                    action = ist[m, I_ACTION]
+                    if mcfg[m, K_JUMP] != 0:
+                        fst[m, S_JUMP_REWARD] += reward
+                    elif q_update(q[m], s, action, reward, s2, ended, alpha_e[m, episode], mfcfg[m, G_GAMMA]):
+                        ist[m, I_CHANGED] = 1
+                    if mcfg[m, K_KIND] == AFFECT:
+                        ist[m, I_EL_CELLS] += 1
+                        if ended and reward > 0.0:
+                            known_add_goal(dist[m], goal[m], pred[m], pred_n[m], s2, queue)
+                        obs_known_add(dist[m], succ[m], succ_n[m], pred[m], pred_n[m], s, s2, queue)
+                    ist[m, I_CELLS] += 1
+                    fst[m, S_REWARD] += reward
+                    fst[m, S_DECISION_REWARD] += reward
+                    ist[m, I_LAST_S2] = s2
+                    fst[m, S_LAST_REWARD] = reward
+                ist[m, I_S] = s2
+                if captured and rewarded and capturer < 0:
+                    capturer = m
+            team_reward += step_sum
+            if captured or truncated:
+                break
+        rounds += 1
+        over = captured or truncated or rounds >= team_cap
+        if over:  # the env's reset (its generator goes on)
+            prey = ecfg[E_PREY_START]
+            for m in range(n):
+                hunters[m] = hunter_starts[m]
+        # every hunter closes its decision (DecisionStepper.end_decision), then its Broekens observer sees it
+        for m in range(n):
+            kind = mcfg[m, K_KIND]
+            ended = ist[m, I_ENDED] != 0
+            k = ist[m, I_K]
+            jump = mcfg[m, K_JUMP] != 0 and k > 0
+            if jump and q_update(
+                q[m], ist[m, I_START], ist[m, I_ACTION], fst[m, S_JUMP_REWARD], ist[m, I_S], ended,
+                alpha_e[m, episode], mfcfg[m, G_GAMMA],
+            ):  # fmt: skip
+                ist[m, I_CHANGED] = 1
+            if k == 0:
+                ist[m, I_WAITS] += 1
+                ist[m, I_LAST_S2] = ist[m, I_S]
+                fst[m, S_LAST_REWARD] = 0.0
+            if ist[m, I_EXPLORED] != 0:
+                ist[m, I_RANDOM] += 1
+            ist[m, I_DECISIONS] += 1
+            # Broekens: the TD error of the decision and the value reached
+            reward = float(np.float32(fst[m, S_DECISION_REWARD]))
+            cut = over and not ended
+            reached = 0.0 if over and not cut else row_max(q[m], ist[m, I_LAST_S2] if over else ist[m, I_S])
+            delta = reward + mfcfg[m, G_GAMMA] * reached - fst[m, S_BV]
+            joy = max(delta, 0.0)
+            fst[m, S_BJOY] += joy
+            fst[m, S_BDISTRESS] += max(-delta, 0.0)
+            fst[m, S_BHOPE] += max(reached, 0.0)
+            fst[m, S_BFEAR] += max(-reached, 0.0)
+            fst[m, S_BV] = reached
+            if over:
+                row = out_i[m, episode]
+                cells = ist[m, I_CELLS]
+                row[O_DECISIONS] = ist[m, I_DECISIONS]
+                row[O_CELLS] = cells
+                row[O_TRUNCATED] = 0 if ended else 1
+                row[O_RANDOM] = ist[m, I_RANDOM]
+                row[O_WAITS] = ist[m, I_WAITS]
+                for e in range(4):
+                    row[O_JOY + e] = ist[m, I_JOY + e]
+                    ist[m, I_JOY + e] = 0
+                if geometry:
+                    shortest = np.int64(tdist[hunter_starts[m]])
+                    row[O_OPTIMAL] = 1 if ended and cells == shortest else 0
+                    if ist[m, I_CHANGED] != 0 or ist[m, I_GREEDY] < 0:
+                        ist[m, I_WALKS] += 1
+                        walked = greedy_walks_shortest_path(
+                            q[m], cell_trans, tdist, hunter_starts[m], seen[m], ist[m, I_WALKS], stack
+                        )
+                        ist[m, I_GREEDY] = 1 if walked else 0
+                    row[O_GREEDY] = ist[m, I_GREEDY]
+                ist[m, I_CHANGED] = 0
+                decisions = float(ist[m, I_DECISIONS])
+                frow = out_f[m, episode]
+                frow[F_REWARD] = fst[m, S_REWARD]
+                frow[F_NORM] = fst[m, S_NORM] if kind == AFFECT else math.nan
+                frow[F_B_JOY] = fst[m, S_BJOY] / decisions
+                frow[F_B_DISTRESS] = fst[m, S_BDISTRESS] / decisions
+                frow[F_B_HOPE] = fst[m, S_BHOPE] / decisions
+                frow[F_B_FEAR] = fst[m, S_BFEAR] / decisions
+                frow[F_B_GOAL_JOY] = math.nan if cut else joy
+                if kind == AFFECT:
+                    units_cells = mcfg[m, K_UNITS_CELLS] != 0
+                    y = ist[m, I_EL_CELLS] if units_cells else ist[m, I_EL_DECISIONS]
+                    ist[m, I_NFIT] = fit_add(fit_vals[m], fsum[m], ist[m, I_NFIT], float(y))
+                    ist[m, I_EL_CELLS] = 0
+                    ist[m, I_EL_DECISIONS] = 0
+                    fst[m, S_NORM] = start_norm(fit_vals[m], fsum[m], ist[m, I_NFIT], mfcfg[m, G_NORM_SCALE])
+                # the next episode
+                ist[m, I_S] = encode(hunters, prey, m, n_cells, obs_all, prey_moves)
+                ist[m, I_DECISIONS] = ist[m, I_CELLS] = ist[m, I_RANDOM] = ist[m, I_WAITS] = 0
+                fst[m, S_REWARD] = 0.0
+                fst[m, S_BJOY] = fst[m, S_BDISTRESS] = fst[m, S_BHOPE] = fst[m, S_BFEAR] = 0.0
+                fst[m, S_BV] = row_max(q[m], ist[m, I_S])
+        if over:
+            team_i[episode, T_ROUNDS] = rounds
+            team_i[episode, T_STEPS] = steps
+            team_i[episode, T_TRUNCATED] = 0 if captured else 1
+            team_i[episode, T_CAPTURER] = capturer
+            team_i[episode, T_OPTIMAL] = 1 if captured and team_optimal(out_i, episode, ecfg) else 0
+            team_f[episode] = team_reward
+            episode += 1
+            rounds = 0
+            steps = 0
+            team_reward = 0.0
+    for m in range(n):
+        mt[m, MT_N] = ist[m, I_R]
+
+
+@kernel_inline
+def team_optimal(out_i: np.ndarray, episode: int, ecfg: np.ndarray) -> bool:
+    """
+    ``HunterPursuitEnv.optimal_capture`` of the episode's rows: with ``"enter"`` the fewest moves of a hunter
+    rewarded for the capture (a hunter's row ended at the goal: ``truncated`` 0), with ``"surround"`` the most moves
+    of any hunter, at most the capture distance.
+    """
+    bound = ecfg[E_CAPTURE_DISTANCE]
+    if ecfg[E_SURROUND] != 0:
+        most = 0
+        for m in range(out_i.shape[0]):
+            most = max(most, out_i[m, episode, O_CELLS])
+        return most <= bound
+    fewest = -1
+    for m in range(out_i.shape[0]):
+        if out_i[m, episode, O_TRUNCATED] == 0:
+            cells = out_i[m, episode, O_CELLS]
+            fewest = cells if fewest < 0 else min(fewest, cells)
+    return 0 <= fewest <= bound
+
+
+# ist[m]: hunter m's run state (int)
+(
+    I_R,
+    I_S,
+    I_DECISIONS,
+    I_CELLS,
+    I_RANDOM,
+    I_WAITS,
+    I_JOY,
+    I_SADNESS,
+    I_FEAR,
+    I_ANGER,
+    I_EL_CELLS,
+    I_EL_DECISIONS,
+    I_NFIT,
+    I_ACTION,
+    I_K,
+    I_EXPLORED,
+    I_START,
+    I_ENDED,
+    I_LAST_S2,
+    I_CHANGED,
+    I_GREEDY,
+    I_WALKS,
+) = range(22)
+N_IST = 22
+# fst[m]: hunter m's run state (float)
+(
+    S_REWARD,
+    S_NORM,
+    S_LAST_ACT,
+    S_DECISION_REWARD,
+    S_JUMP_REWARD,
+    S_LAST_REWARD,
+    S_BV,
+    S_BJOY,
+    S_BDISTRESS,
+    S_BHOPE,
+    S_BFEAR,
+) = range(11)
+N_FST = 11

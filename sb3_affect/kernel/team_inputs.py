@@ -1,0 +1,279 @@
+"""
+What the team kernel (``kernel.team``) is fed, and what comes out: a team run of the package's own agents on
+HunterPursuit from the members' settings (or freshly built models) and the env, without building a model, and the
+run's record columns (the team's log, each hunter's log and its Broekens observer's), as the launcher stores them.
+
+A run starts as a new ``HunterTeam`` does: each hunter's Q-table at its ``q_init``, ``random.Random(member_seed(seed,
+i))``, an empty appraisal; the env's NumPy generator as ``reset(seed=seed)`` leaves it.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from sb3_affect.kernel import team
+from sb3_affect.kernel.agents import COMPENSATED_SUM, kernel_agent
+from sb3_affect.kernel.hunter_step import PREY_EVADE, PREY_RANDOM, PREY_STATIC
+from sb3_affect.kernel.mt19937 import STATE_SIZE, TW_SIZE, seed_key, seed_state
+from sb3_affect.kernel.pcg64 import seeded_state
+from sb3_affect.kernel.steps import AFFECT
+from sb3_affect.registry import known_settings
+from sb3_affect.team_seeds import member_seed
+
+#: The most bytes the known maps of a team's hunters may take (larger observation spaces run on the Python team).
+MAX_KNOWN_BYTES = 1 << 30
+N_ACTIONS = 4
+PREY = {"static": PREY_STATIC, "random": PREY_RANDOM, "evade": PREY_EVADE}
+#: Broekens' columns of a hunter in a team run's record (``broekens.BROEKENS_COLUMNS[3:]``), with their ``out_f`` index.
+BROEKENS_OUT = (
+    ("joy", team.F_B_JOY),
+    ("distress", team.F_B_DISTRESS),
+    ("hope", team.F_B_HOPE),
+    ("fear", team.F_B_FEAR),
+    ("goal_joy", team.F_B_GOAL_JOY),
+)
+
+
+class TeamInputs(NamedTuple):
+    """Everything ``run_team`` needs besides the seed: the env and every hunter as the kernel runs them."""
+
+    ecfg: np.ndarray
+    efcfg: np.ndarray
+    mcfg: np.ndarray
+    mfcfg: np.ndarray
+    cell_trans: np.ndarray
+    far: np.ndarray
+    tdist: np.ndarray
+    hunter_starts: np.ndarray
+    beh_rand: np.ndarray
+    beh_speeds: np.ndarray
+    beh_n: np.ndarray
+    alpha: np.ndarray  # [hunter, episode]
+    p: np.ndarray  # [hunter, episode]
+    q_init: np.ndarray  # [hunter]
+    n_states: int
+    succ_width: int
+    pred_width: int
+
+
+class TeamRun(NamedTuple):
+    """A team run's rows and the state it left behind."""
+
+    out_i: np.ndarray
+    out_f: np.ndarray
+    team_i: np.ndarray
+    team_f: np.ndarray
+    q: np.ndarray
+    mt: np.ndarray
+    pcg: np.ndarray
+    dist: np.ndarray
+
+    @property
+    def decisions(self) -> int:
+        """Decisions of all hunters (each hunter takes one per round)."""
+        return int(self.out_i[:, :, team.O_DECISIONS].sum())
+
+
+def team_inputs(agents: Sequence[Any], env: Any, episodes: int) -> TeamInputs | str:
+    """
+    The kernel inputs of fresh team runs of ``agents`` (one settings object per hunter, ``sb3_affect.settings``) on
+    ``env`` (a ``HunterPursuitEnv``), or the reason the kernel can not run them.
+    """
+    from sb3_affect.envs.hunter_pursuit import HunterPursuitEnv
+
+    if type(env) is not HunterPursuitEnv:
+        return f"the env {type(env).__name__} is not HunterPursuit"
+    if len(agents) != len(env.possible_agents):
+        return f"{len(agents)} agents for {len(env.possible_agents)} hunters"
+    specs = []
+    schedules = []
+    for agent in agents:
+        spec = kernel_agent(agent)
+        if isinstance(spec, str):
+            return spec
+        schedule = agent.episode_parameters(0, episodes)
+        if schedule is None:
+            return "a schedule depends on the training progress, which only the Python side evaluates"
+        specs.append(spec)
+        schedules.append(schedule)
+    n = len(agents)
+    n_cells = env.n_cells
+    digits = (n if env.observation == "all" else 1) + (env.prey != "static")
+    n_states = n_cells**digits
+    affect = any(spec.kind == AFFECT for spec in specs)
+    width = 5**digits if affect else 1  # a hunter's own cell, each other hunter's and the prey's: staying or a move
+    if 2 * n * n_states * width * 4 > MAX_KNOWN_BYTES:
+        return f"the hunters' known maps over {n_states:,} observations would need more than {MAX_KNOWN_BYTES >> 30} GB"
+    ecfg = np.zeros(team.N_ECFG, dtype=np.int64)
+    ecfg[team.E_N_CELLS] = n_cells
+    ecfg[team.E_PREY_START] = env.prey_start_cell
+    ecfg[team.E_PREY] = PREY[env.prey]
+    ecfg[team.E_SURROUND] = env.capture == "surround"
+    ecfg[team.E_OBS_ALL] = env.observation == "all"
+    ecfg[team.E_MAX_CYCLES] = env.max_cycles or 0
+    ecfg[team.E_CAPTURE_DISTANCE] = env.capture_distance
+    geometry = env.prey == "static" and env.capture == "enter" and env.observation == "self"
+    ecfg[team.E_GEOMETRY] = geometry
+    efcfg = np.array([env.goal_reward, env.step_reward, env.prey_speed], dtype=np.float64)
+    mcfg = np.zeros((n, team.N_MCFG), dtype=np.int64)
+    mfcfg = np.zeros((n, team.N_MFCFG))
+    speeds_width = max(spec.behaviour.speeds.shape[1] for spec in specs)
+    beh_rand = np.zeros((n, 4), dtype=np.int64)
+    beh_speeds = np.zeros((n, 4, speeds_width), dtype=np.int64)
+    beh_n = np.zeros((n, 4), dtype=np.int64)
+    for m, (agent, spec) in enumerate(zip(agents, specs)):
+        mcfg[m] = (
+            spec.kind,
+            agent.max_episode_decisions,
+            spec.act_episode,
+            spec.units_cells,
+            spec.valence,
+            getattr(agent, "tie_break", "random") == "first",
+            getattr(agent, "multi_cell", "steps") == "jump",
+            COMPENSATED_SUM,
+        )
+        mfcfg[m] = (agent.gamma, spec.norm_scale, spec.ucb_coef)
+        beh_rand[m] = spec.behaviour.random
+        beh_speeds[m, :, : spec.behaviour.speeds.shape[1]] = spec.behaviour.speeds
+        beh_n[m] = spec.behaviour.n
+    cell_trans = np.asarray(env.cell_transitions, dtype=np.int64)
+    far = np.array([env.distances_to(h) for h in range(n_cells)]) if env.prey == "evade" else np.zeros((1, 1))
+    return TeamInputs(
+        ecfg, efcfg, mcfg, mfcfg, cell_trans, far, np.asarray(env.distances_to(env.prey_start_cell), dtype=np.float64),
+        np.asarray(env.hunter_start_cells, dtype=np.int64), beh_rand, beh_speeds, beh_n,
+        np.array([a for a, _ in schedules]), np.array([p for _, p in schedules]),
+        np.array([float(agent.q_init) for agent in agents]), n_states, width, width,
+    )  # fmt: skip
+
+
+def team_settings_inputs(
+    members: Sequence[tuple[str | type, Mapping[str, Any]]], env_id: str, env_kwargs: Mapping[str, Any], episodes: int
+) -> TeamInputs | None:
+    """
+    The kernel inputs of fresh team runs of ``members`` (``(algo, kwargs)`` per hunter) on
+    ``make_parallel(env_id, **env_kwargs)``, from the agents' settings (no model, no torch); None where the kernel
+    can not run them (an agent that is not the package's own, an argument that is not a setting, a progress schedule).
+    Bad kwargs raise the constructor's error.
+    """
+    from sb3_affect.envs import make_parallel
+
+    settings = []
+    for algo, kwargs in members:
+        settings_cls = known_settings(algo)
+        if settings_cls is None or not set(kwargs) <= set(settings_cls.names()):
+            return None
+        settings.append(settings_cls(**kwargs))
+    inputs = team_inputs(settings, make_parallel(env_id, **dict(env_kwargs)), episodes)
+    return None if isinstance(inputs, str) else inputs
+
+
+def run_team(inputs: TeamInputs, seed: int, episodes: int) -> TeamRun:
+    """One fresh team run of ``episodes`` episodes with the run seed ``seed`` (``team.team_loop``)."""
+    n = inputs.mcfg.shape[0]
+    n_states = inputs.n_states
+    q = np.empty((n, n_states, N_ACTIONS))
+    mt = np.zeros((n, STATE_SIZE), dtype=np.int64)
+    for m in range(n):
+        q[m] = inputs.q_init[m]
+        key = np.asarray(seed_key(member_seed(seed, m)), dtype=np.int64)
+        seed_state(mt[m], key, len(key))
+    out_i = np.zeros((n, episodes, team.N_OUT_I), dtype=np.int64)
+    out_f = np.zeros((n, episodes, team.N_OUT_F))
+    team_i = np.zeros((episodes, team.N_TEAM_I), dtype=np.int64)
+    team_f = np.zeros(episodes)
+    pcg = seeded_state(seed)
+    dist = np.full((n, n_states), math.inf)
+    width = inputs.succ_width
+    fit_vals = np.zeros((n, episodes + 1))
+    team.team_loop(
+        inputs.ecfg, inputs.efcfg, inputs.mcfg, inputs.mfcfg, inputs.cell_trans, inputs.far, inputs.tdist,
+        inputs.hunter_starts, inputs.beh_rand, inputs.beh_speeds, inputs.beh_n, inputs.alpha, inputs.p,
+        q, mt, np.empty((n, TW_SIZE), dtype=np.int64), pcg, np.zeros((n, n_states, N_ACTIONS), dtype=np.int64),
+        np.zeros((n, n_states), dtype=np.int64), dist, np.zeros((n, n_states, width), dtype=np.int32),
+        np.zeros((n, n_states), dtype=np.int64), np.zeros((n, n_states, inputs.pred_width), dtype=np.int32),
+        np.zeros((n, n_states), dtype=np.int64), np.zeros((n, n_states), dtype=np.bool_), fit_vals,
+        np.zeros((n, 4)), episodes, out_i, out_f, team_i, team_f, np.zeros((n, team.N_IST), dtype=np.int64),
+        np.zeros((n, team.N_FST)), np.zeros(n, dtype=np.int64), np.empty(N_ACTIONS), np.empty(n_states + 1, dtype=np.int64),
+        np.zeros((n, n_states), dtype=np.int64), np.empty(n_states * N_ACTIONS + 1, dtype=np.int64),
+        np.empty(5, dtype=np.int64),
+    )  # fmt: skip
+    return TeamRun(out_i, out_f, team_i, team_f, q, mt, pcg, dist)
+
+
+def _plain(values: np.ndarray) -> list[Any]:
+    """Python values of a column, NaN as None (the JSON records' convention)."""
+    return [None if isinstance(v, float) and v != v else v for v in values.tolist()]
+
+
+def hunter_columns(inputs: TeamInputs, run: TeamRun, m: int) -> dict[str, list[Any]]:
+    """Hunter ``m``'s episode log (``EPISODE_COLUMNS``), as lists of plain values (NaN as None)."""
+    ints, floats = run.out_i[m], run.out_f[m]
+    episodes = ints.shape[0]
+    geometry = bool(inputs.ecfg[team.E_GEOMETRY])
+    kind = int(inputs.mcfg[m, team.K_KIND])
+    nan = [None] * episodes
+    return {
+        "episode": list(range(1, episodes + 1)),
+        "decisions": ints[:, team.O_DECISIONS].tolist(),
+        "cells": ints[:, team.O_CELLS].tolist(),
+        "reward": floats[:, team.F_REWARD].tolist(),
+        "optimal": ints[:, team.O_OPTIMAL].astype(bool).tolist() if geometry else nan,
+        "truncated": ints[:, team.O_TRUNCATED].astype(bool).tolist(),
+        "random_moves": ints[:, team.O_RANDOM].astype(np.float64).tolist(),
+        "waits": ints[:, team.O_WAITS].tolist(),
+        "joy": ints[:, team.O_JOY].tolist(),
+        "sadness": ints[:, team.O_SADNESS].tolist(),
+        "fear": ints[:, team.O_FEAR].tolist(),
+        "anger": ints[:, team.O_ANGER].tolist(),
+        "greedy_optimal": ints[:, team.O_GREEDY].astype(bool).tolist() if geometry else nan,
+        "norm": _plain(floats[:, team.F_NORM]) if kind == AFFECT else nan,
+    }
+
+
+def team_columns(inputs: TeamInputs, run: TeamRun) -> dict[str, list[Any]]:
+    """
+    A team run's record columns, as the Python team gives them: the team's (``team.TEAM_COLUMNS``), then per hunter
+    ``hunter_<i>/<column>`` (its episode log) and ``hunter_<i>/broekens_<joy|distress|hope|fear|goal_joy>``.
+    """
+    n, episodes = run.out_i.shape[0], run.out_i.shape[1]
+    ints = run.out_i
+    total = ints.sum(axis=0)
+    columns: dict[str, list[Any]] = {
+        "episode": list(range(1, episodes + 1)),
+        "decisions": run.team_i[:, team.T_ROUNDS].tolist(),
+        "cells": run.team_i[:, team.T_STEPS].tolist(),
+        "reward": run.team_f.tolist(),
+        "optimal": run.team_i[:, team.T_OPTIMAL].astype(bool).tolist(),
+        "truncated": run.team_i[:, team.T_TRUNCATED].astype(bool).tolist(),
+        "random_moves": total[:, team.O_RANDOM].tolist(),
+        "waits": total[:, team.O_WAITS].tolist(),
+        "joy": total[:, team.O_JOY].tolist(),
+        "sadness": total[:, team.O_SADNESS].tolist(),
+        "fear": total[:, team.O_FEAR].tolist(),
+        "anger": total[:, team.O_ANGER].tolist(),
+        "greedy_optimal": [None] * episodes,
+        "norm": [None] * episodes,
+        "capturer": run.team_i[:, team.T_CAPTURER].tolist(),
+    }
+    for m in range(n):
+        agent = f"hunter_{m}"
+        for name, values in hunter_columns(inputs, run, m).items():
+            columns[f"{agent}/{name}"] = values
+        for name, index in BROEKENS_OUT:
+            columns[f"{agent}/broekens_{name}"] = _plain(run.out_f[m, :, index])
+    return columns
+
+
+def warm_up() -> None:
+    """Load (the first time on a machine: compile) the team kernel, on a 3 x 3 grid with two hunters of each family."""
+    from sb3_affect.envs.hunter_pursuit import HunterPursuitEnv
+    from sb3_affect.settings import AffectQSettings, QLearningSettings
+
+    env = HunterPursuitEnv(size=3, starts=[(0, 0), (2, 2)], prey_start=(1, 1))
+    inputs = team_inputs([AffectQSettings(), QLearningSettings()], env, 1)
+    assert not isinstance(inputs, str), inputs
+    run_team(inputs, 0, 1)
