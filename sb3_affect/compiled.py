@@ -168,25 +168,25 @@ def learn_compiled(model: Any, env: Any, total_timesteps: int, callback: BaseCal
 def _close_episodes(model: Any, run: KernelRun, finished: int) -> None:
     """``TabularQAlgorithm._close_episode`` for the kernel's ``finished`` episodes (the logger aside), in bulk: the
     episode log gets them as one block of columns, with no Python work per episode."""
-    ints, floats = run.out_i[:finished], run.out_f[:finished]
+    ints, floats = run.out_i[:finished].copy(), run.out_f[:finished].copy()  # the block's columns are views of these
     first = len(model._episode_blocks) + 1
     truncated = ints[:, arrays.O_TRUNCATED].astype(bool)
     model._episode_blocks.append_columns(
         {
             "episode": np.arange(first, first + finished, dtype=np.int64),
-            "decisions": ints[:, arrays.O_DECISIONS].copy(),
-            "cells": ints[:, arrays.O_CELLS].copy(),
-            "reward": floats[:, 0].copy(),
+            "decisions": ints[:, arrays.O_DECISIONS],
+            "cells": ints[:, arrays.O_CELLS],
+            "reward": floats[:, 0],
             "optimal": ints[:, arrays.O_OPTIMAL].astype(bool),
             "truncated": truncated,
-            "random_moves": ints[:, arrays.O_RANDOM].copy(),
-            "waits": ints[:, arrays.O_WAITS].copy(),
-            "joy": ints[:, arrays.O_JOY].copy(),
-            "sadness": ints[:, arrays.O_SADNESS].copy(),
-            "fear": ints[:, arrays.O_FEAR].copy(),
-            "anger": ints[:, arrays.O_ANGER].copy(),
+            "random_moves": ints[:, arrays.O_RANDOM],
+            "waits": ints[:, arrays.O_WAITS],
+            "joy": ints[:, arrays.O_JOY],
+            "sadness": ints[:, arrays.O_SADNESS],
+            "fear": ints[:, arrays.O_FEAR],
+            "anger": ints[:, arrays.O_ANGER],
             "greedy_optimal": ints[:, arrays.O_GREEDY].astype(bool),
-            "norm": floats[:, 1].copy(),
+            "norm": floats[:, 1],
         }
     )
     model._truncated_episodes += int(truncated.sum())
@@ -194,10 +194,9 @@ def _close_episodes(model: Any, run: KernelRun, finished: int) -> None:
     buffer = model.ep_info_buffer
     keep = finished if buffer.maxlen is None else min(finished, buffer.maxlen)
     stamp = round(time.time() - model.start_time / 1e9, 6)
-    for j in range(finished - keep, finished):
-        buffer.append(
-            {"r": float(floats[j, 0]), "l": int(ints[j, arrays.O_DECISIONS]), "c": int(ints[j, arrays.O_CELLS]), "t": stamp}
-        )
+    last = slice(finished - keep, finished)  # only the episodes the buffer keeps
+    for r, n, c in zip(floats[last, 0].tolist(), ints[last, arrays.O_DECISIONS].tolist(), ints[last, arrays.O_CELLS].tolist()):
+        buffer.append({"r": r, "l": n, "c": c, "t": stamp})
     run.monitor_episodes(ints[:, arrays.O_CELLS], truncated)
 
 

@@ -187,10 +187,13 @@ class KernelRun:
         if not lengths:
             return
         step, goal = self.table.step_reward, self.table.goal_reward
-        # the Monitor sums each episode's rewards with Python's sum: once per distinct (length, truncated) pair
-        keys, inverse = np.unique(cells[seen] * 2 + truncated[seen], return_inverse=True)
-        sums = [sum([step] * (key // 2 - 1) + [step if key % 2 else goal]) for key in keys.tolist()]
-        returns = np.asarray(sums)[inverse.reshape(-1)].tolist()
+        # the Monitor sums each episode's rewards with Python's sum: once per distinct (length, truncated) pair,
+        # found by counting (no sort), then looked up for every episode
+        keys = cells[seen] * 2 + truncated[seen]
+        distinct = np.flatnonzero(np.bincount(keys))
+        lookup = np.zeros(int(distinct[-1]) + 1)
+        lookup[distinct] = [sum([step] * (key // 2 - 1) + [step if key % 2 else goal]) for key in distinct.tolist()]
+        returns = lookup[keys].tolist()
         elapsed = time.time() - monitor.t_start
         monitor.episode_returns.extend(returns)
         monitor.episode_lengths.extend(lengths)
