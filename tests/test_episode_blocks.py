@@ -108,3 +108,16 @@ def test_a_learnt_model_round_trips_its_log(tmp_path: Path) -> None:
     pd.testing.assert_frame_equal(loaded.episode_log, model.episode_log)
     loaded.learn(500, reset_num_timesteps=False)
     assert len(loaded.episode_log) > len(model.episode_log)
+
+
+@pytest.mark.parametrize("step_reward", [0.0, -0.1])
+def test_the_monitor_sees_the_same_returns_on_both_engines(step_reward: float) -> None:
+    seen = []
+    for engine in ("python", "compiled"):
+        env = gym.make("sb3_affect/GridPursuit-v0", size=6, goal=[4, 4], step_reward=step_reward, max_episode_steps=40)
+        model = QLearning("Grid", env, exploration_rate=0.3, seed=8, engine=engine)
+        model.learn(3000)
+        monitor = model.env.envs[0]
+        seen.append((repr(monitor.episode_returns), monitor.episode_lengths, [e["r"] for e in model.ep_info_buffer]))
+    assert seen[0] == seen[1]
+    assert len(seen[0][1]) > 20
