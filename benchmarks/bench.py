@@ -261,6 +261,11 @@ def main(argv: list[str] | None = None) -> int:
         "a_c": learn_rate(AffectQ, steps),
         "q_k": kernel_alone("QLearning", steps, exploration_rate=0.1),
         "a_k": kernel_alone("AffectQ", steps),
+        # ten times the decisions: a run of 10-20 ms is at the mercy of other processes on a shared machine
+        "q_cL": learn_rate(QLearning, 10 * steps, exploration_rate=0.1),
+        "a_cL": learn_rate(AffectQ, 10 * steps),
+        "q_kL": kernel_alone("QLearning", 10 * steps, exploration_rate=0.1),
+        "a_kL": kernel_alone("AffectQ", 10 * steps),
     }
     rounds = []
     for i in range(repeats):
@@ -269,13 +274,16 @@ def main(argv: list[str] | None = None) -> int:
         print(
             f"round {i}: bare {r['bare']:,.0f}/s | compiled learn QLearning {r['q_c'] / r['bare']:.1f} x bare, "
             f"{r['q_k'] / r['q_c']:.2f} x kernel time | AffectQ {r['a_c'] / r['bare']:.1f} x bare, "
-            f"{r['a_k'] / r['a_c']:.2f} x kernel time | Python engine {r['q_py'] / r['bare']:.2f} / "
+            f"{r['a_k'] / r['a_c']:.2f} x kernel time | {10 * steps:,} decisions: QLearning {r['q_cL'] / r['bare']:.1f} x "
+            f"bare, {r['q_kL'] / r['q_cL']:.2f} x kernel time, AffectQ {r['a_cL'] / r['bare']:.1f} x bare, "
+            f"{r['a_kL'] / r['a_cL']:.2f} x kernel time | Python engine {r['q_py'] / r['bare']:.2f} / "
             f"{r['a_py'] / r['bare']:.2f} x bare | load {load():.2f}",
             flush=True,
         )
     rate = {key: statistics.median(r[key] for r in rounds) for key in measures}
     ratio = {key: statistics.median(r[key] / r["bare"] for r in rounds) for key in measures}
-    slower = {key: statistics.median(r[key.replace("_c", "_k")] / r[key] for r in rounds) for key in ("q_c", "a_c")}
+    compiled = ("q_c", "a_c", "q_cL", "a_cL")
+    slower = {key: statistics.median(r[key.replace("_c", "_k")] / r[key] for r in rounds) for key in compiled}
     bare, q_py, a_py, q_rate, a_rate = (rate[key] for key in ("bare", "q_py", "a_py", "q_c", "a_c"))
     rows.append(("bare pure-Python loop (decisions/s)", bare, "floor"))
     rows.append(("QLearning.learn, Python engine (decisions/s)", q_py, f"{ratio['q_py']:.2f} x bare (target >= 0.5)"))
@@ -286,6 +294,11 @@ def main(argv: list[str] | None = None) -> int:
     rows.append(("AffectQ, kernel alone (decisions/s)", rate["a_k"], f"{ratio['a_k']:.1f} x bare"))
     rows.append(("QLearning: compiled learn time / kernel time", slower["q_c"], "target <= 1.3"))
     rows.append(("AffectQ: compiled learn time / kernel time", slower["a_c"], "target <= 1.3"))
+    long = f"{10 * steps:,} decisions"
+    rows.append((f"QLearning.learn eps 0.1, compiled, {long} (decisions/s)", rate["q_cL"], f"{ratio['q_cL']:.1f} x bare"))
+    rows.append((f"AffectQ.learn, compiled, {long} (decisions/s)", rate["a_cL"], f"{ratio['a_cL']:.1f} x bare"))
+    rows.append((f"QLearning: compiled learn time / kernel time, {long}", slower["q_cL"], "target <= 1.3"))
+    rows.append((f"AffectQ: compiled learn time / kernel time, {long}", slower["a_cL"], "target <= 1.3"))
     d_rate = timed(dqn_rate(dqn_steps), max(1, repeats // 2))
     rows.append(("SB3 DQN.learn (steps/s, 1 torch thread)", d_rate, "reference"))
     rows.append(("QLearning (Python engine) / DQN", q_py / d_rate, "target >= 100"))
