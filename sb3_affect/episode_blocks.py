@@ -126,7 +126,7 @@ class EpisodeBlocks:
 
         if not self._count:
             return make_frame([])
-        frame = pd.DataFrame({name: values.copy() for name, values in self.columns().items()})
+        frame = pd.DataFrame(self.columns(), copy=True)  # the frame never shares memory with the log
         for column in _INTS:
             frame[column] = frame[column].astype("int64")
         for column in _FLAGS:
