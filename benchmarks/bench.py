@@ -1,14 +1,25 @@
 """
-Speed benchmark (issues 5 and 11): decisions per second of the SB3-interface learn loops on both engines (the Python
-loop and the compiled kernel) against a bare pure-Python loop and SB3's DQN, ``simulate`` of the paper protocol on the
-kernel, the kernel's cold and warm start, and the wall time of the paper protocol through the launcher.
+Speed benchmark: decisions per second of the SB3-interface learn loops on both engines (the Python loop and the
+compiled kernel) against a bare pure-Python loop, the kernel alone on the same decisions and SB3's DQN, ``simulate``
+of the paper protocol on the kernel, the kernel's cold and warm start, and the wall time of the paper protocol through
+the launcher; with ``--all``, also the other speed figures of the studies (below).
 
     python benchmarks/bench.py                 # full run (a few minutes), table on stdout, CSV in benchmarks/results.csv
+    python benchmarks/bench.py --all           # every figure: also the studies' kernels and the report of a folder
     python benchmarks/bench.py --large         # also the paper protocol with 10,000 seeds per cell through simulate
     python benchmarks/bench.py --smoke         # seconds: tiny sizes, no protocol (what the test suite runs)
 
 Every figure is the median of repeated runs in this one process. The learn loops are measured in paired rounds (the
-bare loop, then each learn loop, back to back); a ratio to the bare loop is the median of the rounds' ratios.
+bare loop, then each learn loop and the kernel alone, back to back); a ratio is the median of the rounds' ratios, and
+every round is printed with the machine's load. "Kernel alone" is the kernel's batch call (``simulate``'s) for the
+same seed and the episodes the compiled ``learn`` finished, its inputs built outside the timed part: compiled
+``learn`` / kernel alone is what ``learn`` adds to the decisions themselves.
+
+``--studies`` adds the hunter-team and moving-prey kernels against their Python references (paired rounds) and, with
+``--study-seeds N``, their studies at N seeds, from ``benchmarks/bench_studies.py`` where that benchmark exists;
+``--report-folder DIR`` (or ``--report-seeds N``) adds ``sb3-affect report`` and ``status`` of a results folder
+(``benchmarks/bench_report.py``: wall time and peak memory in a fresh process). ``--all`` is ``--studies
+--study-seeds 1000 --report-seeds 10000``.
 """
 
 from __future__ import annotations
@@ -87,6 +98,35 @@ def learn_rate(cls: type, steps: int, **kwargs: object) -> Callable[[], float]:
     return run
 
 
+def kernel_alone(algo: str, steps: int, **kwargs: object) -> Callable[[], float]:
+    """
+    The kernel alone on ``learn_rate``'s decisions: one batch call (``simulate``'s) for seed 0 and the episodes a
+    compiled ``learn(steps)`` finishes (checked to be the same episodes), its inputs built before the timed part.
+    """
+    from sb3_affect.kernel.batch import batch_columns
+    from sb3_affect.kernel.inputs import settings_inputs
+
+    model = getattr(sb3_affect, algo)("Grid", gym.make(ENV_ID), seed=0, **kwargs)
+    model.learn(steps)
+    log = model.episode_log
+    inputs = settings_inputs(algo, kwargs, ENV_ID, None, len(log))
+    assert inputs is not None, f"{algo} {kwargs} does not run on the kernel"
+    if len(log):
+        assert (batch_columns(inputs, [0], len(log))["decisions"] == log["decisions"].to_numpy()).all()
+
+    def run() -> float:
+        start = time.perf_counter()
+        columns = batch_columns(inputs, [0], len(log))
+        return int(columns["decisions"].sum()) / (time.perf_counter() - start)
+
+    return run
+
+
+def load() -> float:
+    """The 1-minute load average (other processes on the machine)."""
+    return os.getloadavg()[0]
+
+
 def median_rate(fn: Callable[[], float], repeats: int) -> float:
     return statistics.median(fn() for _ in range(repeats))
 
@@ -148,14 +188,64 @@ def protocol_seconds(workers: int) -> float | None:
         return time.perf_counter() - start
 
 
+def study_rows(repeats: int, seeds: int) -> list[tuple[str, float, str]]:
+    """The team and moving-prey kernels against their Python references (``bench_studies``), and their studies."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    try:
+        import bench_studies  # type: ignore[import-not-found]
+    except ImportError:
+        print("studies: benchmarks/bench_studies.py is not on this branch (no team or moving-prey kernel yet)")
+        return [("team and moving-prey kernels", float("nan"), "no benchmark on this branch")]
+    rows = []
+    for name, pair in (
+        ("two hunters (AffectQ + QLearning), 4 runs x 200 episodes", bench_studies.team_pair(list(range(4)), 200)),
+        ("AffectQ, random-walking prey 7x7, 4 runs x 200 episodes", bench_studies.moving_pair(list(range(4)), 200)),
+    ):
+        measured = bench_studies.paired(name, pair, repeats)
+        ratio = statistics.median(row["ratio"] for row in measured)
+        rows.append((f"{name}: Python / kernel time", ratio, f"median of {len(measured)} paired rounds"))
+    if seeds:
+        for study in bench_studies.studies(seeds):
+            rows.append((f"{study['measure']} (s)", study["wall_s"], f"{study['runs']} runs, load {study['load']:.1f}"))
+    return rows
+
+
+def report_rows(folders: list[str], seeds: int) -> list[tuple[str, float, str]]:
+    """``sb3-affect report`` and ``status`` of results folders: wall seconds and peak MB (``bench_report``)."""
+    with tempfile.TemporaryDirectory() as work:
+        out = Path(work) / "report.csv"
+        command = [sys.executable, str(Path(__file__).with_name("bench_report.py")), "--out", str(out), "--keep", work]
+        command += [arg for folder in folders for arg in ("--folder", folder)]
+        command += ["--seeds", str(seeds)] if seeds else []
+        subprocess.run(command, check=True)
+        with out.open() as handle:
+            measured = list(csv.DictReader(handle))
+    rows = []
+    for row in measured:
+        name = f"{row['measure']}, {int(row['runs']):,} runs"
+        target = " (target <= 30 s, <= 1 GB)" if row["measure"] == "report" else ""
+        rows.append((f"{name} (s)", float(row["wall_s"]), f"peak {float(row['peak_mb']):,.0f} MB{target}"))
+    return rows
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--smoke", action="store_true", help="tiny sizes, no protocol: checks the script runs")
     parser.add_argument("--large", action="store_true", help="also the paper protocol with 10,000 seeds per cell")
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--csv", type=Path, default=Path(__file__).with_name("results.csv"))
+    parser.add_argument("--all", action="store_true", help="every figure: --studies --study-seeds 1000 --report-seeds 10000")
+    parser.add_argument("--studies", action="store_true", help="the team and moving-prey kernels vs their Python loops")
+    parser.add_argument("--study-seeds", type=int, default=0, help="also the studies at this many seeds (with --studies)")
+    parser.add_argument("--report-folder", action="append", default=[], help="time report and status of this folder")
+    parser.add_argument("--report-seeds", type=int, default=0, help="run the paper sweep at N seeds, then time its report")
     args = parser.parse_args(argv)
+    if args.all:
+        args.studies = True
+        args.study_seeds = args.study_seeds or 1000
+        args.report_seeds = args.report_seeds or 10_000
     steps, dqn_steps, repeats = (3000, 300, 1) if args.smoke else (200_000, 5000, args.repeats)
+    print(f"load average at start: {load():.2f} on {os.cpu_count()} CPUs", flush=True)
 
     rows: list[tuple[str, float, str]] = []
     learn_rate(QLearning, 10)()  # load (or compile) the kernel before timing it
@@ -169,16 +259,46 @@ def main(argv: list[str] | None = None) -> int:
         "a_py": learn_rate(AffectQ, steps, engine="python"),
         "q_c": learn_rate(QLearning, steps, exploration_rate=0.1),
         "a_c": learn_rate(AffectQ, steps),
+        "q_k": kernel_alone("QLearning", steps, exploration_rate=0.1),
+        "a_k": kernel_alone("AffectQ", steps),
+        # ten times the decisions: a run of 10-20 ms is at the mercy of other processes on a shared machine
+        "q_cL": learn_rate(QLearning, 10 * steps, exploration_rate=0.1),
+        "a_cL": learn_rate(AffectQ, 10 * steps),
+        "q_kL": kernel_alone("QLearning", 10 * steps, exploration_rate=0.1),
+        "a_kL": kernel_alone("AffectQ", 10 * steps),
     }
-    rounds = [{key: fn() for key, fn in measures.items()} for _ in range(repeats)]
+    rounds = []
+    for i in range(repeats):
+        r = {key: fn() for key, fn in measures.items()}
+        rounds.append(r)
+        print(
+            f"round {i}: bare {r['bare']:,.0f}/s | compiled learn QLearning {r['q_c'] / r['bare']:.1f} x bare, "
+            f"{r['q_k'] / r['q_c']:.2f} x kernel time | AffectQ {r['a_c'] / r['bare']:.1f} x bare, "
+            f"{r['a_k'] / r['a_c']:.2f} x kernel time | {10 * steps:,} decisions: QLearning {r['q_cL'] / r['bare']:.1f} x "
+            f"bare, {r['q_kL'] / r['q_cL']:.2f} x kernel time, AffectQ {r['a_cL'] / r['bare']:.1f} x bare, "
+            f"{r['a_kL'] / r['a_cL']:.2f} x kernel time | Python engine {r['q_py'] / r['bare']:.2f} / "
+            f"{r['a_py'] / r['bare']:.2f} x bare | load {load():.2f}",
+            flush=True,
+        )
     rate = {key: statistics.median(r[key] for r in rounds) for key in measures}
     ratio = {key: statistics.median(r[key] / r["bare"] for r in rounds) for key in measures}
+    compiled = ("q_c", "a_c", "q_cL", "a_cL")
+    slower = {key: statistics.median(r[key.replace("_c", "_k")] / r[key] for r in rounds) for key in compiled}
     bare, q_py, a_py, q_rate, a_rate = (rate[key] for key in ("bare", "q_py", "a_py", "q_c", "a_c"))
     rows.append(("bare pure-Python loop (decisions/s)", bare, "floor"))
     rows.append(("QLearning.learn, Python engine (decisions/s)", q_py, f"{ratio['q_py']:.2f} x bare (target >= 0.5)"))
     rows.append(("AffectQ.learn, Python engine (decisions/s)", a_py, f"{ratio['a_py']:.2f} x bare (target >= 0.3)"))
-    rows.append(("QLearning.learn, compiled (decisions/s)", q_rate, f"{ratio['q_c']:.1f} x bare (target >= 20)"))
-    rows.append(("AffectQ.learn, compiled (decisions/s)", a_rate, f"{ratio['a_c']:.1f} x bare (target >= 8)"))
+    rows.append(("QLearning.learn eps 0.1, compiled (decisions/s)", q_rate, f"{ratio['q_c']:.1f} x bare (target >= 30)"))
+    rows.append(("AffectQ.learn, compiled (decisions/s)", a_rate, f"{ratio['a_c']:.1f} x bare (target >= 35)"))
+    rows.append(("QLearning eps 0.1, kernel alone (decisions/s)", rate["q_k"], f"{ratio['q_k']:.1f} x bare"))
+    rows.append(("AffectQ, kernel alone (decisions/s)", rate["a_k"], f"{ratio['a_k']:.1f} x bare"))
+    rows.append(("QLearning: compiled learn time / kernel time", slower["q_c"], "target <= 1.3"))
+    rows.append(("AffectQ: compiled learn time / kernel time", slower["a_c"], "target <= 1.3"))
+    long = f"{10 * steps:,} decisions"
+    rows.append((f"QLearning.learn eps 0.1, compiled, {long} (decisions/s)", rate["q_cL"], f"{ratio['q_cL']:.1f} x bare"))
+    rows.append((f"AffectQ.learn, compiled, {long} (decisions/s)", rate["a_cL"], f"{ratio['a_cL']:.1f} x bare"))
+    rows.append((f"QLearning: compiled learn time / kernel time, {long}", slower["q_cL"], "target <= 1.3"))
+    rows.append((f"AffectQ: compiled learn time / kernel time, {long}", slower["a_cL"], "target <= 1.3"))
     d_rate = timed(dqn_rate(dqn_steps), max(1, repeats // 2))
     rows.append(("SB3 DQN.learn (steps/s, 1 torch thread)", d_rate, "reference"))
     rows.append(("QLearning (Python engine) / DQN", q_py / d_rate, "target >= 100"))
@@ -206,7 +326,13 @@ def main(argv: list[str] | None = None) -> int:
             else:
                 rows.append((f"paper protocol, {workers} worker(s) (s)", launcher, "sb3-affect run, 360 runs x 200 episodes"))
 
+    if args.studies and not args.smoke:
+        rows += study_rows(repeats, args.study_seeds)
+    if (args.report_folder or args.report_seeds) and not args.smoke:
+        rows += report_rows(args.report_folder, args.report_seeds)
+
     cores = os.cpu_count()
+    print(f"load average at the end: {load():.2f}")
     print(f"sb3-affect {sb3_affect.__version__} | Python {platform.python_version()} | {cores} cores | {platform.machine()}")
     print(f"median of {repeats} run(s); {steps} decisions per tabular run, {dqn_steps} DQN steps per run")
     width = max(len(name) for name, _, _ in rows)

@@ -221,8 +221,10 @@ class AffectQ(TabularQAlgorithm):
         return greedy_action(q[state], rng, self._tie_first), cells, False
 
     def _exploration_value(self) -> float:
-        rows = self._episode_rows
-        return rows[-1][COLUMN["random_moves"]] / rows[-1][COLUMN["decisions"]] if rows else 1.0
+        if not self._episode_blocks:
+            return 1.0
+        row = self._episode_blocks.last()
+        return row[COLUMN["random_moves"]] / row[COLUMN["decisions"]]
 
     # -- the compiled engine ---------------------------------------------------------------------------------------
     def compiled_settings(self) -> TabularSettings | str:

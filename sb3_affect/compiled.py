@@ -4,15 +4,14 @@ it and comes back (``sb3_affect.compiled_state``). This is the agents' side of t
 settings objects and transition tables only; the SB3 objects (callbacks, the Monitor, the logger) are handled here.
 
 The kernel runs in chunks of whole episodes; between chunks this module does what the Python loop does at an episode
-end that the kernel can not (the episode rows, SB3's episode buffer, the Monitor's statistics, the logger, the
-progress bar, episode-level callbacks). At the end of ``learn`` every piece of state is written back into the model
-(Q-table, random generator, appraisal, UCB counts, the episode in progress) and into the env and its wrappers, so
-learning can go on with either engine.
+end that the kernel can not (the episode log, one block of columns per chunk; SB3's episode buffer, the Monitor's
+statistics, the logger, the progress bar, episode-level callbacks). At the end of ``learn`` every piece of state is
+written back into the model (Q-table, random generator, appraisal, UCB counts, the episode in progress) and into the
+env and its wrappers, so learning can go on with either engine.
 """
 
 from __future__ import annotations
 
-import gc
 import time
 from typing import Any
 
@@ -27,7 +26,7 @@ from stable_baselines3.common.callbacks import (
 from stable_baselines3.common.monitor import Monitor
 
 from sb3_affect.compiled_state import KernelRun
-from sb3_affect.episode_log import COLUMN, EPISODE_COLUMNS
+from sb3_affect.episode_log import COLUMN
 from sb3_affect.kernel import arrays
 from sb3_affect.kernel.agents import KernelAgent, kernel_agent
 from sb3_affect.kernel.inputs import env_reason, unwrap
@@ -134,7 +133,7 @@ def learn_compiled(model: Any, env: Any, total_timesteps: int, callback: BaseCal
                     max_episodes = to_dump + (max_episodes - to_dump) // log_interval * log_interval  # as all would
             if bars:
                 limit_t = min(limit_t, model.num_timesteps + _PROGRESS_DECISIONS)
-            parameters = settings.episode_parameters(len(model._episode_rows), max_episodes)
+            parameters = settings.episode_parameters(len(model._episode_blocks), max_episodes)
             if parameters is None:
                 max_episodes = 1
                 alpha, p = np.empty(1), np.empty(1)
@@ -167,50 +166,44 @@ def learn_compiled(model: Any, env: Any, total_timesteps: int, callback: BaseCal
 
 
 def _close_episodes(model: Any, run: KernelRun, finished: int) -> None:
-    """``TabularQAlgorithm._close_episode`` for the kernel's ``finished`` episodes (the logger aside), in bulk."""
-    ints, floats = run.out_i[:finished], run.out_f[:finished]
-    first = len(model._episode_rows) + 1
+    """``TabularQAlgorithm._close_episode`` for the kernel's ``finished`` episodes (the logger aside), in bulk: the
+    episode log gets them as one block of columns, with no Python work per episode."""
+    ints, floats = run.out_i[:finished].copy(), run.out_f[:finished].copy()  # the block's columns are views of these
+    first = len(model._episode_blocks) + 1
     truncated = ints[:, arrays.O_TRUNCATED].astype(bool)
-    by_name = {  # each as Python ints, floats or bools (``tolist``)
-        "episode": range(first, first + finished),
-        "decisions": ints[:, arrays.O_DECISIONS].tolist(),
-        "cells": ints[:, arrays.O_CELLS].tolist(),
-        "reward": floats[:, 0].tolist(),
-        "optimal": ints[:, arrays.O_OPTIMAL].astype(bool).tolist(),
-        "truncated": truncated.tolist(),
-        "random_moves": ints[:, arrays.O_RANDOM].tolist(),
-        "waits": ints[:, arrays.O_WAITS].tolist(),
-        "joy": ints[:, arrays.O_JOY].tolist(),
-        "sadness": ints[:, arrays.O_SADNESS].tolist(),
-        "fear": ints[:, arrays.O_FEAR].tolist(),
-        "anger": ints[:, arrays.O_ANGER].tolist(),
-        "greedy_optimal": ints[:, arrays.O_GREEDY].astype(bool).tolist(),
-        "norm": floats[:, 1].tolist(),
-    }
-    columns = [by_name[name] for name in EPISODE_COLUMNS]
-    enabled = gc.isenabled()
-    gc.disable()  # thousands of new row lists at once: no collection passes in between (they hold no cycles)
-    try:
-        model._episode_rows.extend(map(list, zip(*columns)))
-    finally:
-        if enabled:
-            gc.enable()
+    model._episode_blocks.append_columns(
+        {
+            "episode": np.arange(first, first + finished, dtype=np.int64),
+            "decisions": ints[:, arrays.O_DECISIONS],
+            "cells": ints[:, arrays.O_CELLS],
+            "reward": floats[:, 0],
+            "optimal": ints[:, arrays.O_OPTIMAL].astype(bool),
+            "truncated": truncated,
+            "random_moves": ints[:, arrays.O_RANDOM],
+            "waits": ints[:, arrays.O_WAITS],
+            "joy": ints[:, arrays.O_JOY],
+            "sadness": ints[:, arrays.O_SADNESS],
+            "fear": ints[:, arrays.O_FEAR],
+            "anger": ints[:, arrays.O_ANGER],
+            "greedy_optimal": ints[:, arrays.O_GREEDY].astype(bool),
+            "norm": floats[:, 1],
+        }
+    )
     model._truncated_episodes += int(truncated.sum())
     model._episode_num += finished
     buffer = model.ep_info_buffer
     keep = finished if buffer.maxlen is None else min(finished, buffer.maxlen)
     stamp = round(time.time() - model.start_time / 1e9, 6)
-    for j in range(finished - keep, finished):
-        buffer.append(
-            {"r": float(floats[j, 0]), "l": int(ints[j, arrays.O_DECISIONS]), "c": int(ints[j, arrays.O_CELLS]), "t": stamp}
-        )
+    last = slice(finished - keep, finished)  # only the episodes the buffer keeps
+    for r, n, c in zip(floats[last, 0].tolist(), ints[last, arrays.O_DECISIONS].tolist(), ints[last, arrays.O_CELLS].tolist()):
+        buffer.append({"r": r, "l": n, "c": c, "t": stamp})
     run.monitor_episodes(ints[:, arrays.O_CELLS], truncated)
 
 
 def _record(model: Any, run: KernelRun, log_interval: int | None) -> None:
     """The logger keys of an episode end (only the last episode before a dump matters: records overwrite)."""
     logger = model.logger  # recorded whenever a logger exists, as SB3 does (per chunk of episodes, never per decision)
-    row = model._episode_rows[-1]
+    row = model._episode_blocks.last()
     if run.agent.kind == arrays.AFFECT:
         names = ("joy", "sadness", "fear", "anger")
         counts = [row[COLUMN[name]] for name in names]

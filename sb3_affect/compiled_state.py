@@ -131,9 +131,10 @@ class KernelRun:
         known = KnownMap(len(self.dist))
         known.distance = self.dist.tolist()
         known.goals = {int(g) for g in np.flatnonzero(self.goal)}
-        for s, a in zip(*np.nonzero(self.edge)):
-            known.successors[int(s)].add(int(trans[s, a]))
-        known.predecessors = [self.pred[v, : self.pred_n[v]].tolist() for v in range(len(self.dist))]
+        rows, moves = np.nonzero(self.edge)
+        for s, t in zip(rows.tolist(), trans[rows, moves].tolist()):
+            known.successors[s].add(t)
+        known.predecessors = [row[:n] for row, n in zip(self.pred.tolist(), self.pred_n.tolist())]
         appraiser.known = known
         n = int(self.ist[arrays.I_NFIT])
         fit = PowerFit()
@@ -187,10 +188,16 @@ class KernelRun:
         if not lengths:
             return
         step, goal = self.table.step_reward, self.table.goal_reward
-        # the Monitor sums each episode's rewards with Python's sum: once per distinct (length, truncated) pair
-        keys, inverse = np.unique(cells[seen] * 2 + truncated[seen], return_inverse=True)
-        sums = [sum([step] * (key // 2 - 1) + [step if key % 2 else goal]) for key in keys.tolist()]
-        returns = np.asarray(sums)[inverse.reshape(-1)].tolist()
+        # the Monitor sums each episode's rewards with Python's sum: once per distinct (length, truncated) pair,
+        # found by counting (no sort), then looked up for every episode
+        if step == 0.0:  # every sum is 0.0 + ... + the last reward: exactly the last reward (any order of summing)
+            returns = np.where(truncated[seen], 0.0, 0.0 + goal).tolist()
+        else:
+            keys = cells[seen] * 2 + truncated[seen]
+            distinct = np.flatnonzero(np.bincount(keys))
+            lookup = np.zeros(int(distinct[-1]) + 1)
+            lookup[distinct] = [sum([step] * (key // 2 - 1) + [step if key % 2 else goal]) for key in distinct.tolist()]
+            returns = lookup[keys].tolist()
         elapsed = time.time() - monitor.t_start
         monitor.episode_returns.extend(returns)
         monitor.episode_lengths.extend(lengths)

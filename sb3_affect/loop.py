@@ -252,7 +252,7 @@ def close_episode(
         greedy = model._greedy_optimal
     joy, sadness, fear, anger = counts
     row = {
-        "episode": len(model._episode_rows) + 1,
+        "episode": len(model._episode_blocks) + 1,
         "decisions": decisions,
         "cells": cells,
         "reward": reward,
@@ -267,7 +267,7 @@ def close_episode(
         "greedy_optimal": greedy,
         "norm": norm,
     }
-    model._episode_rows.append(list(_ROW_VALUES(row)))
+    model._episode_blocks.append_row(list(_ROW_VALUES(row)))
     if truncated:
         model._truncated_episodes += 1
     model._episode_num += 1

@@ -29,7 +29,8 @@ from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, Schedul
 from stable_baselines3.common.vec_env import DummyVecEnv
 
 from sb3_affect.agent_checks import check_table_size, check_total_timesteps
-from sb3_affect.episode_log import Geometry, Rows, env_geometry, make_frame
+from sb3_affect.episode_blocks import EpisodeBlocks
+from sb3_affect.episode_log import Geometry, Rows, env_geometry
 from sb3_affect.goals import GoalTest, positive_terminal_reward
 from sb3_affect.loop import close_episode, run_loop
 from sb3_affect.policies import TabularQPolicy, check_not_gym_tuple
@@ -139,7 +140,7 @@ class TabularQAlgorithm(BaseAlgorithm):
         if self.env is not None:
             self._check_spaces(self.observation_space, self.action_space)
         # run state (plain data, saved with the model)
-        self._episode_rows: list[list[Any]] = []
+        self._episode_blocks = EpisodeBlocks()  # the episode log (saved as ``_episode_rows``, a list of rows)
         self._episode_state: dict[str, Any] | None = None
         self._rng_state: list[Any] | None = None
         self._truncated_episodes = 0
@@ -172,9 +173,12 @@ class TabularQAlgorithm(BaseAlgorithm):
             self._rng.setstate((version, tuple(internal), gauss))
         self.policy.rng = self._rng
         self._q: LoopTable | None = None  # the loop's table, only while learn runs
+        rows = self.__dict__.pop("_episode_rows", None)  # a loaded file's episode log: a list of rows
+        if rows is not None:
+            self._episode_blocks = EpisodeBlocks.from_rows(rows)
 
     def _excluded_save_params(self) -> list[str]:
-        return [*super()._excluded_save_params(), "_rng", "_q", "_tie_first"]
+        return [*super()._excluded_save_params(), "_rng", "_q", "_tie_first", "_episode_blocks"]
 
     def set_random_seed(self, seed: int | None = None) -> None:
         """Seed Python, NumPy, torch, the action space, the env and the agent's own generator (SB3 convention)."""
@@ -314,7 +318,7 @@ class TabularQAlgorithm(BaseAlgorithm):
         start a new episode even when one is in progress. Returns SB3's ``(total_timesteps, callback)``.
         """
         if reset_num_timesteps:
-            self._episode_rows = []
+            self._episode_blocks = EpisodeBlocks()
             self._truncated_episodes = 0
             self._new_run()
         if new_episode or reset_num_timesteps or self._last_obs is None:
@@ -465,7 +469,7 @@ class TabularQAlgorithm(BaseAlgorithm):
     @property
     def episode_log(self) -> pd.DataFrame:
         """One row per finished episode of the current run; columns ``sb3_affect.EPISODE_COLUMNS``."""
-        return make_frame(self._episode_rows)
+        return self._episode_blocks.frame()
 
     @property
     def truncated_episodes(self) -> int:
@@ -478,11 +482,13 @@ class TabularQAlgorithm(BaseAlgorithm):
         self._sync_policy()
         version, internal, gauss = self._rng.getstate()
         self._rng_state = [version, list(internal), gauss]
+        self._episode_rows = self._episode_blocks.rows()  # the file's form of the episode log: a list of rows
         try:
             super().save(path, exclude=exclude, include=include)
             add_plain_description(path, self)
         finally:
             self._rng_state = None
+            del self._episode_rows
 
     @classmethod
     def load(

@@ -180,7 +180,7 @@ class HunterTeam:
                 episode_ended = steppers[a].end_decision(ended[a], over and not ended[a], reset=reset)
                 if episode_ended:
                     assert over, "a hunter's episode ends with the team's"
-                    rows.append(self.models[a]._episode_rows[-1])
+                    rows.append(self.models[a]._episode_blocks.last())
             if over:
                 self._close(rows, rounds, steps, team_reward, captured, capturers)
                 done_episodes += 1

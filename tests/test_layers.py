@@ -26,6 +26,7 @@ CORE = (
     "sb3_affect.registry",
     "sb3_affect.validation",
     "sb3_affect.episode_log",
+    "sb3_affect.episode_blocks",
     "sb3_affect.extras",
     "sb3_affect.team_seeds",
     "sb3_affect.envs",

@@ -139,7 +139,7 @@ class Boltzmann(TabularQAlgorithm):
 
     def _update_schedules(self) -> None:
         super()._update_schedules()
-        self._set_temperature(self.temperature_at(len(self._episode_rows), self._current_progress_remaining))
+        self._set_temperature(self.temperature_at(len(self._episode_blocks), self._current_progress_remaining))
 
     def _exploration_value(self) -> float:
         return self._temperature

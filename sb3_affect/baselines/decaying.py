@@ -103,4 +103,4 @@ class DecayingEpsilonGreedy(QLearning):
 
     def _update_schedules(self) -> None:
         super()._update_schedules()
-        self._epsilon = self.epsilon_at(len(self._episode_rows))
+        self._epsilon = self.epsilon_at(len(self._episode_blocks))

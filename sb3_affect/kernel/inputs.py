@@ -55,11 +55,13 @@ class TableArrays:
         self.width = int(table.width)
         n_states = self.trans.shape[0]
         # the most distinct cells with a move into one cell: the width of the known map's predecessor table
-        into = np.zeros(n_states, dtype=np.int64)
-        for s in range(n_states):
-            for t in set(self.trans[s].tolist()) - {s}:
-                into[t] += 1
-        self.max_pred = max(1, int(into.max()))
+        # (each row's successors sorted; a successor counts once per row, and not when it is the row's own cell)
+        successors = np.sort(self.trans, axis=1)
+        new = np.ones(successors.shape, dtype=np.bool_)
+        new[:, 1:] = successors[:, 1:] != successors[:, :-1]
+        new &= successors != np.arange(n_states)[:, None]
+        into = np.bincount(successors[new], minlength=n_states)
+        self.max_pred = max(1, int(into.max())) if into.size else 1
 
     @property
     def env(self) -> arrays.EnvTable:

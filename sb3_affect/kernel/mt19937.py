@@ -225,4 +225,4 @@ def state_from_rng(rng: random.Random) -> tuple[np.ndarray, object]:
 
 def state_to_rng(rng: random.Random, mt: np.ndarray, gauss: object) -> None:
     """Write a kernel state back into ``rng``, which then continues the stream exactly where the kernel stopped."""
-    rng.setstate((3, tuple(int(v) for v in mt), gauss))
+    rng.setstate((3, tuple(mt.tolist()), gauss))
