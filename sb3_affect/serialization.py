@@ -2,11 +2,12 @@
 Safe model files.
 
 SB3's ``load`` unpickles parts of a model file with cloudpickle, so opening a file from an untrusted source can run
-arbitrary code (SB3 issue 1831). Files saved by this package carry, next to SB3's usual members, a plain-JSON member
-``sb3_affect.json`` that describes everything SB3 pickles (spaces, policy class, schedules, buffers). ``load_safe``
-rebuilds a model from JSON and from ``policy.pth`` read with ``torch.load(weights_only=True)``: it never unpickles
-Python objects. A file it can not rebuild that way is refused with an error that says how to opt in to SB3's legacy
-loader (``safe=False``) for a file the user trusts. SB3's own loader still reads these files.
+arbitrary code (a known risk of pickle, which SB3's own docs warn about). Files saved by this package carry, next to
+SB3's usual members, a plain-JSON member ``sb3_affect.json`` that describes everything SB3 pickles (spaces, policy
+class, schedules, buffers). ``load_safe`` rebuilds a model from JSON and from ``policy.pth`` read with
+``torch.load(weights_only=True)``: it never unpickles Python objects. A file it can not rebuild that way is refused
+with an error that says how to opt in to SB3's legacy loader (``safe=False``) for a file the user trusts. SB3's own
+loader still reads these files.
 """
 
 from __future__ import annotations
