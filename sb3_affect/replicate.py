@@ -33,7 +33,7 @@ SPEED_ONE_SEEDS, LONG_SEEDS = 500, 50
 #: The forensics' size inside the main job (``sb3-affect forensics`` alone defaults to 3 / 4 / 100).
 FORENSICS = {"screen_reps": 2, "leaders": 4, "reps": 30}
 #: The main job's wall time on 2 idle cores, as the help and the docs quote it (measured: see the README).
-MINUTES = "about 8-10 minutes"
+MINUTES = "about 6-9 minutes"
 #: Engine studies: (results folder, description), for the help.
 STUDIES = (
     ("large", f"the paper's 18 cells and the speed-matched ε-greedy at {LARGE_SEEDS:,} seeds per cell (engine)"),
