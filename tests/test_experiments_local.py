@@ -51,6 +51,11 @@ class Faulty(QLearning):
         return super().learn(*args, **kwargs)
 
 
+
+def _terminal_sigint() -> None:
+    """The child reacts to SIGINT as under a terminal, even where this test runs with SIGINT ignored (a `&` job)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
 def unlocked(out: Path) -> bool:
     """No launcher holds ``out``'s lock (the lock file stays; its owner record is gone)."""
     from sb3_affect.experiments.folder_lock import is_locked
@@ -145,7 +150,9 @@ def launcher(sweep: Path, out: Path) -> subprocess.Popen[str]:
     env.pop(FAULTS, None)
     command = [sys.executable, "-m", "sb3_affect", "run", str(sweep), "--out", str(out), "--workers", "2", "--no-progress"]
     pipe = subprocess.PIPE
-    return subprocess.Popen(command, env=env, stdout=pipe, stderr=pipe, text=True, start_new_session=True)
+    return subprocess.Popen(command, env=env, stdout=pipe, stderr=pipe, text=True, start_new_session=True,
+        preexec_fn=_terminal_sigint,
+    )
 
 
 def test_smoke_sweep_end_to_end(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -36,6 +36,11 @@ TESTS = Path(__file__).resolve().parent
 OVERRIDES = ["episodes=12"]
 
 
+
+def _terminal_sigint() -> None:
+    """The child reacts to SIGINT as under a terminal, even where this test runs with SIGINT ignored (a `&` job)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
 def contents(out: Path) -> dict[str, Any]:
     return {r["run_id"]: {"config": r["config"], "episodes": r["episodes"]} for r in ResultsStore(out).load_runs()}
 
@@ -163,7 +168,9 @@ def test_cli_ray_backend_starts_and_stops_its_own_instance(tmp_path: Path) -> No
     command = [sys.executable, "-m", "sb3_affect", "run", str(SMOKE), "--out", str(tmp_path / "ray"), "--backend", "ray"]
     command += ["--workers", "2", "--no-progress", "--set", OVERRIDES[0]]
     pipe = subprocess.PIPE
-    proc = subprocess.Popen(command, env=env, stdout=pipe, stderr=pipe, text=True, start_new_session=True)
+    proc = subprocess.Popen(command, env=env, stdout=pipe, stderr=pipe, text=True, start_new_session=True,
+        preexec_fn=_terminal_sigint,
+    )
     try:
         out, err = proc.communicate(timeout=120)
     finally:
@@ -191,7 +198,9 @@ def test_ctrl_c_on_ray_backend_stops_the_instance_and_leaves_no_partial_files(tm
     pipe = subprocess.PIPE
     env = {**os.environ, "RAY_USAGE_STATS_ENABLED": "0"}
     command += ["--set", "seeds=100"]  # 18 batches of 100 runs: plenty left to stop, on any engine
-    proc = subprocess.Popen([*command, "--no-progress"], env=env, stdout=pipe, stderr=pipe, text=True, start_new_session=True)
+    proc = subprocess.Popen([*command, "--no-progress"], env=env, stdout=pipe, stderr=pipe, text=True, start_new_session=True,
+        preexec_fn=_terminal_sigint,
+    )
     try:
         deadline = time.monotonic() + 240  # a first batch of 100 runs on a busy machine
         while not (out / "chunks").exists() or len(ResultsStore(out).done_ids()) < 5:

@@ -337,7 +337,8 @@ def _execute_team(config: dict[str, Any], log_dir: str | None, log_formats: tupl
             columns[f"{agent}/{name}"] = [_plain(v) for v in own[name].tolist()]
         felt = observers[agent].episode_log
         for name in BROEKENS_COLUMNS[3:]:
-            columns[f"{agent}/broekens_{name}"] = [_plain(v) for v in felt[name].tolist()]
+            if name != "env":  # (a hunter observes one env: the column would be all 0)
+                columns[f"{agent}/broekens_{name}"] = [_plain(v) for v in felt[name].tolist()]
     return {
         "episodes": columns,
         "timings": {
