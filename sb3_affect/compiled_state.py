@@ -101,12 +101,15 @@ class KernelRun:
         self.dist[:] = np.asarray(known.distance, dtype=np.float64)
         for g in known.goals:
             self.goal[g] = True
-        for s, successors in enumerate(known.successors):
-            for t in successors:
-                hits = np.flatnonzero(trans[s] == t)
-                if hits.size == 0:
-                    raise ValueError(f"the appraiser's known map has a move {s} -> {t} that this env does not have")
-                self.edge[s, hits] = True
+        seen = dict.items(known.successors) if isinstance(known.successors, dict) else enumerate(known.successors)
+        pairs = np.array([(s, t) for s, successors in seen for t in successors], dtype=np.int64).reshape(-1, 2)
+        hits = trans[pairs[:, 0]] == pairs[:, 1:]  # every action of s that leads to t
+        unknown = np.flatnonzero(~hits.any(axis=1))
+        if unknown.size:
+            s, t = pairs[unknown[0]].tolist()
+            raise ValueError(f"the appraiser's known map has a move {s} -> {t} that this env does not have")
+        rows, moves = np.nonzero(hits)
+        self.edge[pairs[rows, 0], moves] = True
         for v, preds in enumerate(known.predecessors):
             self.pred[v, : len(preds)] = preds
             self.pred_n[v] = len(preds)

@@ -231,6 +231,16 @@ def test_learning_continues_on_either_engine(cls: type, seed: int) -> None:
     assert results[1] == results[0] and results[2] == results[0] and results[3] == results[0]
 
 
+def test_a_known_map_with_a_move_the_env_does_not_have_is_refused_by_the_kernel() -> None:
+    model = AffectQ("Grid", gym.make(GRID, **SMALL), seed=0, engine="python")
+    model.learn(300)
+    known = model.emotion_callback.appraiser.known
+    known.successors[0].add(35)  # cell (0, 0) -> (5, 5): no move of a 6 x 6 grid does that
+    model.engine = "compiled"
+    with pytest.raises(ValueError, match="has a move 0 -> 35 that this env does not have"):
+        model.learn(10, reset_num_timesteps=False)
+
+
 # -- tie_break and multi_cell (both engines) --------------------------------------------------------------------------
 @pytest.mark.parametrize("engine", ["python", "compiled"])
 def test_tie_break_first_takes_the_lowest_action_without_a_draw(engine: str) -> None:
