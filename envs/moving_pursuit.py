@@ -154,8 +154,8 @@ class MovingPursuitEnv(gym.Env[Any, Any]):
     def transition_table(self) -> str:
         """Why this env has no transition table (``sb3_affect.envs.transition_table``) for the compiled engine."""
         return (
-            "MovingPursuit's prey moves at random, so its moves are no fixed transition table: learn runs it on the "
-            "Python loop (simulate on the moving-prey kernel)"
+            "MovingPursuit's prey moves at random, so its moves are no fixed transition table: the grid kernel can "
+            "not step it (its own kernel, sb3_affect.kernel.moving, does)"
         )
 
     def _distances(self) -> list[list[float]]:

@@ -25,19 +25,19 @@ from stable_baselines3.common.callbacks import (
 )
 from stable_baselines3.common.monitor import Monitor
 
+from sb3_affect.compiled_moving import MovingKernelRun
 from sb3_affect.compiled_state import KernelRun
 from sb3_affect.episode_log import COLUMN
 from sb3_affect.kernel import arrays
 from sb3_affect.kernel.agents import KernelAgent, kernel_agent
 from sb3_affect.kernel.inputs import env_reason, unwrap
+from sb3_affect.kernel.prey_batch import moving_reason
+from sb3_affect.loop import episode_end_info, step_locals
 from sb3_affect.settings import TabularSettings
 
 __all__ = ["batch_reason", "callback_reason", "compiled_reason", "learn_compiled", "model_env_reason"]
 _CHUNK_EPISODES = 4096
 _PROGRESS_DECISIONS = 500_000
-
-_DONE = np.array([True])
-_DONE.flags.writeable = False
 
 
 def callback_leaves(callback: BaseCallback) -> list[BaseCallback]:
@@ -64,7 +64,19 @@ def callback_reason(callback: BaseCallback | None) -> str | None:
 
 
 def model_env_reason(env: Any) -> str | None:
-    """Why the kernel can not step a model's ``env`` (``kernel.inputs.env_reason``, SB3's Monitor allowed; None: it can)."""
+    """
+    Why the kernel can not step a model's ``env`` (None: it can): ``kernel.inputs.env_reason`` with SB3's Monitor
+    allowed, or a MovingPursuit the moving-prey kernel steps (``kernel.prey_batch.moving_reason``).
+    """
+    from sb3_affect.envs import MovingPursuitEnv
+
+    if type(unwrap(env)[0]) is MovingPursuitEnv:
+        return moving_reason(env)
+    return grid_env_reason(env)
+
+
+def grid_env_reason(env: Any) -> str | None:
+    """Why the grid kernel (``kernel.loop``) can not step a model's ``env`` (None: it can)."""
     reason = env_reason(env, (Monitor,))
     if reason is None and any(isinstance(w, Monitor) and w.info_keywords for w in unwrap(env)[1]):
         return "the Monitor records info_keywords, which the kernel does not produce"
@@ -90,7 +102,7 @@ def compiled_reason(model: Any, env: Any, callback: BaseCallback | None) -> str 
 
 def batch_reason(model: Any, episodes: int) -> str | None:
     """Why ``simulate`` can not run ``model``'s agent as one batch on the kernel (None: it can)."""
-    reason = compiled_reason(model, model._single_env(), None)
+    reason = compiled_reason(model, model._single_env(), None) or grid_env_reason(model._single_env())
     if reason is not None:
         return reason
     if model.compiled_settings().episode_parameters(0, 1) is None:
@@ -110,7 +122,7 @@ def learn_compiled(model: Any, env: Any, total_timesteps: int, callback: BaseCal
     found = compiled_agent(model)
     assert not isinstance(found, str), found
     settings, agent = found
-    run = KernelRun(model, env, settings, agent)
+    run: Any = (MovingKernelRun if moving_reason(env) is None else KernelRun)(model, env, settings, agent)
     leaves = callback_leaves(callback)
     bars = [leaf for leaf in leaves if isinstance(leaf, ProgressBarCallback)]
     episodic = [leaf for leaf in leaves if not isinstance(leaf, ProgressBarCallback)]
@@ -165,42 +177,26 @@ def learn_compiled(model: Any, env: Any, total_timesteps: int, callback: BaseCal
         run.write_back()
 
 
-def _close_episodes(model: Any, run: KernelRun, finished: int) -> None:
+def _close_episodes(model: Any, run: Any, finished: int) -> None:
     """``TabularQAlgorithm._close_episode`` for the kernel's ``finished`` episodes (the logger aside), in bulk: the
     episode log gets them as one block of columns, with no Python work per episode."""
-    ints, floats = run.out_i[:finished].copy(), run.out_f[:finished].copy()  # the block's columns are views of these
+    block = run.block(finished)
     first = len(model._episode_blocks) + 1
-    truncated = ints[:, arrays.O_TRUNCATED].astype(bool)
-    model._episode_blocks.append_columns(
-        {
-            "episode": np.arange(first, first + finished, dtype=np.int64),
-            "decisions": ints[:, arrays.O_DECISIONS],
-            "cells": ints[:, arrays.O_CELLS],
-            "reward": floats[:, 0],
-            "optimal": ints[:, arrays.O_OPTIMAL].astype(bool),
-            "truncated": truncated,
-            "random_moves": ints[:, arrays.O_RANDOM],
-            "waits": ints[:, arrays.O_WAITS],
-            "joy": ints[:, arrays.O_JOY],
-            "sadness": ints[:, arrays.O_SADNESS],
-            "fear": ints[:, arrays.O_FEAR],
-            "anger": ints[:, arrays.O_ANGER],
-            "greedy_optimal": ints[:, arrays.O_GREEDY].astype(bool),
-            "norm": floats[:, 1],
-        }
-    )
+    block["episode"] = np.arange(first, first + finished, dtype=np.int64)
+    model._episode_blocks.append_columns(block)
+    truncated, decisions, cells, reward = block["truncated"], block["decisions"], block["cells"], block["reward"]
     model._truncated_episodes += int(truncated.sum())
     model._episode_num += finished
     buffer = model.ep_info_buffer
     keep = finished if buffer.maxlen is None else min(finished, buffer.maxlen)
     stamp = round(time.time() - model.start_time / 1e9, 6)
     last = slice(finished - keep, finished)  # only the episodes the buffer keeps
-    for r, n, c in zip(floats[last, 0].tolist(), ints[last, arrays.O_DECISIONS].tolist(), ints[last, arrays.O_CELLS].tolist()):
+    for r, n, c in zip(reward[last].tolist(), decisions[last].tolist(), cells[last].tolist()):
         buffer.append({"r": r, "l": n, "c": c, "t": stamp})
-    run.monitor_episodes(ints[:, arrays.O_CELLS], truncated)
+    run.monitor_episodes(cells, truncated)
 
 
-def _record(model: Any, run: KernelRun, log_interval: int | None) -> None:
+def _record(model: Any, run: Any, log_interval: int | None) -> None:
     """The logger keys of an episode end (only the last episode before a dump matters: records overwrite)."""
     logger = model.logger  # recorded whenever a logger exists, as SB3 does (per chunk of episodes, never per decision)
     row = model._episode_blocks.last()
@@ -219,7 +215,7 @@ def _record(model: Any, run: KernelRun, log_interval: int | None) -> None:
 
 def _call_back(
     model: Any,
-    run: KernelRun,
+    run: Any,
     callback: BaseCallback,
     leaves: list[BaseCallback],
     finished: int,
@@ -228,26 +224,14 @@ def _call_back(
 ) -> bool:
     """Call the episode-level callbacks with the locals of the last decision of the chunk (an episode end)."""
     obs_start, act_start = run.obs_start, run.act_start
-    s2, prev = run.last_s2, run.last_prev
-    info: dict[str, Any] = {"cell": divmod(s2, run.width), "moved": s2 != prev}
+    info = run.last_info()
     if finished:
         if run.last_monitor_info is not None:
             info["episode"] = run.last_monitor_info
-        info["terminal_observation"] = s2 + obs_start
-        if not run.last_terminated:
-            info["TimeLimit.truncated"] = True
-    callback.update_locals(
-        {
-            "self": model,
-            "total_timesteps": total_timesteps,
-            "callback": callback,
-            "new_obs": [run.state + obs_start],
-            "rewards": [run.last_reward],
-            "dones": _DONE if finished else np.array([False]),
-            "infos": [info],
-            "actions": [run.last_action + act_start],
-        }
-    )
+        info = episode_end_info(info, run.last_s2 + obs_start, run.last_terminated)
+    cb_locals: dict[str, Any] = {"self": model, "total_timesteps": total_timesteps, "callback": callback}
+    step_locals(cb_locals, run.state + obs_start, run.last_reward, bool(finished), info, run.last_action + act_start)
+    callback.update_locals(cb_locals)
     go_on = True
     for leaf in leaves:
         leaf.n_calls += decisions - 1

@@ -22,7 +22,7 @@ from sb3_affect.kernel.inputs import TableArrays, kernel_config, unwrap
 from sb3_affect.kernel.mt19937 import state_from_rng, state_to_rng
 from sb3_affect.settings import TabularSettings
 
-__all__ = ["KernelRun", "empty_appraisal"]
+__all__ = ["KernelRun", "empty_appraisal", "monitor_episodes", "read_appraisal_scalars", "write_appraisal_scalars"]
 
 
 def empty_appraisal(n_states: int, n_actions: int, max_pred: int, episodes: int) -> arrays.Appraisal:
@@ -35,6 +35,79 @@ def empty_appraisal(n_states: int, n_actions: int, max_pred: int, episodes: int)
         np.zeros(n_states, dtype=np.bool_),
         np.zeros(episodes),
     )
+
+
+def read_appraisal_scalars(callback: Any, ist: np.ndarray, fst: np.ndarray, at: Any) -> np.ndarray:
+    """
+    An emotion callback's counts and its appraiser's power fit, norm, elapsed counters and ``last_act`` into a kernel's
+    ``ist``/``fst`` (at the indices of the module ``at``: ``kernel.arrays`` or ``kernel.moving``); returns the fit's
+    values in an array with room to grow.
+    """
+    appraiser = callback.appraiser
+    fit = appraiser.fit
+    values = fit.values
+    fit_vals = np.zeros(max(64, 2 * len(values)))
+    fit_vals[: len(values)] = values
+    fst[at.S_FIT0 : at.S_FIT0 + 4] = (fit._sx, fit._sy, fit._sxx, fit._sxy)
+    ist[at.I_NFIT] = len(values)
+    ist[at.I_EL_CELLS] = appraiser.elapsed_cells
+    ist[at.I_EL_DECISIONS] = appraiser.elapsed_decisions
+    ist[at.I_JOY : at.I_ANGER + 1] = callback.counts
+    fst[at.S_NORM] = appraiser.norm
+    fst[at.S_LAST_ACT] = appraiser.last_act
+    return fit_vals
+
+
+def write_appraisal_scalars(callback: Any, ist: np.ndarray, fst: np.ndarray, fit_vals: np.ndarray, at: Any) -> None:
+    """``read_appraisal_scalars`` the other way: the kernel's values back into the callback and its appraiser."""
+    from sb3_affect.appraisal import PowerFit
+
+    appraiser = callback.appraiser
+    fit = PowerFit()
+    fit.values = fit_vals[: int(ist[at.I_NFIT])].tolist()
+    fit._sx, fit._sy, fit._sxx, fit._sxy = (float(v) for v in fst[at.S_FIT0 : at.S_FIT0 + 4])
+    appraiser.fit = fit
+    appraiser.norm = float(fst[at.S_NORM])
+    appraiser.elapsed_cells = int(ist[at.I_EL_CELLS])
+    appraiser.elapsed_decisions = int(ist[at.I_EL_DECISIONS])
+    appraiser.last_act = float(fst[at.S_LAST_ACT])
+    callback.counts = [int(v) for v in ist[at.I_JOY : at.I_ANGER + 1]]
+
+
+def monitor_episodes(
+    monitor: Any, cells: np.ndarray, truncated: np.ndarray, time_limit: int, step: float, goal: float
+) -> dict[str, Any] | None:
+    """
+    The Monitor's bookkeeping of a block of finished episodes (``cells`` and ``truncated`` per episode) whose ends the
+    env reported (goal reached or the env's time limit, not the safety cap); returns the last episode's
+    ``info["episode"]``, or None when the env saw no end of it.
+    """
+    if monitor is None:
+        return None
+    seen = ~truncated | ((cells >= time_limit) if time_limit > 0 else False)  # the safety cap: the env saw no episode end
+    lengths = cells[seen].tolist()
+    if not lengths:
+        return None
+    # the Monitor sums each episode's rewards with Python's sum: once per distinct (length, truncated) pair,
+    # found by counting (no sort), then looked up for every episode
+    if step == 0.0:  # every sum is 0.0 + ... + the last reward: exactly the last reward (any order of summing)
+        returns = np.where(truncated[seen], 0.0, 0.0 + goal).tolist()
+    else:
+        keys = cells[seen] * 2 + truncated[seen]
+        distinct = np.flatnonzero(np.bincount(keys))
+        lookup = np.zeros(int(distinct[-1]) + 1)
+        lookup[distinct] = [sum([step] * (key // 2 - 1) + [step if key % 2 else goal]) for key in distinct.tolist()]
+        returns = lookup[keys].tolist()
+    elapsed = time.time() - monitor.t_start
+    monitor.episode_returns.extend(returns)
+    monitor.episode_lengths.extend(lengths)
+    monitor.episode_times.extend([elapsed] * len(lengths))
+    writer = monitor.results_writer
+    if writer is not None:
+        for ep_rew, n in zip(returns, lengths):
+            writer.write_row({"r": round(ep_rew, 6), "l": n, "t": round(elapsed, 6), **monitor.current_reset_info})
+    last = {"r": round(returns[-1], 6), "l": lengths[-1], "t": round(elapsed, 6), **monitor.current_reset_info}
+    return last if bool(seen[-1]) else None
 
 
 class KernelRun:
@@ -113,20 +186,10 @@ class KernelRun:
         for v, preds in enumerate(known.predecessors):
             self.pred[v, : len(preds)] = preds
             self.pred_n[v] = len(preds)
-        values = appraiser.fit.values
-        self.fit_vals = np.zeros(max(64, 2 * len(values)))
-        self.fit_vals[: len(values)] = values
-        fit = appraiser.fit
-        self.fst[arrays.S_FIT0 : arrays.S_FIT0 + 4] = (fit._sx, fit._sy, fit._sxx, fit._sxy)
-        self.ist[arrays.I_NFIT] = len(values)
-        self.ist[arrays.I_EL_CELLS] = appraiser.elapsed_cells
-        self.ist[arrays.I_EL_DECISIONS] = appraiser.elapsed_decisions
-        self.ist[arrays.I_JOY : arrays.I_ANGER + 1] = callback.counts
-        self.fst[arrays.S_NORM] = appraiser.norm
-        self.fst[arrays.S_LAST_ACT] = appraiser.last_act
+        self.fit_vals = read_appraisal_scalars(callback, self.ist, self.fst, arrays)
 
     def _write_appraisal(self) -> None:
-        from sb3_affect.appraisal import KnownMap, PowerFit
+        from sb3_affect.appraisal import KnownMap
 
         callback = self.model.emotion_callback
         appraiser = callback.appraiser
@@ -139,16 +202,7 @@ class KernelRun:
             known.successors[s].add(t)
         known.predecessors = [row[:n] for row, n in zip(self.pred.tolist(), self.pred_n.tolist())]
         appraiser.known = known
-        n = int(self.ist[arrays.I_NFIT])
-        fit = PowerFit()
-        fit.values = self.fit_vals[:n].tolist()
-        fit._sx, fit._sy, fit._sxx, fit._sxy = (float(v) for v in self.fst[arrays.S_FIT0 : arrays.S_FIT0 + 4])
-        appraiser.fit = fit
-        appraiser.norm = float(self.fst[arrays.S_NORM])
-        appraiser.elapsed_cells = int(self.ist[arrays.I_EL_CELLS])
-        appraiser.elapsed_decisions = int(self.ist[arrays.I_EL_DECISIONS])
-        appraiser.last_act = float(self.fst[arrays.S_LAST_ACT])
-        callback.counts = [int(v) for v in self.ist[arrays.I_JOY : arrays.I_ANGER + 1]]
+        write_appraisal_scalars(callback, self.ist, self.fst, self.fit_vals, arrays)
 
     # -- running -------------------------------------------------------------------------------------------------
     def step(self, alpha: np.ndarray, p: np.ndarray, total_timesteps: int, max_episodes: int) -> tuple[int, int]:
@@ -180,37 +234,11 @@ class KernelRun:
         return int(finished), int(stop)
 
     def monitor_episodes(self, cells: np.ndarray, truncated: np.ndarray) -> None:
-        """The Monitor's bookkeeping of the episode ends the env reported (goal reached or the env's time limit)."""
-        self.last_monitor_info = None
-        monitor = self.monitor
-        if monitor is None:
-            return
-        limit = self.config.time_limit
-        seen = ~truncated | ((cells >= limit) if limit > 0 else False)  # the safety cap: the env saw no episode end
-        lengths = cells[seen].tolist()
-        if not lengths:
-            return
-        step, goal = self.table.step_reward, self.table.goal_reward
-        # the Monitor sums each episode's rewards with Python's sum: once per distinct (length, truncated) pair,
-        # found by counting (no sort), then looked up for every episode
-        if step == 0.0:  # every sum is 0.0 + ... + the last reward: exactly the last reward (any order of summing)
-            returns = np.where(truncated[seen], 0.0, 0.0 + goal).tolist()
-        else:
-            keys = cells[seen] * 2 + truncated[seen]
-            distinct = np.flatnonzero(np.bincount(keys))
-            lookup = np.zeros(int(distinct[-1]) + 1)
-            lookup[distinct] = [sum([step] * (key // 2 - 1) + [step if key % 2 else goal]) for key in distinct.tolist()]
-            returns = lookup[keys].tolist()
-        elapsed = time.time() - monitor.t_start
-        monitor.episode_returns.extend(returns)
-        monitor.episode_lengths.extend(lengths)
-        monitor.episode_times.extend([elapsed] * len(lengths))
-        writer = monitor.results_writer
-        if writer is not None:
-            for ep_rew, n in zip(returns, lengths):
-                writer.write_row({"r": round(ep_rew, 6), "l": n, "t": round(elapsed, 6), **monitor.current_reset_info})
-        last = {"r": round(returns[-1], 6), "l": lengths[-1], "t": round(elapsed, 6), **monitor.current_reset_info}
-        self.last_monitor_info = last if bool(seen[-1]) else None
+        """The Monitor's bookkeeping of the episode ends the env reported (``monitor_episodes``)."""
+        table = self.table
+        self.last_monitor_info = monitor_episodes(
+            self.monitor, cells, truncated, self.config.time_limit, table.step_reward, table.goal_reward
+        )
 
     def write_back(self) -> None:
         """Return every piece of state to the model, its generator, its appraisal, the env and its wrappers."""
@@ -242,7 +270,31 @@ class KernelRun:
             self.monitor.needs_reset = False
             self.monitor.total_steps += self.monitor_cells
 
-    # -- the last decision (callback locals) -----------------------------------------------------------------------
+    # -- finished episodes and the last decision (callback locals) -----------------------------------------------------
+    def block(self, finished: int) -> dict[str, np.ndarray]:
+        """The ``finished`` episodes of the last ``step`` as columns of the episode log (copies)."""
+        ints, floats = self.out_i[:finished].copy(), self.out_f[:finished].copy()  # the columns are views of these
+        return {
+            "decisions": ints[:, arrays.O_DECISIONS],
+            "cells": ints[:, arrays.O_CELLS],
+            "reward": floats[:, 0],
+            "optimal": ints[:, arrays.O_OPTIMAL].astype(bool),
+            "truncated": ints[:, arrays.O_TRUNCATED].astype(bool),
+            "random_moves": ints[:, arrays.O_RANDOM],
+            "waits": ints[:, arrays.O_WAITS],
+            "joy": ints[:, arrays.O_JOY],
+            "sadness": ints[:, arrays.O_SADNESS],
+            "fear": ints[:, arrays.O_FEAR],
+            "anger": ints[:, arrays.O_ANGER],
+            "greedy_optimal": ints[:, arrays.O_GREEDY].astype(bool),
+            "norm": floats[:, 1],
+        }
+
+    def last_info(self) -> dict[str, Any]:
+        """The env's info of the last decision of the last finished episode (what its ``step`` returned)."""
+        s2 = self.last_s2
+        return {"cell": divmod(s2, self.width), "moved": s2 != self.last_prev}
+
     @property
     def timesteps(self) -> int:
         return int(self.ist[arrays.I_T])

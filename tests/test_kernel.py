@@ -101,8 +101,6 @@ def test_auto_falls_back_and_compiled_names_the_reason() -> None:
     assert every.calls == 500
     with pytest.raises(ValueError, match="EveryDecision is called after every decision"):
         QLearning("Grid", gym.make(GRID, **SMALL), engine="compiled").learn(10, callback=EveryDecision())
-    with pytest.raises(ValueError, match="learn runs it on the Python loop"):
-        AffectQ("Grid", gym.make("sb3_affect/MovingPursuit-v0"), engine="compiled").learn(10)
     with pytest.raises(ValueError, match="wrapped in TransformReward"):
         env = gym.wrappers.TransformReward(gym.make(GRID, **SMALL), lambda r: 2 * r)
         QLearning("Grid", env, engine="compiled").learn(10)
@@ -115,8 +113,7 @@ def test_auto_falls_back_and_compiled_names_the_reason() -> None:
             pass
 
         AffectQ("Grid", GRID, emotion_callback=EmotionCallback(appraiser=Mine(225)), engine="compiled").learn(10)
-    moving = AffectQ("Grid", gym.make("sb3_affect/MovingPursuit-v0"), seed=0).learn(300)  # auto: the Python loop
-    assert moving.num_timesteps == 300 and model.num_timesteps == 500
+    assert model.num_timesteps == 500
 
 
 class Ring(gym.Env[Any, Any]):

@@ -239,6 +239,7 @@ def decision_loop(env, config, behaviour, state, appraisal, episodes, work, tota
         # 2. move k cells, one Eq. 1 update per cell (or one for the whole move)
         start_cell = s
         jump_reward = 0.0
+        before = reward_sum
         for _ in range(k):
             s2 = trans[s, action]
             terminated = s2 == goal_state
@@ -296,7 +297,7 @@ def decision_loop(env, config, behaviour, state, appraisal, episodes, work, tota
             ist[I_LAST_PREV] = prev
             ist[I_LAST_S2] = s2
             ist[I_LAST_TERMINATED] = 1 if terminated else 0
-            fst[S_LAST_REWARD] = reward
+            fst[S_LAST_REWARD] = reward if k == 1 else reward_sum - before  # the decision's reward, as callbacks get it
             # the next episode starts
             s = start_state
             decisions = cells = random_moves = waits = tl_elapsed = 0

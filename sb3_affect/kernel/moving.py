@@ -72,11 +72,16 @@ N_FCFG = 6
     I_NFIT,
     I_EL_CELLS,
     I_EL_DECISIONS,
-) = range(15)
-N_IST = 15
+    I_LAST_OBS,
+    I_LAST_PREV,
+    I_LAST_ACTION,
+    I_LAST_TERMINATED,
+) = range(19)
+N_IST = 19  # I_LAST_*: the last decision of the last finished episode (its callbacks' locals)
 # fst: float run state
 S_REWARD, S_NORM, S_LAST_ACT, S_FIT0 = range(4)  # S_FIT0..S_FIT0+3: the power fit's running sums
-N_FST = 7
+S_LAST_REWARD = 7  # that decision's reward (its cells' rewards summed)
+N_FST = 8
 
 # out_i columns (out_f: reward, norm)
 O_DECISIONS, O_CELLS, O_TRUNCATED, O_RANDOM, O_WAITS, O_JOY, O_SADNESS, O_FEAR, O_ANGER = range(9)
@@ -210,9 +215,13 @@ def moving_loop(
             ist[I_JOY + emotion] += 1
         start_state = s
         jump_reward = 0.0
+        before = reward_sum
+        reward = 0.0
+        prev = hunter
         terminated = truncated = False
         for _ in range(k):
             # the env's step
+            prev = hunter
             hunter = cell_trans[hunter, action]
             terminated = hunter == prey
             if not terminated:
@@ -260,6 +269,11 @@ def moving_loop(
                 y = el_cells if units_cells else el_decisions
                 ist[I_NFIT] = fit_add(fit_vals, fsum, ist[I_NFIT], float(y))
             episode += 1
+            ist[I_LAST_OBS] = s
+            ist[I_LAST_PREV] = prev
+            ist[I_LAST_ACTION] = action
+            ist[I_LAST_TERMINATED] = 1 if terminated else 0
+            fst[S_LAST_REWARD] = reward if k == 1 else reward_sum - before
             # the next episode starts: the env's reset (its generator goes on), the appraisal's new norm
             hunter = icfg[C_HUNTER_START]
             prey = icfg[C_PREY_START]

@@ -118,9 +118,8 @@ def moving_inputs(settings: Any, env: Any, episodes: int) -> MovingInputs:
     fcfg[moving.F_NORM_SCALE] = agent.norm_scale
     fcfg[moving.F_UCB_COEF] = agent.ucb_coef
     fcfg[moving.F_PREY_SPEED] = base.prey_speed
-    parameters = settings.episode_parameters(0, episodes)
-    assert parameters is not None
-    alpha, p = parameters
+    parameters = settings.episode_parameters(0, episodes)  # None: a schedule on the training progress (learn's)
+    alpha, p = parameters if parameters is not None else (np.empty(0), np.empty(0))
     cell_trans = np.asarray(base.cell_transitions, dtype=np.int64)
     far = _far(base) if base.prey == "evade" else np.zeros((1, 1))
     succ_width, pred_width = known_widths(cell_trans, base.prey != "static")
