@@ -72,7 +72,7 @@ N_FCFG = 6
     I_NFIT,
     I_EL_CELLS,
     I_EL_DECISIONS,
-    I_LAST_OBS,
+    I_LAST_S2,
     I_LAST_PREV,
     I_LAST_ACTION,
     I_LAST_TERMINATED,
@@ -269,7 +269,7 @@ def moving_loop(
                 y = el_cells if units_cells else el_decisions
                 ist[I_NFIT] = fit_add(fit_vals, fsum, ist[I_NFIT], float(y))
             episode += 1
-            ist[I_LAST_OBS] = s
+            ist[I_LAST_S2] = s
             ist[I_LAST_PREV] = prev
             ist[I_LAST_ACTION] = action
             ist[I_LAST_TERMINATED] = 1 if terminated else 0
