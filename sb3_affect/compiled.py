@@ -26,6 +26,7 @@ from stable_baselines3.common.callbacks import (
 from stable_baselines3.common.monitor import Monitor
 
 from sb3_affect.compiled_moving import MovingKernelRun
+from sb3_affect.compiled_run import RunArrays
 from sb3_affect.compiled_state import KernelRun
 from sb3_affect.episode_log import COLUMN
 from sb3_affect.kernel import arrays
@@ -122,7 +123,7 @@ def learn_compiled(model: Any, env: Any, total_timesteps: int, callback: BaseCal
     found = compiled_agent(model)
     assert not isinstance(found, str), found
     settings, agent = found
-    run: Any = (MovingKernelRun if moving_reason(env) is None else KernelRun)(model, env, settings, agent)
+    run: RunArrays = (MovingKernelRun if moving_reason(env) is None else KernelRun)(model, env, settings, agent)
     leaves = callback_leaves(callback)
     bars = [leaf for leaf in leaves if isinstance(leaf, ProgressBarCallback)]
     episodic = [leaf for leaf in leaves if not isinstance(leaf, ProgressBarCallback)]
@@ -177,7 +178,7 @@ def learn_compiled(model: Any, env: Any, total_timesteps: int, callback: BaseCal
         run.write_back()
 
 
-def _close_episodes(model: Any, run: Any, finished: int) -> None:
+def _close_episodes(model: Any, run: RunArrays, finished: int) -> None:
     """``TabularQAlgorithm._close_episode`` for the kernel's ``finished`` episodes (the logger aside), in bulk: the
     episode log gets them as one block of columns, with no Python work per episode."""
     block = run.block(finished)
@@ -196,7 +197,7 @@ def _close_episodes(model: Any, run: Any, finished: int) -> None:
     run.monitor_episodes(cells, truncated)
 
 
-def _record(model: Any, run: Any, log_interval: int | None) -> None:
+def _record(model: Any, run: RunArrays, log_interval: int | None) -> None:
     """The logger keys of an episode end (only the last episode before a dump matters: records overwrite)."""
     logger = model.logger  # recorded whenever a logger exists, as SB3 does (per chunk of episodes, never per decision)
     row = model._episode_blocks.last()
@@ -215,7 +216,7 @@ def _record(model: Any, run: Any, log_interval: int | None) -> None:
 
 def _call_back(
     model: Any,
-    run: Any,
+    run: RunArrays,
     callback: BaseCallback,
     leaves: list[BaseCallback],
     finished: int,

@@ -141,6 +141,24 @@ class RunArrays:
         self.monitor_cells = 0
         self.last_monitor_info: dict[str, Any] | None = None
 
+    # -- what a subclass defines -------------------------------------------------------------------------------
+    def step(self, alpha: np.ndarray, p: np.ndarray, total_timesteps: int, max_episodes: int) -> tuple[int, int]:
+        """Run the kernel until ``total_timesteps`` or ``max_episodes`` finished episodes (episode ``j`` of the call
+        with ``alpha[j]`` and ``p[j]``); returns (episodes finished, why it stopped)."""
+        raise NotImplementedError
+
+    def monitor_episodes(self, cells: np.ndarray, truncated: np.ndarray) -> None:
+        """The Monitor's bookkeeping of a block of finished episodes (``monitor_episodes``)."""
+        raise NotImplementedError
+
+    def last_info(self) -> dict[str, Any]:
+        """The env's info of the last decision of the last finished episode (what its ``step`` returned)."""
+        raise NotImplementedError
+
+    def write_back(self) -> None:
+        """Return every piece of state to the model, its generator, its appraisal, the env and its wrappers."""
+        raise NotImplementedError
+
     # -- around a kernel call ------------------------------------------------------------------------------------
     def _room(self, max_episodes: int) -> int:
         """Room for ``max_episodes`` output rows and fit values; returns the cells of the episode in progress."""
