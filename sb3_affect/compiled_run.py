@@ -72,13 +72,16 @@ def monitor_episodes(
     """
     if monitor is None:
         return None
+    any_truncated = bool(truncated.any())
     seen = ~truncated | ((cells >= time_limit) if time_limit > 0 else False)  # the safety cap: the env saw no episode end
-    lengths = cells[seen].tolist()
+    lengths = cells[seen].tolist() if any_truncated else cells.tolist()
     if not lengths:
         return None
     # the Monitor sums each episode's rewards with Python's sum: once per distinct (length, truncated) pair,
     # found by counting (no sort), then looked up for every episode
-    if step == 0.0:  # every sum is 0.0 + ... + the last reward: exactly the last reward (any order of summing)
+    if step == 0.0 and not any_truncated:  # every sum is 0.0 + ... + 0.0 + goal: exactly 0.0 + goal
+        returns = [0.0 + goal] * len(lengths)
+    elif step == 0.0:  # the same, or 0.0 for an episode the time limit ended
         returns = np.where(truncated[seen], 0.0, 0.0 + goal).tolist()
     else:
         keys = cells[seen] * 2 + truncated[seen]
@@ -118,7 +121,8 @@ class RunArrays:
         self.time_limit = next((w for w in wrappers if isinstance(w, TimeLimit)), None)
         self.obs_start = int(model.observation_space.start)
         self.act_start = int(model.action_space.start)
-        self.q = np.array(model._q, dtype=np.float64)
+        self.q = np.ascontiguousarray(model._q, dtype=np.float64)
+        model._q = self.q  # the live table: what predict, q_table and save see from an episode-level callback
         n_states, n_actions = self.q.shape
         self.mt, self.gauss = state_from_rng(model._rng)
         ist = self.ist = np.zeros(at.N_IST, dtype=np.int64)
@@ -206,7 +210,7 @@ class RunArrays:
     def _write_back(self, step_reward: float) -> None:
         """The state every run returns: Q-table, generator, UCB counts, the episode in progress, the wrappers."""
         model, ist, at = self.model, self.ist, self.at
-        model._q = self.q.tolist()
+        model._q = self.q
         state_to_rng(model._rng, self.mt, self.gauss)
         if self.agent.kind == arrays.UCB:
             model.counts = self.ucb_n.tolist()

@@ -63,7 +63,7 @@ class DecisionStepper:
         self.total_timesteps, self.callback = m._start_learn(  # what learn() does before its loop
             total_timesteps, callback, reset_num_timesteps, tb_log_name, False, new_episode=True
         )
-        assert m._q is not None
+        assert m._q is not None and not isinstance(m._q, np.ndarray)  # _start_learn made the Python loop's table
         self.q: LoopTable = m._q
         # what run_loop does before its loop
         self.log_interval = log_interval

@@ -172,7 +172,7 @@ class TabularQAlgorithm(BaseAlgorithm):
             version, internal, gauss = self._rng_state
             self._rng.setstate((version, tuple(internal), gauss))
         self.policy.rng = self._rng
-        self._q: LoopTable | None = None  # the loop's table, only while learn runs
+        self._q: LoopTable | np.ndarray | None = None  # the loop's table (the kernel's: an array), only while learn runs
         rows = self.__dict__.pop("_episode_rows", None)  # a loaded file's episode log: a list of rows
         if rows is not None:
             self._episode_blocks = EpisodeBlocks.from_rows(rows)
@@ -285,16 +285,15 @@ class TabularQAlgorithm(BaseAlgorithm):
         )
         env = self._single_env()
         compiled = self._use_kernel(env, callback)
-        if compiled:  # the kernel reads the whole table (the Python loop makes a row the first time it visits a state)
-            self._q = self.policy.q_table.tolist()
-        q = self._q
-        assert q is not None
         try:
-            if compiled:
+            if compiled:  # the kernel's table: an array (the Python loop's makes a row the first time it visits a state)
                 from sb3_affect.compiled import learn_compiled
 
+                self._q = self.policy.q_table.cpu().numpy().astype(np.float64)
                 learn_compiled(self, env, total_timesteps, callback, log_interval)
             else:
+                q = self._q
+                assert q is not None and not isinstance(q, np.ndarray)
                 self._run_loop(env, q, total_timesteps, callback, log_interval)
         finally:
             self._sync_policy()
@@ -427,12 +426,12 @@ class TabularQAlgorithm(BaseAlgorithm):
 
     # -- the Q-table -------------------------------------------------------------------------------------------
     def _sync_policy(self) -> None:
-        """Write the loop's Python Q-table back into the policy's tensor."""
+        """Write the loop's Q-table (the Python loop's rows, or the kernel's array) back into the policy's tensor."""
         q = getattr(self, "_q", None)
         if isinstance(q, VisitedRows):
             q.write_back()
         elif q is not None:
-            self.policy.q_table.copy_(th.tensor(q, dtype=th.float64))
+            self.policy.q_table.copy_(th.as_tensor(q, dtype=th.float64))
 
     def predict(
         self,

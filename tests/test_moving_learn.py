@@ -123,3 +123,31 @@ def test_episode_end_callback_locals_are_the_python_loops(env_id: str, env_kwarg
     assert any(rewards[0] not in (-1.0, 100.0) for _, _, _, rewards, *_ in seen["python"])  # a 2-cell decision's sum
     assert seen["compiled"] == seen["python"]
     assert np.dtype(seen["python"][0][4]) == np.float32  # SB3's VecEnv rewards
+
+
+class TablesAtEpisodeEnds(BaseCallback):
+    """The Q-table and a greedy action as a callback sees them at each episode end (the table being learnt)."""
+
+    episode_level = True
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.tables: list[Any] = []
+
+    def _on_step(self) -> bool:
+        if self.locals["dones"][0]:
+            action, _ = self.model.predict(self.locals["new_obs"], deterministic=True)
+            self.tables.append((self.model.q_table.tolist(), action.tolist()))
+        return True
+
+
+@pytest.mark.parametrize("env_id, env_kwargs", [(MOVING, SMALL), ("sb3_affect/GridPursuit-v0", {"size": 6, "goal": (3, 4)})])
+def test_a_callback_sees_the_table_being_learnt_on_either_engine(env_id: str, env_kwargs: dict[str, Any]) -> None:
+    tables = {}
+    for engine in ("python", "compiled"):
+        seen = TablesAtEpisodeEnds()
+        model = QLearning("Grid", gym.make(env_id, **env_kwargs), seed=4, engine=engine, exploration_rate=0.3)
+        model.learn(10**6, callback=[seen, StopTrainingOnMaxEpisodes(12)])
+        tables[engine] = seen.tables
+    assert len(tables["python"]) == 12 and tables["python"][0][0] != tables["python"][-1][0]  # it learns
+    assert tables["compiled"] == tables["python"]
