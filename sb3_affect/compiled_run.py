@@ -142,6 +142,7 @@ class RunArrays:
             self.ucb_tot[:] = np.asarray(model._totals, dtype=np.int64)
         self.out_i = np.zeros((1, at.N_OUT_I), dtype=np.int64)
         self.out_f = np.zeros((1, 2))
+        self._handed_over = False  # whether the episode log holds the output rows (``block``)
         self.monitor_cells = 0
         self.last_monitor_info: dict[str, Any] | None = None
 
@@ -166,7 +167,8 @@ class RunArrays:
     # -- around a kernel call ------------------------------------------------------------------------------------
     def _room(self, max_episodes: int) -> int:
         """Room for ``max_episodes`` output rows and fit values; returns the cells of the episode in progress."""
-        if self.out_i.shape[0] < max_episodes:
+        if self.out_i.shape[0] < max_episodes or self._handed_over:  # (zeroed lazily: only rows written take memory)
+            self._handed_over = False
             self.out_i = np.zeros((max_episodes, self.at.N_OUT_I), dtype=np.int64)
             self.out_f = np.zeros((max_episodes, 2))
         need = int(self.ist[self.at.I_NFIT]) + max_episodes
@@ -183,10 +185,11 @@ class RunArrays:
         self.monitor_cells += stepped + int(self.ist[cells]) - (0 if finished else cells_before)
 
     def block(self, finished: int) -> dict[str, np.ndarray]:
-        """The ``finished`` episodes of the last ``step`` as columns of the episode log (copies; ``optimal`` and
-        ``greedy_optimal`` NaN unless the subclass has them)."""
+        """The ``finished`` episodes of the last ``step`` as columns of the episode log (views of the output rows, which
+        the run hands over; ``optimal`` and ``greedy_optimal`` NaN unless the kernel's module has them)."""
         at = self.at
-        ints, floats = self.out_i[:finished].copy(), self.out_f[:finished].copy()  # the columns are views of these
+        ints, floats = self.out_i[:finished], self.out_f[:finished]  # the columns are views of these: handed over,
+        self._handed_over = True  # the next kernel call gets new rows
         return {
             "decisions": ints[:, at.O_DECISIONS],
             "cells": ints[:, at.O_CELLS],

@@ -98,9 +98,12 @@ class KernelRun(RunArrays):
         known = KnownMap(len(self.dist))
         known.distance = self.dist.tolist()
         known.goals = {int(g) for g in np.flatnonzero(self.goal)}
-        rows, moves = np.nonzero(self.edge)
-        for s, t in zip(rows.tolist(), trans[rows, moves].tolist()):
-            known.successors[s].add(t)
+        rows, moves = np.nonzero(self.edge)  # by state, in order
+        targets = trans[rows, moves].tolist()
+        firsts = np.flatnonzero(np.diff(rows, prepend=-1))  # each state's first edge
+        bounds = [*firsts.tolist(), len(targets)]
+        for i, state in enumerate(rows[firsts].tolist()):
+            known.successors[state] = set(targets[bounds[i] : bounds[i + 1]])
         known.predecessors = [row[:n] for row, n in zip(self.pred.tolist(), self.pred_n.tolist())]
         appraiser.known = known
         write_appraisal_scalars(callback, self.ist, self.fst, self.fit_vals, arrays)
