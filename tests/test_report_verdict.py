@@ -326,8 +326,8 @@ def test_a_flat_edge_is_said_to_be_flat() -> None:
     )  # fmt: skip
     t = choose(runs, "task", "agent", grid=(0.001, 0.002, 0.005))
     assert t.best == 0.001 and not t.interior and t.within_noise == [0.002]
-    assert t.note == "not interior: best at the edge of the grid; still at the edge (the curve is flat there: 0.002 is " \
-        "indistinguishable from it)"
+    flat = "(the curve is flat there: 0.002 is indistinguishable from it)"
+    assert t.note == f"not interior: best at the edge of the grid; still at the edge {flat}"
 
 
 def test_the_tuning_section_reads_the_rounds_back(tmp_path: Path) -> None:
@@ -335,7 +335,7 @@ def test_the_tuning_section_reads_the_rounds_back(tmp_path: Path) -> None:
     import json
 
     from sb3_affect.report.document import Document
-    from sb3_affect.report.tuning import TASKS, TUNED_AGENTS, tune, tuning_section
+    from sb3_affect.report.tuning import GRID, TASKS, TUNED_AGENTS, tune, tuning_section
 
     folder = tmp_path / "tuning"
     keys = [(TASKS[0][0], TUNED_AGENTS[1][0])]
@@ -347,8 +347,8 @@ def test_the_tuning_section_reads_the_rounds_back(tmp_path: Path) -> None:
         return table
 
     _, rounds = tune(on_disk, keys)
-    (folder / "tuning.json").write_text(json.dumps({"rounds": rounds, "seeds": 20, "episodes": 200, "evaluation_seeds": 1000,
-                                                    "grid": [0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5]}))
+    record = {"rounds": rounds, "seeds": 20, "episodes": 200, "evaluation_seeds": 1000, "grid": list(GRID)}
+    (folder / "tuning.json").write_text(json.dumps(record))
 
     class Ctx:
         root, doc = tmp_path, Document("tuning")
