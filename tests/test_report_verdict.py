@@ -201,6 +201,7 @@ def test_replicate_writes_every_part_and_the_record(tmp_path: Path, monkeypatch:
     assert int(pd.read_csv(tmp_path / "out" / "long" / "runs.csv.gz").episodes.max()) == 50  # 10 x the engine episodes
     assert "evading prey 7x7 / affective" in text and "maze: rooms / speed-epsilon-greedy, tuned ε (" in text
     assert (tmp_path / "out" / "tuning" / "tuning.json").exists() and "ε tuned on each task" in text
+    assert "evading prey 7x7 / epsilon-greedy, tuned ε (" in text and ") (" not in text.split("tuned ε (")[1].split("|")[0]
     assert "Readings ranked by distance" in text
     wall = pd.read_csv(tmp_path / "out" / "tables" / "wall_times.csv")
     assert len(wall) == 9 and (wall["wall seconds"] >= 0).all()  # 3 sweeps + 4 engine studies + tuning + beyond

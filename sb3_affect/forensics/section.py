@@ -46,7 +46,7 @@ def _loglik(value: float) -> str:
 
 
 def _sci(value: float) -> str:
-    return fmt(value, 3) if abs(value) < 1e5 or math.isnan(value) else f"{value:.3g}"
+    return fmt(value, 3) if abs(value) < 1e7 or math.isnan(value) else f"{value:.3g}"
 
 
 def forensics_section(folder: str | Path, figures_dir: str | Path | None = None) -> ForensicsSection:

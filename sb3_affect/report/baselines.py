@@ -96,7 +96,6 @@ def beyond_section(ctx: ReportContext) -> None:
         ctx.doc.p("No moving-prey, evading-prey or maze results in this folder (`sb3-affect replicate` runs them).")
     else:
         m, meta = found
-        m = m.assign(agent=agent_names(m))
         tuned = "epsilon" in m.columns and m.epsilon.notna().any()
         ctx.doc.p(
             f"Each task, {meta['seeds']:,} seeds per agent, {meta['episodes']} episodes ({fmt(meta['wall_seconds'], 1)} "
@@ -118,7 +117,7 @@ def beyond_section(ctx: ReportContext) -> None:
         )
         ctx.table("beyond", beyond_table(m), "Tasks beyond the paper")
         ranks = []
-        for task, g in m.groupby("task", sort=False):
+        for task, g in m.assign(agent=agent_names(m)).groupby("task", sort=False):
             parts = []
             for column, unit in (("decisions_per_episode", "decisions"), ("cells_per_episode", "cells")):
                 means = g.groupby("agent")[column].mean().sort_values()
