@@ -47,7 +47,7 @@ STUDIES = (
         f"ε of ε-greedy and speed-matched ε-greedy tuned on each task beyond the paper, {TUNING_SEEDS} seeds per value "
         "(engine)",
     ),
-    ("beyond", f"static grid, moving and evading prey, mazes with the tuned ε, {BEYOND_SEEDS} seeds (engine)"),
+    ("beyond", f"static grid, moving and evading prey, mazes with the tuned ε, {BEYOND_SEEDS:,} seeds (engine)"),
     ("forensics", "the replication forensics at a reduced size: {screen_reps} screen and {reps} leader replications"),
 )
 
