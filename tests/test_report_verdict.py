@@ -364,3 +364,21 @@ def test_the_tuning_section_reads_the_rounds_back(tmp_path: Path) -> None:
     assert "| static grid 15x15 (the paper's task) / speed-epsilon-greedy, tuned ε | 0.00025, 0.0005, 0.001," in text
     assert "interior (best at the edge of the grid, extended to 0.0005, 0.00025)" in text
     assert "disjoint from the 1,000 evaluation seeds" in text
+
+
+def test_the_launcher_tuning_table_says_whether_its_best_is_interior() -> None:
+    """``baseline_summary.tuning_choice``: a best value at the edge of its grid is flagged as not interior."""
+    from sb3_affect.report.baseline_summary import tuning_choice
+
+    def record(agent: str, eps: float, decisions: int, seed: int) -> dict:  # type: ignore[type-arg]
+        episodes = {"decisions": [decisions] * 3, "cells": [decisions] * 3, "optimal": [True] * 3,
+                    "greedy_optimal": [True] * 3, "truncated": [False] * 3}  # fmt: skip
+        config = {"env_id": "sb3_affect/GridPursuit-v0", "agent": agent, "seed": seed, "labels": {"epsilon": eps}}
+        return {"config": config, "episodes": episodes}
+
+    steps = {"edge": {0.01: 20, 0.05: 25, 0.1: 30}, "inside": {0.01: 30, 0.05: 20, 0.1: 25}}
+    records = [record(agent, eps, d, seed) for agent, curve in steps.items() for eps, d in curve.items() for seed in (0, 1)]
+    table = tuning_choice(records).set_index(["agent", "value"])
+    assert table.loc[("edge", 0.01), "best"] and not table.loc[("edge", 0.01), "interior"]
+    assert table.loc[("inside", 0.05), "best"] and table.loc[("inside", 0.05), "interior"]
+    assert table["interior"].sum() == 1
