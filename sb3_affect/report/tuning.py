@@ -214,7 +214,7 @@ def tune(
 
 def run_tuning(
     folder: Path, seeds: int, episodes: int, evaluation_seeds: int, workers: int | None = None
-) -> dict[tuple[str, str], Tuning]:
+) -> tuple[dict[tuple[str, str], Tuning], float]:
     """
     Tune ε for every (task, agent) of ``TASKS`` x ``TUNED_AGENTS`` through the engine (``tune``); finished rounds are
     read back. Writes ``folder/tuning.json``.
@@ -224,13 +224,17 @@ def run_tuning(
     :param episodes: episodes per run
     :param evaluation_seeds: the evaluation's seed count (its seeds must not be tuning seeds: checked)
     :param workers: processes (default: usable CPUs)
-    :return: the tuning of each (task, agent)
+    :return: the tuning of each (task, agent), and the wall seconds of the runs that computed its rounds (rounds read
+        back keep the time they took)
     """
     check_disjoint(seeds, evaluation_seeds)
     folder = Path(folder)
+    seconds: list[float] = []
 
     def run_round(k: int, values: dict[tuple[str, str], list[float]]) -> pd.DataFrame:
-        return run_cells(folder / f"round{k}", tuning_cells(values), seeds, episodes, workers)[0]
+        table, meta = run_cells(folder / f"round{k}", tuning_cells(values), seeds, episodes, workers)
+        seconds.append(float(meta["wall_seconds"]))
+        return table
 
     choices, rounds = tune(run_round, [(t, a) for t, _, _ in TASKS for a, _, _ in TUNED_AGENTS])
     record = {
@@ -240,9 +244,10 @@ def run_tuning(
         "grid": list(GRID),
         "evaluation_seeds": evaluation_seeds,
         "chosen": [{"task": t, "agent": a, "epsilon": c.best, "interior": c.interior} for (t, a), c in choices.items()],
+        "wall_seconds": sum(seconds),
     }
     (folder / "tuning.json").write_text(json.dumps(record, indent=1))
-    return choices
+    return choices, sum(seconds)
 
 
 def load_tuning(folder: Path) -> tuple[dict[tuple[str, str], Tuning], dict[str, Any]] | None:
