@@ -1,8 +1,8 @@
 """
 The main job: the paper's protocol and the DQN comparison through the launcher (run files), the fair baselines,
-then the engine studies (large-N, reading ablation, speed ablation, long runs, moving and evading prey and mazes),
-the replication forensics at a reduced size, then one report (the forensics section passed in from here: the report
-layer does not import the forensics).
+then the engine studies (large-N, reading ablation, speed ablation, long runs), ε tuned on each task beyond the paper
+and those tasks with the tuned ε (static grid, moving and evading prey, mazes), the replication forensics at a reduced
+size, then one report (the forensics section passed in from here: the report layer does not import the forensics).
 """
 
 from __future__ import annotations
@@ -30,6 +30,8 @@ PARTS = (
 LARGE_SEEDS, ABLATION_SEEDS, BEYOND_SEEDS, ENGINE_EPISODES = 1000, 20, 1000, 200
 #: Seeds per cell of the speed ablation and of the long-run study (whose runs have ``largen.LONG_EPISODES`` episodes).
 SPEED_ONE_SEEDS, LONG_SEEDS = 500, 50
+#: Tuning seeds per ε value of the per-task tuning (``report.tuning``), disjoint from the evaluation's seeds.
+TUNING_SEEDS = 200
 #: The forensics' size inside the main job (``sb3-affect forensics`` alone defaults to 3 / 4 / 100).
 FORENSICS = {"screen_reps": 2, "leaders": 4, "reps": 30}
 #: The main job's wall time on 2 idle cores, as the help and the docs quote it (measured: see the README).
@@ -40,7 +42,12 @@ STUDIES = (
     ("ablation_engine", f"the 8 readings of the appraisal x 9 ε x {ABLATION_SEEDS} seeds (engine)"),
     ("speed_one", f"the affective agent with speed fixed at 1 cell, 9 ε labels x {SPEED_ONE_SEEDS} seeds (engine)"),
     ("long", f"both paper agents, 9 ε x {LONG_SEEDS} seeds, runs of 2,000 episodes (engine)"),
-    ("beyond", f"moving prey, evading prey and mazes, {BEYOND_SEEDS} seeds (engine)"),
+    (
+        "tuning",
+        f"ε of ε-greedy and speed-matched ε-greedy tuned on each task beyond the paper, {TUNING_SEEDS} seeds per value "
+        "(engine)",
+    ),
+    ("beyond", f"static grid, moving and evading prey, mazes with the tuned ε, {BEYOND_SEEDS:,} seeds (engine)"),
     ("forensics", "the replication forensics at a reduced size: {screen_reps} screen and {reps} leader replications"),
 )
 
@@ -103,7 +110,8 @@ def main(
 ) -> Path:
     """
     Run the sweeps of ``SWEEPS`` into ``out_dir/<name>`` (resuming what is there) and the engine studies into
-    ``out_dir/large``, ``out_dir/ablation_engine`` and ``out_dir/beyond`` (reused when complete), then write
+    ``out_dir/large``, ``out_dir/ablation_engine``, ..., the per-task tuning of ε into ``out_dir/tuning`` and the tasks
+    beyond the paper with the tuned ε into ``out_dir/beyond`` (reused when complete), then write
     ``out_dir/report.md`` (and .html, tables/, figures/). Prints the wall time of each part.
 
     :param out_dir: the replicate folder
@@ -120,8 +128,9 @@ def main(
     from sb3_affect.experiments import run_sweep
     from sb3_affect.report import build_report, paper
     from sb3_affect.report.ablation import ablation_cells
-    from sb3_affect.report.baselines import beyond_cells
+    from sb3_affect.report.beyond_tasks import beyond_cells
     from sb3_affect.report.largen import LONG_EPISODES, large_cells, long_cells, run_cells, speed_one_cells
+    from sb3_affect.report.tuning import run_tuning
 
     experiments = sweeps_folder(experiments)
     large_seeds = large_seeds or LARGE_SEEDS
@@ -153,8 +162,6 @@ def main(
          engine_episodes),
         ("long", f"long runs, {long_seeds} seeds per cell x {long_episodes} episodes (engine)", long_cells(), long_seeds,
          long_episodes),
-        ("beyond", f"moving and evading prey, mazes, {beyond_seeds} seeds (engine)", beyond_cells(), beyond_seeds,
-         engine_episodes),
     )
     for name, description, cells, seeds, episodes in studies:
         print(f"== {description} -> {out_dir / name}", flush=True)
@@ -165,6 +172,22 @@ def main(
         # The study's own record of the run that computed it (a complete study is read back, not recomputed).
         timings[description] = record.set(description, float(meta.get("wall_seconds", seconds)))
         print(f"   {len(table)} runs, {seconds:.1f} s", flush=True)
+    tuning_seeds = min(TUNING_SEEDS, large_seeds)
+    description = f"ε tuned per task beyond the paper, {tuning_seeds} seeds per value (engine)"
+    print(f"== {description} -> {out_dir / 'tuning'}", flush=True)
+    with _heartbeat(description):
+        tuned, seconds = run_tuning(out_dir / "tuning", tuning_seeds, engine_episodes, beyond_seeds, workers=workers)
+    timings[description] = record.set(description, seconds)  # the rounds' own time (rounds read back keep theirs)
+    chosen = ", ".join(f"{agent} on {task}: {t.best:g}{'' if t.interior else ' (edge)'}" for (task, agent), t in tuned.items())
+    print(f"   {timings[description]:.1f} s; chosen: {chosen}", flush=True)
+    description = f"static grid, moving and evading prey, mazes, {beyond_seeds} seeds (engine)"
+    print(f"== {description} -> {out_dir / 'beyond'}", flush=True)
+    start = time.perf_counter()
+    with _heartbeat(description):
+        cells = beyond_cells({key: t.best for key, t in tuned.items()})
+        table, meta = run_cells(out_dir / "beyond", cells, beyond_seeds, engine_episodes, workers=workers)
+    timings[description] = record.set(description, float(meta.get("wall_seconds", time.perf_counter() - start)))
+    print(f"   {len(table)} runs, {time.perf_counter() - start:.1f} s", flush=True)
     extra = []
     if forensics:
         from sb3_affect.forensics.analysis import run_forensics

@@ -175,7 +175,7 @@ def test_resumed_replicate_keeps_the_times_of_its_runs_and_refuses_a_sweep(
     runs = tmp_path / "runs"
     assert main(["replicate", "--out", str(runs), "--workers", "2", "--no-forensics"]) == 0
     first = json.loads((runs / "replicate.json").read_text())["timings"]
-    studies = ("large-N", "reading ablation", "speed ablation", "long runs", "moving and evading prey")
+    studies = ("large-N", "reading ablation", "speed ablation", "long runs", "ε tuned per task", "static grid, moving and")
     assert first["paper (a tiny paper protocol)"] > 0 and len(first) == 1 + len(studies)
     assert all(sum(key.startswith(study) for key in first) == 1 for study in studies), sorted(first)
     assert main(["replicate", "--out", str(runs), "--workers", "2", "--no-forensics"]) == 0  # a resume: nothing to do

@@ -16,10 +16,18 @@ from sb3_affect.engine import simulate
 from sb3_affect.experiments import run_sweep
 from sb3_affect.experiments.store import StoreError
 from sb3_affect.forensics import STATISTICS, CandidateSpace, Protocol, Reading, Simulation, printed_numbers, run_forensics
-from sb3_affect.forensics.analysis import REJECT_FACTOR, _steps_ratio
+from sb3_affect.forensics.analysis import REJECT_FACTOR, _interval_table, _steps_ratio
 from sb3_affect.forensics.runner import run_units, simulate_unit
-from sb3_affect.forensics.scoring import log_likelihood, posterior
-from sb3_affect.forensics.section import forensics_section, report_section
+from sb3_affect.forensics.scoring import (
+    MIN_REACH_REPS,
+    NOT_REACHED,
+    NOT_RULED_OUT,
+    REACHED,
+    log_likelihood,
+    posterior,
+    reach_findings,
+)
+from sb3_affect.forensics.section import findings_lines, forensics_section, report_section
 from sb3_affect.forensics.statistics import candidate_statistics, cell_summary
 from sb3_affect.forensics.store import SummaryStore
 from sb3_affect.report import build_report, paper
@@ -99,6 +107,39 @@ def test_scoring_prefers_the_sample_that_holds_the_value() -> None:
         assert log_likelihood(sample, near, diagonal) > log_likelihood(sample, far, diagonal) + 10
     probabilities = posterior([log_likelihood(sample, near), log_likelihood(sample, far), -math.inf])
     assert probabilities.sum() == pytest.approx(1.0) and probabilities[0] > 0.99 and probabilities[2] == 0
+
+
+def _normal(mean: float, sd: float, reps: int, seed: int) -> np.ndarray:
+    """A synthetic sample of every printed statistic: ``reps`` replications around ``mean`` (positive, log-scale safe)."""
+    return np.random.default_rng(seed).normal(mean, sd, size=(reps, len(STATISTICS)))
+
+
+def test_a_wide_screen_interval_that_covers_a_number_does_not_count_as_reached() -> None:
+    """Synthetic samples whose answer is known: only a leader's full replications can reach a printed number."""
+    target = np.full(len(STATISTICS), 67.02)
+    wide_screen = np.array([[50.0] * len(STATISTICS), [85.0] * len(STATISTICS)])  # 2 replications straddling 67.02
+    far_leader = _normal(56.0, 0.5, 30, 1)  # 30 replications, tight, far from the target
+    near_leader = _normal(67.0, 0.5, 30, 2)  # 30 replications around the target
+    few_leader = np.array([[50.0] * len(STATISTICS), [85.0] * len(STATISTICS)])  # a "leader" with 2 replications
+    assert reach_findings([far_leader], [wide_screen], target) == [NOT_RULED_OUT] * len(STATISTICS)
+    assert reach_findings([few_leader], [], target) == [NOT_RULED_OUT] * len(STATISTICS)  # too few to count
+    assert reach_findings([far_leader, near_leader], [wide_screen], target) == [REACHED] * len(STATISTICS)
+    far_screen = np.array([[40.0] * len(STATISTICS), [41.0] * len(STATISTICS)])
+    assert reach_findings([far_leader], [far_screen], target) == [NOT_REACHED] * len(STATISTICS)
+    partly = target.copy()
+    partly[0], partly[1] = 56.1, math.nan  # one statistic the far leader does reach, one the paper does not print
+    found = reach_findings([far_leader], [wide_screen], partly)
+    assert found[0] == REACHED and found[1] == "not printed" and set(found[2:]) == {NOT_RULED_OUT}
+    # the analysis' interval table: the screen's coverage is counted apart and never makes a number reached
+    leaders = pd.DataFrame({"candidate": ["far"]})
+    table, unreached = _interval_table(leaders, {"far": far_leader}, {"wide": wide_screen}, target)
+    assert list(table["finding"]) == [NOT_RULED_OUT] * len(STATISTICS) and unreached == list(STATISTICS)
+    assert (table["leaders reaching"] == 0).all() and (table["screened covering"] == 1).all()
+    text = "\n".join(findings_lines(table, {"reps": 30, "screen_reps": 2}))
+    assert "Reached (inside a leading candidate's 95% predictive interval from 30 replications): none." in text
+    assert "not ruled out at screen size" in text and "**IV mean ε-greedy** (67.020; 1 screened candidates cover it)" in text
+    few = "\n".join(findings_lines(table, {"reps": MIN_REACH_REPS - 1, "screen_reps": 2}))
+    assert f"fewer than the {MIN_REACH_REPS} a printed number needs" in few
 
 
 def test_bad_candidate_options_are_named() -> None:

@@ -199,10 +199,12 @@ def test_replicate_writes_every_part_and_the_record(tmp_path: Path, monkeypatch:
     for part in ("large", "ablation_engine", "speed_one", "long", "beyond"):
         assert (tmp_path / "out" / part / "runs.csv.gz").exists(), part
     assert int(pd.read_csv(tmp_path / "out" / "long" / "runs.csv.gz").episodes.max()) == 50  # 10 x the engine episodes
-    assert "evading prey 7x7 / affective" in text and "maze: rooms / speed-epsilon-greedy" in text
+    assert "evading prey 7x7 / affective" in text and "maze: rooms / speed-epsilon-greedy, tuned ε (" in text
+    assert (tmp_path / "out" / "tuning" / "tuning.json").exists() and "ε tuned on each task" in text
+    assert "evading prey 7x7 / epsilon-greedy, tuned ε (" in text and ") (" not in text.split("tuned ε (")[1].split("|")[0]
     assert "Readings ranked by distance" in text
     wall = pd.read_csv(tmp_path / "out" / "tables" / "wall_times.csv")
-    assert len(wall) == 8 and (wall["wall seconds"] >= 0).all()  # 3 sweeps + 5 engine studies
+    assert len(wall) == 9 and (wall["wall seconds"] >= 0).all()  # 3 sweeps + 4 engine studies + tuning + beyond
     assert "Replication forensics: not run" in text
 
 
@@ -262,3 +264,121 @@ def test_fig5_and_fig6_windows_move_the_verdicts() -> None:
     assert len(table) == len(EARLY_WINDOWS) * len(LATE_WINDOWS)
     assert (table["Fig. 5 (per-episode)"] == "not reproduced").all()  # a joy share of 0.3 is not dominance
     assert (table["Fig. 6"] == "reproduced").all()  # while 0.3 -> 0.1 is Fig. 6 exactly
+
+
+def _tuning_runs(response, replicates: int = 20, noise: float = 0.05):  # type: ignore[no-untyped-def]
+    """A ``run_round`` for ``tuning.tune``: runs whose mean decisions per episode is ``response(ε)`` (known optimum)."""
+
+    def run_round(k: int, values: dict[tuple[str, str], list[float]]) -> pd.DataFrame:
+        rng = np.random.default_rng(k)
+        rows = [
+            {"task": task, "agent": agent, "epsilon": eps, "replicate": r,
+             "decisions_per_episode": response(eps) + noise * rng.standard_normal(), "cells_per_episode": response(eps),
+             "truncated": 0}
+            for (task, agent), epsilons in values.items() for eps in epsilons for r in range(replicates)
+        ]  # fmt: skip
+        return pd.DataFrame(rows)
+
+    return run_round
+
+
+def test_tuning_chooses_an_interior_best_in_one_round() -> None:
+    from sb3_affect.report.tuning import GRID, tune
+
+    choices, rounds = tune(_tuning_runs(lambda e: 100 + 50 * (np.log10(e) - np.log10(0.05)) ** 2), [("task", "agent")])
+    t = choices[("task", "agent")]
+    assert rounds == 1 and t.best == 0.05 and t.interior and t.added == ()
+    assert list(t.curve.index) == list(GRID) and t.note == "interior (best inside the grid)"
+    assert t.within_noise == []  # neighbours differ by 50 x 0.16 decisions, far beyond the noise
+
+
+def test_tuning_extends_a_grid_whose_best_is_at_an_edge() -> None:
+    from sb3_affect.report.tuning import MAX_EXTENSIONS, extension, tune
+
+    assert extension([0.001, 0.002, 0.5], 0.001) == 0.0005 and extension([0.001, 0.2, 0.5], 0.5) == 1.0
+    assert extension([0.001, 0.2, 0.5], 0.2) is None and extension([0.5, 1.0], 1.0) is None  # inside; end of range
+    with pytest.raises(ValueError, match="not one of the values run"):
+        extension([0.1, 0.2], 0.3)
+    # optimum below the grid (0.0005 lies between 0.00025 and 0.001): extended twice, then interior
+    choices, rounds = tune(_tuning_runs(lambda e: 100 + 50 * (np.log10(e) - np.log10(0.0005)) ** 2), [("task", "agent")])
+    t = choices[("task", "agent")]
+    assert rounds == 3 and t.best == 0.0005 and t.interior and t.added == (0.0005, 0.00025)
+    assert t.note == "interior (best at the edge of the grid, extended to 0.0005, 0.00025)"
+    # better and better towards ε = 1: extended to the end of the range and said to be not interior
+    choices, rounds = tune(_tuning_runs(lambda e: 100 - 10 * e), [("task", "agent")])
+    t = choices[("task", "agent")]
+    assert rounds == 2 and t.best == 1.0 and not t.interior and t.note.startswith("not interior")
+    assert "still at the edge of the range" in t.note
+    # better and better towards ε = 0: extensions stop after MAX_EXTENSIONS, still not interior
+    choices, rounds = tune(_tuning_runs(lambda e: 100 + 10 * np.log10(e)), [("task", "agent")])
+    t = choices[("task", "agent")]
+    assert rounds == MAX_EXTENSIONS + 1 and not t.interior and t.added == (0.0005, 0.00025, 0.000125)
+    assert t.best == 0.000125 and t.note.startswith("not interior") and "flat" not in t.note
+
+
+def test_a_flat_edge_is_said_to_be_flat() -> None:
+    """Best at the edge by a difference the paired CI can not tell from 0: not interior, and flat there."""
+    from sb3_affect.report.tuning import choose
+
+    decisions = {0.001: [10, 12, 10, 12], 0.002: [12, 10, 13, 10], 0.005: [20, 20, 20, 20]}
+    runs = pd.DataFrame(
+        [{"epsilon": e, "replicate": r, "decisions_per_episode": v, "cells_per_episode": v, "truncated": 0}
+         for e, values in decisions.items() for r, v in enumerate(values)]
+    )  # fmt: skip
+    t = choose(runs, "task", "agent", grid=(0.001, 0.002, 0.005))
+    assert t.best == 0.001 and not t.interior and t.within_noise == [0.002]
+    flat = "(the curve is flat there: 0.002 is indistinguishable from it)"
+    assert t.note == f"not interior: best at the edge of the grid; still at the edge {flat}"
+
+
+def test_the_tuning_section_reads_the_rounds_back(tmp_path: Path) -> None:
+    """The report's tuning subsection recomputes the choice from the rounds on disk and says what it found."""
+    import json
+
+    from sb3_affect.report.document import Document
+    from sb3_affect.report.tuning import GRID, TASKS, TUNED_AGENTS, tune, tuning_section
+
+    folder = tmp_path / "tuning"
+    keys = [(TASKS[0][0], TUNED_AGENTS[1][0])]
+
+    def on_disk(k: int, values: dict[tuple[str, str], list[float]]) -> pd.DataFrame:
+        table = _tuning_runs(lambda e: 100 + 50 * (np.log10(e) - np.log10(0.0005)) ** 2)(k, values)
+        (folder / f"round{k}").mkdir(parents=True)
+        table.to_csv(folder / f"round{k}" / "runs.csv.gz", index=False)
+        return table
+
+    _, rounds = tune(on_disk, keys)
+    record = {"rounds": rounds, "seeds": 20, "episodes": 200, "evaluation_seeds": 1000, "grid": list(GRID)}
+    (folder / "tuning.json").write_text(json.dumps(record))
+
+    class Ctx:
+        root, doc = tmp_path, Document("tuning")
+
+        def table(self, name: str, frame: pd.DataFrame, caption: str) -> None:
+            self.doc.table(frame, caption)
+
+    ctx = Ctx()
+    choices = tuning_section(ctx)
+    assert choices is not None and choices[keys[0]].best == 0.0005
+    text = ctx.doc.markdown(tmp_path)
+    assert "| static grid 15x15 (the paper's task) / speed-epsilon-greedy, tuned ε | 0.00025, 0.0005, 0.001," in text
+    assert "interior (best at the edge of the grid, extended to 0.0005, 0.00025)" in text
+    assert "disjoint from the 1,000 evaluation seeds" in text
+
+
+def test_the_launcher_tuning_table_says_whether_its_best_is_interior() -> None:
+    """``baseline_summary.tuning_choice``: a best value at the edge of its grid is flagged as not interior."""
+    from sb3_affect.report.baseline_summary import tuning_choice
+
+    def record(agent: str, eps: float, decisions: int, seed: int) -> dict:  # type: ignore[type-arg]
+        episodes = {"decisions": [decisions] * 3, "cells": [decisions] * 3, "optimal": [True] * 3,
+                    "greedy_optimal": [True] * 3, "truncated": [False] * 3}  # fmt: skip
+        config = {"env_id": "sb3_affect/GridPursuit-v0", "agent": agent, "seed": seed, "labels": {"epsilon": eps}}
+        return {"config": config, "episodes": episodes}
+
+    steps = {"edge": {0.01: 20, 0.05: 25, 0.1: 30}, "inside": {0.01: 30, 0.05: 20, 0.1: 25}}
+    records = [record(agent, eps, d, seed) for agent, curve in steps.items() for eps, d in curve.items() for seed in (0, 1)]
+    table = tuning_choice(records).set_index(["agent", "value"])
+    assert table.loc[("edge", 0.01), "best"] and not table.loc[("edge", 0.01), "interior"]
+    assert table.loc[("inside", 0.05), "best"] and table.loc[("inside", 0.05), "interior"]
+    assert table["interior"].sum() == 1

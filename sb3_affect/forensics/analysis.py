@@ -9,8 +9,9 @@
 2. Leaders: the ``leaders`` affective simulations whose best reading scores highest get ``reps`` replications
    (with their epsilon-greedy partners); their candidates are scored with the full synthetic likelihood and given
    posterior probabilities under a uniform prior over the leaders' candidates.
-3. Intervals: each printed number against the simulated 95% interval of the best candidates, and the printed numbers
-   no candidate reaches.
+3. Intervals: each printed number against the simulated 95% interval of the best candidates. A number counts as
+   reached only when a leader's 95% predictive interval from its ``reps`` replications holds it; the screen's
+   intervals (a few replications, very wide) can only leave a number "not ruled out at screen size".
 """
 
 from __future__ import annotations
@@ -29,7 +30,17 @@ import pandas as pd
 
 from sb3_affect.forensics.candidates import STANDARD, STEP_UNITS, Candidate, CandidateSpace, Protocol, Simulation
 from sb3_affect.forensics.runner import run_units
-from sb3_affect.forensics.scoring import intervals, log_likelihood, posterior, predictive_reach
+from sb3_affect.forensics.scoring import (
+    MIN_REACH_REPS,
+    NOT_REACHED,
+    NOT_RULED_OUT,
+    intervals,
+    log_likelihood,
+    posterior,
+    predictive_reach,
+    reach_findings,
+    transform,
+)
 from sb3_affect.forensics.statistics import STATISTICS, candidate_statistics, printed_numbers
 from sb3_affect.forensics.store import SummaryStore
 
@@ -47,8 +58,9 @@ class ForensicsResult:
     :param leaders: the leaders' candidates with their full log-likelihood and posterior probability, best first;
         ``loglik_reachable`` / ``posterior_reachable``: the same with the unreached statistics left out
     :param intervals: per printed statistic: the printed value, the best candidates' 95% intervals, how many
-        candidates reach it
-    :param unreached: the printed statistics that no candidate reaches
+        leader candidates reach it, how many screened candidates' wide intervals cover it, and the finding
+    :param unreached: the printed statistics that no leader candidate reaches (``intervals``' "finding" says whether a
+        screen-size interval covers them: not ruled out, not shown)
     :param seconds: wall time
     """
 
@@ -211,6 +223,7 @@ def run_forensics(
                 "standard_simulations": len(standard),
                 "seconds": round(result.seconds, 1),
                 "unreached": unreached,
+                "findings": dict(zip(STATISTICS, table["finding"])),
                 "printed": observed.tolist(),
             }
         ).to_json(indent=1)
@@ -227,23 +240,28 @@ def _interval_table(
     screened: dict[str, np.ndarray],
     observed: np.ndarray,
 ) -> tuple[pd.DataFrame, list[str]]:
-    """Printed values beside the top candidates' 95% intervals; how many leaders / screened candidates reach each."""
+    """
+    Printed values beside the top candidates' 95% intervals; how many leader candidates (full replications) reach
+    each and how many screened candidates' wide screen-size intervals cover it; the finding (``reach_findings``).
+    The unreached statistics are those no leader reaches: a screen-size interval that covers a number does not count.
+    """
     table = pd.DataFrame(index=pd.Index(STATISTICS, name="statistic"))
     table["printed"] = observed
     for rank, name in enumerate(leaders_table.candidate[:3]):
         lo, hi = intervals(full[name])
         table[f"#{rank + 1} 2.5%"] = lo
         table[f"#{rank + 1} 97.5%"] = hi
+    leader_samples = [full[name] for name in leaders_table.candidate]
     leader_reach = np.zeros(len(STATISTICS), dtype=int)
-    for name in leaders_table.candidate:
-        lo, hi = intervals(full[name])
-        leader_reach += (observed >= lo) & (observed <= hi)
+    for sample in leader_samples:
+        enough = np.isfinite(transform(sample)).sum(axis=0) >= MIN_REACH_REPS
+        leader_reach += predictive_reach(sample, observed) & enough
     screen_reach = np.zeros(len(STATISTICS), dtype=int)
     for sample in screened.values():
         screen_reach += predictive_reach(sample, observed)
     table["leaders reaching"] = leader_reach
-    table["screened reaching"] = screen_reach
-    unreached = [
-        s for s, a, b, y in zip(STATISTICS, leader_reach, screen_reach, observed) if a == 0 and b == 0 and not math.isnan(y)
-    ]
+    table["screened covering"] = screen_reach
+    findings = reach_findings(leader_samples, list(screened.values()), observed)
+    table["finding"] = findings
+    unreached = [s for s, finding in zip(STATISTICS, findings) if finding in (NOT_REACHED, NOT_RULED_OUT)]
     return table, unreached

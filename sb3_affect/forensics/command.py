@@ -67,6 +67,6 @@ def forensics_command(args: argparse.Namespace) -> int:
         raise SystemExit(f"sb3-affect forensics: error: {error}") from None
     best = result.leaders.iloc[0]
     print(f"best candidate: {best.candidate} (posterior {best.posterior:.3g} among the leaders' candidates)")
-    print(f"printed numbers no candidate reaches: {', '.join(result.unreached) or 'none'}")
+    print(f"printed numbers no leading candidate reaches: {', '.join(result.unreached) or 'none'}")
     print(f"{result.seconds:.1f} s; report section: {args.out}/forensics.md")
     return 0

@@ -103,3 +103,43 @@ def predictive_reach(sample: npt.ArrayLike, observed: npt.ArrayLike, level: floa
         mean, sd = np.nanmean(x, axis=0), np.nanstd(x, axis=0, ddof=1)
         half = sps.t.ppf(0.5 + level / 2, np.maximum(n - 1, 1)) * np.maximum(np.nan_to_num(sd), SD_FLOOR) * np.sqrt(1 + 1 / n)
     return np.asarray((n >= 2) & (np.abs(y - mean) <= half))
+
+
+#: What the evidence shows about one printed number (``reach_findings``).
+REACHED = "reached"
+NOT_RULED_OUT = "not ruled out at screen size"
+NOT_REACHED = "not reached"
+#: Fewest replications of one candidate whose predictive interval may count a printed number as reached: a Student-t
+#: interval from fewer is so wide (2 replications: 12.7 standard deviations either side) that covering says little.
+MIN_REACH_REPS = 10
+
+
+def reach_findings(
+    leaders: list[np.ndarray], screened: list[np.ndarray], observed: npt.ArrayLike, level: float = 0.95
+) -> list[str]:
+    """
+    Per printed statistic, what the replications show: ``REACHED`` when the ``level`` predictive interval of some
+    candidate with at least ``MIN_REACH_REPS`` replications (the leaders) holds it; else ``NOT_RULED_OUT`` when only
+    intervals from fewer replications (the screen) hold it, which is no evidence that a candidate prints it; else
+    ``NOT_REACHED``. A statistic the paper does not print (NaN) is ``"not printed"``.
+
+    :param leaders: one sample (replications x statistics) per leading candidate
+    :param screened: one sample per screened candidate
+    :param observed: the printed statistics
+    """
+    y = np.asarray(observed, dtype=float)
+    by_leaders = np.zeros(y.shape, dtype=bool)
+    by_screen = np.zeros(y.shape, dtype=bool)
+    for sample in leaders:
+        sample = np.asarray(sample, dtype=float)
+        enough = np.isfinite(transform(sample)).sum(axis=0) >= MIN_REACH_REPS
+        reach = predictive_reach(sample, y, level) if len(sample) else np.zeros(y.shape, dtype=bool)
+        by_leaders |= reach & enough
+        by_screen |= reach & ~enough
+    for sample in screened:
+        if len(sample):
+            by_screen |= predictive_reach(np.asarray(sample, dtype=float), y, level)
+    return [
+        "not printed" if not np.isfinite(v) else REACHED if a else NOT_RULED_OUT if b else NOT_REACHED
+        for v, a, b in zip(y, by_leaders, by_screen)
+    ]

@@ -10,7 +10,7 @@ from typing import Any, NamedTuple
 import numpy as np
 import pandas as pd
 
-from sb3_affect.forensics.scoring import transform
+from sb3_affect.forensics.scoring import MIN_REACH_REPS, NOT_REACHED, NOT_RULED_OUT, REACHED, transform
 from sb3_affect.forensics.statistics import LOG_SCALE, STATISTICS
 from sb3_affect.report.document import _md_table, fmt
 
@@ -46,7 +46,7 @@ def _loglik(value: float) -> str:
 
 
 def _sci(value: float) -> str:
-    return fmt(value, 3) if abs(value) < 1e5 or math.isnan(value) else f"{value:.3g}"
+    return fmt(value, 3) if abs(value) < 1e7 or math.isnan(value) else f"{value:.3g}"
 
 
 def forensics_section(folder: str | Path, figures_dir: str | Path | None = None) -> ForensicsSection:
@@ -87,8 +87,8 @@ def forensics_section(folder: str | Path, figures_dir: str | Path | None = None)
         ranking["posterior, reachable statistics only"] = top.posterior_reachable.map(lambda v: f"{v:.3g}")
     ranking.index = pd.Index(range(1, len(ranking) + 1), name="rank")
     lines += [
-        "*Leading candidates, best first (full replications); the last column scores only the printed numbers some "
-        "candidate reaches (below)*",
+        "*Leading candidates, best first (full replications); the last column scores only the printed numbers a "
+        "leading candidate reaches (below)*",
         "",
         _md_table(ranking, 2),
         "",
@@ -114,28 +114,68 @@ def forensics_section(folder: str | Path, figures_dir: str | Path | None = None)
     lines += [_md_table(screened, 2), ""]
     shown = table.copy()
     for column in shown.columns:
-        if "reaching" not in column:
+        if "reaching" not in column and "covering" not in column and column != "finding":
             shown[column] = shown[column].map(_sci)
     lines += [
-        "*Each printed number against the simulated 95% interval of the best three candidates; 'reaching': how many "
-        "leader candidates' 95% intervals (full replications) and screened candidates' 95% Student-t "
-        "predictive intervals (screen replications) contain it*",
+        f"*Each printed number against the simulated 95% interval of the best three candidates; 'leaders reaching': how "
+        f"many leader candidates' 95% Student-t predictive intervals from their {run['reps']} replications hold it; "
+        f"'screened covering': how many screened candidates' predictive intervals from {run['screen_reps']} "
+        "replications hold it (so wide that covering is no evidence); 'finding': what that shows*",
         "",
         _md_table(shown, 3),
         "",
     ]
-    unreached = list(run.get("unreached", []))
-    lines.append(
-        "Printed numbers that no candidate reaches (evidence of a difference the candidate space does not cover): "
-        + (", ".join(f"**{name}**" for name in unreached) if unreached else "none")
-        + "."
-    )
+    lines += findings_lines(table, run)
     figure = _figure(folder, table, figures_dir / "forensics_statistics.png")
     caption = (
         "Forensics: each printed statistic (black line) against the simulated replications of the best candidates "
         "(histograms; log scale for means, variances and episodes)"
     )
     return ForensicsSection("\n".join(lines), [(figure, caption)] if figure else [])
+
+
+def findings_lines(table: pd.DataFrame, run: dict[str, Any]) -> list[str]:
+    """
+    What the forensics showed about each printed number, from the interval table's "finding" column (written by
+    ``run_forensics``): reached only on the leaders' full replications; screen-size coverage is "not ruled out".
+    """
+    if "finding" not in table.columns:  # a folder from before the findings: nothing is decided from its counts
+        return ["This folder predates the findings: rerun `sb3-affect forensics` to decide which numbers are reached.", ""]
+    reps, screen_reps = int(run["reps"]), int(run["screen_reps"])
+    covering: dict[str, int] = {}
+    if "screened covering" in table.columns:
+        covering = {str(k): int(v) for k, v in table["screened covering"].items()}
+
+    def named(finding: str, counts: bool = False) -> list[str]:
+        rows = table[table["finding"] == finding]
+        return [
+            f"**{name}** ({_sci(float(row.printed))}"
+            + (f"; {covering[str(name)]} screened candidates cover it" if counts and str(name) in covering else "")
+            + ")"
+            for name, row in rows.iterrows()
+        ]
+
+    reached, open_, shut = named(REACHED), named(NOT_RULED_OUT, counts=True), named(NOT_REACHED)
+    lines = []
+    if reps < MIN_REACH_REPS:
+        lines.append(
+            f"The leaders have {reps} replications, fewer than the {MIN_REACH_REPS} a printed number needs to count as "
+            "reached: at this size no number is shown to be reached."
+        )
+    lines += [
+        f"- Reached (inside a leading candidate's 95% predictive interval from {reps} replications): "
+        + (", ".join(reached) or "none")
+        + ".",
+        f"- Not reached by any leading candidate at {reps} replications, not ruled out at screen size (only intervals "
+        f"from {screen_reps} replications cover them; that is no evidence a candidate prints them): "
+        + (", ".join(open_) or "none")
+        + ".",
+        "- Not reached by any candidate, screen included (evidence of a difference the candidate space does not cover): "
+        + (", ".join(shut) or "none")
+        + ".",
+        "",
+    ]
+    return lines
 
 
 def _figure(folder: Path, table: pd.DataFrame, path: Path) -> Path | None:

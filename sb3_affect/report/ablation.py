@@ -109,5 +109,5 @@ def ablation_section(ctx: ReportContext) -> None:
         "and profile. The replication forensics (its own section) scores all of the paper's printed statistics, the "
         "ε-greedy agent's included, and may rank the readings differently. No reading changes the ε-greedy agent, so "
         "none can bring the printed ε-greedy means nearer (the verdict's rows for the printed means; the forensics "
-        "lists the printed numbers no candidate reaches)."
+        "says which printed numbers a leading candidate reaches)."
     )

@@ -185,13 +185,20 @@ def profile_markdown(profile: pd.DataFrame) -> str:
 
 
 def tuning_choice(records: Iterable[dict[str, Any]]) -> pd.DataFrame:
-    """Tuning runs: per agent and grid value, mean decisions per episode; the best value per agent is flagged."""
+    """
+    Tuning runs: per agent and grid value, mean decisions per episode; the best value per agent is flagged, and
+    ``interior`` says whether it lies strictly inside the grid (at an edge: extend the grid; ``report.tuning`` does).
+    """
     frame = pd.DataFrame([record_metrics(r) for r in records])
     label = [c for c in frame.columns if c.startswith("label:")]
     value = frame[label].bfill(axis=1).iloc[:, 0] if label else pd.Series(math.nan, index=frame.index)
     frame = frame.assign(value=value)
     table = frame.groupby(["agent", "value"], as_index=False)[["decisions_per_episode", "steps_before_optimal"]].mean()
     table["best"] = table.groupby("agent")["decisions_per_episode"].transform("min") == table["decisions_per_episode"]
+    # a best value at the smallest or largest value of its agent's grid is not a tuned optimum: the grid needs extending
+    low = table.groupby("agent")["value"].transform("min")
+    high = table.groupby("agent")["value"].transform("max")
+    table["interior"] = table["best"] & (table["value"] > low) & (table["value"] < high)
     return table
 
 

@@ -14,17 +14,20 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from sb3_affect.report.baseline_summary import emotion_profile, markdown, profile_markdown, summarise
+from sb3_affect.report.beyond_tasks import BEYOND_AGENTS, BEYOND_CAP, TASKS, TUNED_AGENTS, beyond_cells
 from sb3_affect.report.context import ReportContext
 from sb3_affect.report.document import fmt
-from sb3_affect.report.largen import Cell, study
+from sb3_affect.report.largen import study
 from sb3_affect.report.metrics import load_run_records
 from sb3_affect.report.stats import bootstrap_ci
+from sb3_affect.report.tuning import tuning_section
+
+__all__ = ["BEYOND_AGENTS", "BEYOND_CAP", "TASKS", "TUNED_AGENTS", "baselines_section", "beyond_cells", "beyond_section"]
 
 #: Fair-baselines results folders a replicate folder may hold (experiments/baselines*.yaml).
 BASELINE_FOLDERS = ("baselines", "baselines_moving7", "baselines_moving")
@@ -52,53 +55,22 @@ def baselines_section(run_dirs: Sequence[str | Path], title: str = "Beyond the p
     return text
 
 
-#: Tasks beyond the paper run through the engine (``beyond_cells``): (task label, env id, env kwargs).
-TASKS: tuple[tuple[str, str, dict[str, Any]], ...] = (
-    ("moving prey 7x7 (random walk)", "sb3_affect/MovingPursuit-v0",
-     {"size": 7, "start": [0, 0], "prey_start": [3, 3], "prey": "random", "prey_speed": 0.5}),
-    ("evading prey 7x7", "sb3_affect/MovingPursuit-v0",
-     {"size": 7, "start": [0, 0], "prey_start": [3, 3], "prey": "evade", "prey_speed": 0.5}),
-    ("maze: wall", "sb3_affect/MazePursuit-v0", {"maze": "wall"}),
-    ("maze: rooms", "sb3_affect/MazePursuit-v0", {"maze": "rooms"}),
-)
-#: Agents of the tasks beyond the paper: (name, algo, kwargs).
-BEYOND_AGENTS: tuple[tuple[str, str, dict[str, Any]], ...] = (
-    ("affective", "AffectQ", {}),
-    ("epsilon-greedy 0.1", "QLearning", {"exploration_rate": 0.1}),
-    ("epsilon-greedy 0.01 (tuned)", "QLearning", {"exploration_rate": 0.01}),
-    ("speed-epsilon-greedy", "sb3_affect.baselines:SpeedEpsilonGreedy", {"exploration_rate": 0.01, "speeds": [1, 2]}),
-)
-
-
-#: Safety cap of the tasks beyond the paper: an episode of this many decisions is truncated (and counted).
-BEYOND_CAP = 2000
-
-
-def beyond_cells() -> list[Cell]:
-    """Every (task, agent) of the study beyond the paper (seeds: sweep "beyond", the same per agent across tasks)."""
-    return [
-        Cell(
-            agent,
-            algo,
-            {**kwargs, "max_episode_decisions": BEYOND_CAP},
-            {"task": task},
-            "beyond",
-            {"task": task},
-            env_id,
-            env_kwargs,
-        )
-        for task, env_id, env_kwargs in TASKS
-        for agent, algo, kwargs in BEYOND_AGENTS
-    ]
-
-
 def _ci(values: np.ndarray, digits: int = 1) -> str:
     point, low, high = bootstrap_ci(values)
     return "" if math.isnan(point) else f"{fmt(point, digits)} [{fmt(low, digits)}, {fmt(high, digits)}]"
 
 
+def agent_names(m: pd.DataFrame) -> pd.Series:
+    """Each run's agent as the report names it: a tuned agent with its ε, ``epsilon-greedy, tuned ε (0.05)``."""
+    if "epsilon" not in m.columns:
+        return m.agent.astype(str)
+    eps = pd.to_numeric(m.epsilon, errors="coerce")
+    return pd.Series([f"{a} ({e:g})" if e == e else str(a) for a, e in zip(m.agent, eps)], index=m.index, name="agent")
+
+
 def beyond_table(m: pd.DataFrame) -> pd.DataFrame:
     rows = {}
+    m = m.assign(agent=agent_names(m))
     for (task, agent), g in m.groupby(["task", "agent"], sort=False):
         rows[(task, agent)] = {
             "runs": len(g),
@@ -117,28 +89,35 @@ def beyond_table(m: pd.DataFrame) -> pd.DataFrame:
 
 
 def beyond_section(ctx: ReportContext) -> None:
-    """Moving prey, evading prey and mazes (engine study), then the fair-baselines folders when present."""
+    """The static grid, moving and evading prey and mazes with ε tuned per task (engine study), then the fair baselines."""
     ctx.doc.h("Beyond the paper: moving prey, evading prey, mazes and fair baselines")
     found = study(ctx.root, "beyond")
     if found is None:
         ctx.doc.p("No moving-prey, evading-prey or maze results in this folder (`sb3-affect replicate` runs them).")
     else:
         m, meta = found
+        tuned = "epsilon" in m.columns and m.epsilon.notna().any()
         ctx.doc.p(
-            f"Each task, {meta['seeds']} seeds per agent, {meta['episodes']} episodes ({fmt(meta['wall_seconds'], 1)} s "
-            "through the engine). Moving prey: the hunter starts at (0, 0), the prey at (3, 3) and moves after every "
-            "cell the hunter moves, with probability 0.5, at random or away from the hunter (evading): once per cell, so "
-            "a 2-cell decision gives the prey two chances to move; optimal means a capture within the "
-            "prey's starting distance. Mazes: shipped maps `wall` (shortest path 24) and `rooms` (21), static goal. "
-            f"Episodes are cut at {BEYOND_CAP:,} decisions (truncated, counted in the table; an evading prey can keep a "
-            "nearly greedy hunter chasing for tens of thousands of decisions: where a row has truncated episodes its "
-            "means are lower bounds). The speed-matched and fixed-ε agents use ε = 0.01, tuned on the static task at the "
-            "edge of its grid and not re-tuned per task. Means over runs with bootstrap 95% CIs; lower is better; "
-            "ranked in decisions (time) and in cells (distance)."
+            f"Each task, {meta['seeds']:,} seeds per agent, {meta['episodes']} episodes ({fmt(meta['wall_seconds'], 1)} "
+            "s through the engine). Static grid: the paper's task (15 x 15, goal at (6, 6)). Moving prey: the hunter "
+            "starts at (0, 0), the prey at (3, 3) and moves after every cell the hunter moves, with probability 0.5, at "
+            "random or away from the hunter (evading): once per cell, so a 2-cell decision gives the prey two chances to "
+            "move; optimal means a capture within the prey's starting distance. Mazes: shipped maps `wall` (shortest "
+            f"path 24) and `rooms` (21), static goal. Episodes are cut at {BEYOND_CAP:,} decisions: a truncated "
+            "episode's length is a lower bound, so where a row has truncated episodes its means are restricted means, "
+            "lower bounds of the uncapped means (counted in the table). "
+            + (
+                "ε-greedy and the speed-matched ε-greedy run with the ε tuned on each task (the value in "
+                "brackets); ε-greedy 0.1 is the paper's kind of baseline. "
+                if tuned
+                else "This folder's ε-greedy agents were not tuned per task. "
+            )
+            + "Means over runs with bootstrap 95% CIs; lower is better; ranked in decisions (time) and in cells "
+            "(distance)."
         )
         ctx.table("beyond", beyond_table(m), "Tasks beyond the paper")
         ranks = []
-        for task, g in m.groupby("task", sort=False):
+        for task, g in m.assign(agent=agent_names(m)).groupby("task", sort=False):
             parts = []
             for column, unit in (("decisions_per_episode", "decisions"), ("cells_per_episode", "cells")):
                 means = g.groupby("agent")[column].mean().sort_values()
@@ -147,10 +126,18 @@ def beyond_section(ctx: ReportContext) -> None:
                     f"fewest {unit} per episode {means.index[0]} ({fmt(float(means.iloc[0]), 1)}), affective ranks "
                     f"{place} of {len(means)} ({fmt(float(means.get('affective', math.nan)), 1)})"
                 )
-            truncated = int(g.truncated.sum())
-            note = f" ({truncated} truncated episodes: lower bounds)" if truncated else ""
+            truncated = g.groupby("agent").truncated.sum()
+            truncated = truncated[truncated > 0]
+            note = (
+                " (truncated episodes, means are lower bounds: "
+                + ", ".join(f"{agent} {int(n):,}" for agent, n in truncated.items())
+                + ")"
+                if len(truncated)
+                else ""
+            )
             ranks.append(f"{task}: " + "; in cells: ".join(parts) + note)
         ctx.doc.ul(ranks)
+        tuning_section(ctx)
     dirs = [ctx.root / name for name in BASELINE_FOLDERS if (ctx.root / name / "runs").is_dir()]
     if dirs:
         title = "Fair baselines: tuned, decaying, optimistic and speed-matched agents"

@@ -75,7 +75,8 @@ def lock_lines() -> list[str]:
 
 def run_tables(root: Path) -> list[Path]:
     """The files holding the runs of a replicate (or results) folder: chunks, run files, the engine studies' tables."""
-    patterns = ("*/chunks/*.parquet", "*/runs/*.json", "chunks/*.parquet", "runs/*.json", "*/runs.csv.gz", "*/*.csv")
+    patterns = ("*/chunks/*.parquet", "*/runs/*.json", "chunks/*.parquet", "runs/*.json", "*/runs.csv.gz", "*/*.csv",
+                "tuning/round*/runs.csv.gz")
     files = {path for pattern in patterns for path in root.glob(pattern) if "tables" not in path.parts}
     return sorted(files)
 

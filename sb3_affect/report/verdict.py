@@ -186,7 +186,8 @@ def reasons(judged_main: list[Judgement]) -> list[str]:
         out.append(
             "The printed means: our agents and the paper's differ in size (the ratios above), the ε-greedy agent's "
             "included, which no reading of the affective agent's appraisal can change; the replication forensics asks "
-            "which implementation could have printed them."
+            "which implementation could have printed them (it counts a number as reached only on a leading candidate's "
+            "full replications)."
         )
     if "episodes_to_optimal" in keys:
         out.append("27.35 episodes: the number depends on the reading of the appraisal (claims x readings table).")
