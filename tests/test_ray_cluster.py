@@ -322,11 +322,11 @@ def test_a_cluster_stopped_mid_sweep_ends_like_ctrl_c_and_the_rerun_loses_nothin
         stopped = time.monotonic()
         for node in cluster.nodes:  # the whole cluster goes away (like `ray stop` on every node)
             stop_session(node)
-        _, err = driver.communicate(timeout=90)
+        out_text, err = driver.communicate(timeout=90)
         took = time.monotonic() - stopped
     finally:
         stop_session(driver, grace=5)
-    assert driver.returncode == 130, err
+    assert driver.returncode == 130, f"{out_text}\n{err}"
     assert f"the Ray cluster at {ADDRESS} was lost mid-sweep" in err
     assert "finished runs are kept, rerun the same command to resume" in err and "Traceback" not in err
     assert took < 40

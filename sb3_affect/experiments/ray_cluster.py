@@ -128,6 +128,10 @@ def check_nodes(ray: Any, address: str, timeout: float) -> list[dict[str, Any]]:
     return found
 
 
+#: How long a failure that is not the run's own waits before the cluster's loss is ruled out (``RaySession.lost``).
+SETTLE_SECONDS = 3.0
+
+
 class RaySession:
     """
     A connected Ray job for one sweep: :meth:`run` submits tasks, at most ``cap`` at a time, and watches the cluster.
@@ -144,10 +148,14 @@ class RaySession:
             with contextlib.suppress(Exception):
                 self.gcs = host_port(ray.get_runtime_context().gcs_address)
 
-    def lost(self) -> str | None:
-        """Why the cluster counts as lost (its GCS refuses connections for 3 s), or ``None``."""
+    def lost(self, settle: float = 0.0) -> str | None:
+        """
+        Why the cluster counts as lost (its GCS refuses connections for 3 s), or ``None``. ``settle``: seconds to wait
+        first, for a cluster that is going away to finish doing so (its GCS may still answer while its nodes are gone).
+        """
         if self.gcs is None:
             return None
+        time.sleep(settle)
         for attempt in range(4):
             why = reachable(*self.gcs, timeout=2.0)
             if why is None:
@@ -191,7 +199,8 @@ class RaySession:
             try:
                 value = ray.get(done[0])
             except Exception as error:  # the task's worker died (after Ray's retry): the run failed, unless all is lost
-                why = self.lost()
+                # (the run's own exception is the run's failure; a worker, node or object lost may be the cluster going)
+                why = self.lost(settle=0.0 if isinstance(error, ray.exceptions.RayTaskError) else SETTLE_SECONDS)
                 if why:
                     raise self._lost_error(why) from None
                 on_error(item, error)
