@@ -95,6 +95,35 @@ def file_parts(
     return parts or [([], [])]
 
 
+def ordered_file_parts(
+    json_files: Sequence[Path], chunk_files: dict[Path, dict[str, Any]], runs_per_part: int | None
+) -> list[tuple[list[Path], list[Path]]]:
+    """
+    ``file_parts`` whose runs follow each other in run id order: every run of a part comes after every run of the
+    parts before it (a part read by ``read_folder`` is in run id order, so the parts one after the other are too).
+
+    Files whose run ids interleave (the chunks of one cell: seeds drawn at random) are kept in one part; parts hold
+    about ``runs_per_part`` runs (whole groups of such files; None: one part). From the chunks' footers and the run
+    files' names (``runs/<run id>.json``) alone.
+    """
+    spans: list[tuple[str, str, Path, int]] = [(path.stem, path.stem, path, 1) for path in json_files]
+    for path, meta in chunk_files.items():
+        ids = [run[0] for run in meta["runs"]]
+        if ids:
+            spans.append((min(ids), max(ids), path, len(ids)))
+    spans.sort(key=lambda span: (span[0], span[1]))
+    parts: list[tuple[list[Path], list[Path]]] = []
+    top, count = "", 0
+    for first, last, path, runs in spans:
+        full = runs_per_part is not None and count >= max(1, runs_per_part)
+        if not parts or (full and first > top):  # a new part: the current one is full and no run id of it comes later
+            parts.append(([], []))
+            count = 0
+        parts[-1][0 if path.suffix == ".json" else 1].append(path)
+        top, count = max(top, last), count + runs
+    return parts or [([], [])]
+
+
 def read_folder(
     json_files: Sequence[Path], chunk_files: Sequence[Path], columns: Sequence[str] | None, root: Path
 ) -> tuple[pd.DataFrame, dict[str, np.ndarray]]:

@@ -52,11 +52,11 @@ def _bootstrap(
     return out
 
 
-def bimodality(episodes: pd.DataFrame, first: int = SETTLED[0], last: int = SETTLED[1]) -> dict[str, float]:
+def settled_part(episodes: pd.DataFrame, first: int, last: int) -> tuple[pd.DataFrame, np.ndarray, np.ndarray]:
     """
-    The figures of the mechanism, from the affective agent's episodes ``first..last`` (pooled over runs).
-
-    Column by column with numpy (memory: a few columns of the window, whatever the number of runs).
+    What ``bimodality`` reads of episodes ``first..last`` of some runs: per run (in run id order) the sums of the
+    columns of its CIs, and the window's decisions and joy (pooled, in row order). Parts of the runs, in run id order,
+    give pieces that joined end to end are those of all the runs.
     """
     episode = episodes.episode.to_numpy()
     rows = np.flatnonzero((episode >= first) & (episode <= last))
@@ -68,17 +68,14 @@ def bimodality(episodes: pd.DataFrame, first: int = SETTLED[0], last: int = SETT
         key = pd.factorize(run_ids.to_numpy(dtype=object), sort=True)[0]
     present = np.flatnonzero(np.bincount(key))  # the runs in run id order, as a groupby's
     long = decisions > LONG
-    long_decisions = np.where(long, decisions, 0)
-    long_joy = np.where(long, joy, 0)
-    any_joy = joy > 0
     columns = {
         "long": long,
         "one": None,
         "decisions": decisions,
-        "long_decisions": long_decisions,
-        "long_joy": long_joy,
+        "long_decisions": np.where(long, decisions, 0),
+        "long_joy": np.where(long, joy, 0),
         "joy": joy,
-        "any_joy": any_joy,
+        "any_joy": joy > 0,
     }  # per-run sums of integers: exact in float64
     per_run = pd.DataFrame(
         {
@@ -86,12 +83,30 @@ def bimodality(episodes: pd.DataFrame, first: int = SETTLED[0], last: int = SETT
             for name, v in columns.items()
         }
     )
+    return per_run, decisions, joy
+
+
+def bimodality(episodes: pd.DataFrame, first: int = SETTLED[0], last: int = SETTLED[1]) -> dict[str, float]:
+    """
+    The figures of the mechanism, from the affective agent's episodes ``first..last`` (pooled over runs).
+
+    Column by column with numpy (memory: a few columns of the window, whatever the number of runs).
+    """
+    return settled_numbers(*settled_part(episodes, first, last))
+
+
+def settled_numbers(per_run: pd.DataFrame, decisions: np.ndarray, joy: np.ndarray) -> dict[str, float]:
+    """``bimodality`` from ``settled_part``'s pieces (joined over the runs)."""
+    long = decisions > LONG
+    long_decisions = np.where(long, decisions, 0)
+    long_joy = np.where(long, joy, 0)
+    any_joy = joy > 0
     total, long_total = int(decisions.sum(dtype=np.int64)), int(long_decisions.sum(dtype=np.int64))
     joy_total, long_joy_total = int(joy.sum(dtype=np.int64)), int(long_joy.sum(dtype=np.int64))
     short_decisions = total - long_total
     out = {
-        "episodes": float(len(rows)),
-        "runs": float(len(present)),
+        "episodes": float(len(decisions)),
+        "runs": float(len(per_run)),
         "median decisions": float(np.median(decisions)),
         "mean decisions": float(decisions.mean()),
         "share of long episodes": float(long.mean()),

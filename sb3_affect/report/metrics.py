@@ -19,6 +19,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from sb3_affect.report.grouped import group_mean, group_sum
+
 EMOTIONS = ("joy", "sadness", "fear", "anger")
 #: Windows of episodes the report summarises (early, after the first optimal path on average, late).
 EARLY, LATE = (1, 10), (181, 200)
@@ -66,17 +68,19 @@ class Results:
         agent: str | None = None,
         runs_per_part: int | None = None,
         labels: dict[str, Any] | None = None,
+        ordered: bool = False,
     ) -> Iterator[tuple[pd.DataFrame, pd.DataFrame]]:
         """
         ``(runs, episodes)`` of ``agent``'s runs (None: every run), about ``runs_per_part`` runs at a time (``labels``:
-        at least the runs with these label values; their chunks only).
+        at least the runs with these label values; their chunks only; ``ordered``: the parts one after the other in
+        run id order, ``ResultsStore.results_parts``).
         """
         from sb3_affect.experiments.store import ResultsStore
 
         store = ResultsStore(self.folder)
         if self.files is None:
             self.files = store.checked_files()
-        yield from store.results_parts(columns, False, agent, runs_per_part, self.files, labels)
+        yield from store.results_parts(columns, False, agent, runs_per_part, self.files, labels, ordered)
 
     def agent_episodes(
         self,
@@ -457,21 +461,37 @@ def _labels(values: pd.Series, take: np.ndarray | None, starts: np.ndarray, coun
 def _window(
     column: Any, codes: np.ndarray, episode: np.ndarray, run_codes: np.ndarray, lo: int, hi: int
 ) -> dict[str, np.ndarray]:
-    """Per run: mean over the window's episodes of per-episode fractions, and decision-weighted fractions."""
+    """
+    Per run: mean over the window's episodes of per-episode fractions, and decision-weighted fractions (NaN: a run
+    without episodes in the window). Grouped with pandas' own arithmetic (``report.grouped``), runs by position.
+    """
     rows = np.flatnonzero((episode >= lo) & (episode <= hi))
-    key = codes[rows]
-    decisions = pd.Series(column("decisions")[rows])
-    fraction_of = decisions.where(decisions > 0).to_numpy()
-    total = decisions.groupby(key).sum().reindex(run_codes).to_numpy()
+    key = np.searchsorted(run_codes, codes[rows])  # the row's run among the runs (both in run id order)
+    runs = len(run_codes)
+    absent = np.bincount(key, minlength=runs) == 0
+    decisions = column("decisions")[rows]
+    fraction_of = np.where(decisions > 0, decisions, np.nan)
+
+    def summed(values: np.ndarray) -> np.ndarray:  # integers: exact in float64; floats: pandas' Kahan sum
+        exact = np.bincount(key, weights=values, minlength=runs) if values.dtype.kind in "iub" else None
+        return np.where(absent, np.nan, group_sum(values, key, runs) if exact is None else exact)
+
+    total = summed(decisions)
     total = np.where(total > 0, total, np.nan)
     out: dict[str, np.ndarray] = {}
     for name, source in (*((x, x) for x in EMOTIONS), ("eqeps", "random_moves")):
-        values = pd.Series(column(source)[rows])
-        out[f"{name}_{lo}_{hi}"] = (values / fraction_of).groupby(key).mean().reindex(run_codes).to_numpy()
-        out[f"{name}_{lo}_{hi}_weighted"] = values.groupby(key).sum().reindex(run_codes).to_numpy() / total
-    out[f"decisions_{lo}_{hi}"] = decisions.groupby(key).mean().reindex(run_codes).to_numpy()
-    out[f"cells_{lo}_{hi}"] = pd.Series(column("cells")[rows]).groupby(key).mean().reindex(run_codes).to_numpy()
+        values = column(source)[rows]
+        out[f"{name}_{lo}_{hi}"] = group_mean(values / fraction_of, key, runs)
+        out[f"{name}_{lo}_{hi}_weighted"] = summed(values) / total
+    out[f"decisions_{lo}_{hi}"] = group_mean(decisions.astype(np.float64), key, runs)
+    out[f"cells_{lo}_{hi}"] = group_mean(column("cells")[rows].astype(np.float64), key, runs)
     return out
+
+
+def window_columns(lo: int, hi: int) -> list[str]:
+    """The columns ``run_metrics`` adds for the window ``lo..hi``."""
+    names = (*EMOTIONS, "eqeps")
+    return [*(f"{n}_{lo}_{hi}{w}" for n in names for w in ("", "_weighted")), f"decisions_{lo}_{hi}", f"cells_{lo}_{hi}"]
 
 
 def rows_where(frame: pd.DataFrame, mask: pd.Series | np.ndarray, columns: Sequence[str] | None = None) -> pd.DataFrame:
