@@ -28,11 +28,12 @@ from sb3_affect.report.mechanism import mechanism_section
 from sb3_affect.report.metrics import load_results, run_metrics
 from sb3_affect.report.readings import readings_section
 from sb3_affect.report.record import record_section
+from sb3_affect.report.scan import scan
 from sb3_affect.report.speed import speed_one_section
 from sb3_affect.report.survival import survival_section
 from sb3_affect.report.tables import figures_3_4_section, table_iv_section, table_v_section
 from sb3_affect.report.verdict import tests_section, verdict_section
-from sb3_affect.report.windows import windows_section
+from sb3_affect.report.windows import EARLY_WINDOWS, LATE_WINDOWS, windows_section
 
 Section = Callable[[ReportContext], None]
 #: Sub-folders of a replicate folder the sections may read (``ctx.folders[name]``).
@@ -250,7 +251,7 @@ def build_report(
     results = load_results(paper_dir)
     if not len(results.runs) or not int(results.runs.episodes.sum()):
         raise ValueError(f"{paper_dir / 'runs'} holds no finished runs")
-    metrics = results.metrics()  # part by part: one part's episode rows in memory at a time
+    found = scan(results, (*EARLY_WINDOWS, *LATE_WINDOWS))  # the one pass over the episode rows, part by part
     meta = largen.large_meta(run_dir)
     large = pd.read_csv(run_dir / "large" / "runs.csv.gz") if meta else None
     ctx = ReportContext(
@@ -258,13 +259,15 @@ def build_report(
         out,
         run_dir,
         results,
-        metrics,
+        found.metrics,
         folders=folders,
         large=large,
         large_meta=meta,
         timings=dict(timings or {}),
         command=command,
+        cache={"scan": found},
     )
+    del found
     for section in sections if sections is not None else [*SECTIONS, *extra_sections, *APPENDIX]:
         section(ctx)
     md = out / "report.md"

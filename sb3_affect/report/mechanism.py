@@ -145,14 +145,24 @@ def agent_profile(ctx: ReportContext, agent: str, last: int) -> pd.DataFrame:
 
 def mechanism_section(ctx: ReportContext) -> None:
     """Bimodal episodes, the meaning of equivalent epsilon, and Fig. 5 under both weightings."""
+    from sb3_affect.report.scan import paper_scan
+
     ctx.doc.h("Why the affective agent behaves as it does")
-    last = ctx.paper.last_episode(AFFECTIVE)
+    found = paper_scan(ctx)  # the report's one pass over the episode rows
+    last = found.last_episode.get(AFFECTIVE, 0)
     if not last:
         ctx.doc.p("Skipped: no affective runs.")
         return
     first = SETTLED[0] if last >= SETTLED[1] else max(1, last // 4)
-    aff = ctx.paper.agent_episodes(AFFECTIVE, ("episode", "decisions", "joy"), first, last)  # the settled window only
-    b = bimodality(aff, first, last)
+    if found.settled is not None and found.settled[0] == (first, last):
+        _, per_run, decisions, joy = found.settled
+    else:  # the scan guessed another window: read this one
+        per_run, decisions, joy = settled_part(
+            ctx.paper.agent_episodes(AFFECTIVE, ("episode", "decisions", "joy"), first, last), first, last
+        )
+    found.settled = None  # the section's own copy only from here
+    b = settled_numbers(per_run, decisions, joy)
+    del per_run, joy
 
     def ci(key: str, digits: int = 3) -> str:
         return f"{fmt(b[key], digits)} [95% CI {fmt(b[key + ' (low)'], digits)}, {fmt(b[key + ' (high)'], digits)}]"
@@ -167,7 +177,7 @@ def mechanism_section(ctx: ReportContext) -> None:
         "way) or long and mostly random (joy from the crossing on): the per-episode decisions are bimodal."
     )
     path = figures.decisions_histogram(
-        aff.decisions.to_numpy()[aff.episode.to_numpy() >= first].astype(float),
+        decisions.astype(float),
         ctx.figure("mechanism_decisions"),
         LONG,
         f"Affective agent, episodes {first}-{last}: decisions per episode",
@@ -198,8 +208,8 @@ def mechanism_section(ctx: ReportContext) -> None:
     )
     joy_section(ctx)
     ctx.doc.h("Fig. 5 under both weightings", 3)
-    del aff
-    prof = agent_profile(ctx, AFFECTIVE, last)
+    del decisions
+    prof = found.profile if found.profile is not None else agent_profile(ctx, AFFECTIVE, last)
     prof.to_csv(ctx.out / "tables" / "profile_per_episode.csv")
     rows = {}
     for lo, hi in (w for w in WINDOWS if w[1] <= last):  # a short folder shows only the windows its runs reach

@@ -46,9 +46,12 @@ def window_verdicts(aff: pd.DataFrame) -> pd.DataFrame:
 def windows_section(ctx: ReportContext) -> None:
     if ctx.verdict_refusal():
         return
-    if ctx.paper.last_episode(AFFECTIVE) < max(w[1] for w in LATE_WINDOWS):
+    from sb3_affect.report.scan import paper_scan
+
+    found = paper_scan(ctx)  # the affective runs' window features, from the report's one pass over the episodes
+    if found.last_episode.get(AFFECTIVE, 0) < max(w[1] for w in LATE_WINDOWS):
         return
-    aff = ctx.paper.metrics(AFFECTIVE, windows=(*EARLY_WINDOWS, *LATE_WINDOWS), with_runs=False)  # part by part
+    aff = found.windows
     ctx.doc.h("Fig. 5 against Fig. 6, and the windows", 3)
     ctx.doc.p(
         "With only joy and anger possible, an episode's joy share is its equivalent ε. So Fig. 6's \"about 0.3\" early "
