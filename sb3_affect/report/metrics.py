@@ -376,8 +376,20 @@ def _run_table(runs: pd.DataFrame | Sequence[dict[str, Any]] | None) -> pd.DataF
     return pd.DataFrame(rows) if rows else None
 
 
-def _vector_metrics(episodes: pd.DataFrame, windows: Sequence[tuple[int, int]] = (EARLY, LATE)) -> pd.DataFrame:
-    """The per-run metrics of ``run_metrics`` from the episode rows alone (numpy reductions over each run's rows)."""
+@dataclass
+class _Rows:
+    """The episode rows of ``_vector_metrics`` by run: codes, episode numbers and each run's span, sorted."""
+
+    codes: np.ndarray
+    names: Any
+    episode: np.ndarray
+    take: np.ndarray | None
+    starts: np.ndarray
+    counts: np.ndarray
+    run_codes: np.ndarray
+
+
+def _runs_of(episodes: pd.DataFrame) -> _Rows:
     run_ids = episodes["run_id"]
     names: Any
     if isinstance(run_ids.dtype, pd.CategoricalDtype) and run_ids.cat.categories.is_monotonic_increasing:
@@ -392,7 +404,14 @@ def _vector_metrics(episodes: pd.DataFrame, windows: Sequence[tuple[int, int]] =
         np.all((codes[1:] > codes[:-1]) | ((codes[1:] == codes[:-1]) & (episode[1:] >= episode[:-1])))
     )
     take = None if ordered else np.lexsort((episode, codes))
+    if take is not None:
+        codes, episode = codes[take], episode[take]
+    starts = np.flatnonzero(np.r_[True, codes[1:] != codes[:-1]])
+    counts = np.diff(np.r_[starts, len(codes)])
+    return _Rows(codes, names, episode, take, starts, counts, codes[starts])
 
+
+def _column_of(episodes: pd.DataFrame, take: np.ndarray | None) -> Any:
     def column(name: str) -> np.ndarray:
         values = episodes[name]
         if name in ("optimal", "truncated", "greedy_optimal") and values.dtype != bool:
@@ -400,11 +419,34 @@ def _vector_metrics(episodes: pd.DataFrame, windows: Sequence[tuple[int, int]] =
         array = values.to_numpy()
         return array if take is None else array[take]
 
-    if take is not None:
-        codes, episode = codes[take], episode[take]
-    starts = np.flatnonzero(np.r_[True, codes[1:] != codes[:-1]])
-    counts = np.diff(np.r_[starts, len(codes)])
-    run_codes = codes[starts]
+    return column
+
+
+def run_windows(episodes: pd.DataFrame, windows: Sequence[tuple[int, int]]) -> pd.DataFrame:
+    """
+    The window features of ``run_metrics`` alone (``run_id``, ``agent`` when there, and each window's columns), one
+    row per run with episodes, sorted by run id: the same numbers as ``run_metrics(episodes, windows=windows)``.
+    """
+    if not len(episodes):
+        return pd.DataFrame()
+    rows = _runs_of(episodes)
+    column = _column_of(episodes, rows.take)
+    out = pd.DataFrame({"run_id": np.asarray(rows.names)[rows.run_codes]})
+    if "agent" in episodes.columns:
+        out["agent"] = _labels(episodes["agent"], rows.take, rows.starts, rows.counts)
+    for window in windows:
+        for key, series in _window(column, rows.codes, rows.episode, rows.run_codes, *window).items():
+            out[key] = series
+    return out
+
+
+def _vector_metrics(episodes: pd.DataFrame, windows: Sequence[tuple[int, int]] = (EARLY, LATE)) -> pd.DataFrame:
+    """The per-run metrics of ``run_metrics`` from the episode rows alone (numpy reductions over each run's rows)."""
+    rows = _runs_of(episodes)
+    codes, names, episode, take = rows.codes, rows.names, rows.episode, rows.take
+    starts, counts, run_codes = rows.starts, rows.counts, rows.run_codes
+    column = _column_of(episodes, take)
+
     out = pd.DataFrame(index=pd.Index(np.asarray(names)[run_codes], name="run_id"))
     for name in (c for c in episodes.columns if c not in _EPISODE_VALUE_COLUMNS and c != "run_id"):
         out[name] = _labels(episodes[name], take, starts, counts)
@@ -486,12 +528,6 @@ def _window(
     out[f"decisions_{lo}_{hi}"] = group_mean(decisions.astype(np.float64), key, runs)
     out[f"cells_{lo}_{hi}"] = group_mean(column("cells")[rows].astype(np.float64), key, runs)
     return out
-
-
-def window_columns(lo: int, hi: int) -> list[str]:
-    """The columns ``run_metrics`` adds for the window ``lo..hi``."""
-    names = (*EMOTIONS, "eqeps")
-    return [*(f"{n}_{lo}_{hi}{w}" for n in names for w in ("", "_weighted")), f"decisions_{lo}_{hi}", f"cells_{lo}_{hi}"]
 
 
 def rows_where(frame: pd.DataFrame, mask: pd.Series | np.ndarray, columns: Sequence[str] | None = None) -> pd.DataFrame:

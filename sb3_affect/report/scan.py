@@ -29,7 +29,7 @@ import pandas as pd
 from sb3_affect.report import metrics as metrics_module
 from sb3_affect.report.context import AFFECTIVE
 from sb3_affect.report.grouped import KahanSums, Welford
-from sb3_affect.report.metrics import EARLY, EMOTIONS, LATE, Results, join_parts, run_metrics, window_columns
+from sb3_affect.report.metrics import EARLY, EMOTIONS, LATE, Results, join_parts, run_metrics, run_windows
 
 if TYPE_CHECKING:
     from sb3_affect.report.context import ReportContext
@@ -45,7 +45,8 @@ class Scan:
     What the sections read of the paper sweep's episode rows (``paper_scan``).
 
     :param metrics: ``run_metrics`` of every run (windows ``EARLY`` and ``LATE``), as ``Results.metrics()``
-    :param windows: the profile agent's runs with episodes, with the window features of ``extra_windows`` too
+    :param windows: the profile agent's runs with episodes: ``run_id``, ``agent`` and the window features of
+        ``EARLY``, ``LATE`` and ``extra_windows`` (``metrics.run_windows``)
     :param last_episode: per agent, its largest episode number
     :param curves: per (agent, ε label or None), ``(keys, counts)``: the (episode number, decisions) pairs of its
         rows (``_pair_key``), sorted, and how many rows have each
@@ -84,9 +85,9 @@ def scan(results: Results, extra_windows: Sequence[tuple[int, int]] = (), agent:
 
     runs = results.runs
     columns = tuple(dict.fromkeys((*results.columns, *metrics_module._METRIC_COLUMNS)))
-    base = (EARLY, LATE)
-    extra = tuple(w for w in dict.fromkeys(extra_windows) if w not in base)
+    windows = tuple(dict.fromkeys((EARLY, LATE, *extra_windows)))
     frames: list[pd.DataFrame] = []
+    window_frames: list[pd.DataFrame] = []
     last: dict[str, int] = {}
     curves: dict[tuple[str, Any], list[tuple[np.ndarray, np.ndarray]]] = {}
     predicted = int(runs.episodes[runs.agent == agent].max()) if (runs.agent == agent).any() else 0
@@ -94,28 +95,26 @@ def scan(results: Results, extra_windows: Sequence[tuple[int, int]] = (), agent:
     pieces: list[tuple[pd.DataFrame, np.ndarray, np.ndarray]] = []
     first_pass = _ProfileSums()
     for name in sorted(set(runs.agent)):
-        windows = (*base, *extra) if name == agent else base
         for part_runs, part in results.parts(columns, name, metrics_module.RUNS_PER_PART, ordered=True):
-            frames.append(run_metrics(part, part_runs, windows))
+            frames.append(run_metrics(part, part_runs))
             if not len(part):
                 continue
             episode = part.episode.to_numpy()
             last[name] = max(last.get(name, 0), int(episode.max()))
             _add_curves(curves, name, part)
             if name == agent:
+                window_frames.append(run_windows(part, windows))
                 pieces.append(_settled(part, *window))
                 first_pass.add(part)
             del part
     table = join_parts(frames)
     del frames
-    extra_columns = [c for w in extra for c in window_columns(*w) if c in table.columns]
-    wanted = (table.agent == agent) & (table.episodes > 0) if len(table) else np.zeros(0, bool)
-    windows_table = table[wanted].reset_index(drop=True)
-    table = table.drop(columns=extra_columns)
+    windows_table = pd.concat(window_frames, ignore_index=True) if window_frames else pd.DataFrame()  # in run id order
+    del window_frames
     settled = None
     if pieces and last.get(agent) == predicted and predicted:
         per_run = pd.concat([p[0] for p in pieces], ignore_index=True)
-        settled = (window, per_run, np.concatenate([p[1] for p in pieces]), np.concatenate([p[2] for p in pieces]))
+        settled = (window, per_run, _joined([p[1] for p in pieces]), _joined([p[2] for p in pieces]))
     del pieces
     profile = first_pass.second_pass(results, agent, columns) if first_pass.groups else None
     merged = {key: _merge(parts) for key, parts in curves.items()}
@@ -125,7 +124,20 @@ def scan(results: Results, extra_windows: Sequence[tuple[int, int]] = (), agent:
 def _settled(part: pd.DataFrame, first: int, last: int) -> tuple[pd.DataFrame, np.ndarray, np.ndarray]:
     from sb3_affect.report.mechanism import settled_part
 
-    return settled_part(part, first, last)
+    per_run, decisions, joy = settled_part(part, first, last)
+    return per_run, _compact(decisions), _compact(joy)
+
+
+def _compact(values: np.ndarray) -> np.ndarray:
+    """Integer ``values`` as int16 when they fit (the same numbers in a quarter of int64's bytes), else as they are."""
+    if values.dtype.kind == "i" and (not len(values) or (values.min() >= -(2**15) and values.max() < 2**15)):
+        return values.astype(np.int16)
+    return values
+
+
+def _joined(pieces: list[np.ndarray]) -> np.ndarray:
+    """Integer pieces end to end, in the widest dtype among them."""
+    return np.concatenate(pieces) if pieces else np.zeros(0, np.int32)
 
 
 #: Pairs (episode number, decisions) as one int64 key, ordered as the pairs (decisions within +- 2**31).
