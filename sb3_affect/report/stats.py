@@ -10,6 +10,8 @@ import numpy.typing as npt
 import pandas as pd
 from scipy import stats as sps
 
+from sb3_affect.report import resamples
+
 #: Row labels of a spreadsheet "t-Test: Paired Two Sample for Means", in its order.
 TTEST_ROWS: tuple[str, ...] = (
     "Mean",
@@ -108,43 +110,21 @@ def bootstrap_ci(
     if len(data) == 0:
         return math.nan, math.nan, math.nan
     fn = _statistic(statistic)
-    rng = np.random.default_rng(seed)
+    block = max(1, BLOCK_CELLS // len(data))
     if statistic == "iqm":
-        boots = _iqm_resamples(data, n_boot, rng)
+        order = np.argsort(data, kind="stable")
+        boots = resamples.iqm_resamples(data[order], order, n_boot, seed)
+    elif len(data) * n_boot <= resamples.KEEP_CELLS:  # the same draws as the last bootstrap of as many values
+        indices = resamples.mean_indices(len(data), n_boot, seed)
+        boots = np.concatenate([data[indices[first : first + block]].mean(axis=1) for first in range(0, n_boot, block)])
     else:
-        block = max(1, BLOCK_CELLS // len(data))
+        rng = np.random.default_rng(seed)
         parts = []
         for first in range(0, n_boot, block):
             parts.append(data[rng.integers(0, len(data), size=(min(block, n_boot - first), len(data)))].mean(axis=1))
         boots = np.concatenate(parts)
     tail = (1 - confidence) / 2 * 100
     return float(fn(data)), float(np.percentile(boots, tail)), float(np.percentile(boots, 100 - tail))
-
-
-def _iqm_resamples(data: np.ndarray, n_boot: int, rng: np.random.Generator) -> np.ndarray:
-    """
-    The IQM (scipy's 25%-trimmed mean) of ``n_boot`` resamples, each counted through how often it draws each value
-    of ``data`` sorted once: the middle half of a resample is the span of its cumulative counts between n/4 and 3n/4,
-    so a resample costs O(n), not a partition.
-    """
-    n = len(data)
-    order = np.argsort(data, kind="stable")
-    values = data[order]
-    low = int(0.25 * n)  # as scipy.stats.trim_mean cuts
-    high = n - low
-    boots = np.empty(n_boot)
-    for rep in range(n_boot):
-        drawn = np.bincount(rng.integers(0, n, n), minlength=n)[order]
-        end = np.cumsum(drawn)  # the resample sorted: value i fills positions end[i] - drawn[i] .. end[i] - 1
-        first, last = np.searchsorted(end, low, side="right"), np.searchsorted(end, high, side="left")
-        if first == last:
-            total = values[first] * (high - low)
-        else:
-            summed = np.cumsum(values * drawn)
-            middle = summed[last - 1] - summed[first]
-            total = values[first] * (end[first] - low) + middle + values[last] * (high - end[last] + drawn[last])
-        boots[rep] = total / (high - low)
-    return boots
 
 
 def bootstrap_improvement(
@@ -165,16 +145,7 @@ def bootstrap_improvement(
     a, b = a[~np.isnan(a)], b[~np.isnan(b)]
     if len(a) == 0 or len(b) == 0:
         return math.nan, math.nan, math.nan
-    below, not_above, order = _comparisons(a, b)
-    pairs = len(a) * len(b)
-    rng = np.random.default_rng(seed)
-    boots = np.empty(n_boot)
-    for rep in range(n_boot):
-        weights = np.bincount(rng.integers(0, len(a), len(a)), minlength=len(a))
-        drawn = np.r_[0, np.cumsum(np.bincount(rng.integers(0, len(b), len(b)), minlength=len(b))[order])]
-        at_most, under = drawn[not_above], drawn[below]  # resampled b values <= / < each a value
-        better = (len(b) - at_most) if lower_is_better else under
-        boots[rep] = (int(weights @ better) + 0.5 * int(weights @ (at_most - under))) / pairs
+    boots = resamples.improvement_resamples(len(a), len(b), n_boot, seed, _comparisons(a, b), lower_is_better)
     tail = (1 - confidence) / 2 * 100
     return (
         probability_of_improvement(a, b, lower_is_better),
