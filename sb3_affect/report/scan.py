@@ -19,7 +19,7 @@ Memory: one part's rows, the per-run table, the settled window's decisions and j
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -37,6 +37,8 @@ if TYPE_CHECKING:
 #: The profile's sources: each emotion, and the equivalent ε (random-direction decisions).
 SOURCES = (*((x, x) for x in EMOTIONS), ("equivalent_epsilon", "random_moves"))
 _KINDS = ("mean", "lo", "hi", "weighted", "weighted_lo", "weighted_hi")
+#: The window features the windows section reads (Figs. 5 and 6: joy and anger, both weightings; equivalent ε).
+WINDOW_SOURCES = ("joy", "anger", "eqeps")
 
 
 @dataclass
@@ -46,7 +48,7 @@ class Scan:
 
     :param metrics: ``run_metrics`` of every run (windows ``EARLY`` and ``LATE``), as ``Results.metrics()``
     :param windows: the profile agent's runs with episodes: ``run_id``, ``agent`` and the window features of
-        ``EARLY``, ``LATE`` and ``extra_windows`` (``metrics.run_windows``)
+        ``EARLY``, ``LATE`` and ``extra_windows`` (``metrics.run_windows``) the windows section reads (``WINDOW_SOURCES``)
     :param last_episode: per agent, its largest episode number
     :param curves: per (agent, ε label or None), ``(keys, counts)``: the (episode number, decisions) pairs of its
         rows (``_pair_key``), sorted, and how many rows have each
@@ -74,11 +76,17 @@ def paper_scan(ctx: ReportContext) -> Scan:
     return found
 
 
-def scan(results: Results, extra_windows: Sequence[tuple[int, int]] = (), agent: str = AFFECTIVE) -> Scan:
+def scan(
+    results: Results,
+    extra_windows: Sequence[tuple[int, int]] = (),
+    after_part: Callable[[], None] | None = None,
+    agent: str = AFFECTIVE,
+) -> Scan:
     """
     One pass over ``results``' episode rows (and a second over ``agent``'s, for the profile's bands).
 
     :param extra_windows: window features computed for ``agent``'s runs besides ``EARLY`` and ``LATE``
+    :param after_part: called after each part (e.g. to hand the part's memory back to the system)
     :param agent: the agent of the windows, the settled window and the profile (the affective agent)
     """
     from sb3_affect.report.mechanism import SETTLED
@@ -103,10 +111,12 @@ def scan(results: Results, extra_windows: Sequence[tuple[int, int]] = (), agent:
             last[name] = max(last.get(name, 0), int(episode.max()))
             _add_curves(curves, name, part)
             if name == agent:
-                window_frames.append(run_windows(part, windows))
+                window_frames.append(_narrowed(run_windows(part, windows)))
                 pieces.append(_settled(part, *window))
                 first_pass.add(part)
             del part
+            if after_part is not None:
+                after_part()
     table = join_parts(frames)
     del frames
     windows_table = pd.concat(window_frames, ignore_index=True) if window_frames else pd.DataFrame()  # in run id order
@@ -116,9 +126,15 @@ def scan(results: Results, extra_windows: Sequence[tuple[int, int]] = (), agent:
         per_run = pd.concat([p[0] for p in pieces], ignore_index=True)
         settled = (window, per_run, _joined([p[1] for p in pieces]), _joined([p[2] for p in pieces]))
     del pieces
-    profile = first_pass.second_pass(results, agent, columns) if first_pass.groups else None
+    profile = first_pass.second_pass(results, agent, after_part) if first_pass.groups else None
     merged = {key: _merge(parts) for key, parts in curves.items()}
     return Scan(table, windows_table, last, merged, settled, profile)
+
+
+def _narrowed(windows: pd.DataFrame) -> pd.DataFrame:
+    """The columns of ``run_windows`` the windows section reads (``WINDOW_SOURCES``)."""
+    kept = [c for c in windows.columns if c in ("run_id", "agent") or c.split("_")[0] in WINDOW_SOURCES]
+    return windows[[c for c in kept if not (c.startswith("eqeps") and c.endswith("_weighted"))]]
 
 
 def _settled(part: pd.DataFrame, first: int, last: int) -> tuple[pd.DataFrame, np.ndarray, np.ndarray]:
@@ -255,7 +271,7 @@ class _ProfileSums:
             else:
                 self.float_sums.setdefault(name, KahanSums()).add(values, episode, self.groups)
 
-    def second_pass(self, results: Results, agent: str, columns: Sequence[str]) -> pd.DataFrame:
+    def second_pass(self, results: Results, agent: str, after_part: Callable[[], None] | None) -> pd.DataFrame:
         """The bands of the decision-weighted fractions (a second read of the agent's rows), and the profile."""
         present = np.flatnonzero(self.rows)
         totals = self.decisions
@@ -275,6 +291,8 @@ class _ProfileSums:
                 values = part[source].to_numpy()
                 residuals[name].add(values - ratios[name][episode] * decisions, episode, self.groups)
             del part
+            if after_part is not None:
+                after_part()
         index = pd.Index(present.astype(np.int64))
         series: dict[str, dict[str, pd.Series]] = {kind: {} for kind in _KINDS}
         per_run_decisions = pd.Series(totals[present] / self.rows[present], index=index)
