@@ -118,3 +118,82 @@ def group_sum(values: np.ndarray, labels: np.ndarray, groups: int) -> np.ndarray
     sums = KahanSums()
     sums.add(values, labels, groups)
     return sums.sums
+
+
+@njit(cache=True)
+def _window_bounds(
+    episode: np.ndarray, starts: np.ndarray, counts: np.ndarray, lo: int, hi: int, first: np.ndarray, last: np.ndarray
+) -> None:
+    for run in range(len(starts)):
+        i, end = starts[run], starts[run] + counts[run]
+        while i < end and episode[i] < lo:
+            i += 1
+        j = i
+        while j < end and episode[j] <= hi:
+            j += 1
+        first[run], last[run] = i, j
+
+
+def window_bounds(
+    episode: np.ndarray, starts: np.ndarray, counts: np.ndarray, lo: int, hi: int
+) -> tuple[np.ndarray, np.ndarray]:
+    """
+    Per run (rows ``starts[r] .. starts[r] + counts[r] - 1``, episodes ascending): the rows ``first .. last - 1`` whose
+    episode is within ``lo..hi`` (``first == last``: none).
+    """
+    first, last = np.empty(len(starts), np.int64), np.empty(len(starts), np.int64)
+    _window_bounds(episode, starts.astype(np.int64), counts.astype(np.int64), lo, hi, first, last)
+    return first, last
+
+
+@njit(cache=True)
+def _segment_kahan(
+    values: np.ndarray,
+    first: np.ndarray,
+    last: np.ndarray,
+    divisor: np.ndarray,
+    use_divisor: bool,
+    means: np.ndarray,
+    sums: np.ndarray,
+) -> None:
+    for run in range(len(first)):
+        nobs, total, comp = 0, 0.0, 0.0  # pandas' mean of the fractions (or of the values)
+        summed, summed_comp = 0.0, 0.0  # pandas' sum of the values
+        for i in range(first[run], last[run]):
+            x = float(values[i])
+            if x == x:
+                y = x - summed_comp
+                t = summed + y
+                summed_comp = t - summed - y
+                if summed_comp != summed_comp:
+                    summed_comp = 0.0
+                summed = t
+            if use_divisor:
+                if divisor[i] <= 0:
+                    continue
+                x = x / float(divisor[i])
+            if x != x:
+                continue
+            nobs += 1
+            y = x - comp
+            t = total + y
+            comp = t - total - y
+            if comp != comp:
+                comp = 0.0
+            total = t
+        means[run] = total / nobs if nobs > 0 else np.nan
+        sums[run] = summed
+
+
+def segment_means(
+    values: np.ndarray, first: np.ndarray, last: np.ndarray, divisor: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """
+    Per run, over its rows ``first .. last - 1`` in order: pandas' ``groupby(run).mean()`` of ``values`` (of
+    ``values / divisor`` where ``divisor > 0``, when given; NaN: nothing to average) and ``groupby(run).sum()`` of
+    ``values`` (0.0: no rows).
+    """
+    means, sums = np.empty(len(first)), np.empty(len(first))
+    none = np.zeros(0, np.int64)
+    _segment_kahan(values, first, last, none if divisor is None else divisor, divisor is not None, means, sums)
+    return means, sums

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from sb3_affect.report.grouped import group_mean, group_sum
+from sb3_affect.report.grouped import segment_means, window_bounds
 
 EMOTIONS = ("joy", "sadness", "fear", "anger")
 #: Windows of episodes the report summarises (early, after the first optimal path on average, late).
@@ -435,7 +435,7 @@ def run_windows(episodes: pd.DataFrame, windows: Sequence[tuple[int, int]]) -> p
     if "agent" in episodes.columns:
         out["agent"] = _labels(episodes["agent"], rows.take, rows.starts, rows.counts)
     for window in windows:
-        for key, series in _window(column, rows.codes, rows.episode, rows.run_codes, *window).items():
+        for key, series in _window(column, rows.starts, rows.counts, rows.episode, *window).items():
             out[key] = series
     return out
 
@@ -477,7 +477,7 @@ def _vector_metrics(episodes: pd.DataFrame, windows: Sequence[tuple[int, int]] =
     out["total_decisions"] = total_decisions
     del decisions, cells, before, upto_greedy
     for window in windows:
-        for key, series in _window(column, codes, episode, run_codes, *window).items():
+        for key, series in _window(column, starts, counts, episode, *window).items():
             out[key] = series
     return out.reset_index()
 
@@ -501,32 +501,24 @@ def _labels(values: pd.Series, take: np.ndarray | None, starts: np.ndarray, coun
 
 
 def _window(
-    column: Any, codes: np.ndarray, episode: np.ndarray, run_codes: np.ndarray, lo: int, hi: int
+    column: Any, starts: np.ndarray, counts: np.ndarray, episode: np.ndarray, lo: int, hi: int
 ) -> dict[str, np.ndarray]:
     """
     Per run: mean over the window's episodes of per-episode fractions, and decision-weighted fractions (NaN: a run
-    without episodes in the window). Grouped with pandas' own arithmetic (``report.grouped``), runs by position.
+    without episodes in the window), with pandas' groupby arithmetic in row order (``report.grouped``).
     """
-    rows = np.flatnonzero((episode >= lo) & (episode <= hi))
-    key = np.searchsorted(run_codes, codes[rows])  # the row's run among the runs (both in run id order)
-    runs = len(run_codes)
-    absent = np.bincount(key, minlength=runs) == 0
-    decisions = column("decisions")[rows]
-    fraction_of = np.where(decisions > 0, decisions, np.nan)
-
-    def summed(values: np.ndarray) -> np.ndarray:  # integers: exact in float64; floats: pandas' Kahan sum
-        exact = np.bincount(key, weights=values, minlength=runs) if values.dtype.kind in "iub" else None
-        return np.where(absent, np.nan, group_sum(values, key, runs) if exact is None else exact)
-
-    total = summed(decisions)
-    total = np.where(total > 0, total, np.nan)
+    first, last = window_bounds(episode, starts, counts, lo, hi)
+    absent = first == last
+    decisions = column("decisions")
+    means, total = segment_means(decisions, first, last)
+    total = np.where(absent | ~(total > 0), np.nan, total)
     out: dict[str, np.ndarray] = {}
     for name, source in (*((x, x) for x in EMOTIONS), ("eqeps", "random_moves")):
-        values = column(source)[rows]
-        out[f"{name}_{lo}_{hi}"] = group_mean(values / fraction_of, key, runs)
-        out[f"{name}_{lo}_{hi}_weighted"] = summed(values) / total
-    out[f"decisions_{lo}_{hi}"] = group_mean(decisions.astype(np.float64), key, runs)
-    out[f"cells_{lo}_{hi}"] = group_mean(column("cells")[rows].astype(np.float64), key, runs)
+        fraction, summed = segment_means(column(source), first, last, decisions)
+        out[f"{name}_{lo}_{hi}"] = fraction
+        out[f"{name}_{lo}_{hi}_weighted"] = np.where(absent, np.nan, summed) / total
+    out[f"decisions_{lo}_{hi}"] = means
+    out[f"cells_{lo}_{hi}"] = segment_means(column("cells"), first, last)[0]
     return out
 
 
