@@ -262,3 +262,16 @@ def test_bootstraps_are_the_draw_by_draw_numbers(keep: int, monkeypatch: pytest.
                 got = bootstrap_improvement(values[~np.isnan(values)], other, n_boot=40, seed=2, lower_is_better=lower)
                 assert got[1:] == _draw_by_draw_improvement(values[~np.isnan(values)], other, 40, 2, lower), (n, lower)
     resamples.forget()
+
+
+def test_the_mechanism_bootstrap_of_integer_sums_is_the_gathered_one() -> None:
+    """Counts times values (integers: exact) against the values gathered and added, for the same seeded draws."""
+    rng = np.random.default_rng(4)
+    per_run = pd.DataFrame({"a": rng.integers(0, 50, 3001).astype(float), "b": rng.integers(1, 90, 3001).astype(float)})
+    statistics = {"a over b": "a/b", "b over a": "b/a"}
+    got = mechanism._bootstrap(per_run, statistics, reps=300, seed=3)
+    draws = np.random.default_rng(3).integers(0, 3001, size=(300, 3001))
+    for key, ratio in statistics.items():
+        num, den = (per_run[c].to_numpy()[draws].sum(axis=1) for c in ratio.split("/"))
+        expected = np.nanpercentile(num / np.where(den > 0, den, np.nan), [2.5, 97.5])
+        assert got[key] == (float(expected[0]), float(expected[1])), key

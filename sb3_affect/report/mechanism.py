@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from sb3_affect.report import figures
+from sb3_affect.report import figures, resamples
 from sb3_affect.report.context import AFFECTIVE, ReportContext
 from sb3_affect.report.document import fmt, sig
 from sb3_affect.report.metrics import EMOTIONS, profile, window_mean
@@ -38,8 +38,18 @@ def _bootstrap(
     columns = {name: per_run[name].to_numpy(float) for ratio in statistics.values() for name in ratio.split("/")}
     sums: dict[str, list[np.ndarray]] = {name: [] for name in columns}
     block = max(1, BLOCK_CELLS // max(1, n))
+    matrix = np.column_stack(list(columns.values())) if columns else np.zeros((n, 0))
+    # integers whose every resample sum stays below 2**53: exact in any order, so a resample's sums are its draw
+    # counts times the values (one matrix product) rather than the values gathered and added
+    exact = bool(np.all(matrix == np.round(matrix))) and n * float(np.abs(matrix).max(initial=0.0)) < 2.0**53
     for first in range(0, reps, block):
         idx = rng.integers(0, n, size=(min(block, reps - first), n))
+        if exact:
+            counts = np.zeros(idx.shape, np.int32)
+            resamples.count_draws(idx, counts)
+            for name, summed in zip(columns, (counts @ matrix).T):
+                sums[name].append(summed)
+            continue
         for name, values in columns.items():
             sums[name].append(values[idx].sum(axis=1))
     out = {}

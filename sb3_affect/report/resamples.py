@@ -67,8 +67,8 @@ def mean_indices(n: int, n_boot: int, seed: int) -> np.ndarray:
 
 
 @njit(cache=True)
-def _count(draws: np.ndarray, out: np.ndarray) -> None:
-    """``out[rep]``: how often each value is drawn in ``draws[rep]`` (``bincount`` of each row)."""
+def count_draws(draws: np.ndarray, out: np.ndarray) -> None:
+    """Add to ``out[rep]`` how often each value is drawn in ``draws[rep]`` (``bincount`` of each row)."""
     for rep in range(draws.shape[0]):
         for j in range(draws.shape[1]):
             out[rep, draws[rep, j]] += 1
@@ -87,7 +87,7 @@ def iqm_resamples(values: np.ndarray, order: np.ndarray, n_boot: int, seed: int)
 
     def drawn(rng: np.random.Generator, first: int) -> np.ndarray:
         out = np.zeros((min(block, n_boot - first), n), np.int32)
-        _count(rng.integers(0, n, size=out.shape), out)
+        count_draws(rng.integers(0, n, size=out.shape), out)
         return out
 
     def make() -> np.ndarray:
