@@ -443,7 +443,7 @@ def run_windows(episodes: pd.DataFrame, windows: Sequence[tuple[int, int]]) -> p
 def _vector_metrics(episodes: pd.DataFrame, windows: Sequence[tuple[int, int]] = (EARLY, LATE)) -> pd.DataFrame:
     """The per-run metrics of ``run_metrics`` from the episode rows alone (numpy reductions over each run's rows)."""
     rows = _runs_of(episodes)
-    codes, names, episode, take = rows.codes, rows.names, rows.episode, rows.take
+    names, episode, take = rows.names, rows.episode, rows.take
     starts, counts, run_codes = rows.starts, rows.counts, rows.run_codes
     column = _column_of(episodes, take)
 

@@ -203,3 +203,50 @@ def improvement_of_counts(
             better += w * ((n_b - at_most) if lower_is_better else under)
             ties += w * (at_most - under)
         out[rep] = (float(better) + 0.5 * float(ties)) / pairs
+
+
+@njit(cache=True)
+def _pairwise(data: np.ndarray, index: np.ndarray, lo: int, n: int) -> float:
+    """numpy's pairwise sum (``pairwise_sum_DOUBLE``: blocks of 128 in eight running sums) of ``data[index[lo:lo + n]]``."""
+    if n < 8:
+        res = 0.0
+        for i in range(lo, lo + n):
+            res += data[index[i]]
+        return res
+    if n <= 128:
+        r0, r1, r2, r3 = data[index[lo]], data[index[lo + 1]], data[index[lo + 2]], data[index[lo + 3]]
+        r4, r5, r6, r7 = data[index[lo + 4]], data[index[lo + 5]], data[index[lo + 6]], data[index[lo + 7]]
+        i = 8
+        while i < n - (n % 8):
+            j = lo + i
+            r0 += data[index[j]]
+            r1 += data[index[j + 1]]
+            r2 += data[index[j + 2]]
+            r3 += data[index[j + 3]]
+            r4 += data[index[j + 4]]
+            r5 += data[index[j + 5]]
+            r6 += data[index[j + 6]]
+            r7 += data[index[j + 7]]
+            i += 8
+        res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+        while i < n:
+            res += data[index[lo + i]]
+            i += 1
+        return res
+    half = n // 2
+    half -= half % 8
+    return _pairwise(data, index, lo, half) + _pairwise(data, index, lo + half, n - half)
+
+
+@njit(cache=True)
+def _means(data: np.ndarray, indices: np.ndarray, out: np.ndarray) -> None:
+    n = indices.shape[1]
+    for rep in range(indices.shape[0]):
+        out[rep] = (0.0 + _pairwise(data, indices[rep], 0, n)) / n
+
+
+def resample_means(data: np.ndarray, indices: np.ndarray) -> np.ndarray:
+    """``data[indices].mean(axis=1)`` to the last bit (numpy's summation order), without the gathered matrix."""
+    out = np.empty(len(indices))
+    _means(np.ascontiguousarray(data, np.float64), indices, out)
+    return out

@@ -115,8 +115,7 @@ def bootstrap_ci(
         order = np.argsort(data, kind="stable")
         boots = resamples.iqm_resamples(data[order], order, n_boot, seed)
     elif len(data) * n_boot <= resamples.KEEP_CELLS:  # the same draws as the last bootstrap of as many values
-        indices = resamples.mean_indices(len(data), n_boot, seed)
-        boots = np.concatenate([data[indices[first : first + block]].mean(axis=1) for first in range(0, n_boot, block)])
+        boots = resamples.resample_means(data, resamples.mean_indices(len(data), n_boot, seed))
     else:
         rng = np.random.default_rng(seed)
         parts = []
