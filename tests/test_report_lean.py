@@ -23,7 +23,7 @@ from sb3_affect.report.grouped import KahanSums, Welford
 from sb3_affect.report.mechanism import bimodality, settled_numbers
 from sb3_affect.report.metrics import EMOTIONS, REPORT_COLUMNS, load_results, profile, rows_where, run_metrics, run_windows
 from sb3_affect.report.scan import curve_quantiles, merge_curves, scan
-from sb3_affect.report.stats import BLOCK_CELLS, bootstrap_ci, bootstrap_improvement, iqm
+from sb3_affect.report.stats import BLOCK_CELLS, bootstrap_ci, bootstrap_improvement, bootstrap_iqm_cis, iqm
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = ROOT / "experiments" / "paper.yaml"
@@ -257,6 +257,10 @@ def test_bootstraps_are_the_draw_by_draw_numbers(keep: int, monkeypatch: pytest.
                 expected = _draw_by_draw_ci(values, statistic, 120, n)
                 assert bootstrap_ci(values, statistic, n_boot=120, seed=n) == expected, (n, statistic)
                 assert bootstrap_ci(values, statistic, n_boot=120, seed=n) == expected, (n, statistic)  # kept draws
+            shared = [values, values[::-1] * 2.0, np.sqrt(np.abs(values))]  # one size: one set of draws
+            assert bootstrap_iqm_cis(shared, n_boot=120, seed=n) == [_draw_by_draw_ci(v, "iqm", 120, n) for v in shared]
+            mixed = [values, values[: max(1, n // 2)]]  # sizes differ: each its own draws
+            assert bootstrap_iqm_cis(mixed, n_boot=120, seed=n) == [_draw_by_draw_ci(v, "iqm", 120, n) for v in mixed]
             other = rng.lognormal(3.0, 2.0, max(1, n // 3))
             for lower in (True, False):
                 got = bootstrap_improvement(values[~np.isnan(values)], other, n_boot=40, seed=2, lower_is_better=lower)

@@ -12,7 +12,7 @@ are the same to the last bit (tests/test_report_lean.py compares them with that 
 from __future__ import annotations
 
 from collections import OrderedDict
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
@@ -79,10 +79,15 @@ def iqm_resamples(values: np.ndarray, order: np.ndarray, n_boot: int, seed: int)
     The IQM of ``n_boot`` resamples of ``values`` (sorted; ``order`` their sort of the sample), each resample drawn as
     ``rng.integers(0, n, n)`` from one generator seeded ``seed``: ``stats._iqm_resamples``' numbers.
     """
-    n = len(values)
+    return iqm_resamples_of([values], [order], n_boot, seed)[0]
+
+
+def iqm_resamples_of(samples: Sequence[np.ndarray], orders: Sequence[np.ndarray], n_boot: int, seed: int) -> list[np.ndarray]:
+    """``iqm_resamples`` of several samples of one size (sorted, with their sorts), from one set of draws."""
+    n = len(samples[0])
     low = int(0.25 * n)  # as scipy.stats.trim_mean cuts
     high = n - low
-    boots = np.empty(n_boot)
+    every = [np.empty(n_boot) for _ in samples]
     block = max(1, BLOCK_CELLS // max(1, n))
 
     def drawn(rng: np.random.Generator, first: int) -> np.ndarray:
@@ -95,13 +100,16 @@ def iqm_resamples(values: np.ndarray, order: np.ndarray, n_boot: int, seed: int)
         return np.concatenate([drawn(rng, first) for first in range(0, n_boot, block)]).astype(_narrow(n))
 
     if n * n_boot <= KEEP_CELLS:
-        iqm_of_counts(kept(("counts", n, n_boot, seed), n * n_boot, make), order, values, low, high, boots)
-        return boots
+        counts = kept(("counts", n, n_boot, seed), n * n_boot, make)
+        for values, order, boots in zip(samples, orders, every):
+            iqm_of_counts(counts, order, values, low, high, boots)
+        return every
     rng = np.random.default_rng(seed)
     for first in range(0, n_boot, block):  # too many to keep: a block at a time
         part = drawn(rng, first)
-        iqm_of_counts(part, order, values, low, high, boots[first : first + len(part)])
-    return boots
+        for values, order, boots in zip(samples, orders, every):
+            iqm_of_counts(part, order, values, low, high, boots[first : first + len(part)])
+    return every
 
 
 def improvement_resamples(

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 import numpy.typing as npt
@@ -124,6 +124,26 @@ def bootstrap_ci(
         boots = np.concatenate(parts)
     tail = (1 - confidence) / 2 * 100
     return float(fn(data)), float(np.percentile(boots, tail)), float(np.percentile(boots, 100 - tail))
+
+
+def bootstrap_iqm_cis(
+    samples: Sequence[npt.ArrayLike], n_boot: int = 2000, confidence: float = 0.95, seed: int = 0
+) -> list[tuple[float, float, float]]:
+    """
+    ``bootstrap_ci(values, "iqm", n_boot, confidence, seed)`` of each sample: samples of one size (missing values left
+    out) share the draws, drawn once.
+    """
+    data = [np.asarray(values, dtype=float) for values in samples]
+    data = [values[~np.isnan(values)] for values in data]
+    if len({len(values) for values in data}) != 1 or not len(data[0]):
+        return [bootstrap_ci(values, "iqm", n_boot, confidence, seed) for values in data]
+    orders = [np.argsort(values, kind="stable") for values in data]
+    every = resamples.iqm_resamples_of([v[o] for v, o in zip(data, orders)], orders, n_boot, seed)
+    tail = (1 - confidence) / 2 * 100
+    return [
+        (iqm(values), float(np.percentile(boots, tail)), float(np.percentile(boots, 100 - tail)))
+        for values, boots in zip(data, every)
+    ]
 
 
 def bootstrap_improvement(
