@@ -214,43 +214,66 @@ def improvement_of_counts(
 
 
 @njit(cache=True)
-def _pairwise(data: np.ndarray, index: np.ndarray, lo: int, n: int) -> float:
-    """numpy's pairwise sum (``pairwise_sum_DOUBLE``: blocks of 128 in eight running sums) of ``data[index[lo:lo + n]]``."""
+def _block_sum(data: np.ndarray, index: np.ndarray, lo: int, n: int) -> float:
+    """numpy's pairwise sum of a block of at most 128 values: eight running sums, then the rest one by one."""
     if n < 8:
         res = 0.0
         for i in range(lo, lo + n):
             res += data[index[i]]
         return res
-    if n <= 128:
-        r0, r1, r2, r3 = data[index[lo]], data[index[lo + 1]], data[index[lo + 2]], data[index[lo + 3]]
-        r4, r5, r6, r7 = data[index[lo + 4]], data[index[lo + 5]], data[index[lo + 6]], data[index[lo + 7]]
-        i = 8
-        while i < n - (n % 8):
-            j = lo + i
-            r0 += data[index[j]]
-            r1 += data[index[j + 1]]
-            r2 += data[index[j + 2]]
-            r3 += data[index[j + 3]]
-            r4 += data[index[j + 4]]
-            r5 += data[index[j + 5]]
-            r6 += data[index[j + 6]]
-            r7 += data[index[j + 7]]
-            i += 8
-        res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
-        while i < n:
-            res += data[index[lo + i]]
-            i += 1
-        return res
-    half = n // 2
-    half -= half % 8
-    return _pairwise(data, index, lo, half) + _pairwise(data, index, lo + half, n - half)
+    r0, r1, r2, r3 = data[index[lo]], data[index[lo + 1]], data[index[lo + 2]], data[index[lo + 3]]
+    r4, r5, r6, r7 = data[index[lo + 4]], data[index[lo + 5]], data[index[lo + 6]], data[index[lo + 7]]
+    i = 8
+    while i < n - (n % 8):
+        j = lo + i
+        r0 += data[index[j]]
+        r1 += data[index[j + 1]]
+        r2 += data[index[j + 2]]
+        r3 += data[index[j + 3]]
+        r4 += data[index[j + 4]]
+        r5 += data[index[j + 5]]
+        r6 += data[index[j + 6]]
+        r7 += data[index[j + 7]]
+        i += 8
+    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    while i < n:
+        res += data[index[lo + i]]
+        i += 1
+    return res
 
 
 @njit(cache=True)
 def _means(data: np.ndarray, indices: np.ndarray, out: np.ndarray) -> None:
+    """
+    ``data[indices].mean(axis=1)`` with numpy's pairwise sum (``pairwise_sum_DOUBLE``): a run of more than 128 values
+    is the sum of its halves (the first half's length a multiple of 8), added as numpy adds them. Without recursion
+    (numba's cached code and recursion do not mix): the halves on a stack, their sums on another.
+    """
     n = indices.shape[1]
+    los, sizes, pending = np.empty(256, np.int64), np.empty(256, np.int64), np.empty(256, np.int64)
+    sums = np.empty(256)
     for rep in range(indices.shape[0]):
-        out[rep] = (0.0 + _pairwise(data, indices[rep], 0, n)) / n
+        index = indices[rep]
+        top, filled = 0, 0
+        los[0], sizes[0], pending[0] = 0, n, 0
+        top = 1
+        while top:
+            top -= 1
+            lo, size, state = los[top], sizes[top], pending[top]
+            if state == 1:  # both halves summed: left + right
+                filled -= 1
+                sums[filled - 1] = sums[filled - 1] + sums[filled]
+            elif size <= 128:
+                sums[filled] = _block_sum(data, index, lo, size)
+                filled += 1
+            else:
+                half = size // 2
+                half -= half % 8
+                los[top], sizes[top], pending[top] = lo, size, 1  # then add them
+                los[top + 1], sizes[top + 1], pending[top + 1] = lo + half, size - half, 0  # the right half second
+                los[top + 2], sizes[top + 2], pending[top + 2] = lo, half, 0  # the left half first
+                top += 3
+        out[rep] = (0.0 + sums[0]) / n
 
 
 def resample_means(data: np.ndarray, indices: np.ndarray) -> np.ndarray:
