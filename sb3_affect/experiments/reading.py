@@ -11,7 +11,7 @@ run id, each run's episodes in the order stored (episode order).
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -125,7 +125,11 @@ def ordered_file_parts(
 
 
 def read_folder(
-    json_files: Sequence[Path], chunk_files: Sequence[Path], columns: Sequence[str] | None, root: Path
+    json_files: Sequence[Path],
+    chunk_files: Sequence[Path],
+    columns: Sequence[str] | None,
+    root: Path,
+    footers: Mapping[Path, dict[str, Any]] | None = None,
 ) -> tuple[pd.DataFrame, dict[str, np.ndarray]]:
     """
     The run table of a results folder and (unless ``columns`` is None) its episode columns.
@@ -134,6 +138,7 @@ def read_folder(
     :param chunk_files: the chunks (``DIR/chunks/*.parquet``)
     :param columns: the episode columns wanted, or None for the run table only (chunks: footers only)
     :param root: the folder (for error messages)
+    :param footers: the chunks' footers when already read (``FolderFiles.chunk_files``): not parsed again
     :return: ``(runs, data)``: ``runs`` one row per finished run sorted by run id (``RUN_COLUMNS`` and the labels);
         ``data`` the episode columns and ``run`` (int32, the row in ``runs``), each run's rows together
     """
@@ -155,7 +160,10 @@ def read_folder(
     chunks: list[tuple[Path, int, np.ndarray]] = []  # (file, its first run's row in the read order, run starts)
     total = len(rows)
     for path in chunk_files:
-        meta, run = guarded(path, lambda p: _chunk_footer(p, columns is not None))
+        if footers is not None and path in footers and columns is not None:
+            meta, run = footers[path], guarded(path, lambda p: chunk_table(p, ())["run"])
+        else:
+            meta, run = guarded(path, lambda p: _chunk_footer(p, columns is not None))
         base, count = meta["base"], len(meta["runs"])
         ids, seeds, replicates, decisions = (list(values) for values in zip(*meta["runs"])) if count else ([],) * 4
         episodes_per_run: Any = base["episodes"]  # the footer only: the batch's episode budget
