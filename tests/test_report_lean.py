@@ -15,14 +15,14 @@ import pytest
 
 from sb3_affect.experiments import ResultsStore, run_sweep
 from sb3_affect.experiments.reading import ordered_file_parts
-from sb3_affect.report import mechanism, metrics, resamples
+from sb3_affect.report import mechanism, metrics, resamples, settled
 from sb3_affect.report.build import build_report
 from sb3_affect.report.context import AFFECTIVE, STANDARD
 from sb3_affect.report.figures import episode_quantiles
 from sb3_affect.report.grouped import KahanSums, Welford
-from sb3_affect.report.mechanism import bimodality, settled_numbers
 from sb3_affect.report.metrics import EMOTIONS, REPORT_COLUMNS, load_results, profile, rows_where, run_metrics, run_windows
 from sb3_affect.report.scan import curve_quantiles, merge_curves, scan
+from sb3_affect.report.settled import bimodality, settled_numbers
 from sb3_affect.report.stats import BLOCK_CELLS, bootstrap_ci, bootstrap_improvement, bootstrap_iqm_cis, iqm
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -273,7 +273,7 @@ def test_the_mechanism_bootstrap_of_integer_sums_is_the_gathered_one() -> None:
     rng = np.random.default_rng(4)
     per_run = pd.DataFrame({"a": rng.integers(0, 50, 3001).astype(float), "b": rng.integers(1, 90, 3001).astype(float)})
     statistics = {"a over b": "a/b", "b over a": "b/a"}
-    got = mechanism._bootstrap(per_run, statistics, reps=300, seed=3)
+    got = settled._bootstrap(per_run, statistics, reps=300, seed=3)
     draws = np.random.default_rng(3).integers(0, 3001, size=(300, 3001))
     for key, ratio in statistics.items():
         num, den = (per_run[c].to_numpy()[draws].sum(axis=1) for c in ratio.split("/"))

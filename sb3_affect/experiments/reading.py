@@ -160,6 +160,7 @@ def read_folder(
     chunks: list[tuple[Path, int, np.ndarray]] = []  # (file, its first run's row in the read order, run starts)
     total = len(rows)
     for path in chunk_files:
+        run: np.ndarray | None
         if footers is not None and path in footers and columns is not None:
             meta, run = footers[path], guarded(path, lambda p: chunk_table(p, ())["run"])
         else:

@@ -25,7 +25,7 @@ from sb3_affect.report.document import Document, fmt
 from sb3_affect.report.dqn import dqn_section, learning_curves_section
 from sb3_affect.report.evidence import evidence_section
 from sb3_affect.report.mechanism import mechanism_section
-from sb3_affect.report.metrics import load_results, run_metrics
+from sb3_affect.report.metrics import EARLY_WINDOWS, LATE_WINDOWS, load_results, run_metrics
 from sb3_affect.report.readings import readings_section
 from sb3_affect.report.record import record_section
 from sb3_affect.report.scan import scan
@@ -33,7 +33,7 @@ from sb3_affect.report.speed import speed_one_section
 from sb3_affect.report.survival import survival_section
 from sb3_affect.report.tables import figures_3_4_section, table_iv_section, table_v_section
 from sb3_affect.report.verdict import tests_section, verdict_section
-from sb3_affect.report.windows import EARLY_WINDOWS, LATE_WINDOWS, windows_section
+from sb3_affect.report.windows import windows_section
 
 Section = Callable[[ReportContext], None]
 #: Sub-folders of a replicate folder the sections may read (``ctx.folders[name]``).

@@ -24,6 +24,9 @@ from sb3_affect.report.grouped import segment_means, window_bounds
 EMOTIONS = ("joy", "sadness", "fear", "anger")
 #: Windows of episodes the report summarises (early, after the first optimal path on average, late).
 EARLY, LATE = (1, 10), (181, 200)
+#: The early and late windows the windows section tries (Figs. 5 and 6: how the verdicts move with the windows).
+EARLY_WINDOWS = ((1, 5), (1, 10), (1, 20), (11, 30))
+LATE_WINDOWS = ((151, 200), (181, 200), (191, 200))
 #: The episode columns the report reads (``load_results``): what the sections use, nothing more.
 REPORT_COLUMNS = ("episode", "decisions", "cells", "optimal", "truncated", "random_moves", *EMOTIONS, "greedy_optimal")
 

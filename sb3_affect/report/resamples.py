@@ -57,7 +57,7 @@ def mean_indices(n: int, n_boot: int, seed: int) -> np.ndarray:
 
     def make() -> np.ndarray:
         rng = np.random.default_rng(seed)
-        out = np.empty((n_boot, n), _narrow(n))
+        out: np.ndarray = np.empty((n_boot, n), _narrow(n))
         block = max(1, BLOCK_CELLS // max(1, n))
         for first in range(0, n_boot, block):
             out[first : first + block] = rng.integers(0, n, size=(min(block, n_boot - first), n))
@@ -164,7 +164,7 @@ def iqm_of_counts(counts: np.ndarray, order: np.ndarray, values: np.ndarray, low
         end_first, end_last, drawn_last = 0, 0, 0
         acc, at_first, before_last = 0.0, 0.0, 0.0
         for i in range(len(order)):
-            drawn = np.int64(counts[rep, order[i]])
+            drawn = int(counts[rep, order[i]])
             end += drawn
             previous = acc
             acc = values[i] * drawn if i == 0 else acc + values[i] * drawn  # the running sum of numpy's cumsum

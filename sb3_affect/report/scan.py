@@ -9,7 +9,7 @@ per-run metrics) is reduced here, part by part, while the rows are read once.
   section for the affective agent;
 - the largest episode number of each agent;
 - the learning curves' counts: per (agent, ε) and episode number, how many runs took each number of decisions;
-- the affective agent's settled window (``mechanism.settled_part``) and its per-episode emotion profile (``profile``:
+- the affective agent's settled window (``settled.settled_part``) and its per-episode emotion profile (``profile``:
   a second pass over its rows for the delta-method bands, which need the pooled ratios of the first).
 
 Every reduction either sums integers (exact in any order) or adds floats in the order a whole-frame pandas groupby
@@ -29,7 +29,18 @@ import pandas as pd
 from sb3_affect.report import metrics as metrics_module
 from sb3_affect.report.context import AFFECTIVE
 from sb3_affect.report.grouped import KahanSums, Welford
-from sb3_affect.report.metrics import EARLY, EMOTIONS, LATE, Results, join_parts, run_metrics, run_windows
+from sb3_affect.report.metrics import (
+    EARLY,
+    EARLY_WINDOWS,
+    EMOTIONS,
+    LATE,
+    LATE_WINDOWS,
+    Results,
+    join_parts,
+    run_metrics,
+    run_windows,
+)
+from sb3_affect.report.settled import SETTLED, settled_part
 
 if TYPE_CHECKING:
     from sb3_affect.report.context import ReportContext
@@ -52,7 +63,7 @@ class Scan:
     :param last_episode: per agent, its largest episode number
     :param curves: per (agent, ε label or None), ``(keys, counts)``: the (episode number, decisions) pairs of its
         rows (``_pair_key``), sorted, and how many rows have each
-    :param settled: the profile agent's ``mechanism.settled_part`` pieces of its settled window, joined over its runs,
+    :param settled: the profile agent's ``settled.settled_part`` pieces of its settled window, joined over its runs,
         and the window ``(first, last)``; None when the agent has no rows there
     :param profile: the profile agent's ``metrics.profile``
     """
@@ -69,8 +80,6 @@ class Scan:
 def paper_scan(ctx: ReportContext) -> Scan:
     """The scan of ``ctx.paper`` (made on first use, then kept in ``ctx.cache``)."""
     if "scan" not in ctx.cache:
-        from sb3_affect.report.windows import EARLY_WINDOWS, LATE_WINDOWS
-
         ctx.cache["scan"] = scan(ctx.paper, (*EARLY_WINDOWS, *LATE_WINDOWS))
     found: Scan = ctx.cache["scan"]
     return found
@@ -89,8 +98,6 @@ def scan(
     :param after_part: called after each part (e.g. to hand the part's memory back to the system)
     :param agent: the agent of the windows, the settled window and the profile (the affective agent)
     """
-    from sb3_affect.report.mechanism import SETTLED
-
     runs = results.runs
     columns = tuple(dict.fromkeys((*results.columns, *metrics_module._METRIC_COLUMNS)))
     windows = tuple(dict.fromkeys((EARLY, LATE, *extra_windows)))
@@ -138,8 +145,6 @@ def _narrowed(windows: pd.DataFrame) -> pd.DataFrame:
 
 
 def _settled(part: pd.DataFrame, first: int, last: int) -> tuple[pd.DataFrame, np.ndarray, np.ndarray]:
-    from sb3_affect.report.mechanism import settled_part
-
     per_run, decisions, joy = settled_part(part, first, last)
     return per_run, _compact(decisions), _compact(joy)
 

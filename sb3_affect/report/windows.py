@@ -15,9 +15,7 @@ from sb3_affect.report import claims
 from sb3_affect.report.claims_emotions import judge_fig5, judge_fig6
 from sb3_affect.report.context import AFFECTIVE, ReportContext
 from sb3_affect.report.inference import holm, mean_ci
-
-EARLY_WINDOWS = ((1, 5), (1, 10), (1, 20), (11, 30))
-LATE_WINDOWS = ((151, 200), (181, 200), (191, 200))
+from sb3_affect.report.metrics import EARLY_WINDOWS, LATE_WINDOWS
 
 
 def window_verdicts(aff: pd.DataFrame) -> pd.DataFrame:
