@@ -20,7 +20,7 @@ Memory: one part's rows, the per-run table, the settled window's decisions and j
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -74,7 +74,6 @@ class Scan:
     curves: dict[tuple[str, Any], tuple[np.ndarray, np.ndarray]]
     settled: tuple[tuple[int, int], pd.DataFrame, np.ndarray, np.ndarray] | None
     profile: pd.DataFrame | None = None
-    extra: dict[str, Any] = field(default_factory=dict)
 
 
 def paper_scan(ctx: ReportContext) -> Scan:
