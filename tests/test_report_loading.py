@@ -14,7 +14,6 @@ import pytest
 
 from sb3_affect.experiments import ResultsStore, run_sweep
 from sb3_affect.report import stats
-from sb3_affect.report.mechanism import bimodality
 from sb3_affect.report.metrics import (
     REPORT_COLUMNS,
     episodes_frame,
@@ -24,6 +23,7 @@ from sb3_affect.report.metrics import (
     rows_where,
     run_metrics,
 )
+from sb3_affect.report.settled import bimodality
 
 ROOT = Path(__file__).resolve().parents[1]
 SMOKE = ROOT / "experiments" / "smoke.yaml"

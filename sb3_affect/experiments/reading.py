@@ -11,7 +11,7 @@ run id, each run's episodes in the order stored (episode order).
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -95,8 +95,41 @@ def file_parts(
     return parts or [([], [])]
 
 
+def ordered_file_parts(
+    json_files: Sequence[Path], chunk_files: dict[Path, dict[str, Any]], runs_per_part: int | None
+) -> list[tuple[list[Path], list[Path]]]:
+    """
+    ``file_parts`` whose runs follow each other in run id order: every run of a part comes after every run of the
+    parts before it (a part read by ``read_folder`` is in run id order, so the parts one after the other are too).
+
+    Files whose run ids interleave (the chunks of one cell: seeds drawn at random) are kept in one part; parts hold
+    about ``runs_per_part`` runs (whole groups of such files; None: one part). From the chunks' footers and the run
+    files' names (``runs/<run id>.json``) alone.
+    """
+    spans: list[tuple[str, str, Path, int]] = [(path.stem, path.stem, path, 1) for path in json_files]
+    for path, meta in chunk_files.items():
+        ids = [run[0] for run in meta["runs"]]
+        if ids:
+            spans.append((min(ids), max(ids), path, len(ids)))
+    spans.sort(key=lambda span: (span[0], span[1]))
+    parts: list[tuple[list[Path], list[Path]]] = []
+    top, count = "", 0
+    for first, last, path, runs in spans:
+        full = runs_per_part is not None and count >= max(1, runs_per_part)
+        if not parts or (full and first > top):  # a new part: the current one is full and no run id of it comes later
+            parts.append(([], []))
+            count = 0
+        parts[-1][0 if path.suffix == ".json" else 1].append(path)
+        top, count = max(top, last), count + runs
+    return parts or [([], [])]
+
+
 def read_folder(
-    json_files: Sequence[Path], chunk_files: Sequence[Path], columns: Sequence[str] | None, root: Path
+    json_files: Sequence[Path],
+    chunk_files: Sequence[Path],
+    columns: Sequence[str] | None,
+    root: Path,
+    footers: Mapping[Path, dict[str, Any]] | None = None,
 ) -> tuple[pd.DataFrame, dict[str, np.ndarray]]:
     """
     The run table of a results folder and (unless ``columns`` is None) its episode columns.
@@ -105,6 +138,7 @@ def read_folder(
     :param chunk_files: the chunks (``DIR/chunks/*.parquet``)
     :param columns: the episode columns wanted, or None for the run table only (chunks: footers only)
     :param root: the folder (for error messages)
+    :param footers: the chunks' footers when already read (``FolderFiles.chunk_files``): not parsed again
     :return: ``(runs, data)``: ``runs`` one row per finished run sorted by run id (``RUN_COLUMNS`` and the labels);
         ``data`` the episode columns and ``run`` (int32, the row in ``runs``), each run's rows together
     """
@@ -126,7 +160,11 @@ def read_folder(
     chunks: list[tuple[Path, int, np.ndarray]] = []  # (file, its first run's row in the read order, run starts)
     total = len(rows)
     for path in chunk_files:
-        meta, run = guarded(path, lambda p: _chunk_footer(p, columns is not None))
+        run: np.ndarray | None
+        if footers is not None and path in footers and columns is not None:
+            meta, run = footers[path], guarded(path, lambda p: chunk_table(p, ())["run"])
+        else:
+            meta, run = guarded(path, lambda p: _chunk_footer(p, columns is not None))
         base, count = meta["base"], len(meta["runs"])
         ids, seeds, replicates, decisions = (list(values) for values in zip(*meta["runs"])) if count else ([],) * 4
         episodes_per_run: Any = base["episodes"]  # the footer only: the batch's episode budget

@@ -408,6 +408,7 @@ class ResultsStore:
         runs_per_part: int | None = None,
         files: FolderFiles | None = None,
         labels: dict[str, Any] | None = None,
+        ordered: bool = False,
     ) -> Iterator[tuple[pd.DataFrame, pd.DataFrame]]:
         """
         ``results`` a part of the folder at a time: the runs of ``agent`` only (None: every agent), about
@@ -416,8 +417,10 @@ class ResultsStore:
 
         :param files: the folder's files (``checked_files``), to check the folder once over several reads
         :param labels: read only the chunks of cells with these label values (run files: all; a reader filters rows)
+        :param ordered: parts one after the other in run id order (``reading.ordered_file_parts``): the rows of all
+            parts, in the order read, are the rows of one whole read
         """
-        from sb3_affect.experiments.reading import RUN_COLUMNS, episode_table, file_parts, read_folder
+        from sb3_affect.experiments.reading import RUN_COLUMNS, episode_table, file_parts, ordered_file_parts, read_folder
 
         files = self._checked() if files is None else files
         wanted = EPISODE_COLUMNS if columns is None else tuple(columns)
@@ -428,8 +431,9 @@ class ResultsStore:
             if (agent is None or meta["base"]["agent"] == agent)
             and all(meta["base"]["labels"].get(k) == v for k, v in (labels or {}).items())
         }
-        for json_part, chunk_part in file_parts(run_files, chunk_files, runs_per_part):
-            runs, data = read_folder(json_part, chunk_part, wanted, self.root)
+        split = ordered_file_parts if ordered else file_parts
+        for json_part, chunk_part in split(run_files, chunk_files, runs_per_part):
+            runs, data = read_folder(json_part, chunk_part, wanted, self.root, files.chunk_files)
             named = [c for c in runs.columns if c not in RUN_COLUMNS]
             yield runs, episode_table(runs, data, ["run_id", "agent", *(["seed"] if seed else []), *named])
 

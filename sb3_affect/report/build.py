@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from sb3_affect.report import largen
+from sb3_affect.report import largen, resamples
 from sb3_affect.report.ablation import ablation_section
 from sb3_affect.report.abstract import abstract_section
 from sb3_affect.report.baselines import beyond_section
@@ -25,9 +25,10 @@ from sb3_affect.report.document import Document, fmt
 from sb3_affect.report.dqn import dqn_section, learning_curves_section
 from sb3_affect.report.evidence import evidence_section
 from sb3_affect.report.mechanism import mechanism_section
-from sb3_affect.report.metrics import load_results, run_metrics
+from sb3_affect.report.metrics import EARLY_WINDOWS, LATE_WINDOWS, load_results, run_metrics
 from sb3_affect.report.readings import readings_section
 from sb3_affect.report.record import record_section
+from sb3_affect.report.scan import scan
 from sb3_affect.report.speed import speed_one_section
 from sb3_affect.report.survival import survival_section
 from sb3_affect.report.tables import figures_3_4_section, table_iv_section, table_v_section
@@ -250,7 +251,8 @@ def build_report(
     results = load_results(paper_dir)
     if not len(results.runs) or not int(results.runs.episodes.sum()):
         raise ValueError(f"{paper_dir / 'runs'} holds no finished runs")
-    metrics = results.metrics()  # part by part: one part's episode rows in memory at a time
+    release_memory()
+    found = scan(results, (*EARLY_WINDOWS, *LATE_WINDOWS), release_memory)  # one pass over the episode rows, by parts
     meta = largen.large_meta(run_dir)
     large = pd.read_csv(run_dir / "large" / "runs.csv.gz") if meta else None
     ctx = ReportContext(
@@ -258,19 +260,40 @@ def build_report(
         out,
         run_dir,
         results,
-        metrics,
+        found.metrics,
         folders=folders,
         large=large,
         large_meta=meta,
         timings=dict(timings or {}),
         command=command,
+        cache={"scan": found},
     )
+    del found
+    release_memory()
     for section in sections if sections is not None else [*SECTIONS, *extra_sections, *APPENDIX]:
         section(ctx)
+        release_memory()  # what a section let go, before the next one asks for more
+    resamples.forget()
     md = out / "report.md"
     md.write_text(ctx.doc.markdown(out))
     (out / "report.html").write_text(ctx.doc.html())
     return md
+
+
+def release_memory() -> None:
+    """
+    Hand the heap's free pages back to the system (glibc's ``malloc_trim``; elsewhere nothing). Arrays freed by a
+    part or a section otherwise stay in the process's heap between larger ones, and count in its resident memory.
+    """
+    import contextlib
+    import ctypes
+    import ctypes.util
+
+    import pyarrow as pa
+
+    pa.default_memory_pool().release_unused()  # the Parquet reader's pool too
+    with contextlib.suppress(OSError, AttributeError, TypeError):  # not glibc: nothing to do
+        ctypes.CDLL(ctypes.util.find_library("c")).malloc_trim(0)
 
 
 def summary_numbers(run_dir: Path) -> dict[str, float]:

@@ -19,7 +19,7 @@ from sb3_affect.report.document import fmt, pval
 from sb3_affect.report.figures import save
 from sb3_affect.report.largen import SPEED_AGENT
 from sb3_affect.report.metrics import load_results, run_metrics
-from sb3_affect.report.stats import bootstrap_ci, bootstrap_improvement, bootstrap_profile
+from sb3_affect.report.stats import bootstrap_improvement, bootstrap_iqm_cis, bootstrap_profile
 
 METRICS = (
     ("decisions_per_episode", "steps per episode"),
@@ -52,11 +52,17 @@ def rliable_table(m: pd.DataFrame, seed: int = 0) -> pd.DataFrame:
     """
     parts = groups(m)
     rows: dict[str, dict[str, str]] = {name: {} for name in parts}
+    columns = [column for column, _ in METRICS]
+    cis = {  # a group's metrics share their resamples (drawn once: the same numbers as one bootstrap each)
+        name: dict(zip(columns, bootstrap_iqm_cis([part[c].to_numpy(float) for c in columns], n_boot=REPS, seed=seed)))
+        for name, part in parts.items()
+        if len(part)
+    }
     for column, label in METRICS:
         scores = {name: part[column].to_numpy(float) for name, part in parts.items() if len(part)}
         for name, values in scores.items():
             iqm = float(rmetrics.aggregate_iqm(values[:, None]))
-            _, low, high = bootstrap_ci(values, "iqm", n_boot=REPS, seed=seed)
+            _, low, high = cis[name][column]
             rows[name][f"IQM {label}"] = f"{fmt(iqm, 1)} [{fmt(low, 1)}, {fmt(high, 1)}]"
             if name == AFFECTIVE or AFFECTIVE not in scores:
                 continue

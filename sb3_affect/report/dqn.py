@@ -17,19 +17,18 @@ from sb3_affect.report.stats import bootstrap_ci
 def learning_curves_section(ctx: ReportContext) -> None:
     if not ctx.has_paper_agents:
         return
+    from sb3_affect.report.scan import curve_quantiles, merge_curves, paper_scan
+
     ctx.doc.h("Learning curves")
     m = ctx.metrics
-
-    def curve(agent: str, labels: dict[str, float] | None = None) -> tuple[np.ndarray, list[np.ndarray]]:
-        """A group's curve from its two columns only (quantiles: the rows' order does not matter)."""
-        data = ctx.paper.agent_columns(agent, ("episode", "decisions"), labels)
-        return figures.episode_quantiles(data["episode"], data["decisions"])
-
+    curves = paper_scan(ctx).curves  # per (agent, ε): counts of (episode, decisions) pairs
+    none = (np.zeros(0, np.int64), np.zeros(0, np.int64))
     groups: list[tuple[str, tuple[np.ndarray, list[np.ndarray]]]] = [  # the ε values from the run table
-        (f"ε-greedy ε={fmt(eps, 1)}", curve(STANDARD, {"epsilon": eps}))
+        (f"ε-greedy ε={fmt(eps, 1)}", curve_quantiles(*curves.get((STANDARD, eps), none)))
         for eps in sorted(m.epsilon[(m.agent == STANDARD) & (m.episodes > 0)].unique())
     ]
-    groups.append((AFFECTIVE, curve(AFFECTIVE)))
+    pooled = [counts for (agent, _), counts in curves.items() if agent == AFFECTIVE]
+    groups.append((AFFECTIVE, curve_quantiles(*(merge_curves(pooled) if pooled else none))))
     path = figures.learning_curves(pd.DataFrame(), ctx.figure("learning_curves"), "Steps per episode over episodes", groups)
     ctx.doc.img(path, "Decisions per episode over episodes: median over runs and quartile band (log scale)")
 

@@ -2,78 +2,21 @@
 The affective agent decision by decision: how often joy is left once felt (near-absorbing), and where late episodes
 cross the norm. The episode log keeps counts only, so a few runs are traced with an ``EmotionCallback`` that records
 each decision's emotion (the Python loop; the compiled engine does not call back). Cached as
-``DIR/joy_trace/episodes.csv``.
+``DIR/joy_trace/episodes.csv``; the tracing itself (an agent and SB3, so torch) is in ``report.joy_tracing``, imported
+only when the cache is missing.
 """
 
 from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pandas as pd
 
-from sb3_affect.callbacks import EmotionCallback
-from sb3_affect.emotions import Emotion
-
 #: Traced runs (seeds 0..SEEDS-1) of the paper's affective agent on the paper's task, and their episodes.
 SEEDS, EPISODES = 10, 200
 LATE = (151, 200)
-
-
-class TraceCallback(EmotionCallback):
-    """An ``EmotionCallback`` that keeps, per episode, the norm and each decision's emotion."""
-
-    def __init__(self, **kwargs: Any) -> None:
-        super().__init__(**kwargs)
-        self.episodes: list[tuple[float, list[int]]] = []
-        self._sequence: list[int] = []
-
-    def begin_episode(self) -> None:
-        super().begin_episode()
-        self._sequence = []
-
-    def feel(self, state: int) -> Emotion:
-        emotion = super().feel(state)
-        self._sequence.append(int(emotion))
-        return emotion
-
-    def end_episode(self, reached_goal: bool) -> tuple[list[int], float]:
-        counts, norm = super().end_episode(reached_goal)
-        self.episodes.append((norm, self._sequence))
-        return counts, norm
-
-
-def trace(seed: int, episodes: int = EPISODES, env_kwargs: dict[str, Any] | None = None) -> pd.DataFrame:
-    """One traced run: per episode the norm, decisions, joy decisions, the first joy decision and joy's exits."""
-    import gymnasium as gym
-    from stable_baselines3.common.callbacks import StopTrainingOnMaxEpisodes
-
-    from sb3_affect import AffectQ
-    from sb3_affect.report.largen import COMMON, PAPER_ENV
-
-    env = gym.make(PAPER_ENV[0], **(env_kwargs or PAPER_ENV[1]))
-    callback = TraceCallback()
-    kwargs: dict[str, Any] = dict(COMMON)
-    AffectQ("Grid", env, **kwargs, emotion_callback=callback, seed=seed).learn(
-        10**9, callback=StopTrainingOnMaxEpisodes(episodes)
-    )
-    rows = []
-    for number, (norm, sequence) in enumerate(callback.episodes, start=1):
-        joy = np.asarray(sequence) == int(Emotion.JOY)
-        rows.append(
-            {
-                "seed": seed,
-                "episode": number,
-                "norm": norm,
-                "decisions": len(joy),
-                "joy": int(joy.sum()),
-                "first_joy": int(np.argmax(joy)) + 1 if joy.any() else np.nan,
-                "joy_exits": int((joy[:-1] & ~joy[1:]).sum()),
-            }
-        )
-    return pd.DataFrame(rows)
 
 
 def traced(folder: Path, seeds: int = SEEDS, episodes: int = EPISODES) -> pd.DataFrame:
@@ -82,6 +25,8 @@ def traced(folder: Path, seeds: int = SEEDS, episodes: int = EPISODES) -> pd.Dat
     meta, table = folder / "meta.json", folder / "episodes.csv"
     if meta.exists() and table.exists() and json.loads(meta.read_text()) == {"seeds": seeds, "episodes": episodes}:
         return pd.read_csv(table)
+    from sb3_affect.report.joy_tracing import trace
+
     frame = pd.concat([trace(seed, episodes) for seed in range(seeds)], ignore_index=True)
     folder.mkdir(parents=True, exist_ok=True)
     frame.to_csv(table, index=False)

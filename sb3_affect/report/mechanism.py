@@ -5,113 +5,15 @@ what "equivalent epsilon" then means, and Fig. 5 under both weightings.
 
 from __future__ import annotations
 
-import numpy as np
 import pandas as pd
 
 from sb3_affect.report import figures
 from sb3_affect.report.context import AFFECTIVE, ReportContext
 from sb3_affect.report.document import fmt, sig
 from sb3_affect.report.metrics import EMOTIONS, profile, window_mean
+from sb3_affect.report.settled import LONG, SETTLED, settled_numbers, settled_part
 
-#: An episode longer than this many decisions is "long" (the shortest path is 12 cells, 6 to 12 decisions).
-LONG = 20
-#: The settled phase: after the first optimal path on average.
-SETTLED = (51, 200)
 WINDOWS = ((1, 10), (21, 40), (181, 200))
-
-
-#: Bootstrap resamples of the mechanism's CIs, and how many are drawn at a time (memory: block x runs indices).
-REPS, BLOCK_CELLS = 1000, 4_000_000
-
-
-def _bootstrap(
-    per_run: pd.DataFrame, statistics: dict[str, str], reps: int = REPS, seed: int = 0
-) -> dict[str, tuple[float, float]]:
-    """
-    Percentile 95% CIs of ratios of per-run sums (each ``numerator/denominator`` column names), resampling runs.
-
-    Every statistic sees the same resamples (one seeded stream), drawn in blocks of rows so that memory stays
-    ``BLOCK_CELLS`` indices whatever the number of runs (the stream, and so the numbers, are those of one draw).
-    """
-    n = len(per_run)
-    rng = np.random.default_rng(seed)
-    columns = {name: per_run[name].to_numpy(float) for ratio in statistics.values() for name in ratio.split("/")}
-    sums: dict[str, list[np.ndarray]] = {name: [] for name in columns}
-    block = max(1, BLOCK_CELLS // max(1, n))
-    for first in range(0, reps, block):
-        idx = rng.integers(0, n, size=(min(block, reps - first), n))
-        for name, values in columns.items():
-            sums[name].append(values[idx].sum(axis=1))
-    out = {}
-    for key, ratio in statistics.items():
-        num, den = ratio.split("/")
-        a, b = np.concatenate(sums[num]), np.concatenate(sums[den])
-        ratios = a / np.where(b > 0, b, np.nan)
-        low, high = np.nanpercentile(ratios, [2.5, 97.5])
-        out[key] = (float(low), float(high))
-    return out
-
-
-def bimodality(episodes: pd.DataFrame, first: int = SETTLED[0], last: int = SETTLED[1]) -> dict[str, float]:
-    """
-    The figures of the mechanism, from the affective agent's episodes ``first..last`` (pooled over runs).
-
-    Column by column with numpy (memory: a few columns of the window, whatever the number of runs).
-    """
-    episode = episodes.episode.to_numpy()
-    rows = np.flatnonzero((episode >= first) & (episode <= last))
-    decisions, joy = episodes.decisions.to_numpy()[rows], episodes.joy.to_numpy()[rows]
-    run_ids = episodes.run_id.iloc[rows]
-    if isinstance(run_ids.dtype, pd.CategoricalDtype):
-        key = run_ids.cat.codes.to_numpy()
-    else:
-        key = pd.factorize(run_ids.to_numpy(dtype=object), sort=True)[0]
-    present = np.flatnonzero(np.bincount(key))  # the runs in run id order, as a groupby's
-    long = decisions > LONG
-    long_decisions = np.where(long, decisions, 0)
-    long_joy = np.where(long, joy, 0)
-    any_joy = joy > 0
-    columns = {
-        "long": long,
-        "one": None,
-        "decisions": decisions,
-        "long_decisions": long_decisions,
-        "long_joy": long_joy,
-        "joy": joy,
-        "any_joy": any_joy,
-    }  # per-run sums of integers: exact in float64
-    per_run = pd.DataFrame(
-        {
-            name: np.bincount(key, weights=None if v is None else v.astype(float))[present].astype(float)
-            for name, v in columns.items()
-        }
-    )
-    total, long_total = int(decisions.sum(dtype=np.int64)), int(long_decisions.sum(dtype=np.int64))
-    joy_total, long_joy_total = int(joy.sum(dtype=np.int64)), int(long_joy.sum(dtype=np.int64))
-    short_decisions = total - long_total
-    out = {
-        "episodes": float(len(rows)),
-        "runs": float(len(present)),
-        "median decisions": float(np.median(decisions)),
-        "mean decisions": float(decisions.mean()),
-        "share of long episodes": float(long.mean()),
-        "share of decisions in long episodes": float(long_total / total),
-        "joy share of decisions in long episodes": float(long_joy_total / max(1, long_total)),
-        "joy share of decisions in short episodes": float((joy_total - long_joy_total) / max(1, short_decisions)),
-        "share of episodes with any joy": float(any_joy.mean()),
-        "mean per-episode joy fraction (equivalent ε)": float(pd.Series(joy / decisions).mean()),
-        "decision-weighted joy fraction": float(joy_total / total),
-    }
-    cis = {
-        "share of long episodes": "long/one",
-        "share of decisions in long episodes": "long_decisions/decisions",
-        "joy share of decisions in long episodes": "long_joy/long_decisions",
-        "share of episodes with any joy": "any_joy/one",
-        "decision-weighted joy fraction": "joy/decisions",
-    }
-    for key_name, (low, high) in _bootstrap(per_run, cis).items():
-        out[f"{key_name} (low)"], out[f"{key_name} (high)"] = low, high
-    return out
 
 
 #: Episode numbers per part of ``agent_profile`` (the profile is per episode number: parts give the same numbers).
@@ -130,14 +32,24 @@ def agent_profile(ctx: ReportContext, agent: str, last: int) -> pd.DataFrame:
 
 def mechanism_section(ctx: ReportContext) -> None:
     """Bimodal episodes, the meaning of equivalent epsilon, and Fig. 5 under both weightings."""
+    from sb3_affect.report.scan import paper_scan
+
     ctx.doc.h("Why the affective agent behaves as it does")
-    last = ctx.paper.last_episode(AFFECTIVE)
+    found = paper_scan(ctx)  # the report's one pass over the episode rows
+    last = found.last_episode.get(AFFECTIVE, 0)
     if not last:
         ctx.doc.p("Skipped: no affective runs.")
         return
     first = SETTLED[0] if last >= SETTLED[1] else max(1, last // 4)
-    aff = ctx.paper.agent_episodes(AFFECTIVE, ("episode", "decisions", "joy"), first, last)  # the settled window only
-    b = bimodality(aff, first, last)
+    if found.settled is not None and found.settled[0] == (first, last):
+        _, per_run, decisions, joy = found.settled
+    else:  # the scan guessed another window: read this one
+        per_run, decisions, joy = settled_part(
+            ctx.paper.agent_episodes(AFFECTIVE, ("episode", "decisions", "joy"), first, last), first, last
+        )
+    found.settled = None  # the section's own copy only from here
+    b = settled_numbers(per_run, decisions, joy)
+    del per_run, joy
 
     def ci(key: str, digits: int = 3) -> str:
         return f"{fmt(b[key], digits)} [95% CI {fmt(b[key + ' (low)'], digits)}, {fmt(b[key + ' (high)'], digits)}]"
@@ -152,7 +64,7 @@ def mechanism_section(ctx: ReportContext) -> None:
         "way) or long and mostly random (joy from the crossing on): the per-episode decisions are bimodal."
     )
     path = figures.decisions_histogram(
-        aff.decisions.to_numpy()[aff.episode.to_numpy() >= first].astype(float),
+        decisions.astype(float),
         ctx.figure("mechanism_decisions"),
         LONG,
         f"Affective agent, episodes {first}-{last}: decisions per episode",
@@ -183,8 +95,8 @@ def mechanism_section(ctx: ReportContext) -> None:
     )
     joy_section(ctx)
     ctx.doc.h("Fig. 5 under both weightings", 3)
-    del aff
-    prof = agent_profile(ctx, AFFECTIVE, last)
+    del decisions
+    prof = found.profile if found.profile is not None else agent_profile(ctx, AFFECTIVE, last)
     prof.to_csv(ctx.out / "tables" / "profile_per_episode.csv")
     rows = {}
     for lo, hi in (w for w in WINDOWS if w[1] <= last):  # a short folder shows only the windows its runs reach

@@ -19,9 +19,14 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from sb3_affect.report.grouped import segment_means, window_bounds
+
 EMOTIONS = ("joy", "sadness", "fear", "anger")
 #: Windows of episodes the report summarises (early, after the first optimal path on average, late).
 EARLY, LATE = (1, 10), (181, 200)
+#: The early and late windows the windows section tries (Figs. 5 and 6: how the verdicts move with the windows).
+EARLY_WINDOWS = ((1, 5), (1, 10), (1, 20), (11, 30))
+LATE_WINDOWS = ((151, 200), (181, 200), (191, 200))
 #: The episode columns the report reads (``load_results``): what the sections use, nothing more.
 REPORT_COLUMNS = ("episode", "decisions", "cells", "optimal", "truncated", "random_moves", *EMOTIONS, "greedy_optimal")
 
@@ -66,17 +71,19 @@ class Results:
         agent: str | None = None,
         runs_per_part: int | None = None,
         labels: dict[str, Any] | None = None,
+        ordered: bool = False,
     ) -> Iterator[tuple[pd.DataFrame, pd.DataFrame]]:
         """
         ``(runs, episodes)`` of ``agent``'s runs (None: every run), about ``runs_per_part`` runs at a time (``labels``:
-        at least the runs with these label values; their chunks only).
+        at least the runs with these label values; their chunks only; ``ordered``: the parts one after the other in
+        run id order, ``ResultsStore.results_parts``).
         """
         from sb3_affect.experiments.store import ResultsStore
 
         store = ResultsStore(self.folder)
         if self.files is None:
             self.files = store.checked_files()
-        yield from store.results_parts(columns, False, agent, runs_per_part, self.files, labels)
+        yield from store.results_parts(columns, False, agent, runs_per_part, self.files, labels, ordered)
 
     def agent_episodes(
         self,
@@ -236,7 +243,7 @@ def load_results(run_dir: Path, columns: Sequence[str] = REPORT_COLUMNS) -> Resu
 
     store = ResultsStore(run_dir)
     files = store.checked_files()
-    runs = read_folder(list(files.run_files), list(files.chunk_files), (), Path(run_dir))[0]  # episodes: counted
+    runs = read_folder(list(files.run_files), list(files.chunk_files), (), Path(run_dir), files.chunk_files)[0]  # counted
     return Results(Path(run_dir), runs, tuple(columns), files)
 
 
@@ -372,8 +379,20 @@ def _run_table(runs: pd.DataFrame | Sequence[dict[str, Any]] | None) -> pd.DataF
     return pd.DataFrame(rows) if rows else None
 
 
-def _vector_metrics(episodes: pd.DataFrame, windows: Sequence[tuple[int, int]] = (EARLY, LATE)) -> pd.DataFrame:
-    """The per-run metrics of ``run_metrics`` from the episode rows alone (numpy reductions over each run's rows)."""
+@dataclass
+class _Rows:
+    """The episode rows of ``_vector_metrics`` by run: codes, episode numbers and each run's span, sorted."""
+
+    codes: np.ndarray
+    names: Any
+    episode: np.ndarray
+    take: np.ndarray | None
+    starts: np.ndarray
+    counts: np.ndarray
+    run_codes: np.ndarray
+
+
+def _runs_of(episodes: pd.DataFrame) -> _Rows:
     run_ids = episodes["run_id"]
     names: Any
     if isinstance(run_ids.dtype, pd.CategoricalDtype) and run_ids.cat.categories.is_monotonic_increasing:
@@ -388,7 +407,14 @@ def _vector_metrics(episodes: pd.DataFrame, windows: Sequence[tuple[int, int]] =
         np.all((codes[1:] > codes[:-1]) | ((codes[1:] == codes[:-1]) & (episode[1:] >= episode[:-1])))
     )
     take = None if ordered else np.lexsort((episode, codes))
+    if take is not None:
+        codes, episode = codes[take], episode[take]
+    starts = np.flatnonzero(np.r_[True, codes[1:] != codes[:-1]])
+    counts = np.diff(np.r_[starts, len(codes)])
+    return _Rows(codes, names, episode, take, starts, counts, codes[starts])
 
+
+def _column_of(episodes: pd.DataFrame, take: np.ndarray | None) -> Any:
     def column(name: str) -> np.ndarray:
         values = episodes[name]
         if name in ("optimal", "truncated", "greedy_optimal") and values.dtype != bool:
@@ -396,11 +422,34 @@ def _vector_metrics(episodes: pd.DataFrame, windows: Sequence[tuple[int, int]] =
         array = values.to_numpy()
         return array if take is None else array[take]
 
-    if take is not None:
-        codes, episode = codes[take], episode[take]
-    starts = np.flatnonzero(np.r_[True, codes[1:] != codes[:-1]])
-    counts = np.diff(np.r_[starts, len(codes)])
-    run_codes = codes[starts]
+    return column
+
+
+def run_windows(episodes: pd.DataFrame, windows: Sequence[tuple[int, int]]) -> pd.DataFrame:
+    """
+    The window features of ``run_metrics`` alone (``run_id``, ``agent`` when there, and each window's columns), one
+    row per run with episodes, sorted by run id: the same numbers as ``run_metrics(episodes, windows=windows)``.
+    """
+    if not len(episodes):
+        return pd.DataFrame()
+    rows = _runs_of(episodes)
+    column = _column_of(episodes, rows.take)
+    out = pd.DataFrame({"run_id": np.asarray(rows.names)[rows.run_codes]})
+    if "agent" in episodes.columns:
+        out["agent"] = _labels(episodes["agent"], rows.take, rows.starts, rows.counts)
+    for window in windows:
+        for key, series in _window(column, rows.starts, rows.counts, rows.episode, *window).items():
+            out[key] = series
+    return out
+
+
+def _vector_metrics(episodes: pd.DataFrame, windows: Sequence[tuple[int, int]] = (EARLY, LATE)) -> pd.DataFrame:
+    """The per-run metrics of ``run_metrics`` from the episode rows alone (numpy reductions over each run's rows)."""
+    rows = _runs_of(episodes)
+    names, episode, take = rows.names, rows.episode, rows.take
+    starts, counts, run_codes = rows.starts, rows.counts, rows.run_codes
+    column = _column_of(episodes, take)
+
     out = pd.DataFrame(index=pd.Index(np.asarray(names)[run_codes], name="run_id"))
     for name in (c for c in episodes.columns if c not in _EPISODE_VALUE_COLUMNS and c != "run_id"):
         out[name] = _labels(episodes[name], take, starts, counts)
@@ -431,7 +480,7 @@ def _vector_metrics(episodes: pd.DataFrame, windows: Sequence[tuple[int, int]] =
     out["total_decisions"] = total_decisions
     del decisions, cells, before, upto_greedy
     for window in windows:
-        for key, series in _window(column, codes, episode, run_codes, *window).items():
+        for key, series in _window(column, starts, counts, episode, *window).items():
             out[key] = series
     return out.reset_index()
 
@@ -455,22 +504,24 @@ def _labels(values: pd.Series, take: np.ndarray | None, starts: np.ndarray, coun
 
 
 def _window(
-    column: Any, codes: np.ndarray, episode: np.ndarray, run_codes: np.ndarray, lo: int, hi: int
+    column: Any, starts: np.ndarray, counts: np.ndarray, episode: np.ndarray, lo: int, hi: int
 ) -> dict[str, np.ndarray]:
-    """Per run: mean over the window's episodes of per-episode fractions, and decision-weighted fractions."""
-    rows = np.flatnonzero((episode >= lo) & (episode <= hi))
-    key = codes[rows]
-    decisions = pd.Series(column("decisions")[rows])
-    fraction_of = decisions.where(decisions > 0).to_numpy()
-    total = decisions.groupby(key).sum().reindex(run_codes).to_numpy()
-    total = np.where(total > 0, total, np.nan)
+    """
+    Per run: mean over the window's episodes of per-episode fractions, and decision-weighted fractions (NaN: a run
+    without episodes in the window), with pandas' groupby arithmetic in row order (``report.grouped``).
+    """
+    first, last = window_bounds(episode, starts, counts, lo, hi)
+    absent = first == last
+    decisions = column("decisions")
+    means, total = segment_means(decisions, first, last)
+    total = np.where(absent | ~(total > 0), np.nan, total)
     out: dict[str, np.ndarray] = {}
     for name, source in (*((x, x) for x in EMOTIONS), ("eqeps", "random_moves")):
-        values = pd.Series(column(source)[rows])
-        out[f"{name}_{lo}_{hi}"] = (values / fraction_of).groupby(key).mean().reindex(run_codes).to_numpy()
-        out[f"{name}_{lo}_{hi}_weighted"] = values.groupby(key).sum().reindex(run_codes).to_numpy() / total
-    out[f"decisions_{lo}_{hi}"] = decisions.groupby(key).mean().reindex(run_codes).to_numpy()
-    out[f"cells_{lo}_{hi}"] = pd.Series(column("cells")[rows]).groupby(key).mean().reindex(run_codes).to_numpy()
+        fraction, summed = segment_means(column(source), first, last, decisions)
+        out[f"{name}_{lo}_{hi}"] = fraction
+        out[f"{name}_{lo}_{hi}_weighted"] = np.where(absent, np.nan, summed) / total
+    out[f"decisions_{lo}_{hi}"] = means
+    out[f"cells_{lo}_{hi}"] = segment_means(column("cells"), first, last)[0]
     return out
 
 

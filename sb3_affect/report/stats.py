@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 
 import numpy as np
 import numpy.typing as npt
 import pandas as pd
 from scipy import stats as sps
+
+from sb3_affect.report import resamples
 
 #: Row labels of a spreadsheet "t-Test: Paired Two Sample for Means", in its order.
 TTEST_ROWS: tuple[str, ...] = (
@@ -108,11 +110,14 @@ def bootstrap_ci(
     if len(data) == 0:
         return math.nan, math.nan, math.nan
     fn = _statistic(statistic)
-    rng = np.random.default_rng(seed)
+    block = max(1, BLOCK_CELLS // len(data))
     if statistic == "iqm":
-        boots = _iqm_resamples(data, n_boot, rng)
+        order = np.argsort(data, kind="stable")
+        boots = resamples.iqm_resamples(data[order], order, n_boot, seed)
+    elif len(data) * n_boot <= resamples.KEEP_CELLS:  # the same draws as the last bootstrap of as many values
+        boots = resamples.resample_means(data, resamples.mean_indices(len(data), n_boot, seed))
     else:
-        block = max(1, BLOCK_CELLS // len(data))
+        rng = np.random.default_rng(seed)
         parts = []
         for first in range(0, n_boot, block):
             parts.append(data[rng.integers(0, len(data), size=(min(block, n_boot - first), len(data)))].mean(axis=1))
@@ -121,30 +126,24 @@ def bootstrap_ci(
     return float(fn(data)), float(np.percentile(boots, tail)), float(np.percentile(boots, 100 - tail))
 
 
-def _iqm_resamples(data: np.ndarray, n_boot: int, rng: np.random.Generator) -> np.ndarray:
+def bootstrap_iqm_cis(
+    samples: Sequence[npt.ArrayLike], n_boot: int = 2000, confidence: float = 0.95, seed: int = 0
+) -> list[tuple[float, float, float]]:
     """
-    The IQM (scipy's 25%-trimmed mean) of ``n_boot`` resamples, each counted through how often it draws each value
-    of ``data`` sorted once: the middle half of a resample is the span of its cumulative counts between n/4 and 3n/4,
-    so a resample costs O(n), not a partition.
+    ``bootstrap_ci(values, "iqm", n_boot, confidence, seed)`` of each sample: samples of one size (missing values left
+    out) share the draws, drawn once.
     """
-    n = len(data)
-    order = np.argsort(data, kind="stable")
-    values = data[order]
-    low = int(0.25 * n)  # as scipy.stats.trim_mean cuts
-    high = n - low
-    boots = np.empty(n_boot)
-    for rep in range(n_boot):
-        drawn = np.bincount(rng.integers(0, n, n), minlength=n)[order]
-        end = np.cumsum(drawn)  # the resample sorted: value i fills positions end[i] - drawn[i] .. end[i] - 1
-        first, last = np.searchsorted(end, low, side="right"), np.searchsorted(end, high, side="left")
-        if first == last:
-            total = values[first] * (high - low)
-        else:
-            summed = np.cumsum(values * drawn)
-            middle = summed[last - 1] - summed[first]
-            total = values[first] * (end[first] - low) + middle + values[last] * (high - end[last] + drawn[last])
-        boots[rep] = total / (high - low)
-    return boots
+    data = [np.asarray(values, dtype=float) for values in samples]
+    data = [values[~np.isnan(values)] for values in data]
+    if len({len(values) for values in data}) != 1 or not len(data[0]):
+        return [bootstrap_ci(values, "iqm", n_boot, confidence, seed) for values in data]
+    orders = [np.argsort(values, kind="stable") for values in data]
+    every = resamples.iqm_resamples_of([v[o] for v, o in zip(data, orders)], orders, n_boot, seed)
+    tail = (1 - confidence) / 2 * 100
+    return [
+        (iqm(values), float(np.percentile(boots, tail)), float(np.percentile(boots, 100 - tail)))
+        for values, boots in zip(data, every)
+    ]
 
 
 def bootstrap_improvement(
@@ -165,16 +164,7 @@ def bootstrap_improvement(
     a, b = a[~np.isnan(a)], b[~np.isnan(b)]
     if len(a) == 0 or len(b) == 0:
         return math.nan, math.nan, math.nan
-    below, not_above, order = _comparisons(a, b)
-    pairs = len(a) * len(b)
-    rng = np.random.default_rng(seed)
-    boots = np.empty(n_boot)
-    for rep in range(n_boot):
-        weights = np.bincount(rng.integers(0, len(a), len(a)), minlength=len(a))
-        drawn = np.r_[0, np.cumsum(np.bincount(rng.integers(0, len(b), len(b)), minlength=len(b))[order])]
-        at_most, under = drawn[not_above], drawn[below]  # resampled b values <= / < each a value
-        better = (len(b) - at_most) if lower_is_better else under
-        boots[rep] = (int(weights @ better) + 0.5 * int(weights @ (at_most - under))) / pairs
+    boots = resamples.improvement_resamples(len(a), len(b), n_boot, seed, _comparisons(a, b), lower_is_better)
     tail = (1 - confidence) / 2 * 100
     return (
         probability_of_improvement(a, b, lower_is_better),

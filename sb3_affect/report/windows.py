@@ -15,9 +15,7 @@ from sb3_affect.report import claims
 from sb3_affect.report.claims_emotions import judge_fig5, judge_fig6
 from sb3_affect.report.context import AFFECTIVE, ReportContext
 from sb3_affect.report.inference import holm, mean_ci
-
-EARLY_WINDOWS = ((1, 5), (1, 10), (1, 20), (11, 30))
-LATE_WINDOWS = ((151, 200), (181, 200), (191, 200))
+from sb3_affect.report.metrics import EARLY_WINDOWS, LATE_WINDOWS
 
 
 def window_verdicts(aff: pd.DataFrame) -> pd.DataFrame:
@@ -46,9 +44,12 @@ def window_verdicts(aff: pd.DataFrame) -> pd.DataFrame:
 def windows_section(ctx: ReportContext) -> None:
     if ctx.verdict_refusal():
         return
-    if ctx.paper.last_episode(AFFECTIVE) < max(w[1] for w in LATE_WINDOWS):
+    from sb3_affect.report.scan import paper_scan
+
+    found = paper_scan(ctx)  # the affective runs' window features, from the report's one pass over the episodes
+    if found.last_episode.get(AFFECTIVE, 0) < max(w[1] for w in LATE_WINDOWS):
         return
-    aff = ctx.paper.metrics(AFFECTIVE, windows=(*EARLY_WINDOWS, *LATE_WINDOWS), with_runs=False)  # part by part
+    aff = found.windows
     ctx.doc.h("Fig. 5 against Fig. 6, and the windows", 3)
     ctx.doc.p(
         "With only joy and anger possible, an episode's joy share is its equivalent ε. So Fig. 6's \"about 0.3\" early "
