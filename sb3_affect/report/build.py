@@ -272,6 +272,7 @@ def build_report(
     release_memory()
     for section in sections if sections is not None else [*SECTIONS, *extra_sections, *APPENDIX]:
         section(ctx)
+        resamples.forget()  # a section's resamples (the next section draws for other sizes or seeds)
         release_memory()  # what a section let go, before the next one asks for more
     resamples.forget()
     md = out / "report.md"
