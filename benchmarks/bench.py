@@ -38,6 +38,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 import gymnasium as gym
+import numpy as np
 
 import sb3_affect
 from sb3_affect import AffectQ, QLearning
@@ -100,24 +101,31 @@ def learn_rate(cls: type, steps: int, **kwargs: object) -> Callable[[], float]:
 
 def kernel_alone(algo: str, steps: int, **kwargs: object) -> Callable[[], float]:
     """
-    The kernel alone on ``learn_rate``'s decisions: one batch call (``simulate``'s) for seed 0 and the episodes a
-    compiled ``learn(steps)`` finishes (checked to be the same episodes), its inputs built before the timed part.
+    The kernel alone on ``learn_rate``'s decisions: the one kernel call ``simulate`` makes (``kernel.batch.run_batch``)
+    for seed 0 and the episodes a compiled ``learn(steps)`` finishes (checked to be the same episodes). Only the call
+    is timed: its inputs, its seed key and its output rows are made before it.
     """
-    from sb3_affect.kernel.batch import batch_columns
+    from sb3_affect.kernel import arrays
+    from sb3_affect.kernel.batch import batch_columns, run_batch, seed_keys
     from sb3_affect.kernel.inputs import settings_inputs
 
     model = getattr(sb3_affect, algo)("Grid", gym.make(ENV_ID), seed=0, **kwargs)
     model.learn(steps)
     log = model.episode_log
-    inputs = settings_inputs(algo, kwargs, ENV_ID, None, len(log))
+    episodes = len(log)
+    inputs = settings_inputs(algo, kwargs, ENV_ID, None, episodes)
     assert inputs is not None, f"{algo} {kwargs} does not run on the kernel"
-    if len(log):
-        assert (batch_columns(inputs, [0], len(log))["decisions"] == log["decisions"].to_numpy()).all()
+    if episodes:
+        assert (batch_columns(inputs, [0], episodes)["decisions"] == log["decisions"].to_numpy()).all()
+    keys, lengths = seed_keys([0])
 
     def run() -> float:
+        out_i = np.empty((episodes, arrays.N_OUT_I), dtype=np.int64)  # as learn's: rows the kernel writes in full
+        out_f = np.empty((episodes, 2))
         start = time.perf_counter()
-        columns = batch_columns(inputs, [0], len(log))
-        return int(columns["decisions"].sum()) / (time.perf_counter() - start)
+        run_batch(inputs, keys, lengths, episodes, out_i, out_f)
+        seconds = time.perf_counter() - start
+        return int(out_i[:, arrays.O_DECISIONS].sum()) / seconds
 
     return run
 

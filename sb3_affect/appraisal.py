@@ -228,6 +228,31 @@ class Appraiser:
             self.last_act = elapsed + remaining if self.act_mode == "episode" else remaining
         return Appraisal(norm, norm if norm > elapsed else float(elapsed), self.last_act)
 
+    # -- state held elsewhere until it is read ---------------------------------------------------------------
+    def defer(self, name: str, source: Any) -> None:
+        """
+        Keep the attribute ``name`` (``known`` or ``fit``) in ``source``, an object whose ``value(name)`` builds it,
+        until it is first read: reading it then builds it and stores it as a plain attribute. The compiled engine
+        hands its known map and power fit back this way, so a ``learn`` whose appraiser nobody reads pays nothing to
+        turn the kernel's arrays into Python objects, and the next compiled ``learn`` takes the arrays as they are.
+        """
+        self.__dict__.pop(name, None)
+        self.__dict__.setdefault("_deferred", {})[name] = source
+
+    def deferred(self, name: str) -> Any:
+        """The source ``defer`` keeps ``name`` in, or None when the attribute is a plain object (read or set since)."""
+        sources = self.__dict__.get("_deferred")
+        return None if not sources or name in self.__dict__ else sources.get(name)
+
+    def __getattr__(self, name: str) -> Any:  # called only for an attribute the instance does not hold
+        sources = self.__dict__.get("_deferred")
+        source = None if sources is None else sources.pop(name, None)
+        if source is None:
+            raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+        value = source.value(name)
+        setattr(self, name, value)
+        return value
+
     # -- plain-data state (save/load) ------------------------------------------------------------------------
     def get_state(self) -> dict[str, Any]:
         return {

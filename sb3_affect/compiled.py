@@ -36,8 +36,8 @@ from sb3_affect.kernel.prey_batch import moving_reason
 from sb3_affect.loop import episode_end_info, step_locals
 from sb3_affect.settings import TabularSettings
 
-__all__ = ["batch_reason", "callback_reason", "compiled_reason", "learn_compiled", "model_env_reason"]
-_CHUNK_EPISODES = 4096
+__all__ = ["batch_reason", "callback_reason", "compiled_plan", "compiled_reason", "learn_compiled", "model_env_reason"]
+_CHUNK_EPISODES = 16384
 _PROGRESS_DECISIONS = 500_000
 
 
@@ -93,12 +93,18 @@ def compiled_agent(model: Any) -> tuple[TabularSettings, KernelAgent] | str:
     return agent if isinstance(agent, str) else (settings, agent)
 
 
-def compiled_reason(model: Any, env: Any, callback: BaseCallback | None) -> str | None:
-    """Why ``model.learn`` can not run on the kernel with this env and these callbacks (None: it can)."""
+def compiled_plan(model: Any, env: Any, callback: BaseCallback | None) -> tuple[TabularSettings, KernelAgent] | str:
+    """What ``model.learn`` runs on the kernel with this env and these callbacks (``compiled_agent``), or why it can not."""
     found = compiled_agent(model)
     if isinstance(found, str):
         return found
-    return model_env_reason(env) or callback_reason(callback)
+    return model_env_reason(env) or callback_reason(callback) or found
+
+
+def compiled_reason(model: Any, env: Any, callback: BaseCallback | None) -> str | None:
+    """Why ``model.learn`` can not run on the kernel with this env and these callbacks (None: it can)."""
+    plan = compiled_plan(model, env, callback)
+    return plan if isinstance(plan, str) else None
 
 
 def batch_reason(model: Any, episodes: int) -> str | None:
@@ -116,13 +122,18 @@ def _stop_remaining(leaves: list[BaseCallback]) -> int | None:
     return min(remaining) if remaining else None
 
 
-def learn_compiled(model: Any, env: Any, total_timesteps: int, callback: BaseCallback, log_interval: int | None) -> None:
-    """``sb3_affect.loop.run_loop`` on the kernel (see the module docstring)."""
+def learn_compiled(
+    model: Any,
+    env: Any,
+    total_timesteps: int,
+    callback: BaseCallback,
+    log_interval: int | None,
+    plan: tuple[TabularSettings, KernelAgent],
+) -> None:
+    """``sb3_affect.loop.run_loop`` on the kernel (see the module docstring), with the ``compiled_plan`` of the call."""
     if model._episode_state is None:
         model._begin_episode(total_timesteps)
-    found = compiled_agent(model)
-    assert not isinstance(found, str), found
-    settings, agent = found
+    settings, agent = plan
     run: RunArrays = (MovingKernelRun if moving_reason(env) is None else KernelRun)(model, env, settings, agent)
     leaves = callback_leaves(callback)
     bars = [leaf for leaf in leaves if isinstance(leaf, ProgressBarCallback)]

@@ -24,7 +24,43 @@ from sb3_affect.kernel.pcg64 import state_from_generator, state_to_generator
 from sb3_affect.kernel.prey_batch import moving_inputs
 from sb3_affect.settings import TabularSettings
 
-__all__ = ["MovingKernelRun"]
+__all__ = ["MovingKernelRun", "MovingKnownArrays"]
+
+
+class MovingKnownArrays:
+    """
+    The moving-prey kernel's known map over observations (``dist``, successor and predecessor rows, ``goal``) at the
+    end of a compiled ``learn``, built into the appraiser's ``KnownMap`` only when something reads
+    ``appraiser.known`` (``Appraiser.defer``).
+    """
+
+    NAMES = ("dist", "succ", "succ_n", "pred", "pred_n", "goal")
+
+    def __init__(
+        self, dist: np.ndarray, succ: np.ndarray, succ_n: np.ndarray, pred: np.ndarray, pred_n: np.ndarray, goal: np.ndarray
+    ) -> None:
+        self.dist, self.succ, self.succ_n, self.pred, self.pred_n, self.goal = dist, succ, succ_n, pred, pred_n, goal
+
+    def fits(self, run: MovingKernelRun) -> bool:
+        """Whether a new run's arrays have these shapes."""
+        return all(getattr(self, name).shape == getattr(run, name).shape for name in self.NAMES)
+
+    def copy_into(self, run: MovingKernelRun) -> None:
+        """Copy the map into a new run's arrays (the appraiser keeps these until the new run hands its own back)."""
+        for name in self.NAMES:
+            np.copyto(getattr(run, name), getattr(self, name))
+
+    def value(self, name: str) -> Any:
+        from sb3_affect.appraisal import KnownMap
+
+        known = KnownMap(len(self.dist))
+        known.distance = self.dist.tolist()
+        known.goals = {int(g) for g in np.flatnonzero(self.goal)}
+        for s in np.flatnonzero(self.succ_n).tolist():
+            known.successors[s] = set(self.succ[s, : self.succ_n[s]].tolist())
+        for v in np.flatnonzero(self.pred_n).tolist():
+            known.predecessors[v] = self.pred[v, : self.pred_n[v]].tolist()
+        return known
 
 
 class MovingKernelRun(RunArrays):
@@ -64,7 +100,14 @@ class MovingKernelRun(RunArrays):
     # -- appraisal in and out ------------------------------------------------------------------------------------
     def _read_appraisal(self) -> None:
         callback = self.model.emotion_callback
-        known = callback.appraiser.known
+        kept = callback.appraiser.deferred("known")
+        if isinstance(kept, MovingKnownArrays) and kept.fits(self):
+            kept.copy_into(self)  # as the last compiled learn left it: no Python objects in between
+        else:
+            self._read_known(callback.appraiser.known)
+        self.fit_vals = read_appraisal_scalars(callback, self.ist, self.fst, moving)
+
+    def _read_known(self, known: Any) -> None:
         self.dist[:] = np.asarray(known.distance, dtype=np.float64)
         self.goal[list(known.goals)] = True
         rows = dict.items(known.successors) if isinstance(known.successors, dict) else enumerate(known.successors)
@@ -75,20 +118,11 @@ class MovingKernelRun(RunArrays):
         for v, preds in rows:
             self.pred[v, : len(preds)] = preds  # in the order they were added
             self.pred_n[v] = len(preds)
-        self.fit_vals = read_appraisal_scalars(callback, self.ist, self.fst, moving)
 
     def _write_appraisal(self) -> None:
-        from sb3_affect.appraisal import KnownMap
-
         callback = self.model.emotion_callback
-        known = KnownMap(len(self.dist))
-        known.distance = self.dist.tolist()
-        known.goals = {int(g) for g in np.flatnonzero(self.goal)}
-        for s in np.flatnonzero(self.succ_n).tolist():
-            known.successors[s] = set(self.succ[s, : self.succ_n[s]].tolist())
-        for v in np.flatnonzero(self.pred_n).tolist():
-            known.predecessors[v] = self.pred[v, : self.pred_n[v]].tolist()
-        callback.appraiser.known = known
+        known = MovingKnownArrays(self.dist, self.succ, self.succ_n, self.pred, self.pred_n, self.goal)
+        callback.appraiser.defer("known", known)  # the run's arrays: this run is over, nothing writes them again
         write_appraisal_scalars(callback, self.ist, self.fst, self.fit_vals, moving)
 
     # -- running -------------------------------------------------------------------------------------------------

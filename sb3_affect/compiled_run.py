@@ -22,7 +22,25 @@ from sb3_affect.kernel.agents import KernelAgent
 from sb3_affect.kernel.inputs import unwrap
 from sb3_affect.kernel.mt19937 import state_from_rng, state_to_rng
 
-__all__ = ["RunArrays", "monitor_episodes", "read_appraisal_scalars", "write_appraisal_scalars"]
+__all__ = ["FitArrays", "RunArrays", "monitor_episodes", "read_appraisal_scalars", "write_appraisal_scalars"]
+
+
+class FitArrays:
+    """
+    A power fit as a kernel leaves it: its values and its four running sums, built into the appraiser's ``PowerFit``
+    only when something reads ``appraiser.fit`` (``Appraiser.defer``).
+    """
+
+    def __init__(self, values: np.ndarray, sums: np.ndarray) -> None:
+        self.values, self.sums = values, sums
+
+    def value(self, name: str) -> Any:
+        from sb3_affect.appraisal import PowerFit
+
+        fit = PowerFit()
+        fit.values = self.values.tolist()
+        fit._sx, fit._sy, fit._sxx, fit._sxy = self.sums.tolist()
+        return fit
 
 
 def read_appraisal_scalars(callback: Any, ist: np.ndarray, fst: np.ndarray, at: Any) -> np.ndarray:
@@ -32,11 +50,15 @@ def read_appraisal_scalars(callback: Any, ist: np.ndarray, fst: np.ndarray, at: 
     values in an array with room to grow.
     """
     appraiser = callback.appraiser
-    fit = appraiser.fit
-    values = fit.values
+    kept = appraiser.deferred("fit")
+    if isinstance(kept, FitArrays):  # as the last compiled learn left it: no Python objects in between
+        values, sums = kept.values, kept.sums
+    else:
+        fit = appraiser.fit
+        values, sums = np.asarray(fit.values, dtype=np.float64), np.array([fit._sx, fit._sy, fit._sxx, fit._sxy])
     fit_vals = np.zeros(max(64, 2 * len(values)))
     fit_vals[: len(values)] = values
-    fst[at.S_FIT0 : at.S_FIT0 + 4] = (fit._sx, fit._sy, fit._sxx, fit._sxy)
+    fst[at.S_FIT0 : at.S_FIT0 + 4] = sums
     ist[at.I_NFIT] = len(values)
     ist[at.I_EL_CELLS] = appraiser.elapsed_cells
     ist[at.I_EL_DECISIONS] = appraiser.elapsed_decisions
@@ -47,14 +69,11 @@ def read_appraisal_scalars(callback: Any, ist: np.ndarray, fst: np.ndarray, at: 
 
 
 def write_appraisal_scalars(callback: Any, ist: np.ndarray, fst: np.ndarray, fit_vals: np.ndarray, at: Any) -> None:
-    """``read_appraisal_scalars`` the other way: the kernel's values back into the callback and its appraiser."""
-    from sb3_affect.appraisal import PowerFit
-
+    """``read_appraisal_scalars`` the other way: the kernel's values back into the callback and its appraiser (the fit
+    kept as arrays until read: ``FitArrays``)."""
     appraiser = callback.appraiser
-    fit = PowerFit()
-    fit.values = fit_vals[: int(ist[at.I_NFIT])].tolist()
-    fit._sx, fit._sy, fit._sxx, fit._sxy = (float(v) for v in fst[at.S_FIT0 : at.S_FIT0 + 4])
-    appraiser.fit = fit
+    n_fit = int(ist[at.I_NFIT])
+    appraiser.defer("fit", FitArrays(fit_vals[:n_fit].copy(), fst[at.S_FIT0 : at.S_FIT0 + 4].copy()))
     appraiser.norm = float(fst[at.S_NORM])
     appraiser.elapsed_cells = int(ist[at.I_EL_CELLS])
     appraiser.elapsed_decisions = int(ist[at.I_EL_DECISIONS])
@@ -167,12 +186,12 @@ class RunArrays:
     # -- around a kernel call ------------------------------------------------------------------------------------
     def _room(self, max_episodes: int) -> int:
         """Room for ``max_episodes`` output rows and fit values; returns the cells of the episode in progress."""
-        if self.out_i.shape[0] < max_episodes or self._handed_over:  # (zeroed lazily: only rows written take memory)
-            self._handed_over = False
-            self.out_i = np.zeros((max_episodes, self.at.N_OUT_I), dtype=np.int64)
-            self.out_f = np.zeros((max_episodes, 2))
+        if self.out_i.shape[0] < max_episodes or self._handed_over:  # (not zeroed: the kernel writes every column of
+            self._handed_over = False  # an episode's row, and only the rows it wrote are read)
+            self.out_i = np.empty((max_episodes, self.at.N_OUT_I), dtype=np.int64)
+            self.out_f = np.empty((max_episodes, 2))
         need = int(self.ist[self.at.I_NFIT]) + max_episodes
-        if self.fit_vals.shape[0] < need:
+        if self.agent.kind == arrays.AFFECT and self.fit_vals.shape[0] < need:  # (only the affective agent fits)
             grown = np.zeros(max(need, 2 * self.fit_vals.shape[0]))
             grown[: self.fit_vals.shape[0]] = self.fit_vals
             self.fit_vals = grown

@@ -19,7 +19,7 @@ from sb3_affect.kernel.agents import KernelAgent
 from sb3_affect.kernel.inputs import TableArrays, kernel_config
 from sb3_affect.settings import TabularSettings
 
-__all__ = ["KernelRun", "empty_appraisal"]
+__all__ = ["GridKnownArrays", "KernelRun", "empty_appraisal"]
 
 
 def empty_appraisal(n_states: int, n_actions: int, max_pred: int, episodes: int) -> arrays.Appraisal:
@@ -32,6 +32,44 @@ def empty_appraisal(n_states: int, n_actions: int, max_pred: int, episodes: int)
         np.zeros(n_states, dtype=np.bool_),
         np.zeros(episodes),
     )
+
+
+class GridKnownArrays:
+    """
+    The grid kernel's known map (``dist``, ``edge`` by action, ``pred``, ``pred_n``, ``goal``, over the env's
+    transition table ``trans``) at the end of a compiled ``learn``, built into the appraiser's ``KnownMap`` only when
+    something reads ``appraiser.known`` (``Appraiser.defer``).
+    """
+
+    def __init__(
+        self, trans: np.ndarray, dist: np.ndarray, edge: np.ndarray, pred: np.ndarray, pred_n: np.ndarray, goal: np.ndarray
+    ) -> None:
+        self.trans, self.dist, self.edge, self.pred, self.pred_n, self.goal = trans, dist, edge, pred, pred_n, goal
+
+    def fits(self, trans: np.ndarray, pred_shape: tuple[int, ...]) -> bool:
+        """Whether these arrays describe a run on the transition table ``trans`` with predecessor rows of ``pred_shape``."""
+        return self.pred.shape == pred_shape and (self.trans is trans or np.array_equal(self.trans, trans))
+
+    def copy_into(self, run: KernelRun) -> None:
+        """Copy the map into a new run's arrays (the appraiser keeps these until the new run hands its own back)."""
+        for name in ("dist", "edge", "pred", "pred_n", "goal"):
+            np.copyto(getattr(run, name), getattr(self, name))
+
+    def value(self, name: str) -> Any:
+        from sb3_affect.appraisal import KnownMap
+
+        known = KnownMap(len(self.dist))
+        known.distance = self.dist.tolist()
+        known.goals = {int(g) for g in np.flatnonzero(self.goal)}
+        rows, moves = np.nonzero(self.edge)  # by state, in order
+        targets = self.trans[rows, moves].tolist()
+        firsts = np.flatnonzero(np.diff(rows, prepend=-1))  # each state's first edge
+        bounds = [*firsts.tolist(), len(targets)]
+        for i, state in enumerate(rows[firsts].tolist()):
+            known.successors[state] = set(targets[bounds[i] : bounds[i + 1]])
+        for v in np.flatnonzero(self.pred_n).tolist():
+            known.predecessors[v] = self.pred[v, : self.pred_n[v]].tolist()
+        return known
 
 
 class KernelRun(RunArrays):
@@ -70,7 +108,14 @@ class KernelRun(RunArrays):
     def _read_appraisal(self) -> None:
         callback = self.model.emotion_callback
         appraiser = callback.appraiser
-        known = appraiser.known
+        kept = appraiser.deferred("known")
+        if isinstance(kept, GridKnownArrays) and kept.fits(self.table.trans, self.pred.shape):
+            kept.copy_into(self)  # as the last compiled learn left it: no Python objects in between
+        else:
+            self._read_known(appraiser.known)
+        self.fit_vals = read_appraisal_scalars(callback, self.ist, self.fst, arrays)
+
+    def _read_known(self, known: Any) -> None:
         trans = self.table.trans
         self.dist[:] = np.asarray(known.distance, dtype=np.float64)
         for g in known.goals:
@@ -84,28 +129,15 @@ class KernelRun(RunArrays):
             raise ValueError(f"the appraiser's known map has a move {s} -> {t} that this env does not have")
         rows, moves = np.nonzero(hits)
         self.edge[pairs[rows, 0], moves] = True
-        for v, preds in enumerate(known.predecessors):
+        seen = dict.items(known.predecessors) if isinstance(known.predecessors, dict) else enumerate(known.predecessors)
+        for v, preds in seen:
             self.pred[v, : len(preds)] = preds
             self.pred_n[v] = len(preds)
-        self.fit_vals = read_appraisal_scalars(callback, self.ist, self.fst, arrays)
 
     def _write_appraisal(self) -> None:
-        from sb3_affect.appraisal import KnownMap
-
         callback = self.model.emotion_callback
-        appraiser = callback.appraiser
-        trans = self.table.trans
-        known = KnownMap(len(self.dist))
-        known.distance = self.dist.tolist()
-        known.goals = {int(g) for g in np.flatnonzero(self.goal)}
-        rows, moves = np.nonzero(self.edge)  # by state, in order
-        targets = trans[rows, moves].tolist()
-        firsts = np.flatnonzero(np.diff(rows, prepend=-1))  # each state's first edge
-        bounds = [*firsts.tolist(), len(targets)]
-        for i, state in enumerate(rows[firsts].tolist()):
-            known.successors[state] = set(targets[bounds[i] : bounds[i + 1]])
-        known.predecessors = [row[:n] for row, n in zip(self.pred.tolist(), self.pred_n.tolist())]
-        appraiser.known = known
+        known = GridKnownArrays(self.table.trans, self.dist, self.edge, self.pred, self.pred_n, self.goal)
+        callback.appraiser.defer("known", known)  # the run's arrays: this run is over, nothing writes them again
         write_appraisal_scalars(callback, self.ist, self.fst, self.fit_vals, arrays)
 
     # -- running -------------------------------------------------------------------------------------------------

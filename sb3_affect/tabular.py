@@ -284,13 +284,13 @@ class TabularQAlgorithm(BaseAlgorithm):
             total_timesteps, callback, reset_num_timesteps, tb_log_name, progress_bar, new_episode=False
         )
         env = self._single_env()
-        compiled = self._use_kernel(env, callback)
+        plan = self._use_kernel(env, callback)
         try:
-            if compiled:  # the kernel's table: an array (the Python loop's makes a row the first time it visits a state)
+            if plan is not None:  # the kernel's table: an array (the Python loop makes a row the first time it visits a state)
                 from sb3_affect.compiled import learn_compiled
 
                 self._q = self.policy.q_table.cpu().numpy().astype(np.float64)
-                learn_compiled(self, env, total_timesteps, callback, log_interval)
+                learn_compiled(self, env, total_timesteps, callback, log_interval, plan)
             else:
                 q = self._q
                 assert q is not None and not isinstance(q, np.ndarray)
@@ -342,21 +342,22 @@ class TabularQAlgorithm(BaseAlgorithm):
         self._update_schedules()
         return total_timesteps, callback
 
-    def _use_kernel(self, env: Any, callback: BaseCallback | None) -> bool:
+    def _use_kernel(self, env: Any, callback: BaseCallback | None) -> Any:
         """
         Whether ``learn`` runs on the compiled kernel: ``engine="python"`` never, ``"compiled"`` always (an error
         naming the reason when it can not), ``"auto"`` when the agent, the env (one of the package's grid envs, with
         Gymnasium's and SB3's standard wrappers only) and the callbacks (none, ``StopTrainingOnMaxEpisodes``, the
-        progress bar, or callbacks marked ``episode_level = True``) all allow it.
+        progress bar, or callbacks marked ``episode_level = True``) all allow it. Returns what the kernel runs (the
+        settings and the kernel's agent: ``compiled.compiled_plan``), or None for the Python loop.
         """
         if self.engine == "python" or not _numba_usable(self.engine):
-            return False
-        from sb3_affect.compiled import compiled_reason
+            return None
+        from sb3_affect.compiled import compiled_plan
 
-        reason = compiled_reason(self, env, callback)
-        if reason is not None and self.engine == "compiled":
-            raise ValueError(f"engine='compiled' can not run this learn call: {reason}; use engine='auto' or 'python'")
-        return reason is None
+        plan = compiled_plan(self, env, callback)
+        if isinstance(plan, str) and self.engine == "compiled":
+            raise ValueError(f"engine='compiled' can not run this learn call: {plan}; use engine='auto' or 'python'")
+        return None if isinstance(plan, str) else plan
 
     def _run_loop(
         self, env: Any, q: LoopTable, total_timesteps: int, callback: BaseCallback, log_interval: int | None

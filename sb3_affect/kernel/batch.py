@@ -87,13 +87,8 @@ def simulate_batch(inputs: BatchInputs, seeds: Sequence[int], episodes: int) -> 
     return pd.DataFrame(batch_columns(inputs, seeds, episodes), copy=False)  # (the columns are fresh arrays)
 
 
-def batch_columns(inputs: BatchInputs, seeds: Sequence[int], episodes: int) -> dict[str, np.ndarray]:
-    """
-    ``simulate_batch``'s table as ``{column: array}`` (the dtypes of ``episode_log``), without pandas. The columns
-    are rows of one transposed copy of the kernel's output (contiguous; ``simulate_batch`` hands them to pandas
-    without copying or merging them into blocks by dtype, which would copy every column once more).
-    """
-    table = inputs.table
+def seed_keys(seeds: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
+    """Each seed's ``init_by_array`` key (``mt19937.seed_key``), as rows of one array, and each key's length."""
     words = [seed_key(int(seed)) for seed in seeds]
     width = max((len(w) for w in words), default=1)
     keys = np.zeros((len(words), width), dtype=np.int64)
@@ -101,10 +96,15 @@ def batch_columns(inputs: BatchInputs, seeds: Sequence[int], episodes: int) -> d
     for r, w in enumerate(words):
         keys[r, : len(w)] = w
         lengths[r] = len(w)
-    n_rows = len(words) * episodes
-    out_i = np.zeros((n_rows, arrays.N_OUT_I), dtype=np.int64)
-    out_f = np.zeros((n_rows, 2))
-    behaviour = inputs.agent.behaviour
+    return keys, lengths
+
+
+def run_batch(
+    inputs: BatchInputs, keys: np.ndarray, lengths: np.ndarray, episodes: int, out_i: np.ndarray, out_f: np.ndarray
+) -> None:
+    """The kernel call of ``batch_columns``: ``episodes`` episodes of a fresh run per key into the rows ``out_i``,
+    ``out_f`` (run ``r``'s from row ``r * episodes``)."""
+    table = inputs.table
     run_seeds(
         keys,
         lengths,
@@ -112,7 +112,7 @@ def batch_columns(inputs: BatchInputs, seeds: Sequence[int], episodes: int) -> d
         inputs.n_actions,
         table.env,
         inputs.config,
-        behaviour,
+        inputs.agent.behaviour,
         table.max_pred,
         inputs.alpha,
         inputs.p,
@@ -120,12 +120,25 @@ def batch_columns(inputs: BatchInputs, seeds: Sequence[int], episodes: int) -> d
         out_i,
         out_f,
     )
+
+
+def batch_columns(inputs: BatchInputs, seeds: Sequence[int], episodes: int) -> dict[str, np.ndarray]:
+    """
+    ``simulate_batch``'s table as ``{column: array}`` (the dtypes of ``episode_log``), without pandas. The columns
+    are rows of one transposed copy of the kernel's output (contiguous; ``simulate_batch`` hands them to pandas
+    without copying or merging them into blocks by dtype, which would copy every column once more).
+    """
+    keys, lengths = seed_keys(seeds)
+    n_rows = len(seeds) * episodes
+    out_i = np.zeros((n_rows, arrays.N_OUT_I), dtype=np.int64)
+    out_f = np.zeros((n_rows, 2))
+    run_batch(inputs, keys, lengths, episodes, out_i, out_f)
     seed_column = np.repeat(np.asarray([int(s) for s in seeds], dtype=np.int64), episodes)
     col_i = np.ascontiguousarray(out_i.T)
     col_f = np.ascontiguousarray(out_f.T)
     return {
         "seed": seed_column,
-        "episode": np.tile(np.arange(1, episodes + 1, dtype=np.int64), len(words)),
+        "episode": np.tile(np.arange(1, episodes + 1, dtype=np.int64), len(seeds)),
         "decisions": col_i[arrays.O_DECISIONS],
         "cells": col_i[arrays.O_CELLS],
         "reward": col_f[0],
