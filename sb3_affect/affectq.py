@@ -17,7 +17,8 @@ from sb3_affect.episode_log import COLUMN, Rows
 from sb3_affect.goals import GoalTest
 from sb3_affect.personalities import PersonalityAppraiser
 from sb3_affect.policies import TabularQPolicy, greedy_action
-from sb3_affect.settings import AffectQSettings, TabularSettings, check_affect
+from sb3_affect.setting_checks import check_affect
+from sb3_affect.settings import AffectQSettings, TabularSettings
 from sb3_affect.tabular import TabularQAlgorithm
 
 _S = AffectQSettings  # the defaults (one source: ``sb3_affect.settings``)

@@ -44,7 +44,7 @@ def _resolve(algo: str | type) -> type:
 
 def _check_args(episodes: int, engine: str, seeds: list[Any]) -> None:
     from sb3_affect.appraisal import check_choice
-    from sb3_affect.settings import ENGINES
+    from sb3_affect.setting_checks import ENGINES
 
     if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
         raise ValueError(f"episodes={episodes!r} must be an integer >= 1")

@@ -10,7 +10,8 @@ from stable_baselines3.common.utils import FloatSchedule
 
 from sb3_affect.episode_log import Rows
 from sb3_affect.policies import TabularQPolicy, check_not_gym_tuple, greedy_action
-from sb3_affect.settings import QLearningSettings, TabularSettings, check_exploration_rate
+from sb3_affect.setting_checks import check_exploration_rate
+from sb3_affect.settings import QLearningSettings, TabularSettings
 from sb3_affect.tabular import TabularQAlgorithm
 
 _S = QLearningSettings  # the defaults (one source: ``sb3_affect.settings``)

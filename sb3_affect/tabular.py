@@ -37,7 +37,8 @@ from sb3_affect.policies import TabularQPolicy, check_not_gym_tuple
 from sb3_affect.qtable import LoopTable, VisitedRows
 from sb3_affect.registry import known_settings
 from sb3_affect.serialization import add_plain_description, load_safe
-from sb3_affect.settings import ENGINES, MULTI_CELLS, TIE_BREAKS, TabularSettings, check_tabular
+from sb3_affect.setting_checks import ENGINES, MULTI_CELLS, TIE_BREAKS, check_tabular
+from sb3_affect.settings import TabularSettings
 
 SelfTabular = TypeVar("SelfTabular", bound="TabularQAlgorithm")
 

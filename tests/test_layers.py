@@ -23,6 +23,7 @@ CORE = (
     "sb3_affect.personalities",
     "sb3_affect.goals",
     "sb3_affect.settings",
+    "sb3_affect.setting_checks",
     "sb3_affect.registry",
     "sb3_affect.validation",
     "sb3_affect.episode_log",

@@ -11,7 +11,8 @@ from stable_baselines3.common.utils import FloatSchedule
 
 from sb3_affect.episode_log import Rows
 from sb3_affect.policies import TabularQPolicy, check_not_gym_tuple
-from sb3_affect.settings import BoltzmannSettings, check_boltzmann, temperature_at
+from sb3_affect.setting_checks import check_boltzmann, temperature_at
+from sb3_affect.settings import BoltzmannSettings
 from sb3_affect.tabular import TabularQAlgorithm
 
 _S = BoltzmannSettings  # the defaults (one source: ``sb3_affect.settings``)

@@ -8,7 +8,8 @@ from stable_baselines3.common.type_aliases import GymEnv, Schedule
 
 from sb3_affect.policies import TabularQPolicy
 from sb3_affect.qlearning import QLearning
-from sb3_affect.settings import DecayingEpsilonGreedySettings, check_decaying, episode_decay
+from sb3_affect.setting_checks import check_decaying, episode_decay
+from sb3_affect.settings import DecayingEpsilonGreedySettings
 
 _S = DecayingEpsilonGreedySettings  # the defaults (one source: ``sb3_affect.settings``)
 

@@ -10,7 +10,8 @@ from stable_baselines3.common.type_aliases import GymEnv, Schedule
 from sb3_affect.episode_log import Rows
 from sb3_affect.policies import TabularQPolicy, greedy_action
 from sb3_affect.qlearning import QLearning
-from sb3_affect.settings import SpeedEpsilonGreedySettings, check_speeds
+from sb3_affect.setting_checks import check_speeds
+from sb3_affect.settings import SpeedEpsilonGreedySettings
 
 _S = SpeedEpsilonGreedySettings  # the defaults (one source: ``sb3_affect.settings``)
 
