@@ -237,7 +237,7 @@ class Appraiser:
         turn the kernel's arrays into Python objects, and the next compiled ``learn`` takes the arrays as they are.
         """
         self.__dict__.pop(name, None)
-        self.__dict__.setdefault("_deferred", {})[name] = source
+        self.__dict__["_deferred"] = {**self.__dict__.get("_deferred", {}), name: source}  # a new dict: copies share none
 
     def deferred(self, name: str) -> Any:
         """The source ``defer`` keeps ``name`` in, or None when the attribute is a plain object (read or set since)."""
@@ -246,11 +246,12 @@ class Appraiser:
 
     def __getattr__(self, name: str) -> Any:  # called only for an attribute the instance does not hold
         sources = self.__dict__.get("_deferred")
-        source = None if sources is None else sources.pop(name, None)
+        source = None if sources is None else sources.get(name)
         if source is None:
             raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
         value = source.value(name)
         setattr(self, name, value)
+        self.__dict__["_deferred"] = {key: kept for key, kept in sources.items() if key != name}
         return value
 
     # -- plain-data state (save/load) ------------------------------------------------------------------------

@@ -92,6 +92,9 @@ def test_an_appraiser_holding_arrays_copies_pickles_and_saves(tmp_path: Path) ->
     appraiser = model.emotion_callback.appraiser
     twins = [copy.deepcopy(appraiser), pickle.loads(pickle.dumps(appraiser))]
     assert all(twin.deferred("known") is not None for twin in twins)
+    shallow = copy.copy(appraiser)
+    assert shallow.known.state() == twins[0].known.state()  # built on the copy only
+    assert appraiser.deferred("known") is not None and shallow.deferred("known") is None
     model.save(tmp_path / "model")  # nothing was read: saving builds what it writes
     assert appraiser.deferred("known") is None
     expected = appraiser.get_state()
