@@ -245,8 +245,8 @@ class Appraiser:
         return None if not sources or name in self.__dict__ else sources.get(name)
 
     def __getattr__(self, name: str) -> Any:  # called only for an attribute the instance does not hold
-        sources = self.__dict__.get("_deferred")
-        source = None if sources is None else sources.get(name)
+        sources = self.__dict__.get("_deferred") or {}
+        source = sources.get(name)
         if source is None:
             raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
         value = source.value(name)
