@@ -106,8 +106,9 @@ def kernel_alone(algo: str, steps: int, **kwargs: object) -> Callable[[], float]
     is timed: its inputs, its seed key and its output rows are made before it.
     """
     from sb3_affect.kernel import arrays
-    from sb3_affect.kernel.batch import batch_columns, run_batch, seed_keys
+    from sb3_affect.kernel.batch import batch_columns, run_batch
     from sb3_affect.kernel.inputs import settings_inputs
+    from sb3_affect.kernel.mt19937 import seed_keys
 
     model = getattr(sb3_affect, algo)("Grid", gym.make(ENV_ID), seed=0, **kwargs)
     model.learn(steps)

@@ -17,7 +17,7 @@ from numba import njit
 
 from sb3_affect.kernel import arrays, loop
 from sb3_affect.kernel.inputs import BatchInputs
-from sb3_affect.kernel.mt19937 import STATE_SIZE, seed_key, seed_state
+from sb3_affect.kernel.mt19937 import STATE_SIZE, seed_keys, seed_state
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -85,18 +85,6 @@ def simulate_batch(inputs: BatchInputs, seeds: Sequence[int], episodes: int) -> 
     import pandas as pd
 
     return pd.DataFrame(batch_columns(inputs, seeds, episodes), copy=False)  # (the columns are fresh arrays)
-
-
-def seed_keys(seeds: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
-    """Each seed's ``init_by_array`` key (``mt19937.seed_key``), as rows of one array, and each key's length."""
-    words = [seed_key(int(seed)) for seed in seeds]
-    width = max((len(w) for w in words), default=1)
-    keys = np.zeros((len(words), width), dtype=np.int64)
-    lengths = np.zeros(len(words), dtype=np.int64)
-    for r, w in enumerate(words):
-        keys[r, : len(w)] = w
-        lengths[r] = len(w)
-    return keys, lengths
 
 
 def run_batch(

@@ -26,6 +26,7 @@ skips are those CPython draws and rejects. The state words themselves stay untem
 from __future__ import annotations
 
 import random
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -213,6 +214,18 @@ def seed_key(seed: int) -> list[int]:
         words.append(n & MASK32)
         n >>= 32
     return words or [0]
+
+
+def seed_keys(seeds: Sequence[int]) -> tuple[np.ndarray, np.ndarray]:
+    """Each seed's ``seed_key`` as the rows of one array (zero-padded), and each key's length."""
+    words = [seed_key(int(seed)) for seed in seeds]
+    width = max((len(w) for w in words), default=1)
+    keys = np.zeros((len(words), width), dtype=np.int64)
+    lengths = np.zeros(len(words), dtype=np.int64)
+    for r, w in enumerate(words):
+        keys[r, : len(w)] = w
+        lengths[r] = len(w)
+    return keys, lengths
 
 
 def state_from_rng(rng: random.Random) -> tuple[np.ndarray, object]:

@@ -21,7 +21,7 @@ from gymnasium.wrappers import OrderEnforcing, PassiveEnvChecker, TimeLimit
 from sb3_affect.kernel import moving
 from sb3_affect.kernel.agents import COMPENSATED_SUM, KernelAgent, kernel_agent
 from sb3_affect.kernel.inputs import unwrap
-from sb3_affect.kernel.mt19937 import STATE_SIZE, seed_key
+from sb3_affect.kernel.mt19937 import STATE_SIZE, seed_keys
 from sb3_affect.kernel.pcg64 import STATE_SIZE as PCG_SIZE
 from sb3_affect.kernel.pcg64 import seeded_state
 from sb3_affect.kernel.steps import known_widths
@@ -154,17 +154,11 @@ def moving_settings_inputs(
 def run_moving(inputs: MovingInputs, seeds: Sequence[int], episodes: int) -> MovingRun:
     """Fresh runs of ``episodes`` episodes for each seed in one kernel call (``moving.run_seeds``)."""
     behaviour = inputs.agent.behaviour
-    words = [seed_key(int(seed)) for seed in seeds]
-    width = max((len(w) for w in words), default=1)
-    keys = np.zeros((len(words), width), dtype=np.int64)
-    lengths = np.zeros(len(words), dtype=np.int64)
-    for r, w in enumerate(words):
-        keys[r, : len(w)] = w
-        lengths[r] = len(w)
-    pcg_init = np.zeros((len(words), PCG_SIZE), dtype=np.uint64)
+    keys, lengths = seed_keys(seeds)
+    pcg_init = np.zeros((len(seeds), PCG_SIZE), dtype=np.uint64)
     for r, seed in enumerate(seeds):
         pcg_init[r] = seeded_state(int(seed))
-    n_rows = len(words) * episodes
+    n_rows = len(seeds) * episodes
     out_i = np.zeros((n_rows, moving.N_OUT_I), dtype=np.int64)
     out_f = np.zeros((n_rows, 2))
     n_states = inputs.cell_trans.shape[0] ** 2
