@@ -205,10 +205,14 @@ class RunArrays:
 
     def block(self, finished: int) -> dict[str, np.ndarray]:
         """The ``finished`` episodes of the last ``step`` as columns of the episode log (views of the output rows, which
-        the run hands over; ``optimal`` and ``greedy_optimal`` NaN unless the kernel's module has them)."""
+        the run hands over, or of a copy when they fill less than a quarter of them; ``optimal`` and ``greedy_optimal``
+        NaN unless the kernel's module has them)."""
         at = self.at
-        ints, floats = self.out_i[:finished], self.out_f[:finished]  # the columns are views of these: handed over,
-        self._handed_over = True  # the next kernel call gets new rows
+        ints, floats = self.out_i[:finished], self.out_f[:finished]  # the columns are views of these
+        if 4 * finished < self.out_i.shape[0]:  # a few rows of a large buffer: copied, the buffer kept for the next call
+            ints, floats = ints.copy(), floats.copy()
+        else:  # handed over: the next kernel call gets new rows
+            self._handed_over = True
         return {
             "decisions": ints[:, at.O_DECISIONS],
             "cells": ints[:, at.O_CELLS],

@@ -121,3 +121,18 @@ def test_the_monitor_sees_the_same_returns_on_both_engines(step_reward: float) -
         seen.append((repr(monitor.episode_returns), monitor.episode_lengths, [e["r"] for e in model.ep_info_buffer]))
     assert seen[0] == seen[1]
     assert len(seen[0][1]) > 20
+
+
+def test_a_chunk_of_few_episodes_keeps_no_large_buffer() -> None:
+    """The kernel's output rows are handed to the log when a chunk fills them well, and copied when it does not."""
+    model = QLearning("Grid", gym.make("sb3_affect/GridPursuit-v0"), seed=0, exploration_rate=0.1)
+    model.learn(600)  # a handful of episodes in the room of a whole chunk
+    few = model._episode_blocks._blocks[-1]
+    assert few["decisions"].base.shape[0] == len(few["decisions"]) < 100  # a copy of just the rows
+    model.learn(200_000, reset_num_timesteps=False)  # thousands of episodes: the rows themselves, no copy
+    many = model._episode_blocks._blocks[-1]
+    assert many["decisions"].base.shape[0] >= len(many["decisions"]) > 4000
+    python = QLearning("Grid", gym.make("sb3_affect/GridPursuit-v0"), seed=0, exploration_rate=0.1, engine="python")
+    python.learn(600)
+    python.learn(200_000, reset_num_timesteps=False)
+    pd.testing.assert_frame_equal(model.episode_log, python.episode_log)
