@@ -190,7 +190,7 @@ def learn_compiled(
 
 
 def _close_episodes(model: Any, run: RunArrays, finished: int) -> None:
-    """``TabularQAlgorithm._close_episode`` for the kernel's ``finished`` episodes (the logger aside), in bulk: the
+    """``loop.close_episode`` for the kernel's ``finished`` episodes (the logger aside), in bulk: the
     episode log gets them as one block of columns, with no Python work per episode."""
     block = run.block(finished)
     first = len(model._episode_blocks) + 1

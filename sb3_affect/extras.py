@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import importlib.util
 import sys
+import warnings
 
 #: Extra name -> the modules it installs that the package imports (checked by ``require_extra``).
 EXTRAS: dict[str, tuple[str, ...]] = {
@@ -62,4 +63,24 @@ def numba_problem() -> str | None:
     return None
 
 
-__all__ = ["EXTRAS", "MissingExtraError", "missing_modules", "numba_problem", "require_extra"]
+_NUMBA_WARNED = False
+
+
+def numba_usable(engine: str) -> bool:
+    """
+    Whether a tabular agent's ``engine`` can use the compiled kernel here: numba imports. ``engine="auto"`` without it
+    runs the Python loop (one warning per process); ``engine="compiled"`` raises an error naming what is missing.
+    """
+    global _NUMBA_WARNED
+    problem = numba_problem()
+    if problem is None:
+        return True
+    if engine == "compiled":
+        raise ModuleNotFoundError(f"engine='compiled' needs numba: {problem}; pip install numba, or use engine='python'")
+    if not _NUMBA_WARNED:
+        _NUMBA_WARNED = True
+        warnings.warn(f"{problem}: engine='auto' runs the Python loop (same results, slower)", RuntimeWarning, stacklevel=3)
+    return False
+
+
+__all__ = ["EXTRAS", "MissingExtraError", "missing_modules", "numba_problem", "numba_usable", "require_extra"]

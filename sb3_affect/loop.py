@@ -128,7 +128,8 @@ def run_loop(
                 info = episode_end_info(info, s2 + obs_start, terminated)
         if done:
             model.num_timesteps = t
-            model._close_episode(
+            close_episode(
+                model,
                 decisions,
                 cells,
                 reward_sum,

@@ -6,7 +6,7 @@ hunters of ``sb3_affect.team``), each needs to take a decision, wait while the w
 its own transitions. The stepper exposes exactly the pieces of ``learn`` for that, calling the same code: ``learn``'s
 set-up (``_start_learn``), the agent's ``_decide`` (epsilon-greedy, the emotion's behaviour, ...), Eq. 1
 (``sb3_affect.loop.q_update``), the transition hook (the appraisal's ``observe``), ``_begin_episode`` and
-``_close_episode`` (schedules, emotions, the episode log, the logger) and the SB3 callbacks with the locals ``learn``
+``loop.close_episode`` (schedules, emotions, the episode log, the logger) and the SB3 callbacks with the locals ``learn``
 gives them (``sb3_affect.loop.step_locals``). Driving a single env with it gives the same episode log,
 Q-table and random draws as ``learn`` (tests/test_hunters.py checks this)::
 
@@ -30,7 +30,7 @@ import numpy as np
 from stable_baselines3.common.callbacks import ConvertCallback
 from stable_baselines3.common.type_aliases import MaybeCallback
 
-from sb3_affect.loop import episode_end_info, keep_episode, q_update, step_locals
+from sb3_affect.loop import close_episode, episode_end_info, keep_episode, q_update, step_locals
 from sb3_affect.qtable import LoopTable
 from sb3_affect.tabular import TabularQAlgorithm
 
@@ -152,7 +152,8 @@ class DecisionStepper:
         decision_reward, action = self._decision_reward, self._action  # before a reset starts the next episode
         if done:
             m.num_timesteps = self.t
-            m._close_episode(
+            close_episode(
+                m,
                 self.decisions,
                 self.cells,
                 self.reward_sum,

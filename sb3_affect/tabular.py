@@ -1,6 +1,6 @@
 """
 ``TabularQAlgorithm``: what QLearning and AffectQ share: set-up, ``learn`` (and which engine runs it), the Q-table,
-logging, save and load.
+logging; save and load come from its base class (``sb3_affect.model_files.ModelFiles``).
 
 The decision loop itself is ``sb3_affect.loop.run_loop`` (the readable reference) and ``sb3_affect.kernel`` (its
 compiled twin). ``num_timesteps`` counts decisions (the paper's "steps"). Subclasses say how a decision is taken
@@ -13,7 +13,6 @@ import math
 import os
 import random
 import time
-import warnings
 from operator import itemgetter
 from typing import Any, ClassVar, TypeVar
 
@@ -21,7 +20,6 @@ import numpy as np
 import pandas as pd
 import torch as th
 from gymnasium import spaces
-from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import Logger
 from stable_baselines3.common.policies import BasePolicy
@@ -31,12 +29,13 @@ from stable_baselines3.common.vec_env import DummyVecEnv
 from sb3_affect.agent_checks import check_table_size, check_total_timesteps
 from sb3_affect.episode_blocks import EpisodeBlocks
 from sb3_affect.episode_log import Geometry, Rows, env_geometry
+from sb3_affect.extras import numba_usable
 from sb3_affect.goals import GoalTest, positive_terminal_reward
-from sb3_affect.loop import close_episode, run_loop
+from sb3_affect.loop import run_loop
+from sb3_affect.model_files import ModelFiles
 from sb3_affect.policies import TabularQPolicy, check_not_gym_tuple
 from sb3_affect.qtable import LoopTable, VisitedRows
 from sb3_affect.registry import known_settings
-from sb3_affect.serialization import add_plain_description, load_safe
 from sb3_affect.setting_checks import ENGINES, MULTI_CELLS, TIE_BREAKS, check_tabular
 from sb3_affect.settings import TabularSettings
 
@@ -47,29 +46,7 @@ __all__ = ["ENGINES", "MULTI_CELLS", "TIE_BREAKS", "TabularQAlgorithm"]
 _S = TabularSettings  # the defaults of the settings (one source: ``sb3_affect.settings``)
 
 
-_NUMBA_WARNED = False
-
-
-def _numba_usable(engine: str) -> bool:
-    """
-    Whether numba imports here. ``engine="auto"`` without it runs the Python loop (one warning per process);
-    ``engine="compiled"`` raises an error naming what is missing.
-    """
-    global _NUMBA_WARNED
-    from sb3_affect.extras import numba_problem
-
-    problem = numba_problem()
-    if problem is None:
-        return True
-    if engine == "compiled":
-        raise ModuleNotFoundError(f"engine='compiled' needs numba: {problem}; pip install numba, or use engine='python'")
-    if not _NUMBA_WARNED:
-        _NUMBA_WARNED = True
-        warnings.warn(f"{problem}: engine='auto' runs the Python loop (same results, slower)", RuntimeWarning, stacklevel=3)
-    return False
-
-
-class TabularQAlgorithm(BaseAlgorithm):
+class TabularQAlgorithm(ModelFiles):
     """
     Tabular Q-learning (Eq. 1) on a single env with Discrete observations and actions.
 
@@ -351,7 +328,7 @@ class TabularQAlgorithm(BaseAlgorithm):
         progress bar, or callbacks marked ``episode_level = True``) all allow it. Returns what the kernel runs (the
         settings and the kernel's agent: ``compiled.compiled_plan``), or None for the Python loop.
         """
-        if self.engine == "python" or not _numba_usable(self.engine):
+        if self.engine == "python" or not numba_usable(self.engine):
             return None
         from sb3_affect.compiled import compiled_plan
 
@@ -371,36 +348,6 @@ class TabularQAlgorithm(BaseAlgorithm):
             self._update_current_progress_remaining(self.num_timesteps, total_timesteps)
         self._update_schedules()
         self._start_episode()
-
-    def _close_episode(
-        self,
-        decisions: int,
-        cells: int,
-        reward: float,
-        random_moves: int,
-        waits: int,
-        terminated: bool,
-        truncated: bool,
-        q_changed: bool,
-        log_interval: int | None,
-        reached_goal: bool | None = None,
-        info: dict[str, Any] | None = None,
-    ) -> None:
-        """An episode's end: its row of the episode log and its logger records (``sb3_affect.loop.close_episode``)."""
-        close_episode(
-            self,
-            decisions,
-            cells,
-            reward,
-            random_moves,
-            waits,
-            terminated,
-            truncated,
-            q_changed,
-            log_interval,
-            reached_goal,
-            info,
-        )
 
     def dump_logs(self) -> None:
         """Write the logger: the keys SB3's DQN writes, plus rollout/ep_cells_mean and the affect/* keys."""
@@ -476,60 +423,3 @@ class TabularQAlgorithm(BaseAlgorithm):
     def truncated_episodes(self) -> int:
         """Episodes of the current run ended by the safety cap or the env's time limit."""
         return self._truncated_episodes
-
-    # -- save ----------------------------------------------------------------------------------------------------
-    def save(self, path: Any, exclude: Any = None, include: Any = None) -> None:
-        """Save as SB3 does; the agent's random generator and run state are stored as plain data."""
-        self._sync_policy()
-        version, internal, gauss = self._rng.getstate()
-        self._rng_state = [version, list(internal), gauss]
-        self._episode_rows = self._episode_blocks.rows()  # the file's form of the episode log: a list of rows
-        try:
-            super().save(path, exclude=exclude, include=include)
-            add_plain_description(path, self)
-        finally:
-            self._rng_state = None
-            del self._episode_rows
-
-    @classmethod
-    def load(
-        cls: type[SelfTabular],
-        path: Any,
-        env: GymEnv | None = None,
-        device: th.device | str = "auto",
-        custom_objects: dict[str, Any] | None = None,
-        print_system_info: bool = False,
-        force_reset: bool = True,
-        safe: bool = True,
-        **kwargs: Any,
-    ) -> SelfTabular:
-        """
-        Load a model saved with ``save``.
-
-        By default (``safe=True``) nothing in the file is unpickled: spaces, schedules and buffers are rebuilt from the
-        file's plain-JSON description and the Q-table is read with ``torch.load(weights_only=True)``; files that need
-        unpickling (saved by other code, custom policies or schedules) are refused with a ``ModelFileError``.
-        ``safe=False`` uses SB3's legacy loader, which runs pickled code: only for files you trust.
-
-        :param path: the model file (``.zip`` may be left out)
-        :param env: the env to continue training on (its spaces must match); None to only predict
-        :param device: torch device
-        :param custom_objects: values replacing saved entries of the same name (as SB3 applies them; the safe loader
-            never unpickles the replaced entry), e.g. rl-zoo3's ``{"learning_rate": 0.0, "lr_schedule": ...}``
-        :param print_system_info: legacy loader only: print the saving and the current system info
-        :param force_reset: reset the env before the next ``learn`` (SB3 convention)
-        :param safe: load without unpickling (default); False for SB3's legacy loader
-        :param kwargs: attributes to change on the loaded model
-        :return: the loaded model
-        """
-        if not safe:
-            return super().load(
-                path,
-                env=env,
-                device=device,
-                custom_objects=custom_objects,
-                print_system_info=print_system_info,
-                force_reset=force_reset,
-                **kwargs,
-            )
-        return load_safe(cls, path, env=env, device=device, force_reset=force_reset, custom_objects=custom_objects, **kwargs)

@@ -12,7 +12,7 @@ import gymnasium as gym
 import pytest
 from stable_baselines3.common.callbacks import StopTrainingOnMaxEpisodes
 
-import sb3_affect.tabular
+import sb3_affect.extras
 from sb3_affect import AffectQ, QLearning
 from sb3_affect.extras import EXTRAS, MissingExtraError, missing_modules, require_extra
 
@@ -30,7 +30,7 @@ def _learn(cls: type, engine: str) -> object:
 def test_auto_engine_without_numba_runs_the_python_loop_with_one_warning(cls: type, monkeypatch: pytest.MonkeyPatch) -> None:
     expected = _learn(cls, "python")
     monkeypatch.setitem(sys.modules, "numba", None)  # `import numba` now raises ImportError
-    monkeypatch.setattr(sb3_affect.tabular, "_NUMBA_WARNED", False)
+    monkeypatch.setattr(sb3_affect.extras, "_NUMBA_WARNED", False)
     with pytest.warns(RuntimeWarning, match="numba can not be imported.*Python loop") as record:
         model = _learn(cls, "auto")
         _learn(cls, "auto")
