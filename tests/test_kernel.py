@@ -311,3 +311,18 @@ def test_the_kernels_cache_is_dropped_when_any_kernel_source_changes(tmp_path: P
     assert refresh_cache(sources, cache)
     assert not any(path.exists() for path in cached)
     assert not refresh_cache(sources, cache)
+
+
+def test_envs_built_anew_with_the_same_table_share_its_arrays_and_others_get_their_own() -> None:
+    from sb3_affect.kernel.inputs import TableArrays
+
+    def arrays_of(**kwargs: Any) -> TableArrays:
+        return TableArrays.of(gym.make("sb3_affect/GridPursuit-v0", **kwargs).unwrapped)
+
+    first, again = arrays_of(), arrays_of()
+    assert again is first  # two gym.make of one table: its arrays made once
+    other_goal, other_reward = arrays_of(goal=(3, 3)), arrays_of(step_reward=-1.0)
+    assert other_goal is not first and other_reward is not first
+    assert other_goal.goal != first.goal and other_reward.step_reward == -1.0 and first.step_reward == 0.0
+    table = gym.make("sb3_affect/GridPursuit-v0", goal=(3, 3)).unwrapped.transition_table()
+    assert np.array_equal(other_goal.trans, np.asarray(table.transitions)) and other_goal.goal == table.goal

@@ -31,20 +31,23 @@ from sb3_affect.registry import known_settings
 class TableArrays:
     """An env's transition table as the kernel's arrays (``trans``, ``tdist``) and scalars, and the predecessor width."""
 
+    #: the last tables made, to share between envs built anew with the same table (each ``gym.make`` builds its own)
+    _recent: list[tuple[TransitionTable, TableArrays]] = []
+
     @classmethod
     def of(cls, base: Any) -> TableArrays:
         """The arrays of ``base``'s table, kept on the env (its moves and rewards are fixed once it is built)."""
         table = base.transition_table()
-        cached = getattr(base, "_sb3_affect_kernel_table", None)
-        rewards = (table.goal_reward, table.step_reward)
-        if cached is None or cached.source is not table.transitions or cached.rewards != rewards:
-            cached = cls(table)
-            base._sb3_affect_kernel_table = cached
-        return cached
+        source, rewards, made = getattr(base, "_sb3_affect_kernel_table", (None, None, None))
+        if made is None or source is not table.transitions or rewards != (table.goal_reward, table.step_reward):
+            made = next((kept for known, kept in cls._recent if known == table), None)
+            if made is None:
+                made = cls(table)
+                cls._recent = [(table, made), *cls._recent[:7]]
+            base._sb3_affect_kernel_table = (table.transitions, (table.goal_reward, table.step_reward), made)
+        return made
 
     def __init__(self, table: TransitionTable) -> None:
-        self.source = table.transitions
-        self.rewards = (table.goal_reward, table.step_reward)
         self.trans = np.asarray(table.transitions, dtype=np.int64)
         self.tdist = np.asarray(table.distances, dtype=np.float64)
         self.start = int(table.start)
