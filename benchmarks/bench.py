@@ -10,10 +10,11 @@ the launcher; with ``--all``, also the other speed figures of the studies (below
     python benchmarks/bench.py --smoke         # seconds: tiny sizes, no protocol (what the test suite runs)
 
 Every figure is the median of repeated runs in this one process. The learn loops are measured in paired rounds (the
-bare loop, then each learn loop and the kernel alone, back to back); a ratio is the median of the rounds' ratios, and
-every round is printed with the machine's load. "Kernel alone" is the kernel's batch call (``simulate``'s) for the
-same seed and the episodes the compiled ``learn`` finished, its inputs built outside the timed part: compiled
-``learn`` / kernel alone is what ``learn`` adds to the decisions themselves.
+bare loop, then each learn loop, each compiled one followed by the kernel alone on its decisions); a ratio is the
+median of the rounds' ratios, and every round is printed with the machine's load. "Kernel alone" is the kernel's
+batch call (``simulate``'s, ``kernel.batch.run_batch``) for the same seed and the episodes the compiled ``learn``
+finished; only the call is timed (its inputs, seed key and output rows are made before it): compiled ``learn`` /
+kernel alone is what ``learn`` adds to the decisions themselves.
 
 ``--studies`` adds the hunter-team and moving-prey kernels against their Python references (paired rounds) and, with
 ``--study-seeds N``, their studies at N seeds, from ``benchmarks/bench_studies.py`` where that benchmark exists;
@@ -266,14 +267,15 @@ def main(argv: list[str] | None = None) -> int:
         "bare": lambda: bare_loop_rate(steps),
         "q_py": learn_rate(QLearning, steps, exploration_rate=0.1, engine="python"),
         "a_py": learn_rate(AffectQ, steps, engine="python"),
+        # each learn loop right before the kernel alone on its decisions
         "q_c": learn_rate(QLearning, steps, exploration_rate=0.1),
-        "a_c": learn_rate(AffectQ, steps),
         "q_k": kernel_alone("QLearning", steps, exploration_rate=0.1),
+        "a_c": learn_rate(AffectQ, steps),
         "a_k": kernel_alone("AffectQ", steps),
         # ten times the decisions: a run of 10-20 ms is at the mercy of other processes on a shared machine
         "q_cL": learn_rate(QLearning, 10 * steps, exploration_rate=0.1),
-        "a_cL": learn_rate(AffectQ, 10 * steps),
         "q_kL": kernel_alone("QLearning", 10 * steps, exploration_rate=0.1),
+        "a_cL": learn_rate(AffectQ, 10 * steps),
         "a_kL": kernel_alone("AffectQ", 10 * steps),
     }
     rounds = []
