@@ -243,7 +243,8 @@ def load_results(run_dir: Path, columns: Sequence[str] = REPORT_COLUMNS) -> Resu
 
     store = ResultsStore(run_dir)
     files = store.checked_files()
-    runs = read_folder(list(files.run_files), list(files.chunk_files), (), Path(run_dir), files.chunk_files)[0]  # counted
+    chunks = list(files.chunk_files)
+    runs = read_folder(list(files.run_files), chunks, (), Path(run_dir), files.chunk_files, files.episode_counts)[0]
     return Results(Path(run_dir), runs, tuple(columns), files)
 
 
