@@ -117,7 +117,7 @@ def scan(
             last[name] = max(last.get(name, 0), int(episode.max()))
             _add_curves(curves, name, part)
             if name == agent:
-                window_frames.append(_narrowed(run_windows(part, windows)))
+                window_frames.append(_narrowed(run_windows(part, windows, WINDOW_SOURCES)))
                 pieces.append(_settled(part, *window))
                 first_pass.add(part)
             del part
