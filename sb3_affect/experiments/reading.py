@@ -175,10 +175,12 @@ def read_folder(
         base, count = meta["base"], len(meta["runs"])
         ids, seeds, replicates, decisions = (list(values) for values in zip(*meta["runs"])) if count else ([],) * 4
         episodes_per_run: Any = base["episodes"]  # the footer only: the batch's episode budget
-        if run is not None or known is not None:
-            if run is not None and np.any(np.diff(run) < 0):
+        if run is not None:
+            if np.any(np.diff(run) < 0):
                 raise ValueError(f"{root}: a run's episodes are not stored together in {path.name}")
-            per_run = known if known is not None else np.bincount(run, minlength=count).astype(np.int64)
+            known = np.bincount(run, minlength=count).astype(np.int64)
+        if known is not None:
+            per_run = known
             if episode_counts is not None and footers is not None and path in footers:
                 episode_counts[path] = per_run
             episodes_per_run = per_run

@@ -27,6 +27,7 @@ import numpy as np
 import pandas as pd
 
 from sb3_affect.report import metrics as metrics_module
+from sb3_affect.report.ahead import read_ahead
 from sb3_affect.report.context import AFFECTIVE
 from sb3_affect.report.grouped import KahanSums, Welford
 from sb3_affect.report.metrics import (
@@ -108,21 +109,25 @@ def scan(
     window = (SETTLED[0] if predicted >= SETTLED[1] else max(1, predicted // 4), predicted)
     pieces: list[tuple[pd.DataFrame, np.ndarray, np.ndarray]] = []
     first_pass = _ProfileSums()
-    for name in sorted(set(runs.agent)):
-        for part_runs, part in results.parts(columns, name, metrics_module.RUNS_PER_PART, ordered=True):
-            frames.append(run_metrics(part, part_runs))
-            if not len(part):
-                continue
-            episode = part.episode.to_numpy()
-            last[name] = max(last.get(name, 0), int(episode.max()))
-            _add_curves(curves, name, part)
-            if name == agent:
-                window_frames.append(_narrowed(run_windows(part, windows, WINDOW_SOURCES)))
-                pieces.append(_settled(part, *window))
-                first_pass.add(part)
-            del part
-            if after_part is not None:
-                after_part()
+    every_part = (
+        (name, *found)
+        for name in sorted(set(runs.agent))
+        for found in results.parts(columns, name, metrics_module.RUNS_PER_PART, ordered=True)
+    )
+    for name, part_runs, part in read_ahead(every_part):  # the next part read while this one is reduced
+        frames.append(run_metrics(part, part_runs))
+        if not len(part):
+            continue
+        episode = part.episode.to_numpy()
+        last[name] = max(last.get(name, 0), int(episode.max()))
+        _add_curves(curves, name, part)
+        if name == agent:
+            window_frames.append(_narrowed(run_windows(part, windows, WINDOW_SOURCES)))
+            pieces.append(_settled(part, *window))
+            first_pass.add(part)
+        del part, episode
+        if after_part is not None:
+            after_part()
     table = join_parts(frames)
     del frames
     windows_table = pd.concat(window_frames, ignore_index=True) if window_frames else pd.DataFrame()  # in run id order
@@ -286,7 +291,7 @@ class _ProfileSums:
                 ratios[name] = summed / totals
         residuals = {name: Welford() for name, _ in SOURCES}
         wanted = ("episode", "decisions", *(source for _, source in SOURCES))
-        for _, part in results.parts(wanted, agent, metrics_module.RUNS_PER_PART, ordered=True):
+        for _, part in read_ahead(results.parts(wanted, agent, metrics_module.RUNS_PER_PART, ordered=True)):
             if not len(part):
                 continue
             episode = part.episode.to_numpy().astype(np.int64)
