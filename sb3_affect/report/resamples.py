@@ -66,7 +66,7 @@ def mean_indices(n: int, n_boot: int, seed: int) -> np.ndarray:
     return kept(("indices", n, n_boot, seed), n * n_boot, make)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def count_draws(draws: np.ndarray, out: np.ndarray) -> None:
     """Add to ``out[rep]`` how often each value is drawn in ``draws[rep]`` (``bincount`` of each row)."""
     for rep in range(draws.shape[0]):
@@ -152,7 +152,7 @@ def improvement_resamples(
     return boots
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def iqm_of_counts(counts: np.ndarray, order: np.ndarray, values: np.ndarray, low: int, high: int, out: np.ndarray) -> None:
     """
     The IQM of each resample (a row of ``counts``), as ``stats._iqm_resamples`` computes it: ``values`` sorted,
@@ -181,7 +181,7 @@ def iqm_of_counts(counts: np.ndarray, order: np.ndarray, values: np.ndarray, low
         out[rep] = total / (high - low)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def improvement_of_counts(
     weights: np.ndarray,
     drawn: np.ndarray,
@@ -213,7 +213,7 @@ def improvement_of_counts(
         out[rep] = (float(better) + 0.5 * float(ties)) / pairs
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _block_sum(data: np.ndarray, index: np.ndarray, lo: int, n: int) -> float:
     """numpy's pairwise sum of a block of at most 128 values: eight running sums, then the rest one by one."""
     if n < 8:
@@ -242,7 +242,7 @@ def _block_sum(data: np.ndarray, index: np.ndarray, lo: int, n: int) -> float:
     return res
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _means(data: np.ndarray, indices: np.ndarray, out: np.ndarray) -> None:
     """
     ``data[indices].mean(axis=1)`` with numpy's pairwise sum (``pairwise_sum_DOUBLE``): a run of more than 128 values
