@@ -11,9 +11,12 @@ are the same to the last bit (tests/test_report_lean.py compares them with that 
 
 from __future__ import annotations
 
+import os
+import threading
 from collections import OrderedDict
-from collections.abc import Callable, Sequence
-from typing import Any
+from collections.abc import Callable, Iterable, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any, TypeVar
 
 import numpy as np
 from numba import njit
@@ -24,19 +27,36 @@ SLOTS, KEEP_CELLS = 2, 20_000_000
 BLOCK_CELLS = 4_000_000
 
 _kept: OrderedDict[tuple[Any, ...], Any] = OrderedDict()
+_lock = threading.Lock()  # one draw at a time: bootstraps in threads (``in_threads``) wait for a draw they share
+_T = TypeVar("_T")
+_R = TypeVar("_R")
 
 
 def kept(key: tuple[Any, ...], cells: int, make: Callable[[], Any]) -> Any:
     """``make()``, kept under ``key`` when it holds at most ``KEEP_CELLS`` entries (the oldest kept one dropped)."""
-    if key in _kept:
-        _kept.move_to_end(key)
-        return _kept[key]
-    value = make()
-    if cells <= KEEP_CELLS:
-        _kept[key] = value
-        while len(_kept) > SLOTS:
-            _kept.popitem(last=False)
-    return value
+    with _lock:
+        if key in _kept:
+            _kept.move_to_end(key)
+            return _kept[key]
+        value = make()
+        if cells <= KEEP_CELLS:
+            _kept[key] = value
+            while len(_kept) > SLOTS:
+                _kept.popitem(last=False)
+        return value
+
+
+def in_threads(function: Callable[[_T], _R], items: Iterable[_T]) -> list[_R]:
+    """
+    ``[function(item) for item in items]``, two items at a time in threads (bootstraps of independent samples: their
+    compiled loops release the interpreter's lock, so two run at once on two cores). Each item's numbers are those of
+    the loop: every bootstrap seeds its own generator, and shared draws are drawn once (``kept``).
+    """
+    work = list(items)
+    if len(work) < 2 or (os.cpu_count() or 1) < 2:
+        return [function(item) for item in work]
+    with ThreadPoolExecutor(2, thread_name_prefix="bootstrap") as pool:
+        return list(pool.map(function, work))
 
 
 def forget() -> None:
