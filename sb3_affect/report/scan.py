@@ -109,23 +109,30 @@ def scan(
     window = (SETTLED[0] if predicted >= SETTLED[1] else max(1, predicted // 4), predicted)
     pieces: list[tuple[pd.DataFrame, np.ndarray, np.ndarray]] = []
     first_pass = _ProfileSums()
+
+    def read(name: str, part_runs: pd.DataFrame, part: pd.DataFrame) -> tuple[Any, ...]:
+        """A part and its learning-curve counts and settled pieces (in the read-ahead thread, parts in order)."""
+        counted = _part_curves(name, part) if len(part) else []
+        return name, part_runs, part, counted, _settled(part, *window) if name == agent and len(part) else None
+
     every_part = (
-        (name, *found)
+        read(name, *found)
         for name in sorted(set(runs.agent))
         for found in results.parts(columns, name, metrics_module.RUNS_PER_PART, ordered=True)
     )
-    for name, part_runs, part in read_ahead(every_part):  # the next part read while this one is reduced
+    for name, part_runs, part, counted, piece in read_ahead(every_part):  # the next part read while this one is reduced
         frames.append(run_metrics(part, part_runs))
+        for key, counts in counted:
+            curves.setdefault(key, []).append(counts)
         if not len(part):
             continue
         episode = part.episode.to_numpy()
         last[name] = max(last.get(name, 0), int(episode.max()))
-        _add_curves(curves, name, part)
         if name == agent:
             window_frames.append(_narrowed(run_windows(part, windows, WINDOW_SOURCES)))
-            pieces.append(_settled(part, *window))
+            pieces.append(piece)
             first_pass.add(part)
-        del part, episode
+        del part, episode, piece
         if after_part is not None:
             after_part()
     table = join_parts(frames)
@@ -205,18 +212,20 @@ def merge_curves(curves: Sequence[tuple[np.ndarray, np.ndarray]]) -> tuple[np.nd
     return _merge(list(curves))
 
 
-def _add_curves(curves: dict[tuple[str, Any], list[tuple[np.ndarray, np.ndarray]]], agent: str, part: pd.DataFrame) -> None:
+def _part_curves(agent: str, part: pd.DataFrame) -> list[tuple[tuple[str, Any], tuple[np.ndarray, np.ndarray]]]:
+    """A part's learning-curve counts (``_counted``) per (agent, ε label or None)."""
     episode, decisions = part.episode.to_numpy(), part.decisions.to_numpy()
     if "epsilon" not in part.columns:
-        curves.setdefault((agent, None), []).append(_counted(episode, decisions))
-        return
+        return [((agent, None), _counted(episode, decisions))]
     labels = part.epsilon
     codes = labels.cat.codes.to_numpy() if isinstance(labels.dtype, pd.CategoricalDtype) else pd.factorize(labels)[0]
     names = labels.cat.categories if isinstance(labels.dtype, pd.CategoricalDtype) else pd.factorize(labels)[1]
+    out = []
     for code in np.unique(codes):
         rows = codes == code
         value = None if code < 0 else names[code]
-        curves.setdefault((agent, value), []).append(_counted(episode[rows], decisions[rows]))
+        out.append(((agent, value), _counted(episode[rows], decisions[rows])))
+    return out
 
 
 def curve_quantiles(
