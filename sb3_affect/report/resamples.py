@@ -115,9 +115,12 @@ def iqm_resamples_of(samples: Sequence[np.ndarray], orders: Sequence[np.ndarray]
         count_draws(rng.integers(0, n, size=out.shape), out)
         return out
 
-    def make() -> np.ndarray:
+    def make() -> np.ndarray:  # counted straight into the kept rows (narrow), a block of draws at a time
         rng = np.random.default_rng(seed)
-        return np.concatenate([drawn(rng, first) for first in range(0, n_boot, block)]).astype(_narrow(n))
+        out = np.zeros((n_boot, n), _narrow(n))
+        for first in range(0, n_boot, block):
+            count_draws(rng.integers(0, n, size=(min(block, n_boot - first), n)), out[first : first + block])
+        return out
 
     if n * n_boot <= KEEP_CELLS:
         counts = kept(("counts", n, n_boot, seed), n * n_boot, make)
