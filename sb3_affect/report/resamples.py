@@ -117,7 +117,7 @@ def iqm_resamples_of(samples: Sequence[np.ndarray], orders: Sequence[np.ndarray]
 
     def make() -> np.ndarray:  # counted straight into the kept rows (narrow), a block of draws at a time
         rng = np.random.default_rng(seed)
-        out = np.zeros((n_boot, n), _narrow(n))
+        out: np.ndarray = np.zeros((n_boot, n), _narrow(n))
         for first in range(0, n_boot, block):
             count_draws(rng.integers(0, n, size=(min(block, n_boot - first), n)), out[first : first + block])
         return out

@@ -138,6 +138,8 @@ def scan(
     table = join_parts(frames)
     del frames
     windows_table = pd.concat(window_frames, ignore_index=True) if window_frames else pd.DataFrame()  # in run id order
+    if "agent" in windows_table.columns:  # compared with an agent's name by every claim judged on it: codes, not text
+        windows_table["agent"] = pd.Categorical(windows_table["agent"])
     del window_frames
     settled = None
     if pieces and last.get(agent) == predicted and predicted:
