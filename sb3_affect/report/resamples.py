@@ -27,7 +27,7 @@ SLOTS, KEEP_CELLS = 2, 20_000_000
 BLOCK_CELLS = 4_000_000
 
 _kept: OrderedDict[tuple[Any, ...], Any] = OrderedDict()
-_lock = threading.Lock()  # one draw at a time: bootstraps in threads (``in_threads``) wait for a draw they share
+_lock = threading.RLock()  # one draw at a time: bootstraps in threads (``in_threads``) wait for a draw they share
 _T = TypeVar("_T")
 _R = TypeVar("_R")
 

@@ -14,7 +14,8 @@ per-run metrics) is reduced here, part by part, while the rows are read once.
 
 Every reduction either sums integers (exact in any order) or adds floats in the order a whole-frame pandas groupby
 would (``report.grouped``), so the numbers are those of the whole-frame computations (tests/test_report_lean.py).
-Memory: one part's rows, the per-run table, the settled window's decisions and joy (8 bytes an episode of it).
+Memory: two parts' rows (the next part is read in a background thread while one is reduced, ``report.ahead``), the
+per-run table, the settled window's decisions and joy (8 bytes an episode of it).
 """
 
 from __future__ import annotations
