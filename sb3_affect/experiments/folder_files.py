@@ -52,11 +52,14 @@ class FolderFiles:
     :param run_files: the run files that count, with the agent of their run
     :param chunk_files: the chunks that count, with their footer
     :param rejected: ``(path, why)`` of each file that does not count
+    :param episode_counts: each chunk's episodes per run (its ``run`` column counted), once a reader has read it
+        (``reading.read_folder`` fills it and reads it back: a folder read several times counts them once)
     """
 
     run_files: dict[Path, str] = field(default_factory=dict)
     chunk_files: dict[Path, dict[str, Any]] = field(default_factory=dict)
     rejected: list[tuple[Path, str]] = field(default_factory=list)
+    episode_counts: dict[Path, Any] = field(default_factory=dict, repr=False)
 
     def done_ids(self) -> set[str]:
         done = {path.stem for path in self.run_files}

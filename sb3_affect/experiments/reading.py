@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+from numba import njit
 
 from sb3_affect.experiments.chunks import BOOL_COLUMNS, INT_COLUMNS, META_KEY, chunk_table
 from sb3_affect.experiments.folder_files import guarded
@@ -130,6 +131,7 @@ def read_folder(
     columns: Sequence[str] | None,
     root: Path,
     footers: Mapping[Path, dict[str, Any]] | None = None,
+    episode_counts: dict[Path, np.ndarray] | None = None,
 ) -> tuple[pd.DataFrame, dict[str, np.ndarray]]:
     """
     The run table of a results folder and (unless ``columns`` is None) its episode columns.
@@ -139,6 +141,8 @@ def read_folder(
     :param columns: the episode columns wanted, or None for the run table only (chunks: footers only)
     :param root: the folder (for error messages)
     :param footers: the chunks' footers when already read (``FolderFiles.chunk_files``): not parsed again
+    :param episode_counts: each chunk's episodes per run once counted (``FolderFiles.episode_counts``): with
+        ``footers``, a chunk counted before is not read for them again; the chunks counted here are added
     :return: ``(runs, data)``: ``runs`` one row per finished run sorted by run id (``RUN_COLUMNS`` and the labels);
         ``data`` the episode columns and ``run`` (int32, the row in ``runs``), each run's rows together
     """
@@ -161,8 +165,11 @@ def read_folder(
     total = len(rows)
     for path in chunk_files:
         run: np.ndarray | None
+        known = None
         if footers is not None and path in footers and columns is not None:
-            meta, run = footers[path], guarded(path, lambda p: chunk_table(p, ())["run"])
+            known = None if episode_counts is None else episode_counts.get(path)
+            meta = footers[path]
+            run = None if known is not None else guarded(path, lambda p: chunk_table(p, ())["run"])
         else:
             meta, run = guarded(path, lambda p: _chunk_footer(p, columns is not None))
         base, count = meta["base"], len(meta["runs"])
@@ -171,7 +178,11 @@ def read_folder(
         if run is not None:
             if np.any(np.diff(run) < 0):
                 raise ValueError(f"{root}: a run's episodes are not stored together in {path.name}")
-            per_run = np.bincount(run, minlength=count).astype(np.int64)
+            known = np.bincount(run, minlength=count).astype(np.int64)
+        if known is not None:
+            per_run = known
+            if episode_counts is not None and footers is not None and path in footers:
+                episode_counts[path] = per_run
             episodes_per_run = per_run
             lengths.append(per_run)
             chunks.append((path, total, np.r_[0, np.cumsum(per_run)[:-1]]))
@@ -213,11 +224,34 @@ def read_folder(
             data[column][rows_of_run] = part[column]
     for path, first, run_starts in chunks:
         table = guarded(path, lambda p: chunk_table(p, columns))
-        run = table.pop("run").astype(np.int64)
-        where = start[first + run] + (np.arange(len(run)) - run_starts[run])
+        run = table.pop("run")
+        n_runs = len(run_starts)
+        if not _fits(run, run_starts, counts[first : first + n_runs]):
+            raise ValueError(f"{root}: the rows of {path.name} are not those its runs were counted with")
         for column in columns:
-            data[column][where] = table.pop(column)
+            _place(data[column], table.pop(column), run, start[first : first + n_runs], run_starts)
     return runs, data
+
+
+@njit(cache=True, nogil=True)
+def _fits(run: np.ndarray, run_starts: np.ndarray, counts: np.ndarray) -> bool:
+    """Whether each row ``i`` of a chunk lies in its run's rows: ``run_starts[run[i]] <= i < run_starts + counts``."""
+    for i in range(len(run)):
+        r = run[i]
+        if r < 0 or r >= len(run_starts) or i < run_starts[r] or i >= run_starts[r] + counts[r]:
+            return False
+    return True
+
+
+@njit(cache=True, nogil=True)
+def _place(target: np.ndarray, values: np.ndarray, run: np.ndarray, runs_start: np.ndarray, run_starts: np.ndarray) -> None:
+    """
+    ``target[runs_start[run] + (i - run_starts[run])] = values``, row by row (``_fits``): a chunk's rows (run
+    ``run[i]``, whose rows start at ``run_starts[run]`` in the chunk) moved to their runs' rows in the read order.
+    """
+    for i in range(len(run)):
+        r = run[i]
+        target[runs_start[r] + (i - run_starts[r])] = values[i]
 
 
 def episode_table(runs: pd.DataFrame, data: dict[str, np.ndarray], run_columns: Sequence[str]) -> pd.DataFrame:

@@ -433,7 +433,7 @@ class ResultsStore:
         }
         split = ordered_file_parts if ordered else file_parts
         for json_part, chunk_part in split(run_files, chunk_files, runs_per_part):
-            runs, data = read_folder(json_part, chunk_part, wanted, self.root, files.chunk_files)
+            runs, data = read_folder(json_part, chunk_part, wanted, self.root, files.chunk_files, files.episode_counts)
             named = [c for c in runs.columns if c not in RUN_COLUMNS]
             yield runs, episode_table(runs, data, ["run_id", "agent", *(["seed"] if seed else []), *named])
 

@@ -275,6 +275,7 @@ def build_report(
         resamples.forget()  # a section's resamples (the next section draws for other sizes or seeds)
         release_memory()  # what a section let go, before the next one asks for more
     resamples.forget()
+    ctx.finish_deferred()
     md = out / "report.md"
     md.write_text(ctx.doc.markdown(out))
     (out / "report.html").write_text(ctx.doc.html())

@@ -19,6 +19,7 @@ from sb3_affect.report.document import fmt, pval
 from sb3_affect.report.figures import save
 from sb3_affect.report.largen import SPEED_AGENT
 from sb3_affect.report.metrics import load_results, run_metrics
+from sb3_affect.report.resamples import in_threads
 from sb3_affect.report.stats import bootstrap_improvement, bootstrap_iqm_cis, bootstrap_profile
 
 METRICS = (
@@ -50,23 +51,36 @@ def rliable_table(m: pd.DataFrame, seed: int = 0) -> pd.DataFrame:
     numpy's global random state (so its CIs changed from one report to the next) and ranks every pair anew each
     resample; ours is reproducible and costs O(runs) a resample.
     """
-    parts = groups(m)
-    rows: dict[str, dict[str, str]] = {name: {} for name in parts}
+    every = groups(m)
+    parts = {name: part for name, part in every.items() if len(part)}
+    rows: dict[str, dict[str, str]] = {name: {} for name in every}
     columns = [column for column, _ in METRICS]
-    cis = {  # a group's metrics share their resamples (drawn once: the same numbers as one bootstrap each)
-        name: dict(zip(columns, bootstrap_iqm_cis([part[c].to_numpy(float) for c in columns], n_boot=REPS, seed=seed)))
-        for name, part in parts.items()
-        if len(part)
-    }
+    # a group's metrics share their resamples (drawn once: the same numbers as one bootstrap each); groups in threads
+    found = in_threads(
+        lambda part: bootstrap_iqm_cis([part[c].to_numpy(float) for c in columns], n_boot=REPS, seed=seed), parts.values()
+    )
+    cis = {name: dict(zip(columns, part_cis)) for name, part_cis in zip(parts, found)}
+    pairs = [(c, name) for c in columns for name in parts if name != AFFECTIVE and AFFECTIVE in parts]
+    better = dict(
+        zip(
+            pairs,
+            in_threads(
+                lambda pair: bootstrap_improvement(
+                    parts[AFFECTIVE][pair[0]].to_numpy(float), parts[pair[1]][pair[0]].to_numpy(float), REPS // 5, seed=seed
+                ),
+                pairs,
+            ),
+        )
+    )
     for column, label in METRICS:
-        scores = {name: part[column].to_numpy(float) for name, part in parts.items() if len(part)}
+        scores = {name: part[column].to_numpy(float) for name, part in parts.items()}
         for name, values in scores.items():
             iqm = float(rmetrics.aggregate_iqm(values[:, None]))
             _, low, high = cis[name][column]
             rows[name][f"IQM {label}"] = f"{fmt(iqm, 1)} [{fmt(low, 1)}, {fmt(high, 1)}]"
             if name == AFFECTIVE or AFFECTIVE not in scores:
                 continue
-            point, low, high = bootstrap_improvement(scores[AFFECTIVE], values, n_boot=REPS // 5, seed=seed)
+            point, low, high = better[(column, name)]
             rows[name][f"P(affective better), {label}"] = f"{fmt(point, 3)} [{fmt(low, 3)}, {fmt(high, 3)}]"
     table = pd.DataFrame.from_dict(rows, orient="index")
     table.index.name = "agent"

@@ -5,6 +5,7 @@ never-found runs censored), the emotion profile (Fig. 5), the equivalent ε (Fig
 
 from __future__ import annotations
 
+import hashlib
 import math
 
 import numpy as np
@@ -74,11 +75,20 @@ def judge_episodes_to_optimal(m: pd.DataFrame) -> Judgement:
     return j
 
 
+#: p-values of ``_one_sample`` by the bytes of the sample (the windows section tests each window's values many times).
+_TESTED: dict[bytes, float] = {}
+
+
 def _one_sample(x: np.ndarray) -> float:
-    x = x[~np.isnan(x)]
+    x = np.ascontiguousarray(x[~np.isnan(x)], np.float64)
     if len(x) == 0 or not (x != 0).any():
         return 1.0
-    return float(sps.wilcoxon(x, alternative="greater").pvalue)
+    key = hashlib.blake2b(x.tobytes(), digest_size=32).digest()
+    if key not in _TESTED:
+        if len(_TESTED) >= 64:
+            _TESTED.pop(next(iter(_TESTED)))
+        _TESTED[key] = float(sps.wilcoxon(x, alternative="greater").pvalue)
+    return _TESTED[key]
 
 
 def judge_fig5(m: pd.DataFrame, weighted: bool, early: str = "1_10", late: str = "181_200") -> Judgement:

@@ -20,7 +20,7 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _kahan_add(values: np.ndarray, labels: np.ndarray, nobs: np.ndarray, sums: np.ndarray, comp: np.ndarray) -> None:
     for i in range(len(values)):
         lab = labels[i]
@@ -38,7 +38,7 @@ def _kahan_add(values: np.ndarray, labels: np.ndarray, nobs: np.ndarray, sums: n
         sums[lab] = t
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _welford_add(values: np.ndarray, labels: np.ndarray, nobs: np.ndarray, mean: np.ndarray, m2: np.ndarray) -> None:
     for i in range(len(values)):
         lab = labels[i]
@@ -120,7 +120,7 @@ def group_sum(values: np.ndarray, labels: np.ndarray, groups: int) -> np.ndarray
     return sums.sums
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _window_bounds(
     episode: np.ndarray, starts: np.ndarray, counts: np.ndarray, lo: int, hi: int, first: np.ndarray, last: np.ndarray
 ) -> None:
@@ -146,7 +146,7 @@ def window_bounds(
     return first, last
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _segment_kahan(
     values: np.ndarray,
     first: np.ndarray,

@@ -9,6 +9,8 @@ only when the cache is missing.
 from __future__ import annotations
 
 import json
+import threading
+from concurrent.futures import Future
 from pathlib import Path
 
 import numpy as np
@@ -32,6 +34,24 @@ def traced(folder: Path, seeds: int = SEEDS, episodes: int = EPISODES) -> pd.Dat
     frame.to_csv(table, index=False)
     meta.write_text(json.dumps({"seeds": seeds, "episodes": episodes}))
     return frame
+
+
+def traced_in_background(folder: Path, seeds: int = SEEDS, episodes: int = EPISODES) -> Future[pd.DataFrame]:
+    """
+    ``traced`` in a background thread (its result, or its error, from the future): the traces are Python loops
+    that run while the caller works outside the interpreter's lock (compiled loops, numpy). A daemon thread: a
+    report that fails before it asks for the traces exits without waiting for them.
+    """
+    future: Future[pd.DataFrame] = Future()
+
+    def run() -> None:
+        try:
+            future.set_result(traced(folder, seeds, episodes))
+        except BaseException as error:  # raised where the traces are asked for
+            future.set_exception(error)
+
+    threading.Thread(target=run, name="joy-trace", daemon=True).start()
+    return future
 
 
 def summary(frame: pd.DataFrame) -> dict[str, float]:

@@ -5,9 +5,11 @@ what "equivalent epsilon" then means, and Fig. 5 under both weightings.
 
 from __future__ import annotations
 
+from concurrent.futures import Future
+
 import pandas as pd
 
-from sb3_affect.report import figures
+from sb3_affect.report import figures, joy_trace
 from sb3_affect.report.context import AFFECTIVE, ReportContext
 from sb3_affect.report.document import fmt, sig
 from sb3_affect.report.metrics import EMOTIONS, profile, window_mean
@@ -93,7 +95,8 @@ def mechanism_section(ctx: ReportContext) -> None:
         "fraction is close to the share of episodes with any joy). Per decision, the agent is random most of the time "
         "even late in training, which is why its steps per episode stay far above the 12-cell optimum."
     )
-    joy_section(ctx)
+    if not ctx.verdict_refusal():  # the traces run in a background thread; their text is placed here at the end
+        ctx.defer(joy_section, joy_trace.traced_in_background(ctx.root / "joy_trace"))
     ctx.doc.h("Fig. 5 under both weightings", 3)
     del decisions
     prof = found.profile if found.profile is not None else agent_profile(ctx, AFFECTIVE, last)
@@ -130,13 +133,14 @@ def mechanism_section(ctx: ReportContext) -> None:
     ctx.doc.img(f6, "Fig. 6: equivalent ε (fraction of random-direction decisions) per episode, both weightings")
 
 
-def joy_section(ctx: ReportContext) -> None:
-    """Joy near-absorbing, and where late episodes cross the norm (traced runs, ``report.joy_trace``)."""
-    from sb3_affect.report import joy_trace
-
+def joy_section(ctx: ReportContext, traces: Future[pd.DataFrame] | None = None) -> None:
+    """
+    Joy near-absorbing, and where late episodes cross the norm (traced runs, ``report.joy_trace``; ``traces``:
+    theirs when already under way).
+    """
     if ctx.verdict_refusal():
         return
-    frame = joy_trace.traced(ctx.root / "joy_trace")
+    frame = traces.result() if traces is not None else joy_trace.traced(ctx.root / "joy_trace")
     b = joy_trace.summary(frame)
     ctx.doc.h("Joy is near-absorbing; where late episodes cross the norm", 3)
     path = joy_trace.norm_figure(frame, ctx.figure("norm_crossings"), ctx.cache.get("shortest path"))
@@ -156,3 +160,4 @@ def joy_section(ctx: ReportContext) -> None:
         f"({sig(b['decisions of crossing late episodes, median'])} decisions, median)."
     )
     ctx.doc.img(path, "The norm per episode and, for the episodes that cross it, the decision at which joy starts")
+

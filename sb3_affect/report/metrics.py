@@ -243,7 +243,8 @@ def load_results(run_dir: Path, columns: Sequence[str] = REPORT_COLUMNS) -> Resu
 
     store = ResultsStore(run_dir)
     files = store.checked_files()
-    runs = read_folder(list(files.run_files), list(files.chunk_files), (), Path(run_dir), files.chunk_files)[0]  # counted
+    chunks = list(files.chunk_files)
+    runs = read_folder(list(files.run_files), chunks, (), Path(run_dir), files.chunk_files, files.episode_counts)[0]
     return Results(Path(run_dir), runs, tuple(columns), files)
 
 
@@ -425,10 +426,13 @@ def _column_of(episodes: pd.DataFrame, take: np.ndarray | None) -> Any:
     return column
 
 
-def run_windows(episodes: pd.DataFrame, windows: Sequence[tuple[int, int]]) -> pd.DataFrame:
+def run_windows(
+    episodes: pd.DataFrame, windows: Sequence[tuple[int, int]], sources: Sequence[str] | None = None
+) -> pd.DataFrame:
     """
     The window features of ``run_metrics`` alone (``run_id``, ``agent`` when there, and each window's columns), one
     row per run with episodes, sorted by run id: the same numbers as ``run_metrics(episodes, windows=windows)``.
+    ``sources``: only the features of these (emotions, ``eqeps``, ``cells``; ``decisions`` always), not all.
     """
     if not len(episodes):
         return pd.DataFrame()
@@ -438,7 +442,7 @@ def run_windows(episodes: pd.DataFrame, windows: Sequence[tuple[int, int]]) -> p
     if "agent" in episodes.columns:
         out["agent"] = _labels(episodes["agent"], rows.take, rows.starts, rows.counts)
     for window in windows:
-        for key, series in _window(column, rows.starts, rows.counts, rows.episode, *window).items():
+        for key, series in _window(column, rows.starts, rows.counts, rows.episode, *window, sources).items():
             out[key] = series
     return out
 
@@ -504,11 +508,18 @@ def _labels(values: pd.Series, take: np.ndarray | None, starts: np.ndarray, coun
 
 
 def _window(
-    column: Any, starts: np.ndarray, counts: np.ndarray, episode: np.ndarray, lo: int, hi: int
+    column: Any,
+    starts: np.ndarray,
+    counts: np.ndarray,
+    episode: np.ndarray,
+    lo: int,
+    hi: int,
+    sources: Sequence[str] | None = None,
 ) -> dict[str, np.ndarray]:
     """
     Per run: mean over the window's episodes of per-episode fractions, and decision-weighted fractions (NaN: a run
-    without episodes in the window), with pandas' groupby arithmetic in row order (``report.grouped``).
+    without episodes in the window), with pandas' groupby arithmetic in row order (``report.grouped``); ``sources``:
+    only these (``run_windows``).
     """
     first, last = window_bounds(episode, starts, counts, lo, hi)
     absent = first == last
@@ -517,11 +528,14 @@ def _window(
     total = np.where(absent | ~(total > 0), np.nan, total)
     out: dict[str, np.ndarray] = {}
     for name, source in (*((x, x) for x in EMOTIONS), ("eqeps", "random_moves")):
+        if sources is not None and name not in sources:
+            continue
         fraction, summed = segment_means(column(source), first, last, decisions)
         out[f"{name}_{lo}_{hi}"] = fraction
         out[f"{name}_{lo}_{hi}_weighted"] = np.where(absent, np.nan, summed) / total
     out[f"decisions_{lo}_{hi}"] = means
-    out[f"cells_{lo}_{hi}"] = segment_means(column("cells"), first, last)[0]
+    if sources is None or "cells" in sources:
+        out[f"cells_{lo}_{hi}"] = segment_means(column("cells"), first, last)[0]
     return out
 
 

@@ -11,9 +11,12 @@ are the same to the last bit (tests/test_report_lean.py compares them with that 
 
 from __future__ import annotations
 
+import os
+import threading
 from collections import OrderedDict
-from collections.abc import Callable, Sequence
-from typing import Any
+from collections.abc import Callable, Iterable, Sequence
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any, TypeVar
 
 import numpy as np
 from numba import njit
@@ -24,19 +27,36 @@ SLOTS, KEEP_CELLS = 2, 20_000_000
 BLOCK_CELLS = 4_000_000
 
 _kept: OrderedDict[tuple[Any, ...], Any] = OrderedDict()
+_lock = threading.RLock()  # one draw at a time: bootstraps in threads (``in_threads``) wait for a draw they share
+_T = TypeVar("_T")
+_R = TypeVar("_R")
 
 
 def kept(key: tuple[Any, ...], cells: int, make: Callable[[], Any]) -> Any:
     """``make()``, kept under ``key`` when it holds at most ``KEEP_CELLS`` entries (the oldest kept one dropped)."""
-    if key in _kept:
-        _kept.move_to_end(key)
-        return _kept[key]
-    value = make()
-    if cells <= KEEP_CELLS:
-        _kept[key] = value
-        while len(_kept) > SLOTS:
-            _kept.popitem(last=False)
-    return value
+    with _lock:
+        if key in _kept:
+            _kept.move_to_end(key)
+            return _kept[key]
+        value = make()
+        if cells <= KEEP_CELLS:
+            _kept[key] = value
+            while len(_kept) > SLOTS:
+                _kept.popitem(last=False)
+        return value
+
+
+def in_threads(function: Callable[[_T], _R], items: Iterable[_T]) -> list[_R]:
+    """
+    ``[function(item) for item in items]``, two items at a time in threads (bootstraps of independent samples: their
+    compiled loops release the interpreter's lock, so two run at once on two cores). Each item's numbers are those of
+    the loop: every bootstrap seeds its own generator, and shared draws are drawn once (``kept``).
+    """
+    work = list(items)
+    if len(work) < 2 or (os.cpu_count() or 1) < 2:
+        return [function(item) for item in work]
+    with ThreadPoolExecutor(2, thread_name_prefix="bootstrap") as pool:
+        return list(pool.map(function, work))
 
 
 def forget() -> None:
@@ -66,7 +86,7 @@ def mean_indices(n: int, n_boot: int, seed: int) -> np.ndarray:
     return kept(("indices", n, n_boot, seed), n * n_boot, make)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def count_draws(draws: np.ndarray, out: np.ndarray) -> None:
     """Add to ``out[rep]`` how often each value is drawn in ``draws[rep]`` (``bincount`` of each row)."""
     for rep in range(draws.shape[0]):
@@ -95,9 +115,12 @@ def iqm_resamples_of(samples: Sequence[np.ndarray], orders: Sequence[np.ndarray]
         count_draws(rng.integers(0, n, size=out.shape), out)
         return out
 
-    def make() -> np.ndarray:
+    def make() -> np.ndarray:  # counted straight into the kept rows (narrow), a block of draws at a time
         rng = np.random.default_rng(seed)
-        return np.concatenate([drawn(rng, first) for first in range(0, n_boot, block)]).astype(_narrow(n))
+        out: np.ndarray = np.zeros((n_boot, n), _narrow(n))
+        for first in range(0, n_boot, block):
+            count_draws(rng.integers(0, n, size=(min(block, n_boot - first), n)), out[first : first + block])
+        return out
 
     if n * n_boot <= KEEP_CELLS:
         counts = kept(("counts", n, n_boot, seed), n * n_boot, make)
@@ -152,7 +175,7 @@ def improvement_resamples(
     return boots
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def iqm_of_counts(counts: np.ndarray, order: np.ndarray, values: np.ndarray, low: int, high: int, out: np.ndarray) -> None:
     """
     The IQM of each resample (a row of ``counts``), as ``stats._iqm_resamples`` computes it: ``values`` sorted,
@@ -181,7 +204,7 @@ def iqm_of_counts(counts: np.ndarray, order: np.ndarray, values: np.ndarray, low
         out[rep] = total / (high - low)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def improvement_of_counts(
     weights: np.ndarray,
     drawn: np.ndarray,
@@ -213,7 +236,7 @@ def improvement_of_counts(
         out[rep] = (float(better) + 0.5 * float(ties)) / pairs
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _block_sum(data: np.ndarray, index: np.ndarray, lo: int, n: int) -> float:
     """numpy's pairwise sum of a block of at most 128 values: eight running sums, then the rest one by one."""
     if n < 8:
@@ -242,7 +265,7 @@ def _block_sum(data: np.ndarray, index: np.ndarray, lo: int, n: int) -> float:
     return res
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _means(data: np.ndarray, indices: np.ndarray, out: np.ndarray) -> None:
     """
     ``data[indices].mean(axis=1)`` with numpy's pairwise sum (``pairwise_sum_DOUBLE``): a run of more than 128 values

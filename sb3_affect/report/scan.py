@@ -14,7 +14,8 @@ per-run metrics) is reduced here, part by part, while the rows are read once.
 
 Every reduction either sums integers (exact in any order) or adds floats in the order a whole-frame pandas groupby
 would (``report.grouped``), so the numbers are those of the whole-frame computations (tests/test_report_lean.py).
-Memory: one part's rows, the per-run table, the settled window's decisions and joy (8 bytes an episode of it).
+Memory: two parts' rows (the next part is read in a background thread while one is reduced, ``report.ahead``), the
+per-run table, the settled window's decisions and joy (8 bytes an episode of it).
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ import numpy as np
 import pandas as pd
 
 from sb3_affect.report import metrics as metrics_module
+from sb3_affect.report.ahead import read_ahead
 from sb3_affect.report.context import AFFECTIVE
 from sb3_affect.report.grouped import KahanSums, Welford
 from sb3_affect.report.metrics import (
@@ -108,24 +110,37 @@ def scan(
     window = (SETTLED[0] if predicted >= SETTLED[1] else max(1, predicted // 4), predicted)
     pieces: list[tuple[pd.DataFrame, np.ndarray, np.ndarray]] = []
     first_pass = _ProfileSums()
-    for name in sorted(set(runs.agent)):
-        for part_runs, part in results.parts(columns, name, metrics_module.RUNS_PER_PART, ordered=True):
-            frames.append(run_metrics(part, part_runs))
-            if not len(part):
-                continue
-            episode = part.episode.to_numpy()
-            last[name] = max(last.get(name, 0), int(episode.max()))
-            _add_curves(curves, name, part)
-            if name == agent:
-                window_frames.append(_narrowed(run_windows(part, windows)))
-                pieces.append(_settled(part, *window))
-                first_pass.add(part)
-            del part
-            if after_part is not None:
-                after_part()
+
+    def read(name: str, part_runs: pd.DataFrame, part: pd.DataFrame) -> tuple[Any, ...]:
+        """A part and its learning-curve counts and settled pieces (in the read-ahead thread, parts in order)."""
+        counted = _part_curves(name, part) if len(part) else []
+        return name, part_runs, part, counted, _settled(part, *window) if name == agent and len(part) else None
+
+    every_part = (
+        read(name, *found)
+        for name in sorted(set(runs.agent))
+        for found in results.parts(columns, name, metrics_module.RUNS_PER_PART, ordered=True)
+    )
+    for name, part_runs, part, counted, piece in read_ahead(every_part):  # the next part read while this one is reduced
+        frames.append(run_metrics(part, part_runs))
+        for key, counts in counted:
+            curves.setdefault(key, []).append(counts)
+        if not len(part):
+            continue
+        episode = part.episode.to_numpy()
+        last[name] = max(last.get(name, 0), int(episode.max()))
+        if name == agent:
+            window_frames.append(_narrowed(run_windows(part, windows, WINDOW_SOURCES)))
+            pieces.append(piece)
+            first_pass.add(part)
+        del part, episode, piece
+        if after_part is not None:
+            after_part()
     table = join_parts(frames)
     del frames
     windows_table = pd.concat(window_frames, ignore_index=True) if window_frames else pd.DataFrame()  # in run id order
+    if "agent" in windows_table.columns:  # compared with an agent's name by every claim judged on it: codes, not text
+        windows_table["agent"] = pd.Categorical(windows_table["agent"])
     del window_frames
     settled = None
     if pieces and last.get(agent) == predicted and predicted:
@@ -200,18 +215,20 @@ def merge_curves(curves: Sequence[tuple[np.ndarray, np.ndarray]]) -> tuple[np.nd
     return _merge(list(curves))
 
 
-def _add_curves(curves: dict[tuple[str, Any], list[tuple[np.ndarray, np.ndarray]]], agent: str, part: pd.DataFrame) -> None:
+def _part_curves(agent: str, part: pd.DataFrame) -> list[tuple[tuple[str, Any], tuple[np.ndarray, np.ndarray]]]:
+    """A part's learning-curve counts (``_counted``) per (agent, ε label or None)."""
     episode, decisions = part.episode.to_numpy(), part.decisions.to_numpy()
     if "epsilon" not in part.columns:
-        curves.setdefault((agent, None), []).append(_counted(episode, decisions))
-        return
+        return [((agent, None), _counted(episode, decisions))]
     labels = part.epsilon
     codes = labels.cat.codes.to_numpy() if isinstance(labels.dtype, pd.CategoricalDtype) else pd.factorize(labels)[0]
     names = labels.cat.categories if isinstance(labels.dtype, pd.CategoricalDtype) else pd.factorize(labels)[1]
+    out = []
     for code in np.unique(codes):
         rows = codes == code
         value = None if code < 0 else names[code]
-        curves.setdefault((agent, value), []).append(_counted(episode[rows], decisions[rows]))
+        out.append(((agent, value), _counted(episode[rows], decisions[rows])))
+    return out
 
 
 def curve_quantiles(
@@ -286,7 +303,7 @@ class _ProfileSums:
                 ratios[name] = summed / totals
         residuals = {name: Welford() for name, _ in SOURCES}
         wanted = ("episode", "decisions", *(source for _, source in SOURCES))
-        for _, part in results.parts(wanted, agent, metrics_module.RUNS_PER_PART, ordered=True):
+        for _, part in read_ahead(results.parts(wanted, agent, metrics_module.RUNS_PER_PART, ordered=True)):
             if not len(part):
                 continue
             episode = part.episode.to_numpy().astype(np.int64)

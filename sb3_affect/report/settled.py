@@ -74,7 +74,6 @@ def settled_part(episodes: pd.DataFrame, first: int, last: int) -> tuple[pd.Data
         key = run_ids.cat.codes.to_numpy()
     else:
         key = pd.factorize(run_ids.to_numpy(dtype=object), sort=True)[0]
-    present = np.flatnonzero(np.bincount(key))  # the runs in run id order, as a groupby's
     long = decisions > LONG
     columns = {
         "long": long,
@@ -84,7 +83,15 @@ def settled_part(episodes: pd.DataFrame, first: int, last: int) -> tuple[pd.Data
         "long_joy": np.where(long, joy, 0),
         "joy": joy,
         "any_joy": joy > 0,
-    }  # per-run sums of integers: exact in float64
+    }  # per-run sums of integers: exact in float64, so in any order
+    if len(key) and bool(np.all(key[1:] >= key[:-1])):  # rows in run order (as read): each run's rows together
+        starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+        sums = {
+            name: (np.diff(np.r_[starts, len(key)]) if v is None else np.add.reduceat(v, starts, dtype=np.int64))
+            for name, v in columns.items()
+        }
+        return pd.DataFrame({name: v.astype(float) for name, v in sums.items()}), decisions, joy
+    present = np.flatnonzero(np.bincount(key))  # the runs in run id order, as a groupby's
     per_run = pd.DataFrame(
         {
             name: np.bincount(key, weights=None if v is None else v.astype(float))[present].astype(float)

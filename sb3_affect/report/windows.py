@@ -59,3 +59,4 @@ def windows_section(ctx: ReportContext) -> None:
         f"the verdicts move with the windows read as \"early\" and \"late\" (paper sweep, {len(aff)} affective runs)."
     )
     ctx.table("fig5_fig6_windows", window_verdicts(aff), "Fig. 5 and Fig. 6 verdicts for each choice of windows", 3)
+    found.windows = aff.iloc[:0]  # no other section reads them: their memory is let go before the later sections
