@@ -308,8 +308,8 @@ def main(argv: list[str] | None = None) -> int:
     long = f"{10 * steps:,} decisions"
     rows.append((f"QLearning.learn eps 0.1, compiled, {long} (decisions/s)", rate["q_cL"], f"{ratio['q_cL']:.1f} x bare"))
     rows.append((f"AffectQ.learn, compiled, {long} (decisions/s)", rate["a_cL"], f"{ratio['a_cL']:.1f} x bare"))
-    rows.append((f"QLearning: compiled learn time / kernel time, {long}", slower["q_cL"], f"{slower['q_cL']:.2f} (target <= 1.3)"))
-    rows.append((f"AffectQ: compiled learn time / kernel time, {long}", slower["a_cL"], f"{slower['a_cL']:.2f} (target <= 1.3)"))
+    for algo, key in (("QLearning", "q_cL"), ("AffectQ", "a_cL")):
+        rows.append((f"{algo}: compiled learn time / kernel time, {long}", slower[key], f"{slower[key]:.2f} (target <= 1.3)"))
     d_rate = timed(dqn_rate(dqn_steps), max(1, repeats // 2))
     rows.append(("SB3 DQN.learn (steps/s, 1 torch thread)", d_rate, "reference"))
     rows.append(("QLearning (Python engine) / DQN", q_py / d_rate, "target >= 100"))
