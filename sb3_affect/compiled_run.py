@@ -11,6 +11,7 @@ names the same quantities with the same index names.
 from __future__ import annotations
 
 import time
+from itertools import repeat
 from typing import Any, ClassVar
 
 import numpy as np
@@ -99,7 +100,7 @@ def monitor_episodes(
     # the Monitor sums each episode's rewards with Python's sum: once per distinct (length, truncated) pair,
     # found by counting (no sort), then looked up for every episode
     if step == 0.0 and not any_truncated:  # every sum is 0.0 + ... + 0.0 + goal: exactly 0.0 + goal
-        returns = [0.0 + goal] * len(lengths)
+        returns = repeat(0.0 + goal, len(lengths))  # (an iterator: the lists below are filled without a copy in between)
     elif step == 0.0:  # the same, or 0.0 for an episode the time limit ended
         returns = np.where(truncated[seen], 0.0, 0.0 + goal).tolist()
     else:
@@ -109,14 +110,16 @@ def monitor_episodes(
         lookup[distinct] = [sum([step] * (key // 2 - 1) + [step if key % 2 else goal]) for key in distinct.tolist()]
         returns = lookup[keys].tolist()
     elapsed = time.time() - monitor.t_start
+    first = len(monitor.episode_returns)
     monitor.episode_returns.extend(returns)
     monitor.episode_lengths.extend(lengths)
-    monitor.episode_times.extend([elapsed] * len(lengths))
+    monitor.episode_times.extend(repeat(elapsed, len(lengths)))
     writer = monitor.results_writer
     if writer is not None:
-        for ep_rew, n in zip(returns, lengths):
+        for ep_rew, n in zip(monitor.episode_returns[first:], lengths):
             writer.write_row({"r": round(ep_rew, 6), "l": n, "t": round(elapsed, 6), **monitor.current_reset_info})
-    last = {"r": round(returns[-1], 6), "l": lengths[-1], "t": round(elapsed, 6), **monitor.current_reset_info}
+    last_return = monitor.episode_returns[-1]
+    last = {"r": round(last_return, 6), "l": lengths[-1], "t": round(elapsed, 6), **monitor.current_reset_info}
     return last if bool(seen[-1]) else None
 
 
