@@ -146,7 +146,7 @@ EPSILONS = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9)
 
 def simulate_protocol(seeds: int, batch: int = 1000) -> tuple[float, int]:
     """Seconds and decisions of the paper protocol (9 epsilon-greedy + 9 affective cells x seeds x 200 episodes)."""
-    from sb3_affect.engine import simulate
+    from sb3_affect.engine.simulation import simulate
 
     start, decisions = time.perf_counter(), 0
     for cell, epsilon in enumerate(EPSILONS):
@@ -162,8 +162,8 @@ def simulate_protocol(seeds: int, batch: int = 1000) -> tuple[float, int]:
 def kernel_start_seconds(cache_dir: str) -> float:
     """Wall time of a fresh process that imports the package and runs one tiny simulate of each agent kind."""
     code = (
-        "from sb3_affect.engine import simulate\n"
-        "for algo in ('QLearning', 'AffectQ', 'sb3_affect.baselines:Boltzmann', 'sb3_affect.baselines:UCBQLearning'):\n"
+        "from sb3_affect.engine.simulation import simulate\n"
+        "for algo in ('QLearning', 'AffectQ', 'Boltzmann', 'UCBQLearning'):\n"
         "    simulate(algo, {}, 'sb3_affect/GridPursuit-v0', None, [0], 1)\n"
     )
     start = time.perf_counter()
@@ -188,7 +188,7 @@ def dqn_rate(steps: int) -> Callable[[], int]:
 def protocol_seconds(workers: int) -> float | None:
     """Wall time of experiments/paper.yaml (360 runs) with the launcher, or None if the launcher is not there."""
     try:
-        from sb3_affect.experiments import run_sweep
+        from sb3_affect.study.launcher import run_sweep
     except ImportError:
         return None
     sweep = Path(__file__).resolve().parents[1] / "experiments" / "paper.yaml"

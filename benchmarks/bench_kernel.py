@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Any
 
 import sb3_affect
-from sb3_affect.engine import simulate
+from sb3_affect.engine.simulation import simulate
 
 ENV_ID = "sb3_affect/GridPursuit-v0"
 ENV_KWARGS: dict[str, Any] = {"size": 15, "start": [0, 0], "goal": [6, 6], "goal_reward": 100.0}

@@ -40,7 +40,7 @@ WRAPPER = (
 )
 LOAD = (
     "import sys\n"
-    "from sb3_affect.report.metrics import load_results, run_metrics\n"
+    "from sb3_affect.study.report.metrics import load_results, run_metrics\n"
     "results = load_results(sys.argv[1])\n"
     "run_metrics(results.episodes, results.runs)\n"
 )
@@ -83,7 +83,7 @@ def scratch_copy(folder: Path, work: Path) -> Path:
 
 
 def runs_of(folder: Path) -> int:
-    from sb3_affect.experiments.store import ResultsStore
+    from sb3_affect.study.launcher.store import ResultsStore
 
     return sum(done for _, done, _ in ResultsStore(folder).progress()[1].values())
 

@@ -36,10 +36,10 @@ def load() -> float:
 
 def team_pair(seeds: list[int], episodes: int) -> tuple[Callable[[], int], Callable[[], int]]:
     """The Python team and the team kernel on Kuremoto's layout (static prey), one run per seed: their decisions."""
-    from sb3_affect.broekens import BroekensCallback
+    from sb3_affect.agents.broekens import BroekensCallback
+    from sb3_affect.agents.hunter_team import HunterTeam
     from sb3_affect.envs import HUNTER_PURSUIT_ID, make_parallel
     from sb3_affect.kernel.team_inputs import run_team, team_columns, team_settings_inputs
-    from sb3_affect.team import HunterTeam
 
     def python() -> int:
         total = 0
@@ -64,7 +64,7 @@ def team_pair(seeds: list[int], episodes: int) -> tuple[Callable[[], int], Calla
 
 def moving_pair(seeds: list[int], episodes: int) -> tuple[Callable[[], int], Callable[[], int]]:
     """AffectQ against a random-walking prey (7 x 7): ``simulate`` on the Python loop and on the moving-prey kernel."""
-    from sb3_affect.engine import simulate
+    from sb3_affect.engine.simulation import simulate
 
     def run(engine: str) -> int:
         return int(simulate("AffectQ", {}, MOVING[0], MOVING[1], seeds, episodes, engine=engine)["decisions"].sum())
@@ -93,9 +93,9 @@ def paired(name: str, pair: tuple[Callable[[], int], Callable[[], int]], rounds:
 
 
 def studies(seeds: int) -> list[dict[str, Any]]:
-    from sb3_affect.experiments import run_sweep
-    from sb3_affect.report.beyond_tasks import TASKS, TUNED_AGENTS, beyond_cells
-    from sb3_affect.report.largen import run_cells
+    from sb3_affect.study.launcher import run_sweep
+    from sb3_affect.study.report.beyond_tasks import TASKS, TUNED_AGENTS, beyond_cells
+    from sb3_affect.study.report.largen import run_cells
 
     rows = []
     listed = "[" + ", ".join(str(i) for i in range(seeds)) + "]"

@@ -53,12 +53,13 @@ _EXTERNAL = (
 )
 nitpick_ignore_regex = [
     (r"py:.*", _EXTERNAL + r"(\..*)?"),
-    (r"py:class", r"sb3_affect\.(tabular\.SelfTabular|model_files\.SelfFiles)"),  # the TypeVar of ``load`` (SB3's convention)
-    (r"py:class", r"(sb3_affect\.affectq\.)?SelfAffectQ"),  # the TypeVar of ``AffectQ.learn`` (SB3's convention)
+    # the TypeVar of ``load`` (SB3's convention)
+    (r"py:class", r"sb3_affect\.agents\.(tabular\.SelfTabular|model_files\.SelfFiles)"),
+    (r"py:class", r"(sb3_affect\.agents\.affectq\.)?SelfAffectQ"),  # the TypeVar of ``AffectQ.learn`` (SB3's convention)
     # internal types named in public signatures (a report section's context, a sweep's cell): described in interfaces
-    (r"py:class", r"sb3_affect\.(report\.context\.ReportContext|experiments\.schema\.Cell)"),
+    (r"py:class", r"sb3_affect\.study\.(report\.context\.ReportContext|launcher\.schema\.Cell)"),
     # the store's checked view of a folder's files, handed from ``checked_files`` to ``results_parts`` (private module)
-    (r"py:class", r"(sb3_affect\.experiments\.folder_files\.)?FolderFiles"),
+    (r"py:class", r"(sb3_affect\.study\.launcher\.folder_files\.)?FolderFiles"),
     (r"py:.*", r"(collections\.abc|typing|pathlib|enum|types|os|argparse|io)\..*"),
     (r"py:.*", r"(GymEnv|Schedule|MaybeCallback|BaseCallback|BaseAlgorithm|BasePolicy|VecEnv|Env|Logger|Path|Figure|"
      r"Axes|DataFrame|Series|ndarray|NDArray|Tensor|Callable|Mapping|Sequence|Iterable|Iterator|Any|Self|TypeAlias|"

@@ -78,7 +78,7 @@ class HunterPursuitEnv(ParallelEnv):
     hunter rewarded for the capture made at most ``capture_distance`` moves in the episode (for a static prey: the
     nearest hunter walked a shortest path), with ``surround`` when no hunter made more than ``capture_distance``
     moves. It counts each hunter's own moves, not env steps: a learner that sometimes moves two cells in one
-    decision (AffectQ, ``sb3_affect.team``) spreads a decision over two env steps without slowing its teammates.
+    decision (AffectQ, ``sb3_affect.agents.hunter_team``) spreads a decision over two env steps without slowing its teammates.
 
     :param size: grid side (int >= 2); ignored when ``maze`` is given
     :param starts: each hunter's first cell (row, col); their number is the number of hunters (default Kuremoto's

@@ -19,7 +19,7 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import pandas as pd
 
-from sb3_affect.experiments import ResultsStore, run_sweep
+from sb3_affect.study.launcher import ResultsStore, run_sweep
 
 SMOKE = bool(os.environ.get("SB3_AFFECT_SMOKE"))
 SWEEP = f"""\

@@ -2,7 +2,7 @@
 
 import sys
 
-from sb3_affect.cli import main
+from sb3_affect.study.cli import main
 
 if __name__ == "__main__":
     sys.exit(main())

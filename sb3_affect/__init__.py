@@ -10,9 +10,10 @@ from __future__ import annotations
 import importlib
 from typing import TYPE_CHECKING, Any
 
-from sb3_affect.appraisal import Appraisal, Appraiser, KnownMap, PowerFit
-from sb3_affect.behaviour import TABLE_III, Behaviour
-from sb3_affect.emotions import EMOTION_NAMES, Emotion, make_table_ii, table_ii
+from sb3_affect.core.appraisal import Appraisal, Appraiser, KnownMap, PowerFit
+from sb3_affect.core.behaviour import TABLE_III, Behaviour
+from sb3_affect.core.emotions import EMOTION_NAMES, Emotion, make_table_ii, table_ii
+from sb3_affect.core.personalities import PERSONALITIES, PersonalityAppraiser
 from sb3_affect.envs import (
     GRID_PURSUIT_ID,
     MAZE_PURSUIT_ID,
@@ -22,16 +23,15 @@ from sb3_affect.envs import (
     MovingPursuitEnv,
     register_envs,
 )
-from sb3_affect.personalities import PERSONALITIES, PersonalityAppraiser
 
 if TYPE_CHECKING:
-    from sb3_affect.affectq import AffectQ
-    from sb3_affect.broekens import BroekensCallback
-    from sb3_affect.callbacks import EmotionCallback
-    from sb3_affect.episode_log import EPISODE_COLUMNS
-    from sb3_affect.policies import TabularQPolicy
-    from sb3_affect.qlearning import QLearning
-    from sb3_affect.tabular import TabularQAlgorithm
+    from sb3_affect.agents.affectq import AffectQ
+    from sb3_affect.agents.broekens import BroekensCallback
+    from sb3_affect.agents.callbacks import EmotionCallback
+    from sb3_affect.agents.policies import TabularQPolicy
+    from sb3_affect.agents.qlearning import QLearning
+    from sb3_affect.agents.tabular import TabularQAlgorithm
+    from sb3_affect.core.episode_log import EPISODE_COLUMNS
 
 register_envs()
 
@@ -39,13 +39,13 @@ __version__ = "0.1.0"
 
 #: Public names imported on first use (PEP 562): they import torch and SB3 (or pandas).
 _LAZY: dict[str, str] = {
-    "AffectQ": "sb3_affect.affectq",
-    "BroekensCallback": "sb3_affect.broekens",
-    "EmotionCallback": "sb3_affect.callbacks",
-    "EPISODE_COLUMNS": "sb3_affect.episode_log",
-    "TabularQPolicy": "sb3_affect.policies",
-    "QLearning": "sb3_affect.qlearning",
-    "TabularQAlgorithm": "sb3_affect.tabular",
+    "AffectQ": "sb3_affect.agents.affectq",
+    "BroekensCallback": "sb3_affect.agents.broekens",
+    "EmotionCallback": "sb3_affect.agents.callbacks",
+    "EPISODE_COLUMNS": "sb3_affect.core.episode_log",
+    "TabularQPolicy": "sb3_affect.agents.policies",
+    "QLearning": "sb3_affect.agents.qlearning",
+    "TabularQAlgorithm": "sb3_affect.agents.tabular",
 }
 
 

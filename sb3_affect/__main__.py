@@ -2,6 +2,6 @@
 
 import sys
 
-from sb3_affect.cli import main
+from sb3_affect.study.cli import main
 
 sys.exit(main())

@@ -17,7 +17,7 @@ from stable_baselines3.common.logger import Logger
 
 import sb3_affect  # noqa: F401  (registers the envs)
 from sb3_affect import AffectQ, QLearning, TabularQAlgorithm
-from sb3_affect.baselines import Boltzmann, DecayingEpsilonGreedy, OptimisticQLearning, SpeedEpsilonGreedy, UCBQLearning
+from sb3_affect.agents.baselines import Boltzmann, DecayingEpsilonGreedy, OptimisticQLearning, SpeedEpsilonGreedy, UCBQLearning
 
 #: Every tabular agent of the package.
 ALGOS: list[type[TabularQAlgorithm]] = [

@@ -19,7 +19,7 @@ import pytest
 from gymnasium import spaces
 
 from sb3_affect import AffectQ, QLearning
-from sb3_affect.serialization import ModelFileError
+from sb3_affect.agents.serialization import ModelFileError
 
 ENV_ID = "sb3_affect/GridPursuit-v0"
 

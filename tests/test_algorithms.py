@@ -16,8 +16,8 @@ from stable_baselines3.common.monitor import Monitor
 from stable_baselines3.common.utils import LinearSchedule
 
 from sb3_affect import EPISODE_COLUMNS, TABLE_III, AffectQ, Behaviour, Emotion, EmotionCallback, QLearning
+from sb3_affect.agents.policies import greedy_action
 from sb3_affect.envs.grid_pursuit import RIGHT
-from sb3_affect.policies import greedy_action
 
 ENV_ID = "sb3_affect/GridPursuit-v0"
 

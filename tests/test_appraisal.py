@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from sb3_affect import TABLE_III, Appraisal, Appraiser, Behaviour, Emotion, KnownMap, PowerFit, table_ii
-from sb3_affect.behaviour import validate_behaviour_table
+from sb3_affect.core.behaviour import validate_behaviour_table
 
 
 def test_power_fit_matches_a_hand_computed_fit() -> None:

@@ -12,7 +12,7 @@ import pytest
 from stable_baselines3.common.callbacks import BaseCallback, StopTrainingOnMaxEpisodes
 
 import sb3_affect  # noqa: F401  (registers the envs)
-from sb3_affect.baselines import (
+from sb3_affect.agents.baselines import (
     Boltzmann,
     DecayingEpsilonGreedy,
     OptimisticQLearning,
@@ -20,7 +20,7 @@ from sb3_affect.baselines import (
     UCBQLearning,
     softmax_action,
 )
-from sb3_affect.tabular import TabularQAlgorithm
+from sb3_affect.agents.tabular import TabularQAlgorithm
 
 ENV_ID = "sb3_affect/GridPursuit-v0"
 
@@ -180,8 +180,8 @@ def test_baseline_sweep_runs_and_summary_ranks(tmp_path: Any) -> None:
 
     import yaml
 
-    from sb3_affect.experiments import run_sweep
-    from sb3_affect.report.baseline_summary import bootstrap_ci, load_run_records, markdown, record_metrics, summarise
+    from sb3_affect.study.launcher import run_sweep
+    from sb3_affect.study.report.baseline_summary import bootstrap_ci, load_run_records, markdown, record_metrics, summarise
 
     experiments = Path(__file__).resolve().parents[1] / "experiments"
     for name in ("baselines", "baselines_moving7"):
@@ -213,8 +213,8 @@ def test_baseline_sweep_runs_and_summary_ranks(tmp_path: Any) -> None:
 def test_experiment_files_validate(name: str) -> None:
     from pathlib import Path
 
-    from sb3_affect.experiments.sweep_file import load_sweep
-    from sb3_affect.registry import resolve_class
+    from sb3_affect.core.registry import resolve_class
+    from sb3_affect.study.launcher.sweep_file import load_sweep
 
     sweep = load_sweep(Path(__file__).resolve().parents[1] / "experiments" / f"{name}.yaml")
     for agent in sweep.agents:

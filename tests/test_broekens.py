@@ -12,7 +12,7 @@ from stable_baselines3.common.callbacks import CallbackList, StopTrainingOnMaxEp
 from stable_baselines3.common.logger import configure
 
 from sb3_affect import AffectQ, QLearning
-from sb3_affect.broekens import BROEKENS_COLUMNS, BroekensCallback
+from sb3_affect.agents.broekens import BROEKENS_COLUMNS, BroekensCallback
 
 
 def observe(model, episodes: int, callback: BroekensCallback | None = None, **learn_kwargs) -> pd.DataFrame:
@@ -109,7 +109,7 @@ def _episodes(model, callback: BroekensCallback, episodes: int) -> tuple[pd.Data
 
 
 def test_a_wait_fires_no_emotion_and_is_not_a_step() -> None:
-    from sb3_affect.baselines import SpeedEpsilonGreedy
+    from sb3_affect.agents.baselines import SpeedEpsilonGreedy
 
     model = SpeedEpsilonGreedy("Grid", grid(step_reward=-1.0), seed=0, gamma=0.9, speeds=(0, 1), engine="python")
     log, agent = _episodes(model, BroekensCallback(value_fn=constant_value), 10)
@@ -129,7 +129,7 @@ def test_a_wait_fires_no_emotion_and_is_not_a_step() -> None:
 ])
 def test_a_two_cell_move_is_discounted_as_the_agent_discounts(multi_cell: str, move_delta: float,
                                                                goal_deltas: tuple[float, float]) -> None:
-    from sb3_affect.baselines import SpeedEpsilonGreedy
+    from sb3_affect.agents.baselines import SpeedEpsilonGreedy
 
     model = SpeedEpsilonGreedy("Grid", grid(step_reward=-1.0), seed=0, gamma=0.9, speeds=(2,), multi_cell=multi_cell,
                                engine="python")

@@ -15,7 +15,7 @@ from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.logger import configure
 
 from sb3_affect import Emotion, EmotionCallback
-from sb3_affect.callbacks import EMOTION_CALLBACK_COLUMNS
+from sb3_affect.agents.callbacks import EMOTION_CALLBACK_COLUMNS
 
 
 def test_emotion_callback_on_dqn_logs_a_profile(tmp_path) -> None:

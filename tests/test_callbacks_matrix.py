@@ -22,7 +22,7 @@ from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.logger import configure
 
 from sb3_affect import BroekensCallback, Emotion, EmotionCallback
-from sb3_affect.appraisal import Appraisal
+from sb3_affect.core.appraisal import Appraisal
 
 
 def past_norm(appraisal: Appraisal | None) -> Emotion:

@@ -8,9 +8,9 @@ from pathlib import Path
 import pytest
 
 import sb3_affect
-from sb3_affect import replicate
-from sb3_affect.cli import main
-from sb3_affect.experiments import SweepError, load_sweep, run_sweep
+from sb3_affect.study import replicate
+from sb3_affect.study.cli import main
+from sb3_affect.study.launcher import SweepError, load_sweep, run_sweep
 
 ROOT = Path(__file__).resolve().parents[1]
 

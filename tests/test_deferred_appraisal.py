@@ -15,7 +15,7 @@ import gymnasium as gym
 import pytest
 
 from sb3_affect import AffectQ
-from sb3_affect.appraisal import KnownMap
+from sb3_affect.core.appraisal import KnownMap
 
 GRID = "sb3_affect/GridPursuit-v0"
 MOVING = "sb3_affect/MovingPursuit-v0"

@@ -6,9 +6,9 @@ from pathlib import Path
 
 import pandas as pd
 
-from sb3_affect.experiments import ResultsStore, run_sweep
-from sb3_affect.report.build import summary_numbers
-from sb3_affect.report.metrics import load_results
+from sb3_affect.study.launcher import ResultsStore, run_sweep
+from sb3_affect.study.report.build import summary_numbers
+from sb3_affect.study.report.metrics import load_results
 
 PAPER = Path(__file__).resolve().parents[1] / "experiments" / "paper.yaml"
 

@@ -13,8 +13,8 @@ import pandas as pd
 import pytest
 
 from sb3_affect import AffectQ, QLearning
-from sb3_affect.episode_blocks import EpisodeBlocks
-from sb3_affect.episode_log import EPISODE_COLUMNS, make_frame
+from sb3_affect.core.episode_blocks import EpisodeBlocks
+from sb3_affect.core.episode_log import EPISODE_COLUMNS, make_frame
 
 DATA = Path(__file__).with_name("data")
 

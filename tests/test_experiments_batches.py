@@ -16,11 +16,11 @@ import pandas as pd
 import pytest
 from test_experiments_local import EXPERIMENTS, children, contents, launcher, linux_only, no_partial_files, running
 
-from sb3_affect.cli import main
-from sb3_affect.experiments import ResultsStore, run_sweep
-from sb3_affect.experiments.chunks import chunk_meta
-from sb3_affect.report.build import summary_numbers
-from sb3_affect.report.metrics import load_results
+from sb3_affect.study.cli import main
+from sb3_affect.study.launcher import ResultsStore, run_sweep
+from sb3_affect.study.launcher.chunks import chunk_meta
+from sb3_affect.study.report.build import summary_numbers
+from sb3_affect.study.report.metrics import load_results
 
 SMOKE = EXPERIMENTS / "smoke.yaml"
 
@@ -156,7 +156,7 @@ def test_chunk_columns_are_the_arrow_arrays_of_pa_array(n: int) -> None:
     import numpy as np
     import pyarrow as pa
 
-    from sb3_affect.experiments.chunks import arrow_array
+    from sb3_affect.study.launcher.chunks import arrow_array
 
     rng = np.random.default_rng(n)
     cases = [

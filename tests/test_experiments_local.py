@@ -21,9 +21,9 @@ from typing import Any
 import pytest
 
 from sb3_affect import QLearning
-from sb3_affect.cli import main
-from sb3_affect.experiments import ResultsStore, StoreError, run_sweep
-from sb3_affect.experiments.chunks import chunk_records
+from sb3_affect.study.cli import main
+from sb3_affect.study.launcher import ResultsStore, StoreError, run_sweep
+from sb3_affect.study.launcher.chunks import chunk_records
 
 EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
 TESTS = Path(__file__).resolve().parent
@@ -58,7 +58,7 @@ def _terminal_sigint() -> None:
 
 def unlocked(out: Path) -> bool:
     """No launcher holds ``out``'s lock (the lock file stays; its owner record is gone)."""
-    from sb3_affect.experiments.folder_lock import is_locked
+    from sb3_affect.study.launcher.folder_lock import is_locked
 
     return not is_locked(out) and not (out / ".lock.owner").exists()
 
@@ -66,7 +66,7 @@ def unlocked(out: Path) -> bool:
 def hold_lock(out: Path) -> subprocess.Popen[str]:
     """A real process holding ``out``'s lock until killed (returns once it holds it)."""
     code = (
-        "import sys, time; from pathlib import Path; from sb3_affect.experiments.folder_lock import hold\n"
+        "import sys, time; from pathlib import Path; from sb3_affect.study.launcher.folder_lock import hold\n"
         "with hold(Path(sys.argv[1])):\n    print('held', flush=True); time.sleep(120)\n"
     )
     proc = subprocess.Popen([sys.executable, "-c", code, str(out)], stdout=subprocess.PIPE, text=True)
@@ -380,7 +380,7 @@ def test_sigkill_launcher_then_resume_gives_the_uninterrupted_results(
     done_before = len(contents(out))
     assert 2 <= done_before < 8
     assert (out / ".lock.owner").read_text().split()[0] == str(first.pid)  # its record stays, its lock is gone:
-    from sb3_affect.experiments.folder_lock import is_locked
+    from sb3_affect.study.launcher.folder_lock import is_locked
 
     assert not is_locked(out)
     summary = run_sweep(sweep, out, workers=2, progress=False)
@@ -424,7 +424,7 @@ def test_ctrl_c_stops_workers_and_leaves_no_partial_files(tmp_path: Path, stop: 
 _RACER = """
 import json, os, sys, time
 from pathlib import Path
-from sb3_affect.experiments import ResultsStore, StoreError
+from sb3_affect.study.launcher import ResultsStore, StoreError
 out, log, go, rounds, stale = Path(sys.argv[1]), Path(sys.argv[2]), float(sys.argv[3]), int(sys.argv[4]), sys.argv[5]
 for r in range(rounds):
     start = go + 0.4 * r

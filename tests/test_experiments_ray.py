@@ -23,7 +23,7 @@ from typing import Any
 
 import pytest
 
-from sb3_affect.experiments import ResultsStore, run_sweep
+from sb3_affect.study.launcher import ResultsStore, run_sweep
 
 pytestmark = [
     pytest.mark.ray,

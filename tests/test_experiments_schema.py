@@ -6,9 +6,9 @@ from pathlib import Path
 
 import pytest
 
-from sb3_affect.cli import main
-from sb3_affect.experiments import SweepError, load_sweep
-from sb3_affect.experiments.schema import derive_seed
+from sb3_affect.study.cli import main
+from sb3_affect.study.launcher import SweepError, load_sweep
+from sb3_affect.study.launcher.schema import derive_seed
 
 EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
 
@@ -197,7 +197,7 @@ def test_env_of_your_own_as_module_colon_id(tmp_path: Path, monkeypatch: pytest.
     )
     configs = load_sweep(write(tmp_path, text)).run_configs()
     assert {c["env_id"] for c in configs} == {"my_sweep_envs:MyPursuit-v0"}
-    from sb3_affect.experiments import execute_run
+    from sb3_affect.study.launcher import execute_run
 
     result = execute_run({**configs[0], "episodes": 2})
     assert len(result["episodes"]["episode"]) == 2 and result["episodes"]["optimal"] is not None

@@ -12,9 +12,9 @@ import gymnasium as gym
 import pytest
 from stable_baselines3.common.callbacks import StopTrainingOnMaxEpisodes
 
-import sb3_affect.extras
+import sb3_affect.core.extras
 from sb3_affect import AffectQ, QLearning
-from sb3_affect.extras import EXTRAS, MissingExtraError, missing_modules, require_extra
+from sb3_affect.core.extras import EXTRAS, MissingExtraError, missing_modules, require_extra
 
 GRID = "sb3_affect/GridPursuit-v0"
 SMALL = {"size": 6, "goal": (3, 4)}
@@ -30,7 +30,7 @@ def _learn(cls: type, engine: str) -> object:
 def test_auto_engine_without_numba_runs_the_python_loop_with_one_warning(cls: type, monkeypatch: pytest.MonkeyPatch) -> None:
     expected = _learn(cls, "python")
     monkeypatch.setitem(sys.modules, "numba", None)  # `import numba` now raises ImportError
-    monkeypatch.setattr(sb3_affect.extras, "_NUMBA_WARNED", False)
+    monkeypatch.setattr(sb3_affect.core.extras, "_NUMBA_WARNED", False)
     with pytest.warns(RuntimeWarning, match="numba can not be imported.*Python loop") as record:
         model = _learn(cls, "auto")
         _learn(cls, "auto")
@@ -65,7 +65,7 @@ def test_require_extra_names_the_extra_and_the_missing_module(monkeypatch: pytes
 
 def _run_blocked(blocked: str, argv: list[str], cwd: Path) -> subprocess.CompletedProcess[str]:
     """``sb3-affect ARGV`` in a process where ``import BLOCKED`` fails, as it does when the extra is not installed."""
-    code = f"import sys; sys.modules[{blocked!r}] = None; from sb3_affect.cli import main; sys.exit(main({argv!r}))"
+    code = f"import sys; sys.modules[{blocked!r}] = None; from sb3_affect.study.cli import main; sys.exit(main({argv!r}))"
     env = {**os.environ, "PYTHONWARNINGS": "ignore"}
     return subprocess.run([sys.executable, "-c", code], cwd=cwd, env=env, capture_output=True, text=True, timeout=300)
 
@@ -107,8 +107,8 @@ from stable_baselines3 import DQN
 from sb3_affect import AffectQ, BroekensCallback, EmotionCallback, QLearning
 AffectQ("Grid", gym.make("sb3_affect/GridPursuit-v0", size=5, goal=(2, 3)), seed=0).learn(300)
 DQN("MlpPolicy", "FrozenLake-v1", learning_starts=10, seed=0).learn(64, callback=[EmotionCallback(), BroekensCallback()])
-study = ("sb3_affect.experiments", "sb3_affect.report", "sb3_affect.forensics", "sb3_affect.envs.hunter_pursuit",
-         "sb3_affect.engine", "sb3_affect.team")
+study = ("sb3_affect.study", "sb3_affect.envs.hunter_pursuit",
+         "sb3_affect.engine.simulation", "sb3_affect.agents.hunter_team")
 print("LOADED", sorted(m for m in sys.modules if m.startswith(study)))
 """
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)

@@ -23,14 +23,14 @@ import pytest
 
 import sb3_affect
 from sb3_affect import AffectQ, Behaviour, Emotion, QLearning
-from sb3_affect.baselines import Boltzmann, DecayingEpsilonGreedy, OptimisticQLearning, SpeedEpsilonGreedy, UCBQLearning
-from sb3_affect.compiled import batch_reason
-from sb3_affect.engine import simulate
-from sb3_affect.experiments.runner import check_configs, settings_checkable
+from sb3_affect.agents.baselines import Boltzmann, DecayingEpsilonGreedy, OptimisticQLearning, SpeedEpsilonGreedy, UCBQLearning
+from sb3_affect.agents.compiled import batch_reason
+from sb3_affect.core.registry import known_settings
+from sb3_affect.core.settings import AGENT_SETTINGS, AffectQSettings
+from sb3_affect.engine.simulation import simulate
 from sb3_affect.kernel.inputs import BatchInputs, batch_inputs, settings_inputs
 from sb3_affect.kernel.prey_batch import moving_settings_inputs
-from sb3_affect.registry import known_settings
-from sb3_affect.settings import AGENT_SETTINGS, AffectQSettings
+from sb3_affect.study.launcher.one_run import check_configs, settings_checkable
 
 GRID, MAZE = "sb3_affect/GridPursuit-v0", "sb3_affect/MazePursuit-v0"
 ENVS = [(GRID, {"size": 7, "goal": [3, 3]}), (MAZE, {"maze": "wall"})]
@@ -52,12 +52,12 @@ AGENTS: list[tuple[str, dict[str, Any]]] = [
     ("AffectQ", {"comparison": "valence", "act": "remaining", "units": "decisions"}),
     ("AffectQ", {"personality": "optimistic", "multi_cell": "jump"}),
     ("AffectQ", {"personality": "pessimistic", "behaviour_table": SLOW_SAD, "max_episode_decisions": 40}),
-    ("sb3_affect.baselines:DecayingEpsilonGreedy", {"exploration_decay_episodes": 7, "decay": "exponential"}),
-    ("sb3_affect.baselines:Boltzmann", {"temperature": 2.0}),
-    ("sb3_affect.baselines.boltzmann:Boltzmann", {"temperature": 5.0, "temperature_final": 0.5, "temperature_decay_episodes": 9}),  # noqa: E501
-    ("sb3_affect.baselines:UCBQLearning", {"exploration_coef": 3.0}),
-    ("sb3_affect.baselines:OptimisticQLearning", {}),
-    ("sb3_affect.baselines:SpeedEpsilonGreedy", {"speeds": [0, 1, 2], "multi_cell": "jump", "exploration_rate": 0.2}),
+    ("sb3_affect.agents.baselines:DecayingEpsilonGreedy", {"exploration_decay_episodes": 7, "decay": "exponential"}),
+    ("sb3_affect.agents.baselines:Boltzmann", {"temperature": 2.0}),
+    ("sb3_affect.agents.baselines.boltzmann:Boltzmann", {"temperature": 5.0, "temperature_final": 0.5, "temperature_decay_episodes": 9}),  # noqa: E501
+    ("sb3_affect.agents.baselines:UCBQLearning", {"exploration_coef": 3.0}),
+    ("sb3_affect.agents.baselines:OptimisticQLearning", {}),
+    ("sb3_affect.agents.baselines:SpeedEpsilonGreedy", {"speeds": [0, 1, 2], "multi_cell": "jump", "exploration_rate": 0.2}),
 ]
 CLASSES = {
     "QLearning": QLearning,
@@ -118,13 +118,13 @@ BAD: list[tuple[str, dict[str, Any]]] = [
     ("AffectQ", {"units": "metres"}),
     ("AffectQ", {"behaviour_table": {Emotion.JOY: Behaviour(True, (1,))}}),
     ("AffectQ", {"multi_cell": "hop"}),
-    ("sb3_affect.baselines:DecayingEpsilonGreedy", {"decay": "exponential", "exploration_final_eps": 0.0}),
-    ("sb3_affect.baselines:DecayingEpsilonGreedy", {"exploration_decay_episodes": 2.5}),
-    ("sb3_affect.baselines:Boltzmann", {"temperature": 0.0}),
-    ("sb3_affect.baselines:Boltzmann", {"temperature_final": -1.0}),
-    ("sb3_affect.baselines:UCBQLearning", {"exploration_coef": -1}),
-    ("sb3_affect.baselines:SpeedEpsilonGreedy", {"speeds": []}),
-    ("sb3_affect.baselines:SpeedEpsilonGreedy", {"speeds": "12"}),
+    ("sb3_affect.agents.baselines:DecayingEpsilonGreedy", {"decay": "exponential", "exploration_final_eps": 0.0}),
+    ("sb3_affect.agents.baselines:DecayingEpsilonGreedy", {"exploration_decay_episodes": 2.5}),
+    ("sb3_affect.agents.baselines:Boltzmann", {"temperature": 0.0}),
+    ("sb3_affect.agents.baselines:Boltzmann", {"temperature_final": -1.0}),
+    ("sb3_affect.agents.baselines:UCBQLearning", {"exploration_coef": -1}),
+    ("sb3_affect.agents.baselines:SpeedEpsilonGreedy", {"speeds": []}),
+    ("sb3_affect.agents.baselines:SpeedEpsilonGreedy", {"speeds": "12"}),
 ]
 
 
@@ -178,7 +178,8 @@ def test_algo_names_of_the_packages_agents_are_known_without_importing() -> None
         assert known_settings(settings.agent) is settings
     assert known_settings("QLearning") is known_settings("sb3_affect:QLearning")
     assert known_settings("AffectQ") is AffectQSettings
-    others = ("DQN", "PPO", "my_package.agents:QLearning", "sb3_affect:TabularQAlgorithm", "sb3_affect.cli:main", "nonsense")
+    others = ("DQN", "PPO", "my_package.agents:QLearning", "sb3_affect:TabularQAlgorithm", "sb3_affect.study.cli:main",
+              "nonsense")
     for other in others:
         assert known_settings(other) is None, other
 
@@ -209,24 +210,24 @@ def test_import_and_a_sweep_of_tabular_agents_never_import_torch(tmp_path: Path)
             agents:
               - {name: eps, algo: QLearning, grid: {epsilon: [0.1, 0.5]}, kwargs: {exploration_rate: $epsilon}}
               - {name: aff, algo: AffectQ, grid: {epsilon: [0.1, 0.5]}, kwargs: {comparison: literal}}
-              - {name: ucb, algo: "sb3_affect.baselines:UCBQLearning", kwargs: {exploration_coef: 2.0}}
+              - {name: ucb, algo: "sb3_affect.agents.baselines:UCBQLearning", kwargs: {exploration_coef: 2.0}}
             """
         )
     )
     script = f"""
 import json, sys
 import sb3_affect
-from sb3_affect.cli import build_parser
+from sb3_affect.study.cli import build_parser
 build_parser()
 loaded = {{"import": sorted(m for m in ("torch", "stable_baselines3") if m in sys.modules)}}
-heavy = ("sb3_affect.forensics.analysis", "sb3_affect.report", "scipy")
+heavy = ("sb3_affect.study.forensics.analysis", "sb3_affect.study.report", "scipy")
 loaded["parser"] = sorted(m for m in heavy if m in sys.modules)
-from sb3_affect.experiments import run_sweep
+from sb3_affect.study.launcher import run_sweep
 summary = run_sweep({str(sweep)!r}, {str(tmp_path / "out")!r}, workers=2, progress=False)
 loaded["sweep"] = sorted(m for m in ("torch", "stable_baselines3", "pandas") if m in sys.modules)
-from sb3_affect.experiments.launcher import plan_jobs
-from sb3_affect.experiments.sweep_file import load_sweep
-from sb3_affect.experiments.store import ResultsStore, cell_run_ids
+from sb3_affect.study.launcher.launcher import plan_jobs
+from sb3_affect.study.launcher.sweep_file import load_sweep
+from sb3_affect.study.launcher.store import ResultsStore, cell_run_ids
 cells = load_sweep({str(sweep)!r}).cells()
 batch = plan_jobs(cells, [cell_run_ids(c) for c in cells], ResultsStore({str(tmp_path / "empty")!r}), 2, [])[0]
 assert type(batch).__name__ == "Batch" and batch.execute()["chunk"][:4] == b"PAR1"  # what a worker does, here

@@ -11,14 +11,20 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from sb3_affect.cli import build_parser
-from sb3_affect.engine import simulate
-from sb3_affect.experiments import run_sweep
-from sb3_affect.experiments.store import StoreError
-from sb3_affect.forensics import STATISTICS, CandidateSpace, Protocol, Reading, Simulation, printed_numbers, run_forensics
-from sb3_affect.forensics.analysis import REJECT_FACTOR, _interval_table, _steps_ratio
-from sb3_affect.forensics.runner import run_units, simulate_unit
-from sb3_affect.forensics.scoring import (
+from sb3_affect.engine.simulation import simulate
+from sb3_affect.study.cli import build_parser
+from sb3_affect.study.forensics import (
+    STATISTICS,
+    CandidateSpace,
+    Protocol,
+    Reading,
+    Simulation,
+    printed_numbers,
+    run_forensics,
+)
+from sb3_affect.study.forensics.analysis import REJECT_FACTOR, _interval_table, _steps_ratio
+from sb3_affect.study.forensics.parallel_units import run_units, simulate_unit
+from sb3_affect.study.forensics.scoring import (
     MIN_REACH_REPS,
     NOT_REACHED,
     NOT_RULED_OUT,
@@ -27,11 +33,13 @@ from sb3_affect.forensics.scoring import (
     posterior,
     reach_findings,
 )
-from sb3_affect.forensics.section import findings_lines, forensics_section, report_section
-from sb3_affect.forensics.statistics import candidate_statistics, cell_summary
-from sb3_affect.forensics.store import SummaryStore
-from sb3_affect.report import build_report, paper
-from sb3_affect.report.metrics import run_metrics
+from sb3_affect.study.forensics.section import findings_lines, forensics_section, report_section
+from sb3_affect.study.forensics.statistics import candidate_statistics, cell_summary
+from sb3_affect.study.forensics.unit_files import SummaryStore
+from sb3_affect.study.launcher import run_sweep
+from sb3_affect.study.launcher.store import StoreError
+from sb3_affect.study.report import build_report, paper
+from sb3_affect.study.report.metrics import run_metrics
 
 ROOT = Path(__file__).resolve().parents[1]
 ENV = "sb3_affect/GridPursuit-v0"

@@ -23,9 +23,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from sb3_affect import QLearning
-from sb3_affect.experiments import SweepError, load_sweep
-from sb3_affect.experiments.schema import Sweep
-from sb3_affect.serialization import ModelFileError
+from sb3_affect.agents.serialization import ModelFileError
+from sb3_affect.study.launcher import SweepError, load_sweep
+from sb3_affect.study.launcher.schema import Sweep
 
 SECONDS_PER_FILE = 5.0  # generous: a check takes milliseconds; a resource bomb took a minute
 MEMORY_MB = 300  # growth of the peak RSS over a whole fuzz run

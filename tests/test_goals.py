@@ -1,5 +1,5 @@
 """
-What a goal is on envs that are not the package's own: ``sb3_affect.goals`` on Gymnasium's
+What a goal is on envs that are not the package's own: ``sb3_affect.core.goals`` on Gymnasium's
 FrozenLake, CliffWalking and Taxi, through AffectQ and through an observing EmotionCallback.
 """
 
@@ -26,7 +26,7 @@ def _step_from(env_id: str, state: int, action: int, **kwargs) -> tuple[float, b
 
 
 def test_default_goal_test_on_real_toy_text_transitions() -> None:
-    from sb3_affect.goals import every_termination, positive_terminal_reward
+    from sb3_affect.core.goals import every_termination, positive_terminal_reward
 
     reward, terminated, info = _step_from("FrozenLake-v1", 1, 1, is_slippery=False)  # down into the hole at 5
     assert terminated and not positive_terminal_reward(reward, info)
@@ -70,7 +70,7 @@ def test_frozenlake_holes_are_not_goals_for_an_observing_emotion_callback() -> N
 
 @pytest.mark.parametrize("goal, expected", [(None, set()), ("every_termination", {CLIFF_GOAL})])
 def test_cliffwalking_goal_needs_the_every_termination_test(goal, expected) -> None:
-    from sb3_affect import goals
+    from sb3_affect.core import goals
 
     callback = EmotionCallback(goal=None if goal is None else getattr(goals, goal))
     model = AffectQ("Grid", "CliffWalking-v1", seed=0, max_episode_decisions=2000, emotion_callback=callback)

@@ -13,15 +13,15 @@ from pettingzoo.test import parallel_api_test
 from stable_baselines3.common.callbacks import StopTrainingOnMaxEpisodes
 
 from sb3_affect import AffectQ, QLearning
-from sb3_affect.baselines import Boltzmann, SpeedEpsilonGreedy, UCBQLearning
+from sb3_affect.agents.baselines import Boltzmann, SpeedEpsilonGreedy, UCBQLearning
+from sb3_affect.agents.hunter_team import TEAM_COLUMNS, HunterTeam, HunterView
+from sb3_affect.agents.stepping import DecisionStepper
 from sb3_affect.envs import HUNTER_PURSUIT_ID, make_parallel
 from sb3_affect.envs.hunter_pursuit import STAY, HunterPursuitEnv
-from sb3_affect.experiments import run_sweep
-from sb3_affect.experiments.schema import SweepError
-from sb3_affect.experiments.sweep_file import load_sweep
-from sb3_affect.report import build_report
-from sb3_affect.stepping import DecisionStepper
-from sb3_affect.team import TEAM_COLUMNS, HunterTeam, HunterView
+from sb3_affect.study.launcher import run_sweep
+from sb3_affect.study.launcher.schema import SweepError
+from sb3_affect.study.launcher.sweep_file import load_sweep
+from sb3_affect.study.report import build_report
 
 EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
 UP, DOWN, LEFT, RIGHT = 0, 1, 2, 3
@@ -186,7 +186,7 @@ def test_a_mixed_team_learns_and_every_hunter_keeps_its_own_log() -> None:
 def test_teams_of_baselines_and_surrounding_hunters() -> None:
     env = make_parallel(HUNTER_PURSUIT_ID, size=6, starts=[(0, 0), (5, 5)], prey_start=(2, 2), capture="surround")
     team = HunterTeam(
-        env, [("sb3_affect.baselines:UCBQLearning", {}), ("sb3_affect.baselines:SpeedEpsilonGreedy", {})], seed=0
+        env, [("sb3_affect.agents.baselines:UCBQLearning", {}), ("sb3_affect.agents.baselines:SpeedEpsilonGreedy", {})], seed=0
     )
     log = team.learn(15).episode_log
     assert len(log) == 15 and (log.capturer == 0).all()  # surround: every hunter is rewarded, the first is named

@@ -15,9 +15,9 @@ from stable_baselines3.common.callbacks import BaseCallback, StopTrainingOnMaxEp
 from stable_baselines3.common.logger import configure
 
 from sb3_affect import AffectQ, EmotionCallback, QLearning
-from sb3_affect.appraisal import Appraiser
-from sb3_affect.baselines import Boltzmann, SpeedEpsilonGreedy, UCBQLearning, softmax_action
-from sb3_affect.engine import simulate
+from sb3_affect.agents.baselines import Boltzmann, SpeedEpsilonGreedy, UCBQLearning, softmax_action
+from sb3_affect.core.appraisal import Appraiser
+from sb3_affect.engine.simulation import simulate
 from sb3_affect.envs import TransitionTable
 from sb3_affect.envs.grid_pursuit import RIGHT
 from sb3_affect.kernel import choice

@@ -15,8 +15,8 @@ from stable_baselines3.common.callbacks import StopTrainingOnMaxEpisodes
 from stable_baselines3.common.utils import LinearSchedule
 
 from sb3_affect import AffectQ, Behaviour, Emotion, QLearning
-from sb3_affect.baselines import Boltzmann, DecayingEpsilonGreedy, OptimisticQLearning, SpeedEpsilonGreedy, UCBQLearning
-from sb3_affect.engine import simulate
+from sb3_affect.agents.baselines import Boltzmann, DecayingEpsilonGreedy, OptimisticQLearning, SpeedEpsilonGreedy, UCBQLearning
+from sb3_affect.engine.simulation import simulate
 
 GRID = "sb3_affect/GridPursuit-v0"
 MAZE = "sb3_affect/MazePursuit-v0"

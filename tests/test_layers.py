@@ -1,12 +1,14 @@
 """
-The package's layers (docs/architecture.md). `lint-imports` (the `.importlinter` contracts, run by `make test`) checks
-the imports between the modules of ``sb3_affect``; these tests check what it can not see: the envs, which live in the
-top-level ``envs/`` folder, and what importing the core costs.
+The package's layers (docs/architecture.md): one folder each, named in one place, the `layers` contract of
+``.importlinter`` that `lint-imports` (run by `make test`) checks. These tests check what the contracts can not see:
+that every folder of ``sb3_affect`` is a layer the contract names (a new module lands in a layer by where it is
+saved), the envs (below the core), which live in the top-level ``envs/`` folder, and what importing the core costs.
 """
 
 from __future__ import annotations
 
 import ast
+import configparser
 import json
 import subprocess
 import sys
@@ -15,21 +17,36 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
+
+
+def contract_layers() -> list[list[str]]:
+    """The layers of the package's ``layers`` contract, top first, each a list of its (independent) packages."""
+    config = configparser.ConfigParser()
+    config.read(ROOT / ".importlinter")
+    lines = [line.strip() for line in config["importlinter:contract:layers"]["layers"].splitlines() if line.strip()]
+    return [[name.strip() for name in line.replace(":", "|").split("|")] for line in lines]
+
+
+def test_the_top_level_holds_only_the_layer_folders() -> None:
+    top = ROOT / "sb3_affect"
+    modules = sorted(path.name for path in top.glob("*.py"))
+    assert modules == ["__init__.py", "__main__.py"]
+    named = {name for layer in contract_layers() for name in layer}
+    folders = {f"sb3_affect.{path.parent.name}" for path in top.glob("*/__init__.py")}
+    assert folders <= named, f"folders outside every layer: {sorted(folders - named)}"
+    assert sorted(named - folders - {"sb3_affect.__main__"}) == []
+
+
+def test_the_contract_reads_as_the_architecture_page_says() -> None:
+    layers = contract_layers()
+    assert layers[-1] == ["sb3_affect.core"]
+    assert ["sb3_affect.study"] in layers and ["sb3_affect.agents"] in layers
+    assert layers.index(["sb3_affect.study"]) < layers.index(["sb3_affect.agents"]) < layers.index(["sb3_affect.kernel"])
+
+
 #: The core: what an agent is made of, importable without torch, numba or pandas.
 CORE = (
-    "sb3_affect.appraisal",
-    "sb3_affect.emotions",
-    "sb3_affect.behaviour",
-    "sb3_affect.personalities",
-    "sb3_affect.goals",
-    "sb3_affect.settings",
-    "sb3_affect.setting_checks",
-    "sb3_affect.registry",
-    "sb3_affect.validation",
-    "sb3_affect.episode_log",
-    "sb3_affect.episode_blocks",
-    "sb3_affect.extras",
-    "sb3_affect.team_seeds",
+    *(f"sb3_affect.core.{path.stem}" for path in sorted((ROOT / "sb3_affect" / "core").glob("*.py")) if path.stem[0] != "_"),
     "sb3_affect.envs",
 )
 
@@ -56,7 +73,7 @@ import json, sys
 for name in {list(CORE)!r}:
     __import__(name)
 heavy = ("torch", "stable_baselines3", "numba", "pandas")
-study = ("sb3_affect.experiments", "sb3_affect.report", "sb3_affect.forensics", "sb3_affect.kernel", "sb3_affect.tabular")
+study = ("sb3_affect.study", "sb3_affect.kernel", "sb3_affect.agents", "sb3_affect.engine")
 print(json.dumps(sorted(m for m in sys.modules if m in heavy or m.startswith(study))))
 """
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, cwd=ROOT)

@@ -16,8 +16,8 @@ from numba import njit
 from stable_baselines3.common.callbacks import StopTrainingOnMaxEpisodes
 
 from sb3_affect import AffectQ, Behaviour, Emotion, QLearning
-from sb3_affect.baselines import Boltzmann, DecayingEpsilonGreedy, OptimisticQLearning, SpeedEpsilonGreedy, UCBQLearning
-from sb3_affect.engine import simulate
+from sb3_affect.agents.baselines import Boltzmann, DecayingEpsilonGreedy, OptimisticQLearning, SpeedEpsilonGreedy, UCBQLearning
+from sb3_affect.engine.simulation import simulate
 from sb3_affect.kernel.mt19937 import state_from_rng
 from sb3_affect.kernel.pcg64 import integers, random01, seeded_state, state_from_generator, state_to_generator
 from sb3_affect.kernel.prey_batch import moving_inputs, run_moving

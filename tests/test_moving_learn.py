@@ -14,8 +14,8 @@ import pytest
 from stable_baselines3.common.callbacks import BaseCallback, StopTrainingOnMaxEpisodes
 
 from sb3_affect import AffectQ, QLearning
-from sb3_affect.baselines import Boltzmann, UCBQLearning
-from sb3_affect.engine import simulate
+from sb3_affect.agents.baselines import Boltzmann, UCBQLearning
+from sb3_affect.engine.simulation import simulate
 
 MOVING = "sb3_affect/MovingPursuit-v0"
 SMALL = {"size": 5, "prey_start": (3, 3), "max_episode_steps": 80}

@@ -11,7 +11,7 @@ from stable_baselines3.common.callbacks import StopTrainingOnMaxEpisodes
 
 import sb3_affect  # noqa: F401  (registers the envs)
 from sb3_affect import AffectQ, EmotionCallback
-from sb3_affect.personalities import PERSONALITIES, PersonalityAppraiser
+from sb3_affect.core.personalities import PERSONALITIES, PersonalityAppraiser
 
 ENV_ID = "sb3_affect/GridPursuit-v0"
 

@@ -36,7 +36,7 @@ from typing import Any
 
 import pytest
 
-from sb3_affect.experiments import run_sweep
+from sb3_affect.study.launcher import run_sweep
 
 pytestmark = [
     pytest.mark.ray,
@@ -55,13 +55,13 @@ RAY_MAIN = "from ray.scripts.scripts import main; main()"
 
 def contents(out: Path) -> dict[str, Any]:
     """Run id -> (config, episodes) of every finished run, batches (chunks) and runs on their own (JSON) alike."""
-    from sb3_affect.experiments import ResultsStore
+    from sb3_affect.study.launcher import ResultsStore
 
     return {r["run_id"]: {"config": r["config"], "episodes": r["episodes"]} for r in ResultsStore(out).load_runs()}
 
 
 def count_runs(out: Path) -> int:
-    from sb3_affect.experiments import ResultsStore
+    from sb3_affect.study.launcher import ResultsStore
 
     return len(ResultsStore(out).done_ids()) if (out / "runs").exists() else 0
 
@@ -241,8 +241,8 @@ def test_two_node_sweep_ships_the_code_and_matches_the_local_backend(cluster: Cl
 
 WRONG_ADDRESSES = """
 import json, os, sys
-from sb3_affect.experiments import run_sweep
-from sb3_affect.experiments.ray_cluster import RayClusterError
+from sb3_affect.study.launcher import run_sweep
+from sb3_affect.study.launcher.ray_cluster import RayClusterError
 messages = {}
 for case, address, token in json.loads(sys.argv[1]):
     os.environ["RAY_AUTH_TOKEN"] = token
@@ -274,7 +274,7 @@ def test_wrong_address_or_token_fails_at_once_with_a_message(cluster: Cluster, t
     assert f"the Ray cluster at {ADDRESS} rejected this driver's token" in messages["token"]
     assert time.monotonic() - start < 60
     # a port that accepts connections and never answers (here, outside the namespace: it listens on 127.0.0.1 only)
-    from sb3_affect.experiments.ray_cluster import RayClusterError
+    from sb3_affect.study.launcher.ray_cluster import RayClusterError
 
     with socket.socket() as silent:
         silent.bind(("127.0.0.1", 0))

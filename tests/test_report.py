@@ -15,8 +15,8 @@ import pandas as pd
 import pytest
 from scipy import stats
 
-from sb3_affect.experiments import run_sweep
-from sb3_affect.report import (
+from sb3_affect.study.launcher import run_sweep
+from sb3_affect.study.report import (
     bootstrap_ci,
     bootstrap_improvement,
     build_report,
@@ -24,8 +24,8 @@ from sb3_affect.report import (
     paired_ttest_table,
     probability_of_improvement,
 )
-from sb3_affect.report.metrics import run_metrics
-from sb3_affect.report.stats import TTEST_ROWS
+from sb3_affect.study.report.metrics import run_metrics
+from sb3_affect.study.report.stats import TTEST_ROWS
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -192,7 +192,7 @@ def test_report_end_to_end_from_the_smoke_sweep(tmp_path: Path) -> None:
 
 def test_the_record_takes_no_commit_from_a_repository_around_an_installed_package(tmp_path: Path) -> None:
     """A package folder inside some other git repository (site-packages in a project) has no commit of its own."""
-    from sb3_affect.report.record import commit
+    from sb3_affect.study.report.record import commit
 
     site = tmp_path / "project" / "venv" / "site-packages" / "sb3_affect"
     site.mkdir(parents=True)
@@ -211,11 +211,15 @@ def test_the_record_takes_no_commit_from_a_repository_around_an_installed_packag
 
 def test_the_report_layer_imports_nothing_above_it() -> None:
     """report is below forensics, cli and replicate: not even a lazy import inside a function."""
-    above = re.compile(r"^\s*(from|import) sb3_affect\.(forensics|cli|replicate)\b", re.MULTILINE)
-    for path in (ROOT / "sb3_affect" / "report").glob("*.py"):
+    above = re.compile(r"^\s*(from|import) sb3_affect\.study\.(forensics|cli|replicate)\b", re.MULTILINE)
+    paths = list((ROOT / "sb3_affect" / "study" / "report").glob("*.py"))
+    assert paths
+    for path in paths:
         assert not above.search(path.read_text()), path.name
-    study = re.compile(r"^\s*(from|import) sb3_affect\.(engine|experiments|report|forensics|cli|replicate)\b", re.MULTILINE)
-    for path in (ROOT / "sb3_affect" / "baselines").glob("*.py"):  # the agents layer reads no results
+    study = re.compile(r"^\s*(from|import) sb3_affect\.(engine|study)\b", re.MULTILINE)
+    paths = list((ROOT / "sb3_affect" / "agents").rglob("*.py"))
+    assert paths
+    for path in paths:  # the agents layer reads no results
         assert not study.search(path.read_text()), path.name
 
 
@@ -225,7 +229,7 @@ def test_report_refuses_a_folder_without_results(tmp_path: Path) -> None:
 
 
 def test_html_inline_markup_renders_emphasis_bold_and_code_but_not_arithmetic() -> None:
-    from sb3_affect.report.document import _inline
+    from sb3_affect.study.report.document import _inline
 
     rendered = _inline("A *step* is one decision; **bold** and `code`; 2 * 3 * 4; a*b*c <x>")
     assert rendered == "A <i>step</i> is one decision; <b>bold</b> and <code>code</code>; 2 * 3 * 4; a*b*c &lt;x&gt;"

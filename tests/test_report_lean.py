@@ -13,17 +13,25 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from sb3_affect.experiments import ResultsStore, run_sweep
-from sb3_affect.experiments.reading import ordered_file_parts
-from sb3_affect.report import mechanism, metrics, resamples, settled
-from sb3_affect.report.build import build_report
-from sb3_affect.report.context import AFFECTIVE, STANDARD
-from sb3_affect.report.figures import episode_quantiles
-from sb3_affect.report.grouped import KahanSums, Welford
-from sb3_affect.report.metrics import EMOTIONS, REPORT_COLUMNS, load_results, profile, rows_where, run_metrics, run_windows
-from sb3_affect.report.scan import curve_quantiles, merge_curves, scan
-from sb3_affect.report.settled import bimodality, settled_numbers
-from sb3_affect.report.stats import BLOCK_CELLS, bootstrap_ci, bootstrap_improvement, bootstrap_iqm_cis, iqm
+from sb3_affect.study.launcher import ResultsStore, run_sweep
+from sb3_affect.study.launcher.folder_reading import ordered_file_parts
+from sb3_affect.study.report import mechanism, metrics, resamples, settled
+from sb3_affect.study.report.build import build_report
+from sb3_affect.study.report.context import AFFECTIVE, STANDARD
+from sb3_affect.study.report.figures import episode_quantiles
+from sb3_affect.study.report.grouped import KahanSums, Welford
+from sb3_affect.study.report.metrics import (
+    EMOTIONS,
+    REPORT_COLUMNS,
+    load_results,
+    profile,
+    rows_where,
+    run_metrics,
+    run_windows,
+)
+from sb3_affect.study.report.scan import curve_quantiles, merge_curves, scan
+from sb3_affect.study.report.settled import bimodality, settled_numbers
+from sb3_affect.study.report.stats import BLOCK_CELLS, bootstrap_ci, bootstrap_improvement, bootstrap_iqm_cis, iqm
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = ROOT / "experiments" / "paper.yaml"

@@ -12,9 +12,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from sb3_affect.experiments import ResultsStore, run_sweep
-from sb3_affect.report import stats
-from sb3_affect.report.metrics import (
+from sb3_affect.study.launcher import ResultsStore, run_sweep
+from sb3_affect.study.report import stats
+from sb3_affect.study.report.metrics import (
     REPORT_COLUMNS,
     episodes_frame,
     load_results,
@@ -23,7 +23,7 @@ from sb3_affect.report.metrics import (
     rows_where,
     run_metrics,
 )
-from sb3_affect.report.settled import bimodality
+from sb3_affect.study.report.settled import bimodality
 
 ROOT = Path(__file__).resolve().parents[1]
 SMOKE = ROOT / "experiments" / "smoke.yaml"

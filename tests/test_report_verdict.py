@@ -8,11 +8,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from sb3_affect.experiments import run_sweep
-from sb3_affect.report import claims
-from sb3_affect.report.evidence import sensitivity
-from sb3_affect.report.largen import Cell, run_cells
-from sb3_affect.report.metrics import load_results, run_metrics
+from sb3_affect.study.launcher import run_sweep
+from sb3_affect.study.report import claims
+from sb3_affect.study.report.evidence import sensitivity
+from sb3_affect.study.report.largen import Cell, run_cells
+from sb3_affect.study.report.metrics import load_results, run_metrics
 
 ROOT = Path(__file__).resolve().parents[1]
 EPS = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9)
@@ -164,7 +164,7 @@ def test_engine_study_gives_the_launchers_runs(tmp_path: Path) -> None:
 
 
 def test_seeds_needed_and_adastop_on_a_clear_difference() -> None:
-    from sb3_affect.report.evidence import adastop_table, seeds_needed
+    from sb3_affect.study.report.evidence import adastop_table, seeds_needed
 
     runs = _runs(30)
     needed = seeds_needed(runs, n=10, repetitions=4)
@@ -181,8 +181,8 @@ def test_seeds_needed_and_adastop_on_a_clear_difference() -> None:
 @pytest.mark.slow
 def test_replicate_writes_every_part_and_the_record(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """replicate end to end at toy size: launcher sweeps, the three engine studies, one report with their sections."""
-    from sb3_affect import replicate
-    from sb3_affect.replicate import main
+    from sb3_affect.study import replicate
+    from sb3_affect.study.replicate import main
 
     monkeypatch.setattr(replicate, "PARTS", (("paper", "toy paper"), ("dqn", "toy dqn"), ("baselines", "toy baselines")))
 
@@ -210,7 +210,7 @@ def test_replicate_writes_every_part_and_the_record(tmp_path: Path, monkeypatch:
 
 def test_claims_by_reading_judges_each_reading_with_the_verdict_logic() -> None:
     """Two readings: one whose affective runs match the crossover data, one that never finds the path (censored)."""
-    from sb3_affect.report.readings import claims_by_reading, emotion_shares, reading_runs
+    from sb3_affect.study.report.reading_verdicts import claims_by_reading, emotion_shares, reading_runs
 
     runs = _runs(20)
     standard = runs[runs.agent == "epsilon-greedy"]
@@ -229,7 +229,7 @@ def test_claims_by_reading_judges_each_reading_with_the_verdict_logic() -> None:
 
 
 def test_the_speed_ablation_table_puts_decisions_beside_cells() -> None:
-    from sb3_affect.report.speed import speed_table
+    from sb3_affect.study.report.speed_ablation import speed_table
 
     runs = _runs(20)
     standard = runs.agent == "epsilon-greedy"  # ε-greedy moves one cell per decision
@@ -250,7 +250,7 @@ def test_the_speed_ablation_table_puts_decisions_beside_cells() -> None:
 
 
 def test_fig5_and_fig6_windows_move_the_verdicts() -> None:
-    from sb3_affect.report.windows import EARLY_WINDOWS, LATE_WINDOWS, window_verdicts
+    from sb3_affect.study.report.windows import EARLY_WINDOWS, LATE_WINDOWS, window_verdicts
 
     runs = _runs(20)
     aff = runs[runs.agent == "affective"].copy()
@@ -283,7 +283,7 @@ def _tuning_runs(response, replicates: int = 20, noise: float = 0.05):  # type: 
 
 
 def test_tuning_chooses_an_interior_best_in_one_round() -> None:
-    from sb3_affect.report.tuning import GRID, tune
+    from sb3_affect.study.report.tuning import GRID, tune
 
     choices, rounds = tune(_tuning_runs(lambda e: 100 + 50 * (np.log10(e) - np.log10(0.05)) ** 2), [("task", "agent")])
     t = choices[("task", "agent")]
@@ -293,7 +293,7 @@ def test_tuning_chooses_an_interior_best_in_one_round() -> None:
 
 
 def test_tuning_extends_a_grid_whose_best_is_at_an_edge() -> None:
-    from sb3_affect.report.tuning import MAX_EXTENSIONS, extension, tune
+    from sb3_affect.study.report.tuning import MAX_EXTENSIONS, extension, tune
 
     assert extension([0.001, 0.002, 0.5], 0.001) == 0.0005 and extension([0.001, 0.2, 0.5], 0.5) == 1.0
     assert extension([0.001, 0.2, 0.5], 0.2) is None and extension([0.5, 1.0], 1.0) is None  # inside; end of range
@@ -318,7 +318,7 @@ def test_tuning_extends_a_grid_whose_best_is_at_an_edge() -> None:
 
 def test_a_flat_edge_is_said_to_be_flat() -> None:
     """Best at the edge by a difference the paired CI can not tell from 0: not interior, and flat there."""
-    from sb3_affect.report.tuning import choose
+    from sb3_affect.study.report.tuning import choose
 
     decisions = {0.001: [10, 12, 10, 12], 0.002: [12, 10, 13, 10], 0.005: [20, 20, 20, 20]}
     runs = pd.DataFrame(
@@ -335,8 +335,8 @@ def test_the_tuning_section_reads_the_rounds_back(tmp_path: Path) -> None:
     """The report's tuning subsection recomputes the choice from the rounds on disk and says what it found."""
     import json
 
-    from sb3_affect.report.document import Document
-    from sb3_affect.report.tuning import GRID, TASKS, TUNED_AGENTS, tune, tuning_section
+    from sb3_affect.study.report.document import Document
+    from sb3_affect.study.report.tuning import GRID, TASKS, TUNED_AGENTS, tune, tuning_section
 
     folder = tmp_path / "tuning"
     keys = [(TASKS[0][0], TUNED_AGENTS[1][0])]
@@ -368,7 +368,7 @@ def test_the_tuning_section_reads_the_rounds_back(tmp_path: Path) -> None:
 
 def test_the_launcher_tuning_table_says_whether_its_best_is_interior() -> None:
     """``baseline_summary.tuning_choice``: a best value at the edge of its grid is flagged as not interior."""
-    from sb3_affect.report.baseline_summary import tuning_choice
+    from sb3_affect.study.report.baseline_summary import tuning_choice
 
     def record(agent: str, eps: float, decisions: int, seed: int) -> dict:  # type: ignore[type-arg]
         episodes = {"decisions": [decisions] * 3, "cells": [decisions] * 3, "optimal": [True] * 3,

@@ -16,7 +16,7 @@ from stable_baselines3.common.logger import Logger
 
 import sb3_affect  # noqa: F401  (registers the envs)
 from sb3_affect import AffectQ, QLearning
-from sb3_affect.baselines import SpeedEpsilonGreedy
+from sb3_affect.agents.baselines import SpeedEpsilonGreedy
 
 GRID = "sb3_affect/GridPursuit-v0"
 
@@ -218,10 +218,10 @@ def test_an_episode_ending_at_the_goal_is_not_reported_as_truncated_to_callbacks
 
 
 def test_the_decision_stepper_gives_callbacks_what_learn_gives_them() -> None:
-    """``sb3_affect.stepping.DecisionStepper`` mirrors ``learn``: the same callback locals, waits and terminal infos."""
+    """``sb3_affect.agents.stepping.DecisionStepper`` mirrors ``learn``: the same callback locals, waits and terminal infos."""
     from stable_baselines3.common.monitor import Monitor
 
-    from sb3_affect.stepping import DecisionStepper
+    from sb3_affect.agents.stepping import DecisionStepper
 
     def make() -> gym.Env:
         return gym.make(GRID, size=7, goal=(3, 3))

@@ -263,7 +263,7 @@ def test_load_invalid_object(tmp_path) -> None:
         warnings.simplefilter("always")
         QLearning.load(path, custom_objects=dict(learning_rate=lambda _: 1.0), safe=False)
     assert len(record) == 0
-    from sb3_affect.serialization import ModelFileError
+    from sb3_affect.agents.serialization import ModelFileError
 
     with pytest.raises(ModelFileError, match="learning_rate"):
         QLearning.load(path)

@@ -21,8 +21,8 @@ from stable_baselines3.common.callbacks import StopTrainingOnMaxEpisodes
 from stable_baselines3.common.utils import LinearSchedule
 
 from sb3_affect import AffectQ, QLearning
-from sb3_affect.baselines import Boltzmann, DecayingEpsilonGreedy, OptimisticQLearning, SpeedEpsilonGreedy, UCBQLearning
-from sb3_affect.serialization import PLAIN_MEMBER, ModelFileError
+from sb3_affect.agents.baselines import Boltzmann, DecayingEpsilonGreedy, OptimisticQLearning, SpeedEpsilonGreedy, UCBQLearning
+from sb3_affect.agents.serialization import PLAIN_MEMBER, ModelFileError
 
 ENV_ID = "sb3_affect/GridPursuit-v0"
 

@@ -14,8 +14,8 @@ from typing import Any
 import pytest
 from test_experiments_local import contents, sweep_file
 
-from sb3_affect.cli import main
-from sb3_affect.experiments import ResultsStore, StoreError, SweepError, load_sweep, run_sweep
+from sb3_affect.study.cli import main
+from sb3_affect.study.launcher import ResultsStore, StoreError, SweepError, load_sweep, run_sweep
 
 
 @pytest.fixture(scope="module")

@@ -13,8 +13,8 @@ from pathlib import Path
 
 import pytest
 
-from sb3_affect.experiments import SweepError, load_sweep
-from sb3_affect.registry import resolve_class
+from sb3_affect.core.registry import resolve_class
+from sb3_affect.study.launcher import SweepError, load_sweep
 
 HEAD = "name: s\nepisodes: 5\nseeds: 2\nenv: {id: sb3_affect/GridPursuit-v0, kwargs: {size: 5, goal: [2, 2]}}\n"
 
@@ -31,7 +31,7 @@ def refused_quickly(path: Path, seconds: float = 30, memory_gb: int = 3) -> str:
         f"""
         import resource
         resource.setrlimit(resource.RLIMIT_AS, ({memory_gb} * 2**30, {memory_gb} * 2**30))
-        from sb3_affect.experiments import SweepError, load_sweep
+        from sb3_affect.study.launcher import SweepError, load_sweep
         try:
             load_sweep({str(path)!r})
         except SweepError as error:

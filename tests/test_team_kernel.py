@@ -17,14 +17,14 @@ import pandas as pd
 import pytest
 
 from sb3_affect import Behaviour, Emotion
-from sb3_affect.broekens import BROEKENS_COLUMNS, BroekensCallback
+from sb3_affect.agents.broekens import BROEKENS_COLUMNS, BroekensCallback
+from sb3_affect.agents.hunter_team import HunterTeam
 from sb3_affect.envs import HUNTER_PURSUIT_ID, make_parallel
-from sb3_affect.experiments import run_sweep
-from sb3_affect.experiments.runner import execute_run
 from sb3_affect.kernel.mt19937 import state_from_rng
 from sb3_affect.kernel.pcg64 import state_from_generator
 from sb3_affect.kernel.team_inputs import hunter_columns, run_team, team_columns, team_settings_inputs
-from sb3_affect.team import HunterTeam
+from sb3_affect.study.launcher import run_sweep
+from sb3_affect.study.launcher.one_run import execute_run
 
 EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
 SEEDS = list(range(15))
@@ -56,12 +56,12 @@ CASES: list[tuple[str, list[tuple[str, dict[str, Any]]], dict[str, Any], int]] =
     ("obstacles-rewards", [AFFECT, EPS], {**SMALL, "obstacles": [(1, 1), (2, 2), (4, 3)], "goal_reward": 50.0,
                                           "step_reward": -1.0}, 8),
     ("maze", [AFFECT, EPS], {"maze": "rooms", "starts": [(1, 1), (1, 2)], "prey": "random"}, 3),
-    ("boltzmann-ucb", [("sb3_affect.baselines:Boltzmann", {"temperature": 2.0}),
-                       ("sb3_affect.baselines:UCBQLearning", {"exploration_coef": 2.0})], {**SMALL, "prey": "random"}, 8),
-    ("decaying-speed", [("sb3_affect.baselines:DecayingEpsilonGreedy", {"exploration_decay_episodes": 4}),
-                        ("sb3_affect.baselines:SpeedEpsilonGreedy", {"speeds": [0, 1, 2]})], SMALL, 8),
+    ("boltzmann-ucb", [("sb3_affect.agents.baselines:Boltzmann", {"temperature": 2.0}),
+                       ("UCBQLearning", {"exploration_coef": 2.0})], {**SMALL, "prey": "random"}, 8),
+    ("decaying-speed", [("sb3_affect.agents.baselines:DecayingEpsilonGreedy", {"exploration_decay_episodes": 4}),
+                        ("sb3_affect.agents.baselines:SpeedEpsilonGreedy", {"speeds": [0, 1, 2]})], SMALL, 8),
     ("jump-table-optimistic", [("AffectQ", {"behaviour_table": TABLE, "multi_cell": "jump", "tie_break": "first"}),
-                               ("sb3_affect.baselines:OptimisticQLearning", {"q_init": 10.0})], SMALL, 8),
+                               ("sb3_affect.agents.baselines:OptimisticQLearning", {"q_init": 10.0})], SMALL, 8),
     ("readings-caps", [("AffectQ", {"comparison": "valence", "act": "remaining", "units": "decisions",
                                     "max_episode_decisions": 40}),
                        ("AffectQ", {"personality": "pessimistic", "max_episode_decisions": 60})],

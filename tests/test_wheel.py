@@ -106,7 +106,7 @@ CORE_SCRIPT = """
 import sys, gymnasium as gym, numpy as np, sb3_affect
 from stable_baselines3 import DQN
 from sb3_affect import AffectQ, BroekensCallback, EmotionCallback, QLearning
-from sb3_affect.extras import EXTRAS, missing_modules
+from sb3_affect.core.extras import EXTRAS, missing_modules
 assert "site-packages" in sb3_affect.__file__, sb3_affect.__file__
 for cls in (QLearning, AffectQ):
     # the Python loop: the compiled engine's first compilation in a new install takes 20-40 s (tested elsewhere)
@@ -122,8 +122,8 @@ print("callbacks", len(emotions.episode_log), len(broekens.episode_log))
 extras = sorted({m for extra in ("experiments", "report", "hunters", "ray", "zoo") for m in EXTRAS[extra]})
 missing = {m for extra in ("experiments", "report", "hunters", "ray", "zoo") for m in missing_modules(extra)}
 print("installed", sorted(set(extras) - missing))
-print("imported", sorted(m for m in sys.modules if m.split(".")[0] in extras or m.startswith(("sb3_affect.experiments",
-      "sb3_affect.report", "sb3_affect.forensics"))))
+print("imported", sorted(m for m in sys.modules if m.split(".")[0] in extras or m.startswith(("sb3_affect.study.launcher",
+      "sb3_affect.study.report", "sb3_affect.study.forensics"))))
 """
 
 
@@ -161,17 +161,17 @@ def test_wheel_runs_shipped_sweeps_by_name_and_by_their_source_path(full: Path, 
 
 REPLICATE = """
 import sys
-import sb3_affect.replicate as replicate
+import sb3_affect.study.replicate as replicate
 assert "site-packages" in replicate.__file__
 replicate.PARTS = (("paper", "the paper's protocol, at toy size"),)
 replicate.LARGE_SEEDS = replicate.ABLATION_SEEDS = replicate.BEYOND_SEEDS = 1
 replicate.ENGINE_EPISODES = 5
-from sb3_affect.experiments import sweep_file
+from sb3_affect.study.launcher import sweep_file
 load = sweep_file.load_sweep
 sweep_file.load_sweep = lambda path, overrides=(), **kw: load(path, [*overrides, "seeds=1", "episodes=5"], **kw)
-import sb3_affect.experiments.launcher as launcher
+import sb3_affect.study.launcher.launcher as launcher
 launcher.load_sweep = sweep_file.load_sweep
-from sb3_affect.cli import main
+from sb3_affect.study.cli import main
 sys.exit(main(["replicate", "--out", "runs", "--workers", "1"]))
 """
 

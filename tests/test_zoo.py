@@ -17,15 +17,15 @@ import optuna
 import pytest
 
 from sb3_affect import AffectQ, QLearning
+from sb3_affect.core.settings import TabularSettings
 from sb3_affect.envs import GRID_PURSUIT_ID, MAX_EPISODE_STEPS
-from sb3_affect.settings import TabularSettings
-from sb3_affect.zoo import HYPERPARAMS_FOLDER, sample_affectq_params, sample_qlearning_params
-from sb3_affect.zoo import main as zoo_main
+from sb3_affect.integrations.zoo import HYPERPARAMS_FOLDER, sample_affectq_params, sample_qlearning_params
+from sb3_affect.integrations.zoo import main as zoo_main
 
 
 @pytest.fixture
 def zoo(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> Callable[[list[str], Path], str]:
-    """``python -m sb3_affect.zoo ARGS`` in ``cwd``, in this process (the zoo's modules run as ``__main__``)."""
+    """``python -m sb3_affect.integrations.zoo ARGS`` in ``cwd``, in this process (the zoo's modules run as ``__main__``)."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -100,7 +100,7 @@ def test_safe_loader_applies_custom_objects_as_sb3_does(tmp_path: Path) -> None:
 
 
 def test_hub_packaging_offline_names_sb3_affect_and_how_to_load(tmp_path: Path) -> None:
-    from sb3_affect.hub import package_model
+    from sb3_affect.integrations.hub import package_model
 
     model = QLearning("Grid", gym.make(GRID_PURSUIT_ID, size=4, goal=(2, 2), max_episode_steps=50), seed=0).learn(2000)
     folder = package_model(model, tmp_path / "hub", GRID_PURSUIT_ID, repo_id="someone/qlearning-grid",

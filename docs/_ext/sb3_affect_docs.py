@@ -3,7 +3,7 @@ Directives that generate documentation from the code, so the pages can not drift
 
 * ``.. sweep-schema::`` (reStructuredText: in a Markdown page, inside an ``{eval-rst}`` block): the experiment-file
   reference, one table per section, from the pydantic models of
-  ``sb3_affect.experiments.schema`` (field names, types, defaults, constraints and descriptions);
+  ``sb3_affect.study.launcher.schema`` (field names, types, defaults, constraints and descriptions);
 * ``.. cli-help:: [COMMAND]`` the ``--help`` text of the ``sb3-affect`` command (or one sub-command), from its parser.
 """
 
@@ -28,7 +28,7 @@ CONSTRAINTS = {
 def _type_name(annotation: Any) -> str:
     text = getattr(annotation, "__name__", None) if not getattr(annotation, "__args__", None) else None
     text = text or str(annotation).replace("typing.", "")
-    return text.replace("sb3_affect.experiments.schema.", "").replace("NoneType", "None")
+    return text.replace("sb3_affect.study.launcher.schema.", "").replace("NoneType", "None")
 
 
 def _constraints(schema: dict[str, Any]) -> list[str]:
@@ -48,7 +48,7 @@ class SweepSchema(Directive):
     def run(self) -> list[nodes.Node]:
         from pydantic_core import PydanticUndefined
 
-        from sb3_affect.experiments.schema import AgentSpec, EnvSpec, MemberSpec, Sweep
+        from sb3_affect.study.launcher.schema import AgentSpec, EnvSpec, MemberSpec, Sweep
 
         lines: list[str] = []
         sections = (
@@ -80,7 +80,7 @@ class SweepSchema(Directive):
             lines.append("")
         container = nodes.section()
         container.document = self.state.document
-        self.state.nested_parse(StringList(lines, source="sb3_affect.experiments.schema"), self.content_offset, container)
+        self.state.nested_parse(StringList(lines, source="sb3_affect.study.launcher.schema"), self.content_offset, container)
         return list(container.children)
 
 
@@ -91,7 +91,7 @@ class CliHelp(Directive):
     has_content = False
 
     def run(self) -> list[nodes.Node]:
-        from sb3_affect.cli import build_parser
+        from sb3_affect.study.cli import build_parser
 
         previous = os.environ.get("COLUMNS")
         os.environ["COLUMNS"] = "92"  # the width of the theme's code blocks

@@ -1,7 +1,7 @@
 """
 The compiled engine: numba kernels of the tabular agents' learning loop.
 
-``sb3_affect/loop.py`` (``run_loop``) is the readable reference; the kernel runs the same
+``sb3_affect/agents/reference_loop.py`` (``run_loop``) is the readable reference; the kernel runs the same
 decisions with the same random draws and the same floating-point operations, so for a given seed both engines give
 the identical episode log, Q-table, random-generator state and appraisal. Modules:
 
@@ -9,13 +9,13 @@ the identical episode log, Q-table, random-generator state and appraisal. Module
 - ``affect``: the appraisal (known map, power fit) and Table II;
 - ``loop``: the decision loop (every agent kind, the env's moves, Eq. 1, the episode rows);
 - ``arrays``: the decision loop's arguments (named tuples of arrays) and the indices of its scalars;
-- ``agents``: what the kernel needs to know about an agent, read from its settings object (``sb3_affect.settings``);
+- ``agents``: what the kernel needs to know about an agent, read from its settings object (``sb3_affect.core.settings``);
 - ``inputs``: an env's transition table as arrays (``sb3_affect.envs.transition_table``), a batch's inputs;
 - ``batch``: many fresh runs in one call (``simulate``).
 
 The kernel imports the core modules only (settings, registry, envs), never an agent class. ``learn`` on the kernel,
 which needs SB3's objects (a model's state in and out, callbacks, the Monitor, the logger), is on the agents' side:
-``sb3_affect.compiled`` and ``sb3_affect.compiled_state``.
+``sb3_affect.agents.compiled`` and ``sb3_affect.agents.compiled_state``.
 
 Compiled code is cached on disk (numba ``cache=True``, in ``__pycache__`` beside these files or numba's cache
 folder), so only the first import on a machine pays the compilation. numba checks a cached function against its own

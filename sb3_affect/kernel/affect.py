@@ -1,6 +1,6 @@
 """
-The affective appraisal in numba: the known map, the power fit, Table II (``sb3_affect.appraisal`` and
-``sb3_affect.emotions`` are the readable reference; every operation here is the same, in the same order).
+The affective appraisal in numba: the known map, the power fit, Table II (``sb3_affect.core.appraisal`` and
+``sb3_affect.core.emotions`` are the readable reference; every operation here is the same, in the same order).
 
 The known map lives in arrays: ``dist[s]`` the shortest known distance (cells) to a reached goal (``inf`` unknown),
 ``edge[s, a]`` whether the transition ``s -> trans[s, a]`` has been experienced, ``pred[v, :pred_n[v]]`` the cells with an
@@ -109,7 +109,7 @@ def fit_predict(fit_vals: np.ndarray, fsum: np.ndarray, n: int, t: int) -> float
 
 @kernel_inline
 def table_ii(norm: float, exp1: float, act: float, valence: bool) -> int:
-    """Table II, first match wins (``sb3_affect.emotions.table_ii``)."""
+    """Table II, first match wins (``sb3_affect.core.emotions.table_ii``)."""
     if valence:
         norm, exp1, act = -norm, -exp1, -act
     if exp1 < norm:

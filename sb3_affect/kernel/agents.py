@@ -1,6 +1,6 @@
 """
 What the kernel needs to know about an agent (``KernelAgent``), read from the agent's settings object
-(``sb3_affect.settings``): its family (the kernel's kind), its behaviour rows and its appraisal options. The
+(``sb3_affect.core.settings``): its family (the kernel's kind), its behaviour rows and its appraisal options. The
 per-episode learning rate and exploration come from the settings too (``TabularSettings.episode_parameters``).
 
 The kernel knows no agent class: a model gives its settings (``TabularQAlgorithm.compiled_settings``), or says
@@ -47,7 +47,7 @@ FAMILY_KINDS = {"epsilon": arrays.EPSILON, "affect": arrays.AFFECT, "boltzmann":
 
 
 def kernel_agent(settings: Any) -> KernelAgent | str:
-    """The kernel's view of an agent's settings (``sb3_affect.settings``), or the reason it has none."""
+    """The kernel's view of an agent's settings (``sb3_affect.core.settings``), or the reason it has none."""
     kind = FAMILY_KINDS.get(settings.family)
     if kind is None:
         return f"{type(settings).__name__} are not the settings of an agent the kernel implements"

@@ -1,5 +1,5 @@
 """
-Many fresh runs of one agent in one kernel call (``sb3_affect.engine.simulate`` on the compiled engine).
+Many fresh runs of one agent in one kernel call (``sb3_affect.engine.simulation.simulate`` on the compiled engine).
 
 Each run starts as a new model does: the Q-table at ``q_init``, ``random.Random(seed)``'s state (seeded inside the
 kernel by the same ``init_by_array``), an empty known map and power fit, the env at its start. No SB3 model is built
@@ -80,7 +80,7 @@ def simulate_batch(inputs: BatchInputs, seeds: Sequence[int], episodes: int) -> 
         model whose ``batch_reason`` is None, or ``kernel.inputs.settings_inputs``), for ``episodes`` episodes
     :param seeds: one run per seed
     :param episodes: episodes per run
-    :return: the rows, columns ``sb3_affect.engine.SIMULATE_COLUMNS``
+    :return: the rows, columns ``sb3_affect.engine.simulation.SIMULATE_COLUMNS``
     """
     import pandas as pd
 
@@ -145,10 +145,10 @@ def batch_columns(inputs: BatchInputs, seeds: Sequence[int], episodes: int) -> d
 
 def warm_up() -> None:
     """Call ``run_seeds`` and ``loop.run`` once on a 3 x 3 grid, with the argument types the engines use."""
+    from sb3_affect.core.settings import AffectQSettings
     from sb3_affect.envs.grid_pursuit import GridPursuitEnv
     from sb3_affect.kernel.agents import KernelAgent, behaviour_arrays
     from sb3_affect.kernel.inputs import TableArrays, kernel_config
-    from sb3_affect.settings import AffectQSettings
 
     env = GridPursuitEnv(size=3, goal=(2, 2))
     table = TableArrays.of(env)

@@ -3,7 +3,7 @@ What a batch of fresh runs feeds the kernel (``BatchInputs``): the agent (``Kern
 per-episode learning rate and exploration, and the env's transition table as arrays (``TableArrays``). Nothing here
 imports torch or SB3.
 
-``batch_inputs`` computes them from an agent's settings object (``sb3_affect.settings``: given, or the one a freshly
+``batch_inputs`` computes them from an agent's settings object (``sb3_affect.core.settings``: given, or the one a freshly
 built model hands over). ``settings_inputs`` is the path without a model: from ``(algo, algo kwargs, env id, env
 kwargs)``, it validates the kwargs with the agent's own checks and builds the env with ``gym.make``; anything it can
 not vouch for (a class of your own, an argument that is not a setting, a schedule of the training progress, an env
@@ -22,10 +22,10 @@ import gymnasium as gym
 import numpy as np
 from gymnasium.wrappers import OrderEnforcing, PassiveEnvChecker, TimeLimit
 
+from sb3_affect.core.registry import known_settings
 from sb3_affect.envs.transition_table import TransitionTable
 from sb3_affect.kernel import arrays
 from sb3_affect.kernel.agents import COMPENSATED_SUM, KernelAgent, kernel_agent
-from sb3_affect.registry import known_settings
 
 
 class TableArrays:

@@ -1,6 +1,6 @@
 """
-The compiled decision loop: ``sb3_affect.loop.run_loop`` with the agent's ``_decide``, the appraisal and the
-env's moves, in numba. ``sb3_affect/loop.py`` is the readable reference; this file does the same operations in the
+The compiled decision loop: ``sb3_affect.agents.reference_loop.run_loop`` with the agent's ``_decide``, the appraisal and the
+env's moves, in numba. ``agents/reference_loop.py`` is the readable reference; this file does the same operations in the
 same order (same random draws, same floating-point expressions), so both give the same episode log and Q-table.
 
 State crosses the boundary as arrays, grouped in a few named tuples (``sb3_affect.kernel.arrays``; numba passes

@@ -1,6 +1,6 @@
 """
 The compiled decision loop on MovingPursuit (``sb3_affect.envs.moving_pursuit``): one tabular agent pursues a prey
-that random-walks or evades. ``sb3_affect/loop.py`` with the agent's ``_decide`` and the env's ``step`` is the
+that random-walks or evades. ``sb3_affect/agents/reference_loop.py`` with the agent's ``_decide`` and the env's ``step`` is the
 reference; this loop does the same operations in the same order, so for the same seeds both give the identical episode
 log, Q-table, the agent's ``random.Random`` state (``kernel.mt19937``) and the env's NumPy generator state
 (``kernel.pcg64``: the prey's draws).

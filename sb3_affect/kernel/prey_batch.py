@@ -1,5 +1,5 @@
 """
-Many fresh runs of one agent on MovingPursuit in one kernel call (``sb3_affect.engine.simulate`` on the compiled
+Many fresh runs of one agent on MovingPursuit in one kernel call (``sb3_affect.engine.simulation.simulate`` on the compiled
 engine; the loop is ``kernel.moving``).
 
 Each run starts as a new model does: the Q-table at ``q_init``, ``random.Random(seed)``'s state (seeded inside the
@@ -18,6 +18,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium.wrappers import OrderEnforcing, PassiveEnvChecker, TimeLimit
 
+from sb3_affect.core.registry import known_settings
 from sb3_affect.kernel import moving
 from sb3_affect.kernel.agents import COMPENSATED_SUM, KernelAgent, kernel_agent
 from sb3_affect.kernel.inputs import unwrap
@@ -25,7 +26,6 @@ from sb3_affect.kernel.mt19937 import STATE_SIZE, seed_keys
 from sb3_affect.kernel.pcg64 import STATE_SIZE as PCG_SIZE
 from sb3_affect.kernel.pcg64 import seeded_state
 from sb3_affect.kernel.steps import known_widths
-from sb3_affect.registry import known_settings
 
 
 class MovingInputs(NamedTuple):
@@ -90,7 +90,7 @@ def _far(base: Any) -> np.ndarray:
 
 def moving_inputs(settings: Any, env: Any, episodes: int) -> MovingInputs:
     """
-    The kernel inputs of fresh runs of an agent of these ``settings`` (``sb3_affect.settings``: given, or the ones a
+    The kernel inputs of fresh runs of an agent of these ``settings`` (``sb3_affect.core.settings``: given, or the ones a
     freshly built model hands over) on ``env`` (a MovingPursuit, ``moving_reason(env)`` None).
     """
     agent = kernel_agent(settings)

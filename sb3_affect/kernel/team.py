@@ -1,5 +1,5 @@
 """
-The compiled team of independent learners on HunterPursuit (``sb3_affect.team.HunterTeam`` driving each hunter's
+The compiled team of independent learners on HunterPursuit (``sb3_affect.agents.hunter_team.HunterTeam`` driving each hunter's
 ``DecisionStepper``, and ``envs.hunter_pursuit.HunterPursuitEnv``'s step, are the reference). For the same seeds it
 gives the identical team log, each hunter's episode log, Q-table and ``random.Random`` state, the env's NumPy
 generator state (``kernel.pcg64``: the prey's draws) and what a ``BroekensCallback`` observing each hunter records.

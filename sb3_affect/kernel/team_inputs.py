@@ -15,14 +15,14 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from sb3_affect.core.registry import known_settings
+from sb3_affect.core.team_seeds import member_seed
 from sb3_affect.kernel import team
 from sb3_affect.kernel.agents import COMPENSATED_SUM, kernel_agent
 from sb3_affect.kernel.hunter_step import PREY_EVADE, PREY_RANDOM, PREY_STATIC
 from sb3_affect.kernel.mt19937 import STATE_SIZE, TW_SIZE, seed_key, seed_state
 from sb3_affect.kernel.pcg64 import seeded_state
 from sb3_affect.kernel.steps import AFFECT
-from sb3_affect.registry import known_settings
-from sb3_affect.team_seeds import member_seed
 
 #: The most bytes the known maps of a team's hunters may take (larger observation spaces run on the Python team).
 MAX_KNOWN_BYTES = 1 << 30
@@ -80,7 +80,7 @@ class TeamRun(NamedTuple):
 
 def team_inputs(agents: Sequence[Any], env: Any, episodes: int) -> TeamInputs | str:
     """
-    The kernel inputs of fresh team runs of ``agents`` (one settings object per hunter, ``sb3_affect.settings``) on
+    The kernel inputs of fresh team runs of ``agents`` (one settings object per hunter, ``sb3_affect.core.settings``) on
     ``env`` (a ``HunterPursuitEnv``), or the reason the kernel can not run them.
     """
     from sb3_affect.envs.hunter_pursuit import HunterPursuitEnv
@@ -270,8 +270,8 @@ def team_columns(inputs: TeamInputs, run: TeamRun) -> dict[str, list[Any]]:
 
 def warm_up() -> None:
     """Load (the first time on a machine: compile) the team kernel, on a 3 x 3 grid with two hunters of each family."""
+    from sb3_affect.core.settings import AffectQSettings, QLearningSettings
     from sb3_affect.envs.hunter_pursuit import HunterPursuitEnv
-    from sb3_affect.settings import AffectQSettings, QLearningSettings
 
     env = HunterPursuitEnv(size=3, starts=[(0, 0), (2, 2)], prey_start=(1, 1))
     inputs = team_inputs([AffectQSettings(), QLearningSettings()], env, 1)

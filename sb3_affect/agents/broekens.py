@@ -1,0 +1,353 @@
+"""
+A second emotion model: Broekens, Jacobs and Jonker (2015), "A reinforcement learning model of joy, distress, hope
+and fear" (Connection Science 27(3)), as an SB3 callback that observes any algorithm with a value estimate.
+
+What follows the paper's abstract: joy and distress are the positive and negative parts of the temporal-difference
+error of a step, ``delta = r + gamma * V(s') - V(s)``; hope and fear the positive and negative parts of the
+anticipated value ``V(s')`` of the state reached. Everything else is this package's choice, made so the model can
+watch any SB3 run:
+
+* ``V(s') = 0`` when ``s'`` ends the episode at a terminal state; after a truncation (a time limit) ``V(s')`` is the
+  value of the last observation (``terminal_observation``), as SB3's algorithms bootstrap it.
+* ``V(s)`` is the value recorded when ``s`` was reached (before the step's learning update), ``V(s')`` the value
+  after it.
+* Where ``V`` comes from: ``max_a Q(s, a)`` for the package's tabular agents and DQN (QR-DQN: the mean of its
+  quantiles); the value head for PPO, A2C, TRPO, MaskablePPO and RecurrentPPO (with its LSTM states); ``Q(s, pi(s))``
+  for SAC, TD3, TQC and CrossQ (the deterministic action; the minimum over SAC's and TD3's twin critics, as their
+  targets take it; the mean of TQC's quantiles); or a ``value_fn`` you give.
+* A step is what the algorithm calls its callbacks for: one env step of each env of the VecEnv for SB3's
+  algorithms, one decision for the package's tabular agents. A decision that moves ``k`` cells is discounted per cell
+  as the agent's own updates are (``delta = r_1 + gamma r_2 + ... + gamma^k V(s_k) - V(s)``), or once for
+  ``multi_cell="jump"``, whose single update sums the rewards; a wait (0 cells) makes no transition and no update,
+  so it fires no emotion and is not counted as a step.
+* Logged: the means per step of each emotion over an episode, then their means over the last episodes (the
+  algorithm's stats window, as SB3 logs ``rollout/ep_rew_mean``).
+
+The paper's experiments are not reproduced: the package has no stored source for their learner or any further
+scaling, so only the definitions above are used.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from collections import deque
+from collections.abc import Callable
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import torch as th
+from stable_baselines3.common.callbacks import BaseCallback
+
+from sb3_affect.agents.callbacks import check_step_locals, logger_file_folder
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+#: Columns of ``BroekensCallback.episode_log``.
+BROEKENS_COLUMNS: tuple[str, ...] = (
+    "episode", "steps", "reward", "joy", "distress", "hope", "fear", "goal_joy", "env"
+)
+BROEKENS_EMOTIONS: tuple[str, ...] = ("joy", "distress", "hope", "fear")
+
+ValueFn = Callable[[Any, Any], float]
+
+
+def tabular_value(model: Any, obs: Any) -> float:
+    """``max_a Q(s, a)`` of a tabular agent of this package (its live table during ``learn``)."""
+    q = getattr(model, "_q", None)
+    index = int(np.asarray(obs).reshape(-1)[0]) - int(model.observation_space.start)
+    if q is not None:
+        return float(max(q[index]))
+    return float(model.q_table[index].max())
+
+
+def dqn_value(model: Any, obs: Any) -> float:
+    """``max_a Q(s, a)`` of SB3's DQN (its online Q-network)."""
+    with th.no_grad():
+        tensor, _ = model.policy.obs_to_tensor(np.asarray(obs))
+        return float(model.q_net(tensor).max())
+
+
+def critic_value(model: Any, obs: Any) -> float:
+    """``V(s)`` from the value head of an actor-critic policy (PPO, A2C)."""
+    with th.no_grad():
+        tensor, _ = model.policy.obs_to_tensor(np.asarray(obs))
+        return float(model.policy.predict_values(tensor).reshape(-1)[0])
+
+
+#: How a model's values are read (``value_kind``).
+VALUE_KINDS = ("tabular", "q_net", "quantile_net", "value_head", "recurrent", "critic")
+
+
+def value_kind(model: Any) -> str:
+    """Which of ``VALUE_KINDS`` gives the state value of ``model``; a TypeError naming the fix when none does."""
+    from sb3_affect.agents.tabular import TabularQAlgorithm
+
+    policy = getattr(model, "policy", None)
+    if isinstance(model, TabularQAlgorithm):
+        return "tabular"
+    if hasattr(model, "q_net"):
+        return "q_net"
+    if hasattr(model, "quantile_net"):
+        return "quantile_net"
+    if hasattr(policy, "predict_values"):
+        return "recurrent" if hasattr(policy, "lstm_actor") else "value_head"
+    if hasattr(model, "critic") and hasattr(model, "actor"):
+        return "critic"
+    raise TypeError(
+        f"BroekensCallback needs a value-based algorithm (a tabular agent, DQN, QR-DQN, an actor-critic such as PPO or "
+        f"A2C, or SAC, TD3, TQC, CrossQ); {type(model).__name__} has no Q-table, Q-network, value head or critic: pass "
+        "value_fn=lambda model, obs: V(obs)"
+    )
+
+
+def default_value_fn(model: Any) -> ValueFn:
+    """A one-observation value function of a model (for a model whose value needs no recurrent state)."""
+    kind = value_kind(model)
+    if kind == "recurrent":
+        raise TypeError("RecurrentPPO's values need its LSTM states; BroekensCallback reads them during learn")
+
+    def value(model: Any, obs: Any) -> float:
+        return float(_model_values(model, kind, obs)[0])
+
+    return {"tabular": tabular_value, "q_net": dqn_value, "value_head": critic_value}.get(kind, value)
+
+
+def _model_values(model: Any, kind: str, obs: Any, lstm: Any = None, starts: Any = None) -> np.ndarray:
+    """The values of a batch of observations (``obs``: a VecEnv's batch, or a dict of batches)."""
+    if kind == "tabular":
+        q = getattr(model, "_q", None)
+        table = q if q is not None else model.q_table.tolist()
+        cells = np.asarray(obs).reshape(-1) - int(model.observation_space.start)
+        return np.array([max(table[int(cell)]) for cell in cells], dtype=float)
+    policy = model.policy
+    training = policy.training
+    policy.set_training_mode(False)  # batch norm (CrossQ) and dropout: evaluate, never update
+    try:
+        with th.no_grad():
+            tensor, _ = policy.obs_to_tensor(obs)
+            if kind == "q_net":
+                values = model.q_net(tensor).max(dim=1).values
+            elif kind == "quantile_net":
+                values = model.quantile_net(tensor).mean(dim=1).max(dim=1).values
+            elif kind == "value_head":
+                values = policy.predict_values(tensor)
+            elif kind == "recurrent":
+                values = policy.predict_values(tensor, lstm, starts)
+            else:  # "critic": Q(s, pi(s)) with the deterministic action
+                actions = policy._predict(tensor, deterministic=True)
+                out = model.critic(tensor, actions)
+                if isinstance(out, (tuple, list)):  # twin critics (SAC, TD3, CrossQ): the minimum, as their targets
+                    values = th.cat([q.reshape(len(q), -1) for q in out], dim=1).min(dim=1).values
+                else:  # TQC: (batch, critics, quantiles)
+                    values = out.reshape(len(out), -1).mean(dim=1)
+    finally:
+        policy.set_training_mode(training)
+    return values.reshape(-1).cpu().numpy().astype(float)
+
+
+def _batch_of_one(obs: Any) -> Any:
+    """One env's (unbatched) observation as a batch of one."""
+    if isinstance(obs, dict):
+        return {key: np.asarray(value)[None] for key, value in obs.items()}
+    return np.asarray(obs)[None]
+
+
+def _row(obs: Any, index: int) -> Any:
+    """Env ``index``'s observation of a VecEnv batch, as a batch of one."""
+    if isinstance(obs, dict):
+        return {key: np.asarray(value)[index : index + 1] for key, value in obs.items()}
+    return np.asarray(obs)[index : index + 1]
+
+
+class BroekensCallback(BaseCallback):
+    """
+    Observe joy, distress, hope and fear (Broekens, Jacobs & Jonker 2015; see the module docstring for what follows
+    the paper and what is this package's choice) of any SB3 algorithm with a value estimate, on a VecEnv of any size
+    and any observation space the algorithm takes. Logs ``<prefix>joy|distress|hope|fear`` (means over the stats
+    window) through the model's logger and keeps ``episode_log`` (one row per episode and env, ``BROEKENS_COLUMNS``):
+    the mean intensity of each emotion per step, and ``goal_joy``, the joy of the step that ended the episode at a
+    terminal state (NaN when it was cut off). When the logger writes files, the rows are also appended to
+    ``broekens_episodes.csv`` in its folder.
+
+    :param value_fn: ``value_fn(model, obs) -> V(obs)`` for an observation batch of one; default by algorithm
+    :param gamma: discount of the TD error; default the model's ``gamma``
+    :param prefix: prefix of the logger keys
+    :param episode_log_path: a CSV file to append the episode rows to (default: see above)
+    :param verbose: verbosity level
+    """
+
+    def __init__(
+        self,
+        value_fn: ValueFn | None = None,
+        gamma: float | None = None,
+        prefix: str = "affect/broekens/",
+        episode_log_path: str | Path | None = None,
+        verbose: int = 0,
+    ) -> None:
+        super().__init__(verbose)
+        if gamma is not None and not 0.0 <= float(gamma) <= 1.0:
+            raise ValueError(f"gamma={gamma!r} must be in [0, 1]")
+        if value_fn is not None and not callable(value_fn):
+            raise TypeError(f"value_fn must be a callable value_fn(model, obs) -> float, got {value_fn!r}")
+        self.value_fn = value_fn
+        self.gamma = gamma
+        self.prefix = prefix
+        self.episode_log_path = episode_log_path
+        self.rows: list[list[Any]] = []
+        self._kind = "user"
+        self._gamma = 1.0
+        self._v = np.zeros(1)
+        self._sums = np.zeros((1, 4))
+        self._steps = np.zeros(1, dtype=np.int64)
+        self._reward = np.zeros(1)
+        self._window: deque[list[float]] = deque(maxlen=100)
+        self._csv_path: Path | None = None
+
+    def _init_callback(self) -> None:
+        self._kind = "user" if self.value_fn is not None else value_kind(self.model)
+        self._gamma = float(self.gamma if self.gamma is not None else getattr(self.model, "gamma", 1.0))
+
+    # -- values ------------------------------------------------------------------------------------------------
+    def _values(self, obs: Any, dones: np.ndarray | None = None) -> np.ndarray:
+        """``V`` of each env's observation in a VecEnv batch (``dones``: which envs start a new episode with it)."""
+        if self._kind == "user":
+            assert self.value_fn is not None
+            n = len(next(iter(obs.values()))) if isinstance(obs, dict) else len(np.asarray(obs))
+            return np.array([float(self.value_fn(self.model, _row(obs, i))) for i in range(n)])
+        lstm = starts = None
+        if self._kind == "recurrent":
+            lstm, starts = self._recurrent_inputs(dones)
+        return _model_values(self.model, self._kind, obs, lstm, starts)
+
+    def _recurrent_inputs(self, dones: np.ndarray | None, index: int | None = None) -> tuple[Any, th.Tensor]:
+        """RecurrentPPO's value-LSTM states for the next observation (``index``: one env's, for its last observation)."""
+        states = self.locals.get("lstm_states") if self.locals else None
+        if states is None:  # training start: the states the next rollout begins with
+            states = getattr(self.model, "_last_lstm_states")  # noqa: B009  (RecurrentPPO's, not BaseAlgorithm's)
+            dones = np.asarray(getattr(self.model, "_last_episode_starts"))  # noqa: B009
+        h, c = states.vf
+        device = self.model.device
+        if index is not None:  # a truncated episode's last observation continues its episode
+            one = (h[:, index : index + 1, :].contiguous(), c[:, index : index + 1, :].contiguous())
+            return one, th.zeros(1, device=device)
+        assert dones is not None
+        return (h, c), th.as_tensor(np.asarray(dones, dtype=np.float32), device=device)
+
+    def _terminal_value(self, terminal_obs: Any, index: int) -> float:
+        """``V`` of the last observation of a truncated episode of env ``index``."""
+        batch = _batch_of_one(terminal_obs)
+        if self._kind == "user":
+            assert self.value_fn is not None
+            return float(self.value_fn(self.model, batch))
+        lstm = starts = None
+        if self._kind == "recurrent":
+            lstm, starts = self._recurrent_inputs(None, index)
+        return float(_model_values(self.model, self._kind, batch, lstm, starts)[0])
+
+    # -- SB3 hooks ---------------------------------------------------------------------------------------------
+    def _on_training_start(self) -> None:
+        last_obs = getattr(self.model, "_last_obs", None)
+        if last_obs is None:
+            raise RuntimeError("BroekensCallback: the algorithm has no current observation at training start")
+        n = self.training_env.num_envs
+        self._v = self._values(last_obs)
+        self._sums = np.zeros((n, 4))
+        self._steps = np.zeros(n, dtype=np.int64)
+        self._reward = np.zeros(n)
+        self._window = deque(self._window, maxlen=int(getattr(self.model, "_stats_window_size", 100)))
+        self._csv_path = self._episode_csv()
+
+    def _on_step(self) -> bool:
+        check_step_locals(self)
+        dones = np.asarray(self.locals["dones"], dtype=bool).reshape(-1)
+        rewards = np.asarray(self.locals["rewards"], dtype=float).reshape(-1)
+        infos = self.locals["infos"]
+        new_obs = self.locals["new_obs"]
+        cell_rewards = self.locals.get("cell_rewards")  # the package's tabular agents: this decision's cells
+        if cell_rewards is not None and len(cell_rewards) == 0:  # a wait: no transition, no update, no emotion
+            if dones[0]:  # the decision cap fell on a wait: the episode ends all the same
+                self._close_episode(0, math.nan)
+                self._v[0] = self._values(new_obs, dones)[0]
+            return True
+        new_values = self._values(new_obs, dones)
+        for i in range(len(dones)):
+            done = bool(dones[i])
+            info = infos[i]
+            truncated = done and bool(info.get("TimeLimit.truncated", False))
+            if done and not truncated:
+                reached = 0.0  # a terminal state anticipates nothing
+            elif done:
+                terminal = info.get("terminal_observation")
+                reached = float(new_values[i]) if terminal is None else self._terminal_value(terminal, i)
+            else:
+                reached = float(new_values[i])
+            delta = self._return(float(rewards[i]), reached, cell_rewards) - self._v[i]
+            joy, distress = max(delta, 0.0), max(-delta, 0.0)
+            self._sums[i] += (joy, distress, max(reached, 0.0), max(-reached, 0.0))
+            self._steps[i] += 1
+            self._reward[i] += float(rewards[i])
+            if done:
+                self._close_episode(i, joy if not truncated else math.nan)
+                self._v[i] = new_values[i]  # the first state of the next episode
+            else:
+                self._v[i] = reached
+        return True
+
+    def _return(self, reward: float, reached: float, cell_rewards: list[float] | None) -> float:
+        """What the step earned, discounted as the learner discounts it: ``r + gamma V(s')`` for one env step."""
+        gamma = self._gamma
+        if cell_rewards is None or len(cell_rewards) == 1 or getattr(self.model, "multi_cell", None) == "jump":
+            total = reward if cell_rewards is None else float(sum(cell_rewards))
+            return total + gamma * reached
+        discounted = sum(r * gamma**j for j, r in enumerate(cell_rewards))  # one Eq. 1 update per cell
+        return discounted + gamma ** len(cell_rewards) * reached
+
+    def _on_rollout_end(self) -> None:
+        self._record_window()
+
+    def _on_training_end(self) -> None:
+        self._record_window()
+
+    def _record_window(self) -> None:
+        if self._window:
+            means = np.asarray(self._window, dtype=float).mean(axis=0)
+            for name, value in zip(BROEKENS_EMOTIONS, means):
+                self.logger.record(self.prefix + name, float(value))
+
+    def _close_episode(self, index: int, goal_joy: float) -> None:
+        steps = int(self._steps[index])
+        means = (self._sums[index] / steps).tolist() if steps else [math.nan] * 4
+        row = [len(self.rows) + 1, steps, float(self._reward[index]), *means, goal_joy, index]
+        self.rows.append(row)
+        self._window.append(means)
+        self._record_window()
+        if self._csv_path is not None:
+            new = not self._csv_path.exists()
+            self._csv_path.parent.mkdir(parents=True, exist_ok=True)
+            with self._csv_path.open("a", newline="") as handle:
+                writer = csv.writer(handle)
+                if new:
+                    writer.writerow(BROEKENS_COLUMNS)
+                writer.writerow(row)
+        self._sums[index] = 0.0
+        self._steps[index] = 0
+        self._reward[index] = 0.0
+
+    def _episode_csv(self) -> Path | None:
+        if self.episode_log_path is not None:
+            return Path(self.episode_log_path)
+        folder = logger_file_folder(self.logger)
+        return None if folder is None else folder / "broekens_episodes.csv"
+
+    @property
+    def episode_log(self) -> pd.DataFrame:
+        """One row per finished episode, columns ``BROEKENS_COLUMNS``."""
+        import pandas as pd
+
+        frame = pd.DataFrame(self.rows, columns=list(BROEKENS_COLUMNS))
+        for name in ("episode", "steps", "env"):
+            frame[name] = frame[name].astype("int64")
+        return frame

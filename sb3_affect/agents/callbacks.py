@@ -1,0 +1,403 @@
+"""
+Emotions as an SB3 callback.
+
+``EmotionCallback`` appraises every decision, feels one emotion (Table II) and logs the emotion profile. It works in
+two ways:
+
+* **Observer** (any SB3 algorithm, e.g. DQN or PPO, on a VecEnv of any size): attach it to ``learn``. SB3 calls
+  ``_on_step`` after each ``env.step``; the callback reads ``new_obs``/``dones``/``infos`` from the algorithm's
+  locals, updates each env's appraisal and feels the emotion of its *next* decision. It only watches: it logs
+  ``affect/*`` keys (means over the stats window) and keeps ``episode_log`` (written beside a file-writing logger).
+  The appraisal's map needs a cell per observation: Discrete and MultiDiscrete spaces have one; on other spaces
+  only an ``emotion_rule`` that needs no map (no ``act``) can run.
+* **Driver of AffectQ** (the affect hook): an SB3 callback runs after ``env.step``, too late to steer the step it
+  follows. AffectQ therefore calls the callback's hook methods directly, in this order, for every decision::
+
+      emotion = callback.feel(state)          # before the decision: appraise, apply the emotion rule, count it
+      callback.observe(s, s2, reached_goal)   # for each one-cell transition the decision makes (0, 1 or 2)
+      callback.end_episode(reached_goal)      # at the end of an episode (then begin_episode() for the next)
+
+  ``feel`` is called exactly once per decision and counts it (the appraisal of a decision sees the decisions
+  before it).
+
+  and uses the returned emotion to look up direction and speed in its behaviour table (Table III). Swap the
+  appraisal by passing your own ``Appraiser`` subclass, or the emotion rule by passing ``emotion_rule``.
+"""
+
+from __future__ import annotations
+
+import copy
+import csv
+import math
+import warnings
+from collections import deque
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+from gymnasium import spaces
+from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.logger import HumanOutputFormat
+
+from sb3_affect.core.appraisal import Appraiser
+from sb3_affect.core.emotions import EMOTION_NAMES, Emotion, EmotionRule, make_table_ii
+from sb3_affect.core.episode_log import EPISODE_COLUMNS, Geometry, deterministic_walk_is_shortest, env_geometry, make_frame
+from sb3_affect.core.goals import GoalTest, positive_terminal_reward
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+#: Columns of ``EmotionCallback.episode_log`` (observer mode): the agents' ``EPISODE_COLUMNS`` and the env index.
+EMOTION_CALLBACK_COLUMNS: tuple[str, ...] = (*EPISODE_COLUMNS, "env")
+
+
+class EmotionCallback(BaseCallback):
+    """
+    Appraise each decision, feel one of joy, sadness, fear or anger, count and log it.
+
+    :param comparison: Table II reading, ``"literal"`` or ``"valence"`` (docs/definitions.md)
+    :param act: ``"episode"`` (elapsed + known remaining) or ``"remaining"`` (known remaining only)
+    :param units: ``"cells"`` or ``"decisions"``: what norm, exp1 and act count
+    :param appraiser: a ready appraiser to use instead of building one from ``act`` and ``units``
+        (it must be created for the env's number of cells)
+    :param emotion_rule: ``rule(appraisal_or_None) -> Emotion`` replacing Table II
+    :param goal: ``goal(reward, info) -> bool``, whether a terminating transition reached the goal (default
+        ``sb3_affect.core.goals.positive_terminal_reward``: ``info["is_success"]`` if the env gives it, else reward > 0)
+    :param episode_log_path: observer mode: append each episode's row to this CSV file (default: ``emotion_episodes.csv``
+        in the logger's folder when the logger writes files, e.g. csv or tensorboard; else only ``episode_log``)
+    :param warn_after: observer mode: warn once when this many episodes have ended and none reached the goal (the
+        appraisal then knows no distance to it); None: never
+    :param verbose: verbosity level
+    """
+
+    def __init__(
+        self,
+        comparison: str = "literal",
+        act: str = "episode",
+        units: str = "cells",
+        appraiser: Appraiser | None = None,
+        emotion_rule: EmotionRule | None = None,
+        goal: GoalTest | None = None,
+        episode_log_path: str | Path | None = None,
+        warn_after: int | None = 20,
+        verbose: int = 0,
+    ) -> None:
+        super().__init__(verbose)
+        if warn_after is not None and (isinstance(warn_after, bool) or not isinstance(warn_after, int) or warn_after < 1):
+            raise ValueError(f"warn_after={warn_after!r} must be an integer >= 1 (episodes) or None")
+        if goal is not None and not callable(goal):
+            raise TypeError(f"goal must be a callable goal(reward, info) -> bool, got {goal!r}")
+        self.goal: GoalTest = positive_terminal_reward if goal is None else goal
+        self.comparison = comparison
+        self.act = act
+        self.units = units
+        self.emotion_rule: EmotionRule = emotion_rule if emotion_rule is not None else make_table_ii(comparison)
+        self.appraiser: Appraiser | None = appraiser
+        if appraiser is None:
+            Appraiser(1, act=act, units=units)  # validate the options now, with a clear error
+        self.emotion: Emotion = Emotion.JOY
+        self.counts = [0, 0, 0, 0]
+        self.rows: list[list[Any]] = []
+        self.episode_log_path = episode_log_path
+        self.warn_after = warn_after
+        # observer-mode state
+        self._cells_of: _Cells | None = None
+        self._lanes: list[_Lane] = []
+        self._window: deque[list[float]] = deque(maxlen=100)
+        self._csv_path: Path | None = None
+        self._episodes = self._goals = 0
+        self._warned = False
+        self._geometry: Geometry | None = None
+
+    # -- set-up ------------------------------------------------------------------------------------------------
+    def bind(self, n_states: int) -> None:
+        """Create the appraiser for an env with ``n_states`` cells (once; later calls keep what it knows)."""
+        if self.appraiser is None:
+            self.appraiser = Appraiser(n_states, act=self.act, units=self.units)
+        elif self.appraiser.known.n_states != n_states:
+            raise ValueError(f"the appraiser was built for {self.appraiser.known.n_states} cells but the env has {n_states}")
+
+    def _init_callback(self) -> None:
+        space = self.model.observation_space
+        self._cells_of = cells_of(space)
+        if self._cells_of is not None:
+            self.bind(self._cells_of.n)
+            return
+        if getattr(self.emotion_rule, "table_ii_comparison", None) is not None:
+            raise TypeError(
+                f"EmotionCallback: {type(space).__name__} observations have no cells, so the appraisal has no map and "
+                "act (the known distance to the goal) is never known; Table II (comparison='literal' or 'valence') "
+                "needs it. Readings that work here: your own emotion_rule(appraisal) using norm and exp1 only (act is "
+                "inf), e.g. emotion_rule=lambda a: Emotion.JOY if a is None or a.exp1 <= a.norm else Emotion.FEAR. "
+                f"Spaces with a map: Discrete, and MultiDiscrete up to {MAX_MAPPED_CELLS:,} cells"
+            )
+        if self.appraiser is None:
+            self.appraiser = Appraiser(1, act=self.act, units=self.units)  # no map: one placeholder cell
+
+    # -- the affect hook (called directly by AffectQ, and by _on_step in observer mode) -------------------------
+    def begin_episode(self) -> None:
+        assert self.appraiser is not None, "call bind(n_states) (or attach the callback to a model) first"
+        self.appraiser.start_episode()
+        self.counts = [0, 0, 0, 0]
+
+    def feel(self, state: int) -> Emotion:
+        """Appraise the decision about to be taken in ``state``, feel and count its emotion."""
+        assert self.appraiser is not None
+        appraiser = self.appraiser
+        emotion = self.emotion_rule(appraiser.appraise(state))
+        appraiser.elapsed_decisions += 1
+        self.counts[emotion] += 1
+        self.emotion = emotion
+        return emotion
+
+    def observe(self, s: int, s2: int, terminated: bool) -> None:
+        """One one-cell transition ``s -> s2`` (``terminated``: it ended the episode at the goal, ``s2`` is a goal)."""
+        assert self.appraiser is not None
+        self.appraiser.observe(s, s2, terminated)
+
+    def end_episode(self, reached_goal: bool) -> tuple[list[int], float]:
+        """Close the episode: feed the norm's regression, log the profile; returns (emotion counts, norm used)."""
+        assert self.appraiser is not None
+        norm = self.appraiser.norm
+        self.appraiser.end_episode(reached_goal)
+        counts = self.counts
+        total = sum(counts)
+        if total and self.model is not None:  # per episode; SB3 records whenever a logger exists
+            for name, count in zip(EMOTION_NAMES, counts):
+                self.logger.record(f"affect/{name}", count / total)
+            self.logger.record("affect/norm", norm if norm == norm else 0.0)
+        return counts, norm
+
+    @property
+    def norm(self) -> float:
+        return math.nan if self.appraiser is None else self.appraiser.norm
+
+    # -- observer mode -------------------------------------------------------------------------------------------
+    def _on_training_start(self) -> None:
+        last_obs = getattr(self.model, "_last_obs", None)
+        if last_obs is None:
+            raise RuntimeError("EmotionCallback: the algorithm has no current observation at training start")
+        n_envs = self.training_env.num_envs
+        self._geometry = self._find_geometry()
+        self._window = deque(maxlen=int(getattr(self.model, "_stats_window_size", 100)))
+        self._csv_path = self._episode_csv()
+        # one lane per env: its own appraisal (env 0 keeps the callback's appraiser), counts and episode in progress
+        assert self.appraiser is not None
+        self._lanes = [self._lanes[i] if i < len(self._lanes) else _Lane(self._new_appraiser()) for i in range(n_envs)]
+        self._lanes[0].appraiser = self.appraiser
+        for index, lane in enumerate(self._lanes):
+            lane.begin(self._cell(_env_obs(last_obs, index)))
+            self._feel_lane(lane)
+
+    def _new_appraiser(self) -> Appraiser:
+        assert self.appraiser is not None
+        if type(self.appraiser) is Appraiser:
+            return Appraiser(self.appraiser.known.n_states, act=self.appraiser.act_mode, units=self.appraiser.units)
+        return copy.deepcopy(self.appraiser)  # a custom appraiser: a fresh copy per env
+
+    def _find_geometry(self) -> Geometry | None:
+        if self._cells_of is None or self._cells_of.nvec is not None:
+            return None  # the path columns need the grid's own cell numbers
+        try:
+            return env_geometry(self.training_env.get_attr("unwrapped", [0])[0])
+        except Exception:  # an env without the attribute, or a VecEnv that can't fetch it
+            return None
+
+    def _cell(self, obs: Any) -> int:
+        """The cell of one env's observation (0 on a space without cells: the appraisal then has no map)."""
+        return 0 if self._cells_of is None else self._cells_of(obs)
+
+    def _feel_lane(self, lane: _Lane) -> None:
+        emotion = self.emotion_rule(lane.appraiser.appraise(lane.state))
+        lane.appraiser.elapsed_decisions += 1
+        lane.counts[emotion] += 1
+        self.emotion = emotion
+
+    def _on_step(self) -> bool:
+        check_step_locals(self)
+        dones = np.asarray(self.locals["dones"]).reshape(-1)
+        rewards = np.asarray(self.locals["rewards"], dtype=float).reshape(-1)
+        infos = self.locals["infos"]
+        new_obs = self.locals["new_obs"]
+        mapped = self._cells_of is not None
+        for index, lane in enumerate(self._lanes):
+            done = bool(dones[index])
+            info = infos[index]
+            reward = float(rewards[index])
+            truncated = done and bool(info.get("TimeLimit.truncated", False))
+            terminated = done and not truncated
+            reached_goal = terminated and bool(self.goal(reward, info))
+            new_state = self._cell(_env_obs(new_obs, index))
+            # at the end of an episode the VecEnv has reset: the cell reached is the terminal observation
+            s2 = self._cell(info["terminal_observation"]) if done and "terminal_observation" in info else new_state
+            lane.appraiser.observe(lane.state, s2 if mapped else 0, reached_goal and mapped)
+            lane.decisions += 1
+            lane.cells += 1
+            lane.reward += reward
+            if done:
+                self._close_lane(index, lane, terminated, truncated, reached_goal)
+                lane.begin(new_state)
+            else:
+                lane.state = new_state
+            self._feel_lane(lane)
+        return True
+
+    def _on_rollout_end(self) -> None:
+        self._record_window()
+
+    def _on_training_end(self) -> None:
+        self._record_window()
+
+    def _record_window(self) -> None:
+        """``affect/*``: means over the last episodes (the stats window), as SB3 logs ``rollout/ep_rew_mean``."""
+        if not self._window:
+            return
+        profiles = np.asarray(self._window, dtype=float)
+        for column, name in enumerate((*EMOTION_NAMES, "norm")):
+            values = profiles[:, column]
+            values = values[~np.isnan(values)]
+            if len(values):
+                self.logger.record(f"affect/{name}", float(values.mean()))
+
+    def _close_lane(self, index: int, lane: _Lane, terminated: bool, truncated: bool, reached_goal: bool) -> None:
+        appraiser = lane.appraiser
+        norm = appraiser.norm
+        appraiser.end_episode(reached_goal)
+        counts = list(lane.counts)
+        self.counts = counts
+        total = sum(counts)
+        self._window.append([*(c / total for c in counts), norm])
+        self._record_window()
+        self._episodes += 1
+        self._goals += int(reached_goal)
+        self._warn_if_degenerate()
+        geometry = self._geometry
+        optimal: Any = math.nan
+        greedy: Any = math.nan
+        if geometry is not None:
+            optimal = terminated and lane.cells == geometry.shortest_path_length
+            actions, _ = self.model.predict(np.arange(len(geometry.transitions)), deterministic=True)
+            greedy = deterministic_walk_is_shortest(np.asarray(actions).reshape(-1).tolist(), geometry)
+        row = [len(self.rows) + 1, lane.decisions, lane.cells, lane.reward, optimal, truncated, math.nan, 0, *counts,
+               greedy, norm, index]
+        self.rows.append(row)
+        if self._csv_path is not None:
+            self._append_csv(row)
+
+    def _warn_if_degenerate(self) -> None:
+        if self._warned or self._goals or self.warn_after is None or self._episodes < self.warn_after:
+            return
+        self._warned = True
+        warnings.warn(
+            f"EmotionCallback: none of the first {self._episodes} episodes reached the goal, so the appraisal knows no "
+            "distance to it (act) and Table II can only give joy (or fear under comparison='valence'). If this env's "
+            "success is not 'terminated with a reward > 0' (or info['is_success']), pass "
+            "EmotionCallback(goal=lambda reward, info: ...) (see sb3_affect.core.goals, e.g. every_termination)",
+            RuntimeWarning,
+            stacklevel=2,
+        )
+
+    def _episode_csv(self) -> Path | None:
+        """Where the episode log is written: ``episode_log_path``, else beside a logger that writes files, else None."""
+        if self.episode_log_path is not None:
+            return Path(self.episode_log_path)
+        folder = logger_file_folder(self.logger)
+        return None if folder is None else folder / "emotion_episodes.csv"
+
+    def _append_csv(self, row: list[Any]) -> None:
+        assert self._csv_path is not None
+        new = not self._csv_path.exists()
+        self._csv_path.parent.mkdir(parents=True, exist_ok=True)
+        with self._csv_path.open("a", newline="") as handle:
+            writer = csv.writer(handle)
+            if new:
+                writer.writerow(EMOTION_CALLBACK_COLUMNS)
+            writer.writerow(row)
+
+    @property
+    def episode_log(self) -> pd.DataFrame:
+        """One row per episode observed (observer mode), columns ``EMOTION_CALLBACK_COLUMNS`` (``env``: the env index)."""
+        frame = make_frame([row[:-1] for row in self.rows])
+        frame["env"] = np.asarray([row[-1] for row in self.rows], dtype=np.int64)
+        return frame
+
+
+class _Lane:
+    """The observer's state for one env of the VecEnv: its appraisal, emotion counts and episode in progress."""
+
+    def __init__(self, appraiser: Appraiser) -> None:
+        self.appraiser = appraiser
+        self.counts = [0, 0, 0, 0]
+        self.state = 0
+        self.decisions = self.cells = 0
+        self.reward = 0.0
+
+    def begin(self, state: int) -> None:
+        self.appraiser.start_episode()
+        self.counts = [0, 0, 0, 0]
+        self.state = state
+        self.decisions = self.cells = 0
+        self.reward = 0.0
+
+
+def check_step_locals(callback: BaseCallback) -> None:
+    """A RuntimeError when the algorithm calls ``on_step`` without the step's VecEnv results (ARS does)."""
+    if "dones" not in callback.locals or "new_obs" not in callback.locals:
+        raise RuntimeError(
+            f"{type(callback).__name__}: {type(callback.model).__name__} calls its callbacks without the step's "
+            "observations (new_obs, rewards, dones, infos: SB3's on-policy and off-policy algorithms pass them, ARS "
+            "does not), so there is nothing to appraise"
+        )
+
+
+def _env_obs(obs: Any, index: int) -> Any:
+    """Env ``index``'s observation in a VecEnv's batch (a dict of batches for Dict spaces)."""
+    if isinstance(obs, dict):
+        return {key: value[index] for key, value in obs.items()}
+    return np.asarray(obs)[index]
+
+
+def logger_file_folder(logger: Any) -> Path | None:
+    """The folder of an SB3 logger that writes files (csv, tensorboard, json, log.txt); None for stdout only."""
+    folder = logger.get_dir() if logger is not None else None
+    if folder is None:
+        return None
+    for output in logger.output_formats:
+        if not (isinstance(output, HumanOutputFormat) and not getattr(output, "own_file", True)):
+            return Path(folder)
+    return None
+
+
+class _Cells:
+    """The cell of an observation: a Discrete space's integer, or a MultiDiscrete space's flat index."""
+
+    def __init__(self, space: spaces.Space) -> None:
+        self.start = 0
+        self.nvec: np.ndarray | None = None
+        if isinstance(space, spaces.Discrete):
+            self.n = int(space.n)
+            self.start = int(space.start)
+        else:
+            assert isinstance(space, spaces.MultiDiscrete)
+            self.nvec = np.asarray(space.nvec, dtype=np.int64).reshape(-1)
+            self.start_vec = np.asarray(getattr(space, "start", 0), dtype=np.int64).reshape(-1)
+            self.n = int(np.prod(self.nvec))
+
+    def __call__(self, obs: Any) -> int:
+        if self.nvec is None:
+            return int(np.asarray(obs).reshape(-1)[0]) - self.start
+        index = np.asarray(obs, dtype=np.int64).reshape(-1) - self.start_vec
+        return int(np.ravel_multi_index(tuple(index), tuple(self.nvec)))
+
+
+#: The largest MultiDiscrete space (cells) whose observations get a map (the appraisal keeps a row per cell).
+MAX_MAPPED_CELLS = 1_000_000
+
+
+def cells_of(space: spaces.Space) -> _Cells | None:
+    """How to number the cells of an observation space, or None when it has no cells the appraisal can map."""
+    if isinstance(space, spaces.Discrete):
+        return _Cells(space)
+    if isinstance(space, spaces.MultiDiscrete) and int(np.prod(space.nvec)) <= MAX_MAPPED_CELLS:
+        return _Cells(space)
+    return None

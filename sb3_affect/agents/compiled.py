@@ -1,0 +1,253 @@
+"""
+``learn`` on the compiled engine (``sb3_affect.kernel``): when the kernel applies, and how a model's state goes into
+it and comes back (``sb3_affect.agents.compiled_state``). This is the agents' side of the kernel: the kernel itself knows
+settings objects and transition tables only; the SB3 objects (callbacks, the Monitor, the logger) are handled here.
+
+The kernel runs in chunks of whole episodes; between chunks this module does what the Python loop does at an episode
+end that the kernel can not (the episode log, one block of columns per chunk; SB3's episode buffer, the Monitor's
+statistics, the logger, the progress bar, episode-level callbacks). At the end of ``learn`` every piece of state is
+written back into the model (Q-table, random generator, appraisal, UCB counts, the episode in progress) and into the
+env and its wrappers, so learning can go on with either engine.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+from stable_baselines3.common.callbacks import (
+    BaseCallback,
+    CallbackList,
+    ConvertCallback,
+    ProgressBarCallback,
+    StopTrainingOnMaxEpisodes,
+)
+from stable_baselines3.common.monitor import Monitor
+
+from sb3_affect.agents.compiled_moving import MovingKernelRun
+from sb3_affect.agents.compiled_run import RunArrays
+from sb3_affect.agents.compiled_state import KernelRun
+from sb3_affect.agents.reference_loop import episode_end_info, step_locals
+from sb3_affect.core.episode_log import COLUMN
+from sb3_affect.core.settings import TabularSettings
+from sb3_affect.kernel import arrays
+from sb3_affect.kernel.agents import KernelAgent, kernel_agent
+from sb3_affect.kernel.inputs import env_reason, unwrap
+from sb3_affect.kernel.prey_batch import moving_reason
+
+__all__ = ["batch_reason", "callback_reason", "compiled_plan", "compiled_reason", "learn_compiled", "model_env_reason"]
+_CHUNK_EPISODES = 16384
+_PROGRESS_DECISIONS = 500_000
+
+
+def callback_leaves(callback: BaseCallback) -> list[BaseCallback]:
+    """The callbacks inside ``callback`` (CallbackList flattened; an empty ConvertCallback dropped)."""
+    if isinstance(callback, CallbackList):
+        return [leaf for child in callback.callbacks for leaf in callback_leaves(child)]
+    if isinstance(callback, ConvertCallback) and callback.callback is None:
+        return []
+    return [callback]
+
+
+def callback_reason(callback: BaseCallback | None) -> str | None:
+    """Why the callbacks need the Python loop (None: the kernel can serve them)."""
+    if callback is None:
+        return None
+    for leaf in callback_leaves(callback):
+        if isinstance(leaf, (ProgressBarCallback, StopTrainingOnMaxEpisodes)) or getattr(leaf, "episode_level", False):
+            continue
+        return (
+            f"the callback {type(leaf).__name__} is called after every decision; the kernel calls back only at "
+            "episode ends (StopTrainingOnMaxEpisodes, the progress bar, and callbacks with episode_level = True)"
+        )
+    return None
+
+
+def model_env_reason(env: Any) -> str | None:
+    """
+    Why the kernel can not step a model's ``env`` (None: it can): ``kernel.inputs.env_reason`` with SB3's Monitor
+    allowed, or a MovingPursuit the moving-prey kernel steps (``kernel.prey_batch.moving_reason``).
+    """
+    from sb3_affect.envs import MovingPursuitEnv
+
+    if type(unwrap(env)[0]) is MovingPursuitEnv:
+        return moving_reason(env)
+    return grid_env_reason(env)
+
+
+def grid_env_reason(env: Any) -> str | None:
+    """Why the grid kernel (``kernel.loop``) can not step a model's ``env`` (None: it can)."""
+    reason = env_reason(env, (Monitor,))
+    if reason is None and any(isinstance(w, Monitor) and w.info_keywords for w in unwrap(env)[1]):
+        return "the Monitor records info_keywords, which the kernel does not produce"
+    return reason
+
+
+def compiled_agent(model: Any) -> tuple[TabularSettings, KernelAgent] | str:
+    """The model's settings and the agent the kernel runs, or why the kernel can not run it."""
+    settings = model.compiled_settings()
+    if isinstance(settings, str):
+        return settings
+    agent = kernel_agent(settings)
+    return agent if isinstance(agent, str) else (settings, agent)
+
+
+def compiled_plan(model: Any, env: Any, callback: BaseCallback | None) -> tuple[TabularSettings, KernelAgent] | str:
+    """What ``model.learn`` runs on the kernel with this env and these callbacks (``compiled_agent``), or why it can not."""
+    found = compiled_agent(model)
+    if isinstance(found, str):
+        return found
+    return model_env_reason(env) or callback_reason(callback) or found
+
+
+def compiled_reason(model: Any, env: Any, callback: BaseCallback | None) -> str | None:
+    """Why ``model.learn`` can not run on the kernel with this env and these callbacks (None: it can)."""
+    plan = compiled_plan(model, env, callback)
+    return plan if isinstance(plan, str) else None
+
+
+def batch_reason(model: Any, episodes: int) -> str | None:
+    """Why ``simulate`` can not run ``model``'s agent as one batch on the kernel (None: it can)."""
+    reason = compiled_reason(model, model._single_env(), None) or grid_env_reason(model._single_env())
+    if reason is not None:
+        return reason
+    if model.compiled_settings().episode_parameters(0, 1) is None:
+        return "a schedule depends on the training progress, which only the Python side evaluates (one episode at a time)"
+    return None
+
+
+def _stop_remaining(leaves: list[BaseCallback]) -> int | None:
+    remaining = [leaf._total_max_episodes - leaf.n_episodes for leaf in leaves if isinstance(leaf, StopTrainingOnMaxEpisodes)]
+    return min(remaining) if remaining else None
+
+
+def learn_compiled(
+    model: Any,
+    env: Any,
+    total_timesteps: int,
+    callback: BaseCallback,
+    log_interval: int | None,
+    plan: tuple[TabularSettings, KernelAgent],
+) -> None:
+    """``reference_loop.run_loop`` on the kernel (see the module docstring), with the ``compiled_plan`` of the call."""
+    if model._episode_state is None:
+        model._begin_episode(total_timesteps)
+    settings, agent = plan
+    run: RunArrays = (MovingKernelRun if moving_reason(env) is None else KernelRun)(model, env, settings, agent)
+    leaves = callback_leaves(callback)
+    bars = [leaf for leaf in leaves if isinstance(leaf, ProgressBarCallback)]
+    episodic = [leaf for leaf in leaves if not isinstance(leaf, ProgressBarCallback)]
+    one_at_a_time = any(not isinstance(leaf, StopTrainingOnMaxEpisodes) for leaf in episodic)
+    calls_before = model.num_timesteps
+    try:
+        while model.num_timesteps < total_timesteps:
+            limit_t = total_timesteps
+            max_episodes = 1 if one_at_a_time else _CHUNK_EPISODES
+            remaining = _stop_remaining(episodic)
+            if remaining is not None:
+                if remaining <= 0:  # the Python loop would stop after one decision
+                    limit_t = model.num_timesteps + 1
+                max_episodes = min(max_episodes, max(remaining, 1))
+            if log_interval is not None and log_interval > 0:
+                to_dump = log_interval - model._episode_num % log_interval
+                if model.logger.output_formats:  # every dump is written: stop at each
+                    max_episodes = min(max_episodes, to_dump)
+                elif max_episodes > to_dump:  # nothing is written: end the chunk on a dump, which leaves the logger
+                    max_episodes = to_dump + (max_episodes - to_dump) // log_interval * log_interval  # as all would
+            if bars:
+                limit_t = min(limit_t, model.num_timesteps + _PROGRESS_DECISIONS)
+            parameters = settings.episode_parameters(len(model._episode_blocks), max_episodes)
+            if parameters is None:
+                max_episodes = 1
+                alpha, p = np.empty(1), np.empty(1)
+            else:
+                alpha, p = parameters
+            alpha[0] = model._alpha
+            p[0] = model._episode_exploration()
+            before = model.num_timesteps
+            finished, _ = run.step(alpha, p, limit_t, max_episodes)
+            model.num_timesteps = run.timesteps
+            if finished:
+                _close_episodes(model, run, finished)
+                _record(model, run, log_interval)
+                model._update_current_progress_remaining(model.num_timesteps, total_timesteps)
+                model._update_schedules()
+            for bar in bars:
+                bar.pbar.update(model.num_timesteps - before)
+            if episodic and (finished or limit_t == before + 1):
+                go_on = _call_back(
+                    model, run, callback, episodic, finished, model.num_timesteps - calls_before, total_timesteps
+                )
+                calls_before = model.num_timesteps
+                if not go_on:
+                    break
+    finally:
+        for leaf in leaves:
+            if not isinstance(leaf, ProgressBarCallback):
+                leaf.n_calls += model.num_timesteps - calls_before
+        run.write_back()
+
+
+def _close_episodes(model: Any, run: RunArrays, finished: int) -> None:
+    """``loop.close_episode`` for the kernel's ``finished`` episodes (the logger aside), in bulk: the
+    episode log gets them as one block of columns, with no Python work per episode."""
+    block = run.block(finished)
+    first = len(model._episode_blocks) + 1
+    block["episode"] = np.arange(first, first + finished, dtype=np.int64)
+    model._episode_blocks.append_columns(block)
+    truncated, decisions, cells, reward = block["truncated"], block["decisions"], block["cells"], block["reward"]
+    model._truncated_episodes += int(truncated.sum())
+    model._episode_num += finished
+    buffer = model.ep_info_buffer
+    keep = finished if buffer.maxlen is None else min(finished, buffer.maxlen)
+    stamp = round(time.time() - model.start_time / 1e9, 6)
+    last = slice(finished - keep, finished)  # only the episodes the buffer keeps
+    for r, n, c in zip(reward[last].tolist(), decisions[last].tolist(), cells[last].tolist()):
+        buffer.append({"r": r, "l": n, "c": c, "t": stamp})
+    run.monitor_episodes(cells, truncated)
+
+
+def _record(model: Any, run: RunArrays, log_interval: int | None) -> None:
+    """The logger keys of an episode end (only the last episode before a dump matters: records overwrite)."""
+    logger = model.logger  # recorded whenever a logger exists, as SB3 does (per chunk of episodes, never per decision)
+    row = model._episode_blocks.last()
+    if run.agent.kind == arrays.AFFECT:
+        names = ("joy", "sadness", "fear", "anger")
+        counts = [row[COLUMN[name]] for name in names]
+        total = sum(counts)
+        for name, count in zip(names, counts):
+            logger.record(f"affect/{name}", count / total)
+        norm = row[COLUMN["norm"]]
+        logger.record("affect/norm", norm if norm == norm else 0.0)
+    logger.record("affect/equivalent_epsilon", row[COLUMN["random_moves"]] / row[COLUMN["decisions"]])
+    if log_interval is not None and model._episode_num % log_interval == 0:
+        model.dump_logs()
+
+
+def _call_back(
+    model: Any,
+    run: RunArrays,
+    callback: BaseCallback,
+    leaves: list[BaseCallback],
+    finished: int,
+    decisions: int,
+    total_timesteps: int,
+) -> bool:
+    """Call the episode-level callbacks with the locals of the last decision of the chunk (an episode end)."""
+    obs_start, act_start = run.obs_start, run.act_start
+    info = run.last_info()
+    if finished:
+        if run.last_monitor_info is not None:
+            info["episode"] = run.last_monitor_info
+        info = episode_end_info(info, run.last_s2 + obs_start, run.last_terminated)
+    cb_locals: dict[str, Any] = {"self": model, "total_timesteps": total_timesteps, "callback": callback}
+    step_locals(cb_locals, run.state + obs_start, run.last_reward, bool(finished), info, run.last_action + act_start)
+    callback.update_locals(cb_locals)
+    go_on = True
+    for leaf in leaves:
+        leaf.n_calls += decisions - 1
+        if isinstance(leaf, StopTrainingOnMaxEpisodes) and finished > 1:
+            leaf.n_episodes += finished - 1
+        go_on = leaf.on_step() and go_on
+    return go_on

@@ -1,0 +1,166 @@
+"""
+A model's run state on MovingPursuit as the moving-prey kernel's arrays (``MovingKernelRun``), and back: what
+``sb3_affect.agents.compiled_state.KernelRun`` is for the grid kernel (both on ``compiled_run.RunArrays``), for
+``sb3_affect.kernel.moving``.
+
+Read at the start of a compiled ``learn``: the Q-table, the agent's MT19937 state, the env's PCG64 state (the prey's
+draws), hunter and prey cells, the episode in progress, the appraisal (known map over observations, power fit,
+elapsed counters, ``last_act``) and UCB counts. ``write_back`` returns all of it to the Python objects and the env, so
+the Python loop can continue from there.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, ClassVar
+
+import numpy as np
+
+from sb3_affect.agents.compiled_run import RunArrays, monitor_episodes, read_appraisal_scalars, write_appraisal_scalars
+from sb3_affect.core.settings import TabularSettings
+from sb3_affect.kernel import arrays, moving
+from sb3_affect.kernel.agents import KernelAgent
+from sb3_affect.kernel.mt19937 import TW_SIZE
+from sb3_affect.kernel.pcg64 import state_from_generator, state_to_generator
+from sb3_affect.kernel.prey_batch import moving_inputs
+
+__all__ = ["MovingKernelRun", "MovingKnownArrays"]
+
+
+class MovingKnownArrays:
+    """
+    The moving-prey kernel's known map over observations (``dist``, successor and predecessor rows, ``goal``) at the
+    end of a compiled ``learn``, built into the appraiser's ``KnownMap`` only when something reads
+    ``appraiser.known`` (``Appraiser.defer``).
+    """
+
+    NAMES = ("dist", "succ", "succ_n", "pred", "pred_n", "goal")
+
+    def __init__(
+        self, dist: np.ndarray, succ: np.ndarray, succ_n: np.ndarray, pred: np.ndarray, pred_n: np.ndarray, goal: np.ndarray
+    ) -> None:
+        self.dist, self.succ, self.succ_n, self.pred, self.pred_n, self.goal = dist, succ, succ_n, pred, pred_n, goal
+
+    def fits(self, run: MovingKernelRun) -> bool:
+        """Whether a new run's arrays have these shapes."""
+        return all(getattr(self, name).shape == getattr(run, name).shape for name in self.NAMES)
+
+    def copy_into(self, run: MovingKernelRun) -> None:
+        """Copy the map into a new run's arrays (the appraiser keeps these until the new run hands its own back)."""
+        for name in self.NAMES:
+            np.copyto(getattr(run, name), getattr(self, name))
+
+    def value(self, name: str) -> Any:
+        from sb3_affect.core.appraisal import KnownMap
+
+        known = KnownMap(len(self.dist))
+        known.distance = self.dist.tolist()
+        known.goals = {int(g) for g in np.flatnonzero(self.goal)}
+        for s in np.flatnonzero(self.succ_n).tolist():
+            known.successors[s] = set(self.succ[s, : self.succ_n[s]].tolist())
+        for v in np.flatnonzero(self.pred_n).tolist():
+            known.predecessors[v] = self.pred[v, : self.pred_n[v]].tolist()
+        return known
+
+
+class MovingKernelRun(RunArrays):
+    """
+    One model's state in the moving-prey kernel's arrays for the length of a ``learn`` call.
+
+    :param model: the tabular model (its episode in progress already begun)
+    :param env: the model's single env (a MovingPursuit, wrapped)
+    :param settings: the model's settings (``compiled_settings``)
+    :param agent: the agent as the kernel runs it
+    """
+
+    at: ClassVar[Any] = moving
+
+    def __init__(self, model: Any, env: Any, settings: TabularSettings, agent: KernelAgent) -> None:
+        super().__init__(model, env, agent)
+        base, ist, fst = self.base, self.ist, self.fst
+        self.inputs = inputs = moving_inputs(settings, env, 1)
+        self.pcg = state_from_generator(base.np_random)
+        ist[moving.I_HUNTER], ist[moving.I_PREY] = base.hunter, base.prey_cell  # the env's state is the observation
+        fst[moving.S_NORM] = math.nan
+        fst[moving.S_LAST_ACT] = math.inf
+        n_states, n_actions = self.q.shape
+        self.dist = np.full(n_states, math.inf)
+        self.succ = np.zeros((n_states, inputs.succ_width), dtype=np.int32)
+        self.succ_n = np.zeros(n_states, dtype=np.int64)
+        self.pred = np.zeros((n_states, inputs.pred_width), dtype=np.int32)
+        self.pred_n = np.zeros(n_states, dtype=np.int64)
+        self.goal = np.zeros(n_states, dtype=np.bool_)
+        if agent.kind == arrays.AFFECT:
+            self._read_appraisal()
+        self.work = np.empty(n_actions)
+        self.queue = np.empty(n_states + 1, dtype=np.int64)
+        self.tw = np.empty(TW_SIZE, dtype=np.int64)
+        self.ties = np.empty(inputs.cell_trans.shape[1] + 1, dtype=np.int64)
+
+    # -- appraisal in and out ------------------------------------------------------------------------------------
+    def _read_appraisal(self) -> None:
+        callback = self.model.emotion_callback
+        kept = callback.appraiser.deferred("known")
+        if isinstance(kept, MovingKnownArrays) and kept.fits(self):
+            kept.copy_into(self)  # as the last compiled learn left it: no Python objects in between
+        else:
+            self._read_known(callback.appraiser.known)
+        self.fit_vals = read_appraisal_scalars(callback, self.ist, self.fst, moving)
+
+    def _read_known(self, known: Any) -> None:
+        self.dist[:] = np.asarray(known.distance, dtype=np.float64)
+        self.goal[list(known.goals)] = True
+        rows = dict.items(known.successors) if isinstance(known.successors, dict) else enumerate(known.successors)
+        for s, successors in rows:
+            self.succ[s, : len(successors)] = sorted(successors)  # a set: the kernel only asks whether a move is there
+            self.succ_n[s] = len(successors)
+        rows = dict.items(known.predecessors) if isinstance(known.predecessors, dict) else enumerate(known.predecessors)
+        for v, preds in rows:
+            self.pred[v, : len(preds)] = preds  # in the order they were added
+            self.pred_n[v] = len(preds)
+
+    def _write_appraisal(self) -> None:
+        callback = self.model.emotion_callback
+        known = MovingKnownArrays(self.dist, self.succ, self.succ_n, self.pred, self.pred_n, self.goal)
+        callback.appraiser.defer("known", known)  # the run's arrays: this run is over, nothing writes them again
+        write_appraisal_scalars(callback, self.ist, self.fst, self.fit_vals, moving)
+
+    # -- running -------------------------------------------------------------------------------------------------
+    def step(self, alpha: np.ndarray, p: np.ndarray, total_timesteps: int, max_episodes: int) -> tuple[int, int]:
+        """Run the kernel (``moving.moving_loop``); returns (episodes finished, 0)."""
+        cells_before = self._room(max_episodes)
+        inputs, behaviour = self.inputs, self.agent.behaviour
+        finished = moving.moving_loop(
+            self.q, inputs.cell_trans, inputs.far, inputs.icfg, inputs.fcfg, behaviour.random, behaviour.speeds,
+            behaviour.n, self.ucb_n, self.ucb_tot, self.mt, self.pcg, self.ist, self.fst, self.dist, self.succ,
+            self.succ_n, self.pred, self.pred_n, self.goal, self.fit_vals, alpha, p, int(total_timesteps),
+            int(max_episodes), self.out_i, self.out_f, self.work, self.queue, self.tw, self.ties,
+        )  # fmt: skip
+        self._stepped(finished, cells_before)
+        return int(finished), 0
+
+    def monitor_episodes(self, cells: np.ndarray, truncated: np.ndarray) -> None:
+        """The Monitor's bookkeeping of the episode ends the env reported (``compiled_run.monitor_episodes``)."""
+        base = self.base
+        limit = int(self.inputs.icfg[moving.C_TIME_LIMIT])
+        self.last_monitor_info = monitor_episodes(self.monitor, cells, truncated, limit, base.step_reward, base.goal_reward)
+
+    def write_back(self) -> None:
+        """Return every piece of state to the model, its generator, its appraisal, the env and its wrappers."""
+        base = self.base
+        state_to_generator(base.np_random, self.pcg)
+        if self.agent.kind == arrays.AFFECT:
+            self._write_appraisal()
+        base.hunter, base.prey_cell = int(self.ist[moving.I_HUNTER]), int(self.ist[moving.I_PREY])
+        self.model._greedy_optimal = None
+        self._write_back(base.step_reward)
+
+    def last_info(self) -> dict[str, Any]:
+        """The env's info of the last decision of the last finished episode (what its ``step`` returned)."""
+        size, n_cells = self.base.size, self.base.n_cells
+        hunter, prey = divmod(self.last_s2, n_cells)
+        return {"cell": divmod(hunter, size), "prey": divmod(prey, size), "moved": hunter != self.last_prev}
+
+    @property
+    def state(self) -> int:
+        return int(self.ist[moving.I_HUNTER]) * self.base.n_cells + int(self.ist[moving.I_PREY])

@@ -1,0 +1,48 @@
+"""Table III (Sec. III): how each emotion sets the direction and the speed of a decision."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import NamedTuple
+
+from sb3_affect.core.emotions import Emotion
+
+
+class Behaviour(NamedTuple):
+    """
+    :param random_direction: ``True``: the direction is drawn uniformly at random; ``False``: greedy (ties at random)
+    :param speeds: cells moved this decision, drawn uniformly from these (0 is a wait)
+    """
+
+    random_direction: bool
+    speeds: tuple[int, ...]
+
+
+#: Table III with the project's speeds (docs/definitions.md): "fast" = 1 or 2 cells, "slow" = 0 or 1 cell.
+TABLE_III: dict[Emotion, Behaviour] = {
+    Emotion.JOY: Behaviour(random_direction=True, speeds=(1, 2)),
+    Emotion.SADNESS: Behaviour(random_direction=False, speeds=(0, 1)),
+    Emotion.FEAR: Behaviour(random_direction=False, speeds=(0, 1)),
+    Emotion.ANGER: Behaviour(random_direction=False, speeds=(1, 2)),
+}
+
+
+def validate_behaviour_table(table: Mapping[Emotion, Behaviour]) -> dict[Emotion, Behaviour]:
+    """Check a user's emotion-to-behaviour table: one entry per emotion, speeds non-empty ints >= 0."""
+    if not isinstance(table, Mapping):
+        raise TypeError(f"behaviour_table must be a mapping from Emotion to Behaviour, got {type(table).__name__}")
+    checked: dict[Emotion, Behaviour] = {}
+    for emotion in Emotion:
+        if emotion not in table:
+            raise ValueError(
+                f"behaviour_table has no entry for {emotion.name.lower()}; it needs all of joy, sadness, fear, anger"
+            )
+        entry = table[emotion]
+        random_direction, speeds = Behaviour(*entry)
+        speeds = tuple(speeds)
+        if not speeds or not all(isinstance(k, int) and not isinstance(k, bool) and k >= 0 for k in speeds):
+            raise ValueError(
+                f"behaviour_table[{emotion.name.lower()}].speeds={speeds!r} is invalid: use a non-empty tuple of ints >= 0"
+            )
+        checked[emotion] = Behaviour(bool(random_direction), speeds)
+    return checked

@@ -1,0 +1,97 @@
+"""
+The one registry of agent names: the short names a sweep file, ``simulate``, a hunter team or the CLI may give for an
+algorithm, and what each name stands for. Nothing here imports torch or SB3.
+
+A name is either a short name of ``AGENTS`` (``"QLearning"``, ``"AffectQ"``, a baseline's class name, ``"DQN"``, ...)
+or a ``package.module:Class`` path (``package.module.Class`` is accepted too). The package's own tabular agents are
+known without importing them (``known_settings``: their settings class, ``sb3_affect.core.settings``); any other class is
+imported to be checked (``resolve_class``): a dotted name imports code, as rl-zoo3's ``--gym-packages`` does, and must
+name a subclass of SB3's ``BaseAlgorithm`` (checked before anything is made of it).
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+from sb3_affect.core.settings import AGENT_SETTINGS, TabularSettings, settings_class
+
+#: Short names: the package's tabular agents (from their settings) and SB3's algorithms a study compares with.
+AGENTS: dict[str, str] = {
+    **{s.agent.partition(":")[2]: f"{s.exported_from[0]}:{s.agent.partition(':')[2]}" for s in AGENT_SETTINGS},
+    "DQN": "stable_baselines3:DQN",
+    "PPO": "stable_baselines3:PPO",
+    "A2C": "stable_baselines3:A2C",
+}
+
+#: Where the package's agents lived before its modules moved into layer folders: sweep files and model files written
+#: then name these modules, read as the ones the agents live in now.
+FORMER_MODULES: dict[str, str] = {
+    "sb3_affect.qlearning": "sb3_affect.agents.qlearning",
+    "sb3_affect.affectq": "sb3_affect.agents.affectq",
+    "sb3_affect.tabular": "sb3_affect.agents.tabular",
+    "sb3_affect.baselines": "sb3_affect.agents.baselines",
+    **{f"sb3_affect.baselines.{leaf}": f"sb3_affect.agents.baselines.{leaf}"
+       for leaf in ("boltzmann", "decaying", "optimistic", "speed", "ucb")},
+}
+
+
+def split_algo(algo: str) -> tuple[str, str]:
+    """``(module, class name)`` of an algorithm's name (either may be empty when the name gives neither)."""
+    target = AGENTS.get(algo, algo)
+    if ":" in target:
+        module_name, _, attr = target.partition(":")
+    else:
+        module_name, _, attr = target.rpartition(".")
+    return FORMER_MODULES.get(module_name, module_name), attr
+
+
+def known_settings(algo: str | type) -> type[TabularSettings] | None:
+    """
+    The settings class of the package's tabular agent ``algo`` names (a name, not imported; or the class itself, not
+    a subclass, which may change the loop and inherits its parent's settings), or None for anything else.
+    """
+    if isinstance(algo, str):
+        module_name, attr = split_algo(algo)
+        return settings_class(module_name, attr) if module_name and attr else None
+    settings: Any = getattr(algo, "settings_class", None)
+    if settings not in AGENT_SETTINGS or settings.agent != f"{algo.__module__}:{algo.__qualname__}":
+        return None
+    return settings
+
+
+_BASE_ALGORITHM = "stable_baselines3.common.base_class.BaseAlgorithm"
+
+
+def is_algorithm(cls: type) -> bool:
+    """Whether ``cls`` subclasses SB3's ``BaseAlgorithm`` (by its MRO: SB3 is not imported to tell)."""
+    return any(f"{base.__module__}.{base.__qualname__}" == _BASE_ALGORITHM for base in cls.__mro__)
+
+
+def resolve_class(algo: str) -> type:
+    """
+    The algorithm class ``algo`` names (a short name or ``package.module:Class``); imports its module. ValueError if
+    it names none, or a class that is not an SB3 algorithm (a ``BaseAlgorithm`` subclass).
+    """
+    module_name, attr = split_algo(algo)
+    if not module_name or not attr:
+        raise ValueError(f"{algo!r} is not a known algorithm ({', '.join(AGENTS)}) nor a 'package.module:Class' path")
+    try:
+        module = importlib.import_module(module_name)
+    except ImportError as error:
+        raise ValueError(f"{algo!r}: module {module_name!r} can not be imported ({error})") from None
+    cls = getattr(module, attr, None)
+    if not isinstance(cls, type):
+        raise ValueError(f"{algo!r}: {module_name} has no class {attr!r}")
+    if not is_algorithm(cls):
+        raise ValueError(
+            f"{algo!r} is not a Stable-Baselines3 algorithm: the class must subclass "
+            "stable_baselines3.common.base_class.BaseAlgorithm"
+        )
+    return cls
+
+
+def check_algo(algo: str) -> None:
+    """That ``algo`` names a class (the package's agents by name, others by importing them); ValueError if not."""
+    if known_settings(algo) is None:
+        resolve_class(algo)

@@ -1,0 +1,180 @@
+"""
+``simulate``: many runs of one tabular agent on one env, each exactly what ``learn`` gives for its seed.
+
+This is the batch entry point of large studies (the launcher's batches, the report's large-N parts, forensics): one
+call, many seeds, one table of episode rows. Whatever engine computes it, row ``(seed, episode)`` equals
+``model.episode_log`` of ``Algo("Grid", gym.make(env_id, **env_kwargs), seed=seed, **algo_kwargs)`` trained with
+``StopTrainingOnMaxEpisodes(episodes)``.
+
+On the compiled engine (the default wherever it applies, see ``TabularQAlgorithm``) all seeds run in one kernel call:
+no SB3 model is built per seed, so a batch costs about what its decisions cost. For the package's own agents named
+with their settings' arguments (``sb3_affect.core.settings``) on its grid envs no model is built at all, and neither torch
+nor SB3 is imported: the kernel's inputs come from the agent's settings, checked as its constructor checks them
+(``kernel.inputs.settings_inputs``); anything else (a class of your own, an SB3 argument such as ``device``, a
+schedule of the training progress) builds one model as a template. MovingPursuit runs on its own kernel
+(``kernel.moving``, the prey drawing from a port of the env's NumPy generator, ``kernel.pcg64``). Memory: the table holds
+``len(seeds) * episodes`` rows (about 130 bytes each); give large studies in batches.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from sb3_affect.core.episode_log import EPISODE_COLUMNS
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+#: Columns of ``simulate``'s table: the run's seed, then ``EPISODE_COLUMNS``.
+SIMULATE_COLUMNS: tuple[str, ...] = ("seed", *EPISODE_COLUMNS)
+
+
+def _resolve(algo: str | type) -> type:
+    from sb3_affect.agents.tabular import TabularQAlgorithm
+    from sb3_affect.core.registry import resolve_class
+
+    cls: Any = resolve_class(algo) if isinstance(algo, str) else algo
+    if not (isinstance(cls, type) and issubclass(cls, TabularQAlgorithm)):
+        raise TypeError(f"algo={algo!r} is not a tabular agent of this package (QLearning, AffectQ or a baseline)")
+    return cls
+
+
+def _check_args(episodes: int, engine: str, seeds: list[Any]) -> None:
+    from sb3_affect.core.appraisal import check_choice
+    from sb3_affect.core.setting_checks import ENGINES
+
+    if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
+        raise ValueError(f"episodes={episodes!r} must be an integer >= 1")
+    check_choice("engine", engine, ENGINES)
+    for seed in seeds:
+        if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
+            raise TypeError(f"seeds must be integers, got {seed!r}")
+
+
+def simulate(
+    algo: str | type,
+    algo_kwargs: dict[str, Any] | None,
+    env_id: str,
+    env_kwargs: dict[str, Any] | None,
+    seeds: Sequence[int],
+    episodes: int,
+    engine: str = "auto",
+) -> pd.DataFrame:
+    """
+    Train one fresh agent per seed for ``episodes`` episodes and return all their episode logs.
+
+    :param algo: the agent class or its name (``"QLearning"``, ``"AffectQ"``, a baseline's class name)
+    :param algo_kwargs: constructor arguments (besides policy, env and seed)
+    :param env_id: a registered Gymnasium id (``"sb3_affect/GridPursuit-v0"``, ...)
+    :param env_kwargs: arguments of ``gym.make``
+    :param seeds: one run per seed, in this order
+    :param episodes: episodes per run
+    :param engine: ``"auto"`` (one kernel call for all seeds where the kernel applies, else one ``learn`` per seed),
+        ``"python"`` (one ``learn`` per seed on the Python loop) or ``"compiled"`` (the kernel, or an error saying why
+        it can not apply); an ``engine`` in ``algo_kwargs`` is the agent's own and wins for ``"python"``
+    :return: one row per (seed, episode), columns ``SIMULATE_COLUMNS``
+    """
+    import pandas as pd
+
+    table = simulate_columns(algo, algo_kwargs, env_id, env_kwargs, seeds, episodes, engine)
+    return table if isinstance(table, pd.DataFrame) else pd.DataFrame(table)
+
+
+def simulate_columns(
+    algo: str | type,
+    algo_kwargs: dict[str, Any] | None,
+    env_id: str,
+    env_kwargs: dict[str, Any] | None,
+    seeds: Sequence[int],
+    episodes: int,
+    engine: str = "auto",
+) -> Any:
+    """
+    ``simulate``'s table, as a DataFrame or, where one kernel call computes it from the agent's settings, as
+    ``{column: NumPy array}`` without importing pandas (the launcher's batches); same arguments as ``simulate``.
+    """
+    import gymnasium as gym
+
+    import sb3_affect  # noqa: F401  (registers the envs)
+
+    seeds = list(seeds)
+    kwargs = dict(algo_kwargs or {})
+    own = kwargs.get("engine", "auto")
+    if engine != "python" and own != "python":
+        from sb3_affect.core.registry import known_settings
+        from sb3_affect.kernel.inputs import settings_inputs
+
+        if known_settings(algo) is not None:  # the package's agent: no model (nor torch, when named)
+            _check_args(episodes, engine, seeds)
+            inputs = settings_inputs(algo, kwargs, env_id, env_kwargs, episodes)
+            if inputs is not None and not seeds:
+                return _batch_frame(inputs, seeds, episodes)
+            if inputs is not None:
+                from sb3_affect.kernel.batch import batch_columns
+
+                return batch_columns(inputs, seeds, episodes)
+            from sb3_affect.kernel.prey_batch import moving_columns, moving_settings_inputs
+
+            prey_inputs = moving_settings_inputs(algo, kwargs, env_id, env_kwargs, episodes)
+            if prey_inputs is not None:
+                return moving_columns(prey_inputs, seeds, episodes) if seeds else _batch_frame(None, seeds, episodes)
+    cls = _resolve(algo)
+    _check_args(episodes, engine, seeds)
+    import pandas as pd
+
+    if engine != "python" and own != "python":
+        from sb3_affect.agents.compiled import batch_reason
+        from sb3_affect.kernel.inputs import batch_inputs
+
+        env = gym.make(env_id, **(env_kwargs or {}))
+        template = cls("Grid", env, seed=0, **kwargs)
+        reason = batch_reason(template, episodes)
+        if reason is None:
+            inputs = batch_inputs(template.compiled_settings(), template._single_env(), episodes)
+            env.close()
+            return _batch_frame(inputs, seeds, episodes)
+        from sb3_affect.kernel.prey_batch import moving_batch_reason, moving_columns, moving_inputs, moving_reason
+
+        if moving_reason(template._single_env()) is None:  # MovingPursuit: the moving-prey kernel, or why not
+            reason = moving_batch_reason(template)
+            if reason is None:
+                prey_inputs = moving_inputs(template.compiled_settings(), template._single_env(), episodes)
+                env.close()
+                if not seeds:
+                    return _batch_frame(None, seeds, episodes)
+                return pd.DataFrame(moving_columns(prey_inputs, seeds, episodes))
+        env.close()
+        if engine == "compiled" or own == "compiled":
+            raise ValueError(f"engine='compiled' can not run this simulation: {reason}")
+    from stable_baselines3.common.callbacks import StopTrainingOnMaxEpisodes
+    from stable_baselines3.common.logger import Logger
+
+    if engine == "python":
+        kwargs["engine"] = "python"
+    frames = []
+    for seed in seeds:
+        env = gym.make(env_id, **(env_kwargs or {}))
+        model = cls("Grid", env, seed=int(seed), **kwargs)
+        model.set_logger(Logger(folder=None, output_formats=[]))
+        model.learn(episodes * model.max_episode_decisions, callback=StopTrainingOnMaxEpisodes(episodes))
+        frame = model.episode_log
+        frame.insert(0, "seed", int(seed))
+        frames.append(frame)
+        env.close()
+    if not frames:
+        return pd.DataFrame(columns=list(SIMULATE_COLUMNS))
+    return pd.concat(frames, ignore_index=True)
+
+
+def _batch_frame(inputs: Any, seeds: list[Any], episodes: int) -> pd.DataFrame:
+    """The rows of one kernel call for all seeds (``kernel.batch.simulate_batch``)."""
+    import pandas as pd
+
+    if not seeds or inputs is None:
+        return pd.DataFrame(columns=list(SIMULATE_COLUMNS))
+    from sb3_affect.kernel.batch import simulate_batch
+
+    return simulate_batch(inputs, seeds, episodes)

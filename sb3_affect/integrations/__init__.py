@@ -1,0 +1,1 @@
+"""Integrations with the SB3 ecosystem: rl-zoo3 recipes (``zoo``) and the Hugging Face Hub (``hub``)."""

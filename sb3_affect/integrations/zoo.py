@@ -1,0 +1,134 @@
+"""
+The package's tabular agents in rl-zoo3 (the ``zoo`` extra: ``pip install "sb3-affect[zoo]"``).
+
+``register_with_zoo()`` adds ``qlearning`` and ``affectq`` to the zoo's algorithms (the zoo's ``ALGOS`` dict, as SBX
+does it) and their Optuna samplers to its hyperparameter search.
+``python -m sb3_affect.integrations.zoo COMMAND ARGS`` runs a zoo
+command with them registered; ``train`` reads the package's hyperparameter files (``sb3_affect/zoo_hyperparams``:
+the package's envs, FrozenLake, CliffWalking and Taxi) unless ``--conf-file`` is given::
+
+    python -m sb3_affect.integrations.zoo train --algo affectq --env sb3_affect/GridPursuit-v0 -f logs
+    python -m sb3_affect.integrations.zoo enjoy --algo affectq --env sb3_affect/GridPursuit-v0 -f logs --no-render -n 500
+    python -m sb3_affect.integrations.zoo record_video --algo affectq --env sb3_affect/GridPursuit-v0 -f logs -n 200
+    python -m sb3_affect.integrations.zoo plot_train --algo affectq --env sb3_affect/GridPursuit-v0 -f logs -w 10 \
+        --output curve.png
+
+``plot_train`` plots the Monitor's episode lengths, which count env steps (cells); the tabular agents' logger key
+``rollout/ep_len_mean`` counts decisions (a decision moves 0, 1 or 2 cells) and ``rollout/ep_cells_mean`` cells.
+``--output FILE`` (this module's option) saves the figure the zoo would only show.
+
+Commands: ``train``, ``enjoy``, ``record_video``, ``plot_train``, ``all_plots`` (the zoo's modules of those names).
+"""
+
+from __future__ import annotations
+
+import runpy
+import sys
+from pathlib import Path
+from typing import Any
+
+from sb3_affect.core.extras import require_extra
+
+#: The hyperparameter files of the package's agents, one per algorithm (``<algo>.yml``).
+HYPERPARAMS_FOLDER = Path(__file__).with_name("zoo_hyperparams")
+#: ``python -m sb3_affect.integrations.zoo COMMAND``: the zoo module each command runs.
+COMMANDS = {
+    "train": "rl_zoo3.train",
+    "enjoy": "rl_zoo3.enjoy",
+    "record_video": "rl_zoo3.record_video",
+    "plot_train": "rl_zoo3.plots.plot_train",
+    "all_plots": "rl_zoo3.plots.all_plots",
+}
+
+
+def sample_qlearning_params(trial: Any, n_actions: int, n_envs: int, additional_args: dict[str, Any]) -> dict[str, Any]:
+    """Optuna sampler of QLearning's hyperparameters (the zoo's sampler signature)."""
+    return {
+        "learning_rate": trial.suggest_float("learning_rate", 0.05, 1.0),
+        "gamma": trial.suggest_float("gamma", 0.5, 0.999),
+        "exploration_rate": trial.suggest_float("exploration_rate", 0.01, 0.5, log=True),
+    }
+
+
+def sample_affectq_params(trial: Any, n_actions: int, n_envs: int, additional_args: dict[str, Any]) -> dict[str, Any]:
+    """Optuna sampler of AffectQ's hyperparameters: Eq. 1's rates and the reading of the appraisal."""
+    return {
+        "learning_rate": trial.suggest_float("learning_rate", 0.05, 1.0),
+        "gamma": trial.suggest_float("gamma", 0.5, 0.999),
+        "comparison": trial.suggest_categorical("comparison", ["literal", "valence"]),
+        "act": trial.suggest_categorical("act", ["episode", "remaining"]),
+        "units": trial.suggest_categorical("units", ["cells", "decisions"]),
+    }
+
+
+def register_with_zoo() -> None:
+    """Add ``qlearning`` and ``affectq`` to rl-zoo3's algorithms and hyperparameter samplers (idempotent)."""
+    require_extra("zoo", "the rl-zoo3 recipe")
+    import rl_zoo3
+    from rl_zoo3 import hyperparams_opt
+
+    from sb3_affect.agents.affectq import AffectQ
+    from sb3_affect.agents.qlearning import QLearning
+
+    rl_zoo3.ALGOS.update({"qlearning": QLearning, "affectq": AffectQ})  # one dict, shared by every zoo module
+    hyperparams_opt.HYPERPARAMS_SAMPLER.update({"qlearning": sample_qlearning_params, "affectq": sample_affectq_params})
+
+
+def _algo(argv: list[str]) -> str | None:
+    """The value of ``--algo`` in a zoo command line, if any."""
+    if "--algo" in argv and argv.index("--algo") + 1 < len(argv):
+        return argv[argv.index("--algo") + 1]
+    return None
+
+
+def _eval_env_kwargs(conf: Path, argv: list[str]) -> list[str]:
+    """
+    ``--eval-env-kwargs`` for the file's ``env_kwargs`` of the env being trained: the zoo gives the evaluation env the
+    file's env keywords (its time limit) only when ``--env-kwargs`` is on the command line, so pass them explicitly.
+    """
+    import yaml
+
+    if "--env-kwargs" in argv or "--eval-env-kwargs" in argv or "--env" not in argv:
+        return []
+    env_id = argv[argv.index("--env") + 1] if argv.index("--env") + 1 < len(argv) else ""
+    env_kwargs = (yaml.safe_load(conf.read_text()).get(env_id) or {}).get("env_kwargs") or {}
+    return ["--eval-env-kwargs", *(f"{key}:{value!r}" for key, value in env_kwargs.items())] if env_kwargs else []
+
+
+def main(argv: list[str] | None = None) -> None:
+    """``python -m sb3_affect.integrations.zoo COMMAND ARGS``: the zoo's command with the package's agents registered."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    if not args or args[0] not in COMMANDS:
+        commands = ",".join(COMMANDS)
+        raise SystemExit(f"usage: python -m sb3_affect.integrations.zoo {{{commands}}} [the zoo command's arguments]")
+    command, rest = args[0], args[1:]
+    register_with_zoo()
+    algo = _algo(rest)
+    if command == "train" and algo in ("qlearning", "affectq") and "--conf-file" not in rest and "-conf" not in rest:
+        conf = HYPERPARAMS_FOLDER / f"{algo}.yml"
+        rest += ["--conf-file", str(conf), *_eval_env_kwargs(conf, rest)]
+    output = None
+    if command in ("plot_train", "all_plots"):
+        if "--output" in rest:  # ours: save the figure (the zoo only shows it)
+            at = rest.index("--output")
+            output = rest[at + 1]
+            del rest[at : at + 2]
+        import gymnasium as gym
+
+        # the zoo names its run folders after the env id with "/" replaced by "-"; plot_train looks them up by id
+        rest = [arg.replace("/", "-") if "/" in arg and arg in gym.registry else arg for arg in rest]
+    saved = sys.argv
+    sys.argv = [COMMANDS[command], *rest]
+    try:
+        runpy.run_module(COMMANDS[command], run_name="__main__", alter_sys=False)
+    finally:
+        sys.argv = saved
+    if output is not None:
+        import matplotlib.pyplot as plt
+
+        plt.gcf().savefig(output)
+        print(f"figure: {output}")
+
+
+if __name__ == "__main__":
+    main()

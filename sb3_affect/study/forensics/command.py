@@ -1,0 +1,72 @@
+"""The ``sb3-affect forensics`` subcommand (its arguments and what it runs)."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+
+def _floats(text: str) -> tuple[float, ...]:
+    try:
+        values = tuple(float(v) for v in text.split(",") if v.strip())
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a comma-separated list of numbers, e.g. 0.5,1.0") from None
+    if not values:
+        raise argparse.ArgumentTypeError("the list is empty; give at least one number, e.g. 0.8")
+    return values
+
+
+def add_forensics_parser(sub: Any) -> argparse.ArgumentParser:
+    """Add ``forensics`` to the ``sb3-affect`` subcommands."""
+    parser = sub.add_parser(
+        "forensics",
+        help="which candidate implementation could have produced the paper's printed numbers (resumable)",
+        description="Simulate the paper's protocol many times per candidate implementation, score the printed "
+        "numbers of Tables IV and V and the 27.35 episodes under each, rank the candidates (docs/forensics.md). "
+        "Writes DIR/forensics.md (tables and a figure); rerun the same command to resume.",
+    )
+    parser.add_argument("--out", required=True, help="results folder, e.g. runs/forensics")
+    parser.add_argument("--workers", type=int, default=2, help="worker processes (default: 2)")
+    parser.add_argument("--screen-reps", type=int, default=3, help="replications per simulation in the screen (default: 3)")
+    parser.add_argument("--leaders", type=int, default=4, help="affective simulations replicated in full (default: 4)")
+    parser.add_argument("--reps", type=int, default=100, help="replications of each leader (default: 100)")
+    parser.add_argument("--alphas", type=_floats, default=None, help="learning rates of the grid (default: 0.5,1.0)")
+    parser.add_argument("--gammas", type=_floats, default=None, help="discounts of the grid (default: 0.7,0.8,0.9)")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.set_defaults(func=forensics_command)
+    return parser
+
+
+def forensics_command(args: argparse.Namespace) -> int:
+    """Run the forensics and print where the report is."""
+    import dataclasses
+
+    from sb3_affect.study.forensics.analysis import run_forensics
+    from sb3_affect.study.forensics.candidates import CandidateSpace
+    from sb3_affect.study.launcher.signals import stop_on_sigterm
+
+    if args.workers < 1:
+        raise SystemExit(f"sb3-affect forensics: error: --workers={args.workers} must be >= 1")
+    stop_on_sigterm()  # `kill`: stop like Ctrl-C (the pool's workers first), exit 143
+    space = CandidateSpace.default()
+    if args.alphas:
+        space = dataclasses.replace(space, alphas=args.alphas)
+    if args.gammas:
+        space = dataclasses.replace(space, gammas=args.gammas)
+    try:
+        result = run_forensics(
+            args.out,
+            space,
+            screen_reps=args.screen_reps,
+            leaders=args.leaders,
+            reps=args.reps,
+            workers=args.workers,
+            progress=not args.no_progress,
+        )
+    except ValueError as error:
+        raise SystemExit(f"sb3-affect forensics: error: {error}") from None
+    best = result.leaders.iloc[0]
+    print(f"best candidate: {best.candidate} (posterior {best.posterior:.3g} among the leaders' candidates)")
+    print(f"printed numbers no leading candidate reaches: {', '.join(result.unreached) or 'none'}")
+    print(f"{result.seconds:.1f} s; report section: {args.out}/forensics.md")
+    return 0

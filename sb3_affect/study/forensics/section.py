@@ -1,0 +1,241 @@
+"""The report section of the forensics: tables and one figure, from the CSV files ``run_forensics`` wrote."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import numpy as np
+import pandas as pd
+
+from sb3_affect.study.forensics.scoring import MIN_REACH_REPS, NOT_REACHED, NOT_RULED_OUT, REACHED, transform
+from sb3_affect.study.forensics.statistics import LOG_SCALE, STATISTICS
+from sb3_affect.study.report.document import _md_table, fmt
+
+FACTORS = ("comparison", "act", "units", "tie_break", "multi_cell", "alpha", "gamma", "optimal", "step", "table_v")
+
+
+class ForensicsSection(NamedTuple):
+    """
+    A ready-made report section: ``text, images = forensics_section(...)`` like the report's other sections.
+
+    :param markdown: the section's Markdown (heading, text, tables), without the figures
+    :param figures: (PNG path, caption) pairs to show after it
+    """
+
+    markdown: str
+    figures: list[tuple[Path, str]]
+
+
+def has_results(folder: str | Path) -> bool:
+    """Whether ``folder`` holds a finished forensics analysis."""
+    return (Path(folder) / "leaders.csv").exists() and (Path(folder) / "intervals.csv").exists()
+
+
+def _short(row: pd.Series) -> str:
+    return (
+        f"{row.comparison}/{row.act}/{row.units}, ties {row.tie_break}, 2 cells {row.multi_cell}, "
+        f"alpha {fmt(float(row.alpha))}, gamma {fmt(float(row.gamma))} (x{fmt(float(row.steps_ratio), 0)})"
+    )
+
+
+def _loglik(value: float) -> str:
+    return "-inf (never produces a printed value)" if value == -math.inf else f"{value:,.1f}"
+
+
+def _sci(value: float) -> str:
+    return fmt(value, 3) if abs(value) < 1e7 or math.isnan(value) else f"{value:.3g}"
+
+
+def forensics_section(folder: str | Path, figures_dir: str | Path | None = None) -> ForensicsSection:
+    """
+    The section "Replication forensics" from a ``sb3-affect forensics`` folder.
+
+    :param folder: the folder ``run_forensics`` wrote
+    :param figures_dir: where to write the figure (default: ``folder/figures``)
+    :return: its Markdown and its figure
+    """
+    folder = Path(folder)
+    if not has_results(folder):
+        raise FileNotFoundError(f"{folder} holds no forensics results (run `sb3-affect forensics --out {folder}`)")
+    figures_dir = Path(figures_dir or folder / "figures")
+    figures_dir.mkdir(parents=True, exist_ok=True)
+    run = json.loads((folder / "run.json").read_text())
+    leaders = pd.read_csv(folder / "leaders.csv")
+    screen = pd.read_csv(folder / "screen.csv")
+    table = pd.read_csv(folder / "intervals.csv", index_col=0)
+    lines = [
+        "## Replication forensics: which implementation could have printed the paper's numbers?",
+        "",
+        f"Candidate space: {run['candidates']} candidates ({run['affective_simulations']} affective simulations x "
+        f"{run['candidates'] // max(run['affective_simulations'], 1)} ways of reading the logs; "
+        f"{run['standard_simulations']} epsilon-greedy simulations shared between them). Each simulation replicates "
+        f"the paper's whole protocol with fresh seeds: {run['screen_reps']} replications in the screen, {run['reps']} "
+        f"for the {run['leaders']} leading affective simulations. Score: Gaussian synthetic log-likelihood of the "
+        f"{len(STATISTICS)} printed statistics (log scale for means, variances and episodes); posterior under a "
+        "uniform prior over the leaders' candidates (docs/forensics.md). "
+        f"Wall time of the last run: {fmt(float(run['seconds']), 0)} s.",
+        "",
+    ]
+    top = leaders.head(8)
+    ranking = top[[c for c in FACTORS if c in top.columns]].copy()
+    ranking["log-likelihood"] = top.loglik.map(_loglik)
+    ranking["posterior"] = top.posterior.map(lambda v: f"{v:.3g}")
+    if "posterior_reachable" in top.columns:
+        ranking["posterior, reachable statistics only"] = top.posterior_reachable.map(lambda v: f"{v:.3g}")
+    ranking.index = pd.Index(range(1, len(ranking) + 1), name="rank")
+    lines += [
+        "*Leading candidates, best first (full replications); the last column scores only the printed numbers a "
+        "leading candidate reaches (below)*",
+        "",
+        _md_table(ranking, 2),
+        "",
+    ]
+    best_screen = screen.head(8)
+    screened = best_screen[[c for c in FACTORS if c in best_screen.columns]].copy()
+    screened["screen log-likelihood"] = best_screen.screen_loglik.map(_loglik)
+    screened.index = pd.Index(range(1, len(screened) + 1), name="rank")
+    rejected = screen[screen.screen_loglik == -math.inf]
+    if "steps_ratio" in screen.columns and len(rejected):
+        sims = rejected.drop_duplicates(subset=[c for c in FACTORS[:7] if c in rejected.columns])
+        lines += [
+            f"Pre-screen: {len(sims)} affective simulations ({len(rejected)} candidates) were dropped after one "
+            "replication because their own or their ε-greedy partner's mean steps per episode missed the printed "
+            "Table IV mean by more than a factor 10 in both step units (the factor in brackets; a lower bound where the "
+            "replication was stopped as soon as the factor was certain): "
+            + "; ".join(_short(row) for _, row in sims.head(12).iterrows())
+            + ("; ..." if len(sims) > 12 else "")
+            + ".",
+            "",
+        ]
+    lines += [f"*Screen: the best 8 of {len(screen)} candidates (diagonal likelihood, few replications)*", ""]
+    lines += [_md_table(screened, 2), ""]
+    shown = table.copy()
+    for column in shown.columns:
+        if "reaching" not in column and "covering" not in column and column != "finding":
+            shown[column] = shown[column].map(_sci)
+    lines += [
+        f"*Each printed number against the simulated 95% interval of the best three candidates; 'leaders reaching': how "
+        f"many leader candidates' 95% Student-t predictive intervals from their {run['reps']} replications hold it; "
+        f"'screened covering': how many screened candidates' predictive intervals from {run['screen_reps']} "
+        "replications hold it (so wide that covering is no evidence); 'finding': what that shows*",
+        "",
+        _md_table(shown, 3),
+        "",
+    ]
+    lines += findings_lines(table, run)
+    figure = _figure(folder, table, figures_dir / "forensics_statistics.png")
+    caption = (
+        "Forensics: each printed statistic (black line) against the simulated replications of the best candidates "
+        "(histograms; log scale for means, variances and episodes)"
+    )
+    return ForensicsSection("\n".join(lines), [(figure, caption)] if figure else [])
+
+
+def findings_lines(table: pd.DataFrame, run: dict[str, Any]) -> list[str]:
+    """
+    What the forensics showed about each printed number, from the interval table's "finding" column (written by
+    ``run_forensics``): reached only on the leaders' full replications; screen-size coverage is "not ruled out".
+    """
+    if "finding" not in table.columns:  # a folder from before the findings: nothing is decided from its counts
+        return ["This folder predates the findings: rerun `sb3-affect forensics` to decide which numbers are reached.", ""]
+    reps, screen_reps = int(run["reps"]), int(run["screen_reps"])
+    covering: dict[str, int] = {}
+    if "screened covering" in table.columns:
+        covering = {str(k): int(v) for k, v in table["screened covering"].items()}
+
+    def named(finding: str, counts: bool = False) -> list[str]:
+        rows = table[table["finding"] == finding]
+        return [
+            f"**{name}** ({_sci(float(row.printed))}"
+            + (f"; {covering[str(name)]} screened candidates cover it" if counts and str(name) in covering else "")
+            + ")"
+            for name, row in rows.iterrows()
+        ]
+
+    reached, open_, shut = named(REACHED), named(NOT_RULED_OUT, counts=True), named(NOT_REACHED)
+    lines = []
+    if reps < MIN_REACH_REPS:
+        lines.append(
+            f"The leaders have {reps} replications, fewer than the {MIN_REACH_REPS} a printed number needs to count as "
+            "reached: at this size no number is shown to be reached."
+        )
+    lines += [
+        f"- Reached (inside a leading candidate's 95% predictive interval from {reps} replications): "
+        + (", ".join(reached) or "none")
+        + ".",
+        f"- Not reached by any leading candidate at {reps} replications, not ruled out at screen size (only intervals "
+        f"from {screen_reps} replications cover them; that is no evidence a candidate prints them): "
+        + (", ".join(open_) or "none")
+        + ".",
+        "- Not reached by any candidate, screen included (evidence of a difference the candidate space does not cover): "
+        + (", ".join(shut) or "none")
+        + ".",
+        "",
+    ]
+    return lines
+
+
+def _figure(folder: Path, table: pd.DataFrame, path: Path) -> Path | None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    samples = [pd.read_csv(p) for p in sorted(folder.glob("sample_top*.csv"))]
+    if not samples:
+        return None
+    printed = transform(table["printed"].to_numpy(dtype=float))
+    fig, axes = plt.subplots(3, 5, figsize=(16, 8.5))
+    for index, (name, ax) in enumerate(zip(STATISTICS, axes.flat)):
+        for rank, sample in enumerate(samples):
+            values = transform(sample.to_numpy(dtype=float))[:, index]
+            values = values[np.isfinite(values)]
+            if len(values):
+                ax.hist(values, bins=20, alpha=0.45, label=f"#{rank + 1}", color=f"C{rank}")
+        if np.isfinite(printed[index]):
+            ax.axvline(printed[index], color="black", lw=2, label="paper")
+        ax.set_title(name + (" (log)" if LOG_SCALE[index] else ""), fontsize=9)
+        ax.tick_params(labelsize=7)
+    for ax in list(axes.flat)[len(STATISTICS) :]:
+        ax.axis("off")
+    axes.flat[0].legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(path, dpi=100)
+    plt.close(fig)
+    return path
+
+
+def report_section(folder: str | Path) -> Any:
+    """
+    The forensics as a report section, for ``build_report(..., extra_sections=[report_section(folder)])``: the layer
+    above both (``sb3_affect.study.replicate``, the CLI) wires it, so the report never imports the forensics.
+    """
+    folder = Path(folder)
+
+    def forensics_report_section(ctx: Any) -> None:
+        run = json.loads((folder / "run.json").read_text())
+        section = forensics_section(folder, ctx.out / "figures")
+        ctx.doc.md(section.markdown)
+        for figure_path, caption in section.figures:
+            ctx.doc.img(figure_path, caption)
+        ctx.cache["forensics"] = (
+            f"included ({folder}: {run['screen_reps']} screen replications, {run['leaders']} leaders x {run['reps']} "
+            f"replications, {float(run['seconds']):.0f} s)"
+        )
+
+    return forensics_report_section
+
+
+def write_standalone(folder: str | Path) -> Path:
+    """``folder/forensics.md``: the section with its figure, readable on its own."""
+    folder = Path(folder)
+    section = forensics_section(folder)
+    parts = [section.markdown, ""]
+    for path, caption in section.figures:
+        parts += [f"![{caption}]({path.relative_to(folder).as_posix()})", "", f"*{caption}*", ""]
+    md = folder / "forensics.md"
+    md.write_text("\n".join(parts))
+    return md

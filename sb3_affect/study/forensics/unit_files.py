@@ -1,0 +1,85 @@
+"""
+The forensics results folder: one small JSON file per finished (simulation, replication), written atomically.
+
+Layout of ``DIR``::
+
+    DIR/forensics.json                     the protocol (a different protocol into DIR is refused)
+    DIR/summaries/<simulation>/r0000.json  one replication of one simulation: its per-epsilon ``cell_summary`` rows
+    DIR/summaries/<simulation>/r0000.partial.json  a pre-screen replication stopped early (the simulation is rejected)
+    DIR/screen.csv, DIR/leaders.csv, ...   the analysis (rewritten by every run)
+
+A rerun skips every replication already on disk: an interrupted run resumes where it stopped.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from sb3_affect.study.forensics.candidates import Protocol, Simulation
+from sb3_affect.study.launcher.store import StoreError, _write_atomic
+
+
+class SummaryStore:
+    """
+    Read and write the per-replication summaries of a forensics folder.
+
+    :param root: the folder (created when missing)
+    :param protocol: the protocol its summaries belong to
+    """
+
+    def __init__(self, root: str | Path, protocol: Protocol) -> None:
+        self.root = Path(root)
+        self.protocol = protocol
+        self.root.mkdir(parents=True, exist_ok=True)
+        saved = self.root / "forensics.json"
+        wanted = {"protocol": protocol.as_dict()}
+        if saved.exists():
+            found = json.loads(saved.read_text())
+            if found.get("protocol") != wanted["protocol"]:
+                raise StoreError(
+                    f"{self.root} holds forensics of another protocol ({found.get('protocol')}); "
+                    f"use another --out folder for {wanted['protocol']}"
+                )
+        else:
+            _write_atomic(saved, wanted)
+
+    def path(self, simulation: Simulation, replication: int, complete: bool = True) -> Path:
+        name = f"r{replication:04d}.json" if complete else f"r{replication:04d}.partial.json"
+        return self.root / "summaries" / simulation.key / name
+
+    def has(self, simulation: Simulation, replication: int, partial_ok: bool = False) -> bool:
+        """Whether the replication is stored (complete; or stopped early too, with ``partial_ok``)."""
+        if self.path(simulation, replication).exists():
+            return True
+        return partial_ok and self.path(simulation, replication, complete=False).exists()
+
+    def write(
+        self, simulation: Simulation, replication: int, cells: dict[float, dict[str, float]], complete: bool = True
+    ) -> None:
+        path = self.path(simulation, replication, complete)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        payload: dict[str, Any] = {
+            "simulation": simulation.key,
+            "replication": replication,
+            "complete": complete,
+            "cells": {repr(float(eps)): row for eps, row in cells.items()},
+        }
+        _write_atomic(path, payload)
+
+    def read(self, simulation: Simulation, replication: int, partial_ok: bool = False) -> pd.DataFrame:
+        """One replication's ``cell_summary`` rows, index: epsilon (sorted); with ``partial_ok`` maybe fewer cells."""
+        path = self.path(simulation, replication)
+        if partial_ok and not path.exists():
+            path = self.path(simulation, replication, complete=False)
+        payload = json.loads(path.read_text())
+        frame = pd.DataFrame.from_dict({float(k): v for k, v in payload["cells"].items()}, orient="index")
+        return frame.sort_index()
+
+    def replications(self, simulation: Simulation) -> list[int]:
+        """The complete replications stored for a simulation."""
+        folder = self.root / "summaries" / simulation.key
+        return sorted(int(p.stem[1:]) for p in folder.glob("r[0-9][0-9][0-9][0-9].json")) if folder.is_dir() else []

@@ -1,0 +1,151 @@
+"""
+Chunks: the finished runs of one batch in one Parquet file (``DIR/chunks/<batch>.parquet``).
+
+A chunk holds one row per episode: ``run`` (the run's index in the chunk) and every ``EPISODE_COLUMNS`` column. Its
+Parquet key-value metadata (``sb3_affect``, JSON) holds what is per run or per batch::
+
+    {"schema": 2, "batch": "<name>", "base": {run config, seed None, labels without replicate},
+     "runs": [[run_id, seed, replicate, decisions], ...],
+     "timings": {"wall_seconds": <the batch>, "pid": <the worker>}, "versions": {...}}
+
+so the run ids of a whole results folder come from the files' footers alone, and a run's config is the base with its
+seed and replicate filled in. A chunk is written by the driver in one atomic rename: it is whole or absent.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import math
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from sb3_affect.core.episode_log import EPISODE_COLUMNS
+
+CHUNK_SCHEMA = 2
+META_KEY = b"sb3_affect"
+INT_COLUMNS = ("episode", "decisions", "cells", "waits", "joy", "sadness", "fear", "anger")
+BOOL_COLUMNS = ("optimal", "truncated", "greedy_optimal")
+FLOAT_COLUMNS = ("reward", "random_moves", "norm")
+
+
+def run_config(base: dict[str, Any], seed: int, replicate: int) -> dict[str, Any]:
+    """The run config of one run of a chunk (or a batch): the base with its seed and replicate."""
+    return {**base, "seed": seed, "labels": {**base["labels"], "replicate": replicate}}
+
+
+def arrow_array(values: np.ndarray, kind: Any) -> Any:
+    """
+    ``values`` as an Arrow array of type ``kind`` (``pa.int32()``, ``pa.float64()`` or ``pa.bool_()``; no nulls) from
+    its bytes: what ``pa.array(values.astype(...))`` gives, without importing pandas (``pa.array`` does on first use).
+    """
+    import pyarrow as pa
+
+    if kind == pa.bool_():
+        data = np.packbits(np.asarray(values, dtype=bool), bitorder="little")  # Arrow's booleans: one bit each, LSB first
+    else:
+        data = np.ascontiguousarray(values, dtype=np.int32 if kind == pa.int32() else np.float64)
+    return pa.Array.from_buffers(kind, len(values), [None, pa.py_buffer(data)])
+
+
+def encode_chunk(
+    name: str,
+    base: dict[str, Any],
+    runs: Sequence[tuple[str, int, int]],
+    episodes: Any,
+    timings: dict[str, Any],
+    versions: dict[str, str],
+) -> bytes:
+    """
+    The Parquet bytes of a chunk.
+
+    :param name: the batch's name
+    :param base: the batch's base config (seed None, labels without replicate)
+    :param runs: ``(run id, seed, replicate)`` of each run
+    :param episodes: ``simulate``'s table for the batch's distinct seeds, in order of first use: a ``seed`` column and
+        every ``EPISODE_COLUMNS`` column, each seed's rows together (a DataFrame, or ``{column: array}``)
+    :param timings: the batch's wall time and worker pid
+    :param versions: package versions
+    """
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    seeds = np.asarray(episodes["seed"])
+    starts = np.flatnonzero(np.r_[True, seeds[1:] != seeds[:-1]]) if len(seeds) else np.zeros(0, dtype=np.int64)
+    ends = np.r_[starts[1:], len(seeds)].astype(np.int64)
+    block = {int(seeds[start]): i for i, start in enumerate(starts)}
+    order = list(dict.fromkeys(seed for _, seed, _ in runs))
+    if list(block) != order or len(block) != len(starts):
+        raise ValueError(f"batch {name}: the episode table's seeds {list(block)[:5]}... are not the batch's {order[:5]}...")
+    distinct = len(order) == len(runs)  # no seed used twice: the table's rows are already in the runs' order
+    take = None if distinct else np.concatenate([np.arange(starts[block[seed]], ends[block[seed]]) for _, seed, _ in runs])
+    lengths = np.array([ends[block[seed]] - starts[block[seed]] for _, seed, _ in runs], dtype=np.int64)
+    decisions = np.asarray(episodes["decisions"], dtype=np.int64)
+    totals = [int(decisions[starts[block[seed]] : ends[block[seed]]].sum()) for _, seed, _ in runs]
+    arrays: dict[str, Any] = {"run": arrow_array(np.repeat(np.arange(len(runs), dtype=np.int32), lengths), pa.int32())}
+    for column in EPISODE_COLUMNS:
+        values = np.asarray(episodes[column])
+        values = values if take is None else values[take]
+        kind = pa.int32() if column in INT_COLUMNS else pa.bool_() if column in BOOL_COLUMNS else pa.float64()
+        arrays[column] = arrow_array(values, kind)
+    meta = {
+        "schema": CHUNK_SCHEMA,
+        "batch": name,
+        "base": base,
+        "runs": [[rid, seed, replicate, total] for (rid, seed, replicate), total in zip(runs, totals)],
+        "timings": timings,
+        "versions": versions,
+    }
+    table = pa.table(arrays).replace_schema_metadata({META_KEY: json.dumps(meta, sort_keys=True).encode()})
+    sink = io.BytesIO()
+    pq.write_table(table, sink, compression="lz4")  # fast to write and read; dictionary + RLE encoding does the rest
+    return sink.getvalue()
+
+
+def chunk_meta(path: Path) -> dict[str, Any]:
+    """The per-run and per-batch data of a chunk (its footer only)."""
+    import pyarrow.parquet as pq
+
+    metadata = pq.read_metadata(path).metadata or {}  # the file's key-value metadata, no schema conversion
+    return dict(json.loads(metadata[META_KEY]))
+
+
+def chunk_table(path: Path, columns: Sequence[str] | None = None) -> dict[str, np.ndarray]:
+    """``run`` and the episode columns of a chunk as numpy arrays (``columns``: a subset of ``EPISODE_COLUMNS``)."""
+    import pyarrow.parquet as pq
+
+    wanted = ["run", *(EPISODE_COLUMNS if columns is None else columns)]
+    table = pq.ParquetFile(path).read(columns=wanted)  # not ``read_table``: its dataset set-up costs ms a file
+    return {name: table.column(name).to_numpy() for name in wanted}
+
+
+def _plain(value: Any) -> Any:
+    value = value.item() if hasattr(value, "item") else value
+    return None if isinstance(value, float) and math.isnan(value) else value
+
+
+def chunk_records(path: Path) -> list[dict[str, Any]]:
+    """The runs of a chunk as run records of the JSON layout (``config``, ``episodes`` lists, ``timings``, ...)."""
+    meta = chunk_meta(path)
+    table = chunk_table(path)
+    bounds = np.searchsorted(table["run"], np.arange(len(meta["runs"]) + 1))
+    share = round(meta["timings"]["wall_seconds"] / max(1, len(meta["runs"])), 6)
+    records = []
+    for index, (rid, seed, replicate, decisions) in enumerate(meta["runs"]):
+        rows = slice(bounds[index], bounds[index + 1])
+        episodes = {column: [_plain(v) for v in table[column][rows].tolist()] for column in sorted(EPISODE_COLUMNS)}
+        records.append(
+            {
+                "schema": CHUNK_SCHEMA,
+                "run_id": rid,
+                "config": run_config(meta["base"], seed, replicate),
+                "status": "ok",
+                "episodes": episodes,
+                "timings": {**meta["timings"], "wall_seconds": share, "decisions": decisions, "batch": meta["batch"]},
+                "versions": meta["versions"],
+            }
+        )
+    return records

@@ -1,0 +1,244 @@
+"""
+Run a sweep: skip finished runs, execute the rest on a backend, store each result as it arrives.
+
+The runs are cut into jobs (``batches``): tabular runs of this package's agents on its envs go in batches of one
+cell each (one ``engine.simulate`` call, stored as one Parquet chunk), any other run is a job of its own (one JSON
+file). Import and scheduling costs are paid once per job, the fork once per worker.
+
+Backends:
+
+* ``local`` (``local_pool``): forked worker processes, at most ``workers`` at a time; a worker runs batch after
+  batch, a single run gets a fresh process of its own. A job that raises is recorded with its traceback (for each of
+  its runs); a worker that dies (``os._exit``, a signal, out of memory) is recorded as failed with its exit code, for
+  its job only. Ctrl-C stops every worker before the launcher exits; workers also die with the launcher if it is
+  killed (Linux ``PR_SET_PDEATHSIG``).
+* ``ray``: one Ray core task per job (``pip install sb3-affect[ray]``), on the cluster at ``ray_address`` (the code
+  shipped with the job, node versions checked, at most ``workers`` tasks at a time if given; see ``ray_cluster``) or on
+  a private instance started for the sweep (dashboard off, bound to 127.0.0.1). Results and logs are written by the
+  driver only, so a retried task can not write twice.
+
+Either way the driver is the only writer, and a run's result depends only on its config: the same seed gives the
+same per-episode records on either backend.
+"""
+
+from __future__ import annotations
+
+import os
+import sys
+import time
+import traceback
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from sb3_affect.study.launcher.batches import (
+    Batch,
+    Job,
+    Single,
+    TeamBatch,
+    batch_size,
+    batchable,
+    split_cell,
+    team_batchable,
+)
+from sb3_affect.study.launcher.local_pool import OnFailure, OnResult, run_local
+from sb3_affect.study.launcher.schema import Cell
+from sb3_affect.study.launcher.store import SWEEP_SCHEMA, ResultsStore, cell_run_ids
+from sb3_affect.study.launcher.sweep_file import load_sweep
+
+
+@dataclass
+class SweepSummary:
+    """What a call to ``run_sweep`` did."""
+
+    name: str
+    total: int
+    skipped: int
+    finished: int
+    failed: int
+    seconds: float
+    out_dir: Path
+
+
+def _ray_batch(job: Batch) -> tuple[str, Any]:
+    """A Ray task running a batch: ``("ok", result)`` or ``("error", traceback)`` (as on the local backend)."""
+    try:
+        return "ok", job.execute()
+    except Exception:
+        return "error", traceback.format_exc()
+
+
+def run_ray(
+    jobs: list[Job],
+    workers: int,
+    on_result: OnResult,
+    on_failure: OnFailure,
+    address: str | None = None,
+    cap: int | None = None,
+    timeout: float = 60.0,
+) -> None:
+    """
+    Run ``jobs`` as Ray core tasks on the cluster at ``address`` (at most ``cap`` at a time), or on a private instance
+    of ``workers`` CPUs started and stopped here; connection, shipping the code, version checks and a lost cluster are
+    handled in :mod:`sb3_affect.study.launcher.ray_cluster`. A batch is one task (``Batch.execute``), a lone run one
+    ``ray_cluster.execute_task``.
+    """
+    import sb3_affect.study.launcher.ray_cluster as ray_cluster
+    from sb3_affect.study.launcher.one_run import package_versions
+
+    with ray_cluster.connect(address, workers, timeout) as session:
+        ours = package_versions() if address else None
+        remote = session.ray.remote(num_cpus=1, max_retries=1)(ray_cluster.execute_task)
+        remote_batch = session.ray.remote(num_cpus=1, max_retries=1)(_ray_batch)
+
+        def submit(job: Job) -> Any:
+            if isinstance(job, Batch):
+                return remote_batch.remote(job)
+            return remote.remote(job.config, job.log_dir, job.formats)
+
+        def on_value(job: Job, value: tuple[Any, ...]) -> None:
+            if value[0] != "ok":
+                on_failure(job, value[1])
+                return
+            result = value[1]
+            differences = ray_cluster.version_differences(ours, result["versions"]) if ours else []
+            if differences:  # a node that joined after the check
+                host = result["timings"].get("host")
+                on_failure(job, f"ran on {host} with other package versions: {', '.join(differences)}")
+                return
+            if isinstance(job, Single) and job.log_dir is not None:
+                ray_cluster.write_logs(job.log_dir, value[2])
+            on_result(job, result)
+
+        def on_error(job: Job, error: BaseException) -> None:  # the worker died (after Ray's retry), or Ray failed
+            text = ray_cluster.plain_text(str(error))
+            on_failure(job, f"the Ray task failed: {type(error).__name__}: {text}")
+
+        session.run(jobs, submit, on_value, on_error, cap=cap)
+
+
+def run_sweep(
+    sweep_path: str | Path,
+    out_dir: str | Path,
+    *,
+    workers: int | None = None,
+    backend: str = "local",
+    ray_address: str | None = None,
+    ray_timeout: float = 60.0,
+    overrides: tuple[str, ...] | list[str] = (),
+    progress: bool = True,
+) -> SweepSummary:
+    """
+    Run every run of a sweep file that ``out_dir`` does not already hold, and store the results.
+
+    Rerunning the same command resumes: finished runs are skipped, failed ones retried.
+
+    :param sweep_path: the experiment YAML
+    :param out_dir: the results folder
+    :param workers: parallel runs (default: the number of CPUs; on a Ray cluster: as many as its CPUs allow)
+    :param backend: ``"local"`` (process pool) or ``"ray"``
+    :param ray_address: a Ray cluster to connect to (ray backend; default: start a local instance)
+    :param ray_timeout: seconds to wait for the Ray cluster to answer before giving up with a message
+    :param overrides: ``key=value`` assignments applied to the file before validation (``--set``)
+    :param progress: show a progress bar
+    """
+    if backend not in ("local", "ray"):
+        raise ValueError(f"backend={backend!r} is not supported; choose 'local' or 'ray'")
+    cap = workers  # a share of a Ray cluster: only when asked for
+    workers = workers or (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()) or 1
+    if workers < 1:
+        raise ValueError(f"workers={workers} must be >= 1")
+    start = time.perf_counter()
+    sweep = load_sweep(sweep_path, tuple(overrides))
+    cells = sweep.cells()
+    cell_ids = [cell_run_ids(cell) for cell in cells]
+    total = sum(len(ids) for ids in cell_ids)
+    resolved = {"schema": SWEEP_SCHEMA, "name": sweep.name, "sweep": sweep.model_dump(mode="json"), "total_runs": total}
+    store = ResultsStore(out_dir)
+    try:
+        store.root.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        from sb3_affect.study.launcher.store import _store_error
+
+        raise _store_error(store.root, error) from None
+    with store.lock():
+        for line in store.prepare(resolved, [rid for ids in cell_ids for rid in ids]):
+            print(f"sb3-affect: {line}", file=sys.stderr, flush=True)
+        jobs = plan_jobs(cells, cell_ids, store, workers, sweep.logs)
+        todo = sum(job.size for job in jobs)
+        counts = {"finished": 0, "failed": 0}
+        bar = _progress(total, total - todo, sweep.name, progress)
+
+        def on_result(job: Job, result: dict[str, Any]) -> None:
+            if isinstance(job, TeamBatch):
+                store.write_run_files(result["files"])
+            elif isinstance(job, Batch):
+                store.write_chunk(job.name, result["chunk"], result["run_ids"])
+            else:
+                store.write_run(job.run_id, job.config, result)
+            counts["finished"] += job.size
+            bar.update(job.size)
+
+        def on_failure(job: Job, error: str) -> None:
+            for rid, config in job.failures():
+                store.write_failure(rid, config, error)
+            counts["failed"] += job.size
+            bar.update(job.size)
+            bar.set_postfix(failed=counts["failed"])
+
+        try:
+            if not jobs:
+                pass  # everything is done already: start no workers (nor a Ray instance)
+            elif backend == "local":
+                run_local(jobs, workers, on_result, on_failure)
+            else:
+                run_ray(jobs, workers, on_result, on_failure, ray_address, cap=cap, timeout=ray_timeout)
+        finally:
+            bar.close()
+    seconds = time.perf_counter() - start
+    return SweepSummary(sweep.name, total, total - todo, counts["finished"], counts["failed"], seconds, Path(out_dir))
+
+
+def plan_jobs(cells: list[Cell], cell_ids: list[list[str]], store: ResultsStore, workers: int, logs: list[str]) -> list[Job]:
+    """
+    The jobs of the runs ``store`` does not hold yet: batches of the cells that can run as batches (at most
+    ``batch_size`` runs each), one job per run for the others (with its log folder when ``logs`` asks for one).
+    """
+    done = store.done_ids()
+    formats = tuple(logs) or ("csv",)
+    todo = [[(rid, cell.seeds[i], i) for i, rid in enumerate(ids) if rid not in done] for cell, ids in zip(cells, cell_ids)]
+    can_batch = [batchable(cell.base, bool(logs)) for cell in cells]
+    can_team = [team_batchable(cell.base, bool(logs)) for cell in cells]
+    size = batch_size(sum(len(runs) for runs, ok, team in zip(todo, can_batch, can_team) if ok or team), workers)
+    jobs: list[Job] = []
+    for cell, runs, ok, team in zip(cells, todo, can_batch, can_team):
+        if ok:
+            jobs.extend(split_cell(cell.base, runs, size))
+        elif team:
+            jobs.extend(split_cell(cell.base, runs, size, TeamBatch))
+        else:
+            jobs.extend(
+                Single(rid, cell.config(i), str(store.logs / rid) if logs else None, formats) for rid, _, i in runs
+            )
+    return jobs
+
+
+class _NoProgress:
+    """The progress bar's methods, doing nothing (``--no-progress``: tqdm is not even imported)."""
+
+    def update(self, n: int = 1) -> None:
+        pass
+
+    def set_postfix(self, **kwargs: Any) -> None:
+        pass
+
+    def close(self) -> None:
+        pass
+
+
+def _progress(total: int, initial: int, name: str, enabled: bool) -> Any:
+    if not enabled:
+        return _NoProgress()
+    from tqdm.auto import tqdm
+
+    return tqdm(total=total, initial=initial, desc=name, unit="run", disable=not enabled, dynamic_ncols=True)

@@ -1,0 +1,196 @@
+"""
+The ``local`` backend: jobs in forked worker processes, at most ``workers`` at a time.
+
+A batch (``batches.Batch``: one ``engine.simulate`` call, a pure function of its config) runs in a long-lived worker,
+which is forked once and then takes batch after batch over a pipe: the fork, and the copy-on-write and page faults
+that follow it, are paid once per worker instead of once per batch. A single run (``batches.Single``: DQN, a user's
+class, a run with logs) keeps a fresh process of its own, as it always had, so nothing one run leaves in a process
+(global random states, warnings filters, registered envs, torch settings) can reach another; the process exits
+after that one run.
+
+A job that raises is recorded with its traceback (for each of its runs); a worker that dies (``os._exit``, a signal,
+out of memory) is recorded as failed with its exit code, for the job it was running only, and a new worker takes the
+next job. Ctrl-C stops every worker before the launcher exits; workers also die with the launcher if it is killed
+(Linux ``PR_SET_PDEATHSIG``).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import multiprocessing
+import multiprocessing.connection
+import os
+import signal
+import traceback
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+from sb3_affect.study.launcher.batches import Batch, Job, TeamBatch
+from sb3_affect.study.launcher.signals import STOP_SIGNALS, worker_signals
+
+OnResult = Callable[[Job, dict[str, Any]], None]
+OnFailure = Callable[[Job, str], None]
+
+#: glibc's ``mallopt`` parameters and the size below which a batch worker keeps freed memory for its next batch
+M_TRIM_THRESHOLD, M_MMAP_THRESHOLD, KEEP_BELOW = -1, -3, 1 << 30
+
+
+def keep_freed_memory() -> None:
+    """
+    Let a batch worker reuse the memory of one batch for the next (best effort; glibc only). By default glibc gives
+    every large block (a batch's result columns: tens of MB) back to the system when it is freed, so the next batch
+    takes it again page by page, one page fault each: about half the system time of a sweep of large batches.
+    """
+    with contextlib.suppress(Exception):
+        import ctypes
+
+        libc = ctypes.CDLL("libc.so.6")
+        libc.mallopt(M_MMAP_THRESHOLD, KEEP_BELOW)
+        libc.mallopt(M_TRIM_THRESHOLD, KEEP_BELOW)
+
+
+def _execute(job: Job) -> tuple[str, Any]:
+    try:
+        return "ok", job.execute()
+    except BaseException:
+        return "error", traceback.format_exc()
+
+
+def _worker(first: Job, conn: Any, launcher: int) -> None:
+    """A worker's life: ``first``, then (a batch worker) every job the launcher sends, until it sends None."""
+    worker_signals(launcher)  # Ctrl-C is the launcher's; its SIGTERM stops the worker; the worker dies with it
+    if isinstance(first, Batch):
+        keep_freed_memory()
+    job: Job | None = first
+    while job is not None:
+        conn.send(_execute(job))
+        if not isinstance(job, Batch):
+            break  # a single run's process ends with it
+        try:
+            job = conn.recv()
+        except (EOFError, OSError):  # the launcher has gone
+            break
+    conn.close()
+
+
+def describe_exit(code: int | None) -> str:
+    """How a worker process ended, for its failure record (``killed by SIGKILL``, ``exit code 3``)."""
+    if code is not None and code < 0:
+        with contextlib.suppress(ValueError):
+            return f"killed by {signal.Signals(-code).name}"
+    return f"exit code {code}"
+
+
+def preload(jobs: list[Job]) -> None:
+    """
+    Load here, once, what every forked worker would otherwise load again: the compiled engine's kernels (no torch; the
+    team kernel when there are team batches),
+    ``simulate``, the Parquet writer and the package versions the chunks record (no pandas: the chunks are written
+    from NumPy arrays).
+    """
+    if not any(isinstance(job, Batch) for job in jobs):
+        return
+    if any(isinstance(job, TeamBatch) for job in jobs):
+        from sb3_affect.kernel.team_inputs import warm_up as warm_up_teams
+
+        warm_up_teams()
+    import pyarrow.parquet  # noqa: F401
+
+    import sb3_affect.engine.simulation  # noqa: F401
+    from sb3_affect.kernel import warm_up
+    from sb3_affect.study.launcher.one_run import package_versions
+
+    warm_up()
+    package_versions()
+
+
+@dataclass
+class _Worker:
+    """A worker process, the launcher's end of its pipe and the job it is running (None: idle, a batch worker)."""
+
+    process: Any
+    conn: Any
+    job: Job | None
+
+
+def run_local(jobs: list[Job], workers: int, on_result: OnResult, on_failure: OnFailure) -> None:
+    """Run ``jobs`` in forked worker processes, ``workers`` at a time (see the module's docstring)."""
+    preload(jobs)
+    context = multiprocessing.get_context("fork")
+    queue = deque(jobs)
+    pool: list[_Worker] = []
+
+    def start(job: Job) -> None:
+        mine, theirs = context.Pipe(duplex=True)
+        process = context.Process(target=_worker, args=(job, theirs, os.getpid()), name=f"sb3-affect:{job.name}")
+        # Ctrl-C or SIGTERM during the fork would be swallowed by an at-fork hook ("Exception ignored"): hold them
+        # until the fork is done, then they stop the launcher as anywhere else.
+        previous = signal.pthread_sigmask(signal.SIG_BLOCK, STOP_SIGNALS)
+        try:
+            process.start()
+            theirs.close()
+            pool.append(_Worker(process, mine, job))
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, previous)
+
+    def retire(worker: _Worker) -> None:
+        pool.remove(worker)
+        with contextlib.suppress(OSError):
+            worker.conn.send(None)  # (a batch worker waits for its next job; a single run's worker has exited)
+        worker.process.join(timeout=30)
+        worker.conn.close()
+
+    try:
+        while queue or any(worker.job is not None for worker in pool):
+            for worker in [w for w in pool if w.job is None]:  # idle batch workers: the next job, or retire
+                if queue and isinstance(queue[0], Batch):
+                    worker.job = queue.popleft()
+                    try:
+                        worker.conn.send(worker.job)
+                    except OSError:  # it died while idle: the job goes back, the death is found below
+                        queue.appendleft(worker.job)
+                        worker.job = None
+                        retire(worker)
+                else:
+                    retire(worker)  # a single run needs a process of its own (or there is nothing left to do)
+            while queue and len(pool) < workers:
+                start(queue.popleft())
+            busy = [w for w in pool if w.job is not None]
+            multiprocessing.connection.wait([w.conn for w in busy] + [w.process.sentinel for w in busy], timeout=1.0)
+            for worker in busy:
+                job = worker.job
+                assert job is not None
+                message = None
+                if worker.conn.poll():
+                    try:
+                        message = worker.conn.recv()
+                    except (EOFError, OSError):
+                        message = None
+                elif worker.process.is_alive():
+                    continue
+                if message is None:  # it died before returning the job's result
+                    pool.remove(worker)
+                    worker.process.join(timeout=30)
+                    worker.conn.close()
+                    how = describe_exit(worker.process.exitcode)
+                    on_failure(job, f"the worker process died before returning a result ({how})")
+                    continue
+                worker.job = None
+                if not isinstance(job, Batch):
+                    retire(worker)
+                if message[0] == "ok":
+                    on_result(job, message[1])
+                else:
+                    on_failure(job, message[1])
+    finally:
+        for worker in pool:
+            if worker.process.is_alive():
+                worker.process.terminate()
+        for worker in pool:
+            worker.process.join(timeout=3)
+            if worker.process.is_alive():
+                worker.process.kill()
+                worker.process.join()
+            worker.conn.close()

@@ -1,0 +1,376 @@
+"""
+Experiment files: a sweep of agents x parameter grid x seeds, validated before anything runs.
+
+A file names the env, the episode budget, the seeds and the agents; each agent has fixed ``kwargs`` and a ``grid``
+of labels whose Cartesian product it runs. A kwargs value written ``$name`` takes the grid value ``name``; grid
+labels that no kwarg references only replicate the agent (the paper's affective agent "per epsilon")::
+
+    name: paper
+    env: {id: sb3_affect/GridPursuit-v0, kwargs: {}}
+    episodes: 200
+    seeds: 20                       # a count (seeds derived per agent and grid point) or an explicit list
+    agents:
+      - name: epsilon-greedy
+        algo: QLearning
+        grid: {epsilon: [0.1, 0.5, 0.9]}
+        kwargs: {exploration_rate: $epsilon}
+
+A multi-agent env (``sb3_affect/HunterPursuit-v0``, one hunter per ``team`` member) takes ``team`` agents instead of
+``algo``: one ``{algo, kwargs}`` per hunter, independent learners that may mix classes (``sb3_affect.agents.hunter_team``)::
+
+      - name: mixed
+        team: [{algo: AffectQ}, {algo: QLearning, kwargs: {exploration_rate: $epsilon}}]
+        grid: {epsilon: [0.1]}
+
+Reading a file, its ``--set`` overrides and the messages of a file that does not validate: ``sweep_file``.
+
+Validating a file imports the modules its ``algo`` and ``env.id`` paths name (as rl-zoo3's ``--gym-packages`` does):
+only run sweep files you trust. A results folder's saved sweep is validated without importing anything
+(``Sweep.validate_saved``), so ``status`` and ``report`` run no code a folder names. Sizes are checked from the
+numbers before anything is allocated: ``MAX_SEEDS``, ``MAX_GRID_POINTS``, ``MAX_RUNS``, ``MAX_EPISODES``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib
+import itertools
+import json
+import math
+import re
+from dataclasses import dataclass
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
+
+from sb3_affect.core.registry import check_algo, known_settings, resolve_class
+
+__all__ = ["AgentSpec", "Cell", "EnvSpec", "MemberSpec", "Sweep", "SweepError"]
+
+KWARG_REFERENCE = re.compile(r"^\$([A-Za-z_][A-Za-z0-9_]*)$")
+#: Names of sweeps and agents: they name files, so no leading dot (hidden files) and at most 64 characters.
+NAME_PATTERN = r"^[A-Za-z0-9_+-][A-Za-z0-9_.+-]{0,63}$"
+#: Limits checked from the numbers before anything is allocated.
+MAX_SEEDS = 1_000_000  # seeds per grid point (a count, or the length of a list)
+MAX_SEED = 2**32 - 1  # seeds are NumPy seeds: integers in [0, 2**32 - 1]
+MAX_GRID_POINTS = 100_000  # grid points per agent (the product of its grid's lengths)
+MAX_RUNS = 2_000_000  # runs per sweep (grid points x seeds, summed over the agents)
+MAX_EPISODES = 1_000_000  # episodes per run
+MAX_TIMESTEPS = 10**10  # decisions per run
+#: The validation context of a saved sweep: nothing is imported (``Sweep.validate_saved``).
+SAVED = {"imports": False}
+
+
+def _imports(info: ValidationInfo) -> bool:
+    """Whether this validation may import the modules a file names (not for a results folder's saved sweep)."""
+    return not (isinstance(info.context, dict) and info.context.get("imports") is False)
+
+
+class SweepError(ValueError):
+    """A sweep file that can not be run; the message names the file, the key path and what is allowed."""
+
+
+def is_tabular(algo: str) -> bool:
+    """Whether ``algo`` names a tabular agent (a ``TabularQAlgorithm``); imports only classes of other packages."""
+    if known_settings(algo) is not None:
+        return True
+    from sb3_affect.agents.tabular import TabularQAlgorithm
+
+    return issubclass(resolve_class(algo), TabularQAlgorithm)
+
+
+def is_multi_agent(env_id: str) -> bool:
+    """Whether ``env_id`` names one of the package's multi-agent (PettingZoo) envs."""
+    from sb3_affect.envs import PARALLEL_ENVS
+
+    return env_id in PARALLEL_ENVS
+
+
+class EnvSpec(BaseModel):
+    """The ``env`` section: which Gymnasium env every run builds (``gym.make(id, **kwargs)``)."""
+
+    model_config = ConfigDict(extra="forbid")
+    id: str = Field(
+        default="sb3_affect/GridPursuit-v0",
+        description="a registered Gymnasium id: sb3_affect/GridPursuit-v0, sb3_affect/MazePursuit-v0, "
+        "sb3_affect/MovingPursuit-v0, or 'your_module:YourEnv-v0' for an env that importing your_module registers",
+    )
+    kwargs: dict[str, Any] = Field(
+        default_factory=dict, description="keyword arguments of the env, e.g. {size: 15, goal: [6, 6]}"
+    )
+
+    @field_validator("id")
+    @classmethod
+    def _registered(cls, value: str, info: ValidationInfo) -> str:
+        if not _imports(info):
+            return value
+        import gymnasium as gym
+
+        import sb3_affect  # noqa: F401  (registers the package's envs)
+        from sb3_affect.envs import PARALLEL_ENVS
+
+        module, _, env_id = value.rpartition(":")  # "my_package.envs:MyEnv-v0": import the module that registers it
+        if module:
+            try:
+                importlib.import_module(module)
+            except ImportError as error:
+                raise ValueError(f"env id {value!r}: module {module!r} can not be imported ({error})") from None
+        if env_id not in gym.registry and env_id not in PARALLEL_ENVS:
+            known = sorted([*(k for k in gym.registry if k.startswith("sb3_affect/")), *PARALLEL_ENVS])
+            raise ValueError(
+                f"env id {value!r} is not registered; the package registers {', '.join(known)} (an env of your own: "
+                "'your_module:YourEnv-v0', where importing your_module registers YourEnv-v0)"
+            )
+        return value
+
+
+class MemberSpec(BaseModel):
+    """One hunter of a team agent: its algorithm and constructor arguments (``$label`` references allowed)."""
+
+    model_config = ConfigDict(extra="forbid")
+    algo: str = Field(description="a tabular agent of this package: QLearning, AffectQ or a baseline class path")
+    kwargs: dict[str, Any] = Field(
+        default_factory=dict, description="its constructor arguments; $label takes the grid label's value"
+    )
+
+    @field_validator("algo")
+    @classmethod
+    def _tabular(cls, value: str, info: ValidationInfo) -> str:
+        if _imports(info) and not is_tabular(value):
+            raise ValueError(f"team members are tabular agents of this package (QLearning, AffectQ, baselines), not {value!r}")
+        return value
+
+
+class AgentSpec(BaseModel):
+    """One item of ``agents``: an algorithm, its fixed kwargs and the grid of labels it is swept over."""
+
+    model_config = ConfigDict(extra="forbid")
+    name: str = Field(
+        pattern=NAME_PATTERN,
+        description="unique within the file; names the runs (letters, digits, _ . + -, not starting with a dot, at most "
+        "64 characters) and groups them in the report",
+    )
+    algo: str | None = Field(
+        default=None,
+        description="QLearning, AffectQ, DQN, PPO, A2C or an importable 'package.module:Class' (a subclass of SB3's "
+        "BaseAlgorithm; validating the file imports that module, so run only files you trust); give algo or team",
+    )
+    kwargs: dict[str, Any] = Field(
+        default_factory=dict,
+        description="constructor arguments of the algorithm; a value written $label takes the grid label's value",
+    )
+    grid: dict[str, list[Any]] = Field(
+        default_factory=dict,
+        description="label -> list of values; every combination is one grid point, run once per seed. A label no "
+        f"kwarg uses only replicates the agent. At most {MAX_GRID_POINTS:,} grid points per agent",
+    )
+    team: list[MemberSpec] | None = Field(
+        default=None,
+        min_length=1,
+        description="instead of algo, on a multi-agent env: one {algo, kwargs} per hunter (below)",
+    )
+
+    @field_validator("algo")
+    @classmethod
+    def _importable(cls, value: str | None, info: ValidationInfo) -> str | None:
+        if value is not None and _imports(info):
+            check_algo(value)
+        return value
+
+    @model_validator(mode="after")
+    def _one_kind(self) -> AgentSpec:
+        if (self.algo is None) == (self.team is None):
+            raise ValueError("give either algo (one agent) or team (one {algo, kwargs} per hunter of a multi-agent env)")
+        if self.team is not None and self.kwargs:
+            raise ValueError("a team agent has no kwargs of its own: give each member's under team[i].kwargs")
+        return self
+
+    @field_validator("grid")
+    @classmethod
+    def _non_empty(cls, value: dict[str, list[Any]]) -> dict[str, list[Any]]:
+        points = 1
+        for key, values in value.items():
+            if not values:
+                raise ValueError(f"grid.{key} is empty: give at least one value")
+            points *= len(values)
+            if points > MAX_GRID_POINTS:
+                sizes = " x ".join(str(len(v)) for v in value.values())
+                raise ValueError(f"the grid has {sizes} points, more than the {MAX_GRID_POINTS:,} allowed per agent")
+        return value
+
+    def point_count(self) -> int:
+        """The number of grid points (from the grid's lengths, nothing built)."""
+        return math.prod(len(values) for values in self.grid.values())
+
+    @model_validator(mode="after")
+    def _references(self) -> AgentSpec:
+        places = [("kwargs", self.kwargs)] + [(f"team[{i}].kwargs", m.kwargs) for i, m in enumerate(self.team or [])]
+        for where, kwargs in places:
+            for key, raw in kwargs.items():
+                match = KWARG_REFERENCE.match(raw) if isinstance(raw, str) else None
+                if match and match.group(1) not in self.grid:
+                    raise ValueError(
+                        f"{where}.{key}={raw!r} refers to no grid label; the grid has {sorted(self.grid) or 'none'}"
+                    )
+        return self
+
+    def points(self) -> list[dict[str, Any]]:
+        keys = list(self.grid)
+        return [dict(zip(keys, values)) for values in itertools.product(*(self.grid[k] for k in keys))]
+
+    def kwargs_at(self, point: dict[str, Any], kwargs: dict[str, Any] | None = None) -> dict[str, Any]:
+        out = {}
+        for key, raw in (self.kwargs if kwargs is None else kwargs).items():
+            match = KWARG_REFERENCE.match(raw) if isinstance(raw, str) else None
+            out[key] = point[match.group(1)] if match else raw
+        return out
+
+    def team_at(self, point: dict[str, Any]) -> list[dict[str, Any]]:
+        """The team's members at a grid point, as plain data (``{"algo", "kwargs"}`` per hunter)."""
+        return [{"algo": m.algo, "kwargs": self.kwargs_at(point, m.kwargs)} for m in self.team or []]
+
+
+class Sweep(BaseModel):
+    """A whole experiment file (top-level keys)."""
+
+    model_config = ConfigDict(extra="forbid")
+    name: str = Field(
+        pattern=NAME_PATTERN,
+        description="the sweep's name (letters, digits, _ . + -, not starting with a dot, at most 64 characters); "
+        "enters the derived seeds and the run files",
+    )
+    env: EnvSpec = Field(default_factory=EnvSpec, description="the environment section (below)")
+    episodes: int = Field(
+        gt=0, le=MAX_EPISODES, description=f"episodes per run (1 to {MAX_EPISODES:,}); a run stops after this many"
+    )
+    seeds: int | list[int] = Field(
+        description=f"a count N (1 to {MAX_SEEDS:,}; seeds derived by sha256 of sweep, agent, grid point and replicate) "
+        f"or an explicit list of distinct integers in [0, 2**32 - 1], the same for every grid point; at most "
+        f"{MAX_RUNS:,} runs in all (grid points x seeds over the agents)"
+    )
+    max_timesteps: int | None = Field(
+        default=None,
+        gt=0,
+        le=MAX_TIMESTEPS,
+        description="optional cap on a run's decisions (env steps), e.g. for DQN; null: no cap",
+    )
+    logs: list[str] = Field(
+        default_factory=list,
+        description="SB3 logger formats written per run under DIR/logs/<run>/: csv, tensorboard, stdout, json, log",
+    )
+    agents: list[AgentSpec] = Field(min_length=1, description="one or more agents (below)")
+
+    @field_validator("seeds")
+    @classmethod
+    def _some_seeds(cls, value: int | list[int]) -> int | list[int]:
+        if isinstance(value, int) and value <= 0:
+            raise ValueError(f"seeds={value} must be a positive count or a non-empty list of integers")
+        if isinstance(value, int) and value > MAX_SEEDS:
+            raise ValueError(f"seeds={value:,} is more than the {MAX_SEEDS:,} seeds allowed per grid point")
+        bad = [seed for seed in value if not 0 <= seed <= MAX_SEED] if isinstance(value, list) else []
+        if bad:
+            raise ValueError(f"seeds: {bad[0]} is not a seed; seeds are integers in [0, 2**32 - 1] (NumPy's)")
+        if isinstance(value, list) and (not value or len(set(value)) != len(value)):
+            raise ValueError("seeds must be a non-empty list of distinct integers")
+        if isinstance(value, list) and len(value) > MAX_SEEDS:
+            raise ValueError(f"seeds: {len(value):,} seeds, more than the {MAX_SEEDS:,} allowed")
+        return value
+
+    @classmethod
+    def validate_saved(cls, data: Any) -> Sweep:
+        """Validate a results folder's saved sweep without importing any module it names (no algo or env check)."""
+        return cls.model_validate(data, context=SAVED)
+
+    @field_validator("logs")
+    @classmethod
+    def _formats(cls, value: list[str]) -> list[str]:
+        for fmt in value:
+            if fmt not in ("csv", "tensorboard", "stdout", "json", "log"):
+                raise ValueError(f"logs: {fmt!r} is not an SB3 logger format (csv, tensorboard, stdout, json, log)")
+        return value
+
+    @model_validator(mode="after")
+    def _unique_agents(self) -> Sweep:
+        names = [a.name for a in self.agents]
+        if len(set(names)) != len(names):
+            raise ValueError(f"agents: names must be unique, got {names}")
+        multi = is_multi_agent(self.env.id)
+        for i, agent in enumerate(self.agents):
+            if multi and agent.team is None:
+                raise ValueError(f"agents[{i}] ({agent.name}): env {self.env.id!r} is multi-agent: give a team, not algo")
+            if not multi and agent.team is not None:
+                raise ValueError(f"agents[{i}] ({agent.name}): a team needs a multi-agent env id, not {self.env.id!r}")
+        if multi and self.max_timesteps is not None:
+            raise ValueError("max_timesteps is not supported for teams: their runs are counted in episodes")
+        replicates = self.seeds if isinstance(self.seeds, int) else len(self.seeds)
+        runs = sum(agent.point_count() for agent in self.agents) * replicates
+        if runs > MAX_RUNS:
+            raise ValueError(f"the sweep has {runs:,} runs (grid points x seeds), more than the {MAX_RUNS:,} allowed")
+        return self
+
+    def cells(self) -> list[Cell]:
+        """The sweep as cells: one per agent and grid point, holding every replicate's seed (see ``Cell``)."""
+        cells = []
+        for agent in self.agents:
+            for point in agent.points():
+                count = self.seeds if isinstance(self.seeds, int) else len(self.seeds)
+                seeds = list(self.seeds) if isinstance(self.seeds, list) else derive_seeds(self.name, agent.name, point, count)
+                base: dict[str, Any] = {
+                    "sweep": self.name,
+                    "agent": agent.name,
+                    "algo": agent.algo or "team",
+                    "algo_kwargs": agent.kwargs_at(point),
+                    "env_id": self.env.id,
+                    "env_kwargs": dict(self.env.kwargs),
+                    "seed": None,
+                    "episodes": self.episodes,
+                    "max_timesteps": self.max_timesteps,
+                    "labels": dict(point),
+                }
+                if agent.team is not None:  # only team runs carry the key: other run ids are unchanged
+                    base["team"] = agent.team_at(point)
+                cells.append(Cell(base, seeds))
+        return cells
+
+    def run_configs(self) -> list[dict[str, Any]]:
+        """Every run of the sweep as a plain-data config (the unit the launcher executes and stores)."""
+        return [cell.config(replicate) for cell in self.cells() for replicate in range(len(cell.seeds))]
+
+
+@dataclass
+class Cell:
+    """
+    The runs of one agent at one grid point: configs equal but for ``seed`` and ``labels["replicate"]``.
+
+    :param base: the run config with ``seed`` None and ``labels`` without ``replicate``
+    :param seeds: the seed of each replicate, in replicate order
+    """
+
+    base: dict[str, Any]
+    seeds: list[int]
+
+    def config(self, replicate: int) -> dict[str, Any]:
+        """The full run config of one replicate."""
+        base = self.base
+        return {
+            **base,
+            "algo_kwargs": dict(base["algo_kwargs"]),
+            "env_kwargs": dict(base["env_kwargs"]),
+            "seed": self.seeds[replicate],
+            "labels": {**base["labels"], "replicate": replicate},
+        }
+
+
+def derive_seed(sweep: str, agent: str, point: dict[str, Any], replicate: int) -> int:
+    """A stable seed (sha256, never Python's ``hash``) for one replicate of one agent at one grid point."""
+    text = json.dumps([sweep, agent, point, replicate], sort_keys=True)
+    return int.from_bytes(hashlib.sha256(text.encode()).digest()[:4], "big") & 0x7FFFFFFF
+
+
+def derive_seeds(sweep: str, agent: str, point: dict[str, Any], count: int) -> list[int]:
+    """``derive_seed`` of replicates ``0..count-1``, encoding the JSON once (the text differs only in its last number)."""
+    head = json.dumps([sweep, agent, point, 0], sort_keys=True)[: -len("0]")]
+    return [
+        int.from_bytes(hashlib.sha256(f"{head}{replicate}]".encode()).digest()[:4], "big") & 0x7FFFFFFF
+        for replicate in range(count)
+    ]

@@ -1,0 +1,476 @@
+"""
+The results store: finished runs in Parquet chunks (one per batch) or JSON files (one per run), written atomically by
+the driver only.
+
+Layout of a results folder ``DIR``::
+
+    DIR/sweep.json          the resolved sweep; a different sweep into DIR is refused
+    DIR/chunks/<batch>.parquet  the finished runs of one batch: one row per episode, per-run data in the footer
+    DIR/runs/<id>.json      one finished run executed on its own: config, per-episode columns, timings, versions
+    DIR/chunks/.sweep, DIR/runs/.sweep  copies of sweep.json: deleting one file does not forget the sweep
+    DIR/failed/<id>.json    a run that raised or whose worker died: config and traceback (retried on resume)
+    DIR/damaged/            files set aside by the launcher (unreadable, of another sweep, copies); their runs rerun
+    DIR/logs/<id>/          per-run SB3 logger output, when the sweep asks for it
+    DIR/.lock, .lock.owner  the launcher's lock (``folder_lock``) and its pid
+
+A run counts as done only when the file holding it reads back whole (``folder_files``).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import hashlib
+import json
+import os
+import re
+import tempfile
+from collections.abc import Callable, Collection, Iterable, Iterator, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from sb3_affect.core.episode_log import EPISODE_COLUMNS
+from sb3_affect.study.launcher import folder_lock
+from sb3_affect.study.launcher.chunks import chunk_records
+from sb3_affect.study.launcher.folder_files import FolderFiles, guarded, sort_files
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from sb3_affect.study.launcher.schema import Cell
+
+SCHEMA = 1
+SWEEP_SCHEMA = 2
+
+
+class StoreError(RuntimeError):
+    """The results folder can not be used (busy, another sweep, not writable, full)."""
+
+
+def run_id(config: dict[str, Any]) -> str:
+    """Readable prefix + hash of the resolved config (the file name of the run)."""
+    digest = hashlib.sha256(json.dumps(config, sort_keys=True).encode()).hexdigest()[:12]
+    labels = "-".join(f"{k}{v}" for k, v in config["labels"].items() if k != "replicate")
+    prefix = re.sub(r"[^A-Za-z0-9_.+-]+", "_", f"{config['agent']}-{labels}-s{config['seed']}".replace("--", "-"))
+    return f"{prefix}-{digest}"
+
+
+_SEED, _REPLICATE = 8_101_999_202_707_303, 8_101_999_202_707_404  # stand-ins no real config holds
+
+
+def cell_run_ids(cell: Cell) -> list[str]:
+    """
+    ``run_id`` of every replicate of a cell, encoding its JSON once: the texts of its runs differ only in the seed and
+    the replicate number (checked on the first replicate; falls back to ``run_id`` per run if anything differs).
+    """
+    probe = cell.config(0)
+    probe["seed"], probe["labels"]["replicate"] = _SEED, _REPLICATE
+    text = json.dumps(probe, sort_keys=True)
+    prefix = run_id(probe).rsplit("-", 1)[0]
+    seed, replicate = str(_SEED), str(_REPLICATE)
+    ids = []
+    if text.count(seed) == 1 and text.count(replicate) == 1 and prefix.count(seed) == 1 and replicate not in prefix:
+        for index, value in enumerate(cell.seeds):
+            digest = hashlib.sha256(text.replace(replicate, str(index)).replace(seed, str(value)).encode()).hexdigest()
+            ids.append(f"{prefix.replace(seed, str(value))}-{digest[:12]}")
+    if not ids or ids[0] != run_id(cell.config(0)):
+        ids = [run_id(cell.config(index)) for index in range(len(cell.seeds))]
+    return ids
+
+
+def _write_atomic(path: Path, payload: dict[str, Any] | bytes) -> None:
+    """Temp file in the same folder, fsync, rename: a reader sees the whole file or none."""
+    data = payload if isinstance(payload, bytes) else json.dumps(payload, sort_keys=True, indent=1).encode()
+    try:
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=path.suffix)
+    except OSError as error:
+        raise _store_error(path.parent, error) from None
+    try:
+        with os.fdopen(fd, "wb") as handle:
+            handle.write(data)
+            handle.flush()
+            os.fsync(handle.fileno())
+        os.replace(tmp, path)
+    except BaseException as error:  # a full disk, or Ctrl-C mid-write: never leave a partial file behind
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        if isinstance(error, OSError):
+            raise _store_error(path.parent, error) from None
+        raise
+
+
+def run_file(rid: str, config: dict[str, Any], result: dict[str, Any]) -> bytes:
+    """
+    The bytes of a finished run's file (``runs/<id>.json``) in compact JSON: what ``ResultsStore.write_run`` stores,
+    encoded where the run ran (a worker) so that the launcher only writes it (``ResultsStore.write_run_files``).
+    """
+    payload = {"schema": SCHEMA, "run_id": rid, "config": config, "status": "ok", **result}
+    return json.dumps(payload, sort_keys=True, separators=(",", ":")).encode()
+
+
+def _store_error(folder: Path, error: OSError) -> StoreError:
+    if error.errno == errno.ENOSPC:
+        return StoreError(f"{folder}: the disk is full; finished runs are kept, free space and rerun to resume")
+    if error.errno in (errno.EACCES, errno.EROFS, errno.EPERM):
+        return StoreError(f"{folder}: not writable ({error.strerror}); choose another --out or fix its permissions")
+    return StoreError(f"{folder}: {error.strerror or error}")
+
+
+IDENTITY_COPIES = ("chunks/.sweep", "runs/.sweep")
+
+
+class ResultsStore:
+    """A results folder (see the module docstring)."""
+
+    def __init__(self, root: str | Path) -> None:
+        self.root = Path(root)
+        self.runs = self.root / "runs"
+        self.chunks = self.root / "chunks"
+        self._failed: set[str] | None = None  # failure records known to write_chunk (those it may have to remove)
+        self.failed = self.root / "failed"
+        self.damaged = self.root / "damaged"
+        self.logs = self.root / "logs"
+
+    # -- the sweep's identity ----------------------------------------------------------------------------------
+    def saved_sweep(self) -> dict[str, Any] | None:
+        """The resolved sweep run here: ``sweep.json``, or a copy of it when it was deleted; None when none is left."""
+        for path in (self.root / "sweep.json", *(self.root / copy for copy in IDENTITY_COPIES)):
+            try:
+                saved = json.loads(path.read_text())
+            except (OSError, ValueError):
+                continue
+            if isinstance(saved, dict) and isinstance(saved.get("sweep"), dict):
+                return saved
+        return None
+
+    # -- set-up ------------------------------------------------------------------------------------------------
+    def prepare(self, resolved_sweep: dict[str, Any], run_ids: Collection[str] = ()) -> list[str]:
+        """
+        Create the folders, refuse a different sweep, save the resolved sweep (and its copies), clear stale temp
+        files, and set aside every file that does not count (``folder_files``): its runs are not done.
+
+        :param resolved_sweep: ``{"name", "sweep" (the validated file), ...}``; a folder holding another is refused
+        :param run_ids: every run id of the sweep: a file holding another run is set aside (and, in a folder whose
+            sweep records are all gone, means the folder holds another sweep: refused)
+        :return: one line per file set aside (its path, why, where it went)
+        """
+        replication = replication_parts(self.root)
+        if replication and not (self.root / "sweep.json").exists():
+            raise StoreError(
+                f"{self.root} holds a replication (sweeps in {', '.join(replication)}), which a sweep run into it "
+                f"would mix with; give the sweep a folder of its own, e.g. --out {self.root / resolved_sweep['name']}"
+            )
+        try:
+            for folder in (self.root, self.runs, self.chunks, self.failed):
+                folder.mkdir(parents=True, exist_ok=True)
+        except OSError as error:
+            raise _store_error(self.root, error) from None
+        refusal = (
+            f"{self.root} already holds the results of a different sweep ({{name!r}}, or the same file with other "
+            "settings); resume only with the same file and --set options, or use another --out"
+        )
+        previous = self.saved_sweep()
+        wanted = set(run_ids)
+        if previous is not None:
+            same = _identity(previous) == _identity(resolved_sweep)
+            if same and isinstance(previous.get("runs"), dict) and wanted:  # a folder of the one-file-per-run era
+                same = set(previous["runs"]) == wanted
+            if not same:
+                raise StoreError(refusal.format(name=previous.get("name", "?")))
+        files = self._check_files((lambda rid, agent: rid in wanted) if wanted else None)
+        if previous is None and any("another sweep" in why for _, why in files.rejected):
+            raise StoreError(refusal.format(name="its sweep.json is gone; its files name other runs"))
+        for name in ("sweep.json", *IDENTITY_COPIES):
+            path = self.root / name
+            if previous is None or not path.exists():
+                _write_atomic(path, previous or resolved_sweep)
+        for folder in (self.runs, self.chunks, self.failed):
+            for stale in folder.glob(".tmp-*"):
+                with contextlib.suppress(OSError):
+                    stale.unlink()
+        probe = self.runs / f".tmp-probe-{os.getpid()}"
+        try:
+            probe.write_text("")
+            probe.unlink()
+        except OSError as error:
+            raise _store_error(self.runs, error) from None
+        return self._set_aside(files.rejected)
+
+    def _set_aside(self, rejected: list[tuple[Path, str]]) -> list[str]:
+        """Move each rejected file into ``DIR/damaged/`` (never over an earlier one); one line per file."""
+        lines = []
+        for path, why in rejected:
+            try:
+                self.damaged.mkdir(exist_ok=True)
+                target = self.damaged / f"{path.parent.name}-{path.name}"
+                count = 1
+                while target.exists():
+                    count += 1
+                    target = self.damaged / f"{path.parent.name}-{path.stem}.{count}{path.suffix}"
+                os.replace(path, target)
+            except OSError as error:
+                reason = error.strerror or error
+                raise StoreError(f"{path} {why}, and can not be moved aside ({reason}); move it yourself") from None
+            lines.append(f"{path} {why}: moved to {target}, its runs will be run again")
+        return lines
+
+    def lock_owner(self) -> int | None:
+        """The pid of the live launcher holding the folder's lock, or None (nobody holds it)."""
+        return folder_lock.recorded_owner(self.root) if folder_lock.is_locked(self.root) else None
+
+    @contextlib.contextmanager
+    def lock(self) -> Iterator[None]:
+        """Hold the folder's lock while running (``folder_lock``); StoreError at once if another launcher holds it."""
+        try:
+            with folder_lock.hold(self.root):
+                yield
+        except folder_lock.FolderBusy as busy:
+            raise StoreError(f"{self.root} is in use by another launcher ({busy}); wait for it or stop it first") from None
+        except OSError as error:
+            raise _store_error(self.root, error) from None
+
+    # -- writing -----------------------------------------------------------------------------------------------
+    def write_run(self, rid: str, config: dict[str, Any], result: dict[str, Any]) -> None:
+        payload = {"schema": SCHEMA, "run_id": rid, "config": config, "status": "ok", **result}
+        _write_atomic(self.runs / f"{rid}.json", payload)
+        with contextlib.suppress(FileNotFoundError):
+            (self.failed / f"{rid}.json").unlink()
+
+    def write_run_files(self, files: Sequence[tuple[str, bytes]]) -> None:
+        """
+        Store many finished runs at once (``(run id, run_file bytes)``): every file written to a temporary name, the
+        file system synced once (instead of once per file), then each renamed into place: a reader, even after a
+        crash, sees each run's whole file or none.
+        """
+        temporary = []
+        try:
+            for _, data in files:
+                fd, tmp = tempfile.mkstemp(dir=self.runs, prefix=".tmp-", suffix=".json")
+                temporary.append(tmp)
+                with os.fdopen(fd, "wb") as handle:
+                    handle.write(data)
+            os.sync()
+            for (rid, _), tmp in zip(files, temporary):
+                os.replace(tmp, self.runs / f"{rid}.json")
+                with contextlib.suppress(FileNotFoundError):
+                    (self.failed / f"{rid}.json").unlink()
+        except BaseException as error:  # a full disk, or Ctrl-C mid-write: never leave a partial file behind
+            for tmp in temporary:
+                with contextlib.suppress(OSError):
+                    os.unlink(tmp)
+            if isinstance(error, OSError):
+                raise _store_error(self.runs, error) from None
+            raise
+
+    def write_chunk(self, name: str, data: bytes, run_ids: Iterable[str]) -> None:
+        """Store a batch's chunk (``chunks.encode_chunk``) and forget earlier failures of its runs."""
+        _write_atomic(self.chunks / f"{name}.parquet", data)
+        if self._failed is None:
+            self._failed = self.failed_ids()
+        for rid in self._failed.intersection(run_ids):
+            with contextlib.suppress(FileNotFoundError):
+                (self.failed / f"{rid}.json").unlink()
+            self._failed.discard(rid)
+
+    def write_failure(self, rid: str, config: dict[str, Any], error: str) -> None:
+        if self._failed is not None:
+            self._failed.add(rid)
+        _write_atomic(
+            self.failed / f"{rid}.json",
+            {"schema": SCHEMA, "run_id": rid, "config": config, "status": "failed", "error": error},
+        )
+
+    # -- reading -----------------------------------------------------------------------------------------------
+    def _json_files(self) -> list[Path]:
+        return sorted(p for p in self.runs.glob("*.json") if not p.name.startswith("."))
+
+    def _chunk_files(self) -> list[Path]:
+        return sorted(p for p in self.chunks.glob("*.parquet") if not p.name.startswith("."))
+
+    def _check_files(self, belongs: Callable[[str, str], bool] | None) -> FolderFiles:
+        """Every run file and chunk, read and sorted out (``folder_files.sort_files``)."""
+        return sort_files(self._json_files(), self._chunk_files(), belongs)
+
+    def _sweep_runs(self) -> dict[str, str] | None:
+        """Run id -> agent of every run of the saved sweep (its file validated without importing anything)."""
+        resolved = self.saved_sweep()
+        if resolved is None:
+            return None
+        if isinstance(resolved.get("runs"), dict):  # a folder written before chunks lists every run
+            return {rid: c["agent"] for rid, c in resolved["runs"].items()}
+        from pydantic import ValidationError
+
+        from sb3_affect.study.launcher.schema import Sweep
+
+        try:
+            sweep = Sweep.validate_saved(resolved["sweep"])
+        except ValidationError as error:
+            first = error.errors()[0]
+            where = ".".join(str(part) for part in first["loc"])
+            raise StoreError(f"{self.root / 'sweep.json'}: the saved sweep is not valid ({where}: {first['msg']})") from None
+        runs: dict[str, str] = {}
+        for cell in sweep.cells():
+            runs.update(dict.fromkeys(cell_run_ids(cell), cell.base["agent"]))
+        return runs
+
+    def _checked(self) -> FolderFiles:
+        """The files that count; StoreError naming the first that does not (a rerun sets them aside)."""
+        runs = self._sweep_runs()
+        files = self._check_files(None if runs is None else lambda rid, agent: runs.get(rid) == agent)
+        if files.rejected:
+            path, why = files.rejected[0]
+            more = f" (and {len(files.rejected) - 1} more)" if len(files.rejected) > 1 else ""
+            raise StoreError(
+                f"{path} {why}{more}; rerun the sweep into {self.root} (the same `sb3-affect run` command) to move it "
+                "to damaged/ and run its runs again"
+            )
+        return files
+
+    def progress(self) -> tuple[str, dict[str, tuple[int, int, int]], list[tuple[Path, str]]]:
+        """
+        The saved sweep's name; per agent ``(runs, finished, failed)`` (failed: recorded and not finished since),
+        counting only the runs of files that count; and ``(path, why)`` of each file that does not. Reads the chunks'
+        footers and the run files, imports nothing the folder names. ``FileNotFoundError`` when no sweep was run here.
+        """
+        resolved = self.saved_sweep()
+        if resolved is None:
+            raise FileNotFoundError(f"{self.root / 'sweep.json'}: no sweep was run here")
+        runs = self._sweep_runs() or {}
+        totals = {agent: 0 for agent in _agent_names(resolved)}
+        for agent in runs.values():
+            totals[agent] = totals.get(agent, 0) + 1
+        files = self._check_files(lambda rid, agent: runs.get(rid) == agent)
+        done_ids = files.done_ids()
+        done = {name: 0 for name in totals}
+        for rid in done_ids:
+            done[runs[rid]] += 1
+        failed = {name: 0 for name in totals}
+        for path in self.failed.glob("[!.]*.json"):
+            if path.stem not in done_ids and path.stem in runs:
+                failed[runs[path.stem]] += 1
+        return resolved["name"], {name: (totals[name], done[name], failed[name]) for name in totals}, files.rejected
+
+    def done_ids(self) -> set[str]:
+        """Every finished run, in either layout (chunks: from their footers only), of the files that count."""
+        return self._check_files(None).done_ids()
+
+    def failed_ids(self) -> set[str]:
+        return {p.stem for p in self.failed.glob("*.json") if not p.name.startswith(".")}
+
+    def load_runs(self) -> list[dict[str, Any]]:
+        """Every finished run as a record of the JSON layout (``run_id``, ``config``, ``episodes`` lists, ...): for
+        small folders; large ones read ``runs_frame`` and ``episodes_frame``."""
+        files = self._checked()
+        records = [json.loads(p.read_text()) for p in files.run_files]
+        for path in files.chunk_files:
+            records.extend(guarded(path, chunk_records))
+        return sorted((r for r in records if r.get("status", "ok") == "ok"), key=lambda r: r["run_id"])
+
+    def runs_frame(self) -> pd.DataFrame:
+        """
+        One row per finished run (either layout; chunks: from their footers only): ``run_id``, ``agent``, ``algo``,
+        ``seed``, one column per label (``replicate`` included), ``decisions`` (every decision of the run),
+        ``episodes`` (finished episodes), ``wall_seconds`` (a batch's runs: their share of it), ``max_timesteps``.
+        """
+        from sb3_affect.study.launcher.folder_reading import read_folder  # (pandas: not on the launcher's path)
+
+        files = self._checked()
+        return read_folder(list(files.run_files), list(files.chunk_files), None, self.root)[0]
+
+    def results(self, columns: Sequence[str] | None = None, seed: bool = True) -> tuple[pd.DataFrame, pd.DataFrame]:
+        """
+        Every finished run (either layout) as two tables, read column-wise (``experiments.reading``): no Python object
+        per episode, each column allocated once.
+
+        :param columns: the episode columns wanted (default every ``EPISODE_COLUMNS`` column)
+        :param seed: repeat each run's seed on its episode rows (int64; the run table has it anyway)
+        :return: ``(runs_frame(), episodes)``; ``episodes`` has one row per episode: ``run_id``, ``agent``, ``seed``
+            and one column per label (categoricals but ``seed``), then the episode columns (integers as int32, flags
+            as bool, the rest float64); runs in run id order, each run's rows together in episode order
+        """
+        from sb3_affect.study.launcher.folder_reading import RUN_COLUMNS, episode_table, read_folder
+
+        files = self._checked()
+        wanted = EPISODE_COLUMNS if columns is None else tuple(columns)
+        runs, data = read_folder(list(files.run_files), list(files.chunk_files), wanted, self.root)
+        labels = [c for c in runs.columns if c not in RUN_COLUMNS]
+        return runs, episode_table(runs, data, ["run_id", "agent", *(["seed"] if seed else []), *labels])
+
+    def checked_files(self) -> FolderFiles:
+        """The files that count (``results_parts`` takes them, so a reader checks the folder once)."""
+        return self._checked()
+
+    def results_parts(
+        self,
+        columns: Sequence[str] | None = None,
+        seed: bool = True,
+        agent: str | None = None,
+        runs_per_part: int | None = None,
+        files: FolderFiles | None = None,
+        labels: dict[str, Any] | None = None,
+        ordered: bool = False,
+    ) -> Iterator[tuple[pd.DataFrame, pd.DataFrame]]:
+        """
+        ``results`` a part of the folder at a time: the runs of ``agent`` only (None: every agent), about
+        ``runs_per_part`` runs a part (whole chunks; None: one part), each part as ``results`` gives it (its runs in
+        run id order). A reader that reduces run by run holds one part at a time.
+
+        :param files: the folder's files (``checked_files``), to check the folder once over several reads
+        :param labels: read only the chunks of cells with these label values (run files: all; a reader filters rows)
+        :param ordered: parts one after the other in run id order (``reading.ordered_file_parts``): the rows of all
+            parts, in the order read, are the rows of one whole read
+        """
+        from sb3_affect.study.launcher.folder_reading import (
+            RUN_COLUMNS,
+            episode_table,
+            file_parts,
+            ordered_file_parts,
+            read_folder,
+        )
+
+        files = self._checked() if files is None else files
+        wanted = EPISODE_COLUMNS if columns is None else tuple(columns)
+        run_files = [path for path, owner in files.run_files.items() if agent is None or owner == agent]
+        chunk_files = {
+            p: meta
+            for p, meta in files.chunk_files.items()
+            if (agent is None or meta["base"]["agent"] == agent)
+            and all(meta["base"]["labels"].get(k) == v for k, v in (labels or {}).items())
+        }
+        split = ordered_file_parts if ordered else file_parts
+        for json_part, chunk_part in split(run_files, chunk_files, runs_per_part):
+            runs, data = read_folder(json_part, chunk_part, wanted, self.root, files.chunk_files, files.episode_counts)
+            named = [c for c in runs.columns if c not in RUN_COLUMNS]
+            yield runs, episode_table(runs, data, ["run_id", "agent", *(["seed"] if seed else []), *named])
+
+    def episodes_frame(self, columns: Sequence[str] | None = None) -> pd.DataFrame:
+        """The episode table of ``results``."""
+        return self.results(columns)[1]
+
+
+def replication_parts(root: Path) -> list[str]:
+    """
+    The sweep sub-folders of ``root`` when it holds a replication (``sb3-affect replicate``'s folder: marked by its
+    ``replicate.json``, or, written before that record, by a ``paper/`` sweep), else [].
+    """
+    if not (root / "replicate.json").exists() and not (root / "paper" / "sweep.json").exists():
+        return []
+    try:
+        return sorted(f"{p.name}/" for p in root.iterdir() if (p / "sweep.json").exists()) or ["replicate.json"]
+    except OSError:
+        return ["replicate.json"]
+
+
+def _agent_names(resolved: dict[str, Any]) -> list[str]:
+    agents = resolved["sweep"].get("agents") or []
+    return [a["name"] for a in agents if isinstance(a, dict) and isinstance(a.get("name"), str)]
+
+
+def _identity(resolved: Any) -> Any:
+    """
+    What must match to resume into a folder: the sweep's name and validated file minus settings that do not change
+    results (logs). The runs follow from these (a folder written before chunks also lists them: compared apart).
+    """
+    if not isinstance(resolved, dict) or not isinstance(resolved.get("sweep"), dict):
+        return resolved
+    return {"name": resolved.get("name"), "sweep": {k: v for k, v in resolved["sweep"].items() if k != "logs"}}

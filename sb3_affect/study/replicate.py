@@ -1,0 +1,281 @@
+"""
+The main job: the paper's protocol and the DQN comparison through the launcher (run files), the fair baselines,
+then the engine studies (large-N, reading ablation, speed ablation, long runs), ε tuned on each task beyond the paper
+and those tasks with the tuned ε (static grid, moving and evading prey, mazes), the replication forensics at a reduced
+size, then one report (the forensics section passed in from here: the report layer does not import the forensics).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+#: The folder of the sweep files; None: those installed with the package (``experiments/`` of the source tree).
+EXPERIMENTS: Path | None = None
+#: Launcher sweeps: (name of experiments/<name>.yaml and of the results folder, description).
+PARTS = (
+    ("paper", "the paper's protocol ({runs} runs)"),
+    ("dqn", "SB3 DQN beside the tabular agents, equal seeds and budget ({runs} runs)"),
+    ("baselines", "fair baselines beside both paper agents"),
+    ("hunters", "two hunters on Kuremoto's pursuit problem"),
+    ("hunters_moving", "two hunters, moving prey"),
+)
+#: Sizes of the engine studies (seeds per cell; episodes per run), read when ``main`` runs.
+LARGE_SEEDS, ABLATION_SEEDS, BEYOND_SEEDS, ENGINE_EPISODES = 1000, 20, 1000, 200
+#: Seeds per cell of the speed ablation and of the long-run study (whose runs have ``largen.LONG_EPISODES`` episodes).
+SPEED_ONE_SEEDS, LONG_SEEDS = 500, 50
+#: Tuning seeds per ε value of the per-task tuning (``report.tuning``), disjoint from the evaluation's seeds.
+TUNING_SEEDS = 200
+#: The forensics' size inside the main job (``sb3-affect forensics`` alone defaults to 3 / 4 / 100).
+FORENSICS = {"screen_reps": 2, "leaders": 4, "reps": 30}
+#: The main job's wall time on 2 idle cores, as the help and the docs quote it (measured: see the README).
+MINUTES = "about 6-9 minutes"
+#: Engine studies: (results folder, description), for the help.
+STUDIES = (
+    ("large", f"the paper's 18 cells and the speed-matched ε-greedy at {LARGE_SEEDS:,} seeds per cell (engine)"),
+    ("ablation_engine", f"the 8 readings of the appraisal x 9 ε x {ABLATION_SEEDS} seeds (engine)"),
+    ("speed_one", f"the affective agent with speed fixed at 1 cell, 9 ε labels x {SPEED_ONE_SEEDS} seeds (engine)"),
+    ("long", f"both paper agents, 9 ε x {LONG_SEEDS} seeds, runs of 2,000 episodes (engine)"),
+    (
+        "tuning",
+        f"ε of ε-greedy and speed-matched ε-greedy tuned on each task beyond the paper, {TUNING_SEEDS} seeds per value "
+        "(engine)",
+    ),
+    ("beyond", f"static grid, moving and evading prey, mazes with the tuned ε, {BEYOND_SEEDS:,} seeds (engine)"),
+    ("forensics", "the replication forensics at a reduced size: {screen_reps} screen and {reps} leader replications"),
+)
+
+
+def sweep_runs(path: Path) -> int | None:
+    """
+    How many runs an experiment file asks for: seeds x the grid points of each agent (read with yaml alone, so the
+    help stays fast; the launcher's ``Sweep.run_configs`` gives the same count). None when it can not be read.
+    """
+    import math
+
+    try:
+        import yaml
+    except ImportError:  # without the experiments extra the help gives no count (running a part says what to install)
+        return None
+    try:
+        data = yaml.safe_load(Path(path).read_text())
+        seeds = data["seeds"]
+        agents = data["agents"].values() if isinstance(data["agents"], dict) else data["agents"]
+        per_agent = [math.prod(len(v) for v in (agent.get("grid") or {}).values()) for agent in agents]
+    except (OSError, yaml.YAMLError, KeyError, TypeError, AttributeError):
+        return None
+    return (len(seeds) if isinstance(seeds, list) else int(seeds)) * sum(per_agent)
+
+
+def sweeps_folder(experiments: Path | None = None) -> Path:
+    """The folder of the sweep files: ``experiments``, else ``EXPERIMENTS``, else those installed with the package."""
+    if experiments or EXPERIMENTS:
+        return Path(experiments or EXPERIMENTS)  # type: ignore[arg-type]
+    from importlib.resources import files  # (not the launcher's own helper: --help must not need the launcher's extra)
+
+    return Path(str(files("sb3_affect.sweeps")))
+
+
+def part_description(name: str, description: str, experiments: Path | None = None) -> str:
+    """A part's description with its run count read from its experiment file (one source for that number)."""
+    if "{runs}" not in description:
+        return description
+    runs = sweep_runs(sweeps_folder(experiments) / f"{name}.yaml")
+    return description.format(runs=runs if runs is not None else "?")
+
+
+def forensics_extra(folder: Path) -> Any:
+    """The forensics section for ``build_report(extra_sections=...)`` (None when ``folder`` holds no results)."""
+    from sb3_affect.study.forensics.section import has_results, report_section
+
+    return report_section(folder) if has_results(folder) else None
+
+
+def main(
+    out_dir: Path = Path("runs"),
+    workers: int | None = None,
+    experiments: Path | None = None,
+    large_seeds: int | None = None,
+    ablation_seeds: int | None = None,
+    beyond_seeds: int | None = None,
+    engine_episodes: int | None = None,
+    forensics: bool = True,
+    command: str | None = None,
+) -> Path:
+    """
+    Run the sweeps of ``SWEEPS`` into ``out_dir/<name>`` (resuming what is there) and the engine studies into
+    ``out_dir/large``, ``out_dir/ablation_engine``, ..., the per-task tuning of ε into ``out_dir/tuning`` and the tasks
+    beyond the paper with the tuned ε into ``out_dir/beyond`` (reused when complete), then write
+    ``out_dir/report.md`` (and .html, tables/, figures/). Prints the wall time of each part.
+
+    :param out_dir: the replicate folder
+    :param workers: processes (default: usable CPUs)
+    :param experiments: the folder holding the experiment files (default: the ones installed with the package)
+    :param large_seeds: seeds per cell of the large-N study (default ``LARGE_SEEDS``)
+    :param ablation_seeds: seeds per cell of the reading ablation (default ``ABLATION_SEEDS``)
+    :param beyond_seeds: seeds per agent and task beyond the paper (default ``BEYOND_SEEDS``)
+    :param engine_episodes: episodes per run of the engine studies (default the paper's 200; fewer for quick checks)
+    :param forensics: run the replication forensics (size ``FORENSICS``) into ``out_dir/forensics``
+    :param command: the command line to record (default: this process's)
+    :return: the path of report.md
+    """
+    from sb3_affect.study.launcher import run_sweep
+    from sb3_affect.study.report import build_report, paper
+    from sb3_affect.study.report.ablation import ablation_cells
+    from sb3_affect.study.report.beyond_tasks import beyond_cells
+    from sb3_affect.study.report.largen import LONG_EPISODES, large_cells, long_cells, run_cells, speed_one_cells
+    from sb3_affect.study.report.tuning import run_tuning
+
+    experiments = sweeps_folder(experiments)
+    large_seeds = large_seeds or LARGE_SEEDS
+    ablation_seeds = ablation_seeds or ABLATION_SEEDS
+    beyond_seeds = beyond_seeds or BEYOND_SEEDS
+    engine_episodes = engine_episodes or ENGINE_EPISODES
+    out_dir = Path(out_dir)
+    record = _Record(out_dir)
+    timings: dict[str, float] = {}
+    for name, description in PARTS:
+        description = part_description(name, description, experiments)
+        print(f"== {description}: {experiments / f'{name}.yaml'} -> {out_dir / name}", flush=True)
+        summary = run_sweep(experiments / f"{name}.yaml", out_dir / name, workers=workers)
+        key = f"{name} ({description})"
+        timings[key] = record.part(key, summary.seconds, done_before=summary.skipped, todo=summary.total - summary.skipped)
+        print(
+            f"   {summary.finished} runs now, {summary.skipped} already done, {summary.failed} failed, "
+            f"{summary.seconds:.1f} s",
+            flush=True,
+        )
+    speed_seeds = min(SPEED_ONE_SEEDS, large_seeds)
+    long_seeds = min(LONG_SEEDS, large_seeds)
+    long_episodes = engine_episodes * LONG_EPISODES // paper.EPISODES  # 2,000 at the paper's 200 (10 x as long)
+    studies = (
+        ("large", f"large-N study, {large_seeds} seeds per cell (engine)", large_cells(), large_seeds, engine_episodes),
+        ("ablation_engine", f"reading ablation, {ablation_seeds} seeds per cell (engine)", ablation_cells(), ablation_seeds,
+         engine_episodes),
+        ("speed_one", f"speed ablation, {speed_seeds} seeds per cell (engine)", speed_one_cells(), speed_seeds,
+         engine_episodes),
+        ("long", f"long runs, {long_seeds} seeds per cell x {long_episodes} episodes (engine)", long_cells(), long_seeds,
+         long_episodes),
+    )
+    for name, description, cells, seeds, episodes in studies:
+        print(f"== {description} -> {out_dir / name}", flush=True)
+        start = time.perf_counter()
+        with _heartbeat(description):
+            table, meta = run_cells(out_dir / name, cells, seeds, episodes, workers=workers)
+        seconds = time.perf_counter() - start
+        # The study's own record of the run that computed it (a complete study is read back, not recomputed).
+        timings[description] = record.set(description, float(meta.get("wall_seconds", seconds)))
+        print(f"   {len(table)} runs, {seconds:.1f} s", flush=True)
+    tuning_seeds = min(TUNING_SEEDS, large_seeds)
+    description = f"ε tuned per task beyond the paper, {tuning_seeds} seeds per value (engine)"
+    print(f"== {description} -> {out_dir / 'tuning'}", flush=True)
+    with _heartbeat(description):
+        tuned, seconds = run_tuning(out_dir / "tuning", tuning_seeds, engine_episodes, beyond_seeds, workers=workers)
+    timings[description] = record.set(description, seconds)  # the rounds' own time (rounds read back keep theirs)
+    chosen = ", ".join(f"{agent} on {task}: {t.best:g}{'' if t.interior else ' (edge)'}" for (task, agent), t in tuned.items())
+    print(f"   {timings[description]:.1f} s; chosen: {chosen}", flush=True)
+    description = f"static grid, moving and evading prey, mazes, {beyond_seeds} seeds (engine)"
+    print(f"== {description} -> {out_dir / 'beyond'}", flush=True)
+    start = time.perf_counter()
+    with _heartbeat(description):
+        cells = beyond_cells({key: t.best for key, t in tuned.items()})
+        table, meta = run_cells(out_dir / "beyond", cells, beyond_seeds, engine_episodes, workers=workers)
+    timings[description] = record.set(description, float(meta.get("wall_seconds", time.perf_counter() - start)))
+    print(f"   {len(table)} runs, {time.perf_counter() - start:.1f} s", flush=True)
+    extra = []
+    if forensics:
+        from sb3_affect.study.forensics.analysis import run_forensics
+
+        description = "replication forensics ({screen_reps} screen, {leaders} leaders x {reps} replications)"
+        description = description.format(**FORENSICS)
+        print(f"== {description} -> {out_dir / 'forensics'}", flush=True)
+        start = time.perf_counter()
+        with _heartbeat(description):
+            run_forensics(
+                out_dir / "forensics",
+                screen_reps=FORENSICS["screen_reps"],
+                leaders=FORENSICS["leaders"],
+                reps=FORENSICS["reps"],
+                workers=workers or len(_cpus()),
+                progress=False,
+            )
+        timings[description] = record.set(description, time.perf_counter() - start)
+        print(f"   {timings[description]:.1f} s", flush=True)
+        section = forensics_extra(out_dir / "forensics")
+        if section is not None:
+            extra.append(section)
+    start = time.perf_counter()
+    report = build_report(out_dir, timings=timings, extra_sections=extra, command=command or " ".join(sys.argv))
+    timings["report"] = time.perf_counter() - start
+    print("wall time: " + ", ".join(f"{name} {seconds:.1f} s" for name, seconds in timings.items()))
+    print(f"report: {report} (and {report.with_suffix('.html')})")
+    return report
+
+
+#: Seconds between the lines an engine study prints while it runs (it has no progress bar of its own).
+HEARTBEAT_SECONDS = 15.0
+
+
+@contextlib.contextmanager
+def _heartbeat(what: str, every: float | None = None) -> Iterator[None]:
+    """Print ``still running: <what>, N s`` every ``every`` seconds while the block runs (a long silent step)."""
+    interval = HEARTBEAT_SECONDS if every is None else every
+    stop = threading.Event()
+    start = time.perf_counter()
+
+    def beat() -> None:
+        while not stop.wait(interval):
+            print(f"   still running: {what}, {time.perf_counter() - start:.0f} s", flush=True)
+
+    thread = threading.Thread(target=beat, name="sb3-affect:heartbeat", daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        thread.join()
+
+
+class _Record:
+    """
+    ``OUT/replicate.json``: the wall time of each part over the runs that did its work, so that a resumed replicate
+    reports the time the results took (a part finished earlier keeps its time; a part resumed adds the resume's). It
+    also marks the folder as a replication, into which ``sb3-affect run`` refuses to write a sweep.
+    """
+
+    def __init__(self, out_dir: Path) -> None:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        self.path = out_dir / "replicate.json"
+        try:
+            saved = json.loads(self.path.read_text())
+        except (OSError, ValueError):
+            saved = {}
+        timings = saved.get("timings") if isinstance(saved, dict) else None
+        self.timings: dict[str, Any] = dict(timings) if isinstance(timings, dict) else {}
+
+    def part(self, key: str, seconds: float, done_before: int, todo: int) -> float:
+        previous = self.timings.get(key)
+        if not isinstance(previous, (int, float)):
+            return self.set(key, seconds)
+        if todo == 0:  # nothing left to do: the time is the earlier runs'
+            return float(previous)
+        return self.set(key, previous + seconds if done_before else seconds)
+
+    def set(self, key: str, seconds: float) -> float:
+        self.timings[key] = seconds
+        tmp = self.path.with_name(f".{self.path.name}.tmp")
+        tmp.write_text(json.dumps({"timings": self.timings}, indent=1))
+        tmp.replace(self.path)
+        return seconds
+
+
+def _cpus() -> set[int]:
+    import os
+
+    return os.sched_getaffinity(0) if hasattr(os, "sched_getaffinity") else set(range(os.cpu_count() or 1))

@@ -1,0 +1,68 @@
+"""
+Tracing the affective agent decision by decision (``report.joy_trace`` reads the traces; this module runs them): an
+``EmotionCallback`` that records each decision's emotion, on the Python loop (the compiled engine does not call back).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from sb3_affect.agents.callbacks import EmotionCallback
+from sb3_affect.core.emotions import Emotion
+
+
+class TraceCallback(EmotionCallback):
+    """An ``EmotionCallback`` that keeps, per episode, the norm and each decision's emotion."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self.episodes: list[tuple[float, list[int]]] = []
+        self._sequence: list[int] = []
+
+    def begin_episode(self) -> None:
+        super().begin_episode()
+        self._sequence = []
+
+    def feel(self, state: int) -> Emotion:
+        emotion = super().feel(state)
+        self._sequence.append(int(emotion))
+        return emotion
+
+    def end_episode(self, reached_goal: bool) -> tuple[list[int], float]:
+        counts, norm = super().end_episode(reached_goal)
+        self.episodes.append((norm, self._sequence))
+        return counts, norm
+
+
+def trace(seed: int, episodes: int, env_kwargs: dict[str, Any] | None = None) -> pd.DataFrame:
+    """One traced run: per episode the norm, decisions, joy decisions, the first joy decision and joy's exits."""
+    import gymnasium as gym
+    from stable_baselines3.common.callbacks import StopTrainingOnMaxEpisodes
+
+    from sb3_affect import AffectQ
+    from sb3_affect.study.report.largen import COMMON, PAPER_ENV
+
+    env = gym.make(PAPER_ENV[0], **(env_kwargs or PAPER_ENV[1]))
+    callback = TraceCallback()
+    kwargs: dict[str, Any] = dict(COMMON)
+    AffectQ("Grid", env, **kwargs, emotion_callback=callback, seed=seed).learn(
+        10**9, callback=StopTrainingOnMaxEpisodes(episodes)
+    )
+    rows = []
+    for number, (norm, sequence) in enumerate(callback.episodes, start=1):
+        joy = np.asarray(sequence) == int(Emotion.JOY)
+        rows.append(
+            {
+                "seed": seed,
+                "episode": number,
+                "norm": norm,
+                "decisions": len(joy),
+                "joy": int(joy.sum()),
+                "first_joy": int(np.argmax(joy)) + 1 if joy.any() else np.nan,
+                "joy_exits": int((joy[:-1] & ~joy[1:]).sum()),
+            }
+        )
+    return pd.DataFrame(rows)

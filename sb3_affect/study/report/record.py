@@ -1,0 +1,156 @@
+"""
+The reproducibility record: the exact command, the installed package's version and commit, a lock file of every
+installed package's version, Python, OS, CPU and cores, whether the forensics ran, sha256 checksums of the run
+tables, the wall time of each part, seeds.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import platform
+import subprocess
+from importlib import metadata
+from pathlib import Path
+
+import pandas as pd
+
+from sb3_affect.study.report.context import ReportContext
+from sb3_affect.study.report.document import fmt
+
+PACKAGES = (
+    "sb3-affect",
+    "stable-baselines3",
+    "gymnasium",
+    "torch",
+    "numpy",
+    "pandas",
+    "scipy",
+    "matplotlib",
+    "rliable",
+    "lifelines",
+    "statsmodels",
+    "adastop",
+    "numba",
+)
+
+
+def commit(package_dir: Path | None = None) -> str:
+    """
+    The git commit of the installed sb3-affect (``+dirty`` for uncommitted changes), only when the package's own
+    source folder sits at the top of an sb3-affect git checkout (an editable install); never the commit of another
+    repository that happens to surround site-packages. Otherwise a phrase saying why there is none.
+    """
+    import sb3_affect
+
+    package = Path(package_dir or Path(sb3_affect.__file__).resolve().parent)
+    root = package.parent
+
+    def git(*args: str) -> subprocess.CompletedProcess[str]:
+        return subprocess.run(["git", "-C", str(root), *args], capture_output=True, text=True, timeout=10)
+
+    try:
+        top = git("rev-parse", "--show-toplevel")
+        at_top = top.returncode == 0 and Path(top.stdout.strip()).resolve() == root.resolve()
+        if not at_top or not (root / "pyproject.toml").exists():
+            return "none (an installed package, not an sb3-affect git checkout)"
+        sha = git("rev-parse", "HEAD")
+        dirty = git("status", "--porcelain", "--untracked-files=no")
+    except (OSError, subprocess.SubprocessError):
+        return "unknown (git not available)"
+    if sha.returncode != 0:
+        return "unknown (git failed)"
+    return sha.stdout.strip() + ("+dirty" if dirty.stdout.strip() else "")
+
+
+def lock_lines() -> list[str]:
+    """Every installed distribution as ``name==version``, sorted (importlib.metadata): the run's lock file."""
+    found = {}
+    for dist in metadata.distributions():
+        name = dist.metadata["Name"]
+        if name:
+            found[name.lower()] = f"{name}=={dist.version}"
+    return [found[k] for k in sorted(found)]
+
+
+def run_tables(root: Path) -> list[Path]:
+    """The files holding the runs of a replicate (or results) folder: chunks, run files, the engine studies' tables."""
+    patterns = ("*/chunks/*.parquet", "*/runs/*.json", "chunks/*.parquet", "runs/*.json", "*/runs.csv.gz", "*/*.csv",
+                "tuning/round*/runs.csv.gz")
+    files = {path for pattern in patterns for path in root.glob(pattern) if "tables" not in path.parts}
+    return sorted(files)
+
+
+def sha256(path: Path) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as handle:
+        for block in iter(lambda: handle.read(1 << 20), b""):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def cpu_model() -> str:
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                return line.split(":", 1)[1].strip()
+    except OSError:
+        pass
+    return platform.processor() or "unknown"
+
+
+def versions() -> dict[str, str]:
+    out = {}
+    for name in PACKAGES:
+        try:
+            out[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            out[name] = "not installed"
+    return out
+
+
+def record_section(ctx: ReportContext) -> None:
+    ctx.doc.h("Reproducibility record")
+    usable = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    lock = ctx.out / "packages.lock"
+    lock.write_text("\n".join(lock_lines()) + "\n")
+    tables = run_tables(ctx.root)
+    checksums = ctx.out / "checksums.sha256"
+    checksums.write_text("".join(f"{sha256(path)}  {path.relative_to(ctx.root).as_posix()}\n" for path in tables))
+    try:
+        version = metadata.version("sb3-affect")
+    except metadata.PackageNotFoundError:
+        version = "not installed"
+    ctx.doc.ul(
+        [
+            f"Command: `{ctx.command or 'not recorded (the report was built by a library call)'}`",
+            f"sb3-affect {version}; commit: `{commit()}`",
+            f"Python {platform.python_version()} ({platform.python_implementation()}); OS: {platform.platform()}",
+            f"CPU: {cpu_model()}; cores: {os.cpu_count()} ({usable} usable by this process)",
+            "Packages: " + ", ".join(f"{k} {v}" for k, v in versions().items())
+            + f"; every installed package's version: `{lock.name}` ({len(lock_lines())} packages)",
+            "Replication forensics: " + str(ctx.cache.get("forensics", "not run (`sb3-affect forensics` was not part of "
+                                                             "this run; `make replicate` runs it)")),
+            f"Checksums: sha256 of the {len(tables)} run tables (run files, Parquet chunks, engine study tables) in "
+            f"`{checksums.name}` (check with `sha256sum -c {checksums.name}` from {ctx.root})",
+            "Seeds: the launcher derives each run's seed from (sweep, agent, grid point, replicate) with sha256 "
+            "(`sb3_affect.study.launcher.schema.derive_seed`); every run file records its seed, and the engine studies use "
+            "the same derivation (large-N: the paper sweep's, so its first 20 replicates are the paper protocol's runs). "
+            "DQN: explicit seeds 0-4 for every agent. Same seed, same numbers.",
+        ]
+    )
+    rows = {name: {"wall seconds": seconds} for name, seconds in ctx.timings.items()}
+    studies = ("large", "ablation_engine", "speed_one", "long", "beyond")
+    for name in studies if not rows else ():  # replicate's timings hold them already
+        meta_path = ctx.root / name / "meta.json"
+        if meta_path.exists():
+            import json
+
+            meta = json.loads(meta_path.read_text())
+            rows[f"{name} (engine, {meta['seeds']} seeds per cell)"] = {"wall seconds": meta["wall_seconds"]}
+    if rows:
+        ctx.table("wall_times", pd.DataFrame.from_dict(rows, orient="index").rename_axis("part"), "Wall time of each part", 1)
+        ctx.doc.p(
+            "Wall times are of the run that produced this folder, on a machine shared with other jobs: they vary "
+            f"between runs (total {fmt(sum(r['wall seconds'] for r in rows.values()), 1)} s)."
+        )

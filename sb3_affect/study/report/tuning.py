@@ -1,0 +1,345 @@
+"""
+ε tuned on each task beyond the paper, for each agent of ``beyond_tasks.TUNED_AGENTS``, on seeds disjoint from the
+evaluation seeds.
+
+Criterion: mean decisions per episode over the run (lower is better), each episode counted at most ``BEYOND_CAP``
+decisions: a truncated episode's length is a lower bound, so the criterion is a restricted mean (the mean of
+min(length, cap)), and the tuning curve counts the truncated episodes beside it. The grid ``GRID`` is log-spaced; when
+the best value is at an edge of the values run, one more value one grid step further out is run (``extension``), up to
+``MAX_EXTENSIONS`` times and within ``RANGE``; a best value still at an edge is reported as such, never as interior.
+The same tuning seeds serve every ε of a (task, agent), so the curve's differences are paired (common random numbers).
+
+Results: ``DIR/round<k>/`` (``largen.run_cells``: one folder per round, the grid first, then the extensions) and
+``DIR/tuning.json`` (the rounds that make the result, seeds, episodes, the chosen values). The report recomputes the
+curves and choices from the rounds' tables with the same functions.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Callable, Iterable, Mapping, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from sb3_affect.study.report.beyond_tasks import BEYOND_CAP, SWEEP, TASKS, TUNED_AGENTS
+from sb3_affect.study.report.largen import Cell, run_cells
+
+#: The tuning grid: log-spaced from 0.001 to 0.5.
+GRID: tuple[float, ...] = (0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5)
+#: The values an extension may try: ε in [1e-4, 1] (1: a uniform random walk).
+RANGE = (1e-4, 1.0)
+#: Extensions of the grid at most (one value each, one grid step beyond the edge the best value sits on).
+MAX_EXTENSIONS = 3
+#: The sweep name the tuning seeds derive from (``derive_seed``), disjoint from the evaluation's ``beyond_tasks.SWEEP``.
+TUNING_SWEEP = "beyond-tuning"
+CRITERION = "decisions_per_episode"
+
+
+def extension(values: Iterable[float], best: float) -> float | None:
+    """
+    The next ε to run when ``best`` is at an edge of ``values``: one grid step (the ratio of the two edge values)
+    beyond it, kept within ``RANGE``; None when ``best`` is inside, or at the end of ``RANGE``.
+    """
+    run = sorted(set(float(v) for v in values))
+    if len(run) < 2:
+        raise ValueError(f"a tuning curve needs at least 2 values, got {run}")
+    if best not in run:
+        raise ValueError(f"best={best} is not one of the values run {run}")
+    if best == run[0] and run[0] > RANGE[0]:
+        return float(f"{max(RANGE[0], run[0] * run[0] / run[1]):.3g}")
+    if best == run[-1] and run[-1] < RANGE[1]:
+        return float(f"{min(RANGE[1], run[-1] * run[-1] / run[-2]):.3g}")
+    return None
+
+
+def tuning_curve(runs: pd.DataFrame) -> pd.DataFrame:
+    """
+    Per ε (index, ascending): runs, mean decisions per episode with a normal 95% CI, mean cells per episode,
+    truncated episodes, and the paired difference from the best ε (same seeds) with its 95% CI.
+
+    :param runs: one row per run of one (task, agent): ``epsilon``, ``replicate`` and ``run_metrics``' columns
+    """
+    if not len(runs):
+        raise ValueError("no tuning runs")
+    groups = runs.groupby("epsilon")
+    curve = pd.DataFrame(
+        {
+            "runs": groups.size(),
+            "mean": groups[CRITERION].mean(),
+            "se": groups[CRITERION].std(ddof=1) / np.sqrt(groups.size()),
+            "cells": groups["cells_per_episode"].mean(),
+            "truncated": groups["truncated"].sum().astype(int),
+        }
+    ).sort_index()
+    curve.index = curve.index.astype(float)
+    curve.index.name = "epsilon"
+    best = _best(curve)
+    wide = runs.pivot_table(index="replicate", columns="epsilon", values=CRITERION)
+    wide.columns = wide.columns.astype(float)
+    diff = wide.sub(wide[best], axis=0)
+    n = diff.notna().sum()
+    half = 1.96 * diff.std(ddof=1) / np.sqrt(n)
+    curve["vs best"] = diff.mean()
+    curve["vs best low"] = curve["vs best"] - half
+    curve["vs best high"] = curve["vs best"] + half
+    curve.loc[best, ["vs best low", "vs best high"]] = 0.0
+    return curve
+
+
+@dataclass(frozen=True)
+class Tuning:
+    """
+    One (task, agent) tuned.
+
+    :param task: the task's label
+    :param agent: the agent's name
+    :param curve: ``tuning_curve`` of every value run
+    :param best: the ε with the lowest mean decisions per episode
+    :param interior: whether ``best`` lies strictly inside the values run
+    :param added: the values run beyond ``GRID`` (the extensions), in the order run
+    """
+
+    task: str
+    agent: str
+    curve: pd.DataFrame
+    best: float
+    interior: bool
+    added: tuple[float, ...]
+
+    @property
+    def within_noise(self) -> list[float]:
+        """The values whose paired 95% CI of the difference from the best holds 0 (indistinguishable from it)."""
+        c = self.curve
+        return [float(e) for e in c.index if e != self.best and c.loc[e, "vs best low"] <= 0]
+
+    @property
+    def note(self) -> str:
+        """Whether the best value is interior, and the extensions that made it so (or failed to)."""
+        if self.added:
+            grown = f"best at the edge of the grid, extended to {', '.join(_eps(v) for v in self.added)}"
+        else:
+            grown = "best inside the grid" if self.interior else "best at the edge of the grid"
+        if self.interior:
+            return f"interior ({grown})"
+        end = self.best in (RANGE[0], RANGE[1])
+        text = f"not interior: {grown}; still at the edge" + (" of the range ε in [1e-4, 1]" if end else "")
+        values = sorted(float(e) for e in self.curve.index)
+        neighbour = values[1] if self.best == values[0] else values[-2]
+        if neighbour in self.within_noise:
+            text += f" (the curve is flat there: {_eps(neighbour)} is indistinguishable from it)"
+        return text
+
+
+def choose(runs: pd.DataFrame, task: str, agent: str, grid: Sequence[float] = GRID) -> Tuning:
+    """The best ε of one (task, agent) from its tuning runs (every round), and whether it is interior."""
+    curve = tuning_curve(runs)
+    best = _best(curve)
+    values = list(curve.index)
+    interior = values[0] < best < values[-1]
+    order = list(dict.fromkeys(float(e) for e in runs.epsilon))  # the order the values were run in
+    added = tuple(e for e in order if not any(math.isclose(e, g) for g in grid))
+    return Tuning(task, agent, curve, best, interior, added)
+
+
+def choose_all(table: pd.DataFrame, grid: Sequence[float] = GRID) -> dict[tuple[str, str], Tuning]:
+    """``choose`` for every (task, agent) of a table of tuning runs (``task``, ``agent``, ``epsilon`` columns)."""
+    return {
+        (str(task), str(agent)): choose(g, str(task), str(agent), grid)
+        for (task, agent), g in table.groupby(["task", "agent"], sort=False)
+    }
+
+
+def tuning_cells(values: Mapping[tuple[str, str], Sequence[float]]) -> list[Cell]:
+    """The tuning runs of ``values`` (ε per (task, agent)); seeds from ``TUNING_SWEEP``, the same for every ε."""
+    envs = {task: (env_id, env_kwargs) for task, env_id, env_kwargs in TASKS}
+    algos = {agent: (algo, kwargs) for agent, algo, kwargs in TUNED_AGENTS}
+    cells = []
+    for (task, agent), epsilons in values.items():
+        algo, kwargs = algos[agent]
+        env_id, env_kwargs = envs[task]
+        for eps in epsilons:
+            cap = {**kwargs, "exploration_rate": float(eps), "max_episode_decisions": BEYOND_CAP}
+            labels = {"task": task, "epsilon": float(eps)}
+            cells.append(Cell(agent, algo, cap, labels, TUNING_SWEEP, {"task": task}, env_id, env_kwargs))
+    return cells
+
+
+def check_disjoint(tuning_seeds: int, evaluation_seeds: int) -> None:
+    """Raise when a tuning seed of any (task, agent) is also one of its evaluation seeds."""
+    from sb3_affect.study.launcher.schema import derive_seeds
+
+    for task, _, _ in TASKS:
+        for agent, _, _ in TUNED_AGENTS:
+            tuning = set(derive_seeds(TUNING_SWEEP, agent, {"task": task}, tuning_seeds))
+            shared = tuning & set(derive_seeds(SWEEP, agent, {"task": task}, evaluation_seeds))
+            if shared:
+                raise ValueError(f"tuning and evaluation seeds of {agent} on {task} share {sorted(shared)[:5]}")
+
+
+def tune(
+    run_round: Callable[[int, dict[tuple[str, str], list[float]]], pd.DataFrame],
+    keys: Iterable[tuple[str, str]],
+    grid: Sequence[float] = GRID,
+) -> tuple[dict[tuple[str, str], Tuning], int]:
+    """
+    The tuning loop: run ``grid`` for every key, then, while a best value is at an edge of the values run, one more value
+    beyond it (``extension``), at most ``MAX_EXTENSIONS`` rounds more.
+
+    :param run_round: ``run_round(k, values)`` runs round ``k`` (the ε values per (task, agent)) and returns its runs
+        (``task``, ``agent``, ``epsilon``, ``replicate`` and ``run_metrics``' columns)
+    :param keys: the (task, agent) pairs to tune
+    :param grid: the first round's values
+    :return: the tuning of each key, and the number of rounds run
+    """
+    pending: dict[tuple[str, str], list[float]] = {key: list(grid) for key in keys}
+    tables = []
+    choices: dict[tuple[str, str], Tuning] = {}
+    for k in range(MAX_EXTENSIONS + 1):
+        tables.append(run_round(k, pending))
+        choices = choose_all(pd.concat(tables, ignore_index=True), grid)
+        pending = {}
+        for key, tuning in choices.items():
+            nxt = extension(tuning.curve.index, tuning.best)
+            if nxt is not None and nxt not in tuning.curve.index:
+                pending[key] = [nxt]
+        if not pending:
+            break
+    return choices, len(tables)
+
+
+def run_tuning(
+    folder: Path, seeds: int, episodes: int, evaluation_seeds: int, workers: int | None = None
+) -> tuple[dict[tuple[str, str], Tuning], float]:
+    """
+    Tune ε for every (task, agent) of ``TASKS`` x ``TUNED_AGENTS`` through the engine (``tune``); finished rounds are
+    read back. Writes ``folder/tuning.json``.
+
+    :param folder: the tuning folder
+    :param seeds: tuning seeds per value
+    :param episodes: episodes per run
+    :param evaluation_seeds: the evaluation's seed count (its seeds must not be tuning seeds: checked)
+    :param workers: processes (default: usable CPUs)
+    :return: the tuning of each (task, agent), and the wall seconds of the runs that computed its rounds (rounds read
+        back keep the time they took)
+    """
+    check_disjoint(seeds, evaluation_seeds)
+    folder = Path(folder)
+    seconds: list[float] = []
+
+    def run_round(k: int, values: dict[tuple[str, str], list[float]]) -> pd.DataFrame:
+        table, meta = run_cells(folder / f"round{k}", tuning_cells(values), seeds, episodes, workers)
+        seconds.append(float(meta["wall_seconds"]))
+        return table
+
+    choices, rounds = tune(run_round, [(t, a) for t, _, _ in TASKS for a, _, _ in TUNED_AGENTS])
+    record = {
+        "rounds": rounds,
+        "seeds": seeds,
+        "episodes": episodes,
+        "grid": list(GRID),
+        "evaluation_seeds": evaluation_seeds,
+        "chosen": [{"task": t, "agent": a, "epsilon": c.best, "interior": c.interior} for (t, a), c in choices.items()],
+        "wall_seconds": sum(seconds),
+    }
+    (folder / "tuning.json").write_text(json.dumps(record, indent=1))
+    return choices, sum(seconds)
+
+
+def load_tuning(folder: Path) -> tuple[dict[tuple[str, str], Tuning], dict[str, Any]] | None:
+    """The tuning of a ``run_tuning`` folder, recomputed from its rounds' tables (None when it holds none)."""
+    folder = Path(folder)
+    try:
+        record = json.loads((folder / "tuning.json").read_text())
+        tables = [pd.read_csv(folder / f"round{k}" / "runs.csv.gz") for k in range(int(record["rounds"]))]
+    except (OSError, ValueError, KeyError):
+        return None
+    return choose_all(pd.concat(tables, ignore_index=True), record.get("grid", GRID)), record
+
+
+def _best(curve: pd.DataFrame) -> float:
+    """The ε of the lowest mean (the smallest such ε on an exact tie)."""
+    return float(curve.index.to_numpy(dtype=float)[int(np.argmin(curve["mean"].to_numpy(dtype=float)))])
+
+
+def _eps(value: float) -> str:
+    return f"{value:g}"
+
+
+def tuning_section(ctx: Any) -> dict[tuple[str, str], Tuning] | None:
+    """The tuning's subsection of the section beyond the paper (None, and nothing added, when the folder has none)."""
+    from sb3_affect.study.report.document import fmt
+
+    found = load_tuning(Path(ctx.root) / "tuning")
+    if found is None:
+        return None
+    choices, record = found
+    ctx.doc.h("ε tuned on each task", 3)
+    ctx.doc.p(
+        "ε-greedy and the speed-matched ε-greedy get their ε tuned on each task before the evaluation: grid "
+        f"{', '.join(_eps(v) for v in record['grid'])} (log-spaced), {record['seeds']:,} tuning seeds per value (sweep "
+        f"`{TUNING_SWEEP}`, the same seeds for every value, disjoint from the {record['evaluation_seeds']:,} evaluation "
+        f"seeds: checked), {record['episodes']} episodes per run. Criterion: mean decisions per episode, lower is "
+        f"better; each episode counts at most {BEYOND_CAP:,} decisions, so a truncated episode contributes a lower bound "
+        "of its length and a value with truncated episodes has a restricted mean (a lower bound of the uncapped mean); "
+        "the truncated episodes are counted. When the best value is at an edge of the values run, one value one grid "
+        f"step further out is run (at most {MAX_EXTENSIONS} times, ε within [1e-4, 1]); a best value still at an edge "
+        "is reported as not interior. The chosen ε is run at the evaluation seeds in the table above."
+    )
+    rows = {}
+    for (task, agent), t in choices.items():
+        at_best = dict(zip(t.curve.columns, t.curve.loc[t.best].to_numpy(dtype=float)))
+        rows[f"{task} / {agent}"] = {
+            "values run": ", ".join(_eps(v) for v in t.curve.index),
+            "chosen ε": _eps(t.best),
+            "interior": t.note,
+            "values indistinguishable from it (paired 95% CI of the difference holds 0)": ", ".join(
+                _eps(v) for v in t.within_noise
+            )
+            or "none",
+            "decisions per episode at the chosen ε [95% CI]": f"{fmt(at_best['mean'], 1)} "
+            f"[{fmt(at_best['mean'] - 1.96 * at_best['se'], 1)}, {fmt(at_best['mean'] + 1.96 * at_best['se'], 1)}]",
+            "truncated episodes at the chosen ε (tuning runs)": int(at_best["truncated"]),
+        }
+    table = pd.DataFrame.from_dict(rows, orient="index")
+    table.index.name = "task / agent"
+    ctx.table("tuning_choice", table, "ε tuned per task: the chosen value and whether it lies inside the values run")
+    curves = {}
+    for (task, agent), t in choices.items():
+        short = "ε-greedy" if agent.startswith("epsilon") else "speed ε-greedy"
+        curves[f"{task}: {short}"] = {
+            _eps(float(str(e))): f"{fmt(row['mean'], 1)}"
+            + (f" ({int(row['truncated']):,} trunc.)" if row["truncated"] else "")
+            + (" *" if e == t.best else "")
+            for e, row in t.curve.iterrows()
+        }
+    wide = pd.DataFrame(curves)
+    wide = wide.loc[sorted(wide.index, key=float)].fillna("")
+    wide.index.name = "ε"
+    ctx.table(
+        "tuning_curves",
+        wide.T,
+        "Tuning curves: mean decisions per episode per ε on the tuning seeds (truncated episodes in brackets; * the "
+        "chosen value; blank: not run)",
+    )
+    static = TASKS[0][0]
+    kept = []
+    for (task, agent), t in choices.items():
+        if task != static or 0.01 not in t.curve.index:
+            continue
+        same = t.best == 0.01 or 0.01 in t.within_noise
+        worse = float(t.curve["vs best"].to_numpy()[list(t.curve.index).index(0.01)])
+        kept.append(
+            f"{agent}: best {_eps(t.best)}, and 0.01 is "
+            + ("indistinguishable from it" if same else f"worse by {fmt(worse, 2)} decisions")
+        )
+    if kept:
+        ctx.doc.p(
+            "On the static task the launcher's fair baselines and the verdict's speed-matched ε-greedy keep ε 0.01 (an "
+            "older tuning on that task alone); on the tuning seeds here: " + "; ".join(kept) + " per episode."
+        )
+    return choices

@@ -1,0 +1,62 @@
+"""
+Fig. 5 against Fig. 6, and how their verdicts move with the windows read as "early" and "late".
+
+With only joy and anger possible (Table II as printed), an episode's joy share is its equivalent ε: Fig. 6's "about
+0.3 early" then says joy holds about 30% of early decisions, so joy can not be "dominant early" (Fig. 5) in the
+same per-episode sense. Both statements can hold only when sadness or fear take part of the early decisions, or when
+"dominant" means something other than the larger share.
+"""
+
+from __future__ import annotations
+
+import pandas as pd
+
+from sb3_affect.study.report import claims
+from sb3_affect.study.report.claims_emotions import judge_fig5, judge_fig6
+from sb3_affect.study.report.context import AFFECTIVE, ReportContext
+from sb3_affect.study.report.inference import holm, mean_ci
+from sb3_affect.study.report.metrics import EARLY_WINDOWS, LATE_WINDOWS
+
+
+def window_verdicts(aff: pd.DataFrame) -> pd.DataFrame:
+    """One row per (early, late) window pair: the Fig. 5 and Fig. 6 verdicts and the shares behind them."""
+    rows = {}
+    for lo, hi in EARLY_WINDOWS:
+        for late_lo, late_hi in LATE_WINDOWS:
+            first, last = f"{lo}_{hi}", f"{late_lo}_{late_hi}"
+            row: dict[str, object] = {
+                "joy share early (= equivalent ε)": mean_ci(aff[f"joy_{first}"].to_numpy(float)).text(),
+                "equivalent ε late": mean_ci(aff[f"eqeps_{last}"].to_numpy(float)).text(),
+            }
+            for name, judgement in (
+                ("Fig. 5 (per-episode)", judge_fig5(aff, weighted=False, early=first, late=last)),
+                ("Fig. 5 (decision-weighted)", judge_fig5(aff, weighted=True, early=first, late=last)),
+                ("Fig. 6", judge_fig6(aff, first, last)),
+            ):
+                holm(judgement.tests)
+                row[name] = claims.verdict_word(judgement.decide(judgement) if judgement.decide else "")
+            rows[f"{lo}-{hi} / {late_lo}-{late_hi}"] = row
+    table = pd.DataFrame.from_dict(rows, orient="index")
+    table.index.name = "early / late episodes"
+    return table
+
+
+def windows_section(ctx: ReportContext) -> None:
+    if ctx.verdict_refusal():
+        return
+    from sb3_affect.study.report.scan import paper_scan
+
+    found = paper_scan(ctx)  # the affective runs' window features, from the report's one pass over the episodes
+    if found.last_episode.get(AFFECTIVE, 0) < max(w[1] for w in LATE_WINDOWS):
+        return
+    aff = found.windows
+    ctx.doc.h("Fig. 5 against Fig. 6, and the windows", 3)
+    ctx.doc.p(
+        "With only joy and anger possible, an episode's joy share is its equivalent ε. So Fig. 6's \"about 0.3\" early "
+        "and Fig. 5's \"joy dominant early\" can not both hold per episode: a joy share of 0.3 leaves anger 0.7. Both "
+        "can hold only if sadness or fear took part of the early decisions (impossible under Table II as printed) or "
+        "if Fig. 5 weighs decisions rather than episodes (long random walks hold most decisions). The table shows how "
+        f"the verdicts move with the windows read as \"early\" and \"late\" (paper sweep, {len(aff)} affective runs)."
+    )
+    ctx.table("fig5_fig6_windows", window_verdicts(aff), "Fig. 5 and Fig. 6 verdicts for each choice of windows", 3)
+    found.windows = aff.iloc[:0]  # no other section reads them: their memory is let go before the later sections
