@@ -95,7 +95,7 @@ def paired(name: str, pair: tuple[Callable[[], int], Callable[[], int]], rounds:
 def studies(seeds: int) -> list[dict[str, Any]]:
     from sb3_affect.study.launcher import run_sweep
     from sb3_affect.study.report.beyond_tasks import TASKS, TUNED_AGENTS, beyond_cells
-    from sb3_affect.study.report.largen import run_cells
+    from sb3_affect.study.report.engine_studies import run_cells
 
     rows = []
     listed = "[" + ", ".join(str(i) for i in range(seeds)) + "]"

@@ -10,8 +10,8 @@ import pytest
 
 from sb3_affect.study.launcher import run_sweep
 from sb3_affect.study.report import claims
+from sb3_affect.study.report.engine_studies import Cell, run_cells
 from sb3_affect.study.report.evidence import sensitivity
-from sb3_affect.study.report.largen import Cell, run_cells
 from sb3_affect.study.report.metrics import load_results, run_metrics
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -103,18 +103,6 @@ def value_kind(model: Any) -> str:
     )
 
 
-def default_value_fn(model: Any) -> ValueFn:
-    """A one-observation value function of a model (for a model whose value needs no recurrent state)."""
-    kind = value_kind(model)
-    if kind == "recurrent":
-        raise TypeError("RecurrentPPO's values need its LSTM states; BroekensCallback reads them during learn")
-
-    def value(model: Any, obs: Any) -> float:
-        return float(_model_values(model, kind, obs)[0])
-
-    return {"tabular": tabular_value, "q_net": dqn_value, "value_head": critic_value}.get(kind, value)
-
-
 def _model_values(model: Any, kind: str, obs: Any, lstm: Any = None, starts: Any = None) -> np.ndarray:
     """The values of a batch of observations (``obs``: a VecEnv's batch, or a dict of batches)."""
     if kind == "tabular":

@@ -29,6 +29,7 @@ from sb3_affect.agents.compiled_moving import MovingKernelRun
 from sb3_affect.agents.compiled_run import RunArrays
 from sb3_affect.agents.compiled_state import KernelRun
 from sb3_affect.agents.reference_loop import episode_end_info, step_locals
+from sb3_affect.core.emotions import EMOTION_NAMES
 from sb3_affect.core.episode_log import COLUMN
 from sb3_affect.core.settings import TabularSettings
 from sb3_affect.kernel import arrays
@@ -213,10 +214,9 @@ def _record(model: Any, run: RunArrays, log_interval: int | None) -> None:
     logger = model.logger  # recorded whenever a logger exists, as SB3 does (per chunk of episodes, never per decision)
     row = model._episode_blocks.last()
     if run.agent.kind == arrays.AFFECT:
-        names = ("joy", "sadness", "fear", "anger")
-        counts = [row[COLUMN[name]] for name in names]
+        counts = [row[COLUMN[name]] for name in EMOTION_NAMES]
         total = sum(counts)
-        for name, count in zip(names, counts):
+        for name, count in zip(EMOTION_NAMES, counts):
             logger.record(f"affect/{name}", count / total)
         norm = row[COLUMN["norm"]]
         logger.record("affect/norm", norm if norm == norm else 0.0)

@@ -6,7 +6,11 @@ are stored as plain data, the episode log as a list of rows; loading unpickles n
 
 from __future__ import annotations
 
+import contextlib
+import importlib
 import random
+import sys
+from collections.abc import Iterator
 from typing import Any, TypeVar
 
 import torch as th
@@ -15,8 +19,23 @@ from stable_baselines3.common.type_aliases import GymEnv
 
 from sb3_affect.agents.serialization import add_plain_description, load_safe
 from sb3_affect.core.episode_blocks import EpisodeBlocks
+from sb3_affect.core.registry import FORMER_MODULES
 
 SelfFiles = TypeVar("SelfFiles", bound="ModelFiles")
+
+
+@contextlib.contextmanager
+def _former_module_names() -> Iterator[None]:
+    """SB3's legacy loader unpickles classes by module name: for files pickled before the package's modules moved into
+    layer folders, the former names (``registry.FORMER_MODULES``) stand for the modules while it runs."""
+    added = [name for name in FORMER_MODULES if name not in sys.modules]
+    for name in added:
+        sys.modules[name] = importlib.import_module(FORMER_MODULES[name])
+    try:
+        yield
+    finally:
+        for name in added:
+            sys.modules.pop(name, None)
 
 __all__ = ["ModelFiles"]
 
@@ -77,13 +96,14 @@ class ModelFiles(BaseAlgorithm):
         :return: the loaded model
         """
         if not safe:
-            return super().load(
-                path,
-                env=env,
-                device=device,
-                custom_objects=custom_objects,
-                print_system_info=print_system_info,
-                force_reset=force_reset,
-                **kwargs,
-            )
+            with _former_module_names():
+                return super().load(
+                    path,
+                    env=env,
+                    device=device,
+                    custom_objects=custom_objects,
+                    print_system_info=print_system_info,
+                    force_reset=force_reset,
+                    **kwargs,
+                )
         return load_safe(cls, path, env=env, device=device, force_reset=force_reset, custom_objects=custom_objects, **kwargs)

@@ -15,16 +15,14 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from sb3_affect.core.episode_log import EPISODE_COLUMNS, make_frame
+from sb3_affect.core.episode_log import EPISODE_COLUMNS, FLAG_COLUMNS, FLOAT_COLUMNS, INT_COLUMNS, make_frame
 
 if TYPE_CHECKING:
     import pandas as pd
 
 __all__ = ["EpisodeBlocks"]
 
-_INTS = ("episode", "decisions", "cells", "waits", "joy", "sadness", "fear", "anger")
-_FLAGS = ("optimal", "truncated", "greedy_optimal")
-_FLOATS = ("reward", "random_moves", "norm")
+_INTS, _FLAGS, _FLOATS = INT_COLUMNS, FLAG_COLUMNS, FLOAT_COLUMNS
 _INDEX = {name: i for i, name in enumerate(EPISODE_COLUMNS)}
 _MAX_BLOCKS = 256
 

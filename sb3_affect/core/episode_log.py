@@ -5,6 +5,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import TYPE_CHECKING, Any, NamedTuple, Protocol
 
+from sb3_affect.core.emotions import EMOTION_NAMES
 from sb3_affect.envs.transition_table import TransitionTable
 
 if TYPE_CHECKING:
@@ -20,13 +21,15 @@ EPISODE_COLUMNS: tuple[str, ...] = (
     "truncated",  # ended by the safety cap (or the env's own time limit), not at the goal
     "random_moves",  # decisions whose direction was drawn at random (NaN when the algorithm does not say)
     "waits",  # decisions that moved 0 cells
-    "joy",
-    "sadness",
-    "fear",
-    "anger",  # decisions taken in each emotion
+    *EMOTION_NAMES,  # decisions taken in each emotion: joy, sadness, fear, anger
     "greedy_optimal",  # after this episode, every greedy choice from the start walks a shortest path
     "norm",  # the appraisal norm in force during the episode (NaN when there was none)
 )
+
+#: The columns by type: counts, flags (NaN where a run can not tell) and floats.
+INT_COLUMNS: tuple[str, ...] = ("episode", "decisions", "cells", "waits", *EMOTION_NAMES)
+FLAG_COLUMNS: tuple[str, ...] = ("optimal", "truncated", "greedy_optimal")
+FLOAT_COLUMNS: tuple[str, ...] = ("reward", "random_moves", "norm")
 
 #: Where each column sits in a row of the episode log (``row[COLUMN["decisions"]]``).
 COLUMN: dict[str, int] = {name: i for i, name in enumerate(EPISODE_COLUMNS)}
@@ -102,9 +105,9 @@ def make_frame(rows: Sequence[Sequence[Any]]) -> pd.DataFrame:
     import pandas as pd
 
     frame = pd.DataFrame(list(rows), columns=list(EPISODE_COLUMNS))
-    for column in ("episode", "decisions", "cells", "waits", "joy", "sadness", "fear", "anger"):
+    for column in INT_COLUMNS:
         frame[column] = frame[column].astype("int64")
-    for column in ("optimal", "truncated", "greedy_optimal"):
+    for column in FLAG_COLUMNS:
         if frame[column].notna().all():
             frame[column] = frame[column].astype(bool)
     for column in ("reward", "random_moves", "norm"):

@@ -30,6 +30,7 @@ FORMER_MODULES: dict[str, str] = {
     "sb3_affect.qlearning": "sb3_affect.agents.qlearning",
     "sb3_affect.affectq": "sb3_affect.agents.affectq",
     "sb3_affect.tabular": "sb3_affect.agents.tabular",
+    "sb3_affect.policies": "sb3_affect.agents.policies",
     "sb3_affect.baselines": "sb3_affect.agents.baselines",
     **{f"sb3_affect.baselines.{leaf}": f"sb3_affect.agents.baselines.{leaf}"
        for leaf in ("boltzmann", "decaying", "optimistic", "speed", "ucb")},

@@ -28,7 +28,7 @@ PARTS = (
 )
 #: Sizes of the engine studies (seeds per cell; episodes per run), read when ``main`` runs.
 LARGE_SEEDS, ABLATION_SEEDS, BEYOND_SEEDS, ENGINE_EPISODES = 1000, 20, 1000, 200
-#: Seeds per cell of the speed ablation and of the long-run study (whose runs have ``largen.LONG_EPISODES`` episodes).
+#: Seeds per cell of the speed ablation and of the long-run study (whose runs have ``engine_studies.LONG_EPISODES`` episodes).
 SPEED_ONE_SEEDS, LONG_SEEDS = 500, 50
 #: Tuning seeds per ε value of the per-task tuning (``report.tuning``), disjoint from the evaluation's seeds.
 TUNING_SEEDS = 200
@@ -129,7 +129,7 @@ def main(
     from sb3_affect.study.report import build_report, paper
     from sb3_affect.study.report.ablation import ablation_cells
     from sb3_affect.study.report.beyond_tasks import beyond_cells
-    from sb3_affect.study.report.largen import LONG_EPISODES, large_cells, long_cells, run_cells, speed_one_cells
+    from sb3_affect.study.report.engine_studies import LONG_EPISODES, large_cells, long_cells, run_cells, speed_one_cells
     from sb3_affect.study.report.tuning import run_tuning
 
     experiments = sweeps_folder(experiments)

@@ -23,13 +23,11 @@ from typing import Any
 
 import numpy as np
 
-from sb3_affect.core.episode_log import EPISODE_COLUMNS
+from sb3_affect.core.episode_log import EPISODE_COLUMNS, FLAG_COLUMNS, INT_COLUMNS
 
 CHUNK_SCHEMA = 2
 META_KEY = b"sb3_affect"
-INT_COLUMNS = ("episode", "decisions", "cells", "waits", "joy", "sadness", "fear", "anger")
-BOOL_COLUMNS = ("optimal", "truncated", "greedy_optimal")
-FLOAT_COLUMNS = ("reward", "random_moves", "norm")
+BOOL_COLUMNS = FLAG_COLUMNS
 
 
 def run_config(base: dict[str, Any], seed: int, replicate: int) -> dict[str, Any]:

@@ -11,11 +11,12 @@ from itertools import product
 
 import pandas as pd
 
+from sb3_affect.core.emotions import EMOTION_NAMES
 from sb3_affect.study.report import figures, paper
 from sb3_affect.study.report.claims_emotions import km_restricted_mean
 from sb3_affect.study.report.context import ReportContext
 from sb3_affect.study.report.document import fmt
-from sb3_affect.study.report.largen import Cell, study
+from sb3_affect.study.report.engine_studies import Cell, study
 from sb3_affect.study.report.metrics import load_results, run_metrics
 
 MEASURE = (
@@ -26,7 +27,7 @@ MEASURE = (
     "emotion in episodes 1-10 and (6) 1 if anger is not the dominant emotion in episodes 181-200 (mean of per-episode "
     "fractions). Lower is closer."
 )
-EMOTIONS = ("joy", "sadness", "fear", "anger")
+EMOTIONS = EMOTION_NAMES
 
 
 def ablation_cells() -> list[Cell]:

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from sb3_affect.core.emotions import EMOTION_NAMES
 from sb3_affect.study.report.metrics import load_run_records
 
 METRICS = ("decisions_per_episode", "cells_per_episode", "steps_before_optimal")
@@ -160,13 +161,13 @@ def emotion_profile(records: Iterable[dict[str, Any]], prefix: str = "affective"
             continue
         episodes = record["episodes"]
         row = {"task": record_metrics(record)["task"], "agent": config["agent"], "decisions": sum(episodes["decisions"])}
-        for emotion in ("joy", "sadness", "fear", "anger"):
+        for emotion in EMOTION_NAMES:
             row[emotion] = sum(episodes[emotion])
         rows.append(row)
     if not rows:
-        return pd.DataFrame(columns=["task", "agent", "joy", "sadness", "fear", "anger"])
+        return pd.DataFrame(columns=["task", "agent", *EMOTION_NAMES])
     totals = pd.DataFrame(rows).groupby(["task", "agent"], sort=False).sum()
-    fractions = totals[["joy", "sadness", "fear", "anger"]].div(totals["decisions"], axis=0)
+    fractions = totals[list(EMOTION_NAMES)].div(totals["decisions"], axis=0)
     return fractions.reset_index()
 
 
@@ -179,7 +180,7 @@ def profile_markdown(profile: pd.DataFrame) -> str:
         "|---|---|---|---|---|---|",
     ]
     for _, row in profile.iterrows():
-        values = " | ".join(f"{row[e]:.3f}" for e in ("joy", "sadness", "fear", "anger"))
+        values = " | ".join(f"{row[e]:.3f}" for e in EMOTION_NAMES)
         lines.append(f"| {row['task']} | {row['agent']} | {values} |")
     return "\n".join(lines) + "\n"
 

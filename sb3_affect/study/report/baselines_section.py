@@ -22,7 +22,7 @@ from sb3_affect.study.report.baseline_summary import emotion_profile, markdown, 
 from sb3_affect.study.report.beyond_tasks import BEYOND_AGENTS, BEYOND_CAP, TASKS, TUNED_AGENTS, beyond_cells
 from sb3_affect.study.report.context import ReportContext
 from sb3_affect.study.report.document import fmt
-from sb3_affect.study.report.largen import study
+from sb3_affect.study.report.engine_studies import study
 from sb3_affect.study.report.metrics import load_run_records
 from sb3_affect.study.report.stats import bootstrap_ci
 from sb3_affect.study.report.tuning import tuning_section

@@ -9,7 +9,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from sb3_affect.study.report.largen import PAPER_ENV, Cell
+from sb3_affect.study.report.engine_studies import PAPER_ENV, Cell
 
 #: Tasks beyond the paper run through the engine: (task label, env id, env kwargs).
 TASKS: tuple[tuple[str, str, dict[str, Any]], ...] = (

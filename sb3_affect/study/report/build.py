@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from sb3_affect.study.report import largen, resamples
+from sb3_affect.study.report import engine_studies, resamples
 from sb3_affect.study.report.ablation import ablation_section
 from sb3_affect.study.report.abstract import abstract_section
 from sb3_affect.study.report.baselines_section import beyond_section
@@ -253,7 +253,7 @@ def build_report(
         raise ValueError(f"{paper_dir / 'runs'} holds no finished runs")
     release_memory()
     found = scan(results, (*EARLY_WINDOWS, *LATE_WINDOWS), release_memory)  # one pass over the episode rows, by parts
-    meta = largen.large_meta(run_dir)
+    meta = engine_studies.large_meta(run_dir)
     large = pd.read_csv(run_dir / "large" / "runs.csv.gz") if meta else None
     ctx = ReportContext(
         Document("Q-Learning with Basic Emotions: a replication study"),

@@ -16,8 +16,8 @@ from scipy import stats as sps
 
 from sb3_affect.study.report.context import AFFECTIVE, STANDARD, ReportContext
 from sb3_affect.study.report.document import fmt, pval
+from sb3_affect.study.report.engine_studies import SPEED_AGENT
 from sb3_affect.study.report.figures import save
-from sb3_affect.study.report.largen import SPEED_AGENT
 from sb3_affect.study.report.metrics import load_results, run_metrics
 from sb3_affect.study.report.resamples import in_threads
 from sb3_affect.study.report.stats import bootstrap_improvement, bootstrap_iqm_cis, bootstrap_profile

@@ -35,7 +35,7 @@ class ReportContext:
     :param paper: the paper sweep's results (``metrics`` holds one row per run)
     :param metrics: per-run metrics of ``paper``
     :param folders: other results folders found in ``root`` by name (dqn, ablation, baselines, ...)
-    :param large: per-run metrics of the large-N study (``report.largen``), or None
+    :param large: per-run metrics of the large-N study (``report.engine_studies``), or None
     :param large_meta: its seeds, episodes and wall time
     :param judgements: the claims judged (filled by the verdict section)
     :param timings: wall time of each sweep (for the reproducibility record)
@@ -90,8 +90,8 @@ class ReportContext:
         self.doc.table(frame, caption + f" (tables/{name}.csv)", digits)
 
     def study(self, name: str) -> pd.DataFrame | None:
-        """The per-run table of the engine study ``root/<name>`` (``report.largen``), or None."""
-        from sb3_affect.study.report.largen import study
+        """The per-run table of the engine study ``root/<name>`` (``report.engine_studies``), or None."""
+        from sb3_affect.study.report.engine_studies import study
 
         found = study(self.root, name)
         return found[0] if found else None

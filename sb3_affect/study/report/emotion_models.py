@@ -15,9 +15,10 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from sb3_affect.core.emotions import EMOTION_NAMES
 from sb3_affect.study.report.hunters import markdown_table, team_runs
 
-PAPER = ("joy", "sadness", "fear", "anger")
+PAPER = EMOTION_NAMES
 BROEKENS = ("joy", "distress", "hope", "fear")
 EARLY, LATE = 10, 20
 

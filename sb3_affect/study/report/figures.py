@@ -7,6 +7,8 @@ from pathlib import Path
 
 import matplotlib
 
+from sb3_affect.core.emotions import EMOTION_NAMES
+
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
@@ -109,7 +111,7 @@ def dot_sample(data: pd.DataFrame, per_cell: int = DOTS_PER_CELL, seed: int = 0)
 def emotion_profile(prof: pd.DataFrame, path: Path, title: str = "Fig. 5: emotion profile per episode") -> Path:
     """Two panels: the mean over runs of per-episode fractions (95% band), and the decision-weighted fractions."""
     fig, axes = plt.subplots(1, 2, figsize=(10.0, 4.0), sharey=True)
-    for emotion in ("joy", "sadness", "fear", "anger"):
+    for emotion in EMOTION_NAMES:
         colour = COLOURS[emotion]
         style = "-" if emotion in ("joy", "anger") else ":"
         axes[0].plot(prof.index, prof[f"{emotion}_mean"], color=colour, ls=style, label=emotion)

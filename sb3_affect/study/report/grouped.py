@@ -106,20 +106,6 @@ def _labels(labels: np.ndarray) -> np.ndarray:
     return np.ascontiguousarray(labels, np.int64)
 
 
-def group_mean(values: np.ndarray, labels: np.ndarray, groups: int) -> np.ndarray:
-    """pandas' ``Series(values).groupby(labels).mean()`` for groups ``0..groups - 1`` (NaN: no value in the group)."""
-    sums = KahanSums()
-    sums.add(values, labels, groups)
-    return sums.mean()
-
-
-def group_sum(values: np.ndarray, labels: np.ndarray, groups: int) -> np.ndarray:
-    """pandas' ``groupby(labels).sum()`` of floats for groups ``0..groups - 1`` (0.0: no value in the group)."""
-    sums = KahanSums()
-    sums.add(values, labels, groups)
-    return sums.sums
-
-
 @njit(cache=True, nogil=True)
 def _window_bounds(
     episode: np.ndarray, starts: np.ndarray, counts: np.ndarray, lo: int, hi: int, first: np.ndarray, last: np.ndarray

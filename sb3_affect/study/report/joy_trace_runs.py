@@ -43,7 +43,7 @@ def trace(seed: int, episodes: int, env_kwargs: dict[str, Any] | None = None) ->
     from stable_baselines3.common.callbacks import StopTrainingOnMaxEpisodes
 
     from sb3_affect import AffectQ
-    from sb3_affect.study.report.largen import COMMON, PAPER_ENV
+    from sb3_affect.study.report.engine_studies import COMMON, PAPER_ENV
 
     env = gym.make(PAPER_ENV[0], **(env_kwargs or PAPER_ENV[1]))
     callback = TraceCallback()

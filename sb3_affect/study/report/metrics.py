@@ -19,9 +19,10 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from sb3_affect.core.emotions import EMOTION_NAMES
 from sb3_affect.study.report.grouped import segment_means, window_bounds
 
-EMOTIONS = ("joy", "sadness", "fear", "anger")
+EMOTIONS = EMOTION_NAMES
 #: Windows of episodes the report summarises (early, after the first optimal path on average, late).
 EARLY, LATE = (1, 10), (181, 200)
 #: The early and late windows the windows section tries (Figs. 5 and 6: how the verdicts move with the windows).
@@ -168,7 +169,7 @@ class Results:
         time: the same table as ``run_metrics(episodes, runs)`` (``with_runs``; else ``run_metrics(episodes)``), with
         one part's episode rows in memory at a time.
         """
-        columns = tuple(dict.fromkeys((*self.columns, *_METRIC_COLUMNS)))
+        columns = tuple(dict.fromkeys((*self.columns, *REPORT_COLUMNS)))
         frames = [
             run_metrics(episodes, runs if with_runs else None, windows)
             for runs, episodes in self.parts(columns, agent, RUNS_PER_PART)
@@ -186,10 +187,6 @@ def _joined(pieces: list[Any]) -> Any:
     categories = categories.sort_values()
     codes = np.concatenate([np.where(c >= 0, categories.get_indexer(cats)[c], -1).astype(np.int32) for c, cats in pieces])
     return pd.Categorical.from_codes(codes, categories=categories)
-
-
-#: The episode columns ``run_metrics`` reads.
-_METRIC_COLUMNS = ("episode", "decisions", "cells", "optimal", "truncated", "random_moves", *EMOTIONS, "greedy_optimal")
 
 
 def join_parts(frames: Sequence[pd.DataFrame]) -> pd.DataFrame:

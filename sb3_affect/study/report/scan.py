@@ -14,7 +14,7 @@ per-run metrics) is reduced here, part by part, while the rows are read once.
 
 Every reduction either sums integers (exact in any order) or adds floats in the order a whole-frame pandas groupby
 would (``report.grouped``), so the numbers are those of the whole-frame computations (tests/test_report_lean.py).
-Memory: two parts' rows (the next part is read in a background thread while one is reduced, ``report.ahead``), the
+Memory: two parts' rows (the next part is read in a background thread while one is reduced, ``report.read_ahead``), the
 per-run table, the settled window's decisions and joy (8 bytes an episode of it).
 """
 
@@ -28,7 +28,6 @@ import numpy as np
 import pandas as pd
 
 from sb3_affect.study.report import metrics as metrics_module
-from sb3_affect.study.report.ahead import read_ahead
 from sb3_affect.study.report.context import AFFECTIVE
 from sb3_affect.study.report.grouped import KahanSums, Welford
 from sb3_affect.study.report.metrics import (
@@ -42,6 +41,7 @@ from sb3_affect.study.report.metrics import (
     run_metrics,
     run_windows,
 )
+from sb3_affect.study.report.read_ahead import read_ahead
 from sb3_affect.study.report.settled import SETTLED, settled_part
 
 if TYPE_CHECKING:
@@ -100,7 +100,7 @@ def scan(
     :param agent: the agent of the windows, the settled window and the profile (the affective agent)
     """
     runs = results.runs
-    columns = tuple(dict.fromkeys((*results.columns, *metrics_module._METRIC_COLUMNS)))
+    columns = tuple(dict.fromkeys((*results.columns, *metrics_module.REPORT_COLUMNS)))
     windows = tuple(dict.fromkeys((EARLY, LATE, *extra_windows)))
     frames: list[pd.DataFrame] = []
     window_frames: list[pd.DataFrame] = []

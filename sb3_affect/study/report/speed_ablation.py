@@ -1,6 +1,6 @@
 """
 The speed ablation: does the affective agent's advantage come from its 2-cell moves? The affective agent with every
-speed fixed at 1 cell (``report.largen.speed_one_cells``) beside the affective agent and ε-greedy, in decisions (time)
+speed fixed at 1 cell (``report.engine_studies.speed_one_cells``) beside the affective agent and ε-greedy, in decisions (time)
 and in cells (distance).
 """
 
@@ -9,8 +9,8 @@ from __future__ import annotations
 import pandas as pd
 
 from sb3_affect.study.report.context import AFFECTIVE, STANDARD, ReportContext
+from sb3_affect.study.report.engine_studies import SPEED_ONE_AGENT
 from sb3_affect.study.report.judgement import cell_means, diff_over_eps, over_eps
-from sb3_affect.study.report.largen import SPEED_ONE_AGENT
 
 METRICS = (
     ("decisions_per_episode", "decisions per episode"),

@@ -9,7 +9,7 @@ the best value is at an edge of the values run, one more value one grid step fur
 ``MAX_EXTENSIONS`` times and within ``RANGE``; a best value still at an edge is reported as such, never as interior.
 The same tuning seeds serve every ε of a (task, agent), so the curve's differences are paired (common random numbers).
 
-Results: ``DIR/round<k>/`` (``largen.run_cells``: one folder per round, the grid first, then the extensions) and
+Results: ``DIR/round<k>/`` (``engine_studies.run_cells``: one folder per round, the grid first, then the extensions) and
 ``DIR/tuning.json`` (the rounds that make the result, seeds, episodes, the chosen values). The report recomputes the
 curves and choices from the rounds' tables with the same functions.
 """
@@ -27,7 +27,7 @@ import numpy as np
 import pandas as pd
 
 from sb3_affect.study.report.beyond_tasks import BEYOND_CAP, SWEEP, TASKS, TUNED_AGENTS
-from sb3_affect.study.report.largen import Cell, run_cells
+from sb3_affect.study.report.engine_studies import Cell, run_cells
 
 #: The tuning grid: log-spaced from 0.001 to 0.5.
 GRID: tuple[float, ...] = (0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5)

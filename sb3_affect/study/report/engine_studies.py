@@ -182,11 +182,6 @@ def run_cells(
     return table, meta
 
 
-def run_large(out_dir: Path, seeds: int = 1000, episodes: int = paper.EPISODES, workers: int | None = None) -> pd.DataFrame:
-    """The large-N study into ``out_dir/large`` (see ``run_cells``)."""
-    return run_cells(Path(out_dir) / "large", large_cells(), seeds, episodes, workers)[0]
-
-
 def study(out_dir: Path, name: str) -> tuple[pd.DataFrame, dict[str, Any]] | None:
     """A study's per-run table and meta data from ``out_dir/<name>`` (None when there is none)."""
     folder = Path(out_dir) / name
