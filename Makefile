@@ -24,6 +24,8 @@ $(STAMP): pyproject.toml
 	@PYTHONWARNINGS="ignore:Editable installation" $(PY) -m pip install -q -e '.[all,test,docs]'
 	@echo "== installing the optional Ray extra (1-2 min) ..."
 	@PYTHONWARNINGS="ignore:Editable installation" $(PY) -m pip install -q -e '.[ray]' || echo "note: the optional Ray extra could not be installed; Ray tests will be skipped"
+	@echo "== compiling the compiled engine's kernels once for this machine (1-3 min; later runs load them) ..."
+	@$(PY) -m sb3_affect.kernel
 	@touch $(STAMP)
 	@echo "== installed in $(VENV). To use the sb3-affect command in this shell: source $(VENV)/bin/activate"
 

@@ -60,10 +60,14 @@ refresh_cache(Path(__file__).parent, Path(__file__).parent / "__pycache__")
 
 def warm_up() -> None:
     """
-    Load every kernel now (compiling it, the first time on a machine), without building a model (no torch): for
-    example in a launcher before it forks workers, so that each worker does not import numba and load the kernels
-    again (seconds per process). Cheap once the cache is warm.
+    Load every kernel now (the grid, moving-prey and team kernels; compiling them, the first time on a machine),
+    without building a model (no torch): for example in a launcher before it forks workers, so that each worker does
+    not compile (on a cold cache) or load them again. Cheap once the cache is warm. ``make venv`` runs it once, so a
+    first ``make replicate`` finds the kernels compiled (``python -m sb3_affect.kernel``).
     """
-    from sb3_affect.kernel.batch import warm_up as load
+    from sb3_affect.kernel.batch import warm_up as grid
+    from sb3_affect.kernel.prey_batch import warm_up as moving
+    from sb3_affect.kernel.team_inputs import warm_up as team
 
-    load()
+    for load in (grid, moving, team):
+        load()

@@ -216,3 +216,12 @@ def moving_batch_reason(model: Any) -> str | None:
     if settings.episode_parameters(0, 1) is None:
         return "a schedule depends on the training progress, which only the Python side evaluates (one episode at a time)"
     return None
+
+
+def warm_up() -> None:
+    """Load (the first time on a machine: compile) the moving-prey kernel, on a 3 x 3 grid with an evading prey."""
+    from sb3_affect.core.settings import AffectQSettings
+    from sb3_affect.envs.moving_pursuit import MovingPursuitEnv
+
+    env = MovingPursuitEnv(size=3, start=(0, 0), prey_start=(2, 2), prey="evade")
+    run_moving(moving_inputs(AffectQSettings(max_episode_decisions=20), env, 1), [0], 1)

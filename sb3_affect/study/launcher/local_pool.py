@@ -27,7 +27,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
-from sb3_affect.study.launcher.batches import Batch, Job, TeamBatch
+from sb3_affect.study.launcher.batches import Batch, Job
 from sb3_affect.study.launcher.signals import STOP_SIGNALS, worker_signals
 
 OnResult = Callable[[Job, dict[str, Any]], None]
@@ -85,17 +85,12 @@ def describe_exit(code: int | None) -> str:
 
 def preload(jobs: list[Job]) -> None:
     """
-    Load here, once, what every forked worker would otherwise load again: the compiled engine's kernels (no torch; the
-    team kernel when there are team batches),
+    Load here, once, what every forked worker would otherwise load again: every kernel of the compiled engine (no torch),
     ``simulate``, the Parquet writer and the package versions the chunks record (no pandas: the chunks are written
     from NumPy arrays).
     """
     if not any(isinstance(job, Batch) for job in jobs):
         return
-    if any(isinstance(job, TeamBatch) for job in jobs):
-        from sb3_affect.kernel.team_inputs import warm_up as warm_up_teams
-
-        warm_up_teams()
     import pyarrow.parquet  # noqa: F401
 
     import sb3_affect.engine.simulation  # noqa: F401

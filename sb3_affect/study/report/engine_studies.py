@@ -170,6 +170,9 @@ def run_cells(
     workers = workers or len(os.sched_getaffinity(0))
     start = time.perf_counter()
     if workers > 1 and len(jobs) > 1:
+        from sb3_affect.kernel import warm_up
+
+        warm_up()  # the forked workers share the kernels loaded (or, on a cold cache, compiled) once here
         with ProcessPoolExecutor(min(workers, len(jobs))) as pool:
             frames = list(pool.map(_chunk, jobs))
     else:
