@@ -253,10 +253,9 @@ def _draw_by_draw_improvement(x: np.ndarray, y: np.ndarray, n_boot: int, seed: i
     return float(np.percentile(boots, tail)), float(np.percentile(boots, 100 - tail))
 
 
-@pytest.mark.parametrize("keep", [resamples.KEEP_CELLS, 100])  # draws kept, and drawn a block at a time
-def test_bootstraps_are_the_draw_by_draw_numbers(keep: int, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(resamples, "KEEP_CELLS", keep)
-    resamples.forget()
+@pytest.mark.parametrize("whole", [resamples.WHOLE_CELLS, 100])  # draws drawn whole, and a block at a time
+def test_bootstraps_are_the_draw_by_draw_numbers(whole: int, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(resamples, "WHOLE_CELLS", whole)
     rng = np.random.default_rng(8)
     for n in (1, 2, 5, 64, 301, 4000):
         for values in (rng.integers(0, 40, n).astype(float), rng.lognormal(3.0, 2.0, n)):  # ties, and none
@@ -264,7 +263,7 @@ def test_bootstraps_are_the_draw_by_draw_numbers(keep: int, monkeypatch: pytest.
             for statistic in ("mean", "iqm"):
                 expected = _draw_by_draw_ci(values, statistic, 120, n)
                 assert bootstrap_ci(values, statistic, n_boot=120, seed=n) == expected, (n, statistic)
-                assert bootstrap_ci(values, statistic, n_boot=120, seed=n) == expected, (n, statistic)  # kept draws
+                assert bootstrap_ci(values, statistic, n_boot=120, seed=n) == expected, (n, statistic)  # drawn again
             shared = [values, values[::-1] * 2.0, np.sqrt(np.abs(values))]  # one size: one set of draws
             assert bootstrap_iqm_cis(shared, n_boot=120, seed=n) == [_draw_by_draw_ci(v, "iqm", 120, n) for v in shared]
             mixed = [values, values[: max(1, n // 2)]]  # sizes differ: each its own draws
@@ -273,7 +272,6 @@ def test_bootstraps_are_the_draw_by_draw_numbers(keep: int, monkeypatch: pytest.
             for lower in (True, False):
                 got = bootstrap_improvement(values[~np.isnan(values)], other, n_boot=40, seed=2, lower_is_better=lower)
                 assert got[1:] == _draw_by_draw_improvement(values[~np.isnan(values)], other, 40, 2, lower), (n, lower)
-    resamples.forget()
 
 
 def test_the_mechanism_bootstrap_of_integer_sums_is_the_gathered_one() -> None:

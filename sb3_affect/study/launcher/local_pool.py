@@ -33,24 +33,6 @@ from sb3_affect.study.launcher.signals import STOP_SIGNALS, worker_signals
 OnResult = Callable[[Job, dict[str, Any]], None]
 OnFailure = Callable[[Job, str], None]
 
-#: glibc's ``mallopt`` parameters and the size below which a batch worker keeps freed memory for its next batch
-M_TRIM_THRESHOLD, M_MMAP_THRESHOLD, KEEP_BELOW = -1, -3, 1 << 30
-
-
-def keep_freed_memory() -> None:
-    """
-    Let a batch worker reuse the memory of one batch for the next (best effort; glibc only). By default glibc gives
-    every large block (a batch's result columns: tens of MB) back to the system when it is freed, so the next batch
-    takes it again page by page, one page fault each: about half the system time of a sweep of large batches.
-    """
-    with contextlib.suppress(Exception):
-        import ctypes
-
-        libc = ctypes.CDLL("libc.so.6")
-        libc.mallopt(M_MMAP_THRESHOLD, KEEP_BELOW)
-        libc.mallopt(M_TRIM_THRESHOLD, KEEP_BELOW)
-
-
 def _execute(job: Job) -> tuple[str, Any]:
     try:
         return "ok", job.execute()
@@ -61,8 +43,6 @@ def _execute(job: Job) -> tuple[str, Any]:
 def _worker(first: Job, conn: Any, launcher: int) -> None:
     """A worker's life: ``first``, then (a batch worker) every job the launcher sends, until it sends None."""
     worker_signals(launcher)  # Ctrl-C is the launcher's; its SIGTERM stops the worker; the worker dies with it
-    if isinstance(first, Batch):
-        keep_freed_memory()
     job: Job | None = first
     while job is not None:
         conn.send(_execute(job))

@@ -379,7 +379,7 @@ class ResultsStore:
 
     def results(self, columns: Sequence[str] | None = None, seed: bool = True) -> tuple[pd.DataFrame, pd.DataFrame]:
         """
-        Every finished run (either layout) as two tables, read column-wise (``experiments.reading``): no Python object
+        Every finished run (either layout) as two tables, read column-wise (``launcher.folder_reading``): no Python object
         per episode, each column allocated once.
 
         :param columns: the episode columns wanted (default every ``EPISODE_COLUMNS`` column)

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from sb3_affect.study.report import engine_studies, resamples
+from sb3_affect.study.report import engine_studies
 from sb3_affect.study.report.ablation import ablation_section
 from sb3_affect.study.report.abstract import abstract_section
 from sb3_affect.study.report.baselines_section import beyond_section
@@ -251,8 +251,7 @@ def build_report(
     results = load_results(paper_dir)
     if not len(results.runs) or not int(results.runs.episodes.sum()):
         raise ValueError(f"{paper_dir / 'runs'} holds no finished runs")
-    release_memory()
-    found = scan(results, (*EARLY_WINDOWS, *LATE_WINDOWS), release_memory)  # one pass over the episode rows, by parts
+    found = scan(results, (*EARLY_WINDOWS, *LATE_WINDOWS))  # one pass over the episode rows, by parts
     meta = engine_studies.large_meta(run_dir)
     large = pd.read_csv(run_dir / "large" / "runs.csv.gz") if meta else None
     ctx = ReportContext(
@@ -269,33 +268,12 @@ def build_report(
         cache={"scan": found},
     )
     del found
-    release_memory()
     for section in sections if sections is not None else [*SECTIONS, *extra_sections, *APPENDIX]:
         section(ctx)
-        resamples.forget()  # a section's resamples (the next section draws for other sizes or seeds)
-        release_memory()  # what a section let go, before the next one asks for more
-    resamples.forget()
-    ctx.finish_deferred()
     md = out / "report.md"
     md.write_text(ctx.doc.markdown(out))
     (out / "report.html").write_text(ctx.doc.html())
     return md
-
-
-def release_memory() -> None:
-    """
-    Hand the heap's free pages back to the system (glibc's ``malloc_trim``; elsewhere nothing). Arrays freed by a
-    part or a section otherwise stay in the process's heap between larger ones, and count in its resident memory.
-    """
-    import contextlib
-    import ctypes
-    import ctypes.util
-
-    import pyarrow as pa
-
-    pa.default_memory_pool().release_unused()  # the Parquet reader's pool too
-    with contextlib.suppress(OSError, AttributeError, TypeError):  # not glibc: nothing to do
-        ctypes.CDLL(ctypes.util.find_library("c")).malloc_trim(0)
 
 
 def summary_numbers(run_dir: Path) -> dict[str, float]:

@@ -19,7 +19,6 @@ from sb3_affect.study.report.document import fmt, pval
 from sb3_affect.study.report.engine_studies import SPEED_AGENT
 from sb3_affect.study.report.figures import save
 from sb3_affect.study.report.metrics import load_results, run_metrics
-from sb3_affect.study.report.resamples import in_threads
 from sb3_affect.study.report.stats import bootstrap_improvement, bootstrap_iqm_cis, bootstrap_profile
 
 METRICS = (
@@ -55,21 +54,19 @@ def rliable_table(m: pd.DataFrame, seed: int = 0) -> pd.DataFrame:
     parts = {name: part for name, part in every.items() if len(part)}
     rows: dict[str, dict[str, str]] = {name: {} for name in every}
     columns = [column for column, _ in METRICS]
-    # a group's metrics share their resamples (drawn once: the same numbers as one bootstrap each); groups in threads
-    found = in_threads(
-        lambda part: bootstrap_iqm_cis([part[c].to_numpy(float) for c in columns], n_boot=REPS, seed=seed), parts.values()
-    )
+    # a group's metrics share their resamples (drawn once: the same numbers as one bootstrap each)
+    found = [bootstrap_iqm_cis([part[c].to_numpy(float) for c in columns], n_boot=REPS, seed=seed) for part in parts.values()]
     cis = {name: dict(zip(columns, part_cis)) for name, part_cis in zip(parts, found)}
     pairs = [(c, name) for c in columns for name in parts if name != AFFECTIVE and AFFECTIVE in parts]
     better = dict(
         zip(
             pairs,
-            in_threads(
-                lambda pair: bootstrap_improvement(
-                    parts[AFFECTIVE][pair[0]].to_numpy(float), parts[pair[1]][pair[0]].to_numpy(float), REPS // 5, seed=seed
-                ),
-                pairs,
-            ),
+            [
+                bootstrap_improvement(
+                    parts[AFFECTIVE][column].to_numpy(float), parts[name][column].to_numpy(float), REPS // 5, seed=seed
+                )
+                for column, name in pairs
+            ],
         )
     )
     for column, label in METRICS:

@@ -41,9 +41,6 @@ class ReportContext:
     :param timings: wall time of each sweep (for the reproducibility record)
     :param cache: results computed once and shared between sections (e.g. the verdict)
     :param command: the command line that produced the folder (for the reproducibility record)
-
-    A section whose work runs in the background (``defer``) has its blocks placed where it was deferred, once every
-    section has run (``finish_deferred``, called by ``build_report``).
     """
 
     doc: Document
@@ -59,26 +56,6 @@ class ReportContext:
     cache: dict[str, Any] = field(default_factory=dict)
     command: str = ""
     _deferred: list[tuple[int, Callable[..., None], Any]] = field(default_factory=list, repr=False)
-
-    def defer(self, section: Callable[..., None], pending: Any) -> None:
-        """
-        Run ``section(ctx, pending)`` once every section has run, its blocks placed here (``pending``: e.g. a future
-        of background work the section waits for).
-        """
-        self._deferred.append((len(self.doc.blocks), section, pending))
-
-    def finish_deferred(self) -> None:
-        """The deferred sections, in the order deferred, each one's blocks placed where it was deferred."""
-        deferred, self._deferred = self._deferred, []
-        document, shift = self.doc, 0
-        for at, section, pending in deferred:
-            self.doc = Document(document.title)
-            try:
-                section(self, pending)
-            finally:
-                blocks, self.doc = self.doc.blocks, document
-            document.blocks[at + shift : at + shift] = blocks
-            shift += len(blocks)
 
     @property
     def episodes(self) -> pd.DataFrame:

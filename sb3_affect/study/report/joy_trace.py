@@ -2,15 +2,13 @@
 The affective agent decision by decision: how often joy is left once felt (near-absorbing), and where late episodes
 cross the norm. The episode log keeps counts only, so a few runs are traced with an ``EmotionCallback`` that records
 each decision's emotion (the Python loop; the compiled engine does not call back). Cached as
-``DIR/joy_trace/episodes.csv``; the tracing itself (an agent and SB3, so torch) is in ``report.joy_tracing``, imported
+``DIR/joy_trace/episodes.csv``; the tracing itself (an agent and SB3, so torch) is in ``report.joy_trace_runs``, imported
 only when the cache is missing.
 """
 
 from __future__ import annotations
 
 import json
-import threading
-from concurrent.futures import Future
 from pathlib import Path
 
 import numpy as np
@@ -34,24 +32,6 @@ def traced(folder: Path, seeds: int = SEEDS, episodes: int = EPISODES) -> pd.Dat
     frame.to_csv(table, index=False)
     meta.write_text(json.dumps({"seeds": seeds, "episodes": episodes}))
     return frame
-
-
-def traced_in_background(folder: Path, seeds: int = SEEDS, episodes: int = EPISODES) -> Future[pd.DataFrame]:
-    """
-    ``traced`` in a background thread (its result, or its error, from the future): the traces are Python loops
-    that run while the caller works outside the interpreter's lock (compiled loops, numpy). A daemon thread: a
-    report that fails before it asks for the traces exits without waiting for them.
-    """
-    future: Future[pd.DataFrame] = Future()
-
-    def run() -> None:
-        try:
-            future.set_result(traced(folder, seeds, episodes))
-        except BaseException as error:  # raised where the traces are asked for
-            future.set_exception(error)
-
-    threading.Thread(target=run, name="joy-trace", daemon=True).start()
-    return future
 
 
 def summary(frame: pd.DataFrame) -> dict[str, float]:

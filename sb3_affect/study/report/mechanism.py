@@ -5,8 +5,6 @@ what "equivalent epsilon" then means, and Fig. 5 under both weightings.
 
 from __future__ import annotations
 
-from concurrent.futures import Future
-
 import pandas as pd
 
 from sb3_affect.study.report import figures, joy_trace
@@ -95,8 +93,7 @@ def mechanism_section(ctx: ReportContext) -> None:
         "fraction is close to the share of episodes with any joy). Per decision, the agent is random most of the time "
         "even late in training, which is why its steps per episode stay far above the 12-cell optimum."
     )
-    if not ctx.verdict_refusal():  # the traces run in a background thread; their text is placed here at the end
-        ctx.defer(joy_section, joy_trace.traced_in_background(ctx.root / "joy_trace"))
+    joy_section(ctx)
     ctx.doc.h("Fig. 5 under both weightings", 3)
     del decisions
     prof = found.profile if found.profile is not None else agent_profile(ctx, AFFECTIVE, last)
@@ -133,14 +130,11 @@ def mechanism_section(ctx: ReportContext) -> None:
     ctx.doc.img(f6, "Fig. 6: equivalent ε (fraction of random-direction decisions) per episode, both weightings")
 
 
-def joy_section(ctx: ReportContext, traces: Future[pd.DataFrame] | None = None) -> None:
-    """
-    Joy near-absorbing, and where late episodes cross the norm (traced runs, ``report.joy_trace``; ``traces``:
-    theirs when already under way).
-    """
+def joy_section(ctx: ReportContext) -> None:
+    """Joy near-absorbing, and where late episodes cross the norm (traced runs, ``report.joy_trace``)."""
     if ctx.verdict_refusal():
         return
-    frame = traces.result() if traces is not None else joy_trace.traced(ctx.root / "joy_trace")
+    frame = joy_trace.traced(ctx.root / "joy_trace")
     b = joy_trace.summary(frame)
     ctx.doc.h("Joy is near-absorbing; where late episodes cross the norm", 3)
     path = joy_trace.norm_figure(frame, ctx.figure("norm_crossings"), ctx.cache.get("shortest path"))

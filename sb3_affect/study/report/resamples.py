@@ -1,67 +1,23 @@
 """
-The bootstraps' resamples, drawn once per sample size and kept, and their statistics computed in compiled loops.
+The bootstraps' resamples (in the narrowest integer type) and their statistics computed in compiled loops.
 
-Every bootstrap of ``report.stats`` seeds its own generator, so two bootstraps of samples of the same size draw the
-same resamples (the report bootstraps 9 cells of 10,000 runs, three metrics each, with the same draws). ``kept``
-holds the last ``SLOTS`` draws (each at most ``KEEP_CELLS`` entries, in the narrowest integer type): the draws are
-those of the generator, in its order, whether kept or drawn anew. The compiled statistics do the floating-point
-operations of the numpy code they replace in the same order (integer sums are exact in any order), so the numbers
-are the same to the last bit (tests/test_report_lean.py compares them with that code).
+Every bootstrap of ``report.stats`` seeds its own generator, so its draws are those of the generator, in its order.
+The compiled statistics do the floating-point operations of the numpy code they replace in the same order (integer
+sums are exact in any order), so the numbers are the same to the last bit (tests/test_report_lean.py compares them
+with that code).
 """
 
 from __future__ import annotations
 
-import os
-import threading
-from collections import OrderedDict
-from collections.abc import Callable, Iterable, Sequence
-from concurrent.futures import ThreadPoolExecutor
-from typing import Any, TypeVar
+from collections.abc import Sequence
 
 import numpy as np
 from numba import njit
 
-#: Resamples kept between bootstraps: this many draws (the most recent), each of at most this many entries.
-SLOTS, KEEP_CELLS = 2, 20_000_000
-#: Resamples drawn at a time when they are not kept (memory: 8 bytes an index).
+#: Resamples of at most this many entries in all are drawn whole (in the narrowest integer type); more, in blocks.
+WHOLE_CELLS = 20_000_000
+#: Resamples drawn at a time in blocks (memory: 8 bytes an index).
 BLOCK_CELLS = 4_000_000
-
-_kept: OrderedDict[tuple[Any, ...], Any] = OrderedDict()
-_lock = threading.RLock()  # one draw at a time: bootstraps in threads (``in_threads``) wait for a draw they share
-_T = TypeVar("_T")
-_R = TypeVar("_R")
-
-
-def kept(key: tuple[Any, ...], cells: int, make: Callable[[], Any]) -> Any:
-    """``make()``, kept under ``key`` when it holds at most ``KEEP_CELLS`` entries (the oldest kept one dropped)."""
-    with _lock:
-        if key in _kept:
-            _kept.move_to_end(key)
-            return _kept[key]
-        value = make()
-        if cells <= KEEP_CELLS:
-            _kept[key] = value
-            while len(_kept) > SLOTS:
-                _kept.popitem(last=False)
-        return value
-
-
-def in_threads(function: Callable[[_T], _R], items: Iterable[_T]) -> list[_R]:
-    """
-    ``[function(item) for item in items]``, two items at a time in threads (bootstraps of independent samples: their
-    compiled loops release the interpreter's lock, so two run at once on two cores). Each item's numbers are those of
-    the loop: every bootstrap seeds its own generator, and shared draws are drawn once (``kept``).
-    """
-    work = list(items)
-    if len(work) < 2 or (os.cpu_count() or 1) < 2:
-        return [function(item) for item in work]
-    with ThreadPoolExecutor(2, thread_name_prefix="bootstrap") as pool:
-        return list(pool.map(function, work))
-
-
-def forget() -> None:
-    """Drop the kept resamples."""
-    _kept.clear()
 
 
 def _wide_enough(counts: np.ndarray, largest: int) -> np.ndarray:
@@ -83,7 +39,7 @@ def mean_indices(n: int, n_boot: int, seed: int) -> np.ndarray:
             out[first : first + block] = rng.integers(0, n, size=(min(block, n_boot - first), n))
         return out
 
-    return kept(("indices", n, n_boot, seed), n * n_boot, make)
+    return make()
 
 
 @njit(cache=True, nogil=True)
@@ -115,20 +71,20 @@ def iqm_resamples_of(samples: Sequence[np.ndarray], orders: Sequence[np.ndarray]
         count_draws(rng.integers(0, n, size=out.shape), out)
         return out
 
-    def make() -> np.ndarray:  # counted straight into the kept rows (narrow), a block of draws at a time
+    def make() -> np.ndarray:  # counted straight into narrow rows, a block of draws at a time
         rng = np.random.default_rng(seed)
         out: np.ndarray = np.zeros((n_boot, n), _narrow(n))
         for first in range(0, n_boot, block):
             count_draws(rng.integers(0, n, size=(min(block, n_boot - first), n)), out[first : first + block])
         return out
 
-    if n * n_boot <= KEEP_CELLS:
-        counts = kept(("counts", n, n_boot, seed), n * n_boot, make)
+    if n * n_boot <= WHOLE_CELLS:
+        counts = make()
         for values, order, boots in zip(samples, orders, every):
             iqm_of_counts(counts, order, values, low, high, boots)
         return every
     rng = np.random.default_rng(seed)
-    for first in range(0, n_boot, block):  # too many to keep: a block at a time
+    for first in range(0, n_boot, block):  # too many to draw whole: a block at a time
         part = drawn(rng, first)
         for values, order, boots in zip(samples, orders, every):
             iqm_of_counts(part, order, values, low, high, boots[first : first + len(part)])
@@ -164,12 +120,12 @@ def improvement_resamples(
         return a, b
 
     args = (order, below, not_above, lower_is_better, n_a * n_b)
-    if (n_a + n_b) * n_boot <= KEEP_CELLS:
-        weights, drawn = kept(("paired", n_a, n_b, n_boot, seed), (n_a + n_b) * n_boot, make)
+    if (n_a + n_b) * n_boot <= WHOLE_CELLS:
+        weights, drawn = make()
         improvement_of_counts(weights, drawn, *args, boots)
         return boots
     rng = np.random.default_rng(seed)
-    for rep in range(n_boot):  # too many to keep: one resample at a time
+    for rep in range(n_boot):  # too many to draw whole: one resample at a time
         a, b = one(rng)
         improvement_of_counts(a[None], b[None], *args, boots[rep : rep + 1])
     return boots

@@ -14,13 +14,12 @@ per-run metrics) is reduced here, part by part, while the rows are read once.
 
 Every reduction either sums integers (exact in any order) or adds floats in the order a whole-frame pandas groupby
 would (``report.grouped``), so the numbers are those of the whole-frame computations (tests/test_report_lean.py).
-Memory: two parts' rows (the next part is read in a background thread while one is reduced, ``report.read_ahead``), the
-per-run table, the settled window's decisions and joy (8 bytes an episode of it).
+Memory: one part's rows, the per-run table, the settled window's decisions and joy (8 bytes an episode of it).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
@@ -41,7 +40,6 @@ from sb3_affect.study.report.metrics import (
     run_metrics,
     run_windows,
 )
-from sb3_affect.study.report.read_ahead import read_ahead
 from sb3_affect.study.report.settled import SETTLED, settled_part
 
 if TYPE_CHECKING:
@@ -89,14 +87,12 @@ def paper_scan(ctx: ReportContext) -> Scan:
 def scan(
     results: Results,
     extra_windows: Sequence[tuple[int, int]] = (),
-    after_part: Callable[[], None] | None = None,
     agent: str = AFFECTIVE,
 ) -> Scan:
     """
     One pass over ``results``' episode rows (and a second over ``agent``'s, for the profile's bands).
 
     :param extra_windows: window features computed for ``agent``'s runs besides ``EARLY`` and ``LATE``
-    :param after_part: called after each part (e.g. to hand the part's memory back to the system)
     :param agent: the agent of the windows, the settled window and the profile (the affective agent)
     """
     runs = results.runs
@@ -112,7 +108,7 @@ def scan(
     first_pass = _ProfileSums()
 
     def read(name: str, part_runs: pd.DataFrame, part: pd.DataFrame) -> tuple[Any, ...]:
-        """A part and its learning-curve counts and settled pieces (in the read-ahead thread, parts in order)."""
+        """A part and its learning-curve counts and settled pieces."""
         counted = _part_curves(name, part) if len(part) else []
         return name, part_runs, part, counted, _settled(part, *window) if name == agent and len(part) else None
 
@@ -121,7 +117,7 @@ def scan(
         for name in sorted(set(runs.agent))
         for found in results.parts(columns, name, metrics_module.RUNS_PER_PART, ordered=True)
     )
-    for name, part_runs, part, counted, piece in read_ahead(every_part):  # the next part read while this one is reduced
+    for name, part_runs, part, counted, piece in every_part:
         frames.append(run_metrics(part, part_runs))
         for key, counts in counted:
             curves.setdefault(key, []).append(counts)
@@ -134,8 +130,6 @@ def scan(
             pieces.append(piece)
             first_pass.add(part)
         del part, episode, piece
-        if after_part is not None:
-            after_part()
     table = join_parts(frames)
     del frames
     windows_table = pd.concat(window_frames, ignore_index=True) if window_frames else pd.DataFrame()  # in run id order
@@ -147,7 +141,7 @@ def scan(
         per_run = pd.concat([p[0] for p in pieces], ignore_index=True)
         settled = (window, per_run, _joined([p[1] for p in pieces]), _joined([p[2] for p in pieces]))
     del pieces
-    profile = first_pass.second_pass(results, agent, after_part) if first_pass.groups else None
+    profile = first_pass.second_pass(results, agent) if first_pass.groups else None
     merged = {key: _merge(parts) for key, parts in curves.items()}
     return Scan(table, windows_table, last, merged, settled, profile)
 
@@ -292,7 +286,7 @@ class _ProfileSums:
             else:
                 self.float_sums.setdefault(name, KahanSums()).add(values, episode, self.groups)
 
-    def second_pass(self, results: Results, agent: str, after_part: Callable[[], None] | None) -> pd.DataFrame:
+    def second_pass(self, results: Results, agent: str) -> pd.DataFrame:
         """The bands of the decision-weighted fractions (a second read of the agent's rows), and the profile."""
         present = np.flatnonzero(self.rows)
         totals = self.decisions
@@ -303,7 +297,7 @@ class _ProfileSums:
                 ratios[name] = summed / totals
         residuals = {name: Welford() for name, _ in SOURCES}
         wanted = ("episode", "decisions", *(source for _, source in SOURCES))
-        for _, part in read_ahead(results.parts(wanted, agent, metrics_module.RUNS_PER_PART, ordered=True)):
+        for _, part in results.parts(wanted, agent, metrics_module.RUNS_PER_PART, ordered=True):
             if not len(part):
                 continue
             episode = part.episode.to_numpy().astype(np.int64)
@@ -312,8 +306,6 @@ class _ProfileSums:
                 values = part[source].to_numpy()
                 residuals[name].add(values - ratios[name][episode] * decisions, episode, self.groups)
             del part
-            if after_part is not None:
-                after_part()
         index = pd.Index(present.astype(np.int64))
         series: dict[str, dict[str, pd.Series]] = {kind: {} for kind in _KINDS}
         per_run_decisions = pd.Series(totals[present] / self.rows[present], index=index)

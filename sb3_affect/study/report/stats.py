@@ -114,7 +114,7 @@ def bootstrap_ci(
     if statistic == "iqm":
         order = np.argsort(data, kind="stable")
         boots = resamples.iqm_resamples(data[order], order, n_boot, seed)
-    elif len(data) * n_boot <= resamples.KEEP_CELLS:  # the same draws as the last bootstrap of as many values
+    elif len(data) * n_boot <= resamples.WHOLE_CELLS:
         boots = resamples.resample_means(data, resamples.mean_indices(len(data), n_boot, seed))
     else:
         rng = np.random.default_rng(seed)
