@@ -45,8 +45,8 @@ def test_emotion_callback_on_dqn_logs_a_profile(tmp_path) -> None:
 def test_table_ii_on_observations_without_cells_is_refused_naming_what_works() -> None:
     for comparison in ("literal", "valence"):
         model = DQN("MlpPolicy", "CartPole-v1", learning_starts=10)
-        with pytest.raises(TypeError, match=r"Box observations have no cells.*Readings that work here: your own "
-                                            r"emotion_rule.*Spaces with a map: Discrete, and MultiDiscrete"):
+        with pytest.raises(TypeError, match=r"Box observations have no cells and no position= hook.*Give position="
+                                            r"'minigrid'.*or an emotion_rule.*Spaces with a map: Discrete, and MultiDiscrete"):
             model.learn(20, callback=EmotionCallback(comparison=comparison))
 
 

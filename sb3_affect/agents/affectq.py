@@ -13,7 +13,7 @@ from sb3_affect.agents.callbacks import EmotionCallback
 from sb3_affect.agents.policies import TabularQPolicy, greedy_action
 from sb3_affect.agents.tabular import TabularQAlgorithm
 from sb3_affect.core.appraisal import Appraiser
-from sb3_affect.core.behaviour import Behaviour
+from sb3_affect.core.behaviour import Behaviour, behaviour_by_emotion
 from sb3_affect.core.emotions import Emotion
 from sb3_affect.core.episode_log import COLUMN, Rows
 from sb3_affect.core.goals import GoalTest
@@ -138,10 +138,7 @@ class AffectQ(TabularQAlgorithm):
         if self._emotion_counts is not None:  # the episode in progress when the model was saved
             self.emotion_callback.counts = [int(c) for c in self._emotion_counts]
         # the behaviour table as a list indexed by emotion, for the hot loop
-        self._behaviour = [
-            Behaviour(bool(r), tuple(int(k) for k in speeds))
-            for r, speeds in (self.behaviour_table[e.name.lower()] for e in Emotion)
-        ]
+        self._behaviour = behaviour_by_emotion(self.behaviour_table)
 
     def _excluded_save_params(self) -> list[str]:
         return [*super()._excluded_save_params(), "emotion_callback", "_behaviour"]

@@ -8,8 +8,11 @@ two ways:
   ``_on_step`` after each ``env.step``; the callback reads ``new_obs``/``dones``/``infos`` from the algorithm's
   locals, updates each env's appraisal and feels the emotion of its *next* decision. It only watches: it logs
   ``affect/*`` keys (means over the stats window) and keeps ``episode_log`` (written beside a file-writing logger).
-  The appraisal's map needs a cell per observation: Discrete and MultiDiscrete spaces have one; on other spaces
-  only an ``emotion_rule`` that needs no map (no ``act``) can run.
+  The appraisal's map needs each env's cell: Discrete and MultiDiscrete observations are cells; on other spaces
+  ``position=`` gives it (``"minigrid"``, or a callable: ``sb3_affect.core.positions``), and without one only an
+  ``emotion_rule`` that needs no map (no ``act``) can run. An agent that repeats actions (``AffectDQN``) sets
+  ``decision_ends`` before each step, so that an env feels the emotion of a new decision only when its last one
+  is done.
 * **Driver of AffectQ** (the affect hook): an SB3 callback runs after ``env.step``, too late to steer the step it
   follows. AffectQ therefore calls the callback's hook methods directly, in this order, for every decision::
 
@@ -35,7 +38,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from gymnasium import spaces
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import HumanOutputFormat
 
@@ -43,6 +45,7 @@ from sb3_affect.core.appraisal import Appraiser
 from sb3_affect.core.emotions import EMOTION_NAMES, Emotion, EmotionRule, make_table_ii
 from sb3_affect.core.episode_log import EPISODE_COLUMNS, Geometry, deterministic_walk_is_shortest, env_geometry, make_frame
 from sb3_affect.core.goals import GoalTest, positive_terminal_reward
+from sb3_affect.core.positions import MAX_MAPPED_CELLS, ObservationCells, Position, PositionSpec, check_position, make_position
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -65,6 +68,9 @@ class EmotionCallback(BaseCallback):
         ``sb3_affect.core.goals.positive_terminal_reward``: ``info["is_success"]`` if the env gives it, else reward > 0)
     :param episode_log_path: observer mode: append each episode's row to this CSV file (default: ``emotion_episodes.csv``
         in the logger's folder when the logger writes files, e.g. csv or tensorboard; else only ``episode_log``)
+    :param position: observer mode: how each env's cell is found: None (the observation, when it is a cell),
+        ``"discrete"``, ``"multidiscrete"``, ``"minigrid"``, ``"minigrid-dir"``, a callable
+        ``position(observation, info) -> cell`` or a ``sb3_affect.core.positions.Position``
     :param warn_after: observer mode: warn once when this many episodes have ended and none reached the goal (the
         appraisal then knows no distance to it); None: never
     :param verbose: verbosity level
@@ -80,9 +86,11 @@ class EmotionCallback(BaseCallback):
         goal: GoalTest | None = None,
         episode_log_path: str | Path | None = None,
         warn_after: int | None = 20,
+        position: PositionSpec = None,
         verbose: int = 0,
     ) -> None:
         super().__init__(verbose)
+        self.position = check_position(position)
         if warn_after is not None and (isinstance(warn_after, bool) or not isinstance(warn_after, int) or warn_after < 1):
             raise ValueError(f"warn_after={warn_after!r} must be an integer >= 1 (episodes) or None")
         if goal is not None and not callable(goal):
@@ -101,7 +109,9 @@ class EmotionCallback(BaseCallback):
         self.episode_log_path = episode_log_path
         self.warn_after = warn_after
         # observer-mode state
-        self._cells_of: _Cells | None = None
+        self._position: Position | None = None
+        #: set by an agent that repeats actions before each step: which envs' decisions end with it (None: all)
+        self.decision_ends: np.ndarray | None = None
         self._lanes: list[_Lane] = []
         self._window: deque[list[float]] = deque(maxlen=100)
         self._csv_path: Path | None = None
@@ -119,17 +129,21 @@ class EmotionCallback(BaseCallback):
 
     def _init_callback(self) -> None:
         space = self.model.observation_space
-        self._cells_of = cells_of(space)
-        if self._cells_of is not None:
-            self.bind(self._cells_of.n)
+        self._position = make_position(self.position, space)
+        if self._position is not None:
+            env = self.model.get_env()
+            if env is not None:
+                self._position.bind(env, space)
+            self.bind(self._position.n_cells)
             return
         if getattr(self.emotion_rule, "table_ii_comparison", None) is not None:
             raise TypeError(
-                f"EmotionCallback: {type(space).__name__} observations have no cells, so the appraisal has no map and "
-                "act (the known distance to the goal) is never known; Table II (comparison='literal' or 'valence') "
-                "needs it. Readings that work here: your own emotion_rule(appraisal) using norm and exp1 only (act is "
-                "inf), e.g. emotion_rule=lambda a: Emotion.JOY if a is None or a.exp1 <= a.norm else Emotion.FEAR. "
-                f"Spaces with a map: Discrete, and MultiDiscrete up to {MAX_MAPPED_CELLS:,} cells"
+                f"EmotionCallback: {type(space).__name__} observations have no cells and no position= hook was given, so "
+                "the appraisal has no map and act (the known distance to the goal) is never known; Table II "
+                "(comparison='literal' or 'valence') needs it. Give position='minigrid' (MiniGrid envs) or "
+                "position=callable(observation, info) -> cell, or an emotion_rule(appraisal) using norm and exp1 only "
+                "(act is inf), e.g. emotion_rule=lambda a: Emotion.JOY if a is None or a.exp1 <= a.norm else "
+                f"Emotion.FEAR. Spaces with a map: Discrete, and MultiDiscrete up to {MAX_MAPPED_CELLS:,} cells"
             )
         if self.appraiser is None:
             self.appraiser = Appraiser(1, act=self.act, units=self.units)  # no map: one placeholder cell
@@ -185,8 +199,9 @@ class EmotionCallback(BaseCallback):
         assert self.appraiser is not None
         self._lanes = [self._lanes[i] if i < len(self._lanes) else _Lane(self._new_appraiser()) for i in range(n_envs)]
         self._lanes[0].appraiser = self.appraiser
-        for index, lane in enumerate(self._lanes):
-            lane.begin(self._cell(_env_obs(last_obs, index)))
+        cells = self._cells(last_obs, getattr(self.training_env, "reset_infos", None))
+        for lane, cell in zip(self._lanes, cells):
+            lane.begin(cell)
             self._feel_lane(lane)
 
     def _new_appraiser(self) -> Appraiser:
@@ -196,22 +211,32 @@ class EmotionCallback(BaseCallback):
         return copy.deepcopy(self.appraiser)  # a custom appraiser: a fresh copy per env
 
     def _find_geometry(self) -> Geometry | None:
-        if self._cells_of is None or self._cells_of.nvec is not None:
+        position = self._position
+        if not isinstance(position, ObservationCells) or position.nvec is not None:
             return None  # the path columns need the grid's own cell numbers
         try:
             return env_geometry(self.training_env.get_attr("unwrapped", [0])[0])
         except Exception:  # an env without the attribute, or a VecEnv that can't fetch it
             return None
 
-    def _cell(self, obs: Any) -> int:
-        """The cell of one env's observation (0 on a space without cells: the appraisal then has no map)."""
-        return 0 if self._cells_of is None else self._cells_of(obs)
+    def _cells(self, obs: Any, infos: Any) -> list[int]:
+        """Each env's cell (all 0 without a position hook: the appraisal then has no map)."""
+        n = len(self._lanes)
+        if self._position is None:
+            return [0] * n
+        infos = list(infos) if infos else [{} for _ in range(n)]
+        return self._position.cells(self.training_env, obs, infos)
 
     def _feel_lane(self, lane: _Lane) -> None:
         emotion = self.emotion_rule(lane.appraiser.appraise(lane.state))
         lane.appraiser.elapsed_decisions += 1
         lane.counts[emotion] += 1
-        self.emotion = emotion
+        lane.emotion = self.emotion = emotion
+        lane.deciding = True
+
+    def lane_emotions(self) -> list[Emotion]:
+        """Observer mode: the emotion each env of the VecEnv feels for its next decision."""
+        return [lane.emotion for lane in self._lanes]
 
     def _on_step(self) -> bool:
         check_step_locals(self)
@@ -219,7 +244,10 @@ class EmotionCallback(BaseCallback):
         rewards = np.asarray(self.locals["rewards"], dtype=float).reshape(-1)
         infos = self.locals["infos"]
         new_obs = self.locals["new_obs"]
-        mapped = self._cells_of is not None
+        position = self._position
+        new_cells = self._cells(new_obs, infos)
+        actions = self.locals.get("actions")
+        ends = self.decision_ends
         for index, lane in enumerate(self._lanes):
             done = bool(dones[index])
             info = infos[index]
@@ -227,11 +255,14 @@ class EmotionCallback(BaseCallback):
             truncated = done and bool(info.get("TimeLimit.truncated", False))
             terminated = done and not truncated
             reached_goal = terminated and bool(self.goal(reward, info))
-            new_state = self._cell(_env_obs(new_obs, index))
-            # at the end of an episode the VecEnv has reset: the cell reached is the terminal observation
-            s2 = self._cell(info["terminal_observation"]) if done and "terminal_observation" in info else new_state
-            lane.appraiser.observe(lane.state, s2 if mapped else 0, reached_goal and mapped)
-            lane.decisions += 1
+            new_state = new_cells[index]
+            s2 = new_state
+            if done and position is not None:  # the VecEnv has reset: the cell reached is the episode's last
+                action = None if actions is None else np.asarray(actions).reshape(len(self._lanes), -1)[index]
+                s2 = position.terminal_cell(index, info, lane.state, action, terminated)
+            lane.appraiser.observe(lane.state, s2, reached_goal and position is not None)
+            lane.decisions += lane.deciding
+            lane.deciding = False
             lane.cells += 1
             lane.reward += reward
             if done:
@@ -239,7 +270,8 @@ class EmotionCallback(BaseCallback):
                 lane.begin(new_state)
             else:
                 lane.state = new_state
-            self._feel_lane(lane)
+            if done or ends is None or ends[index]:
+                self._feel_lane(lane)
         return True
 
     def _on_rollout_end(self) -> None:
@@ -327,6 +359,8 @@ class _Lane:
 
     def __init__(self, appraiser: Appraiser) -> None:
         self.appraiser = appraiser
+        self.emotion = Emotion.JOY
+        self.deciding = False  # the env's current decision has not been counted in ``decisions`` yet
         self.counts = [0, 0, 0, 0]
         self.state = 0
         self.decisions = self.cells = 0
@@ -350,13 +384,6 @@ def check_step_locals(callback: BaseCallback) -> None:
         )
 
 
-def _env_obs(obs: Any, index: int) -> Any:
-    """Env ``index``'s observation in a VecEnv's batch (a dict of batches for Dict spaces)."""
-    if isinstance(obs, dict):
-        return {key: value[index] for key, value in obs.items()}
-    return np.asarray(obs)[index]
-
-
 def logger_file_folder(logger: Any) -> Path | None:
     """The folder of an SB3 logger that writes files (csv, tensorboard, json, log.txt); None for stdout only."""
     folder = logger.get_dir() if logger is not None else None
@@ -365,39 +392,4 @@ def logger_file_folder(logger: Any) -> Path | None:
     for output in logger.output_formats:
         if not (isinstance(output, HumanOutputFormat) and not getattr(output, "own_file", True)):
             return Path(folder)
-    return None
-
-
-class _Cells:
-    """The cell of an observation: a Discrete space's integer, or a MultiDiscrete space's flat index."""
-
-    def __init__(self, space: spaces.Space) -> None:
-        self.start = 0
-        self.nvec: np.ndarray | None = None
-        if isinstance(space, spaces.Discrete):
-            self.n = int(space.n)
-            self.start = int(space.start)
-        else:
-            assert isinstance(space, spaces.MultiDiscrete)
-            self.nvec = np.asarray(space.nvec, dtype=np.int64).reshape(-1)
-            self.start_vec = np.asarray(getattr(space, "start", 0), dtype=np.int64).reshape(-1)
-            self.n = int(np.prod(self.nvec))
-
-    def __call__(self, obs: Any) -> int:
-        if self.nvec is None:
-            return int(np.asarray(obs).reshape(-1)[0]) - self.start
-        index = np.asarray(obs, dtype=np.int64).reshape(-1) - self.start_vec
-        return int(np.ravel_multi_index(tuple(index), tuple(self.nvec)))
-
-
-#: The largest MultiDiscrete space (cells) whose observations get a map (the appraisal keeps a row per cell).
-MAX_MAPPED_CELLS = 1_000_000
-
-
-def cells_of(space: spaces.Space) -> _Cells | None:
-    """How to number the cells of an observation space, or None when it has no cells the appraisal can map."""
-    if isinstance(space, spaces.Discrete):
-        return _Cells(space)
-    if isinstance(space, spaces.MultiDiscrete) and int(np.prod(space.nvec)) <= MAX_MAPPED_CELLS:
-        return _Cells(space)
     return None

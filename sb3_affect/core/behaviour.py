@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 from sb3_affect.core.emotions import Emotion
 
@@ -25,6 +25,17 @@ TABLE_III: dict[Emotion, Behaviour] = {
     Emotion.FEAR: Behaviour(random_direction=False, speeds=(0, 1)),
     Emotion.ANGER: Behaviour(random_direction=False, speeds=(1, 2)),
 }
+
+
+def stored_behaviour_table(table: Mapping[Emotion, Behaviour] | None) -> dict[str, list]:
+    """A user's table (None: Table III), checked, as the plain data a model saves: ``{"joy": [random, speeds], ...}``."""
+    checked = validate_behaviour_table(TABLE_III if table is None else table)
+    return {emotion.name.lower(): list(behaviour) for emotion, behaviour in checked.items()}
+
+
+def behaviour_by_emotion(stored: Mapping[str, Any]) -> list[Behaviour]:
+    """A saved table (``stored_behaviour_table``) as a list indexed by emotion, for the hot loop."""
+    return [Behaviour(bool(r), tuple(int(k) for k in speeds)) for r, speeds in (stored[e.name.lower()] for e in Emotion)]
 
 
 def validate_behaviour_table(table: Mapping[Emotion, Behaviour]) -> dict[Emotion, Behaviour]:

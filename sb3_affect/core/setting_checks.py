@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from sb3_affect.core.appraisal import ACT_MODES, UNITS, check_choice
-from sb3_affect.core.behaviour import TABLE_III, validate_behaviour_table
+from sb3_affect.core.behaviour import stored_behaviour_table
 from sb3_affect.core.emotions import COMPARISONS, Emotion
 from sb3_affect.core.personalities import check_personality
 from sb3_affect.core.validation import check_number, check_rate
@@ -112,8 +112,7 @@ def check_affect(
     comparison = check_choice("comparison", comparison, COMPARISONS)
     act = check_choice("act", act, ACT_MODES)
     units = check_choice("units", units, UNITS)
-    table = TABLE_III if behaviour_table is None else behaviour_table
-    stored = {e.name.lower(): list(b) for e, b in validate_behaviour_table(table).items()}
+    stored = stored_behaviour_table(behaviour_table)
     return multi_cell, personality, comparison, act, units, stored
 
 

@@ -1,0 +1,201 @@
+"""
+Where the agent is: the cell the appraisal's known map (``act``) needs, for each env of a VecEnv.
+
+The ``position=`` option of ``EmotionCallback``, ``BroekensCallback`` and the deep affective agents takes
+
+* ``None`` (default): the observation is the cell, when the observation space has cells (``"discrete"`` or
+  ``"multidiscrete"``); otherwise there is no map;
+* ``"discrete"``: a Discrete observation is the cell (its integer, less the space's ``start``);
+* ``"multidiscrete"``: a MultiDiscrete observation is the cell (its flat index), up to ``MAX_MAPPED_CELLS`` cells;
+* ``"minigrid"`` or ``"minigrid-dir"``: a MiniGrid env's ``agent_pos`` (with ``agent_dir`` for ``"minigrid-dir"``),
+  read through the VecEnv's ``get_attr`` whatever the observation wrapper;
+* a callable ``position(observation, info) -> cell`` of one env's observation and info (any hashable cell; cells
+  are numbered in the order they are first seen, up to ``MAX_MAPPED_CELLS``);
+* a ``Position`` instance (a subclass of your own).
+
+The hooks read the cell after every env step. At the end of an episode the VecEnv has already reset, so the last
+cell of the episode comes from ``info["terminal_observation"]`` for the observation presets and the callables; a
+MiniGrid env keeps no record of it, so ``"minigrid"`` takes the cell in front of the agent when its last action was
+``forward`` and ended the episode (the goal or lava it stepped on) and the cell it stood on otherwise.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Hashable, Sequence
+from typing import Any
+
+import numpy as np
+from gymnasium import spaces
+
+#: The largest number of cells a map is made for (the appraisal keeps a row per cell).
+MAX_MAPPED_CELLS = 1_000_000
+#: The presets of ``position=``.
+POSITION_PRESETS = ("discrete", "multidiscrete", "minigrid", "minigrid-dir")
+
+#: MiniGrid's ``forward`` action and its direction vectors (``minigrid.core.constants.DIR_TO_VEC``: right, down, left, up).
+_MINIGRID_FORWARD = 2
+_MINIGRID_DIRECTIONS = ((1, 0), (0, 1), (-1, 0), (0, -1))
+
+
+class Position:
+    """How the cell of each env of a VecEnv is found. Subclasses set ``n_cells`` in ``bind`` and give ``cells``."""
+
+    name = "position"
+    n_cells = 0
+
+    def bind(self, venv: Any, observation_space: spaces.Space) -> None:
+        """Check the env and set ``n_cells`` (called when training starts)."""
+
+    def cells(self, venv: Any, observations: Any, infos: Sequence[dict[str, Any]]) -> list[int]:
+        """Each env's current cell (after ``reset`` or ``step``: for an env that has just reset, its first cell)."""
+        raise NotImplementedError
+
+    def terminal_cell(self, index: int, info: dict[str, Any], cell: int, action: Any, terminated: bool) -> int:
+        """The last cell of env ``index``'s episode that has just ended (``cell``: the cell before its last step)."""
+        terminal = info.get("terminal_observation")
+        return cell if terminal is None else self.cell_of(terminal, info)
+
+    def cell_of(self, observation: Any, info: dict[str, Any] | None = None) -> int:
+        """The cell of one env's observation (for the hooks that read it from the observation)."""
+        raise NotImplementedError
+
+
+class ObservationCells(Position):
+    """The observation is the cell: a Discrete space's integer, or a MultiDiscrete space's flat index."""
+
+    def __init__(self, space: spaces.Space) -> None:
+        self.start = 0
+        self.nvec: np.ndarray | None = None
+        if isinstance(space, spaces.Discrete):
+            self.name = "discrete"
+            self.n_cells = int(space.n)
+            self.start = int(space.start)
+        elif isinstance(space, spaces.MultiDiscrete):
+            self.name = "multidiscrete"
+            self.nvec = np.asarray(space.nvec, dtype=np.int64).reshape(-1)
+            self.start_vec = np.asarray(getattr(space, "start", 0), dtype=np.int64).reshape(-1)
+            self.n_cells = int(np.prod(self.nvec))
+            if self.n_cells > MAX_MAPPED_CELLS:
+                raise ValueError(
+                    f"position='multidiscrete': the observation space has {self.n_cells:,} cells, more than the "
+                    f"{MAX_MAPPED_CELLS:,} a map allows; pass position=callable(observation, info) -> cell"
+                )
+        else:
+            raise TypeError(
+                f"position: a {type(space).__name__} observation is not a cell; the observation presets take Discrete "
+                "or MultiDiscrete spaces (use position='minigrid' or position=callable(observation, info) -> cell)"
+            )
+
+    def cell_of(self, observation: Any, info: dict[str, Any] | None = None) -> int:
+        if self.nvec is None:
+            return int(np.asarray(observation).reshape(-1)[0]) - self.start
+        index = np.asarray(observation, dtype=np.int64).reshape(-1) - self.start_vec
+        return int(np.ravel_multi_index(tuple(index), tuple(self.nvec)))
+
+    def cells(self, venv: Any, observations: Any, infos: Sequence[dict[str, Any]]) -> list[int]:
+        obs = np.asarray(observations)
+        return [self.cell_of(obs[index]) for index in range(len(obs))]
+
+
+class MiniGridPosition(Position):
+    """A MiniGrid env's ``agent_pos`` (and ``agent_dir`` with ``direction=True``), read through ``venv.get_attr``."""
+
+    def __init__(self, direction: bool = False) -> None:
+        self.direction = direction
+        self.name = "minigrid-dir" if direction else "minigrid"
+        self.width = 0
+        self._last: list[tuple[int, int, int]] = []
+
+    def bind(self, venv: Any, observation_space: spaces.Space) -> None:
+        try:
+            widths = venv.get_attr("width")
+            heights = venv.get_attr("height")
+            venv.get_attr("agent_pos")
+        except AttributeError:
+            raise ValueError(
+                f"position={self.name!r}: the env has no agent_pos, width and height (is it a MiniGrid env?); pass "
+                "position=callable(observation, info) -> cell for other envs"
+            ) from None
+        self.width = max(int(w) for w in widths)
+        self.n_cells = self.width * max(int(h) for h in heights) * (4 if self.direction else 1)
+
+    def _cell(self, x: int, y: int, direction: int) -> int:
+        cell = y * self.width + x
+        return cell * 4 + direction if self.direction else cell
+
+    def cells(self, venv: Any, observations: Any, infos: Sequence[dict[str, Any]]) -> list[int]:
+        positions = venv.get_attr("agent_pos")
+        directions = venv.get_attr("agent_dir")
+        self._last = [(int(p[0]), int(p[1]), int(d)) for p, d in zip(positions, directions)]
+        return [self._cell(*last) for last in self._last]
+
+    def terminal_cell(self, index: int, info: dict[str, Any], cell: int, action: Any, terminated: bool) -> int:
+        if not terminated or int(np.asarray(action).reshape(-1)[0]) != _MINIGRID_FORWARD or index >= len(self._last):
+            return cell
+        x, y, direction = self._last[index]
+        dx, dy = _MINIGRID_DIRECTIONS[direction % 4]
+        return self._cell(x + dx, y + dy, direction)
+
+
+class CallablePosition(Position):
+    """``position(observation, info) -> cell`` of one env; each distinct cell gets a number the first time it is seen."""
+
+    def __init__(self, function: Callable[[Any, dict[str, Any]], Hashable]) -> None:
+        self.function = function
+        self.name = getattr(function, "__name__", "callable")
+        self.n_cells = MAX_MAPPED_CELLS
+        self.numbers: dict[Hashable, int] = {}
+
+    def cell_of(self, observation: Any, info: dict[str, Any] | None = None) -> int:
+        cell = self.function(observation, {} if info is None else info)
+        if isinstance(cell, np.ndarray):
+            cell = tuple(cell.reshape(-1).tolist())
+        number = self.numbers.get(cell)
+        if number is None:
+            if len(self.numbers) >= MAX_MAPPED_CELLS:
+                raise ValueError(f"position={self.name}: more than {MAX_MAPPED_CELLS:,} distinct cells; a map allows no more")
+            number = self.numbers[cell] = len(self.numbers)
+        return number
+
+    def cells(self, venv: Any, observations: Any, infos: Sequence[dict[str, Any]]) -> list[int]:
+        if isinstance(observations, dict):
+            n = len(next(iter(observations.values())))
+            rows: list[Any] = [{key: value[index] for key, value in observations.items()} for index in range(n)]
+        else:
+            rows = list(np.asarray(observations))
+        return [self.cell_of(row, infos[index] if index < len(infos) else {}) for index, row in enumerate(rows)]
+
+
+PositionSpec = str | Callable[[Any, dict[str, Any]], Hashable] | Position | None
+
+
+def check_position(position: PositionSpec) -> PositionSpec:
+    """A ``position=`` value as given, or a one-line error naming what is allowed."""
+    if position is None or isinstance(position, Position) or (callable(position) and not isinstance(position, str)):
+        return position
+    if isinstance(position, str) and position in POSITION_PRESETS:
+        return position
+    raise ValueError(
+        f"position={position!r} is not supported; choose one of {', '.join(repr(p) for p in POSITION_PRESETS)}, None "
+        "(the observation when it is a cell), a callable position(observation, info) -> cell or a Position"
+    )
+
+
+def make_position(position: PositionSpec, observation_space: spaces.Space) -> Position | None:
+    """The hook of a ``position=`` value for an observation space; None when it has no cells and no hook was given."""
+    position = check_position(position)
+    if isinstance(position, Position):
+        return position
+    if position is None:
+        try:
+            return ObservationCells(observation_space)
+        except (TypeError, ValueError):
+            return None
+    if isinstance(position, str):
+        if position.startswith("minigrid"):
+            return MiniGridPosition(direction=position == "minigrid-dir")
+        cells = ObservationCells(observation_space)
+        if cells.name != position:
+            raise TypeError(f"position={position!r} needs a {position} observation space, got {observation_space}")
+        return cells
+    return CallablePosition(position)
