@@ -28,6 +28,8 @@ if TYPE_CHECKING:
     from sb3_affect.agents.affectq import AffectQ
     from sb3_affect.agents.broekens import BroekensCallback
     from sb3_affect.agents.callbacks import EmotionCallback
+    from sb3_affect.agents.deep_affect import AffectDQN, AffectiveExploration
+    from sb3_affect.agents.deep_affect_qrdqn import AffectQRDQN
     from sb3_affect.agents.policies import TabularQPolicy
     from sb3_affect.agents.qlearning import QLearning
     from sb3_affect.agents.tabular import TabularQAlgorithm
@@ -40,6 +42,9 @@ __version__ = "0.1.0"
 #: Public names imported on first use (PEP 562): they import torch and SB3 (or pandas).
 _LAZY: dict[str, str] = {
     "AffectQ": "sb3_affect.agents.affectq",
+    "AffectDQN": "sb3_affect.agents.deep_affect",
+    "AffectQRDQN": "sb3_affect.agents.deep_affect_qrdqn",
+    "AffectiveExploration": "sb3_affect.agents.deep_affect",
     "BroekensCallback": "sb3_affect.agents.broekens",
     "EmotionCallback": "sb3_affect.agents.callbacks",
     "EPISODE_COLUMNS": "sb3_affect.core.episode_log",
@@ -70,7 +75,10 @@ __all__ = [
     "MOVING_PURSUIT_ID",
     "PERSONALITIES",
     "TABLE_III",
+    "AffectDQN",
     "AffectQ",
+    "AffectQRDQN",
+    "AffectiveExploration",
     "Appraisal",
     "Appraiser",
     "Behaviour",
