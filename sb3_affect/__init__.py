@@ -30,6 +30,7 @@ if TYPE_CHECKING:
     from sb3_affect.agents.callbacks import EmotionCallback
     from sb3_affect.agents.deep_affect import AffectDQN, AffectiveExploration
     from sb3_affect.agents.deep_affect_qrdqn import AffectQRDQN
+    from sb3_affect.agents.minigrid_tabular import TabularMiniGrid
     from sb3_affect.agents.policies import TabularQPolicy
     from sb3_affect.agents.qlearning import QLearning
     from sb3_affect.agents.tabular import TabularQAlgorithm
@@ -50,6 +51,7 @@ _LAZY: dict[str, str] = {
     "EPISODE_COLUMNS": "sb3_affect.core.episode_log",
     "TabularQPolicy": "sb3_affect.agents.policies",
     "QLearning": "sb3_affect.agents.qlearning",
+    "TabularMiniGrid": "sb3_affect.agents.minigrid_tabular",
     "TabularQAlgorithm": "sb3_affect.agents.tabular",
 }
 
@@ -92,6 +94,7 @@ __all__ = [
     "PersonalityAppraiser",
     "PowerFit",
     "QLearning",
+    "TabularMiniGrid",
     "TabularQAlgorithm",
     "TabularQPolicy",
     "__version__",

@@ -21,7 +21,7 @@ from stable_baselines3 import A2C, DQN, PPO, SAC, TD3
 from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.logger import configure
 
-from sb3_affect import BroekensCallback, Emotion, EmotionCallback
+from sb3_affect import AffectDQN, AffectQRDQN, BroekensCallback, Emotion, EmotionCallback
 from sb3_affect.core.appraisal import Appraisal
 
 
@@ -56,9 +56,10 @@ def all_actions(env: gym.Env) -> np.ndarray:
     return np.ones(env.action_space.n, dtype=bool)  # type: ignore[attr-defined]
 
 
-DISCRETE_ONLY = (DQN, QRDQN, MaskablePPO)
+AFFECT = (AffectDQN, AffectQRDQN)  # the package's deep agents: the emotion callback drives them
+DISCRETE_ONLY = (DQN, QRDQN, MaskablePPO, *AFFECT)
 CONTINUOUS_ONLY = (SAC, TD3, TQC, CrossQ)
-ALGOS = (A2C, PPO, DQN, SAC, TD3, QRDQN, TQC, TRPO, RecurrentPPO, MaskablePPO, CrossQ)
+ALGOS = (A2C, PPO, DQN, SAC, TD3, QRDQN, TQC, TRPO, RecurrentPPO, MaskablePPO, CrossQ, *AFFECT)
 ENVS = ("FrozenLake", "CartPole", "Pendulum", "Dict", "VecEnv4")
 
 
@@ -83,7 +84,7 @@ def make_env(name: str, algo: type) -> Any:
     return wrap(env) if wrap else env
 
 
-def make_model(algo: type, env: Any) -> Any:
+def make_model(algo: type, env: Any, emotions: EmotionCallback) -> Any:
     dict_obs = isinstance(env.observation_space, gym.spaces.Dict)
     policy = "MultiInputPolicy" if dict_obs else "MlpPolicy"
     kwargs: dict[str, Any] = {"seed": 0, "policy_kwargs": {"net_arch": [8]}}
@@ -100,6 +101,8 @@ def make_model(algo: type, env: Any) -> Any:
         kwargs.update(learning_starts=16, batch_size=16, train_freq=4)
         if algo is CrossQ:
             kwargs["policy_kwargs"] = {"net_arch": {"pi": [8], "qf": [16]}}
+        if algo in AFFECT:
+            kwargs["emotion_callback"] = emotions
     return algo(policy, env, **kwargs)
 
 
@@ -110,10 +113,10 @@ CELLS = [(algo, env) for algo in ALGOS for env in ENVS if applies(algo, env)]
 def test_both_callbacks_log_finite_affect_values(algo: type, env_name: str, tmp_path: Path) -> None:
     env = make_env(env_name, algo)
     th.set_num_threads(1)
-    model = make_model(algo, env)
-    model.set_logger(configure(str(tmp_path), ["csv"]))
-    mapped = isinstance(model.observation_space, gym.spaces.Discrete)
+    mapped = isinstance(env.observation_space, gym.spaces.Discrete)
     emotions = EmotionCallback() if mapped else EmotionCallback(emotion_rule=past_norm)
+    model = make_model(algo, env, emotions)
+    model.set_logger(configure(str(tmp_path), ["csv"]))
     broekens = BroekensCallback()
     model.learn(192, callback=[emotions, broekens], log_interval=1)
     n_envs = model.get_env().num_envs

@@ -51,7 +51,10 @@ class Position:
         raise NotImplementedError
 
     def terminal_cell(self, index: int, info: dict[str, Any], cell: int, action: Any, terminated: bool) -> int:
-        """The last cell of env ``index``'s episode that has just ended (``cell``: the cell before its last step)."""
+        """
+        The last cell of env ``index``'s episode that has just ended (``cell``: the cell before its last step), asked
+        after ``cells`` has read the step's cells.
+        """
         terminal = info.get("terminal_observation")
         return cell if terminal is None else self.cell_of(terminal, info)
 
@@ -104,7 +107,8 @@ class MiniGridPosition(Position):
         self.direction = direction
         self.name = "minigrid-dir" if direction else "minigrid"
         self.width = 0
-        self._last: list[tuple[int, int, int]] = []
+        self._last: list[tuple[int, int, int]] = []  # each env's (x, y, direction) at the last reading
+        self._before: list[tuple[int, int, int]] = []  # and at the one before it
 
     def bind(self, venv: Any, observation_space: spaces.Space) -> None:
         try:
@@ -126,13 +130,13 @@ class MiniGridPosition(Position):
     def cells(self, venv: Any, observations: Any, infos: Sequence[dict[str, Any]]) -> list[int]:
         positions = venv.get_attr("agent_pos")
         directions = venv.get_attr("agent_dir")
-        self._last = [(int(p[0]), int(p[1]), int(d)) for p, d in zip(positions, directions)]
+        self._before, self._last = self._last, [(int(p[0]), int(p[1]), int(d)) for p, d in zip(positions, directions)]
         return [self._cell(*last) for last in self._last]
 
     def terminal_cell(self, index: int, info: dict[str, Any], cell: int, action: Any, terminated: bool) -> int:
-        if not terminated or int(np.asarray(action).reshape(-1)[0]) != _MINIGRID_FORWARD or index >= len(self._last):
+        if not terminated or int(np.asarray(action).reshape(-1)[0]) != _MINIGRID_FORWARD or index >= len(self._before):
             return cell
-        x, y, direction = self._last[index]
+        x, y, direction = self._before[index]
         dx, dy = _MINIGRID_DIRECTIONS[direction % 4]
         return self._cell(x + dx, y + dy, direction)
 
