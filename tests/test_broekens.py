@@ -140,3 +140,23 @@ def test_a_two_cell_move_is_discounted_as_the_agent_discounts(multi_cell: str, m
     assert np.allclose((log.distress * log.steps)[ended], -move_delta * (steps - 1))
     goal_joy = log.goal_joy[ended].to_numpy()
     assert all(min(abs(g - d) for d in goal_deltas) < 1e-9 for g in goal_joy)
+
+
+def test_position_gives_the_mean_emotions_per_cell_on_a_vec_env_and_a_tabular_agent() -> None:
+    from stable_baselines3.common.env_util import make_vec_env
+
+    th.set_num_threads(1)
+    callback = BroekensCallback(position="discrete")
+    env = make_vec_env("FrozenLake-v1", n_envs=4, seed=0)
+    DQN("MlpPolicy", env, learning_starts=16, batch_size=16, seed=0, policy_kwargs={"net_arch": [8]}).learn(
+        400, callback=callback
+    )
+    cells = callback.cell_log
+    assert set(cells.cell) <= set(range(15)) and 0 in set(cells.cell)  # 15, the goal, is never left
+    assert cells.steps.sum() == 400
+    assert np.isfinite(cells[["joy", "distress", "hope", "fear"]].to_numpy()).all()
+    tabular = BroekensCallback(position="discrete")
+    model = QLearning("Grid", grid(), seed=0).learn(300, callback=tabular)
+    assert tabular.cell_log.steps.sum() == 300 and tabular.cell_log.cell.max() < model.observation_space.n
+    with pytest.raises(ValueError, match=r"position='maze' is not supported"):
+        BroekensCallback(position="maze")

@@ -41,6 +41,7 @@ import torch as th
 from stable_baselines3.common.callbacks import BaseCallback
 
 from sb3_affect.agents.callbacks import check_step_locals, logger_file_folder
+from sb3_affect.core.positions import Position, PositionSpec, check_position, make_position
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -164,6 +165,9 @@ class BroekensCallback(BaseCallback):
     :param gamma: discount of the TD error; default the model's ``gamma``
     :param prefix: prefix of the logger keys
     :param episode_log_path: a CSV file to append the episode rows to (default: see above)
+    :param position: where each step is felt, for ``cell_log`` (the mean emotions per cell the step was taken in):
+        ``"discrete"``, ``"multidiscrete"``, ``"minigrid"``, ``"minigrid-dir"``, a callable
+        ``position(observation, info) -> cell`` or a ``Position`` (``sb3_affect.core.positions``); None: no cell log
     :param verbose: verbosity level
     """
 
@@ -173,9 +177,11 @@ class BroekensCallback(BaseCallback):
         gamma: float | None = None,
         prefix: str = "affect/broekens/",
         episode_log_path: str | Path | None = None,
+        position: PositionSpec = None,
         verbose: int = 0,
     ) -> None:
         super().__init__(verbose)
+        self.position = check_position(position)
         if gamma is not None and not 0.0 <= float(gamma) <= 1.0:
             raise ValueError(f"gamma={gamma!r} must be in [0, 1]")
         if value_fn is not None and not callable(value_fn):
@@ -193,6 +199,9 @@ class BroekensCallback(BaseCallback):
         self._reward = np.zeros(1)
         self._window: deque[list[float]] = deque(maxlen=100)
         self._csv_path: Path | None = None
+        self._position: Position | None = None
+        self._cells: list[int] = []
+        self._cell_sums: dict[int, np.ndarray] = {}  # cell -> [steps, joy, distress, hope, fear] summed
 
     def _init_callback(self) -> None:
         self._kind = "user" if self.value_fn is not None else value_kind(self.model)
@@ -247,6 +256,15 @@ class BroekensCallback(BaseCallback):
         self._reward = np.zeros(n)
         self._window = deque(self._window, maxlen=int(getattr(self.model, "_stats_window_size", 100)))
         self._csv_path = self._episode_csv()
+        if self.position is not None:
+            self._position = make_position(self.position, self.model.observation_space)
+            assert self._position is not None
+            self._position.bind(self.training_env, self.model.observation_space)
+            self._cells = self._position.cells(self.training_env, last_obs, self._reset_infos(n))
+
+    def _reset_infos(self, n: int) -> list[dict[str, Any]]:
+        infos = getattr(self.training_env, "reset_infos", None)
+        return list(infos) if infos else [{} for _ in range(n)]
 
     def _on_step(self) -> bool:
         check_step_locals(self)
@@ -261,6 +279,7 @@ class BroekensCallback(BaseCallback):
                 self._v[0] = self._values(new_obs, dones)[0]
             return True
         new_values = self._values(new_obs, dones)
+        new_cells = None if self._position is None else self._position.cells(self.training_env, new_obs, infos)
         for i in range(len(dones)):
             done = bool(dones[i])
             info = infos[i]
@@ -274,7 +293,13 @@ class BroekensCallback(BaseCallback):
                 reached = float(new_values[i])
             delta = self._return(float(rewards[i]), reached, cell_rewards) - self._v[i]
             joy, distress = max(delta, 0.0), max(-delta, 0.0)
-            self._sums[i] += (joy, distress, max(reached, 0.0), max(-reached, 0.0))
+            felt = (joy, distress, max(reached, 0.0), max(-reached, 0.0))
+            self._sums[i] += felt
+            if new_cells is not None:
+                sums = self._cell_sums.setdefault(self._cells[i], np.zeros(5))
+                sums[0] += 1
+                sums[1:] += felt
+                self._cells[i] = new_cells[i]
             self._steps[i] += 1
             self._reward[i] += float(rewards[i])
             if done:
@@ -329,6 +354,14 @@ class BroekensCallback(BaseCallback):
             return Path(self.episode_log_path)
         folder = logger_file_folder(self.logger)
         return None if folder is None else folder / "broekens_episodes.csv"
+
+    @property
+    def cell_log(self) -> pd.DataFrame:
+        """With ``position=``: one row per cell steps were taken in (``cell``, ``steps`` and the mean emotions)."""
+        import pandas as pd
+
+        rows = [[cell, int(sums[0]), *(sums[1:] / sums[0]).tolist()] for cell, sums in sorted(self._cell_sums.items())]
+        return pd.DataFrame(rows, columns=["cell", "steps", *BROEKENS_EMOTIONS])
 
     @property
     def episode_log(self) -> pd.DataFrame:

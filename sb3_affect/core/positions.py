@@ -97,7 +97,8 @@ class ObservationCells(Position):
 
     def cells(self, venv: Any, observations: Any, infos: Sequence[dict[str, Any]]) -> list[int]:
         obs = np.asarray(observations)
-        return [self.cell_of(obs[index]) for index in range(len(obs))]
+        obs = obs.reshape(-1) if self.nvec is None else obs.reshape(-1, len(self.nvec))
+        return [self.cell_of(row) for row in obs]
 
 
 class MiniGridPosition(Position):
