@@ -157,7 +157,7 @@ def test_save_load_predict_and_evaluate_policy(agent: type, n_envs: int, tmp_pat
     model.save(tmp_path / "model.zip")
     loaded = agent.load(tmp_path / "model.zip", env=env)
     assert loaded.wait_action == 0 and loaded.position == "discrete"
-    assert loaded.behaviour_table == model.behaviour_table
+    assert loaded._behaviour == model._behaviour
     for (key, a), b in zip(model.policy.state_dict().items(), loaded.policy.state_dict().values()):
         assert th.equal(a, b), key
     observations = np.arange(16)
