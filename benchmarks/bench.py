@@ -19,7 +19,9 @@ kernel alone is what ``learn`` adds to the decisions themselves.
 ``--studies`` adds the hunter-team and moving-prey kernels against their Python references (paired rounds) and, with
 ``--study-seeds N``, their studies at N seeds, from ``benchmarks/bench_studies.py`` where that benchmark exists;
 ``--report-folder DIR`` (or ``--report-seeds N``) adds ``sb3-affect report`` and ``status`` of a results folder
-(``benchmarks/bench_report.py``: wall time and peak memory in a fresh process). ``--all`` is ``--studies
+(``benchmarks/bench_report.py``: wall time and peak memory in a fresh process). ``--minigrid`` adds ``AffectDQN``
+against ``DQN`` on MiniGrid-Empty-8x8 with 4 envs and the tabular agents on ``TabularMiniGrid`` against a bare loop
+(``benchmarks/bench_minigrid.py``; needs the ``[minigrid]`` extra). ``--all`` is ``--studies --minigrid
 --study-seeds 1000 --report-seeds 10000``.
 """
 
@@ -244,14 +246,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--large", action="store_true", help="also the paper protocol with 10,000 seeds per cell")
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--csv", type=Path, default=Path(__file__).with_name("results.csv"))
-    parser.add_argument("--all", action="store_true", help="every figure: --studies --study-seeds 1000 --report-seeds 10000")
+    parser.add_argument(
+        "--all", action="store_true", help="every figure: --studies --minigrid --study-seeds 1000 --report-seeds 10000"
+    )
     parser.add_argument("--studies", action="store_true", help="the team and moving-prey kernels vs their Python loops")
     parser.add_argument("--study-seeds", type=int, default=0, help="also the studies at this many seeds (with --studies)")
+    parser.add_argument("--minigrid", action="store_true", help="AffectDQN vs DQN and the tabular agents on MiniGrid")
     parser.add_argument("--report-folder", action="append", default=[], help="time report and status of this folder")
     parser.add_argument("--report-seeds", type=int, default=0, help="run the paper sweep at N seeds, then time its report")
     args = parser.parse_args(argv)
     if args.all:
-        args.studies = True
+        args.studies = args.minigrid = True
         args.study_seeds = args.study_seeds or 1000
         args.report_seeds = args.report_seeds or 10_000
     steps, dqn_steps, repeats = (3000, 300, 1) if args.smoke else (200_000, 5000, args.repeats)
@@ -339,6 +344,11 @@ def main(argv: list[str] | None = None) -> int:
 
     if args.studies and not args.smoke:
         rows += study_rows(repeats, args.study_seeds)
+    if args.minigrid:
+        sys.path.insert(0, str(Path(__file__).resolve().parent))
+        from bench_minigrid import minigrid_rows  # type: ignore[import-not-found]
+
+        rows += minigrid_rows(repeats, args.smoke)
     if (args.report_folder or args.report_seeds) and not args.smoke:
         rows += report_rows(args.report_folder, args.report_seeds)
 
