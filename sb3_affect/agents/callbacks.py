@@ -114,6 +114,7 @@ class EmotionCallback(BaseCallback):
         self.decision_ends: np.ndarray | None = None
         self._lanes: list[_Lane] = []
         self._window: deque[list[float]] = deque(maxlen=100)
+        self._means: list[tuple[str, float]] | None = None  # the window's means, until it changes
         self._csv_path: Path | None = None
         self._episodes = self._goals = 0
         self._warned = False
@@ -194,6 +195,7 @@ class EmotionCallback(BaseCallback):
         n_envs = self.training_env.num_envs
         self._geometry = self._find_geometry()
         self._window = deque(maxlen=int(getattr(self.model, "_stats_window_size", 100)))
+        self._means = None
         self._csv_path = self._episode_csv()
         # one lane per env: its own appraisal (env 0 keeps the callback's appraiser), counts and episode in progress
         assert self.appraiser is not None
@@ -284,12 +286,16 @@ class EmotionCallback(BaseCallback):
         """``affect/*``: means over the last episodes (the stats window), as SB3 logs ``rollout/ep_rew_mean``."""
         if not self._window:
             return
-        profiles = np.asarray(self._window, dtype=float)
-        for column, name in enumerate((*EMOTION_NAMES, "norm")):
-            values = profiles[:, column]
-            values = values[~np.isnan(values)]
-            if len(values):
-                self.logger.record(f"affect/{name}", float(values.mean()))
+        if self._means is None:  # computed once per change of the window (an episode's end), recorded at every call
+            profiles = np.asarray(self._window, dtype=float)
+            self._means = []
+            for column, name in enumerate((*EMOTION_NAMES, "norm")):
+                values = profiles[:, column]
+                values = values[~np.isnan(values)]
+                if len(values):
+                    self._means.append((f"affect/{name}", float(values.mean())))
+        for key, value in self._means:
+            self.logger.record(key, value)
 
     def _close_lane(self, index: int, lane: _Lane, terminated: bool, truncated: bool, reached_goal: bool) -> None:
         appraiser = lane.appraiser
@@ -299,6 +305,7 @@ class EmotionCallback(BaseCallback):
         self.counts = counts
         total = sum(counts)
         self._window.append([*(c / total for c in counts), norm])
+        self._means = None
         self._record_window()
         self._episodes += 1
         self._goals += int(reached_goal)

@@ -108,6 +108,7 @@ class MiniGridPosition(Position):
         self.direction = direction
         self.name = "minigrid-dir" if direction else "minigrid"
         self.width = 0
+        self._envs: list[Any] | None = None
         self._last: list[tuple[int, int, int]] = []  # each env's (x, y, direction) at the last reading
         self._before: list[tuple[int, int, int]] = []  # and at the one before it
 
@@ -121,6 +122,8 @@ class MiniGridPosition(Position):
                 f"position={self.name!r}: the env has no agent_pos, width and height (is it a MiniGrid env?); pass "
                 "position=callable(observation, info) -> cell for other envs"
             ) from None
+        # a DummyVecEnv holds its envs: read them directly (get_attr walks each env's wrappers at every call)
+        self._envs = [env.unwrapped for env in venv.envs] if isinstance(getattr(venv, "envs", None), list) else None
         self.width = max(int(w) for w in widths)
         self.n_cells = self.width * max(int(h) for h in heights) * (4 if self.direction else 1)
 
@@ -129,9 +132,12 @@ class MiniGridPosition(Position):
         return cell * 4 + direction if self.direction else cell
 
     def cells(self, venv: Any, observations: Any, infos: Sequence[dict[str, Any]]) -> list[int]:
-        positions = venv.get_attr("agent_pos")
-        directions = venv.get_attr("agent_dir")
-        self._before, self._last = self._last, [(int(p[0]), int(p[1]), int(d)) for p, d in zip(positions, directions)]
+        if self._envs is not None:
+            last = [(int(env.agent_pos[0]), int(env.agent_pos[1]), int(env.agent_dir)) for env in self._envs]
+        else:
+            positions, directions = venv.get_attr("agent_pos"), venv.get_attr("agent_dir")
+            last = [(int(p[0]), int(p[1]), int(d)) for p, d in zip(positions, directions)]
+        self._before, self._last = self._last, last
         return [self._cell(*last) for last in self._last]
 
     def terminal_cell(self, index: int, info: dict[str, Any], cell: int, action: Any, terminated: bool) -> int:
