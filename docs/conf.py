@@ -49,7 +49,7 @@ autodoc_inherit_docstrings = False  # document our own methods, not Gymnasium's 
 # be resolved without their inventories (intersphinx needs the network), so references into them are not checked.
 nitpicky = True
 _EXTERNAL = (
-    r"(stable_baselines3|gymnasium|pettingzoo|gym|numpy|np|pandas|pd|torch|th|pydantic|matplotlib|plt|tqdm|yaml|spaces)"
+    r"(stable_baselines3|sb3_contrib|gymnasium|pettingzoo|gym|numpy|np|pandas|pd|torch|th|pydantic|matplotlib|plt|tqdm|yaml|spaces)"
 )
 nitpick_ignore_regex = [
     (r"py:.*", _EXTERNAL + r"(\..*)?"),

@@ -7,6 +7,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -24,3 +26,17 @@ def test_benchmark_smoke_run_writes_its_table(tmp_path: Path) -> None:
     names = [row["measure"] for row in rows]
     assert any(n.startswith("QLearning.learn") for n in names) and any(n.startswith("AffectQ.learn") for n in names)
     assert all(float(row["value"]) > 0 for row in rows)
+
+
+def test_benchmark_minigrid_smoke_run_writes_its_rows(tmp_path: Path) -> None:
+    pytest.importorskip("minigrid")
+    out = tmp_path / "bench.csv"
+    subprocess.run(
+        [sys.executable, str(ROOT / "benchmarks" / "bench.py"), "--smoke", "--minigrid", "--csv", str(out)],
+        capture_output=True,
+        timeout=600,
+        check=True,
+    )
+    names = [row["measure"] for row in csv.DictReader(out.open())]
+    assert any(n.startswith("AffectDQN.learn, MiniGrid") for n in names)
+    assert any(n.startswith("AffectQ.learn on TabularMiniGrid") for n in names)
