@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 
 from sb3_affect.study.report import paper
-from sb3_affect.study.report.document import fmt, sig
+from sb3_affect.study.report.document import fmt, pval, sig
 from sb3_affect.study.report.inference import Estimate, Test, predictive, welch, z_estimate
 
 STANDARD, AFFECTIVE = "epsilon-greedy", "affective"
@@ -152,3 +152,9 @@ def size_against_paper(
 
 def eps_list(values: list[float]) -> str:
     return ", ".join(fmt(e, 1) for e in sorted(values)) or "none"
+
+
+def p_text(test: Test) -> str:
+    """A test's p-value, with its Holm-adjusted value where that differs."""
+    adjusted = not math.isnan(test.p_holm) and test.p_holm != test.p
+    return f"p {pval(test.p)}" + (f", Holm {pval(test.p_holm)}" if adjusted else "")
