@@ -94,10 +94,10 @@ def per_eps_conclusion(table: pd.DataFrame) -> str:
         lead = f"the direction rule alone beats ε-greedy at ε {eps_list(better)}"
     else:
         lead = "the direction rule alone beats ε-greedy at no ε"
-    return (
-        f"{lead}: speed 1 needs significantly fewer decisions at ε {eps_list(better)}, significantly more at ε "
-        f"{eps_list(worse)}, and neither at ε {eps_list(same)} (Welch tests, Holm over the ε values)"
-    )
+    parts = [f"significantly fewer decisions at ε {eps_list(better)}", f"significantly more at ε {eps_list(worse)}"]
+    if same:
+        parts.append(f"neither at ε {eps_list(same)}")
+    return f"{lead}: speed 1 needs " + ", ".join(parts) + " (Welch tests, Holm over the ε values)"
 
 
 def speed_one_section(ctx: ReportContext) -> None:
