@@ -30,6 +30,7 @@ from sb3_affect.study.forensics.scoring import (
     NOT_RULED_OUT,
     REACHED,
     log_likelihood,
+    monte_carlo_error,
     posterior,
     reach_findings,
 )
@@ -115,6 +116,22 @@ def test_scoring_prefers_the_sample_that_holds_the_value() -> None:
         assert log_likelihood(sample, near, diagonal) > log_likelihood(sample, far, diagonal) + 10
     probabilities = posterior([log_likelihood(sample, near), log_likelihood(sample, far), -math.inf])
     assert probabilities.sum() == pytest.approx(1.0) and probabilities[0] > 0.99 and probabilities[2] == 0
+
+
+def test_log_likelihood_differences_come_with_their_monte_carlo_error() -> None:
+    """Fewer replications, a larger Monte Carlo error; the ranking prints differences to the best with that error."""
+    from sb3_affect.study.forensics.section import _differences
+
+    rng = np.random.default_rng(1)
+    sample = np.exp(rng.normal(3.0, 0.1, size=(400, len(STATISTICS))))
+    observed = sample.mean(axis=0) * 1.05
+    few, many = monte_carlo_error(sample[:30], observed), monte_carlo_error(sample, observed)
+    assert 0 < many < few
+    never = sample.copy()
+    never[:, 0] = np.nan  # a printed statistic this candidate never produces: log-likelihood -inf, no error
+    assert math.isnan(monte_carlo_error(never, observed))
+    table = pd.DataFrame({"loglik": [-10.0, -14.0, -math.inf], "loglik_mc_error": [3.0, 4.0, math.nan]})
+    assert _differences(table, "loglik", "loglik_mc_error") == ["0 (the best) ± 3.0", "-4.0 ± 5.0", "-inf"]
 
 
 def _normal(mean: float, sd: float, reps: int, seed: int) -> np.ndarray:

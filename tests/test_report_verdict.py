@@ -44,6 +44,8 @@ def _runs(n: int, seed: int = 0) -> pd.DataFrame:
                         "joy_1_10_weighted": 0.7, "anger_1_10_weighted": 0.3,
                         "joy_181_200_weighted": 0.8, "anger_181_200_weighted": 0.2,
                         "sadness_1_10": 0.0, "fear_1_10": 0.0, "sadness_181_200": 0.0, "fear_181_200": 0.0,
+                        "sadness_1_10_weighted": 0.0, "fear_1_10_weighted": 0.0,
+                        "sadness_181_200_weighted": 0.0, "fear_181_200_weighted": 0.0,
                         "eqeps_1_10": 0.3 + rng.normal(0, 0.02), "eqeps_181_200": 0.1 + rng.normal(0, 0.02),
                         "decisions_181_200": steps * 0.5,
                         "cells_per_episode": steps * (1.5 if agent == "affective" else 1.0),
@@ -215,7 +217,10 @@ def test_claims_by_reading_judges_each_reading_with_the_verdict_logic() -> None:
     runs = _runs(20)
     standard = runs[runs.agent == "epsilon-greedy"]
     found = runs[runs.agent == "affective"].assign(comparison="literal", act="episode", units="cells")
-    never = found.assign(act="remaining", first_optimal=np.nan, censored=True, fear_1_10=0.4, fear_1_10_weighted=0.4)
+    never = found.assign(
+        act="remaining", first_optimal=np.nan, censored=True, fear_1_10=0.4, fear_1_10_weighted=0.2, sadness_1_10_weighted=0.1,
+        joy_1_10_weighted=0.4,
+    )
     table = claims_by_reading(reading_runs(pd.concat([found, never], ignore_index=True), standard))
     assert list(table.columns) == ["literal / episode / cells", "literal / remaining / cells"]
     row = table.loc["27.35 episodes until the optimal path (affective)"]
@@ -225,7 +230,48 @@ def test_claims_by_reading_judges_each_reading_with_the_verdict_logic() -> None:
     four = table.loc["Four emotions shape behaviour (sadness and fear included)"]
     assert four["literal / episode / cells"] == "not reproduced" and four["literal / remaining / cells"] == "reproduced"
     shares = emotion_shares(pd.concat([found, never], ignore_index=True))
-    assert shares.at["literal / remaining / cells", "fear 1-10"] == pytest.approx(0.4)
+    assert shares.at["literal / remaining / cells", "fear 1-10"] == pytest.approx(0.2)
+
+
+@pytest.mark.parametrize(
+    ("sadness", "fear", "verdict"),
+    [
+        (0.05, 0.2, "reproduced: each of the four emotions takes at least 1%"),
+        (0.0, 0.2, "not reproduced: sadness below 1%"),  # fear alone is not "four emotions"
+        (0.2, 0.0, "not reproduced: fear below 1%"),
+        (0.009, 0.009, "not reproduced: sadness and fear below 1%"),  # just under the stated share
+        (0.0, 0.0, "not reproduced: sadness and fear below 1%"),
+    ],
+)
+def test_four_emotions_needs_each_emotion_above_its_share(sadness: float, fear: float, verdict: str) -> None:
+    """Synthetic decision-weighted shares: every one of the four emotions must reach 1% early or late."""
+    runs = _runs(5)
+    affective = runs.agent == "affective"
+    runs.loc[affective, "sadness_1_10_weighted"] = sadness  # early only: one window is enough
+    runs.loc[affective, "fear_181_200_weighted"] = fear  # late only
+    runs.loc[~affective, ["sadness_1_10_weighted", "fear_181_200_weighted"]] = 0.5  # ε-greedy's rows never count
+    judged = _by_key(runs)["four_emotions"]
+    assert judged.verdict.startswith(verdict), judged.verdict
+    assert judged.direction is verdict.startswith("reproduced")
+
+
+def test_the_speed_ablation_concludes_per_epsilon() -> None:
+    """Speed 1 at ~3,800 decisions before the optimal path against ε-greedy's 3,000 + 30,000 ε^4: ε-greedy fewer at ε
+    0.1-0.3, no difference at 0.4 (3,768), speed 1 fewer from 0.5 (4,875) on."""
+    from sb3_affect.study.report.speed_ablation import per_eps_conclusion, speed_one_per_eps
+
+    runs = _runs(200)
+    rng = np.random.default_rng(5)
+    slow = runs[runs.agent == "affective"].assign(agent="affective-speed-1")
+    slow["decisions_before_optimal"] = 3800 * rng.lognormal(0, 0.2, len(slow)) / np.exp(0.02)  # mean 3,800
+    table = speed_one_per_eps(runs, slow)
+    assert list(table.index) == [f"{e:.1f}" for e in EPS]
+    assert list(table["at this ε"]) == ["ε-greedy fewer"] * 3 + ["no significant difference"] + ["speed 1 fewer"] * 5
+    text = per_eps_conclusion(table)
+    assert text.startswith("the direction rule alone beats ε-greedy only against ε >= 0.5"), text
+    assert "significantly more at ε 0.1, 0.2, 0.3" in text and "neither at ε 0.4" in text
+    slow["decisions_before_optimal"] = 1000.0 * rng.lognormal(0, 0.2, len(slow))  # far ahead everywhere
+    assert per_eps_conclusion(speed_one_per_eps(runs, slow)).startswith("the direction rule alone beats ε-greedy at every ε")
 
 
 def test_the_speed_ablation_table_puts_decisions_beside_cells() -> None:
@@ -382,3 +428,58 @@ def test_the_launcher_tuning_table_says_whether_its_best_is_interior() -> None:
     assert table.loc[("edge", 0.01), "best"] and not table.loc[("edge", 0.01), "interior"]
     assert table.loc[("inside", 0.05), "best"] and table.loc[("inside", 0.05), "interior"]
     assert table["interior"].sum() == 1
+
+
+def test_the_html_page_has_contents_cards_and_folded_appendix_tables(tmp_path: Path) -> None:
+    """Contents links every heading; a card table shows one card per row; only the appendix's long tables fold."""
+    import matplotlib.pyplot as plt
+
+    from sb3_affect.study.report.document import APPENDIX_HEADING, FOLD_ROWS, CardSpec, Document
+
+    fig, ax = plt.subplots()
+    ax.plot([0, 1])
+    fig.savefig(tmp_path / "fig.png")
+    plt.close(fig)
+    doc = Document("report")
+    doc.h("Verdict")
+    verdicts = pd.DataFrame(
+        {"quote": ["q1", "q2"], "verdict": ["reproduced: yes", "not reproduced: no"], "ours": ["1", "2"]},
+        index=pd.Index(["claim one", "claim two"], name="claim"),
+    )
+    doc.cards(verdicts, "verdicts", CardSpec("quote", ("verdict",), {"claim two": tmp_path / "fig.png"}))
+    long = pd.DataFrame({"x": range(FOLD_ROWS + 1)})
+    doc.table(long, "a long main-text table")
+    doc.md("## Forensics from a layer above\n\nIts text.")  # a Markdown fragment's heading joins the contents
+    doc.h(APPENDIX_HEADING, 1)
+    doc.table(long, "a long appendix table")
+    doc.table(long.head(FOLD_ROWS), "a short appendix table")
+    page = doc.html()
+    assert page.count("<a href='#") == 3 and "id='verdict'" in page and "id='appendix'" in page
+    assert "<a href='#forensics-from-a-layer-above'>" in page
+    assert page.count("<article class='card'>") == 2 and page.count("data:image/png;base64,") == 1
+    assert "<blockquote>q1</blockquote>" in page and "class='verdict no'>verdict: not reproduced: no" in page
+    assert page.count("<details>") == 1 and f"a long appendix table ({FOLD_ROWS + 1} rows)</summary>" in page
+    markdown = doc.markdown(tmp_path)
+    assert "| claim | quote | verdict | ours |" in markdown  # the Markdown keeps the table, every column
+
+
+def test_the_wall_time_record_keeps_each_runs_own_times(tmp_path: Path) -> None:
+    """A first run does a part's work, a resumed run reads it back: the results' time stays the first run's, each run
+    keeps its own seconds, report step and total, and the record section tabulates one column per run."""
+    from sb3_affect.study.replicate import _Record
+    from sb3_affect.study.report.record import replicate_runs, runs_table
+
+    first = _Record(tmp_path)
+    first.part("paper", 60.0, done_before=0, todo=360)
+    first.set("forensics", 65.5)
+    first.finish(97.6)
+    second = _Record(tmp_path)
+    assert second.part("paper", 0.2, done_before=360, todo=0) == 60.0  # nothing left: the first run's time
+    second.set("forensics", 17.0)
+    second.finish(40.0)
+    runs = replicate_runs(tmp_path)
+    assert [r["parts"] for r in runs] == [{"paper": 60.0, "forensics": 65.5}, {"paper": 0.2, "forensics": 17.0}]
+    assert [r["report"] for r in runs] == [97.6, 40.0] and all(r["total"] >= 0 for r in runs)
+    table = runs_table(runs)
+    assert list(table.index) == ["paper", "forensics", "report", "total"] and table.shape[1] == 2
+    assert table.iloc[:, 0]["forensics"] == 65.5 and table.iloc[:, 1]["forensics"] == 17.0

@@ -170,14 +170,16 @@ def main(
             table, meta = run_cells(out_dir / name, cells, seeds, episodes, workers=workers)
         seconds = time.perf_counter() - start
         # The study's own record of the run that computed it (a complete study is read back, not recomputed).
-        timings[description] = record.set(description, float(meta.get("wall_seconds", seconds)))
+        timings[description] = record.set(description, float(meta.get("wall_seconds", seconds)), seconds)
         print(f"   {len(table)} runs, {seconds:.1f} s", flush=True)
     tuning_seeds = min(TUNING_SEEDS, large_seeds)
     description = f"ε tuned per task beyond the paper, {tuning_seeds} seeds per value (engine)"
     print(f"== {description} -> {out_dir / 'tuning'}", flush=True)
+    start = time.perf_counter()
     with _heartbeat(description):
         tuned, seconds = run_tuning(out_dir / "tuning", tuning_seeds, engine_episodes, beyond_seeds, workers=workers)
-    timings[description] = record.set(description, seconds)  # the rounds' own time (rounds read back keep theirs)
+    # the rounds' own time (rounds read back keep theirs)
+    timings[description] = record.set(description, seconds, time.perf_counter() - start)
     chosen = ", ".join(f"{agent} on {task}: {t.best:g}{'' if t.interior else ' (edge)'}" for (task, agent), t in tuned.items())
     print(f"   {timings[description]:.1f} s; chosen: {chosen}", flush=True)
     description = f"static grid, moving and evading prey, mazes, {beyond_seeds} seeds (engine)"
@@ -186,8 +188,9 @@ def main(
     with _heartbeat(description):
         cells = beyond_cells({key: t.best for key, t in tuned.items()})
         table, meta = run_cells(out_dir / "beyond", cells, beyond_seeds, engine_episodes, workers=workers)
-    timings[description] = record.set(description, float(meta.get("wall_seconds", time.perf_counter() - start)))
-    print(f"   {len(table)} runs, {time.perf_counter() - start:.1f} s", flush=True)
+    own = time.perf_counter() - start
+    timings[description] = record.set(description, float(meta.get("wall_seconds", own)), own)
+    print(f"   {len(table)} runs, {own:.1f} s", flush=True)
     extra = []
     if forensics:
         from sb3_affect.study.forensics.analysis import run_forensics
@@ -213,6 +216,7 @@ def main(
     start = time.perf_counter()
     report = build_report(out_dir, timings=timings, extra_sections=extra, command=command or " ".join(sys.argv))
     timings["report"] = time.perf_counter() - start
+    record.finish(timings["report"])
     print("wall time: " + ", ".join(f"{name} {seconds:.1f} s" for name, seconds in timings.items()))
     print(f"report: {report} (and {report.with_suffix('.html')})")
     return report
@@ -245,8 +249,10 @@ def _heartbeat(what: str, every: float | None = None) -> Iterator[None]:
 class _Record:
     """
     ``OUT/replicate.json``: the wall time of each part over the runs that did its work, so that a resumed replicate
-    reports the time the results took (a part finished earlier keeps its time; a part resumed adds the resume's). It
-    also marks the folder as a replication, into which ``sb3-affect run`` refuses to write a sweep.
+    reports the time the results took (a part finished earlier keeps its time; a part resumed adds the resume's), and
+    each run's own times (``runs``: when it started, the seconds each part took in that run, its report step and its
+    total), so that a number can be traced to the run it comes from. It also marks the folder as a replication, into
+    which ``sb3-affect run`` refuses to write a sweep.
     """
 
     def __init__(self, out_dir: Path) -> None:
@@ -256,23 +262,39 @@ class _Record:
             saved = json.loads(self.path.read_text())
         except (OSError, ValueError):
             saved = {}
-        timings = saved.get("timings") if isinstance(saved, dict) else None
+        saved = saved if isinstance(saved, dict) else {}
+        timings, runs = saved.get("timings"), saved.get("runs")
         self.timings: dict[str, Any] = dict(timings) if isinstance(timings, dict) else {}
+        self.runs: list[dict[str, Any]] = [r for r in runs if isinstance(r, dict)] if isinstance(runs, list) else []
+        self.start = time.perf_counter()
+        started = time.strftime("%Y-%m-%d %H:%M:%S UTC", time.gmtime())
+        self.runs.append({"started": started, "parts": {}})
 
     def part(self, key: str, seconds: float, done_before: int, todo: int) -> float:
         previous = self.timings.get(key)
         if not isinstance(previous, (int, float)):
-            return self.set(key, seconds)
+            return self.set(key, seconds, seconds)
         if todo == 0:  # nothing left to do: the time is the earlier runs'
-            return float(previous)
-        return self.set(key, previous + seconds if done_before else seconds)
+            return self.set(key, float(previous), seconds)
+        return self.set(key, previous + seconds if done_before else seconds, seconds)
 
-    def set(self, key: str, seconds: float) -> float:
+    def set(self, key: str, seconds: float, own: float | None = None) -> float:
+        """The results' time of part ``key``; ``own``: the seconds it took in this run (default ``seconds``)."""
         self.timings[key] = seconds
-        tmp = self.path.with_name(f".{self.path.name}.tmp")
-        tmp.write_text(json.dumps({"timings": self.timings}, indent=1))
-        tmp.replace(self.path)
+        self.runs[-1]["parts"][key] = seconds if own is None else own
+        self._write()
         return seconds
+
+    def finish(self, report_seconds: float) -> None:
+        """This run's report step and its total wall time."""
+        self.runs[-1]["report"] = report_seconds
+        self.runs[-1]["total"] = time.perf_counter() - self.start
+        self._write()
+
+    def _write(self) -> None:
+        tmp = self.path.with_name(f".{self.path.name}.tmp")
+        tmp.write_text(json.dumps({"timings": self.timings, "runs": self.runs}, indent=1))
+        tmp.replace(self.path)
 
 
 def _cpus() -> set[int]:

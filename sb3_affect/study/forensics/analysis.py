@@ -36,6 +36,7 @@ from sb3_affect.study.forensics.scoring import (
     NOT_RULED_OUT,
     intervals,
     log_likelihood,
+    monte_carlo_error,
     posterior,
     predictive_reach,
     reach_findings,
@@ -206,6 +207,11 @@ def run_forensics(
     reachable = np.where(np.isin(np.array(STATISTICS), unreached), np.nan, observed)
     leaders_table["loglik_reachable"] = [log_likelihood(full[name], reachable) for name in leaders_table.candidate]
     leaders_table["posterior_reachable"] = posterior(leaders_table.loglik_reachable)
+    # the Monte Carlo error of each log-likelihood (bootstrap over its replications), for the section's differences
+    leaders_table["loglik_mc_error"] = [monte_carlo_error(full[name], observed) for name in leaders_table.candidate]
+    leaders_table["loglik_reachable_mc_error"] = [
+        monte_carlo_error(full[name], reachable) for name in leaders_table.candidate
+    ]
     result = ForensicsResult(screen, leaders_table, table, unreached, time.perf_counter() - start)
     screen.to_csv(out / "screen.csv", index=False)
     leaders_table.to_csv(out / "leaders.csv", index=False)

@@ -69,6 +69,24 @@ def log_likelihood(sample: npt.ArrayLike, observed: npt.ArrayLike, diagonal: boo
     return float(-0.5 * quad - 0.5 * logdet - np.log(sd).sum() - 0.5 * len(y) * math.log(2 * math.pi))
 
 
+#: Bootstrap resamples of the replications for a log-likelihood's Monte Carlo error (seeded: the same on every run).
+MC_RESAMPLES = 100
+
+
+def monte_carlo_error(sample: npt.ArrayLike, observed: npt.ArrayLike, resamples: int = MC_RESAMPLES, seed: int = 0) -> float:
+    """
+    The Monte Carlo error of ``log_likelihood(sample, observed)``: its standard deviation over bootstrap resamples of
+    the replications (the rows of ``sample``); NaN when the log-likelihood is not finite.
+    """
+    x = np.asarray(sample, dtype=float)
+    if not math.isfinite(log_likelihood(x, observed)) or len(x) < 2:
+        return math.nan
+    rng = np.random.default_rng(seed)
+    values = np.array([log_likelihood(x[rng.integers(0, len(x), len(x))], observed) for _ in range(resamples)])
+    values = values[np.isfinite(values)]
+    return float(values.std(ddof=1)) if len(values) > 1 else math.nan
+
+
 def posterior(log_likelihoods: npt.ArrayLike, log_prior: npt.ArrayLike | None = None) -> np.ndarray:
     """Posterior probabilities from log-likelihoods and a log prior (default: uniform)."""
     ll = np.asarray(log_likelihoods, dtype=float)

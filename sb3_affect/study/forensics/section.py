@@ -45,6 +45,68 @@ def _loglik(value: float) -> str:
     return "-inf (never produces a printed value)" if value == -math.inf else f"{value:,.1f}"
 
 
+def _differences(table: pd.DataFrame, column: str, error: str) -> list[str]:
+    """Each row's ``column`` minus the best row's, with the Monte Carlo error of the difference (when recorded)."""
+    values = table[column].to_numpy(float)
+    finite = values[np.isfinite(values)]
+    if not len(finite):
+        return ["" for _ in values]
+    best = int(np.nanargmax(np.where(np.isfinite(values), values, -np.inf)))
+    errors = table[error].to_numpy(float) if error in table.columns else np.full(len(values), np.nan)
+    out = []
+    for i, value in enumerate(values):
+        if not math.isfinite(value):
+            out.append("-inf")
+            continue
+        spread = math.sqrt(errors[i] ** 2 + errors[best] ** 2) if i != best else errors[i]
+        text = "0 (the best)" if i == best else f"{value - values[best]:,.1f}"
+        out.append(text + (f" ± {spread:,.1f}" if math.isfinite(spread) else ""))
+    return out
+
+
+def verdict_setting() -> dict[str, Any]:
+    """The verdict's own implementation (the report's agents and their settings' defaults) in the screen's terms."""
+    from sb3_affect.core.settings import AffectQSettings
+    from sb3_affect.study.report.engine_studies import AFFECT_DEFAULT, COMMON
+
+    defaults = AffectQSettings()
+    return {
+        **AFFECT_DEFAULT,
+        "tie_break": defaults.tie_break,
+        "multi_cell": defaults.multi_cell,
+        "alpha": float(COMMON["learning_rate"]),
+        "gamma": float(COMMON["gamma"]),
+        "step": "decisions",  # the verdict counts a step as a decision
+    }
+
+
+def verdict_setting_lines(screen: pd.DataFrame) -> list[str]:
+    """Where the verdict's own setting ranks in the screen, per definition of "optimal path found"."""
+    setting = verdict_setting()
+    if not set(setting) <= set(screen.columns):
+        return []
+    ranked = screen.reset_index(drop=True)
+    mine = np.ones(len(ranked), bool)
+    for column, value in setting.items():
+        mine &= (ranked[column] == value).to_numpy() if isinstance(value, str) else np.isclose(ranked[column], value)
+    rows = ranked[mine]
+    if not len(rows):
+        return []
+    leader = screen.iloc[0]
+    places = "; ".join(
+        f"{position + 1} ({row.optimal} optimal path, Table V as the {row.table_v})"
+        for position, (_, row) in zip(np.flatnonzero(mine), rows.iterrows())
+        if "optimal" in rows.columns and "table_v" in rows.columns
+    )
+    return [
+        f"The verdict's own setting ({', '.join(f'{k} {v}' for k, v in setting.items())}) ranks {places} of "
+        f"{len(screen)} in the screen; the screen's leader uses alpha {fmt(float(leader.alpha))}, gamma "
+        f"{fmt(float(leader.gamma))}. The interval table below gives the printed numbers under the leaders' settings "
+        "beside the paper's: the verdict's sizes are those of its own setting, not of the best-fitting one.",
+        "",
+    ]
+
+
 def _sci(value: float) -> str:
     return fmt(value, 3) if abs(value) < 1e7 or math.isnan(value) else f"{value:.3g}"
 
@@ -74,25 +136,28 @@ def forensics_section(folder: str | Path, figures_dir: str | Path | None = None)
         f"{run['standard_simulations']} epsilon-greedy simulations shared between them). Each simulation replicates "
         f"the paper's whole protocol with fresh seeds: {run['screen_reps']} replications in the screen, {run['reps']} "
         f"for the {run['leaders']} leading affective simulations. Score: Gaussian synthetic log-likelihood of the "
-        f"{len(STATISTICS)} printed statistics (log scale for means, variances and episodes); posterior under a "
-        "uniform prior over the leaders' candidates (docs/forensics.md). "
+        f"{len(STATISTICS)} printed statistics (log scale for means, variances and episodes); candidates compared by "
+        "their log-likelihood differences with Monte Carlo errors (docs/forensics.md). "
         f"Wall time of the last run: {fmt(float(run['seconds']), 0)} s.",
         "",
     ]
     top = leaders.head(8)
     ranking = top[[c for c in FACTORS if c in top.columns]].copy()
     ranking["log-likelihood"] = top.loglik.map(_loglik)
-    ranking["posterior"] = top.posterior.map(lambda v: f"{v:.3g}")
-    if "posterior_reachable" in top.columns:
-        ranking["posterior, reachable statistics only"] = top.posterior_reachable.map(lambda v: f"{v:.3g}")
+    ranking["minus the best's [± Monte Carlo error]"] = _differences(top, "loglik", "loglik_mc_error")
+    if "loglik_reachable" in top.columns:
+        ranking["the same, reachable statistics only"] = _differences(top, "loglik_reachable", "loglik_reachable_mc_error")
     ranking.index = pd.Index(range(1, len(ranking) + 1), name="rank")
     lines += [
-        "*Leading candidates, best first (full replications); the last column scores only the printed numbers a "
-        "leading candidate reaches (below)*",
+        "*Leading candidates, best first (full replications): each log-likelihood minus the best candidate's, with the "
+        "Monte Carlo error of the difference (bootstrap over the replications); a difference within about two errors "
+        "does not separate two candidates. The last column scores only the printed numbers a leading candidate "
+        "reaches (below), ranked against its own best*",
         "",
         _md_table(ranking, 2),
         "",
     ]
+    lines += verdict_setting_lines(screen)
     best_screen = screen.head(8)
     screened = best_screen[[c for c in FACTORS if c in best_screen.columns]].copy()
     screened["screen log-likelihood"] = best_screen.screen_loglik.map(_loglik)
@@ -198,6 +263,8 @@ def _figure(folder: Path, table: pd.DataFrame, path: Path) -> Path | None:
         if np.isfinite(printed[index]):
             ax.axvline(printed[index], color="black", lw=2, label="paper")
         ax.set_title(name + (" (log)" if LOG_SCALE[index] else ""), fontsize=9)
+        ax.set_xlabel("log of the value" if LOG_SCALE[index] else "value", fontsize=7)
+        ax.set_ylabel("replications", fontsize=7)
         ax.tick_params(labelsize=7)
     for ax in list(axes.flat)[len(STATISTICS) :]:
         ax.axis("off")

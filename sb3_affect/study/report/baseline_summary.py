@@ -26,6 +26,7 @@ import numpy as np
 import pandas as pd
 
 from sb3_affect.core.emotions import EMOTION_NAMES
+from sb3_affect.study.report.document import fmt
 from sb3_affect.study.report.metrics import load_run_records
 
 METRICS = ("decisions_per_episode", "cells_per_episode", "steps_before_optimal")
@@ -117,7 +118,17 @@ def summarise(records: Iterable[dict[str, Any]], by: Sequence[str] = ("task", "a
 
 
 def _ci(row: pd.Series, metric: str, digits: int = 1) -> str:
-    return f"{row[metric]:.{digits}f} [{row[f'{metric}_low']:.{digits}f}, {row[f'{metric}_high']:.{digits}f}]"
+    return f"{fmt(row[metric], digits)} [{fmt(row[f'{metric}_low'], digits)}, {fmt(row[f'{metric}_high'], digits)}]"
+
+
+def focus_ranks(summary: pd.DataFrame, focus: str = "affective") -> dict[str, tuple[int, int]]:
+    """Per task: where ``focus`` ranks on decisions per episode (1 = fewest) and among how many agents."""
+    out = {}
+    for task, table in summary.groupby("task", sort=False):
+        order = list(table.sort_values("decisions_per_episode")["agent"])
+        if focus in order:
+            out[str(task)] = (order.index(focus) + 1, len(order))
+    return out
 
 
 def markdown(summary: pd.DataFrame, focus: str = "affective") -> str:
@@ -140,7 +151,7 @@ def markdown(summary: pd.DataFrame, focus: str = "affective") -> str:
             )
         if focus in set(table["agent"]):
             me = table[table["agent"] == focus].iloc[0]
-            position = int(table.index[table["agent"] == focus][0]) + 1
+            position, _total = focus_ranks(summary, focus)[str(task)]
             better = table[table["decisions_per_episode_high"] < me["decisions_per_episode_low"]]["agent"].tolist()
             worse = table[table["decisions_per_episode_low"] > me["decisions_per_episode_high"]]["agent"].tolist()
             lines += [

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from sb3_affect.study.report.baseline_summary import emotion_profile, markdown, profile_markdown, summarise
+from sb3_affect.study.report.baseline_summary import emotion_profile, focus_ranks, markdown, profile_markdown, summarise
 from sb3_affect.study.report.beyond_tasks import BEYOND_AGENTS, BEYOND_CAP, TASKS, TUNED_AGENTS, beyond_cells
 from sb3_affect.study.report.context import ReportContext
 from sb3_affect.study.report.document import fmt
@@ -41,12 +41,23 @@ INTRO = (
 )
 
 
-def baselines_section(run_dirs: Sequence[str | Path], title: str = "Beyond the paper: fair baselines and moving prey") -> str:
-    """The section as markdown (empty string when none of ``run_dirs`` holds runs)."""
+def baselines_section(
+    run_dirs: Sequence[str | Path],
+    title: str = "Beyond the paper: fair baselines and moving prey",
+    ranks: dict[str, tuple[int, int]] | None = None,
+) -> str:
+    """
+    The section as markdown (empty string when none of ``run_dirs`` holds runs).
+
+    :param ranks: filled with the affective agent's rank per task and the number of agents (``focus_ranks``)
+    """
     records = [record for folder in run_dirs if Path(folder).exists() for record in load_run_records(folder)]
     if not records:
         return ""
-    text = f"## {title}\n\n{INTRO}\n\n{markdown(summarise(records))}"
+    summary = summarise(records)
+    if ranks is not None:
+        ranks.update(focus_ranks(summary))
+    text = f"## {title}\n\n{INTRO}\n\n{markdown(summary)}"
     profile = emotion_profile(records)
     if len(profile):
         text += "\nPersonalities (a bias on the appraisal's norm: optimistic 0.8, pessimistic 1.25). " + profile_markdown(
@@ -141,4 +152,6 @@ def beyond_section(ctx: ReportContext) -> None:
     dirs = [ctx.root / name for name in BASELINE_FOLDERS if (ctx.root / name / "runs").is_dir()]
     if dirs:
         title = "Fair baselines: tuned, decaying, optimistic and speed-matched agents"
-        ctx.doc.md(baselines_section(dirs, title=title).replace("## ", "### ", 1))
+        places: dict[str, tuple[int, int]] = {}
+        ctx.doc.md(baselines_section(dirs, title=title, ranks=places).replace("## ", "### ", 1))
+        ctx.cache["baseline ranks"] = places

@@ -21,7 +21,7 @@ from sb3_affect.study.report.abstract import abstract_section
 from sb3_affect.study.report.baselines_section import beyond_section
 from sb3_affect.study.report.checks import checks_section
 from sb3_affect.study.report.context import ReportContext
-from sb3_affect.study.report.document import Document, fmt
+from sb3_affect.study.report.document import APPENDIX_HEADING, Document, fmt
 from sb3_affect.study.report.dqn import dqn_section, learning_curves_section
 from sb3_affect.study.report.evidence import evidence_section
 from sb3_affect.study.report.mechanism import mechanism_section
@@ -44,6 +44,7 @@ HUNTER_FOLDERS = ("hunters", "hunters_moving")
 
 def overview_section(ctx: ReportContext) -> None:
     m = ctx.metrics
+    ctx.doc.h("Overview")
     runs = m.groupby("agent").run_id.count().to_dict()
     eps = sorted(m.epsilon.dropna().unique()) if "epsilon" in m.columns else []
     ctx.doc.p(
@@ -147,7 +148,7 @@ def _add(ctx: ReportContext, text: str, images: list[tuple[Path, str]]) -> None:
 
 
 def appendix_heading(ctx: ReportContext) -> None:
-    ctx.doc.h("Appendix", 1)
+    ctx.doc.h(APPENDIX_HEADING, 1)
     ctx.doc.p(
         "The long tables behind the verdict: every test with raw and Holm-adjusted p-values, the seed-count study, "
         "AdaStop, DQN, the second emotion model, the reproducibility record and the definitions."
@@ -270,6 +271,7 @@ def build_report(
     del found
     for section in sections if sections is not None else [*SECTIONS, *extra_sections, *APPENDIX]:
         section(ctx)
+    ctx.place_later()
     md = out / "report.md"
     md.write_text(ctx.doc.markdown(out))
     (out / "report.html").write_text(ctx.doc.html())

@@ -95,12 +95,12 @@ def judge_table_iv_test(m: pd.DataFrame) -> Judgement:
     return j
 
 
-def judge_table_iv(m: pd.DataFrame) -> Judgement:
+def judge_table_iv(m: pd.DataFrame, column: str = "decisions_per_episode") -> Judgement:
     """The paper's claim: no difference in steps per episode (averaged over ε), by TOST, and per ε by Welch."""
-    cells = cell_means(m, "decisions_per_episode")
+    cells = cell_means(m, column)
     est = diff_over_eps(cells)
     margin = EQUIVALENCE_MARGIN * over_eps(cells, STANDARD).value
-    _diffs, per_eps = per_epsilon(m, "decisions_per_episode", "")
+    _diffs, per_eps = per_epsilon(m, column, "")
     paper_diff = paper.TABLE_IV["Mean"][0] - paper.TABLE_IV["Mean"][1]
     inside, ratio, _where = size_against_paper(est, paper_diff, seeds_per_cell(m))
     equivalence = Test(f"TOST: |ε-greedy - affective| < {sig(margin)} (equivalence, averaged over ε)", tost(est, margin))
@@ -132,8 +132,13 @@ def judge_table_iv(m: pd.DataFrame) -> Judgement:
     return j
 
 
-def judge_fig3(m: pd.DataFrame) -> Judgement:
-    diffs, tests = per_epsilon(m, "decisions_per_episode", "")
+#: Fig. 3's rule: a single crossover whose last ε-greedy-better ε is at least CROSSOVER[0] and whose first
+#: affective-better ε is at most CROSSOVER[1] (the paper: better below 0.5, above 0.6; one ε value of slack each side).
+CROSSOVER = (0.4, 0.7)
+
+
+def judge_fig3(m: pd.DataFrame, column: str = "decisions_per_episode") -> Judgement:
+    diffs, tests = per_epsilon(m, column, "")
     point = sorted((e, d.value > 0) for e, d in diffs.items())
     cross = [f"{fmt(a, 1)}-{fmt(b, 1)}" for (a, sa), (b, sb) in itertools.pairwise(point) if sa != sb]
     low = [d.value for e, d in diffs.items() if e < 0.45]
@@ -141,8 +146,9 @@ def judge_fig3(m: pd.DataFrame) -> Judgement:
     j = Judgement(
         "fig3",
         "Fig. 3: crossover, ε-greedy better below ε 0.5, affective better above 0.6",
-        "crossover between ε = 0.5 and 0.6",
-        "ε-greedy minus affective steps per episode: "
+        f"ε-greedy better below 0.5, affective above 0.6 (reproduced when the significant differences change sign "
+        f"once, the last ε-greedy-better ε >= {CROSSOVER[0]} and the first affective-better ε <= {CROSSOVER[1]})",
+        f"ε-greedy minus affective {'steps' if column.startswith('decisions') else 'cells'} per episode: "
         + "; ".join(f"ε {fmt(e, 1)}: {d.text()}" for e, d in diffs.items())
         + f". Point estimates change sign between ε {', '.join(cross) or 'none'}",
         direction=bool(all(x < 0 for x in low) and all(x > 0 for x in high)) if low and high else None,
@@ -157,9 +163,12 @@ def judge_fig3(m: pd.DataFrame) -> Judgement:
             last_neg = max(e for e in sign if sign[e] < 0)
             first_pos = min(e for e in sign if sign[e] > 0)
             where = f"significant differences change sign between ε {fmt(last_neg, 1)} and {fmt(first_pos, 1)}"
-            if last_neg >= 0.4 and first_pos <= 0.7:
+            if last_neg >= CROSSOVER[0] and first_pos <= CROSSOVER[1]:
                 return f"reproduced: a crossover, {where}"
-            return f"crossover reproduced, shifted: {where} (paper: 0.5-0.6)"
+            return (
+                f"crossover reproduced, shifted: {where} (the rule: last ε-greedy-better ε >= {CROSSOVER[0]}, first "
+                f"affective-better ε <= {CROSSOVER[1]})"
+            )
         if not signs:
             return "not reproduced: no significant difference at any ε"
         return "not reproduced: " + ("affective better everywhere it differs" if min(signs) > 0 else "no single crossover")
@@ -244,36 +253,55 @@ def judge_fig4(m: pd.DataFrame, column: str = "decisions_before_optimal", defini
     return j
 
 
-def judge_printed_mean(m: pd.DataFrame, table: str, agent: str) -> Judgement:
-    """One agent's printed mean of Table IV or V (Table V walked, per 20 runs) against ours (the baselines' own numbers)."""
+def judge_printed_mean(m: pd.DataFrame, table: str, agent: str, definition: str = "walked") -> Judgement:
+    """
+    One agent's printed mean of Table IV or V (Table V per 20 runs, under the ``walked`` or ``greedy`` definition of
+    the optimal path) against ours (the baselines' own numbers).
+    """
     column, printed, scale = {
         "iv": ("decisions_per_episode", paper.TABLE_IV, 1.0),
-        "v": ("decisions_before_optimal", paper.TABLE_V, float(paper.SEEDS_PER_CELL)),
+        "v": ("decisions_before_optimal" if definition == "walked" else "decisions_to_greedy_optimal", paper.TABLE_V,
+              float(paper.SEEDS_PER_CELL)),
     }[table]
+    flag = "censored" if definition == "walked" else "greedy_censored"
     value = printed["Mean"][0 if agent == STANDARD else 1]
     est = over_eps(cell_means(m, column), agent).scaled(scale)
     inside, ratio, where = size_against_paper(est, value, seeds_per_cell(m))
     what = "steps per episode" if table == "iv" else "steps before the optimal path"
-    name = f"Table {table.upper()}: {agent} mean {what}"
+    name = f"Table {table.upper()}: {agent} mean {what}" + (f" ({definition} definition)" if table == "v" else "")
+    runs = m[m.agent == agent]
+    # a run that never finds the path counts all its decisions: a lower bound on its steps before the optimal path
+    censored = int(runs[flag].astype(bool).sum()) if table == "v" and flag in runs.columns else 0
+    bound = f">= {est.text()}" if censored else est.text()
     j = Judgement(
-        f"printed_{table}:{agent}",
+        f"printed_{table}:{agent}" + (f":{definition}" if table == "v" else ""),
         name,
         f"{fmt(value)}" + (" per 20 runs" if table == "v" else ""),
-        est.text() + (" per 20 runs" if table == "v" else ""),
+        bound + (" per 20 runs" if table == "v" else "")
+        + (f" ({censored:,} of {len(runs):,} runs never find the path: censored, so a lower bound)" if censored else ""),
         size=inside,
         ratio=ratio,
+        bound="lower" if censored else "",
     )
-    j.decide = lambda j: (
-        f"reproduced: inside the {where}" if j.size else f"not reproduced: paper / ours {sig(ratio)}, outside the {where}"
-    )
+
+    def decide(j: Judgement) -> str:
+        if j.size:
+            return f"reproduced: inside the {where}"
+        if censored and value > est.value:
+            return f"inconclusive: the paper's number is above ours, a lower bound (censored runs); {where}"
+        ratio_text = f"<= {sig(ratio)}" if censored else sig(ratio)
+        return f"not reproduced: paper / ours {ratio_text}, outside the {where}"
+
+    j.decide = decide
     return j
 
 
-def judge_all(m: pd.DataFrame, long: pd.DataFrame | None = None) -> list[Judgement]:
+def judge_all(m: pd.DataFrame, long: pd.DataFrame | None = None, cells: bool = True) -> list[Judgement]:
     """
     Every claim judged on ``m`` (one row per run), Holm-corrected within each claim, verdicts filled in.
 
     :param long: runs of 2,000 episodes for the long-run claim (its last 200 episodes); None: episodes 181-200 of m
+    :param cells: also judge the step-counting claims with steps counted as cells (``Judgement.cells_verdict``)
     """
     judgements = [
         judge_table_iv_test(m),
@@ -285,8 +313,10 @@ def judge_all(m: pd.DataFrame, long: pd.DataFrame | None = None) -> list[Judgeme
         judge_fig4(m, "decisions_to_greedy_optimal", "greedy"),
         judge_printed_mean(m, "iv", STANDARD),
         judge_printed_mean(m, "iv", AFFECTIVE),
-        judge_printed_mean(m, "v", STANDARD),
-        judge_printed_mean(m, "v", AFFECTIVE),
+        judge_printed_mean(m, "v", STANDARD, "walked"),
+        judge_printed_mean(m, "v", STANDARD, "greedy"),
+        judge_printed_mean(m, "v", AFFECTIVE, "walked"),
+        judge_printed_mean(m, "v", AFFECTIVE, "greedy"),
         judge_episodes_to_optimal(m),
         judge_fig5(m, weighted=False),
         judge_fig5(m, weighted=True),
@@ -295,9 +325,25 @@ def judge_all(m: pd.DataFrame, long: pd.DataFrame | None = None) -> list[Judgeme
         judge_four_emotions(m),
     ]
     for j in judgements:
-        holm(j.tests)
-        j.verdict = j.decide(j) if j.decide else ""
+        _decide(j)
+    in_cells = {
+        "table_iv": lambda: judge_table_iv(m, "cells_per_episode"),
+        "fig3": lambda: judge_fig3(m, "cells_per_episode"),
+        "table_v:walked": lambda: judge_table_v(m, "cells_before_optimal", "walked"),
+        "fig4:walked": lambda: judge_fig4(m, "cells_before_optimal", "walked"),
+    }
+    cells_columns = {"cells_per_episode", "cells_before_optimal"}
+    if cells and cells_columns <= set(m.columns) and m[list(cells_columns)].notna().any().all():
+        for j in judgements:
+            if j.key in in_cells:
+                j.cells_verdict = _decide(in_cells[j.key]()).verdict
     return judgements
+
+
+def _decide(j: Judgement) -> Judgement:
+    holm(j.tests)
+    j.verdict = j.decide(j) if j.decide else ""
+    return j
 
 
 def verdict_word(verdict: str) -> str:

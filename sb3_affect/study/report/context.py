@@ -16,7 +16,7 @@ from typing import Any
 
 import pandas as pd
 
-from sb3_affect.study.report.document import Document
+from sb3_affect.study.report.document import CardSpec, Document
 from sb3_affect.study.report.metrics import Results
 
 STANDARD, AFFECTIVE = "epsilon-greedy", "affective"
@@ -55,7 +55,27 @@ class ReportContext:
     timings: dict[str, float] = field(default_factory=dict)
     cache: dict[str, Any] = field(default_factory=dict)
     command: str = ""
-    _deferred: list[tuple[int, Callable[..., None], Any]] = field(default_factory=list, repr=False)
+    _later: list[tuple[int, Callable[[ReportContext], None]]] = field(default_factory=list, repr=False)
+
+    def later(self, section: Callable[[ReportContext], None]) -> None:
+        """
+        Run ``section(ctx)`` once every section has run (``place_later``), its blocks placed here: a section that
+        quotes what later sections compute (the abstract).
+        """
+        self._later.append((len(self.doc.blocks), section))
+
+    def place_later(self) -> None:
+        """The sections of ``later``, in order, each one's blocks placed where it was asked for."""
+        later, self._later = self._later, []
+        document, shift = self.doc, 0
+        for at, section in later:
+            self.doc = Document(document.title)
+            try:
+                section(self)
+            finally:
+                blocks, self.doc = self.doc.blocks, document
+            document.blocks[at + shift : at + shift] = blocks
+            shift += len(blocks)
 
     @property
     def episodes(self) -> pd.DataFrame:
@@ -65,6 +85,11 @@ class ReportContext:
         """Write ``tables/<name>.csv`` and add the table to the document."""
         frame.to_csv(self.out / "tables" / f"{name}.csv")
         self.doc.table(frame, caption + f" (tables/{name}.csv)", digits)
+
+    def cards(self, name: str, frame: pd.DataFrame, caption: str, spec: CardSpec, digits: int = 2) -> None:
+        """Write ``tables/<name>.csv`` (every column) and add the table as cards (HTML) / a table (Markdown)."""
+        frame.to_csv(self.out / "tables" / f"{name}.csv")
+        self.doc.cards(frame, caption + f" (tables/{name}.csv)", spec, digits)
 
     def study(self, name: str) -> pd.DataFrame | None:
         """The per-run table of the engine study ``root/<name>`` (``report.engine_studies``), or None."""

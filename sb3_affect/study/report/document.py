@@ -72,7 +72,7 @@ _P_COLUMN = re.compile(r"^(p|p \(.*\)|P\(T<=t\).*|P (one|two)-tail|p, .*)$")
 class Document:
     """
     Blocks in order: ("h", level, text), ("p", text), ("ul", items), ("table", frame, caption, digits),
-    ("md", markdown), ("img", path, caption).
+    ("cards", frame, caption, digits, spec), ("md", markdown), ("img", path, caption).
     """
 
     title: str
@@ -86,6 +86,10 @@ class Document:
 
     def table(self, frame: pd.DataFrame, caption: str = "", digits: int = 2) -> None:
         self.blocks.append(("table", frame, caption, digits))
+
+    def cards(self, frame: pd.DataFrame, caption: str, spec: CardSpec, digits: int = 2) -> None:
+        """A table shown as one card per row in the HTML page (``spec``), as a table in the Markdown."""
+        self.blocks.append(("cards", frame, caption, digits, spec))
 
     def ul(self, items: list[str]) -> None:
         """A bulleted list (each item inline text: **bold** and `code` spans)."""
@@ -107,7 +111,7 @@ class Document:
                 out += [f"{'#' * block[1]} {block[2]}", ""]
             elif kind == "p":
                 out += [block[1], ""]
-            elif kind == "table":
+            elif kind in ("table", "cards"):
                 frame, caption, digits = block[1], block[2], block[3]
                 if caption:
                     out += [f"*{caption}*", ""]
@@ -122,38 +126,186 @@ class Document:
         return "\n".join(out)
 
     def html(self) -> str:
+        """
+        The page: a contents column that stays in view (a bar across the top on narrow windows), text at a readable
+        width, wide tables scrolling inside their own box, cards in place of a card table's wide rows, and the
+        appendix's long tables folded until opened.
+        """
+        blocks = _split_md_headings(self.blocks)
+        ids = _heading_ids(blocks)
+        toc = "".join(
+            f"<li class='toc{block[1]}'><a href='#{ids[i]}'>{html.escape(block[2])}</a></li>"
+            for i, block in enumerate(blocks)
+            if block[0] == "h" and block[1] <= 3
+        )
         parts = [
-            "<!DOCTYPE html><html><head><meta charset='utf-8'>",
+            "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>",
+            "<meta name='viewport' content='width=device-width, initial-scale=1'>",
             f"<title>{html.escape(self.title)}</title>",
-            "<style>body{font-family:sans-serif;max-width:1300px;margin:2em auto;line-height:1.45}"
-            "table{border-collapse:collapse;margin:0.5em 0 1.2em}td,th{border:1px solid #ccc;padding:3px 8px;"
-            "text-align:right;vertical-align:top}td.text{text-align:left}th{background:#f3f3f3}td:first-child,th:first-child{text-align:left}"
-            "img{max-width:100%}figcaption,caption{font-style:italic;color:#444}</style></head><body>",
+            f"<style>{_CSS}</style></head><body><div class='layout'>",
+            f"<nav class='toc'><b>Contents</b><ul>{toc}</ul></nav><main>",
             f"<h1>{html.escape(self.title)}</h1>",
         ]
-        for block in self.blocks:
+        fold = False
+        for i, block in enumerate(blocks):
             kind = block[0]
             if kind == "h":
-                parts.append(f"<h{block[1]}>{html.escape(block[2])}</h{block[1]}>")
+                fold = fold or (block[1] == 1 and block[2] == APPENDIX_HEADING)
+                parts.append(f"<h{block[1]} id='{ids[i]}'>{html.escape(block[2])}</h{block[1]}>")
             elif kind == "p":
                 parts.append(f"<p>{_inline(block[1])}</p>")
             elif kind == "table":
                 frame, caption, digits = block[1], block[2], block[3]
-                parts.append(_html_table(frame, caption, digits))
+                table = _html_table(frame, caption, digits)
+                if fold and len(frame) > FOLD_ROWS:
+                    table = f"<details><summary>{html.escape(caption)} ({len(frame)} rows)</summary>{table}</details>"
+                parts.append(table)
+            elif kind == "cards":
+                parts.append(_html_cards(*block[1:]))
             elif kind == "ul":
                 parts.append("<ul>" + "".join(f"<li>{_inline(item)}</li>" for item in block[1]) + "</ul>")
             elif kind == "md":
                 import markdown
 
-                parts.append(markdown.markdown(block[1], extensions=["tables", "sane_lists"]))
+                parts.append(f"<div class='md'>{markdown.markdown(block[1], extensions=['tables', 'sane_lists'])}</div>")
             elif kind == "img":
-                data = base64.b64encode(block[1].read_bytes()).decode()
-                parts.append(
-                    f"<figure><img src='data:image/png;base64,{data}' alt='{html.escape(block[2])}'>"
-                    f"<figcaption>{html.escape(block[2])}</figcaption></figure>"
-                )
-        parts.append("</body></html>")
+                parts.append(f"<figure>{_img(block[1], block[2])}<figcaption>{html.escape(block[2])}</figcaption></figure>")
+        parts.append("</main></div></body></html>")
         return "\n".join(parts)
+
+
+#: The level-1 heading that starts the appendix: its tables longer than ``FOLD_ROWS`` rows are folded in the HTML page.
+APPENDIX_HEADING, FOLD_ROWS = "Appendix", 12
+
+_CSS = (
+    "body{margin:0;font-family:system-ui,-apple-system,'Segoe UI',sans-serif;line-height:1.5;color:#1d1d1d}"
+    ".layout{display:grid;grid-template-columns:15rem minmax(0,1fr);gap:2.5rem;max-width:82rem;margin:0 auto;"
+    "padding:0 1.2rem}"
+    "nav.toc{position:sticky;top:0;align-self:start;max-height:100vh;overflow-y:auto;font-size:.82rem;"
+    "padding:1.2rem 0;border-right:1px solid #e3e3e3}"
+    "nav.toc ul{list-style:none;margin:.4rem 0;padding:0}nav.toc li{margin:.15rem 0}"
+    "nav.toc .toc3{padding-left:1rem;font-size:.78rem}nav.toc a{color:#234;text-decoration:none}"
+    "nav.toc a:hover{text-decoration:underline}"
+    "main{min-width:0;padding:1rem 0 5rem}"
+    "main>p,main>ul,main>h1,main>h2,main>h3,main>h4,.md>p,.md>ul,figcaption{max-width:46rem}"
+    "h1,h2,h3,h4{scroll-margin-top:3.5rem;line-height:1.25}"
+    ".tablebox,.md table{display:block;max-width:100%;overflow-x:auto}"
+    "table{border-collapse:collapse;margin:.4rem 0 1.4rem;font-size:.85rem}"
+    "td,th{border:1px solid #d0d0d0;padding:3px 8px;text-align:right;vertical-align:top}"
+    "td.text{text-align:left;min-width:8rem;max-width:34rem}th{background:#f3f3f3;max-width:16rem}"
+    "td:first-child,th:first-child{text-align:left}"
+    "caption,figcaption{font-style:italic;color:#444;text-align:left;font-size:.85rem}"
+    "img{max-width:100%;height:auto}figure{margin:1rem 0 1.6rem}"
+    "details{margin:.4rem 0 1.2rem}summary{cursor:pointer;color:#234;font-style:italic;font-size:.9rem}"
+    ".cards{display:flex;flex-direction:column;gap:1rem;margin:.6rem 0 1.6rem}"
+    ".card{border:1px solid #d6d6d6;border-radius:6px;padding:.6rem 1rem;background:#fcfcfc;"
+    "display:flex;flex-wrap:wrap;gap:1rem}"
+    ".card .body{flex:1 1 26rem;min-width:0}.card .fig{flex:0 1 20rem;margin:0}"
+    ".card h4{margin:.2rem 0 .3rem}.card blockquote{margin:.1rem 0 .4rem;padding-left:.8rem;border-left:3px solid #bbb;"
+    "color:#333;font-style:italic;font-size:.88rem}"
+    ".card dl{display:grid;grid-template-columns:minmax(6rem,10rem) minmax(0,1fr);gap:.1rem .7rem;margin:0;"
+    "font-size:.82rem;line-height:1.35}.card dt{color:#555}.card dd{margin:0}"
+    ".verdict{font-weight:500;margin:.2rem 0 .35rem;font-size:.9rem;line-height:1.35}"
+    ".verdict.yes{color:#1b6e20}.verdict.no{color:#a3261b}"
+    ".verdict.mid{color:#8a5a00}"
+    "@media (max-width:900px){.layout{display:block;padding:0 .8rem}"
+    "nav.toc{position:sticky;top:0;z-index:2;background:#fff;max-height:none;border:0;border-bottom:1px solid #ccc;"
+    "padding:.4rem 0;white-space:nowrap;overflow-x:auto;overflow-y:hidden}"
+    "nav.toc ul,nav.toc li{display:inline;margin:0 .5rem 0 0}nav.toc .toc3{display:none}nav.toc b{margin-right:.6rem}}"
+)
+
+
+_MD_HEADING = re.compile(r"^(#{1,4}) (.+)$")
+
+
+def _split_md_headings(blocks: list[tuple]) -> list[tuple]:
+    """The blocks with each Markdown fragment's headings as heading blocks of their own (so the contents list them)."""
+    out: list[tuple] = []
+    for block in blocks:
+        if block[0] != "md":
+            out.append(block)
+            continue
+        chunk: list[str] = []
+        for line in block[1].splitlines():
+            match = _MD_HEADING.match(line)
+            if match:
+                if "".join(chunk).strip():
+                    out.append(("md", "\n".join(chunk)))
+                chunk = []
+                out.append(("h", len(match.group(1)), match.group(2).strip()))
+            else:
+                chunk.append(line)
+        if "".join(chunk).strip():
+            out.append(("md", "\n".join(chunk)))
+    return out
+
+
+def _heading_ids(blocks: list[tuple]) -> dict[int, str]:
+    """A unique anchor per heading block, from its text."""
+    ids: dict[int, str] = {}
+    seen: set[str] = set()
+    for i, block in enumerate(blocks):
+        if block[0] != "h":
+            continue
+        base = re.sub(r"[^a-z0-9]+", "-", block[2].lower()).strip("-")[:48] or "section"
+        name, k = base, 2
+        while name in seen:
+            name, k = f"{base}-{k}", k + 1
+        seen.add(name)
+        ids[i] = name
+    return ids
+
+
+def _img(path: Path, alt: str) -> str:
+    data = base64.b64encode(Path(path).read_bytes()).decode()
+    return f"<img src='data:image/png;base64,{data}' alt='{html.escape(alt)}'>"
+
+
+def _verdict_class(text: str) -> str:
+    if text.startswith("reproduced"):
+        return "yes"
+    return "no" if text.startswith("not reproduced") else "mid"
+
+
+def _html_cards(frame: pd.DataFrame, caption: str, digits: int, spec: CardSpec) -> str:
+    """One card per row of ``frame``: its title, the quote, the lead column as the verdict, the rest as a list."""
+    header, rows = _cells(frame, digits)
+    out = [f"<div class='cards'><p class='caption'><i>{html.escape(caption)}</i></p>"]
+    for row in rows:
+        cells = dict(zip(header[1:], row[1:]))
+        title = row[0]
+        body = [f"<h4>{html.escape(title)}</h4>"]
+        if spec.quote in cells:
+            body.append(f"<blockquote>{html.escape(cells[spec.quote])}</blockquote>")
+        for lead in spec.leads:
+            if lead in cells and cells[lead] not in ("", "n/a"):
+                text = f"{html.escape(lead)}: {html.escape(cells[lead])}"
+                body.append(f"<p class='verdict {_verdict_class(cells[lead])}'>{text}</p>")
+        items = [(k, v) for k, v in cells.items() if k != spec.quote and k not in spec.leads and v not in ("", "n/a")]
+        body.append("<dl>" + "".join(f"<dt>{html.escape(k)}</dt><dd>{html.escape(v)}</dd>" for k, v in items) + "</dl>")
+        figure = spec.figures.get(title)
+        side = ""
+        if figure is not None and Path(figure).exists():
+            name = html.escape(Path(figure).stem.replace("_", " "))
+            side = f"<figure class='fig'>{_img(figure, title)}<figcaption>{name}</figcaption></figure>"
+        out.append(f"<article class='card'><div class='body'>{''.join(body)}</div>{side}</article>")
+    out.append("</div>")
+    return "\n".join(out)
+
+
+@dataclass
+class CardSpec:
+    """
+    How a table shows as cards in the HTML page (the Markdown keeps the table).
+
+    :param quote: the column shown as a quotation
+    :param leads: the columns shown as verdicts, first (coloured by their first word)
+    :param figures: a figure to show beside a row's card, by the row's index label
+    """
+
+    quote: str = ""
+    leads: tuple[str, ...] = ()
+    figures: dict[str, Path] = field(default_factory=dict)
 
 
 _EMPHASIS = re.compile(r"(?<![\w*])\*(?=\S)([^*]+?)(?<=\S)\*(?![\w*])")
@@ -198,11 +350,11 @@ def _md_table(frame: pd.DataFrame, digits: int) -> str:
 
 def _html_table(frame: pd.DataFrame, caption: str, digits: int) -> str:
     header, rows = _cells(frame, digits)
-    out = ["<table>"]
+    out = ["<div class='tablebox'><table>"]
     if caption:
         out.append(f"<caption>{html.escape(caption)}</caption>")
     out.append("<tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in header) + "</tr>")
     for row in rows:
         out.append("<tr>" + "".join(f"<td{'' if _numeric(c) else ' class=text'}>{html.escape(c)}</td>" for c in row) + "</tr>")
-    out.append("</table>")
+    out.append("</table></div>")
     return "\n".join(out)

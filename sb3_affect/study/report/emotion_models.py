@@ -84,14 +84,9 @@ def side_by_side_figure(frames: pd.DataFrame, path: Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    colours = {
-        "joy": "gold",
-        "sadness": "tab:blue",
-        "fear": "tab:purple",
-        "anger": "tab:red",
-        "distress": "tab:gray",
-        "hope": "tab:green",
-    }
+    from sb3_affect.study.report.figures import COLOURS
+
+    colours = {**COLOURS, "distress": "tab:gray", "hope": "tab:green"}
     tasks = list(dict.fromkeys(frames.task))
     fig, axes = plt.subplots(len(tasks), 3, figsize=(15, 3.6 * len(tasks)), squeeze=False)
     for row, task in zip(axes, tasks):
@@ -113,6 +108,9 @@ def side_by_side_figure(frames: pd.DataFrame, path: Path) -> Path:
                 ax.set_yscale("symlog", linthresh=1.0)
             ax.set_title(f"{task}: {title}", fontsize=9)
             ax.set_xlabel("episode")
+            ax.set_ylabel(
+                "intensity (10-episode mean, symlog)" if model == "broekens" else "share of decisions (10-episode mean)"
+            )
             ax.legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=110)

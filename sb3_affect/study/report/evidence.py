@@ -36,23 +36,25 @@ def sensitivity(large: pd.DataFrame, counts: tuple[int, ...] = SEED_COUNTS) -> p
     for n in counts:
         if n > available:
             continue
-        judged = claims.judge_all(subset(large, n))
+        judged = claims.judge_all(subset(large, n), cells=False)
         labels = [j.label for j in judged]
         columns[f"{n} seeds"] = [claims.verdict_word(j.verdict) for j in judged]
     table = pd.DataFrame(columns, index=pd.Index(labels, name="claim"))
     return table
 
 
-def _agreement(job: tuple[pd.DataFrame, dict[str, str], int, int, int]) -> dict[str, int]:
-    """How many of ``repetitions`` random ``n``-seed subsamples (seeded) reach each claim's target verdict word."""
+def _agreement(job: tuple[pd.DataFrame, dict[str, tuple[str, ...]], int, int, int]) -> dict[str, list[int]]:
+    """How many of ``repetitions`` random ``n``-seed subsamples (seeded) reach each claim's target verdict words (by key)."""
     large, target, n, repetitions, seed = job
     available = int(large.replicate.max()) + 1
     rng = np.random.default_rng(seed)
-    hits = dict.fromkeys(target, 0)
+    hits = {key: [0] * len(words) for key, words in target.items()}
     for _ in range(repetitions):
         chosen = rng.choice(available, size=n, replace=False)
-        for j in claims.judge_all(large[large.replicate.isin(chosen)]):
-            hits[j.label] += claims.verdict_word(j.verdict) == target[j.label]
+        for j in claims.judge_all(large[large.replicate.isin(chosen)], cells=False):
+            word = claims.verdict_word(j.verdict)
+            for i, wanted in enumerate(target.get(j.key, ())):
+                hits[j.key][i] += word == wanted
     return hits
 
 
@@ -63,16 +65,20 @@ def seeds_needed(
     seed: int = 0,
     workers: int = 1,
     full: list[claims.Judgement] | None = None,
+    protocol: list[claims.Judgement] | None = None,
 ) -> pd.DataFrame:
     """
     The power of the paper's ``n``-seed protocol for each claim: the share of ``repetitions`` random ``n``-seed
     subsamples of the large-N runs (seeded; split over ``workers`` processes) whose verdict (its first words) is the
-    full-sample verdict. Claims whose outcome is fixed by the design (the 9 ε values), not by seeds, say so.
+    full-sample verdict, and (given ``protocol``, the verdicts of the paper protocol's own runs) the share whose verdict
+    is the protocol's. Claims whose outcome is fixed by the design (the 9 ε values), not by seeds, say so.
     """
     available = int(large.groupby(["agent", "epsilon"]).size().min())
     full = full if full is not None else claims.judge_all(large)
-    target = {j.label: claims.verdict_word(j.verdict) for j in full}
-    hits = dict.fromkeys(target, 0)
+    # by key: a claim's label may name its data (the long run's window), its key does not
+    own = {j.key: claims.verdict_word(j.verdict) for j in protocol or []}
+    target = {j.key: (claims.verdict_word(j.verdict), *((own[j.key],) if j.key in own else ())) for j in full}
+    hits = {key: [0] * len(words) for key, words in target.items()}
     if n < available:
         parts = max(1, min(workers, repetitions))
         sizes = [repetitions // parts + (i < repetitions % parts) for i in range(parts)]
@@ -85,14 +91,15 @@ def seeds_needed(
         else:
             results = [_agreement(job) for job in jobs]
         for part in results:
-            for label, count in part.items():
-                hits[label] += count
+            for key, counts in part.items():
+                hits[key] = [a + b for a, b in zip(hits[key], counts)]
     rows = {}
     for j in full:
-        share = hits[j.label] / repetitions if n < available else math.nan
+        shares = [count / repetitions if n < available and j.seed_dependent else math.nan for count in hits[j.key]]
+        share = shares[0]
         rows[j.label] = {
-            f"verdict at {available:,} seeds": target[j.label],
-            f"share of {repetitions} {n}-seed subsamples with that verdict": share if j.seed_dependent else math.nan,
+            f"verdict at {available:,} seeds": target[j.key][0],
+            f"share of {repetitions} {n}-seed subsamples with that verdict": share,
             "reading": (
                 "fixed by the design (the 9 ε values), not by the seed count"
                 if not j.seed_dependent
@@ -100,6 +107,11 @@ def seeds_needed(
                       "would agree more often than not" if share >= 0.5 else "a 20-seed replication would usually disagree")
             ),
         }
+        if protocol is not None:
+            rows[j.label][f"verdict of the paper protocol's {n} seeds"] = own.get(j.key, "")
+            rows[j.label][f"share of the {n}-seed subsamples with the protocol's verdict"] = (
+                shares[1] if len(shares) > 1 else math.nan
+            )
     table = pd.DataFrame.from_dict(rows, orient="index")
     table.index.name = "claim"
     return table
@@ -203,7 +215,7 @@ def evidence_section(ctx: ReportContext) -> None:
         "headline_tables",
         headline_tables(large, ctx.metrics),
         f"Tables IV and V at {n_large} seeds per cell beside the paper's protocol and the paper's printed numbers",
-        4,
+        2,
     )
     sens = sensitivity(large)
     ctx.table(
@@ -215,7 +227,11 @@ def evidence_section(ctx: ReportContext) -> None:
     import os
 
     workers = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 1
-    needed = seeds_needed(large, workers=workers, full=ctx.judgements or None)
+    from sb3_affect.study.report.verdict import judged
+
+    _main, _n, protocol, _n_protocol = judged(ctx)
+    needed = seeds_needed(large, workers=workers, full=ctx.judgements or None, protocol=protocol)
+    ctx.cache["seeds needed"] = needed
     ctx.table(
         "seeds_needed",
         needed,

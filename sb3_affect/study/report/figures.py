@@ -30,9 +30,12 @@ STYLES = ("-", "--", "-.", ":")
 
 
 def distinct(n: int) -> list[tuple[float, float, float, float]]:
-    """``n`` colours that are told apart and never red (the affective agent's): viridis, dark to light."""
+    """
+    ``n`` colours that are told apart and never red (the affective agent's): viridis, dark to light green (its pale
+    yellow end is left out: it does not show on white).
+    """
     cmap = plt.get_cmap("viridis")
-    return [cmap(0.92 * i / max(n - 1, 1)) for i in range(n)]
+    return [cmap(0.8 * i / max(n - 1, 1)) for i in range(n)]
 
 
 def save(fig: plt.Figure, path: Path | str) -> Path:
@@ -121,6 +124,15 @@ def emotion_profile(prof: pd.DataFrame, path: Path, title: str = "Fig. 5: emotio
             axes[1].fill_between(
                 prof.index, prof[f"{emotion}_weighted_lo"], prof[f"{emotion}_weighted_hi"], color=colour, alpha=0.2
             )
+    if len(prof) and int(prof.index.min()) == 1:
+        for ax, column in zip(axes, ("joy_mean", "joy_weighted")):
+            ax.annotate(
+                "episode 1: joy by construction\n(no appraisal yet: it explores)",
+                xy=(1, float(prof[column].iloc[0])),
+                xytext=(25, 0.62),
+                fontsize=7,
+                arrowprops={"arrowstyle": "->", "lw": 0.8},
+            )
     axes[0].set_title("mean of per-episode fractions (each episode counts once)", fontsize=9)
     axes[1].set_title("decision-weighted (each decision counts once; 95% band over runs)", fontsize=9)
     axes[0].set_ylabel("fraction of decisions")
@@ -136,6 +148,15 @@ def equivalent_epsilon(prof: pd.DataFrame, path: Path) -> Path:
     fig, ax = plt.subplots(figsize=(6.4, 4.0))
     ax.plot(prof.index, prof["equivalent_epsilon_mean"], color="tab:red", label="mean of per-episode fractions")
     ax.plot(prof.index, prof["equivalent_epsilon_weighted"], color="tab:orange", ls="--", label="decision-weighted")
+    if "equivalent_epsilon_weighted_lo" in prof.columns:
+        ax.fill_between(
+            prof.index,
+            prof["equivalent_epsilon_weighted_lo"],
+            prof["equivalent_epsilon_weighted_hi"],
+            color="tab:orange",
+            alpha=0.2,
+            label="95% band of the decision-weighted (runs)",
+        )
     ax.fill_between(
         prof.index,
         prof["equivalent_epsilon_lo"],

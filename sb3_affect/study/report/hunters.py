@@ -156,19 +156,25 @@ def learning_figure(runs: list[dict[str, Any]], path: Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from sb3_affect.study.report.figures import COLOURS, distinct
+
     tasks = sorted({r["config"]["sweep"] for r in runs})
+    # one colour per team in every panel: the paper agents' own colours, the other teams by name
+    names = sorted({str(r["config"]["agent"]) for r in runs})
+    others = [name for name in names if name not in COLOURS]
+    colour = {name: COLOURS.get(name) or distinct(len(others))[others.index(name)] for name in names}
     fig, axes = plt.subplots(1, len(tasks), figsize=(6.0 * len(tasks), 4.0), squeeze=False)
     for ax, task in zip(axes[0], tasks):
         teams = list(dict.fromkeys(r["config"]["agent"] for r in runs if r["config"]["sweep"] == task))
-        for team in teams:
+        for team in sorted(teams):
             curves = np.array(
                 [r["episodes"]["decisions"] for r in runs if r["config"]["sweep"] == task and r["config"]["agent"] == team]
             )
             blocks = curves[:, : curves.shape[1] // 10 * 10].reshape(len(curves), -1, 10).mean(axis=2)
             cis = np.array([bootstrap_ci(blocks[:, j]) for j in range(blocks.shape[1])])
             x = np.arange(blocks.shape[1]) * 10 + 5.5
-            ax.plot(x, cis[:, 0], label=team)
-            ax.fill_between(x, cis[:, 1], cis[:, 2], alpha=0.2)
+            ax.plot(x, cis[:, 0], label=team, color=colour[str(team)])
+            ax.fill_between(x, cis[:, 1], cis[:, 2], alpha=0.2, color=colour[str(team)])
         ax.set_yscale("log")
         ax.set_xlabel("episode (10-episode blocks)")
         ax.set_ylabel("decisions per episode (each hunter's)")

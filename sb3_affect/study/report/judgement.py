@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 
 from sb3_affect.study.report import paper
-from sb3_affect.study.report.document import fmt, sig
+from sb3_affect.study.report.document import fmt, pval, sig
 from sb3_affect.study.report.inference import Estimate, Test, predictive, welch, z_estimate
 
 STANDARD, AFFECTIVE = "epsilon-greedy", "affective"
@@ -33,10 +33,14 @@ class Judgement:
     :param size: whether the paper's number lies within the 95% predictive interval of the same statistic at the
         paper's 20 seeds per cell (None: the claim states no number)
     :param ratio: the paper's number over ours (None: no number)
+    :param bound: "lower" when our number is a lower bound (censored runs), so the ratio is an upper bound
     :param tests: the claim's family of tests (Holm-corrected within the claim)
     :param primary: the paper's own test, judged on its raw p-value as the paper did (None: the paper ran none)
     :param seed_dependent: False when the outcome is fixed by the design (the 9 ε values), not by the seed count
     :param decide: the verdict from the judgement once the Holm-adjusted p-values are in
+    :param verdict: the verdict, counting steps as decisions (time)
+    :param cells_verdict: the same rule's verdict counting steps as cells (distance), for claims that count steps
+    :param qualifier: what the report says before the verdict, e.g. that it changes with the windows read
     """
 
     key: str
@@ -47,11 +51,14 @@ class Judgement:
     direction: bool | None = None
     size: bool | None = None
     ratio: float | None = None
+    bound: str = ""
     tests: list[Test] = field(default_factory=list)
     primary: Test | None = None
     seed_dependent: bool = True
     decide: Callable[[Judgement], str] | None = None
     verdict: str = ""
+    cells_verdict: str = ""
+    qualifier: str = ""
 
     @property
     def quote(self) -> str:
@@ -145,3 +152,9 @@ def size_against_paper(
 
 def eps_list(values: list[float]) -> str:
     return ", ".join(fmt(e, 1) for e in sorted(values)) or "none"
+
+
+def p_text(test: Test) -> str:
+    """A test's p-value, with its Holm-adjusted value where that differs."""
+    adjusted = not math.isnan(test.p_holm) and test.p_holm != test.p
+    return f"p {pval(test.p)}" + (f", Holm {pval(test.p_holm)}" if adjusted else "")

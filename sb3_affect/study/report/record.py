@@ -148,9 +148,53 @@ def record_section(ctx: ReportContext) -> None:
 
             meta = json.loads(meta_path.read_text())
             rows[f"{name} (engine, {meta['seeds']} seeds per cell)"] = {"wall seconds": meta["wall_seconds"]}
+    runs = replicate_runs(ctx.root)
     if rows:
-        ctx.table("wall_times", pd.DataFrame.from_dict(rows, orient="index").rename_axis("part"), "Wall time of each part", 1)
-        ctx.doc.p(
-            "Wall times are of the run that produced this folder, on a machine shared with other jobs: they vary "
-            f"between runs (total {fmt(sum(r['wall seconds'] for r in rows.values()), 1)} s)."
+        ctx.table(
+            "wall_times",
+            pd.DataFrame.from_dict(rows, orient="index").rename_axis("part"),
+            "The results' time: each part's wall time summed over the runs that did its work (a part a later run read "
+            "back keeps the time of the run that computed it)",
+            1,
         )
+        ctx.doc.p(
+            "Wall times on a machine shared with other jobs vary between runs (the parts above sum to "
+            f"{fmt(sum(r['wall seconds'] for r in rows.values()), 1)} s"
+            + (f", over {len(runs)} runs of `replicate` into this folder: each run's own times below" if len(runs) > 1
+               else "")
+            + ")."
+        )
+    if runs:
+        ctx.table(
+            "wall_times_by_run",
+            runs_table(runs),
+            "Each run of `replicate` into this folder with its own times (seconds; a part read back from an earlier run "
+            "takes little; the report step and total of the run writing this report are recorded in replicate.json "
+            "once it ends)",
+            1,
+        )
+
+
+def replicate_runs(root: Path) -> list[dict]:
+    """The runs of ``replicate`` recorded in ``root/replicate.json`` (none for a folder it did not write)."""
+    import json
+
+    try:
+        saved = json.loads((Path(root) / "replicate.json").read_text())
+    except (OSError, ValueError):
+        return []
+    runs = saved.get("runs") if isinstance(saved, dict) else None
+    return [r for r in runs if isinstance(r, dict) and isinstance(r.get("parts"), dict)] if isinstance(runs, list) else []
+
+
+def runs_table(runs: list[dict]) -> pd.DataFrame:
+    """One column per run (its number and start), one row per part, then its report step and its total."""
+    columns = {}
+    for number, run in enumerate(runs, 1):
+        column = {str(k): float(v) for k, v in run["parts"].items()}
+        for key in ("report", "total"):
+            column[key] = float(run[key]) if isinstance(run.get(key), (int, float)) else float("nan")
+        columns[f"run {number} ({run.get('started', '?')})"] = column
+    table = pd.DataFrame(columns)
+    order = [k for k in table.index if k not in ("report", "total")] + ["report", "total"]
+    return table.loc[order].rename_axis("part")

@@ -9,8 +9,10 @@ from __future__ import annotations
 import pandas as pd
 
 from sb3_affect.study.report.context import AFFECTIVE, STANDARD, ReportContext
+from sb3_affect.study.report.document import sig
 from sb3_affect.study.report.engine_studies import SPEED_ONE_AGENT
-from sb3_affect.study.report.judgement import cell_means, diff_over_eps, over_eps
+from sb3_affect.study.report.inference import holm, significant
+from sb3_affect.study.report.judgement import cell_means, diff_over_eps, eps_list, over_eps, p_text, per_epsilon
 
 METRICS = (
     ("decisions_per_episode", "decisions per episode"),
@@ -43,6 +45,61 @@ def speed_table(main: pd.DataFrame, speed_one: pd.DataFrame) -> pd.DataFrame:
     return table
 
 
+#: The per-ε comparison of the speed ablation: before the first walked optimal path (the lead the verdict tabulates).
+PER_EPS = ("decisions_before_optimal", "decisions before the optimal path")
+BETTER, WORSE, SAME = "speed 1 fewer", "ε-greedy fewer", "no significant difference"
+
+
+def speed_one_per_eps(main: pd.DataFrame, speed_one: pd.DataFrame, column: str = PER_EPS[0]) -> pd.DataFrame:
+    """
+    Per ε: ε-greedy, the affective agent and the affective agent at speed 1, ε-greedy minus speed 1 with its Welch 95%
+    CI and Welch test (Holm over the ε values), and the outcome at that ε. The speed-1 agent ignores ε, so every ε-greedy
+    cell is compared with all its runs (its ε labels only split its seeds); its column gives each label's own mean.
+    """
+    standard = main[main.agent == STANDARD]
+    pooled = speed_one[column].to_numpy(float)
+    diffs, tests = per_epsilon(standard, column, "", reference=pooled)
+    holm(list(tests.values()))
+    means = {
+        "ε-greedy": standard.groupby("epsilon")[column].mean(),
+        "affective (1 or 2 cells)": main[main.agent == AFFECTIVE].groupby("epsilon")[column].mean(),
+        "affective, speed fixed at 1": speed_one.groupby("epsilon")[column].mean(),
+    }
+    rows = {}
+    for eps, d in diffs.items():
+        test = tests[eps]
+        outcome = SAME if not significant(test) else BETTER if d.value > 0 else WORSE
+        rows[f"{eps:.1f}"] = {
+            **{name: sig(float(series.get(eps, float("nan")))) for name, series in means.items()},
+            "ε-greedy minus speed 1 [95% CI]": d.text(),
+            "Welch test": p_text(test),
+            "at this ε": outcome,
+        }
+    table = pd.DataFrame.from_dict(rows, orient="index")
+    table.index.name = "ε"
+    return table
+
+
+def per_eps_conclusion(table: pd.DataFrame) -> str:
+    """The speed ablation's conclusion per ε, read from ``speed_one_per_eps``'s outcomes."""
+    outcome = {float(str(e)): str(o) for e, o in table["at this ε"].items()}
+    better = sorted(e for e, o in outcome.items() if o == BETTER)
+    worse = sorted(e for e, o in outcome.items() if o == WORSE)
+    same = sorted(e for e, o in outcome.items() if o == SAME)
+    if better and better == sorted(outcome)[-len(better):] and len(better) < len(outcome):
+        lead = f"the direction rule alone beats ε-greedy only against ε >= {min(better):.1f}"
+    elif better and len(better) == len(outcome):
+        lead = "the direction rule alone beats ε-greedy at every ε"
+    elif better:
+        lead = f"the direction rule alone beats ε-greedy at ε {eps_list(better)}"
+    else:
+        lead = "the direction rule alone beats ε-greedy at no ε"
+    parts = [f"significantly fewer decisions at ε {eps_list(better)}", f"significantly more at ε {eps_list(worse)}"]
+    if same:
+        parts.append(f"neither at ε {eps_list(same)}")
+    return f"{lead}: speed 1 needs " + ", ".join(parts) + " (Welch tests, Holm over the ε values)"
+
+
 def speed_one_section(ctx: ReportContext) -> None:
     speed_one = ctx.study("speed_one")
     if speed_one is None or not ctx.has_paper_agents or ctx.verdict_refusal():
@@ -69,7 +126,19 @@ def speed_one_section(ctx: ReportContext) -> None:
             f"{cell('cells before the optimal path', two)} in cells, and "
             f"{cell('decisions before the optimal path', one)} decisions (= cells) at speed 1. Per steps per "
             f"episode: {cell('decisions per episode', two)} with 2-cell moves, {cell('decisions per episode', one)} "
-            "at speed 1 (a negative lead: ε-greedy is ahead). What remains at speed 1 is the part of the advantage "
-            "the emotions' direction rule gives; the rest is the 2-cell moves. The lead averaged over ε is dominated by "
-            "the large ε values, where ε-greedy explores most (per ε: the time-and-distance table of the verdict)."
+            "at speed 1 (a negative lead: ε-greedy is ahead). The lead averaged over ε is dominated by the large ε "
+            "values, where ε-greedy explores most; per ε (the table below, beside the verdict's time-and-distance "
+            "table) the conclusion differs."
         )
+    slow = speed_one[speed_one.agent == SPEED_ONE_AGENT]
+    per_eps = speed_one_per_eps(main, slow)
+    if len(per_eps):
+        ctx.table(
+            "speed_one_per_eps",
+            per_eps,
+            f"Per ε: {PER_EPS[1]}, ε-greedy against the affective agent at speed 1, all its {len(slow):,} runs (it "
+            "ignores ε; its column: each ε label's own runs) (means per run; Welch 95% CIs)",
+        )
+        conclusion = per_eps_conclusion(per_eps)
+        ctx.cache["speed one conclusion"] = conclusion
+        ctx.doc.p(f"Per ε, {conclusion}; the rest of the affective agent's lead is its 2-cell moves.")

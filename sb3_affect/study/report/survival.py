@@ -68,21 +68,28 @@ def km_table(m: pd.DataFrame) -> pd.DataFrame:
 
 def km_figure(m: pd.DataFrame, path: str, title: str) -> str:
     """Fraction of runs that have not yet found the optimal path, per episode (KM curves with 95% bands)."""
-    fig, ax = plt.subplots(figsize=(7.0, 4.2))
+    fig, ax = plt.subplots(figsize=(8.6, 4.2))
     values = sorted(m[m.agent == STANDARD].epsilon.unique())
+    ticks = {"marker": "|", "ms": 9, "mew": 1.4}
     palette = distinct(len(values))
     for i, eps in enumerate(values):
         g = m[(m.agent == STANDARD) & (m.epsilon == eps)]
         label = f"ε-greedy {eps:.1f}"
         fitter = KaplanMeierFitter().fit(g.first_optimal.fillna(g.episodes), ~g.censored.astype(bool), label=label)
-        fitter.plot_survival_function(ax=ax, ci_show=False, color=palette[i], lw=1.3, ls=STYLES[i % len(STYLES)])
+        fitter.plot_survival_function(
+            ax=ax, ci_show=False, color=palette[i], lw=1.3, ls=STYLES[i % len(STYLES)], show_censors=True, censor_styles=ticks
+        )
     g = m[m.agent == AFFECTIVE]
     fitter = KaplanMeierFitter().fit(g.first_optimal.fillna(g.episodes), ~g.censored.astype(bool), label="affective (all ε)")
-    fitter.plot_survival_function(ax=ax, ci_show=True, color=COLOURS[AFFECTIVE], lw=2.2, show_censors=True)
+    fitter.plot_survival_function(
+        ax=ax, ci_show=True, color=COLOURS[AFFECTIVE], lw=2.2, show_censors=True, censor_styles={**ticks, "ms": 14}
+    )
+    horizon = float(m.episodes.max())
+    ax.set_xlim(0, horizon * 1.04)  # the censoring ticks sit at the last episode: inside the frame, not on it
     ax.set_xlabel("episode")
     ax.set_ylabel("runs without an optimal path yet (KM)")
     ax.set_title(title)
-    ax.legend(fontsize=7, ncol=2)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # beside the curves, never over them
     return str(save(fig, path))
 
 

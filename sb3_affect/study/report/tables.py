@@ -102,8 +102,16 @@ def figures_3_4_section(ctx: ReportContext) -> None:
         "steps (decisions) per episode",
         "Fig. 3: steps per episode vs ε",
         ctx.figure("fig3_steps_per_episode"),
+        reference={
+            f"paper, ε-greedy mean over ε ({paper.TABLE_IV['Mean'][0]:.2f}: Table IV)": paper.TABLE_IV["Mean"][0],
+            f"paper, affective mean over ε ({paper.TABLE_IV['Mean'][1]:.2f})": paper.TABLE_IV["Mean"][1],
+        },
     )
-    ctx.doc.img(f3, f"Fig. 3: mean steps per episode against ε; band: bootstrap 95% CI over runs; dots: runs{dots}")
+    ctx.doc.img(
+        f3,
+        f"Fig. 3: mean steps per episode against ε; band: bootstrap 95% CI over runs; dots: runs{dots}; lines: the paper's "
+        "Table IV means over ε",
+    )
     f4 = figures.metric_vs_epsilon(
         ctx.metrics,
         "decisions_before_optimal",

@@ -12,16 +12,33 @@ import pandas as pd
 from sb3_affect.study.report import claims
 from sb3_affect.study.report.claims import Judgement
 from sb3_affect.study.report.context import AFFECTIVE, STANDARD, ReportContext
-from sb3_affect.study.report.document import sig
+from sb3_affect.study.report.document import CardSpec, sig
 from sb3_affect.study.report.judgement import per_epsilon
+from sb3_affect.study.report.windows import window_qualifiers, window_table
 
 WHY_SADNESS_FEAR = (
     "Sadness and fear can not occur under Table II as printed. exp1 is \"initially equal to the average value, and "
     "increments every step past the average\", i.e. exp1 = max(norm, elapsed) >= norm. Fear needs exp1 < norm: "
     "never. Sadness needs act < norm and exp1 <= act, but then exp1 >= norm > act: never. Only joy and anger remain, "
     "so the \"four basic emotions\" act as two, and the slow speeds (0 or 1 cell) of Table III are never used "
-    "(under the literal comparison; the valence readings differ, see the claims x readings table)."
+    "(under the literal comparison; every reading's emotion shares are in the claims x readings section)."
 )
+
+
+#: The figure shown beside a claim's card (``ctx.figure`` names, drawn by the sections that plot them).
+FIGURES = {
+    "table_iv": "fig3_steps_per_episode",
+    "fig3": "fig3_steps_per_episode",
+    "table_v:walked": "fig4_steps_before_optimal",
+    "table_v:greedy": "fig4_steps_to_greedy_optimal",
+    "fig4:walked": "fig4_steps_before_optimal",
+    "fig4:greedy": "fig4_steps_to_greedy_optimal",
+    "episodes_to_optimal": "kaplan_meier",
+    "fig5:mean": "fig5_emotion_profile",
+    "fig5:weighted": "fig5_emotion_profile",
+    "fig6": "fig6_equivalent_epsilon",
+    "four_emotions": "fig5_emotion_profile",
+}
 
 
 def _mark(value: bool | None) -> str:
@@ -44,7 +61,21 @@ def judged(ctx: ReportContext) -> tuple[list[Judgement], int, list[Judgement] | 
         else:
             ctx.cache["verdict"] = (paper_judged, n_paper, None, 0)
         ctx.judgements = ctx.cache["verdict"][0]
+        qualifiers = window_qualifiers(window_table(ctx)) if ctx.has_paper_agents and not ctx.verdict_refusal() else {}
+        for j in ctx.judgements:
+            j.qualifier = qualifiers.get(j.key, "")
     return ctx.cache["verdict"]
+
+
+def shown(j: Judgement) -> str:
+    """A claim's verdict as the report shows it: its qualifier (e.g. window-sensitive) first."""
+    return f"{j.qualifier}; {j.verdict}" if j.qualifier else j.verdict
+
+
+def shown_word(j: Judgement) -> str:
+    """A claim's verdict in a word or two, with its qualifier's first words (``reproduced, window-sensitive``)."""
+    word = claims.verdict_word(j.verdict)
+    return f"{word}, {j.qualifier.split(' (')[0]}" if j.qualifier else word
 
 
 def verdict_table(judged: list[Judgement], other: list[Judgement] | None, n: int, n_other: int) -> pd.DataFrame:
@@ -56,10 +87,11 @@ def verdict_table(judged: list[Judgement], other: list[Judgement] | None, n: int
             "paper's numbers": j.paper,
             f"ours, time (decisions), {n:,} seeds per cell [95% CI]": j.ours,
             "ours, distance (cells)": j.cells or "n/a",
-            "paper / ours": sig(j.ratio) if j.ratio is not None else "n/a",
+            "paper / ours": ("<= " if j.bound == "lower" else "") + sig(j.ratio) if j.ratio is not None else "n/a",
             "size as the paper (inside the 20-seed predictive interval; Fig. 6: within ±0.05)": _mark(j.size),
             "direction as the paper": _mark(j.direction),
-            f"verdict ({n:,} seeds)": j.verdict,
+            f"verdict ({n:,} seeds)": shown(j),
+            f"verdict with steps counted as cells ({n:,} seeds)": j.cells_verdict or "n/a",
         }
         if other is not None:
             row[f"verdict ({n_other} seeds, paper protocol)"] = others[j.key].verdict if j.key in others else ""
@@ -145,9 +177,18 @@ def verdict_section(ctx: ReportContext) -> None:
         "non-significant test. The paper's test outcome and the paper's claim are separate rows. Per-ε "
         "comparisons: Welch t-tests with Welch intervals. Multiplicity: each claim's tests are one Holm family "
         f"(statsmodels `multipletests`, alpha = {claims.ALPHA}); the paper's own single test is judged on its raw "
-        "p-value, as the paper did. Raw and adjusted p-values are side by side in the appendix."
+        "p-value, as the paper did. Raw and adjusted p-values are side by side in the appendix. The paper's Sec. IV "
+        "uses \"step\" for a cell moved too, so each claim that counts steps has a second verdict with steps counted "
+        "as cells (the same rule on the cells columns); the verdict in decisions leads because the replication "
+        "forensics finds that a step = one decision fits the paper's printed numbers best (its section below)."
     )
-    ctx.table("verdict", verdict_table(judged_main, other, n, n_other), "Verdict on the paper's claims")
+    table = verdict_table(judged_main, other, n, n_other)
+    spec = CardSpec(
+        quote="the paper says (source)",
+        leads=tuple(c for c in table.columns if c.startswith("verdict")),
+        figures={j.label: ctx.figure(FIGURES[j.key]) for j in judged_main if j.key in FIGURES},
+    )
+    ctx.cards("verdict", table, "Verdict on the paper's claims, one card per claim", spec)
     main = ctx.large if ctx.large is not None else ctx.metrics
     units = units_table(main)
     if "lead in cells [95% CI]" in units.columns:
@@ -155,7 +196,8 @@ def verdict_section(ctx: ReportContext) -> None:
             "lead_in_decisions_and_cells",
             units,
             f"Time and distance: the affective agent's lead before the first walked optimal path, per ε, in decisions and "
-            f"in cells (per run, {n:,} seeds per cell; Welch 95% CIs)",
+            f"in cells (per run, {n:,} seeds per cell; Welch 95% CIs; the affective agent at speed 1 per ε: the speed "
+            "ablation's per-ε table)",
         )
     speed = speed_matched_sentences(ctx)
     if speed:

@@ -41,14 +41,46 @@ def window_verdicts(aff: pd.DataFrame) -> pd.DataFrame:
     return table
 
 
+#: The verdict rows whose claims read an early and a late window, by their column of ``window_verdicts``.
+WINDOW_CLAIMS = {"fig5:mean": "Fig. 5 (per-episode)", "fig5:weighted": "Fig. 5 (decision-weighted)", "fig6": "Fig. 6"}
+
+
+def window_table(ctx: ReportContext) -> pd.DataFrame | None:
+    """``window_verdicts`` of the paper sweep's affective runs (computed once per report), or None when runs are short."""
+    if "window verdicts" not in ctx.cache:
+        from sb3_affect.study.report.scan import paper_scan
+
+        found = paper_scan(ctx)  # the affective runs' window features, from the report's one pass over the episodes
+        enough = found.last_episode.get(AFFECTIVE, 0) >= max(w[1] for w in LATE_WINDOWS)
+        ctx.cache["window verdicts"] = window_verdicts(found.windows) if enough else None
+    table: pd.DataFrame | None = ctx.cache["window verdicts"]
+    return table
+
+
+def window_qualifiers(table: pd.DataFrame | None) -> dict[str, str]:
+    """Per claim of ``WINDOW_CLAIMS`` whose verdict changes with the windows: ``window-sensitive`` and how."""
+    if table is None:
+        return {}
+    out = {}
+    for key, column in WINDOW_CLAIMS.items():
+        counts = table[column].value_counts()
+        if len(counts) > 1:
+            default = "1-10 / 181-200"
+            shown = ", ".join(f"{word!s} under {n}" for word, n in counts.items())
+            own = f"; the verdict's pair {default}: {table.at[default, column]!s}" if default in table.index else ""
+            out[key] = f"window-sensitive ({shown} of the {len(table)} early / late window pairs, paper sweep{own})"
+    return out
+
+
 def windows_section(ctx: ReportContext) -> None:
     if ctx.verdict_refusal():
         return
     from sb3_affect.study.report.scan import paper_scan
 
-    found = paper_scan(ctx)  # the affective runs' window features, from the report's one pass over the episodes
-    if found.last_episode.get(AFFECTIVE, 0) < max(w[1] for w in LATE_WINDOWS):
+    table = window_table(ctx)
+    if table is None:
         return
+    found = paper_scan(ctx)
     aff = found.windows
     ctx.doc.h("Fig. 5 against Fig. 6, and the windows", 3)
     ctx.doc.p(
@@ -58,5 +90,5 @@ def windows_section(ctx: ReportContext) -> None:
         "if Fig. 5 weighs decisions rather than episodes (long random walks hold most decisions). The table shows how "
         f"the verdicts move with the windows read as \"early\" and \"late\" (paper sweep, {len(aff)} affective runs)."
     )
-    ctx.table("fig5_fig6_windows", window_verdicts(aff), "Fig. 5 and Fig. 6 verdicts for each choice of windows", 3)
+    ctx.table("fig5_fig6_windows", table, "Fig. 5 and Fig. 6 verdicts for each choice of windows", 3)
     found.windows = aff.iloc[:0]  # no other section reads them: their memory is let go before the later sections
