@@ -149,7 +149,8 @@ def _agent_error(error: BaseException) -> bool:
     tb = error.__traceback__
     while tb is not None and tb.tb_next is not None:
         tb = tb.tb_next
-    return tb is not None and Path(tb.tb_frame.f_code.co_filename).resolve().is_relative_to(Path(__file__).resolve().parent)
+    package = Path(__file__).resolve().parents[1]  # sb3_affect/
+    return tb is not None and Path(tb.tb_frame.f_code.co_filename).resolve().is_relative_to(package)
 
 
 def main(argv: list[str] | None = None) -> None:
