@@ -37,6 +37,7 @@ def behaviour_by_emotion(stored: Mapping[str, Any]) -> list[Behaviour]:
     """A saved table (``stored_behaviour_table``) as a list indexed by emotion, for the hot loop."""
     return [Behaviour(bool(r), tuple(int(k) for k in speeds)) for r, speeds in (stored[e.name.lower()] for e in Emotion)]
 
+
 #: The most cells a decision may move (each cell is one env step; the largest grid is 1,000 cells wide).
 MAX_SPEED = 10_000
 
