@@ -23,7 +23,10 @@ import os
 from importlib import resources
 from typing import Any, NamedTuple
 
-from sb3_affect.envs.grid_pursuit import build_transitions, distances_to
+from sb3_affect.envs.grid_pursuit import MAX_SIZE, build_transitions, distances_to
+
+#: The largest map file read: ``MAX_SIZE`` rows of ``MAX_SIZE`` cells, and room for comments.
+MAX_MAZE_BYTES = MAX_SIZE * (MAX_SIZE + 2) + 2**16
 
 WALL, FREE, START, GOAL = "#", ".", "S", "G"
 
@@ -62,6 +65,11 @@ def parse_maze(text: str, name: str = "<maze>") -> Maze:
         lines.pop()
     if not lines:
         raise MazeError(f"maze {name!r} is empty")
+    widest = max(len(line) for line in lines)
+    if len(lines) > MAX_SIZE or widest > MAX_SIZE:
+        raise MazeError(
+            f"maze {name!r} is {len(lines)} rows x {widest} columns: a map has at most {MAX_SIZE} x {MAX_SIZE} cells"
+        )
     size = len(lines)
     if size < 2:
         raise MazeError(f"maze {name!r} has one row: a maze needs at least 2 x 2 cells")
@@ -108,10 +116,19 @@ def load_maze(maze: str | os.PathLike[str]) -> Maze:
     text_name = os.fspath(maze)
     if os.sep in text_name or "/" in text_name or text_name.endswith(".txt") or os.path.exists(text_name):
         try:
-            with open(text_name, encoding="utf-8") as handle:
-                text = handle.read()
+            with open(text_name, "rb") as handle:
+                data = handle.read(MAX_MAZE_BYTES + 1)
         except OSError as error:
             raise MazeError(f"can not read maze file {text_name!r}: {error}") from error
+        if len(data) > MAX_MAZE_BYTES:
+            raise MazeError(
+                f"maze file {text_name!r} is more than {MAX_MAZE_BYTES:,} bytes: a map has at most {MAX_SIZE} x "
+                f"{MAX_SIZE} cells"
+            )
+        try:
+            text = data.decode("utf-8")
+        except UnicodeDecodeError as error:
+            raise MazeError(f"maze file {text_name!r} is not UTF-8 text (byte {error.start}: {error.reason})") from None
         return parse_maze(text, text_name)
     resource = resources.files("sb3_affect.envs") / "mazes" / f"{text_name}.txt"
     if not resource.is_file():

@@ -193,3 +193,14 @@ def test_heartbeat_prints_while_a_silent_step_runs(capsys: pytest.CaptureFixture
         time.sleep(0.3)
     lines = capsys.readouterr().out.splitlines()
     assert len(lines) >= 3 and all(line.startswith("   still running: a silent study, ") for line in lines)
+
+
+def test_replicate_into_a_folder_holding_a_sweep_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """The reverse of a sweep into a replication: the sweep's runs would be reported as the replication's."""
+    runs = tmp_path / "runs"
+    assert run_sweep(tiny(tmp_path / "files", "smoke"), runs, workers=1, progress=False).finished > 0
+    before = sorted(p.relative_to(runs) for p in runs.rglob("*"))
+    err = error(capsys, ["replicate", "--out", str(runs), "--workers", "1", "--no-forensics"])
+    assert err.count("\n") == 1 and f"{runs} holds the results of sweep 'smoke'" in err
+    assert f"--out {runs / 'replication'}" in err
+    assert sorted(p.relative_to(runs) for p in runs.rglob("*")) == before and not (runs / "replicate.json").exists()

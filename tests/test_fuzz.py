@@ -11,8 +11,8 @@ import io
 import json
 import resource
 import sys
-import time
 import zipfile
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -26,8 +26,8 @@ from sb3_affect import QLearning
 from sb3_affect.agents.serialization import ModelFileError
 from sb3_affect.study.launcher import SweepError, load_sweep
 from sb3_affect.study.launcher.schema import Sweep
+from sb3_affect.study.launcher.sweep_file import MAX_DEPTH, _StrictLoader
 
-SECONDS_PER_FILE = 5.0  # generous: a check takes milliseconds; a resource bomb took a minute
 MEMORY_MB = 300  # growth of the peak RSS over a whole fuzz run
 
 VALID = {
@@ -114,6 +114,34 @@ def _new_modules(before: set[str]) -> set[str]:
     return {name for name in set(sys.modules) - before if not name.startswith("encodings.")}
 
 
+@contextlib.contextmanager
+def _scanner_work() -> Iterator[dict[str, int]]:
+    """Count the tokens the sweep files' YAML scanner fetches and the deepest flow level it reaches."""
+    work = {"tokens": 0, "flow_level": 0}
+    fetch = _StrictLoader.fetch_more_tokens
+
+    def counted(loader: Any) -> None:
+        work["tokens"] += 1
+        work["flow_level"] = max(work["flow_level"], loader.flow_level)
+        fetch(loader)
+
+    _StrictLoader.fetch_more_tokens = counted  # type: ignore[method-assign]
+    try:
+        yield work
+    finally:
+        _StrictLoader.fetch_more_tokens = fetch  # type: ignore[method-assign]
+
+
+def test_deep_flow_nesting_is_refused_after_max_depth_levels(tmp_path: Path) -> None:
+    """Thousands of ``[`` (seconds of PyYAML's scanning): refused once ``MAX_DEPTH`` levels are open."""
+    path = tmp_path / "deep.yaml"
+    for opener in ("[", "{", "a: [{"):
+        path.write_text(opener * 5000)
+        with _scanner_work() as work, pytest.raises(SweepError, match=rf"nested deeper than {MAX_DEPTH}"):
+            load_sweep(path, build=False)
+        assert work["tokens"] <= 2 * MAX_DEPTH + 8 and work["flow_level"] <= MAX_DEPTH, work
+
+
 def _one_clear_error(message: str, where: str) -> None:
     assert "Traceback" not in message and message.startswith(where), message
     assert all(len(line) < 2000 for line in message.splitlines()), message
@@ -125,14 +153,17 @@ def _one_clear_error(message: str, where: str) -> None:
 def test_fuzzed_sweep_files(text: str, tmp_path: Path, fuzzmod: Path) -> None:
     path = tmp_path / "sweep.yaml"
     path.write_text(text)
-    before, start = _peak_mb(), time.perf_counter()
-    try:
-        sweep = load_sweep(path, build=False)
-    except SweepError as error:
-        _one_clear_error(str(error), str(path))
-    else:
-        assert isinstance(sweep, Sweep) and sweep.cells()
-    assert time.perf_counter() - start < SECONDS_PER_FILE
+    before = _peak_mb()
+    with _scanner_work() as work:
+        try:
+            sweep = load_sweep(path, build=False)
+        except SweepError as error:
+            _one_clear_error(str(error), str(path))
+        else:
+            assert isinstance(sweep, Sweep) and sweep.cells()
+    # the work is bounded by the input, not timed: at most a token per character, scanned at most MAX_DEPTH flow
+    # levels deep (the scanner's work per token grows with the nesting)
+    assert work["tokens"] <= len(path.read_bytes()) + 8 and work["flow_level"] <= MAX_DEPTH, work
     assert _peak_mb() - before < MEMORY_MB
     assert not (fuzzmod / "INSTANTIATED").exists(), "a class a sweep file named was instantiated"
 
@@ -210,7 +241,7 @@ def test_fuzzed_model_files(data: st.DataObject, model_file: Path, tmp_path: Pat
     path = tmp_path / "model.zip"
     path.write_bytes(data.draw(model_files(model_file.read_bytes())))
     modules = set(sys.modules)
-    before, start = _peak_mb(), time.perf_counter()
+    before = _peak_mb()
     try:
         model = QLearning.load(path)
     except ModelFileError as error:
@@ -219,6 +250,5 @@ def test_fuzzed_model_files(data: st.DataObject, model_file: Path, tmp_path: Pat
     else:  # a file that loads is a working model
         action, _ = model.predict(0, deterministic=True)
         assert 0 <= int(action) < model.action_space.n
-    assert time.perf_counter() - start < SECONDS_PER_FILE
     assert _peak_mb() - before < MEMORY_MB
     assert not _new_modules(modules), _new_modules(modules)

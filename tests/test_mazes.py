@@ -103,3 +103,18 @@ def test_tabular_agent_learns_a_maze() -> None:
         assert log["cells"].tail(20).mean() < 40 < 100 < log["cells"].head(20).mean()
         greedy_optimal += bool(log["greedy_optimal"].iloc[-1])
     assert greedy_optimal >= 1
+
+
+def test_a_binary_or_oversized_map_file_is_refused_naming_it(tmp_path: Path) -> None:
+    from sb3_affect.envs.maze import MAX_MAZE_BYTES
+
+    binary = tmp_path / "binary.txt"
+    binary.write_bytes(b"S..\n\xff\xfe.\n..G\n")
+    with pytest.raises(MazeError, match=r"maze file '.*binary\.txt' is not UTF-8 text \(byte 4: invalid start byte\)"):
+        load_maze(str(binary))
+    big = tmp_path / "big.txt"
+    big.write_bytes(b"S" + b"." * (MAX_MAZE_BYTES + 10) + b"\n.G\n")  # refused from its size: never parsed
+    with pytest.raises(MazeError, match=rf"maze file '.*big\.txt' is more than {MAX_MAZE_BYTES:,} bytes"):
+        load_maze(str(big))
+    with pytest.raises(MazeError, match=r"1001 rows x 2 columns: a map has at most 1000 x 1000 cells"):
+        parse_maze("S.\n" + ".G\n" * 1000, "tall")

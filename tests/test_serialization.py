@@ -154,3 +154,135 @@ def test_foreign_and_mismatched_files_are_refused_with_the_way_out(tmp_path: Pat
         AffectQ.load(tmp_path / "q.zip")
     with pytest.raises(ValueError, match=r"Observation spaces do not match"):
         QLearning.load(tmp_path / "q.zip", env=gym.make(ENV_ID, size=5, goal=(2, 2)))
+
+
+@pytest.mark.parametrize("cls", [QLearning, AffectQ])
+@pytest.mark.parametrize("entry", ["state", "last_obs", "count"])
+def test_an_episode_in_progress_outside_the_table_is_refused(tmp_path: Path, cls: type, entry: str) -> None:
+    """A file whose episode in progress indexes outside the Q-table (the kernel would write there) is refused at load."""
+    model = cls("Grid", gym.make(ENV_ID), seed=1)
+    model.learn(7)  # mid-episode: the file holds the episode in progress
+    model.save(tmp_path / "good.zip")
+    with zipfile.ZipFile(tmp_path / "good.zip") as archive:
+        data, twin = json.loads(archive.read("data")), json.loads(archive.read(PLAIN_MEMBER))
+    assert isinstance(data["_episode_state"], dict)
+    if entry == "state":
+        data["_episode_state"]["state"] = 10**7
+    elif entry == "count":
+        data["_episode_state"]["cells"] = -5
+    else:
+        data["_episode_state"] = None
+        twin["values"]["_last_obs"]["array"] = [-(10**6)]
+    replace = {"data": json.dumps(data).encode(), PLAIN_MEMBER: json.dumps(twin).encode()}
+    _rewrite(tmp_path / "good.zip", tmp_path / "evil.zip", replace)
+    with pytest.raises(ModelFileError) as info:
+        cls.load(tmp_path / "evil.zip", env=gym.make(ENV_ID), force_reset=False)
+    message = str(info.value)
+    assert "evil.zip" in message and "\n" not in message
+    named = {"state": "_episode_state['state']=10000000", "count": "_episode_state['cells']=-5"}.get(entry, "_last_obs")
+    assert named in message
+
+
+def test_a_caller_set_episode_state_outside_the_table_is_refused_before_the_kernel_runs(tmp_path: Path) -> None:
+    """The same index set by a caller: one error from ``learn`` on either engine (run apart: a crash must not end pytest)."""
+    import subprocess
+    import sys
+
+    script = f"""
+import gymnasium as gym
+from sb3_affect import QLearning
+for engine in ("compiled", "python"):
+    model = QLearning("Grid", gym.make({ENV_ID!r}), seed=1, engine=engine)
+    model.learn(7)
+    model._episode_state["state"] = 10**7
+    try:
+        model.learn(100, reset_num_timesteps=False)
+    except ValueError as error:
+        print(engine, error)
+"""
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, (done.returncode, done.stderr[-2000:])
+    lines = done.stdout.splitlines()
+    assert [line.split()[0] for line in lines] == ["compiled", "python"]
+    assert all("_episode_state['state']=10000000 is not a state: integers 0..224" in line for line in lines), lines
+
+
+def test_values_that_would_fail_later_are_refused_where_given(tmp_path: Path) -> None:
+    """Caps, seeds and speeds out of the kernel's range: one error at the constructor, not a failing run."""
+    env = gym.make(ENV_ID)
+    with pytest.raises(ValueError, match=r"max_episode_decisions=10{30} must be in \[1, 1e\+15\]"):
+        QLearning("Grid", env, max_episode_decisions=10**30)
+    with pytest.raises(ValueError, match=r"seed=18446744073709551615 must be in \[0, 2\*\*32 - 1\]"):
+        QLearning("Grid", env, seed=np.uint64(2**64 - 1))
+    model = QLearning("Grid", env, seed=np.uint64(7))
+    assert model.seed == 7 and type(model.seed) is int
+    model.learn(20)
+    with pytest.raises(ValueError, match=r"speeds=\[1, 1180591620717411303424\] is invalid: .* in \[0, 10,000\]"):
+        SpeedEpsilonGreedy("Grid", env, speeds=[1, 2**70])
+    from sb3_affect.core.behaviour import TABLE_III
+    from sb3_affect.core.emotions import Emotion
+
+    table = {**TABLE_III, Emotion.JOY: (True, (1, 2**70))}
+    with pytest.raises(ValueError, match=r"behaviour_table\[joy\]\.speeds=.* in \[0, 10,000\]"):
+        AffectQ("Grid", env, behaviour_table=table)
+
+
+def test_a_table_of_nan_or_complex_values_and_a_doubled_entry_are_refused(tmp_path: Path) -> None:
+    model = trained(QLearning)
+    model.save(tmp_path / "good.zip")
+    with zipfile.ZipFile(tmp_path / "good.zip") as archive:
+        weights = th.load(io.BytesIO(archive.read("policy.pth")), weights_only=True)
+    for name, table, words in (
+        ("nan", weights["q_table"].clone().fill_(float("nan")), "holds NaN or infinite values"),
+        ("inf", weights["q_table"].clone().fill_(float("inf")), "holds NaN or infinite values"),
+        ("complex", weights["q_table"].to(th.complex128), "not a tensor of real numbers"),
+    ):
+        buffer = io.BytesIO()
+        th.save({**weights, "q_table": table}, buffer)
+        _rewrite(tmp_path / "good.zip", tmp_path / f"{name}.zip", {"policy.pth": buffer.getvalue()})
+        with pytest.raises(ModelFileError, match=rf"{name}\.zip: policy\.pth entry 'q_table' .*{words}"):
+            QLearning.load(tmp_path / f"{name}.zip")
+    with zipfile.ZipFile(tmp_path / "good.zip") as source, zipfile.ZipFile(tmp_path / "twice.zip", "w") as target:
+        for entry in source.namelist():
+            target.writestr(entry, source.read(entry))
+        with pytest.warns(UserWarning, match="Duplicate name"):
+            target.writestr("data", source.read("data").replace(b'"gamma": 0.8', b'"gamma": 0.1'))
+    with pytest.raises(ModelFileError, match=r"twice\.zip: the entry 'data' is in the zip more than once"):
+        QLearning.load(tmp_path / "twice.zip")
+
+
+def test_custom_objects_are_checked_at_load(tmp_path: Path) -> None:
+    trained(QLearning).save(tmp_path / "model.zip")
+    for custom, words in (
+        ({"exploration_rate": 5.0}, "exploration_rate"),
+        ({"learning_rate": 5}, "learning_rate"),
+        ({"learning_rate": "fast"}, "learning_rate"),
+    ):
+        with pytest.raises(ModelFileError, match=rf"model\.zip: custom_objects: a value is not allowed: .*{words}") as info:
+            QLearning.load(tmp_path / "model.zip", custom_objects=custom)
+        assert "\n" not in str(info.value)
+    assert QLearning.load(tmp_path / "model.zip", custom_objects={"exploration_rate": 0.5}).exploration_rate == 0.5
+
+
+class _Rewarding(gym.Wrapper):
+    """The grid, every reward replaced by ``value``."""
+
+    def __init__(self, env: gym.Env, value: float) -> None:
+        super().__init__(env)
+        self.value = value
+
+    def step(self, action: int):
+        obs, _, terminated, truncated, info = self.env.step(action)
+        return obs, self.value, terminated, truncated, info
+
+
+@pytest.mark.parametrize("reward", [float("nan"), 1e308])
+def test_rewards_that_make_the_table_non_finite_are_warned_once(reward: float) -> None:
+    import warnings
+
+    model = QLearning("Grid", _Rewarding(gym.make(ENV_ID), reward), seed=0, engine="python", max_episode_decisions=50)
+    with pytest.warns(RuntimeWarning, match=r"Q-values are NaN or infinite after learn"):
+        model.learn(200)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        model.learn(200, reset_num_timesteps=False)  # once per model

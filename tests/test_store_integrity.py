@@ -132,7 +132,8 @@ def test_copied_and_foreign_chunks_are_not_counted(
     shutil.copy(next((other / "runs").glob("[!.]*.json")), out / "runs")
     shown = status(out, capsys)
     assert "8/8 runs done" in shown, shown
-    assert "repeats runs" in shown and "another sweep" in shown
+    assert f"zz-copy-{chunk.name} holds batch {chunk.stem!r}, not the batch of its file name (a copy?)" in shown
+    assert "another sweep" in shown
     summary = run_sweep(sweep, out, workers=2, progress=False)
     assert (summary.skipped, summary.finished) == (8, 0)
     assert len(list((out / "damaged").iterdir())) == 3
@@ -208,3 +209,249 @@ def test_a_sweep_into_a_replication_folder_is_refused(folder: tuple[Path, Path, 
     with pytest.raises(StoreError, match=f"holds a replication .*paper/.*--out {replication / 'faults'}"):
         run_sweep(sweep, replication, workers=1, progress=False)
     assert not (replication / "sweep.json").exists()
+
+
+UNSORTED_GRID = """\
+name: unsorted
+env: {id: sb3_affect/GridPursuit-v0, kwargs: {size: 5, goal: [2, 2]}}
+episodes: 6
+seeds: 2
+agents:
+  - name: q
+    algo: QLearning
+    grid: {epsilon: [0.1, 0.9], alpha: [1.0, 0.5]}
+    kwargs: {exploration_rate: $epsilon, learning_rate: $alpha}
+"""
+
+
+def _legacy_run_id(config: dict[str, Any]) -> str:
+    """The run id as folders were named before: the prefix's labels in the grid's order (not sorted)."""
+    import hashlib
+    import re
+
+    digest = hashlib.sha256(json.dumps(config, sort_keys=True).encode()).hexdigest()[:12]
+    labels = "-".join(f"{k}{v}" for k, v in config["labels"].items() if k != "replicate")
+    prefix = re.sub(r"[^A-Za-z0-9_.+-]+", "_", f"{config['agent']}-{labels}-s{config['seed']}".replace("--", "-"))
+    return f"{prefix}-{digest}"
+
+
+@pytest.mark.parametrize("legacy", [False, True], ids=["new", "written-before"])
+def test_a_grid_not_in_alphabetical_order_is_counted_read_and_resumed(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch, legacy: bool
+) -> None:
+    sweep, out = tmp_path / "unsorted.yaml", tmp_path / "out"
+    sweep.write_text(UNSORTED_GRID)
+    with monkeypatch.context() as patch:
+        if legacy:
+            patch.setattr("sb3_affect.study.launcher.run_ids.run_id", _legacy_run_id)
+        assert run_sweep(sweep, out, workers=1, progress=False).finished == 8
+    if legacy:  # the files hold ids in the grid's order (epsilon first), as such folders do
+        meta = json.loads(__import__("pyarrow.parquet").parquet.read_metadata(next((out / "chunks").glob("*.parquet")))
+                          .metadata[b"sb3_affect"])
+        assert meta["runs"][0][0].startswith("q-epsilon")
+    shown = status(out, capsys)
+    assert "8/8 runs done" in shown and "not counted" not in shown, shown
+    runs, episodes = ResultsStore(out).results()
+    assert len(runs) == 8 and len(episodes) == 8 * 6 and runs.run_id.str.startswith("q-alpha").all()
+    summary = run_sweep(sweep, out, workers=1, progress=False)
+    assert (summary.skipped, summary.finished) == (8, 0) and not (out / "damaged").exists()
+
+
+def test_report_imports_no_env_module_a_folder_names(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """A sweep run on a ``module:Env`` id (Gymnasium imports the module): ``report`` on its folder imports nothing."""
+    import sys
+
+    (tmp_path / "evilmod.py").write_text("import pathlib\npathlib.Path(__file__).with_name('PWNED').touch()\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    monkeypatch.setenv("PYTHONPATH", str(tmp_path))
+    sweep, out = tmp_path / "evil.yaml", tmp_path / "out"
+    sweep.write_text(
+        "name: evil\nenv: {id: 'evilmod:sb3_affect/GridPursuit-v0', kwargs: {size: 5, goal: [2, 2]}}\nepisodes: 6\n"
+        "seeds: 2\nagents:\n  - name: q\n    algo: QLearning\n"
+    )
+    assert run_sweep(sweep, out, workers=1, progress=False).finished == 2
+    (tmp_path / "PWNED").unlink(missing_ok=True)
+    monkeypatch.delitem(sys.modules, "evilmod", raising=False)
+    capsys.readouterr()
+    assert main(["report", str(out)]) == 0, capsys.readouterr().err
+    assert not (tmp_path / "PWNED").exists() and "evilmod" not in sys.modules
+
+
+def test_report_never_writes_through_a_symbolic_link(
+    folder: tuple[Path, Path, dict[str, Any]], tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A link at a file's name is replaced (its target untouched); a link in place of ``tables/`` is refused."""
+    _, out, _ = folder
+    precious, elsewhere = tmp_path / "precious", tmp_path / "elsewhere"
+    precious.write_text("keep me")
+    elsewhere.mkdir()
+    (out / "report.md").symlink_to(precious)
+    (out / "tables").mkdir()
+    (out / "tables" / "agents.csv").symlink_to(precious)
+    capsys.readouterr()
+    assert main(["report", str(out)]) == 0, capsys.readouterr().err
+    assert precious.read_text() == "keep me"
+    assert not (out / "report.md").is_symlink() and (out / "report.md").read_text().startswith("#")
+    assert not any(p.is_symlink() or p.name.startswith(".tmp-") for p in (out / "tables").iterdir())
+    shutil.rmtree(out / "tables")
+    (out / "tables").symlink_to(elsewhere)
+    capsys.readouterr()
+    assert main(["report", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{out / 'tables'} is a symbolic link" in err, err
+    assert list(elsewhere.iterdir()) == [] and precious.read_text() == "keep me"
+
+
+def test_a_folder_path_that_is_not_utf8_is_refused_up_front(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """pyarrow can not open such a path: the sweep is refused before anything runs (it would be rerun forever)."""
+    import os
+
+    out = Path(os.fsdecode(bytes(tmp_path) + b"/x\xffy"))
+    sweep = tmp_path / "smoke.yaml"
+    sweep.write_text(UNSORTED_GRID)
+    capsys.readouterr()
+    assert main(["run", str(sweep), "--out", str(out), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "must be valid UTF-8" in err and r"x\udcffy" in err, err
+    assert not os.path.exists(out)
+
+
+def _rewrite_chunk(path: Path, target: Path, edit_meta: Any = None, run: Any = None, rows: int | None = None) -> None:
+    """
+    Write ``path``'s chunk to ``target`` with its footer (``edit_meta(meta)``) or its ``run`` column changed, or its
+    first ``rows`` rows only.
+    """
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    table = pq.read_table(path)
+    meta = json.loads(table.schema.metadata[b"sb3_affect"])
+    if edit_meta is not None:
+        edit_meta(meta)
+    if run is not None:
+        table = table.set_column(table.schema.get_field_index("run"), "run", pa.array(run, pa.int32()))
+    if rows is not None:
+        table = table.slice(0, rows)
+    pq.write_table(table.replace_schema_metadata({b"sb3_affect": json.dumps(meta).encode()}), target)
+
+
+def _affective_chunk(out: Path) -> Path:
+    return next(p for p in sorted((out / "chunks").glob("*.parquet")) if "affective" in p.name)
+
+
+def test_a_hand_edited_chunk_is_not_counted(
+    folder: tuple[Path, Path, dict[str, Any]], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A run listed twice, runs whose labels were swapped, a modified copy named to sort first: none counts."""
+    sweep, out, runs = folder
+    chunk = _affective_chunk(out)
+    original = chunk.read_bytes()
+
+    def twice(meta: dict[str, Any]) -> None:
+        meta["runs"].append(list(meta["runs"][0]))
+
+    def relabel(meta: dict[str, Any]) -> None:
+        meta["base"]["labels"]["epsilon"] = 0.5
+
+    for edit, why in ((twice, "twice"), (relabel, "but its labels and seed give run")):
+        _rewrite_chunk(chunk, chunk, edit)
+        shown = status(out, capsys)
+        assert f"not counted: {chunk}" in shown and why in shown, shown
+        with pytest.raises(StoreError, match=why):
+            ResultsStore(out).results()
+        chunk.write_bytes(original)
+    copy = out / "chunks" / "aaa-copy.parquet"
+    _rewrite_chunk(chunk, copy, lambda meta: meta["timings"].update(wall_seconds=99.0))
+    shown = status(out, capsys)
+    assert "8/8 runs done" in shown and f"not counted: {copy}" in shown and f"not counted: {chunk}" not in shown
+    summary = run_sweep(sweep, out, workers=1, progress=False)
+    assert (summary.skipped, summary.finished) == (8, 0)
+    assert chunk.read_bytes() == original and (out / "damaged" / "chunks-aaa-copy.parquet").exists()
+    assert contents(out) == runs
+
+
+def test_a_run_column_outside_the_chunks_runs_is_one_error_not_an_allocation(
+    folder: tuple[Path, Path, dict[str, Any]],
+) -> None:
+    import pyarrow.parquet as pq
+
+    _, out, _ = folder
+    chunk = _affective_chunk(out)
+    original = chunk.read_bytes()
+    run = pq.read_table(chunk).column("run").to_numpy().copy()
+    run[-1] = 2**31 - 1
+    _rewrite_chunk(chunk, chunk, run=run)
+    wrong = rf"{chunk.name}: its run column holds run 2147483647, not one of the \d+ runs"
+    with pytest.raises(ValueError, match=wrong) as error:
+        ResultsStore(out).results()
+    assert "\n" not in str(error.value)
+    chunk.write_bytes(original)
+    _rewrite_chunk(chunk, chunk, rows=pq.read_metadata(chunk).num_rows - 1)  # the last run's last episode cut off
+    with pytest.raises(ValueError, match=r"holds 14 episodes of a run, its config says episodes=15"):
+        ResultsStore(out).results()
+
+
+def test_fifos_and_huge_files_are_not_read(folder: tuple[Path, Path, dict[str, Any]], tmp_path: Path) -> None:
+    """A FIFO (a reader would block on it) and a 20 GB sparse run file are named, never read (commands run apart: a
+    blocked read must not stop the test run)."""
+    import os
+    import subprocess
+    import sys
+
+    sweep, out, runs = folder
+    os.mkfifo(out / "chunks" / "zz.parquet")
+    os.mkfifo(out / "runs" / "zz.json")
+    (out / "sweep.json").unlink()
+    os.mkfifo(out / "sweep.json")  # the copies name the sweep
+    huge = out / "runs" / "zy.json"
+    huge.touch()
+    os.truncate(huge, 20 * 2**30)
+
+    def command(*argv: str) -> subprocess.CompletedProcess[str]:
+        return subprocess.run([sys.executable, "-m", "sb3_affect", *argv], capture_output=True, text=True, timeout=900)
+
+    shown = command("status", str(out))
+    assert shown.returncode == 0 and "8/8 runs done" in shown.stdout, shown
+    assert f"not counted: {out / 'chunks' / 'zz.parquet'} is not a regular file" in shown.stdout
+    assert f"not counted: {huge} is 21,474,836,480 bytes, more than the" in shown.stdout
+    refused = command("report", str(out))
+    assert refused.returncode == 2 and refused.stderr.count("\n") == 1 and "zy.json is 21,474,836,480 bytes" in refused.stderr
+    summary = run_sweep(sweep, out, workers=1, progress=False)
+    assert (summary.skipped, summary.finished) == (8, 0)
+    assert sorted(p.name for p in (out / "damaged").iterdir()) == ["chunks-zz.parquet", "runs-zy.json", "runs-zz.json"]
+    assert contents(out) == runs
+
+
+def test_report_of_a_folder_in_use_or_incomplete_says_so(
+    folder: tuple[Path, Path, dict[str, Any]], capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A launcher still writing: refused; runs missing: the report says how many it covers; checksums: what it read."""
+    _, out, _ = folder
+    with ResultsStore(out).lock():
+        capsys.readouterr()
+        assert main(["report", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and f"{out} is in use by a launcher (pid " in err, err
+    _affective_chunk(out).unlink()
+    (out / "chunks" / ".tmp-zz.parquet").write_bytes(b"half a chunk")  # what a launcher writes before its rename
+    assert main(["report", str(out)]) == 0, capsys.readouterr().err
+    report = (out / "report.md").read_text()
+    counted = ResultsStore(out).checked_files()
+    runs = len(counted.run_files) + sum(len(meta["runs"]) for meta in counted.chunk_files.values())
+    assert f"Incomplete: {out} holds {runs:,} of the 8 runs of sweep 'faults'" in report and runs < 8
+    listed = sorted(line.split("  ", 1)[1] for line in (out / "checksums.sha256").read_text().splitlines())
+    assert listed == sorted(p.relative_to(out).as_posix() for p in [*counted.run_files, *counted.chunk_files])
+
+
+def test_a_cache_cut_short_is_redone_not_an_error(tmp_path: Path) -> None:
+    """An empty ``joy_trace/meta.json`` (a kill mid-write, before it was written atomically): traced again."""
+    from sb3_affect.study.report import joy_trace
+
+    folder = tmp_path / "joy_trace"
+    folder.mkdir()
+    (folder / "meta.json").write_text("")
+    (folder / "episodes.csv").write_text("stale\n")
+    frame = joy_trace.traced(folder, seeds=1, episodes=3)
+    assert len(frame) > 0 and json.loads((folder / "meta.json").read_text()) == {"seeds": 1, "episodes": 3}

@@ -26,7 +26,7 @@ class MultiDiscreteObs(gym.Env):
         (QLearning, {"gamma": -0.1}, ValueError, ["gamma=-0.1", "[0, 1]"]),
         (QLearning, {"q_init": float("inf")}, ValueError, ["q_init=inf"]),
         (QLearning, {"exploration_rate": -0.2}, ValueError, ["exploration_rate=-0.2", "[0, 1]"]),
-        (QLearning, {"max_episode_decisions": -5}, ValueError, ["max_episode_decisions=-5", ">= 1"]),
+        (QLearning, {"max_episode_decisions": -5}, ValueError, ["max_episode_decisions=-5", "in [1, 1e+15]"]),
         (QLearning, {"max_episode_decisions": 10.0}, TypeError, ["max_episode_decisions", "10.0"]),
         (AffectQ, {"personality": "grumpy"}, ValueError, ["personality", "grumpy"]),
         (AffectQ, {"behaviour_table": [1, 2]}, TypeError, ["behaviour_table", "list"]),

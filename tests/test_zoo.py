@@ -123,3 +123,48 @@ def test_package_envs_are_registered_with_a_time_limit_the_agents_cap_never_reac
     env.reset(seed=0)
     truncated = [env.step(0)[3] for _ in range(7)]
     assert truncated == [False] * 6 + [True]
+
+
+def test_zoo_refuses_a_bad_hyperparameter_in_one_line_and_a_logs_folder_with_python_tags(tmp_path: Path, zoo) -> None:
+    with pytest.raises(SystemExit) as exit_info:
+        zoo(["train", "--algo", "qlearning", "--env", GRID_PURSUIT_ID, "-f", "logs", "-n", "50",
+             "--hyperparams", "exploration_rate:5.0"], tmp_path)
+    message = str(exit_info.value.code)
+    assert message.startswith("sb3_affect.integrations.zoo train: error: ") and "exploration_rate" in message
+    assert "\n" not in message
+    env_name = GRID_PURSUIT_ID.replace("/", "-")
+    run = tmp_path / "logs" / "qlearning" / f"{env_name}_1"
+    (run / env_name).mkdir(parents=True, exist_ok=True)  # (train made it before it stopped)
+    QLearning("Grid", gym.make(GRID_PURSUIT_ID), seed=0).learn(50).save(run / f"{env_name}.zip")
+    marker = tmp_path / "PWNED"
+    config = run / env_name / "config.yml"
+    config.write_text(f"!!python/object/apply:os.system ['touch {marker}']\n")
+    with pytest.raises(SystemExit) as exit_info:
+        zoo(["enjoy", "--algo", "qlearning", "--env", GRID_PURSUIT_ID, "-f", "logs", "--no-render", "-n", "5"], tmp_path)
+    message = str(exit_info.value.code)
+    assert message.startswith(f"{config.relative_to(tmp_path)}: not plain YAML") and "\n" not in message, message
+    assert not marker.exists()
+
+
+def test_hub_packaging_refuses_paths_code_and_other_envs(tmp_path: Path) -> None:
+    from sb3_affect.integrations.hub import package_model
+
+    model = QLearning("Grid", gym.make(GRID_PURSUIT_ID, size=4, goal=(2, 2)), seed=0).learn(200)
+    small = {"size": 4, "goal": (2, 2)}
+    cases = [
+        ({"model_name": "../../x"}, r"model_name='../../x' must be a file name"),
+        ({"repo_id": 'a/b"); import os; os.system("x'}, r"repo_id=.* is not a Hub repository id"),
+        ({"eval_env": gym.make("FrozenLake-v1")}, r"eval_env is 'FrozenLake-v1', not env_id='sb3_affect/GridPursuit-v0'"),
+        ({"eval_env": gym.make(GRID_PURSUIT_ID)}, r"has spaces Discrete\(225\) / Discrete\(4\); the model was trained on"),
+    ]
+    for kwargs, words in cases:
+        arguments = {"eval_env": gym.make(GRID_PURSUIT_ID, **small), **kwargs}
+        with pytest.raises(ValueError, match=words):
+            package_model(model, tmp_path / "hub", GRID_PURSUIT_ID, n_eval_episodes=1, **arguments)
+    with pytest.raises(ValueError, match=r"env_id='evilmod:Env-v0' is not a registered Gymnasium env id"):
+        package_model(model, tmp_path / "hub", "evilmod:Env-v0", n_eval_episodes=1)
+    (tmp_path / "file").write_text("x")
+    with pytest.raises(ValueError, match=r"folder=.*file' is a file"):
+        package_model(model, tmp_path / "file", GRID_PURSUIT_ID, eval_env=gym.make(GRID_PURSUIT_ID, **small),
+                      n_eval_episodes=1)
+    assert not (tmp_path.parent / "x.zip").exists() and not list(tmp_path.glob("hub/*"))

@@ -42,6 +42,17 @@ def check_table_size(n_states: Any, n_actions: Any, where: str = "the Q-table") 
         )
 
 
+def check_seed(seed: Any) -> int | None:
+    """A seed: None, or an integer (NumPy's too) in ``[0, 2**32 - 1]`` (what NumPy's seeding takes), as a Python int."""
+    if seed is None:
+        return None
+    if isinstance(seed, (bool, np.bool_)) or not isinstance(seed, (int, np.integer)):
+        raise TypeError(f"seed must be an integer in [0, 2**32 - 1] or None, got {seed!r}")
+    if not 0 <= seed < 2**32:
+        raise ValueError(f"seed={seed} must be in [0, 2**32 - 1] (NumPy's seeds)")
+    return int(seed)
+
+
 def check_total_timesteps(total_timesteps: Any) -> int:
     """``learn``'s decision count: a whole number >= 0 (an integral float such as ``1e5`` is accepted, as by SB3)."""
     value = total_timesteps
@@ -74,3 +85,36 @@ def check_observation(observation: Any, n_states: int, start: int = 0) -> None:
     outside = (flat < start) | (flat >= start + n_states)
     if outside.any():
         raise ValueError(f"observation {flat[outside][0]!r} is outside the observation space; give {allowed}")
+
+
+_EPISODE_COUNTS = ("decisions", "cells", "random_moves", "waits")
+
+
+def check_episode_in_progress(episode_state: Any, last_obs: Any, n_states: int, start: int = 0) -> None:
+    """
+    The episode a ``learn`` continues (a loaded model's, or one a caller set), checked before any engine runs: the
+    compiled kernel indexes the Q-table with its state unchecked. ``_last_obs`` holds one observation of
+    ``Discrete(n_states, start)``; ``_episode_state`` (when set) holds the state ``0 .. n_states - 1``, whole counts
+    ``>= 0`` and a finite reward.
+    """
+    if last_obs is not None:
+        try:
+            check_observation(last_obs, n_states, start)
+        except ValueError as error:
+            raise ValueError(f"_last_obs: {error}") from None
+    if episode_state is None:
+        return
+    if not isinstance(episode_state, dict) or set(episode_state) != {"state", "reward", *_EPISODE_COUNTS}:
+        raise ValueError(
+            f"_episode_state={episode_state!r:.80} must be a dict of state, reward, {', '.join(_EPISODE_COUNTS)}"
+        )
+    state = episode_state["state"]
+    if not isinstance(state, (int, np.integer)) or isinstance(state, (bool, np.bool_)) or not 0 <= state < n_states:
+        raise ValueError(f"_episode_state['state']={state!r:.40} is not a state: integers 0..{n_states - 1}")
+    for name in _EPISODE_COUNTS:
+        value = episode_state[name]
+        if not isinstance(value, (int, np.integer)) or isinstance(value, (bool, np.bool_)) or not 0 <= value < 2**62:
+            raise ValueError(f"_episode_state[{name!r}]={value!r:.40} must be a whole number in [0, 2**62)")
+    reward = episode_state["reward"]
+    if not isinstance(reward, (int, float, np.integer, np.floating)) or not math.isfinite(reward):
+        raise ValueError(f"_episode_state['reward']={reward!r:.40} must be a finite number")

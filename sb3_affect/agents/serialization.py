@@ -25,7 +25,7 @@ import torch as th
 from gymnasium import spaces
 from stable_baselines3.common.utils import ConstantSchedule, FloatSchedule, LinearSchedule, check_for_correct_spaces
 
-from sb3_affect.agents.agent_checks import MAX_TABLE_ENTRIES, check_table_size
+from sb3_affect.agents.agent_checks import MAX_TABLE_ENTRIES, check_episode_in_progress, check_table_size
 from sb3_affect.core.registry import FORMER_MODULES
 
 PLAIN_MEMBER = "sb3_affect.json"
@@ -286,6 +286,10 @@ def _load_safe(
     archive, where = _open(path)
     optin = f"if you trust this file, load it with {cls.__name__}.load(path, safe=False)"
     with archive:
+        names = archive.namelist()
+        twice = sorted({name for name in names if names.count(name) > 1})
+        if twice:  # zipfile reads the last of them, SB3's loader may read another: which one counts is ambiguous
+            raise ModelFileError(f"{where}: the entry {twice[0]!r} is in the zip more than once; a model holds each once")
         for name in ("data", PLAIN_MEMBER):
             _check_declared_size(archive, name, MAX_JSON_BYTES, where)
         data = _json(_read(archive, "data", where), "data", where)
@@ -344,6 +348,22 @@ def _load_safe(
         raise ModelFileError(f"{where}: policy_kwargs must be a JSON object")
     (restored.get("policy_kwargs") or {}).pop("device", None)
     _check_values(cls, {k: v for k, v in restored.items() if k not in custom}, where)  # the file's, not the caller's
+    if custom:
+        checked = dict(restored)
+        rate = custom.get("learning_rate")
+        if isinstance(rate, (int, float)) and not isinstance(rate, bool) and rate == 0:  # SB3's and rl-zoo3's way of
+            del checked["learning_rate"]  # loading for inference only: no learning
+        try:
+            _check_values(cls, checked, where)
+        except ModelFileError as error:
+            reason = str(error).removeprefix(f"{where}: a saved value is not allowed: ")
+            raise ModelFileError(f"{where}: custom_objects: a value is not allowed: {reason}") from None
+    try:
+        check_episode_in_progress(
+            restored.get("_episode_state"), restored.get("_last_obs"), int(observation_space.n), int(observation_space.start)
+        )
+    except ValueError as error:
+        raise ModelFileError(f"{where}: {error}") from None
 
     if env is not None:
         env = cls._wrap_env(env, restored.get("verbose", 0))
@@ -362,6 +382,12 @@ def _load_safe(
         raise ModelFileError(
             f"{where}: policy.pth is not plain tensor data, refused by weights-only loading ({error}); {optin}"
         ) from None
+    weird = next((k for k, v in state.items() if not isinstance(v, th.Tensor) or not v.is_floating_point()), None)
+    if weird is not None:
+        raise ModelFileError(f"{where}: policy.pth entry {weird!r} is not a tensor of real numbers (float)")
+    broken = next((k for k, v in state.items() if not bool(th.isfinite(v).all())), None)
+    if broken is not None:
+        raise ModelFileError(f"{where}: policy.pth entry {broken!r} holds NaN or infinite values; Q-values are finite numbers")
     try:
         model.policy.load_state_dict(state, strict=True)
     except (RuntimeError, TypeError, AttributeError) as error:

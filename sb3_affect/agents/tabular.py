@@ -13,6 +13,7 @@ import math
 import os
 import random
 import time
+import warnings
 from operator import itemgetter
 from typing import Any, ClassVar, TypeVar
 
@@ -26,7 +27,7 @@ from stable_baselines3.common.policies import BasePolicy
 from stable_baselines3.common.type_aliases import GymEnv, MaybeCallback, Schedule
 from stable_baselines3.common.vec_env import DummyVecEnv
 
-from sb3_affect.agents.agent_checks import check_table_size, check_total_timesteps
+from sb3_affect.agents.agent_checks import check_episode_in_progress, check_seed, check_table_size, check_total_timesteps
 from sb3_affect.agents.model_files import ModelFiles
 from sb3_affect.agents.policies import TabularQPolicy, check_not_gym_tuple
 from sb3_affect.agents.qtable import LoopTable, VisitedRows
@@ -98,8 +99,7 @@ class TabularQAlgorithm(ModelFiles):
         self.engine, self.tie_break, self.gamma, self.q_init, max_episode_decisions = check_tabular(
             learning_rate, gamma, q_init, max_episode_decisions, engine, tie_break
         )
-        if seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer))):
-            raise TypeError(f"seed must be an integer or None, got {seed!r}")
+        seed = check_seed(seed)
         self.max_episode_decisions = max_episode_decisions
         if env is not None and not isinstance(env, str):
             self._check_spaces(env.observation_space, env.action_space)
@@ -156,10 +156,11 @@ class TabularQAlgorithm(ModelFiles):
             self._episode_blocks = EpisodeBlocks.from_rows(rows)
 
     def _excluded_save_params(self) -> list[str]:
-        return [*super()._excluded_save_params(), "_rng", "_q", "_tie_first", "_episode_blocks"]
+        return [*super()._excluded_save_params(), "_rng", "_q", "_tie_first", "_episode_blocks", "_warned_non_finite"]
 
     def set_random_seed(self, seed: int | None = None) -> None:
         """Seed Python, NumPy, torch, the action space, the env and the agent's own generator (SB3 convention)."""
+        seed = check_seed(seed)
         super().set_random_seed(seed)
         rng = getattr(self, "_rng", None)
         if seed is not None and rng is not None:
@@ -276,8 +277,23 @@ class TabularQAlgorithm(ModelFiles):
         finally:
             self._sync_policy()
             self._q = None  # from now on the policy's tensor is the one truth (set_parameters, edits, save)
+        self._warn_non_finite()
         callback.on_training_end()
         return self
+
+    def _warn_non_finite(self) -> None:
+        """Warn (once per model) when the Q-table holds NaN or infinite values: the env gave such rewards (or ones so
+        large that their sums overflow), and every greedy choice over such a row is arbitrary."""
+        if getattr(self, "_warned_non_finite", False) or bool(th.isfinite(self.policy.q_table).all()):
+            return
+        self._warned_non_finite = True
+        bad = int((~th.isfinite(self.policy.q_table)).sum())
+        warnings.warn(
+            f"{type(self).__name__}: {bad:,} Q-values are NaN or infinite after learn: the env gave rewards that are NaN, "
+            "infinite or large enough for their discounted sums to overflow (rewards within +-1e300 / (1 - gamma) fit)",
+            RuntimeWarning,
+            stacklevel=3,
+        )
 
     def _start_learn(
         self,
@@ -312,6 +328,8 @@ class TabularQAlgorithm(ModelFiles):
         finally:
             if silent:
                 self._custom_logger = False
+        n_states, start = int(self.observation_space.n), int(self.observation_space.start)  # type: ignore[attr-defined]
+        check_episode_in_progress(self._episode_state, self._last_obs, n_states, start)
         callback.on_training_start(locals(), globals())
         self._geometry: Geometry | None = env_geometry(self._single_env())
         self._greedy_optimal: bool | None = None

@@ -38,6 +38,10 @@ def behaviour_by_emotion(stored: Mapping[str, Any]) -> list[Behaviour]:
     return [Behaviour(bool(r), tuple(int(k) for k in speeds)) for r, speeds in (stored[e.name.lower()] for e in Emotion)]
 
 
+#: The most cells a decision may move (each cell is one env step; the largest grid is 1,000 cells wide).
+MAX_SPEED = 10_000
+
+
 def validate_behaviour_table(table: Mapping[Emotion, Behaviour]) -> dict[Emotion, Behaviour]:
     """Check a user's emotion-to-behaviour table: one entry per emotion, speeds non-empty ints >= 0."""
     if not isinstance(table, Mapping):
@@ -51,9 +55,10 @@ def validate_behaviour_table(table: Mapping[Emotion, Behaviour]) -> dict[Emotion
         entry = table[emotion]
         random_direction, speeds = Behaviour(*entry)
         speeds = tuple(speeds)
-        if not speeds or not all(isinstance(k, int) and not isinstance(k, bool) and k >= 0 for k in speeds):
+        if not speeds or not all(isinstance(k, int) and not isinstance(k, bool) and 0 <= k <= MAX_SPEED for k in speeds):
             raise ValueError(
-                f"behaviour_table[{emotion.name.lower()}].speeds={speeds!r} is invalid: use a non-empty tuple of ints >= 0"
+                f"behaviour_table[{emotion.name.lower()}].speeds={speeds!r} is invalid: use a non-empty tuple of ints "
+                f"in [0, {MAX_SPEED:,}]"
             )
         checked[emotion] = Behaviour(bool(random_direction), speeds)
     return checked

@@ -13,13 +13,16 @@ from typing import Any
 import numpy as np
 
 from sb3_affect.core.appraisal import ACT_MODES, UNITS, check_choice
-from sb3_affect.core.behaviour import stored_behaviour_table
+from sb3_affect.core.behaviour import MAX_SPEED, stored_behaviour_table
 from sb3_affect.core.emotions import COMPARISONS, Emotion
 from sb3_affect.core.personalities import check_personality
 from sb3_affect.core.validation import check_number, check_rate
 
 #: A number, or an SB3-style schedule of the remaining progress.
 Rate = float | Callable[[float], float]
+
+#: The largest safety cap on an episode's decisions (the kernel counts decisions in 64-bit integers).
+MAX_EPISODE_DECISIONS = 10**15
 
 ENGINES = ("auto", "python", "compiled")
 TIE_BREAKS = ("random", "first")
@@ -48,8 +51,8 @@ def check_tabular(
     q_init = check_number("q_init", q_init, -1e300, 1e300)
     if isinstance(max_episode_decisions, bool) or not isinstance(max_episode_decisions, (int, np.integer)):
         raise TypeError(f"max_episode_decisions must be an integer >= 1, got {max_episode_decisions!r}")
-    if max_episode_decisions < 1:
-        raise ValueError(f"max_episode_decisions={max_episode_decisions} must be >= 1")
+    if not 1 <= max_episode_decisions <= MAX_EPISODE_DECISIONS:
+        raise ValueError(f"max_episode_decisions={max_episode_decisions} must be in [1, {MAX_EPISODE_DECISIONS:.0e}]")
     return engine, tie_break, gamma, q_init, int(max_episode_decisions)
 
 
@@ -86,8 +89,8 @@ def check_speeds(multi_cell: str, speeds: Sequence[int]) -> tuple[str, list[int]
     multi_cell = check_choice("multi_cell", multi_cell, MULTI_CELLS)
     if isinstance(speeds, (str, bytes)) or not isinstance(speeds, Sequence):
         raise TypeError(f"speeds must be a sequence of integers >= 0, got {speeds!r}")
-    if not speeds or not all(isinstance(k, int) and not isinstance(k, bool) and k >= 0 for k in speeds):
-        raise ValueError(f"speeds={speeds!r} is invalid: use a non-empty sequence of integers >= 0")
+    if not speeds or not all(isinstance(k, int) and not isinstance(k, bool) and 0 <= k <= MAX_SPEED for k in speeds):
+        raise ValueError(f"speeds={speeds!r} is invalid: use a non-empty sequence of integers in [0, {MAX_SPEED:,}]")
     return multi_cell, [int(k) for k in speeds]
 
 

@@ -12,6 +12,7 @@ the model. Uploading the folder is then one call that needs the network::
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Any
 
@@ -48,6 +49,38 @@ action, _ = model.predict(obs, deterministic=True)
 """
 
 
+#: A Hub repository id (``user/name``) and a model file's name: what the card's code quotes, so nothing else.
+_REPO_ID = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,95}/[A-Za-z0-9][A-Za-z0-9._-]{0,95}")
+_FILE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]{0,199}")
+
+
+def _check_names(repo_id: Any, model_name: Any, env_id: Any) -> None:
+    """The names the card's code quotes: a Hub repository id, a plain file name, a registered env id."""
+    import gymnasium as gym
+
+    if not isinstance(repo_id, str) or not _REPO_ID.fullmatch(repo_id) or ".." in repo_id:
+        raise ValueError(f"repo_id={repo_id!r} is not a Hub repository id: USER/NAME of letters, digits, '.', '_', '-'")
+    plain = isinstance(model_name, str) and _FILE_NAME.fullmatch(model_name) is not None and ".." not in model_name
+    if model_name is not None and not plain:
+        raise ValueError(f"model_name={model_name!r} must be a file name of letters, digits, '.', '_', '-' (not a path)")
+    if not isinstance(env_id, str) or ":" in env_id or env_id not in gym.registry:
+        raise ValueError(f"env_id={env_id!r} is not a registered Gymnasium env id (module:Env ids are not imported)")
+
+
+def _check_env(model: Any, env: Any, env_id: str) -> None:
+    """The evaluation env is the one the card names, and the model's spaces are its spaces."""
+    from stable_baselines3.common.vec_env import VecEnv
+
+    spec = getattr(env, "spec", None) if not isinstance(env, VecEnv) else None
+    if spec is not None and spec.id != env_id:
+        raise ValueError(f"eval_env is {spec.id!r}, not env_id={env_id!r}: the card would label its results with another env")
+    if env.observation_space != model.observation_space or env.action_space != model.action_space:
+        raise ValueError(
+            f"env_id={env_id!r} has spaces {env.observation_space} / {env.action_space}; the model was trained on "
+            f"{model.observation_space} / {model.action_space}"
+        )
+
+
 def package_model(
     model: Any,
     folder: str | Path,
@@ -79,13 +112,17 @@ def package_model(
 
     if n_eval_episodes < 1:
         raise ValueError(f"n_eval_episodes={n_eval_episodes} must be >= 1")
+    _check_names(repo_id, model_name, env_id)
     algo = type(model).__name__
     name = model_name or f"{algo.lower()}-{env_id.replace('/', '-')}"
+    env = eval_env if eval_env is not None else gym.make(env_id)
+    _check_env(model, env, env_id)
     folder = Path(folder)
+    if folder.exists() and not folder.is_dir():
+        raise ValueError(f"folder={str(folder)!r} is a file; give a folder to write the model, its card and results into")
     folder.mkdir(parents=True, exist_ok=True)
     model.save(folder / name)
     _generate_config(name, folder)
-    env = eval_env if eval_env is not None else gym.make(env_id)
     if not isinstance(env, VecEnv):
         monitored = Monitor(env)
         env = DummyVecEnv([lambda: monitored])

@@ -17,6 +17,13 @@ the package's envs, FrozenLake, CliffWalking and Taxi) unless ``--conf-file`` is
 ``rollout/ep_len_mean`` counts decisions (a decision moves 0, 1 or 2 cells) and ``rollout/ep_cells_mean`` cells.
 ``--output FILE`` (this module's option) saves the figure the zoo would only show.
 
+rl-zoo3 reads a logs folder's ``config.yml`` and ``args.yml`` with PyYAML's unsafe loader, which runs the Python
+tags a file holds. Before ``enjoy`` and ``record_video``, this entry point reads those files of the ``--algo``
+folder with a safe loader that knows only the ``OrderedDict`` tag the zoo writes itself; a file with any other
+Python tag is refused. (The zoo's own ``python -m rl_zoo3.enjoy`` does not check: use this entry point for logs
+folders you did not write.) A hyperparameter the agent refuses (``--hyperparams exploration_rate:5``) is one error
+line, not a traceback.
+
 Commands: ``train``, ``enjoy``, ``record_video``, ``plot_train``, ``all_plots`` (the zoo's modules of those names).
 """
 
@@ -95,6 +102,57 @@ def _eval_env_kwargs(conf: Path, argv: list[str]) -> list[str]:
     return ["--eval-env-kwargs", *(f"{key}:{value!r}" for key, value in env_kwargs.items())] if env_kwargs else []
 
 
+def _config_loader() -> Any:
+    """A safe loader that also reads the ``OrderedDict`` tag rl-zoo3 writes (as a dict); any other Python tag fails."""
+    import yaml
+
+    class ZooConfigLoader(yaml.SafeLoader):
+        pass
+
+    def ordered_dict(loader: Any, node: Any) -> dict[Any, Any]:
+        return dict(*loader.construct_sequence(node, deep=True))
+
+    ZooConfigLoader.add_constructor("tag:yaml.org,2002:python/object/apply:collections.OrderedDict", ordered_dict)
+    return ZooConfigLoader
+
+
+def check_logs_folder(argv: list[str]) -> None:
+    """
+    Refuse (``SystemExit``, one line naming the file) a ``config.yml`` or ``args.yml`` of the ``--algo`` logs folder
+    that holds a Python tag other than ``OrderedDict``: rl-zoo3 loads them with an unsafe loader, which would run it.
+    """
+    import yaml
+
+    algo = _algo(argv)
+    at = next((argv.index(flag) for flag in ("-f", "--folder") if flag in argv), None)
+    folder = Path(argv[at + 1] if at is not None and at + 1 < len(argv) else "rl-trained-agents")
+    if algo is None or not (folder / algo).is_dir():
+        return
+    loader = _config_loader()
+    for path in sorted((folder / algo).rglob("*.yml")):
+        if path.name not in ("config.yml", "args.yml"):
+            continue
+        try:
+            yaml.load(path.read_text(), Loader=loader)  # (a SafeLoader with one more constructor)
+        except yaml.YAMLError as error:
+            problem = " ".join(str(getattr(error, "problem", None) or error).split())
+            raise SystemExit(
+                f"{path}: not plain YAML ({problem}); rl-zoo3 would load it with an unsafe loader, which runs Python "
+                "tags, so it is refused"
+            ) from None
+        except (OSError, UnicodeDecodeError) as error:
+            raise SystemExit(f"{path}: can not be read ({error})") from None
+
+
+def _agent_error(error: BaseException) -> bool:
+    """Whether ``error`` was raised by this package's code (an agent's check of a value), not by the zoo's."""
+    tb = error.__traceback__
+    while tb is not None and tb.tb_next is not None:
+        tb = tb.tb_next
+    package = Path(__file__).resolve().parents[1]  # sb3_affect/
+    return tb is not None and Path(tb.tb_frame.f_code.co_filename).resolve().is_relative_to(package)
+
+
 def main(argv: list[str] | None = None) -> None:
     """``python -m sb3_affect.integrations.zoo COMMAND ARGS``: the zoo's command with the package's agents registered."""
     args = list(sys.argv[1:] if argv is None else argv)
@@ -117,10 +175,16 @@ def main(argv: list[str] | None = None) -> None:
 
         # the zoo names its run folders after the env id with "/" replaced by "-"; plot_train looks them up by id
         rest = [arg.replace("/", "-") if "/" in arg and arg in gym.registry else arg for arg in rest]
+    if command in ("enjoy", "record_video"):
+        check_logs_folder(rest)
     saved = sys.argv
     sys.argv = [COMMANDS[command], *rest]
     try:
         runpy.run_module(COMMANDS[command], run_name="__main__", alter_sys=False)
+    except (ValueError, TypeError) as error:
+        if not _agent_error(error):
+            raise
+        raise SystemExit(f"sb3_affect.integrations.zoo {command}: error: {' '.join(str(error).split())}") from None
     finally:
         sys.argv = saved
     if output is not None:

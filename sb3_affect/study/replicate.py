@@ -138,6 +138,7 @@ def main(
     beyond_seeds = beyond_seeds or BEYOND_SEEDS
     engine_episodes = engine_episodes or ENGINE_EPISODES
     out_dir = Path(out_dir)
+    _refuse_a_sweep_folder(out_dir)
     record = _Record(out_dir)
     timings: dict[str, float] = {}
     for name, description in PARTS:
@@ -244,6 +245,20 @@ def _heartbeat(what: str, every: float | None = None) -> Iterator[None]:
     finally:
         stop.set()
         thread.join()
+
+
+def _refuse_a_sweep_folder(out_dir: Path) -> None:
+    """A replication's folder holds its sweeps in sub-folders: one that holds a sweep itself is refused (a mix)."""
+    from sb3_affect.study.launcher.store import ResultsStore, StoreError
+
+    store = ResultsStore(out_dir)
+    saved = store.saved_sweep()
+    if saved is not None or any(store.chunks.glob("[!.]*.parquet")) or any(store.runs.glob("[!.]*.json")):
+        name = saved.get("name", "?") if saved is not None else "?"
+        raise StoreError(
+            f"{out_dir} holds the results of sweep {name!r}, which a replication would mix with; give the replication "
+            f"a folder of its own, e.g. --out {out_dir / 'replication'}"
+        )
 
 
 class _Record:

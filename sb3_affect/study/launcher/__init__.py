@@ -6,8 +6,9 @@ require_extra("experiments", "the experiment launcher and results store")
 
 from sb3_affect.study.launcher.launcher import SweepSummary, run_sweep
 from sb3_affect.study.launcher.one_run import execute_run
+from sb3_affect.study.launcher.run_ids import run_id
 from sb3_affect.study.launcher.schema import Sweep, SweepError
-from sb3_affect.study.launcher.store import ResultsStore, StoreError, run_id
+from sb3_affect.study.launcher.store import ResultsStore, StoreError
 from sb3_affect.study.launcher.sweep_file import load_sweep
 
 __all__ = [

@@ -21,8 +21,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from sb3_affect.study.launcher.chunks import encode_chunk, run_config
+from sb3_affect.study.launcher.chunks import encode_chunk
 from sb3_affect.study.launcher.one_run import execute_run, package_env, package_versions
+from sb3_affect.study.launcher.run_ids import run_config
 
 #: The most runs one batch holds (bounds a worker's memory and the work a crash or Ctrl-C throws away).
 MAX_BATCH = 2000

@@ -24,15 +24,11 @@ from typing import Any
 import numpy as np
 
 from sb3_affect.core.episode_log import EPISODE_COLUMNS, FLAG_COLUMNS, INT_COLUMNS
+from sb3_affect.study.launcher.run_ids import run_config
 
 CHUNK_SCHEMA = 2
 META_KEY = b"sb3_affect"
 BOOL_COLUMNS = FLAG_COLUMNS
-
-
-def run_config(base: dict[str, Any], seed: int, replicate: int) -> dict[str, Any]:
-    """The run config of one run of a chunk (or a batch): the base with its seed and replicate."""
-    return {**base, "seed": seed, "labels": {**base["labels"], "replicate": replicate}}
 
 
 def arrow_array(values: np.ndarray, kind: Any) -> Any:
@@ -125,9 +121,13 @@ def _plain(value: Any) -> Any:
     return None if isinstance(value, float) and math.isnan(value) else value
 
 
-def chunk_records(path: Path) -> list[dict[str, Any]]:
-    """The runs of a chunk as run records of the JSON layout (``config``, ``episodes`` lists, ``timings``, ...)."""
-    meta = chunk_meta(path)
+def chunk_records(path: Path, meta: dict[str, Any] | None = None) -> list[dict[str, Any]]:
+    """
+    The runs of a chunk as run records of the JSON layout (``config``, ``episodes`` lists, ``timings``, ...).
+
+    :param meta: its footer when already read and checked (``folder_files``); None: read here
+    """
+    meta = chunk_meta(path) if meta is None else meta
     table = chunk_table(path)
     bounds = np.searchsorted(table["run"], np.arange(len(meta["runs"]) + 1))
     share = round(meta["timings"]["wall_seconds"] / max(1, len(meta["runs"])), 6)

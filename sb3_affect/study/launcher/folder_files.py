@@ -4,7 +4,9 @@ checked before its runs are counted as done.
 
 A file counts when it can be read and has the shape the store writes (a *damaged* file does not), when its runs are
 runs of the folder's sweep (a *foreign* file, copied in from another sweep, does not) and when no file before it
-(in name order) already holds one of its runs (a *duplicate*, e.g. a copy of a chunk, does not). The launcher moves
+(in name order) already holds one of its runs (a *duplicate*, e.g. a copy of a chunk, does not). Each run's id is
+recomputed from the config the file gives it (labels, seed, replicate): a file whose ids do not match its configs, that
+lists a run twice, or a chunk not named after its batch does not count either. The launcher moves
 every file that does not count into ``DIR/damaged/`` and reruns its runs; ``status`` names them; ``report`` refuses
 to read a folder that holds one until a rerun has set it aside.
 """
@@ -12,16 +14,41 @@ to read a folder that holds one until a rerun has set it aside.
 from __future__ import annotations
 
 import json
+import os
+import stat
 from collections.abc import Callable, Collection
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TypeVar
 
+from sb3_affect.core.episode_log import EPISODE_COLUMNS
 from sb3_affect.study.launcher.chunks import chunk_meta
+from sb3_affect.study.launcher.run_ids import base_run_ids, run_id, stored_matches
 
 
 class DamagedFile(ValueError):
     """A run file or chunk that can not be read, or does not have the shape the store writes."""
+
+
+#: The largest run file read: a run of the sweep files' most episodes (1,000,000), 32 characters a value and column.
+MAX_RUN_FILE_BYTES = 1_000_000 * len(EPISODE_COLUMNS) * 32 + 2**20
+#: The largest ``sweep.json`` (or copy) read: a list of a million seeds is about 11 MB.
+MAX_SWEEP_FILE_BYTES = 64 * 2**20
+
+
+def regular_file(path: Path, limit: int | None) -> None:
+    """
+    ``DamagedFile`` unless ``path`` is a regular file (not a FIFO, device, folder or link, which would block a
+    reader or lead elsewhere) of at most ``limit`` bytes (None: any size).
+    """
+    try:
+        info = os.lstat(path)
+    except OSError as error:
+        raise DamagedFile(f"can not be read ({error.strerror or error})") from None
+    if not stat.S_ISREG(info.st_mode):
+        raise DamagedFile("is not a regular file (a link, a folder, a FIFO or a device); only regular files are read")
+    if limit is not None and info.st_size > limit:
+        raise DamagedFile(f"is {info.st_size:,} bytes, more than the {limit:,} a file of this kind can be")
 
 
 _T = TypeVar("_T")
@@ -52,6 +79,8 @@ class FolderFiles:
     :param run_files: the run files that count, with the agent of their run
     :param chunk_files: the chunks that count, with their footer
     :param rejected: ``(path, why)`` of each file that does not count
+    :param run_ids: the id of each counted run file's run (recomputed from its config; chunks: their footers' ids
+        are replaced by the recomputed ones)
     :param episode_counts: each chunk's episodes per run (its ``run`` column counted), once a reader has read it
         (``reading.read_folder`` fills it and reads it back: a folder read several times counts them once)
     """
@@ -59,10 +88,11 @@ class FolderFiles:
     run_files: dict[Path, str] = field(default_factory=dict)
     chunk_files: dict[Path, dict[str, Any]] = field(default_factory=dict)
     rejected: list[tuple[Path, str]] = field(default_factory=list)
+    run_ids: dict[Path, str] = field(default_factory=dict)
     episode_counts: dict[Path, Any] = field(default_factory=dict, repr=False)
 
     def done_ids(self) -> set[str]:
-        done = {path.stem for path in self.run_files}
+        done = set(self.run_ids.values())
         for meta in self.chunk_files.values():
             done.update(run[0] for run in meta["runs"])
         return done
@@ -70,6 +100,7 @@ class FolderFiles:
 
 def check_run_file(path: Path) -> dict[str, Any]:
     """A run file's record, or ``DamagedFile`` saying what is wrong with it."""
+    regular_file(path, MAX_RUN_FILE_BYTES)
     try:
         record = json.loads(path.read_bytes())
     except OSError as error:
@@ -90,11 +121,21 @@ def check_run_file(path: Path) -> dict[str, Any]:
         raise DamagedFile("has per-episode columns of different lengths")
     if record.get("status", "ok") != "ok":
         raise DamagedFile(f"has status {record.get('status')!r}, not 'ok'")
+    check_episode_count(len(episodes["episode"]), config)
     return record
+
+
+def check_episode_count(count: int, config: dict[str, Any]) -> None:
+    """A run's episodes: the config's ``episodes`` (at most that many when ``max_timesteps`` may end it earlier)."""
+    wanted = config.get("episodes")
+    if not isinstance(wanted, int) or (count != wanted if config.get("max_timesteps") is None else count > wanted):
+        raise DamagedFile(f"holds {count} episodes of a run, its config says episodes={wanted!r}")
+
 
 
 def check_chunk(path: Path) -> dict[str, Any]:
     """A chunk's footer, or ``DamagedFile`` saying what is wrong with it (only the footer is read)."""
+    regular_file(path, None)
     try:
         meta = chunk_meta(path)
     except OSError as error:
@@ -107,11 +148,25 @@ def check_chunk(path: Path) -> dict[str, Any]:
     base, runs, timings = meta.get("base"), meta.get("runs"), meta.get("timings")
     if not isinstance(base, dict) or not isinstance(base.get("agent"), str) or not isinstance(base.get("labels"), dict):
         raise DamagedFile("has no run config in its footer (base.agent, base.labels)")
-    if not isinstance(runs, list) or not all(isinstance(r, list) and len(r) == 4 and isinstance(r[0], str) for r in runs):
-        raise DamagedFile("has no run list in its footer")
+    if not isinstance(runs, list) or not all(
+        isinstance(r, list) and len(r) == 4 and isinstance(r[0], str) and all(type(v) is int for v in r[1:]) for r in runs
+    ):
+        raise DamagedFile("has no run list in its footer (each run: [id, seed, replicate, decisions])")
     if not isinstance(timings, dict) or not isinstance(timings.get("wall_seconds"), (int, float)):
         raise DamagedFile("has no timings in its footer")
+    if meta.get("batch") != path.stem:
+        raise DamagedFile(f"holds batch {meta.get('batch')!r}, not the batch of its file name (a copy?)")
     return meta
+
+
+def _recomputed(stored: list[str], ids: list[str]) -> list[str]:
+    """The recomputed ``ids`` of a file's runs, or ``DamagedFile`` when a stored id is not its run's or one repeats."""
+    for name, own in zip(stored, ids):
+        if not stored_matches(name, own):
+            raise DamagedFile(f"names run {name!r}, but its labels and seed give run {own!r}")
+    if len(set(ids)) != len(ids):
+        raise DamagedFile(f"lists run {next(i for i in ids if ids.count(i) > 1)!r} twice")
+    return ids
 
 
 def sort_files(
@@ -144,14 +199,28 @@ def sort_files(
             files.rejected.append((path, str(error)))
             continue
         agent = record["config"]["agent"]
-        if accept(path, (path.stem,), agent):
+        try:
+            (rid,) = _recomputed([path.stem], [run_id(record["config"])])
+        except (DamagedFile, KeyError, TypeError) as error:
+            files.rejected.append((path, str(error) if isinstance(error, DamagedFile) else "has an incomplete run config"))
+            continue
+        if accept(path, (rid,), agent):
             files.run_files[path] = agent
+            files.run_ids[path] = rid
     for path in chunk_files:
         try:
             meta = check_chunk(path)
         except DamagedFile as error:
             files.rejected.append((path, str(error)))
             continue
-        if accept(path, [run[0] for run in meta["runs"]], meta["base"]["agent"]):
+        try:
+            ids = base_run_ids(meta["base"], [(seed, replicate) for _, seed, replicate, _ in meta["runs"]])
+            ids = _recomputed([run[0] for run in meta["runs"]], ids)
+        except (DamagedFile, KeyError, TypeError) as error:
+            files.rejected.append((path, str(error) if isinstance(error, DamagedFile) else "has an incomplete run config"))
+            continue
+        if accept(path, ids, meta["base"]["agent"]):
+            for run, rid in zip(meta["runs"], ids):
+                run[0] = rid
             files.chunk_files[path] = meta
     return files

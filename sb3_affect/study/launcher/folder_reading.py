@@ -20,10 +20,8 @@ import pandas as pd
 from numba import njit
 
 from sb3_affect.study.launcher.chunks import BOOL_COLUMNS, INT_COLUMNS, META_KEY, chunk_table
-from sb3_affect.study.launcher.folder_files import guarded
-
-#: The columns of the run table besides the labels (one column per label, ``replicate`` included).
-RUN_COLUMNS = ("run_id", "agent", "algo", "seed", "decisions", "episodes", "wall_seconds", "max_timesteps")
+from sb3_affect.study.launcher.folder_files import DamagedFile, check_episode_count, guarded
+from sb3_affect.study.launcher.run_ids import RUN_COLUMNS, run_id
 
 
 def column_dtype(column: str) -> type:
@@ -140,7 +138,8 @@ def read_folder(
     :param chunk_files: the chunks (``DIR/chunks/*.parquet``)
     :param columns: the episode columns wanted, or None for the run table only (chunks: footers only)
     :param root: the folder (for error messages)
-    :param footers: the chunks' footers when already read (``FolderFiles.chunk_files``): not parsed again
+    :param footers: the chunks' footers when already read and checked (``FolderFiles.chunk_files``, their run ids
+        recomputed): not parsed again
     :param episode_counts: each chunk's episodes per run once counted (``FolderFiles.episode_counts``): with
         ``footers``, a chunk counted before is not read for them again; the chunks counted here are added
     :return: ``(runs, data)``: ``runs`` one row per finished run sorted by run id (``RUN_COLUMNS`` and the labels);
@@ -155,7 +154,7 @@ def read_folder(
             continue
         config, episodes, timings = record["config"], record["episodes"], record.get("timings", {})
         count = len(episodes["episode"])
-        rows.append(run_row(record["run_id"], config, timings.get("decisions"), count, timings.get("wall_seconds")))
+        rows.append(run_row(run_id(config), config, timings.get("decisions"), count, timings.get("wall_seconds")))
         json_counts.append(count)
         if columns is not None:
             json_parts.append({column: typed(column, episodes[column]) for column in columns})
@@ -166,10 +165,10 @@ def read_folder(
     for path in chunk_files:
         run: np.ndarray | None
         known = None
-        if footers is not None and path in footers and columns is not None:
-            known = None if episode_counts is None else episode_counts.get(path)
+        if footers is not None and path in footers:
+            known = None if episode_counts is None or columns is None else episode_counts.get(path)
             meta = footers[path]
-            run = None if known is not None else guarded(path, lambda p: chunk_table(p, ())["run"])
+            run = None if known is not None or columns is None else guarded(path, lambda p: chunk_table(p, ())["run"])
         else:
             meta, run = guarded(path, lambda p: _chunk_footer(p, columns is not None))
         base, count = meta["base"], len(meta["runs"])
@@ -178,7 +177,15 @@ def read_folder(
         if run is not None:
             if np.any(np.diff(run) < 0):
                 raise ValueError(f"{root}: a run's episodes are not stored together in {path.name}")
+            if len(run) and (run[0] < 0 or run[-1] >= count):
+                bad = run[-1] if run[0] >= 0 else run[0]
+                raise ValueError(f"{path}: its run column holds run {bad}, not one of the {count} runs of its footer")
             known = np.bincount(run, minlength=count).astype(np.int64)
+            for index, episodes in enumerate(known.tolist()):
+                try:
+                    check_episode_count(episodes, base)
+                except DamagedFile as error:
+                    raise ValueError(f"{path}: run {ids[index]!r} {error}") from None
         if known is not None:
             per_run = known
             if episode_counts is not None and footers is not None and path in footers:

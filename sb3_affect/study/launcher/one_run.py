@@ -96,10 +96,13 @@ def build_model(config: dict[str, Any]) -> tuple[Any, bool]:
 
 
 def package_env(env_id: str) -> bool:
-    """Whether ``env_id`` is one of the package's single-agent envs (``sb3_affect/...``, not a multi-agent one)."""
+    """
+    Whether ``env_id`` is one of the package's single-agent envs (``sb3_affect/...``, not a multi-agent one; never a
+    ``module:Env`` id, which Gymnasium would import).
+    """
     from sb3_affect.envs import PARALLEL_ENVS
 
-    return str(env_id).startswith("sb3_affect/") and env_id not in PARALLEL_ENVS
+    return isinstance(env_id, str) and env_id.startswith("sb3_affect/") and ":" not in env_id and env_id not in PARALLEL_ENVS
 
 
 def settings_checkable(config: dict[str, Any]) -> bool:

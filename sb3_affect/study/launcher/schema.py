@@ -44,6 +44,7 @@ from typing import Any
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
 
 from sb3_affect.core.registry import check_algo, known_settings, resolve_class
+from sb3_affect.study.launcher.run_ids import RESERVED_LABELS
 
 __all__ = ["AgentSpec", "Cell", "EnvSpec", "MemberSpec", "Sweep", "SweepError"]
 
@@ -190,6 +191,11 @@ class AgentSpec(BaseModel):
     def _non_empty(cls, value: dict[str, list[Any]]) -> dict[str, list[Any]]:
         points = 1
         for key, values in value.items():
+            if key in RESERVED_LABELS:
+                raise ValueError(
+                    f"grid.{key}: {key!r} names a column of the results; a grid label may be any name but "
+                    f"{', '.join(sorted(RESERVED_LABELS))}"
+                )
             if not values:
                 raise ValueError(f"grid.{key} is empty: give at least one value")
             points *= len(values)

@@ -20,10 +20,8 @@ from __future__ import annotations
 
 import contextlib
 import errno
-import hashlib
 import json
 import os
-import re
 import tempfile
 from collections.abc import Callable, Collection, Iterable, Iterator, Sequence
 from pathlib import Path
@@ -32,7 +30,8 @@ from typing import TYPE_CHECKING, Any
 from sb3_affect.core.episode_log import EPISODE_COLUMNS
 from sb3_affect.study.launcher import folder_lock
 from sb3_affect.study.launcher.chunks import chunk_records
-from sb3_affect.study.launcher.folder_files import FolderFiles, guarded, sort_files
+from sb3_affect.study.launcher.folder_files import MAX_SWEEP_FILE_BYTES, FolderFiles, guarded, regular_file, sort_files
+from sb3_affect.study.launcher.run_ids import base_run_ids
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -47,35 +46,9 @@ class StoreError(RuntimeError):
     """The results folder can not be used (busy, another sweep, not writable, full)."""
 
 
-def run_id(config: dict[str, Any]) -> str:
-    """Readable prefix + hash of the resolved config (the file name of the run)."""
-    digest = hashlib.sha256(json.dumps(config, sort_keys=True).encode()).hexdigest()[:12]
-    labels = "-".join(f"{k}{v}" for k, v in config["labels"].items() if k != "replicate")
-    prefix = re.sub(r"[^A-Za-z0-9_.+-]+", "_", f"{config['agent']}-{labels}-s{config['seed']}".replace("--", "-"))
-    return f"{prefix}-{digest}"
-
-
-_SEED, _REPLICATE = 8_101_999_202_707_303, 8_101_999_202_707_404  # stand-ins no real config holds
-
-
 def cell_run_ids(cell: Cell) -> list[str]:
-    """
-    ``run_id`` of every replicate of a cell, encoding its JSON once: the texts of its runs differ only in the seed and
-    the replicate number (checked on the first replicate; falls back to ``run_id`` per run if anything differs).
-    """
-    probe = cell.config(0)
-    probe["seed"], probe["labels"]["replicate"] = _SEED, _REPLICATE
-    text = json.dumps(probe, sort_keys=True)
-    prefix = run_id(probe).rsplit("-", 1)[0]
-    seed, replicate = str(_SEED), str(_REPLICATE)
-    ids = []
-    if text.count(seed) == 1 and text.count(replicate) == 1 and prefix.count(seed) == 1 and replicate not in prefix:
-        for index, value in enumerate(cell.seeds):
-            digest = hashlib.sha256(text.replace(replicate, str(index)).replace(seed, str(value)).encode()).hexdigest()
-            ids.append(f"{prefix.replace(seed, str(value))}-{digest[:12]}")
-    if not ids or ids[0] != run_id(cell.config(0)):
-        ids = [run_id(cell.config(index)) for index in range(len(cell.seeds))]
-    return ids
+    """``run_id`` of every replicate of a cell (``run_ids.base_run_ids``)."""
+    return base_run_ids(cell.base, [(seed, index) for index, seed in enumerate(cell.seeds)])
 
 
 def _write_atomic(path: Path, payload: dict[str, Any] | bytes) -> None:
@@ -124,6 +97,13 @@ class ResultsStore:
 
     def __init__(self, root: str | Path) -> None:
         self.root = Path(root)
+        try:
+            str(self.root.resolve()).encode("utf-8")
+        except UnicodeEncodeError:  # pyarrow can not open such paths: every chunk would read as damaged
+            raise StoreError(
+                f"{str(self.root)!r}: a results folder's path must be valid UTF-8 (this one holds undecodable bytes); "
+                "choose another --out"
+            ) from None
         self.runs = self.root / "runs"
         self.chunks = self.root / "chunks"
         self._failed: set[str] | None = None  # failure records known to write_chunk (those it may have to remove)
@@ -136,8 +116,9 @@ class ResultsStore:
         """The resolved sweep run here: ``sweep.json``, or a copy of it when it was deleted; None when none is left."""
         for path in (self.root / "sweep.json", *(self.root / copy for copy in IDENTITY_COPIES)):
             try:
+                regular_file(path, MAX_SWEEP_FILE_BYTES)
                 saved = json.loads(path.read_text())
-            except (OSError, ValueError):
+            except (OSError, ValueError):  # (DamagedFile: a ValueError)
                 continue
             if isinstance(saved, dict) and isinstance(saved.get("sweep"), dict):
                 return saved
@@ -361,9 +342,9 @@ class ResultsStore:
         """Every finished run as a record of the JSON layout (``run_id``, ``config``, ``episodes`` lists, ...): for
         small folders; large ones read ``runs_frame`` and ``episodes_frame``."""
         files = self._checked()
-        records = [json.loads(p.read_text()) for p in files.run_files]
-        for path in files.chunk_files:
-            records.extend(guarded(path, chunk_records))
+        records = [{**json.loads(p.read_text()), "run_id": files.run_ids[p]} for p in files.run_files]
+        for path, meta in files.chunk_files.items():
+            records.extend(guarded(path, lambda p, meta=meta: chunk_records(p, meta)))  # type: ignore[misc]
         return sorted((r for r in records if r.get("status", "ok") == "ok"), key=lambda r: r["run_id"])
 
     def runs_frame(self) -> pd.DataFrame:
@@ -375,7 +356,7 @@ class ResultsStore:
         from sb3_affect.study.launcher.folder_reading import read_folder  # (pandas: not on the launcher's path)
 
         files = self._checked()
-        return read_folder(list(files.run_files), list(files.chunk_files), None, self.root)[0]
+        return read_folder(list(files.run_files), list(files.chunk_files), None, self.root, files.chunk_files)[0]
 
     def results(self, columns: Sequence[str] | None = None, seed: bool = True) -> tuple[pd.DataFrame, pd.DataFrame]:
         """
@@ -392,7 +373,7 @@ class ResultsStore:
 
         files = self._checked()
         wanted = EPISODE_COLUMNS if columns is None else tuple(columns)
-        runs, data = read_folder(list(files.run_files), list(files.chunk_files), wanted, self.root)
+        runs, data = read_folder(list(files.run_files), list(files.chunk_files), wanted, self.root, files.chunk_files)
         labels = [c for c in runs.columns if c not in RUN_COLUMNS]
         return runs, episode_table(runs, data, ["run_id", "agent", *(["seed"] if seed else []), *labels])
 

@@ -57,7 +57,16 @@ MAX_BYTES, MAX_VALUES, MAX_DEPTH = 1_000_000, 100_000, 50
 
 
 class _StrictLoader(yaml.SafeLoader):
-    """PyYAML's safe loader, refusing a key given twice in one mapping (merge keys ``<<`` aside)."""
+    """
+    PyYAML's safe loader, refusing a key given twice in one mapping (merge keys ``<<`` aside) and flow collections
+    (``[``, ``{``) nested deeper than ``MAX_DEPTH`` as it scans them: the scanner's work per token grows with the
+    nesting, so a file of thousands of ``[`` would otherwise take seconds before any check could refuse it.
+    """
+
+    def fetch_flow_collection_start(self, TokenClass: Any) -> None:  # (PyYAML's name)
+        if self.flow_level >= MAX_DEPTH:
+            raise yaml.scanner.ScannerError(None, None, f"nested deeper than {MAX_DEPTH}", self.get_mark())
+        super().fetch_flow_collection_start(TokenClass)
 
     def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Hashable, Any]:
         seen: dict[Any, int] = {}

@@ -26,6 +26,7 @@ import numpy as np
 import pandas as pd
 
 from sb3_affect.core.emotions import EMOTION_NAMES
+from sb3_affect.study.launcher.one_run import package_env
 from sb3_affect.study.report.document import fmt
 from sb3_affect.study.report.metrics import load_run_records
 
@@ -36,6 +37,8 @@ _CAPTURE: dict[str, int | None] = {}
 def capture_distance(config: dict[str, Any]) -> int | None:
     """The env's ``capture_distance`` (moving prey), or None for envs without one."""
     key = json.dumps([config["env_id"], config.get("env_kwargs", {})], sort_keys=True)
+    if not package_env(config["env_id"]):  # a folder's id is never imported (``module:Env``)
+        return None
     if key not in _CAPTURE:
         import gymnasium as gym
 

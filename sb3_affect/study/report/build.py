@@ -26,6 +26,7 @@ from sb3_affect.study.report.dqn import dqn_section, learning_curves_section
 from sb3_affect.study.report.evidence import evidence_section
 from sb3_affect.study.report.mechanism import mechanism_section
 from sb3_affect.study.report.metrics import EARLY_WINDOWS, LATE_WINDOWS, load_results, run_metrics
+from sb3_affect.study.report.output_files import output_folder, write_text
 from sb3_affect.study.report.reading_verdicts import readings_section
 from sb3_affect.study.report.record import record_section
 from sb3_affect.study.report.scan import scan
@@ -65,17 +66,19 @@ def overview_section(ctx: ReportContext) -> None:
 
 def task_facts(folder: Path) -> tuple[int | None, int | None]:
     """The safety cap on an episode's decisions and the task's shortest path in cells, from the sweep's own file."""
-    import json
-
     from sb3_affect.core.settings import TabularSettings
+    from sb3_affect.study.launcher.one_run import package_env
+    from sb3_affect.study.launcher.store import ResultsStore
 
-    try:
-        sweep = json.loads((Path(folder) / "sweep.json").read_text())["sweep"]
-    except (OSError, ValueError, KeyError):
+    saved = ResultsStore(folder).saved_sweep()
+    if saved is None:
         return None, None
+    sweep = saved["sweep"]
     default = TabularSettings.max_episode_decisions
     caps = {int(a.get("kwargs", {}).get("max_episode_decisions", default)) for a in sweep["agents"]}
     shortest = None
+    if not package_env(sweep["env"].get("id")):  # only the package's own envs are built: a folder's id is never imported
+        return (caps.pop() if len(caps) == 1 else None), None
     try:
         import gymnasium as gym
 
@@ -216,6 +219,29 @@ def _layout(run_dir: Path) -> tuple[Path, dict[str, Path]]:
     return run_dir, {}
 
 
+def folder_notes(folders: Sequence[Path]) -> list[str]:
+    """
+    One line per results folder whose sweep is not complete (the report covers the runs it holds); ``ValueError``
+    when a launcher is still writing one (its runs would change under the report).
+    """
+    from sb3_affect.study.launcher.store import ResultsStore
+
+    notes = []
+    for folder in folders:
+        store = ResultsStore(folder)
+        owner = store.lock_owner()
+        if owner is not None:
+            raise ValueError(f"{folder} is in use by a launcher (pid {owner}) still running its sweep; report when it is done")
+        try:
+            name, counts, _ = store.progress()
+        except FileNotFoundError:
+            continue
+        total, done = sum(c[0] for c in counts.values()), sum(c[1] for c in counts.values())
+        if done < total:
+            notes.append(f"Incomplete: {folder} holds {done:,} of the {total:,} runs of sweep {name!r} (reported here).")
+    return notes
+
+
 def build_report(
     run_dir: Path,
     out: Path | None = None,
@@ -246,9 +272,10 @@ def build_report(
         folders["dqn"] = Path(dqn_dir)
     if ablation_dir is not None:
         folders["ablation"] = Path(ablation_dir)
+    notes = folder_notes([paper_dir, *folders.values()])
     out = Path(out or run_dir)
-    (out / "tables").mkdir(parents=True, exist_ok=True)
-    (out / "figures").mkdir(parents=True, exist_ok=True)
+    output_folder(out / "tables")
+    output_folder(out / "figures")
     results = load_results(paper_dir)
     if not len(results.runs) or not int(results.runs.episodes.sum()):
         raise ValueError(f"{paper_dir / 'runs'} holds no finished runs")
@@ -269,12 +296,14 @@ def build_report(
         cache={"scan": found},
     )
     del found
+    for note in notes:
+        ctx.doc.p(note)
     for section in sections if sections is not None else [*SECTIONS, *extra_sections, *APPENDIX]:
         section(ctx)
     ctx.place_later()
     md = out / "report.md"
-    md.write_text(ctx.doc.markdown(out))
-    (out / "report.html").write_text(ctx.doc.html())
+    write_text(md, ctx.doc.markdown(out))
+    write_text(out / "report.html", ctx.doc.html())
     return md
 
 

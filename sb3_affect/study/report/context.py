@@ -18,6 +18,7 @@ import pandas as pd
 
 from sb3_affect.study.report.document import CardSpec, Document
 from sb3_affect.study.report.metrics import Results
+from sb3_affect.study.report.output_files import replacing
 
 STANDARD, AFFECTIVE = "epsilon-greedy", "affective"
 #: Fewest runs per (agent, epsilon) cell, epsilon values and episodes for a verdict (the smoke sweep has fewer).
@@ -83,7 +84,8 @@ class ReportContext:
 
     def table(self, name: str, frame: pd.DataFrame, caption: str, digits: int = 2) -> None:
         """Write ``tables/<name>.csv`` and add the table to the document."""
-        frame.to_csv(self.out / "tables" / f"{name}.csv")
+        with replacing(self.out / "tables" / f"{name}.csv") as path:
+            frame.to_csv(path)
         self.doc.table(frame, caption + f" (tables/{name}.csv)", digits)
 
     def cards(self, name: str, frame: pd.DataFrame, caption: str, spec: CardSpec, digits: int = 2) -> None:

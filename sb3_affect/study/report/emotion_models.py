@@ -17,6 +17,7 @@ import pandas as pd
 
 from sb3_affect.core.emotions import EMOTION_NAMES
 from sb3_affect.study.report.hunters import markdown_table, team_runs
+from sb3_affect.study.report.output_files import output_folder, replacing
 
 PAPER = EMOTION_NAMES
 BROEKENS = ("joy", "distress", "hope", "fear")
@@ -113,7 +114,8 @@ def side_by_side_figure(frames: pd.DataFrame, path: Path) -> Path:
             )
             ax.legend(fontsize=7)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    with replacing(path) as tmp:
+        fig.savefig(tmp, dpi=110)
     plt.close(fig)
     return path
 
@@ -132,11 +134,12 @@ def emotion_models_section(run_dirs: Sequence[str | Path], out: str | Path) -> t
     if not runs:
         return "", []
     out = Path(out)
-    (out / "figures").mkdir(parents=True, exist_ok=True)
-    (out / "tables").mkdir(parents=True, exist_ok=True)
+    output_folder(out / "figures")
+    output_folder(out / "tables")
     frames = hunter_frames(runs)
     table = profile_table(frames)
-    table.to_csv(out / "tables" / "emotion_models.csv", index=False)
+    with replacing(out / "tables" / "emotion_models.csv") as tmp:
+        table.to_csv(tmp, index=False)
     affective = frames[frames.algo == "AffectQ"]
     last = int(frames.episode.max())
     early, late = affective[affective.episode <= EARLY], affective[affective.episode > last - LATE]

@@ -22,6 +22,7 @@ from typing import Any
 import pandas as pd
 
 from sb3_affect.study.report import paper
+from sb3_affect.study.report.output_files import cached_json, output_folder, replacing, write_text
 
 PAPER_ENV = ("sb3_affect/GridPursuit-v0", {"size": 15, "start": [0, 0], "goal": [6, 6], "goal_reward": 100.0})
 COMMON = {"learning_rate": 1.0, "gamma": 0.8, "q_init": 0.0}
@@ -159,11 +160,11 @@ def run_cells(
     folder = Path(folder)
     meta_path, table_path = folder / "meta.json", folder / "runs.csv.gz"
     key = json.dumps([[c.agent, c.algo, c.kwargs, c.labels, c.sweep, c.point, c.env_id, c.env_kwargs] for c in cells])
-    if meta_path.exists() and table_path.exists():
-        meta = json.loads(meta_path.read_text())
-        if (meta.get("seeds"), meta.get("episodes"), meta.get("cells")) == (seeds, episodes, key):
-            return pd.read_csv(table_path), meta
-    folder.mkdir(parents=True, exist_ok=True)
+    meta = cached_json(meta_path)
+    same = isinstance(meta, dict) and (meta.get("seeds"), meta.get("episodes"), meta.get("cells")) == (seeds, episodes, key)
+    if same and table_path.exists():
+        return pd.read_csv(table_path), meta
+    output_folder(folder)
     jobs = [
         (cell, list(range(start, min(seeds, start + CHUNK))), episodes) for cell in cells for start in range(0, seeds, CHUNK)
     ]
@@ -178,10 +179,11 @@ def run_cells(
     else:
         frames = [_chunk(job) for job in jobs]
     table = pd.concat(frames, ignore_index=True)
-    table.to_csv(table_path, index=False)
+    with replacing(table_path) as tmp:
+        table.to_csv(tmp, index=False)
     seconds = time.perf_counter() - start
     meta = {"seeds": seeds, "episodes": episodes, "runs": len(table), "wall_seconds": seconds, "cells": key}
-    meta_path.write_text(json.dumps(meta))
+    write_text(meta_path, json.dumps(meta))
     return table, meta
 
 
@@ -190,7 +192,10 @@ def study(out_dir: Path, name: str) -> tuple[pd.DataFrame, dict[str, Any]] | Non
     folder = Path(out_dir) / name
     if not (folder / "meta.json").exists() or not (folder / "runs.csv.gz").exists():
         return None
-    return pd.read_csv(folder / "runs.csv.gz"), json.loads((folder / "meta.json").read_text())
+    meta = cached_json(folder / "meta.json")
+    if not isinstance(meta, dict):
+        raise ValueError(f"{folder / 'meta.json'} is not a study's record (a JSON object); rerun `sb3-affect replicate`")
+    return pd.read_csv(folder / "runs.csv.gz"), meta
 
 
 def large_meta(out_dir: Path) -> dict[str, Any] | None:

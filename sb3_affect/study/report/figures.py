@@ -14,6 +14,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
+from sb3_affect.study.report.output_files import replacing
 from sb3_affect.study.report.stats import bootstrap_ci
 
 COLOURS = {
@@ -41,7 +42,8 @@ def distinct(n: int) -> list[tuple[float, float, float, float]]:
 def save(fig: plt.Figure, path: Path | str) -> Path:
     """Write the figure as a PNG (tight layout, 110 dpi) and close it."""
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    with replacing(Path(path)) as tmp:
+        fig.savefig(tmp, dpi=110)
     plt.close(fig)
     return Path(path)
 

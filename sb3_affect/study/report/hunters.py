@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from sb3_affect.study.report.output_files import output_folder, replacing
 from sb3_affect.study.report.stats import bootstrap_ci, bootstrap_improvement
 
 BASELINE = "epsilon-greedy"
@@ -170,9 +171,10 @@ def learning_figure(runs: list[dict[str, Any]], path: Path) -> Path:
             curves = np.array(
                 [r["episodes"]["decisions"] for r in runs if r["config"]["sweep"] == task and r["config"]["agent"] == team]
             )
-            blocks = curves[:, : curves.shape[1] // 10 * 10].reshape(len(curves), -1, 10).mean(axis=2)
+            width = min(10, curves.shape[1]) or 1  # runs of fewer than 10 episodes: one block of them all
+            blocks = curves[:, : curves.shape[1] // width * width].reshape(len(curves), -1, width).mean(axis=2)
             cis = np.array([bootstrap_ci(blocks[:, j]) for j in range(blocks.shape[1])])
-            x = np.arange(blocks.shape[1]) * 10 + 5.5
+            x = np.arange(blocks.shape[1]) * width + (width + 1) / 2
             ax.plot(x, cis[:, 0], label=team, color=colour[str(team)])
             ax.fill_between(x, cis[:, 1], cis[:, 2], alpha=0.2, color=colour[str(team)])
         ax.set_yscale("log")
@@ -181,7 +183,8 @@ def learning_figure(runs: list[dict[str, Any]], path: Path) -> Path:
         ax.set_title(task)
         ax.legend(fontsize=8)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
+    with replacing(path) as tmp:
+        fig.savefig(tmp, dpi=110)
     plt.close(fig)
     return path
 
@@ -201,11 +204,12 @@ def hunters_section(run_dirs: Sequence[str | Path], out: str | Path) -> tuple[st
     if not runs:
         return "", []
     out = Path(out)
-    (out / "figures").mkdir(parents=True, exist_ok=True)
-    (out / "tables").mkdir(parents=True, exist_ok=True)
+    output_folder(out / "figures")
+    output_folder(out / "tables")
     metrics = pd.DataFrame([team_metrics(r) for r in runs])
     table = summary_table(metrics)
-    table.to_csv(out / "tables" / "hunters.csv", index=False)
+    with replacing(out / "tables" / "hunters.csv") as tmp:
+        table.to_csv(tmp, index=False)
     found = claims(metrics)
     held = sum(s for _, s, _ in found)
     text = [

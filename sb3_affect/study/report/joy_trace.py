@@ -14,6 +14,8 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from sb3_affect.study.report.output_files import cached_json, output_folder, replacing, write_text
+
 #: Traced runs (seeds 0..SEEDS-1) of the paper's affective agent on the paper's task, and their episodes.
 SEEDS, EPISODES = 10, 200
 LATE = (151, 200)
@@ -23,14 +25,15 @@ def traced(folder: Path, seeds: int = SEEDS, episodes: int = EPISODES) -> pd.Dat
     """The traced runs, from ``folder/episodes.csv`` when it holds the same size, else computed and written there."""
     folder = Path(folder)
     meta, table = folder / "meta.json", folder / "episodes.csv"
-    if meta.exists() and table.exists() and json.loads(meta.read_text()) == {"seeds": seeds, "episodes": episodes}:
+    if table.exists() and cached_json(meta) == {"seeds": seeds, "episodes": episodes}:
         return pd.read_csv(table)
     from sb3_affect.study.report.joy_trace_runs import trace
 
     frame = pd.concat([trace(seed, episodes) for seed in range(seeds)], ignore_index=True)
-    folder.mkdir(parents=True, exist_ok=True)
-    frame.to_csv(table, index=False)
-    meta.write_text(json.dumps({"seeds": seeds, "episodes": episodes}))
+    output_folder(folder)
+    with replacing(table) as tmp:
+        frame.to_csv(tmp, index=False)
+    write_text(meta, json.dumps({"seeds": seeds, "episodes": episodes}))
     return frame
 
 

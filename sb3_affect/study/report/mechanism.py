@@ -11,6 +11,7 @@ from sb3_affect.study.report import figures, joy_trace
 from sb3_affect.study.report.context import AFFECTIVE, ReportContext
 from sb3_affect.study.report.document import fmt, sig
 from sb3_affect.study.report.metrics import EMOTIONS, profile, window_mean
+from sb3_affect.study.report.output_files import replacing
 from sb3_affect.study.report.settled import LONG, SETTLED, settled_numbers, settled_part
 
 WINDOWS = ((1, 10), (21, 40), (181, 200))
@@ -98,7 +99,8 @@ def mechanism_section(ctx: ReportContext) -> None:
     ctx.doc.h("Fig. 5 under both weightings", 3)
     del decisions
     prof = found.profile if found.profile is not None else agent_profile(ctx, AFFECTIVE, last)
-    prof.to_csv(ctx.out / "tables" / "profile_per_episode.csv")
+    with replacing(ctx.out / "tables" / "profile_per_episode.csv") as path:
+        prof.to_csv(path)
     rows = {}
     for lo, hi in (w for w in WINDOWS if w[1] <= last):  # a short folder shows only the windows its runs reach
         for kind, label in (("mean", "mean of per-episode fractions"), ("weighted", "decision-weighted")):

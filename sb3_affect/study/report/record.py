@@ -17,6 +17,7 @@ import pandas as pd
 
 from sb3_affect.study.report.context import ReportContext
 from sb3_affect.study.report.document import fmt
+from sb3_affect.study.report.output_files import write_text
 
 PACKAGES = (
     "sb3-affect",
@@ -74,10 +75,22 @@ def lock_lines() -> list[str]:
 
 
 def run_tables(root: Path) -> list[Path]:
-    """The files holding the runs of a replicate (or results) folder: chunks, run files, the engine studies' tables."""
-    patterns = ("*/chunks/*.parquet", "*/runs/*.json", "chunks/*.parquet", "runs/*.json", "*/runs.csv.gz", "*/*.csv",
-                "tuning/round*/runs.csv.gz")
+    """
+    The files holding the runs of a replicate (or results) folder: the chunks and run files that count (those a
+    report reads: ``ResultsStore.checked_files``), the engine studies' tables.
+    """
+    from sb3_affect.study.launcher.store import ResultsStore, StoreError
+
+    patterns = ("*/runs.csv.gz", "*/*.csv", "tuning/round*/runs.csv.gz")
     files = {path for pattern in patterns for path in root.glob(pattern) if "tables" not in path.parts}
+    for folder in (root, *(path.parent for path in root.glob("*/sweep.json"))):
+        if (folder / "runs").is_dir():
+            try:
+                checked = ResultsStore(folder).checked_files()
+            except StoreError:  # a folder holding a file that does not count: its runs are not reported either
+                continue
+            files.update(checked.run_files)
+            files.update(checked.chunk_files)
     return sorted(files)
 
 
@@ -113,10 +126,10 @@ def record_section(ctx: ReportContext) -> None:
     ctx.doc.h("Reproducibility record")
     usable = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     lock = ctx.out / "packages.lock"
-    lock.write_text("\n".join(lock_lines()) + "\n")
+    write_text(lock, "\n".join(lock_lines()) + "\n")
     tables = run_tables(ctx.root)
     checksums = ctx.out / "checksums.sha256"
-    checksums.write_text("".join(f"{sha256(path)}  {path.relative_to(ctx.root).as_posix()}\n" for path in tables))
+    write_text(checksums, "".join(f"{sha256(path)}  {path.relative_to(ctx.root).as_posix()}\n" for path in tables))
     try:
         version = metadata.version("sb3-affect")
     except metadata.PackageNotFoundError:

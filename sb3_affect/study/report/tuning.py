@@ -28,6 +28,7 @@ import pandas as pd
 
 from sb3_affect.study.report.beyond_tasks import BEYOND_CAP, SWEEP, TASKS, TUNED_AGENTS
 from sb3_affect.study.report.engine_studies import Cell, run_cells
+from sb3_affect.study.report.output_files import write_text
 
 #: The tuning grid: log-spaced from 0.001 to 0.5.
 GRID: tuple[float, ...] = (0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5)
@@ -246,7 +247,7 @@ def run_tuning(
         "chosen": [{"task": t, "agent": a, "epsilon": c.best, "interior": c.interior} for (t, a), c in choices.items()],
         "wall_seconds": sum(seconds),
     }
-    (folder / "tuning.json").write_text(json.dumps(record, indent=1))
+    write_text(folder / "tuning.json", json.dumps(record, indent=1))
     return choices, sum(seconds)
 
 

@@ -1,0 +1,65 @@
+"""
+How the report writes (and reads back) its own files: each through a temporary file beside it, renamed over it when
+whole (a reader never sees half a file, and a symbolic link at the file's name is replaced, never written through),
+into folders that are real folders (a link in place of ``tables/`` or ``figures/`` is refused: the report never
+writes where one points). A cache it wrote and can not read back is redone.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+
+def output_folder(folder: Path) -> Path:
+    """``folder``, created if missing; ``ValueError`` when it is a symbolic link (or not a folder)."""
+    folder = Path(folder)
+    if folder.is_symlink():
+        raise ValueError(f"{folder} is a symbolic link; the report writes only into real folders: remove the link")
+    folder.mkdir(parents=True, exist_ok=True)
+    if not folder.is_dir():
+        raise ValueError(f"{folder} is not a folder; the report writes its files there: remove it")
+    return folder
+
+
+@contextlib.contextmanager
+def replacing(path: Path) -> Iterator[Path]:
+    """
+    A temporary file beside ``path`` (same suffix, so writers infer the format) for the block to write; renamed over
+    ``path`` when the block ends, removed when it raises.
+    """
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=output_folder(path.parent), prefix=".tmp-", suffix=path.suffix)
+    os.close(fd)
+    try:
+        yield Path(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+
+
+def write_text(path: Path, text: str) -> None:
+    """``path.write_text(text)``, through a temporary file (``replacing``)."""
+    with replacing(path) as tmp:
+        tmp.write_text(text)
+
+
+def cached_json(path: Path) -> Any:
+    """
+    The JSON a report wrote earlier as a cache (``meta.json`` of a traced or computed study), or None when it is
+    missing or unusable (not a regular file, over 64 MiB, not JSON: a cache cut short by a kill): then it is redone.
+    """
+    from sb3_affect.study.launcher.folder_files import DamagedFile, regular_file
+
+    try:
+        regular_file(Path(path), 64 * 2**20)
+        return json.loads(Path(path).read_bytes())
+    except (DamagedFile, OSError, ValueError):
+        return None
