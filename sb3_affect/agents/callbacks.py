@@ -103,7 +103,7 @@ class EmotionCallback(BaseCallback):
         # observer-mode state
         self._cells_of: _Cells | None = None
         self._lanes: list[_Lane] = []
-        self._window: deque[list[float]] = deque(maxlen=100)
+        self._window = WindowMeans(len(EMOTION_NAMES) + 1)
         self._csv_path: Path | None = None
         self._episodes = self._goals = 0
         self._warned = False
@@ -162,10 +162,11 @@ class EmotionCallback(BaseCallback):
         self.appraiser.end_episode(reached_goal)
         counts = self.counts
         total = sum(counts)
-        if total and self.model is not None:  # per episode; SB3 records whenever a logger exists
+        model = getattr(self, "model", None)  # None: the hooks driven by an agent of the user's own
+        if total and model is not None:  # per episode; SB3 records whenever a logger exists
             for name, count in zip(EMOTION_NAMES, counts):
-                self.logger.record(f"affect/{name}", count / total)
-            self.logger.record("affect/norm", norm if norm == norm else 0.0)
+                model.logger.record(f"affect/{name}", count / total)
+            model.logger.record("affect/norm", norm if norm == norm else 0.0)
         return counts, norm
 
     @property
@@ -179,7 +180,7 @@ class EmotionCallback(BaseCallback):
             raise RuntimeError("EmotionCallback: the algorithm has no current observation at training start")
         n_envs = self.training_env.num_envs
         self._geometry = self._find_geometry()
-        self._window = deque(maxlen=int(getattr(self.model, "_stats_window_size", 100)))
+        self._window = WindowMeans(len(EMOTION_NAMES) + 1, int(getattr(self.model, "_stats_window_size", 100)))
         self._csv_path = self._episode_csv()
         # one lane per env: its own appraisal (env 0 keeps the callback's appraiser), counts and episode in progress
         assert self.appraiser is not None
@@ -215,19 +216,21 @@ class EmotionCallback(BaseCallback):
 
     def _on_step(self) -> bool:
         check_step_locals(self)
-        dones = np.asarray(self.locals["dones"]).reshape(-1)
-        rewards = np.asarray(self.locals["rewards"], dtype=float).reshape(-1)
-        infos = self.locals["infos"]
-        new_obs = self.locals["new_obs"]
-        mapped = self._cells_of is not None
+        locals_ = self.locals
+        dones = np.asarray(locals_["dones"]).reshape(-1).tolist()
+        rewards = np.asarray(locals_["rewards"], dtype=float).reshape(-1).tolist()
+        infos = locals_["infos"]
+        cells_of = self._cells_of
+        mapped = cells_of is not None
+        new_states = cells_of.batch(locals_["new_obs"]) if cells_of is not None else [0] * len(dones)
         for index, lane in enumerate(self._lanes):
             done = bool(dones[index])
             info = infos[index]
-            reward = float(rewards[index])
+            reward = rewards[index]
             truncated = done and bool(info.get("TimeLimit.truncated", False))
             terminated = done and not truncated
             reached_goal = terminated and bool(self.goal(reward, info))
-            new_state = self._cell(_env_obs(new_obs, index))
+            new_state = new_states[index]
             # at the end of an episode the VecEnv has reset: the cell reached is the terminal observation
             s2 = self._cell(info["terminal_observation"]) if done and "terminal_observation" in info else new_state
             lane.appraiser.observe(lane.state, s2 if mapped else 0, reached_goal and mapped)
@@ -250,14 +253,10 @@ class EmotionCallback(BaseCallback):
 
     def _record_window(self) -> None:
         """``affect/*``: means over the last episodes (the stats window), as SB3 logs ``rollout/ep_rew_mean``."""
-        if not self._window:
-            return
-        profiles = np.asarray(self._window, dtype=float)
-        for column, name in enumerate((*EMOTION_NAMES, "norm")):
-            values = profiles[:, column]
-            values = values[~np.isnan(values)]
-            if len(values):
-                self.logger.record(f"affect/{name}", float(values.mean()))
+        record = self.logger.record
+        for name, mean in zip((*EMOTION_NAMES, "norm"), self._window.means()):
+            if mean == mean:  # NaN: no episode (with a norm) in the window yet
+                record(f"affect/{name}", mean)
 
     def _close_lane(self, index: int, lane: _Lane, terminated: bool, truncated: bool, reached_goal: bool) -> None:
         appraiser = lane.appraiser
@@ -340,6 +339,53 @@ class _Lane:
         self.reward = 0.0
 
 
+class WindowMeans:
+    """
+    The mean of each column over the last ``size`` rows (an episode's figures each), NaN values left out, as the
+    callbacks log their keys over SB3's stats window. Running sums make a row and a read O(1); they are summed afresh
+    every ``size`` rows, so rounding never accumulates.
+    """
+
+    def __init__(self, columns: int, size: int = 100) -> None:
+        self.size = size
+        self.rows: deque[list[float]] = deque(maxlen=size)
+        self._sums = [0.0] * columns
+        self._counts = [0] * columns
+        self._added = 0
+
+    def __len__(self) -> int:
+        return len(self.rows)
+
+    def append(self, row: list[float]) -> None:
+        rows = self.rows
+        if len(rows) == self.size:
+            self._add(rows[0], -1)
+        rows.append(row)
+        self._added += 1
+        if self._added % self.size == 0:
+            self._sums = [math.fsum(value for value in column if value == value) for column in zip(*rows)]
+            self._counts = [sum(value == value for value in column) for column in zip(*rows)]
+        else:
+            self._add(row, 1)
+
+    def resized(self, size: int) -> WindowMeans:
+        """A window of ``size`` rows holding this one's last rows."""
+        window = WindowMeans(len(self._sums), size)
+        for row in self.rows:
+            window.append(row)
+        return window
+
+    def _add(self, row: list[float], sign: int) -> None:
+        for column, value in enumerate(row):
+            if value == value:
+                self._sums[column] += sign * value
+                self._counts[column] += sign
+
+    def means(self) -> list[float]:
+        """Each column's mean over the window (NaN for a column with no value in it)."""
+        return [total / count if count else math.nan for total, count in zip(self._sums, self._counts)]
+
+
 def check_step_locals(callback: BaseCallback) -> None:
     """A RuntimeError when the algorithm calls ``on_step`` without the step's VecEnv results (ARS does)."""
     if "dones" not in callback.locals or "new_obs" not in callback.locals:
@@ -388,6 +434,14 @@ class _Cells:
             return int(np.asarray(obs).reshape(-1)[0]) - self.start
         index = np.asarray(obs, dtype=np.int64).reshape(-1) - self.start_vec
         return int(np.ravel_multi_index(tuple(index), tuple(self.nvec)))
+
+    def batch(self, obs: Any) -> list[int]:
+        """The cells of a VecEnv's batch of observations, one per env."""
+        if self.nvec is None:
+            array = np.asarray(obs)
+            return (array.reshape(len(array), -1)[:, 0].astype(np.int64) - self.start).tolist()
+        index = np.asarray(obs, dtype=np.int64).reshape(-1, len(self.nvec)) - self.start_vec
+        return np.ravel_multi_index(tuple(index.T), tuple(self.nvec)).tolist()
 
 
 #: The largest MultiDiscrete space (cells) whose observations get a map (the appraisal keeps a row per cell).
