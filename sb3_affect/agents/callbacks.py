@@ -167,7 +167,17 @@ class EmotionCallback(BaseCallback):
             for name, count in zip(EMOTION_NAMES, counts):
                 model.logger.record(f"affect/{name}", count / total)
             model.logger.record("affect/norm", norm if norm == norm else 0.0)
+        self.count_episodes(1, reached_goal)
         return counts, norm
+
+    def count_episodes(self, episodes: int, reached_goal: bool) -> None:
+        """
+        ``episodes`` more ended (``reached_goal``: one of them reached the goal): warn once when ``warn_after`` have
+        ended and the appraisal knows no goal (``end_episode`` calls it; AffectQ's compiled engine after a run).
+        """
+        self._episodes += episodes
+        self._goals += int(reached_goal)
+        self._warn_if_degenerate()
 
     @property
     def norm(self) -> float:
@@ -286,14 +296,20 @@ class EmotionCallback(BaseCallback):
     def _warn_if_degenerate(self) -> None:
         if self._warned or self._goals or self.warn_after is None or self._episodes < self.warn_after:
             return
+        if self._lanes == [] and self.appraiser is not None and _knows_a_goal(self.appraiser):
+            return  # driven by an agent whose appraisal learnt the goal before (an earlier learn, a loaded model)
         self._warned = True
+        model = getattr(self, "model", None)
+        driver = type(model).__name__ if model is not None and getattr(model, "emotion_callback", None) is self else ""
+        option = "EmotionCallback(goal=lambda reward, info: ...)"
+        where = f"{driver}(..., emotion_callback={option})" if driver else option
         warnings.warn(
-            f"EmotionCallback: none of the first {self._episodes} episodes reached the goal, so the appraisal knows no "
-            "distance to it (act) and Table II can only give joy (or fear under comparison='valence'). If this env's "
-            "success is not 'terminated with a reward > 0' (or info['is_success']), pass "
-            "EmotionCallback(goal=lambda reward, info: ...) (see sb3_affect.core.goals, e.g. every_termination)",
+            f"{driver or 'EmotionCallback'}: none of the first {self._episodes} episodes reached the goal, so the "
+            "appraisal knows no distance to it (act) and Table II can only give joy (or fear under "
+            "comparison='valence'). If this env's success is not 'terminated with a reward > 0' (or "
+            f"info['is_success']), pass {where} (see sb3_affect.core.goals, e.g. every_termination)",
             RuntimeWarning,
-            stacklevel=2,
+            stacklevel=3,
         )
 
     def _episode_csv(self) -> Path | None:
@@ -319,6 +335,13 @@ class EmotionCallback(BaseCallback):
         frame = make_frame([row[:-1] for row in self.rows])
         frame["env"] = np.asarray([row[-1] for row in self.rows], dtype=np.int64)
         return frame
+
+
+def _knows_a_goal(appraiser: Appraiser) -> bool:
+    """Whether the appraiser's known map has a goal (the compiled engine's map is read without building it)."""
+    kept = appraiser.deferred("known")
+    goal = getattr(kept, "goal", None)
+    return bool(np.any(goal)) if goal is not None else bool(appraiser.known.goals)
 
 
 class _Lane:
