@@ -116,6 +116,9 @@ for cls in (QLearning, AffectQ):
     assert (loaded.q_table == model.q_table).all()
     action, _ = loaded.predict(np.array([0]), deterministic=True)
     print(cls.__name__, "ok", int(action[0]))
+# SB3's progress bar (tqdm and rich come with the plugin)
+QLearning("Grid", gym.make("FrozenLake-v1"), seed=0, engine="python").learn(200, progress_bar=True)
+print("progress bar ok")
 emotions, broekens = EmotionCallback(), BroekensCallback()
 DQN("MlpPolicy", "FrozenLake-v1", learning_starts=10, seed=0).learn(300, callback=[emotions, broekens])
 print("callbacks", len(emotions.episode_log), len(broekens.episode_log))
@@ -131,7 +134,7 @@ def test_core_wheel_learns_saves_loads_predicts_and_observes_dqn(core: Path, tmp
     result = run(core, ["-c", CORE_SCRIPT], tmp_path)
     assert result.returncode == 0, result.stderr
     out = result.stdout
-    assert "QLearning ok" in out and "AffectQ ok" in out
+    assert "QLearning ok" in out and "AffectQ ok" in out and "progress bar ok" in out
     emotions, broekens = map(int, re.search(r"callbacks (\d+) (\d+)", out).groups())  # type: ignore[union-attr]
     assert emotions > 0 and broekens > 0
     assert "installed []" in out and "imported []" in out, out
