@@ -146,6 +146,11 @@ def test_core_wheel_names_the_extra_a_study_command_needs(core: Path, tmp_path: 
         assert result.returncode == 2, result.stderr
         lines = result.stderr.strip().splitlines()
         assert len(lines) == 1 and f'pip install "sb3-affect[{extra}]"' in lines[0], result.stderr
+    zoo = ["-m", "sb3_affect.integrations.zoo", "train", "--algo", "affectq", "--env", "FrozenLake-v1"]
+    result = run(core, zoo, tmp_path)
+    assert result.returncode == 2, result.stderr
+    assert result.stderr.strip() == ("python -m sb3_affect.integrations.zoo: error: the rl-zoo3 recipe needs the 'zoo' "
+                                     'extra (missing: rl_zoo3, huggingface_sb3): pip install "sb3-affect[zoo]"')
 
 
 def test_wheel_runs_shipped_sweeps_by_name_and_by_their_source_path(full: Path, tmp_path: Path) -> None:

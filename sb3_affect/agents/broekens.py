@@ -149,9 +149,11 @@ def _model_values(model: Any, kind: str, obs: Any, lstm: Any = None, starts: Any
     return _as_floats(values)
 
 
-def _as_floats(values: th.Tensor) -> np.ndarray:
-    """A tensor of values (one per env) as a float64 array."""
-    return values.reshape(-1).cpu().numpy().astype(float)
+def _as_floats(values: Any) -> np.ndarray:
+    """Values (one per env, a tensor or an array) as a float64 array."""
+    if isinstance(values, th.Tensor):
+        values = values.cpu().numpy()
+    return np.asarray(values, dtype=float).reshape(-1)
 
 
 def _versioned_updates(model: Any) -> bool:
@@ -233,7 +235,7 @@ class BroekensCallback(BaseCallback):
         self._settle_later = False
         self._pending: _Step | None = None
         self._seen_values: Any = None
-        self._table_states = 0
+        self._table_states = self._table_start = 0
         self._table: np.ndarray | None = None
         self._table_version: int | None = None
 
@@ -246,6 +248,7 @@ class BroekensCallback(BaseCallback):
         tabled = self._kind in ("q_net", "quantile_net", "value_head", "critic") and _versioned_updates(model)
         small = isinstance(space, spaces.Discrete) and int(space.n) <= VALUE_TABLE_STATES
         self._table_states = int(space.n) if tabled and small else 0  # type: ignore[attr-defined]
+        self._table_start = int(space.start) if self._table_states else 0  # type: ignore[attr-defined]
         self._table = None
 
     # -- values ------------------------------------------------------------------------------------------------
@@ -256,7 +259,7 @@ class BroekensCallback(BaseCallback):
             n = len(next(iter(obs.values()))) if isinstance(obs, dict) else len(np.asarray(obs))
             return np.array([float(self.value_fn(self.model, _row(obs, i))) for i in range(n)])
         if self._table_states:
-            return self._value_table()[np.asarray(obs).reshape(-1) - int(self.model.observation_space.start)]
+            return self._value_table()[np.asarray(obs).reshape(-1) - self._table_start]
         lstm = starts = None
         if self._kind == "recurrent":
             lstm, starts = self._recurrent_inputs(dones)
@@ -266,7 +269,7 @@ class BroekensCallback(BaseCallback):
         """``V`` of every state of a small Discrete space, valued again after each update of the algorithm."""
         version = int(self.model._n_updates)
         if self._table is None or version != self._table_version:
-            start = int(self.model.observation_space.start)
+            start = self._table_start
             self._table = _model_values(self.model, self._kind, np.arange(start, start + self._table_states))
             self._table_version = version
         return self._table
@@ -337,6 +340,11 @@ class BroekensCallback(BaseCallback):
             self._settle(step, self._values(new_obs, dones))
             return True
         values = locals_.get("values")  # the algorithm's values of the states the previous step reached
+        if values is None:  # an algorithm that does not show them: value each step here from now on
+            self._settle_pending()
+            self._settle_later = False
+            self._settle(step, self._values(new_obs, dones))
+            return True
         if self._pending is not None:
             self._settle(self._pending, _as_floats(values))
         self._pending, self._seen_values = step, values

@@ -18,7 +18,9 @@ two ways:
       callback.end_episode(reached_goal)      # at the end of an episode (then begin_episode() for the next)
 
   ``feel`` is called exactly once per decision and counts it (the appraisal of a decision sees the decisions
-  before it).
+  before it). Call ``bind(n_states)`` first; the hooks need no SB3 model, so an agent of your own can drive them
+  the same way. ``callback.emotion`` is the emotion of the next decision (what ``feel`` last returned; in observer
+  mode, the one felt for the next decision of the env last updated).
 
   and uses the returned emotion to look up direction and speed in its behaviour table (Table III). Swap the
   appraisal by passing your own ``Appraiser`` subclass, or the emotion rule by passing ``emotion_rule``.
@@ -95,7 +97,9 @@ class EmotionCallback(BaseCallback):
         self.appraiser: Appraiser | None = appraiser
         if appraiser is None:
             Appraiser(1, act=act, units=units)  # validate the options now, with a clear error
+        #: the emotion of the next decision (what ``feel`` returned last), what an agent reads to steer
         self.emotion: Emotion = Emotion.JOY
+        #: the emotion counts of the episode in progress (joy, sadness, fear, anger)
         self.counts = [0, 0, 0, 0]
         self.rows: list[list[Any]] = []
         self.episode_log_path = episode_log_path
