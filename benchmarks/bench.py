@@ -22,7 +22,8 @@ callback, with ``EmotionCallback`` and with ``BroekensCallback``, and of PPO on 
 ``BroekensCallback``, torch on one thread, in rounds that alternate the runs (their order rotating), each run's
 steps per second of wall time and of the process's CPU time (a shared machine's other processes slow the first, not
 the second); a figure is the median over rounds of its rate relative to the bare algorithm's in the same round
-(target: at least 0.95).
+(target: at least 0.95). Each run with a callback also gives the share of its CPU time spent in the callback's hooks,
+taken within the run and so steadier on a busy machine (target: at most 0.05).
 
 ``--studies`` adds the hunter-team and moving-prey kernels against their Python references (paired rounds) and, with
 ``--study-seeds N``, their studies at N seeds, from ``benchmarks/bench_studies.py`` where that benchmark exists;
@@ -202,21 +203,48 @@ OBSERVER_SETUPS: dict[str, tuple[str, str, dict[str, object], tuple[int, int], t
 }
 
 
+#: The hooks SB3 calls on a callback during ``learn``: the time spent in them is the callback's share.
+HOOKS = ("init_callback", "on_training_start", "on_rollout_start", "update_locals", "on_step", "on_rollout_end",
+         "on_training_end")
+
+
+def timed_hooks(callback: object, spent: list[float]) -> None:
+    """Wrap ``callback``'s hooks so that the thread CPU time spent in them adds up in ``spent[0]``."""
+    for name in HOOKS:
+        method = getattr(callback, name)
+
+        def hook(*args: object, _method: Callable[..., object] = method) -> object:
+            start = time.thread_time()
+            try:
+                return _method(*args)
+            finally:
+                spent[0] += time.thread_time() - start
+
+        setattr(callback, name, hook)
+
+
 def observer_run(algo: str, env_id: str, kwargs: dict[str, object], steps: int,
-                 observer: str | None) -> Callable[[], tuple[float, float]]:
-    """``learn(steps)`` of SB3's ``algo`` on ``env_id`` with the package's callback ``observer`` (None: no callback)."""
+                 observer: str | None) -> Callable[[], tuple[float, float, float]]:
+    """
+    ``learn(steps)`` of SB3's ``algo`` on ``env_id`` with the package's callback ``observer`` (None: no callback):
+    steps per second of wall and CPU time, and the share of ``learn``'s CPU time spent in the callback's hooks (both
+    taken in the same run, so the machine's other processes hardly move it).
+    """
     import stable_baselines3
     import torch as th
 
     th.set_num_threads(1)
 
-    def run() -> tuple[float, float]:
+    def run() -> tuple[float, float, float]:
         model = getattr(stable_baselines3, algo)("MlpPolicy", gym.make(env_id), seed=0, **kwargs)
         callback = None if observer is None else getattr(sb3_affect, observer)()
+        spent = [0.0]
+        if callback is not None:
+            timed_hooks(callback, spent)
         wall, cpu = time.perf_counter(), time.process_time()
         model.learn(steps, callback=callback)
         wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
-        return model.num_timesteps / wall, model.num_timesteps / cpu
+        return model.num_timesteps / wall, model.num_timesteps / cpu, spent[0] / cpu
 
     return run
 
@@ -231,7 +259,7 @@ def observer_rows(repeats: int, smoke: bool) -> list[tuple[str, float, str]]:
         if smoke and algo == "PPO":
             kwargs = {**kwargs, "n_steps": 128, "batch_size": 64}
         runs = {name: observer_run(algo, env_id, kwargs, steps, name) for name in (None, *observers)}
-        rounds: list[dict[str | None, tuple[float, float]]] = []
+        rounds: list[dict[str | None, tuple[float, float, float]]] = []
         loads: list[float] = []
         for i in range(repeats):
             order = list(runs)
@@ -241,16 +269,19 @@ def observer_rows(repeats: int, smoke: bool) -> list[tuple[str, float, str]]:
                 measured = {name: runs[name]() for name in order}
             rounds.append(measured)
             loads.append(load())
-            cells = " | ".join(f"{name or algo} {w:,.0f}/s wall, {c:,.0f}/s CPU" for name, (w, c) in measured.items())
+            cells = " | ".join(f"{name or algo} {w:,.0f}/s wall, {c:,.0f}/s CPU" + (f", {f:.1%} in it" if name else "")
+                               for name, (w, c, f) in measured.items())
             print(f"{setup}, round {i}: {cells} | load {loads[-1]:.2f}", flush=True)
         alone = [r[None] for r in rounds]
-        rows.append((f"{setup}, {algo} alone (steps/s, wall)", statistics.median(w for w, _ in alone), f"{steps} steps"))
-        rows.append((f"{setup}, {algo} alone (steps/s, CPU)", statistics.median(c for _, c in alone), f"{steps} steps"))
+        rows.append((f"{setup}, {algo} alone (steps/s, wall)", statistics.median(r[0] for r in alone), f"{steps} steps"))
+        rows.append((f"{setup}, {algo} alone (steps/s, CPU)", statistics.median(r[1] for r in alone), f"{steps} steps"))
+        span = f"median of {repeats} rounds, load {min(loads):.1f}-{max(loads):.1f}"
         for name in observers:
             for column, what in ((0, "wall"), (1, "CPU")):
                 ratio = statistics.median(r[name][column] / r[None][column] for r in rounds)
-                note = f"median of {repeats} rounds, load {min(loads):.1f}-{max(loads):.1f} (target >= 0.95)"
-                rows.append((f"{setup}, with {name} / alone ({what} time)", ratio, note))
+                rows.append((f"{setup}, with {name} / alone ({what} time)", ratio, f"{span} (target >= 0.95)"))
+            share = statistics.median(r[name][2] for r in rounds)
+            rows.append((f"{setup}, share of learn's CPU time in {name}", share, f"{span} (target <= 0.05)"))
     return rows
 
 
