@@ -8,6 +8,7 @@ the launcher; with ``--all``, also the other speed figures of the studies (below
     python benchmarks/bench.py --all           # every figure: also the studies' kernels and the report of a folder
     python benchmarks/bench.py --large         # also the paper protocol with 10,000 seeds per cell through simulate
     python benchmarks/bench.py --smoke         # seconds: tiny sizes, no protocol (what the test suite runs)
+    python benchmarks/bench.py --observers     # only the emotion callbacks' cost beside SB3's DQN and PPO (minutes)
 
 Every figure is the median of repeated runs in this one process. The learn loops are measured in paired rounds (the
 bare loop, then each learn loop, each compiled one followed by the kernel alone on its decisions); a ratio is the
@@ -15,6 +16,14 @@ median of the rounds' ratios, and every round is printed with the machine's load
 batch call (``simulate``'s, ``kernel.batch.run_batch``) for the same seed and the episodes the compiled ``learn``
 finished; only the call is timed (its inputs, seed key and output rows are made before it): compiled ``learn`` /
 kernel alone is what ``learn`` adds to the decisions themselves.
+
+The observers' cost (in the full run, or alone with ``--observers``): ``learn`` of SB3's DQN on FrozenLake-v1 with no
+callback, with ``EmotionCallback`` and with ``BroekensCallback``, and of PPO on CartPole-v1 without and with
+``BroekensCallback``, torch on one thread, in rounds that alternate the runs (their order rotating), each run's
+steps per second of wall time and of the process's CPU time (a shared machine's other processes slow the first, not
+the second); a figure is the median over rounds of its rate relative to the bare algorithm's in the same round
+(target: at least 0.95). Each run with a callback also gives the share of its CPU time spent in the callback's hooks,
+taken within the run and so steadier on a busy machine (target: at most 0.05).
 
 ``--studies`` adds the hunter-team and moving-prey kernels against their Python references (paired rounds) and, with
 ``--study-seeds N``, their studies at N seeds, from ``benchmarks/bench_studies.py`` where that benchmark exists;
@@ -187,6 +196,97 @@ def dqn_rate(steps: int) -> Callable[[], int]:
     return run
 
 
+#: The observers' setups: the algorithm, its env and keywords, its steps per run (full run, smoke run; the smoke run
+#: also shortens PPO's rollouts) and the callbacks timed.
+OBSERVER_SETUPS: dict[str, tuple[str, str, dict[str, object], tuple[int, int], tuple[str, ...]]] = {
+    "DQN on FrozenLake-v1": ("DQN", "FrozenLake-v1", {"learning_starts": 100}, (4000, 300),
+                             ("EmotionCallback", "BroekensCallback")),
+    "PPO on CartPole-v1": ("PPO", "CartPole-v1", {}, (4096, 256), ("BroekensCallback",)),
+}
+
+
+#: The hooks SB3 calls on a callback during ``learn``: the time spent in them is the callback's share.
+HOOKS = ("init_callback", "on_training_start", "on_rollout_start", "update_locals", "on_step", "on_rollout_end",
+         "on_training_end")
+
+
+def timed_hooks(callback: object, spent: list[float]) -> None:
+    """Wrap ``callback``'s hooks so that the thread CPU time spent in them adds up in ``spent[0]``."""
+    for name in HOOKS:
+        method = getattr(callback, name)
+
+        def hook(*args: object, _method: Callable[..., object] = method) -> object:
+            start = time.thread_time()
+            try:
+                return _method(*args)
+            finally:
+                spent[0] += time.thread_time() - start
+
+        setattr(callback, name, hook)
+
+
+def observer_run(algo: str, env_id: str, kwargs: dict[str, object], steps: int,
+                 observer: str | None) -> Callable[[], tuple[float, float, float]]:
+    """
+    ``learn(steps)`` of SB3's ``algo`` on ``env_id`` with the package's callback ``observer`` (None: no callback):
+    steps per second of wall and CPU time, and the share of ``learn``'s CPU time spent in the callback's hooks (both
+    taken in the same run, so the machine's other processes hardly move it).
+    """
+    import stable_baselines3
+    import torch as th
+
+    th.set_num_threads(1)
+
+    def run() -> tuple[float, float, float]:
+        model = getattr(stable_baselines3, algo)("MlpPolicy", gym.make(env_id), seed=0, **kwargs)
+        callback = None if observer is None else getattr(sb3_affect, observer)()
+        spent = [0.0]
+        if callback is not None:
+            timed_hooks(callback, spent)
+        wall, cpu = time.perf_counter(), time.process_time()
+        model.learn(steps, callback=callback)
+        wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
+        return model.num_timesteps / wall, model.num_timesteps / cpu, spent[0] / cpu
+
+    return run
+
+
+def observer_rows(repeats: int, smoke: bool) -> list[tuple[str, float, str]]:
+    """Each observer's steps per second relative to its algorithm's alone (wall and CPU time), in alternating rounds."""
+    import warnings
+
+    rows: list[tuple[str, float, str]] = []
+    for setup, (algo, env_id, kwargs, sizes, observers) in OBSERVER_SETUPS.items():
+        steps = sizes[1] if smoke else sizes[0]
+        if smoke and algo == "PPO":
+            kwargs = {**kwargs, "n_steps": 128, "batch_size": 64}
+        runs = {name: observer_run(algo, env_id, kwargs, steps, name) for name in (None, *observers)}
+        rounds: list[dict[str | None, tuple[float, float, float]]] = []
+        loads: list[float] = []
+        for i in range(repeats):
+            order = list(runs)
+            order = order[i % len(order) :] + order[: i % len(order)]  # rotate: no run always goes first
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # e.g. FrozenLake's "no goal reached yet" in a short run
+                measured = {name: runs[name]() for name in order}
+            rounds.append(measured)
+            loads.append(load())
+            cells = " | ".join(f"{name or algo} {w:,.0f}/s wall, {c:,.0f}/s CPU" + (f", {f:.1%} in it" if name else "")
+                               for name, (w, c, f) in measured.items())
+            print(f"{setup}, round {i}: {cells} | load {loads[-1]:.2f}", flush=True)
+        alone = [r[None] for r in rounds]
+        rows.append((f"{setup}, {algo} alone (steps/s, wall)", statistics.median(r[0] for r in alone), f"{steps} steps"))
+        rows.append((f"{setup}, {algo} alone (steps/s, CPU)", statistics.median(r[1] for r in alone), f"{steps} steps"))
+        span = f"median of {repeats} rounds, load {min(loads):.1f}-{max(loads):.1f}"
+        for name in observers:
+            for column, what in ((0, "wall"), (1, "CPU")):
+                ratio = statistics.median(r[name][column] / r[None][column] for r in rounds)
+                rows.append((f"{setup}, with {name} / alone ({what} time)", ratio, f"{span} (target >= 0.95)"))
+            share = statistics.median(r[name][2] for r in rounds)
+            rows.append((f"{setup}, share of learn's CPU time in {name}", share, f"{span} (target <= 0.05)"))
+    return rows
+
+
 def protocol_seconds(workers: int) -> float | None:
     """Wall time of experiments/paper.yaml (360 runs) with the launcher, or None if the launcher is not there."""
     try:
@@ -245,7 +345,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--smoke", action="store_true", help="tiny sizes, no protocol: checks the script runs")
     parser.add_argument("--large", action="store_true", help="also the paper protocol with 10,000 seeds per cell")
     parser.add_argument("--repeats", type=int, default=5)
-    parser.add_argument("--csv", type=Path, default=Path(__file__).with_name("results.csv"))
+    parser.add_argument("--csv", type=Path, help="default: results.csv here (--observers: results_observers.csv)")
     parser.add_argument(
         "--all", action="store_true", help="every figure: --studies --minigrid --study-seeds 1000 --report-seeds 10000"
     )
@@ -254,6 +354,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--minigrid", action="store_true", help="AffectDQN vs DQN and the tabular agents on MiniGrid")
     parser.add_argument("--report-folder", action="append", default=[], help="time report and status of this folder")
     parser.add_argument("--report-seeds", type=int, default=0, help="run the paper sweep at N seeds, then time its report")
+    parser.add_argument("--observers", action="store_true", help="only the emotion callbacks' cost beside DQN and PPO")
     args = parser.parse_args(argv)
     if args.all:
         args.studies = args.minigrid = True
@@ -261,6 +362,9 @@ def main(argv: list[str] | None = None) -> int:
         args.report_seeds = args.report_seeds or 10_000
     steps, dqn_steps, repeats = (3000, 300, 1) if args.smoke else (200_000, 5000, args.repeats)
     print(f"load average at start: {load():.2f} on {os.cpu_count()} CPUs", flush=True)
+    if args.observers:
+        csv_path = args.csv or Path(__file__).with_name("results_observers.csv")
+        return write_rows(observer_rows(repeats, args.smoke), csv_path, repeats, f"{repeats} alternating round(s)")
 
     rows: list[tuple[str, float, str]] = []
     learn_rate(QLearning, 10)()  # load (or compile) the kernel before timing it
@@ -342,6 +446,7 @@ def main(argv: list[str] | None = None) -> int:
             else:
                 rows.append((f"paper protocol, {workers} worker(s) (s)", launcher, "sb3-affect run, 360 runs x 200 episodes"))
 
+    rows += observer_rows(repeats, args.smoke)
     if args.studies and not args.smoke:
         rows += study_rows(repeats, args.study_seeds)
     if args.minigrid:
@@ -351,16 +456,21 @@ def main(argv: list[str] | None = None) -> int:
         rows += minigrid_rows(repeats, args.smoke)
     if (args.report_folder or args.report_seeds) and not args.smoke:
         rows += report_rows(args.report_folder, args.report_seeds)
+    sizes = f"median of {repeats} run(s); {steps} decisions per tabular run, {dqn_steps} DQN steps per run"
+    return write_rows(rows, args.csv or Path(__file__).with_name("results.csv"), repeats, sizes)
 
+
+def write_rows(rows: list[tuple[str, float, str]], path: Path, repeats: int, sizes: str) -> int:
+    """Print the table (with the machine's load and versions) and write it to the CSV file ``path``."""
     cores = os.cpu_count()
     print(f"load average at the end: {load():.2f}")
     print(f"sb3-affect {sb3_affect.__version__} | Python {platform.python_version()} | {cores} cores | {platform.machine()}")
-    print(f"median of {repeats} run(s); {steps} decisions per tabular run, {dqn_steps} DQN steps per run")
+    print(sizes)
     width = max(len(name) for name, _, _ in rows)
     for name, value, note in rows:
-        print(f"{name:<{width}}  {value:>12,.1f}  {note}")
-    args.csv.parent.mkdir(parents=True, exist_ok=True)
-    with args.csv.open("w", newline="") as handle:
+        print(f"{name:<{width}}  {value:>12,.{3 if abs(value) < 10 else 1}f}  {note}")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("w", newline="") as handle:
         writer = csv.writer(handle)
         writer.writerow(["measure", "value", "note", "cores", "repeats"])
         for name, value, note in rows:

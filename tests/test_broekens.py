@@ -160,3 +160,72 @@ def test_position_gives_the_mean_emotions_per_cell_on_a_vec_env_and_a_tabular_ag
     assert tabular.cell_log.steps.sum() == 300 and tabular.cell_log.cell.max() < model.observation_space.n
     with pytest.raises(ValueError, match=r"position='maze' is not supported"):
         BroekensCallback(position="maze")
+
+
+class Counting:
+    """Counts the calls of a module's forward (a forward hook): the passes an algorithm and its callbacks make."""
+
+    def __init__(self, module: th.nn.Module) -> None:
+        self.calls = 0
+        module.register_forward_hook(self.hook)
+
+    def hook(self, *args) -> None:
+        self.calls += 1
+
+
+def critic_of(model, obs) -> float:
+    """A value_fn: the value head of the model on one observation (a pass per env and step, settled at once)."""
+    with th.no_grad():
+        return float(model.policy.predict_values(model.policy.obs_to_tensor(obs)[0]).reshape(-1)[0])
+
+
+def q_of(model, obs) -> float:
+    with th.no_grad():
+        return float(model.q_net(model.policy.obs_to_tensor(obs)[0]).max())
+
+
+def ppo(env_id: str = "CartPole-v1", n_envs: int = 1) -> PPO:
+    from stable_baselines3.common.env_util import make_vec_env
+
+    env = make_vec_env(env_id, n_envs=n_envs, seed=0, env_kwargs={"max_episode_steps": 15})
+    return PPO("MlpPolicy", env, n_steps=64, batch_size=64, n_epochs=1, seed=0, policy_kwargs={"net_arch": [16]})
+
+
+def test_on_policy_values_come_from_the_algorithm_with_the_same_emotions() -> None:
+    """PPO values each observation before it acts: the callback makes no pass of its own after the first."""
+    th.set_num_threads(1)
+    passes = []
+    callback = BroekensCallback()
+    for observer in (None, callback):  # each model built right before it learns: the same seeded run
+        model = ppo(n_envs=2)
+        passes.append(Counting(model.policy.value_net))
+        model.learn(640, callback=observer)
+    log = callback.episode_log
+    truncated = int(log.goal_joy.isna().sum())
+    assert len(log) > 10 and truncated > 0  # episodes cut off by the time limit among them
+    # its own passes: the first observations, and the last observation of each truncated episode (as PPO's own)
+    assert passes[1].calls - passes[0].calls == 1 + truncated
+    # the same emotions as a value_fn that values every observation itself, at the step
+    reference = BroekensCallback(value_fn=critic_of)
+    ppo(n_envs=2).learn(640, callback=reference)
+    expected = reference.episode_log
+    pd.testing.assert_frame_equal(log, expected, rtol=1e-5)
+
+
+def test_a_small_discrete_space_is_valued_once_per_update_with_the_same_emotions() -> None:
+    th.set_num_threads(1)
+
+    def dqn() -> DQN:
+        return DQN("MlpPolicy", gym.make("FrozenLake-v1"), learning_starts=50, seed=0, policy_kwargs={"net_arch": [16]})
+
+    passes = []
+    callback = BroekensCallback()
+    for observer in (None, callback):
+        model = dqn()
+        passes.append(Counting(model.q_net))
+        model.learn(600, callback=observer)
+    assert 0 < passes[1].calls - passes[0].calls <= model._n_updates + 1  # a pass per update at most, not per step
+    reference = BroekensCallback(value_fn=q_of)
+    dqn().learn(600, callback=reference)
+    assert len(callback.episode_log) > 10
+    pd.testing.assert_frame_equal(callback.episode_log, reference.episode_log, rtol=1e-5)

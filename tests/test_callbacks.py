@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import gymnasium as gym
@@ -112,3 +113,23 @@ def test_no_goal_ever_seen_warns_once_saying_how_to_pass_goal() -> None:
     assert len([w for w in record if "reached the goal" in str(w.message)]) == 1
     with pytest.raises(ValueError, match="warn_after=0 must be an integer >= 1"):
         EmotionCallback(warn_after=0)
+
+
+def test_the_hooks_drive_an_agent_of_ones_own_with_no_sb3_model() -> None:
+    """A corridor 0 - 1 - ... - 5 (the goal at 5) walked by a user's own loop through the documented hooks alone."""
+    callback = EmotionCallback()
+    callback.bind(6)
+    walks = [[0, 1, 0, 1, 2, 3, 4, 5], [0, 1, 2, 3, 4, 5]]  # a detour of 7 moves, then the shortest path of 5
+    felt, results = [], []
+    for walk in walks:
+        callback.begin_episode()
+        for s, s2 in itertools.pairwise(walk):
+            felt.append(callback.feel(s))
+            assert callback.emotion == felt[-1]  # what an agent reads to steer its next decision
+            callback.observe(s, s2, s2 == 5)
+        results.append(callback.end_episode(True))
+    (first_counts, first_norm), (counts, norm) = results
+    assert first_counts == [7, 0, 0, 0] and first_norm != first_norm  # nothing to appraise yet: joy, no norm
+    # then norm 7 (the first episode), act 5 (the known path): act < norm and exp1 = 7 > act: anger at every step
+    assert norm == 7.0 and counts == [0, 0, 0, 5] and felt[7:] == [Emotion.ANGER] * 5
+    assert callback.appraiser is not None and callback.appraiser.known.goals == {5}

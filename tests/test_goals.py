@@ -108,3 +108,30 @@ def test_a_user_goal_test_is_used_and_validated() -> None:
     assert len(seen) == 2 * terminations  # asked for the transition and for the episode's end
     assert model.emotion_callback is not None and model.emotion_callback.appraiser is not None
     assert model.emotion_callback.appraiser.known.goals == set()
+
+
+def test_affectq_warns_once_when_no_goal_is_ever_known_naming_the_goal_option() -> None:
+    """CliffWalking's goal gives reward -1: by default no termination is a goal, so the appraisal can only give joy."""
+    model = AffectQ("Grid", gym.make("CliffWalking-v1", max_episode_steps=50), seed=0,
+                    emotion_callback=EmotionCallback(warn_after=5))
+    message = r"AffectQ: none of the first 5 episodes reached the goal.*pass AffectQ\(\.\.\., emotion_callback=Emotion"
+    message += r"Callback\(goal="
+    with pytest.warns(RuntimeWarning, match=message) as record:
+        model.learn(100_000, callback=StopTrainingOnMaxEpisodes(12))
+    assert model.engine_used == "python" and len([w for w in record if "reached the goal" in str(w.message)]) == 1
+
+
+def test_affectq_on_the_compiled_engine_warns_after_the_run_and_not_once_the_goal_is_known() -> None:
+    import warnings
+
+    far = gym.make("sb3_affect/GridPursuit-v0", size=6, goal=(5, 5), max_episode_steps=3)  # cut off before the goal
+    model = AffectQ("Grid", far, seed=0, emotion_callback=EmotionCallback(warn_after=5))
+    with pytest.warns(RuntimeWarning, match=r"AffectQ: none of the first \d+ episodes reached the goal"):
+        model.learn(60)
+    assert model.engine_used == "compiled" and len(model.episode_log) >= 5
+    near = AffectQ("Grid", gym.make("sb3_affect/GridPursuit-v0", size=4, goal=(1, 1)), seed=0,
+                   emotion_callback=EmotionCallback(warn_after=1))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        near.learn(2000)
+    assert near.engine_used == "compiled"

@@ -151,3 +151,28 @@ def test_logger_without_outputs_receives_sb3s_keys(model_class) -> None:
     assert 0 < values["time/total_timesteps"] <= model.num_timesteps
     assert 0 < values["rollout/ep_rew_mean"] <= 100.0  # the goal's 100, or 0 for an episode the cap truncated
     assert "rollout/exploration_rate" in values and "train/learning_rate" in values
+
+
+def test_the_engine_a_learn_ran_on_is_an_attribute_a_logger_key_and_said_once(tmp_path, capsys) -> None:
+    import pandas as pd
+    from stable_baselines3.common.callbacks import BaseCallback
+
+    from sb3_affect import QLearning
+
+    class EveryDecision(BaseCallback):  # called after each decision: the kernel can not run it
+        def _on_step(self) -> bool:
+            return True
+
+    model = QLearning("Grid", gym.make("sb3_affect/GridPursuit-v0", size=5, goal=(2, 3)), seed=0, verbose=1)
+    assert model.engine_used is None
+    model.set_logger(configure(str(tmp_path), ["csv", "stdout"]))
+    model.learn(300, log_interval=1)
+    model.learn(300, log_interval=1, reset_num_timesteps=False)
+    out = capsys.readouterr().out
+    assert model.engine_used == "compiled" and out.count("QLearning.learn runs on the compiled engine") == 1
+    model.learn(300, callback=EveryDecision(), log_interval=1, reset_num_timesteps=False)
+    out = capsys.readouterr().out
+    assert model.engine_used == "python"
+    assert out.count("QLearning.learn runs the Python loop (the callback EveryDecision is called after every") == 1, out
+    engines = pd.read_csv(tmp_path / "progress.csv")["train/engine"]
+    assert engines.notna().all() and set(engines) == {"compiled", "python"} and engines.iloc[-1] == "python"

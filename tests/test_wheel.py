@@ -116,6 +116,9 @@ for cls in (QLearning, AffectQ):
     assert (loaded.q_table == model.q_table).all()
     action, _ = loaded.predict(np.array([0]), deterministic=True)
     print(cls.__name__, "ok", int(action[0]))
+# SB3's progress bar (tqdm and rich come with the plugin)
+QLearning("Grid", gym.make("FrozenLake-v1"), seed=0, engine="python").learn(200, progress_bar=True)
+print("progress bar ok")
 emotions, broekens = EmotionCallback(), BroekensCallback()
 DQN("MlpPolicy", "FrozenLake-v1", learning_starts=10, seed=0).learn(300, callback=[emotions, broekens])
 print("callbacks", len(emotions.episode_log), len(broekens.episode_log))
@@ -131,7 +134,7 @@ def test_core_wheel_learns_saves_loads_predicts_and_observes_dqn(core: Path, tmp
     result = run(core, ["-c", CORE_SCRIPT], tmp_path)
     assert result.returncode == 0, result.stderr
     out = result.stdout
-    assert "QLearning ok" in out and "AffectQ ok" in out
+    assert "QLearning ok" in out and "AffectQ ok" in out and "progress bar ok" in out
     emotions, broekens = map(int, re.search(r"callbacks (\d+) (\d+)", out).groups())  # type: ignore[union-attr]
     assert emotions > 0 and broekens > 0
     assert "installed []" in out and "imported []" in out, out
@@ -143,6 +146,11 @@ def test_core_wheel_names_the_extra_a_study_command_needs(core: Path, tmp_path: 
         assert result.returncode == 2, result.stderr
         lines = result.stderr.strip().splitlines()
         assert len(lines) == 1 and f'pip install "sb3-affect[{extra}]"' in lines[0], result.stderr
+    zoo = ["-m", "sb3_affect.integrations.zoo", "train", "--algo", "affectq", "--env", "FrozenLake-v1"]
+    result = run(core, zoo, tmp_path)
+    assert result.returncode == 2, result.stderr
+    assert result.stderr.strip() == ("python -m sb3_affect.integrations.zoo: error: the rl-zoo3 recipe needs the 'zoo' "
+                                     'extra (missing: rl_zoo3, huggingface_sb3): pip install "sb3-affect[zoo]"')
 
 
 def test_wheel_runs_shipped_sweeps_by_name_and_by_their_source_path(full: Path, tmp_path: Path) -> None:

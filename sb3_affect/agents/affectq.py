@@ -174,7 +174,12 @@ class AffectQ(TabularQAlgorithm):
         :param progress_bar: show a progress bar (tqdm and rich)
         :return: the trained model
         """
-        return super().learn(total_timesteps, callback, log_interval, tb_log_name, reset_num_timesteps, progress_bar)
+        before = 0 if reset_num_timesteps else self._episode_num  # SB3 counts the episodes of a new run from 0
+        super().learn(total_timesteps, callback, log_interval, tb_log_name, reset_num_timesteps, progress_bar)
+        if self.engine_used == "compiled":  # the kernel ran the episodes: the hook that counts them was not called
+            assert self.emotion_callback is not None
+            self.emotion_callback.count_episodes(self._episode_num - before, reached_goal=False)
+        return self
 
     def _start_learn(
         self,

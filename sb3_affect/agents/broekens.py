@@ -23,6 +23,14 @@ watch any SB3 run:
 * Logged: the means per step of each emotion over an episode, then their means over the last episodes (the
   algorithm's stats window, as SB3 logs ``rollout/ep_rew_mean``).
 
+What a step costs: no forward pass where the algorithm already has the values, one batched pass otherwise. An
+on-policy algorithm (PPO, A2C, TRPO, MaskablePPO, RecurrentPPO) values each observation before it acts on it and the
+last one of a rollout before it learns: the callback settles a step when the algorithm has valued the state it
+reached, one step later (the episode log is complete at the end of ``learn``). On a ``Discrete`` observation space of at
+most ``VALUE_TABLE_STATES`` states, SB3's and sb3-contrib's other algorithms are valued in all states at once, and again
+only after their next update (their ``train`` counts the updates). Otherwise every step is one batched pass over the
+VecEnv's observations; a ``value_fn`` is called once per env and step.
+
 The paper's experiments are not reproduced: the package has no stored source for their learner or any further
 scaling, so only the definitions above are used.
 """
@@ -31,16 +39,17 @@ from __future__ import annotations
 
 import csv
 import math
-from collections import deque
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 import torch as th
+from gymnasium import spaces
 from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
 
-from sb3_affect.agents.callbacks import check_step_locals, logger_file_folder
+from sb3_affect.agents.callbacks import WindowMeans, check_step_locals, logger_file_folder
 from sb3_affect.core.positions import Position, PositionSpec, check_position, make_position
 
 if TYPE_CHECKING:
@@ -80,14 +89,16 @@ def critic_value(model: Any, obs: Any) -> float:
 
 #: How a model's values are read (``value_kind``).
 VALUE_KINDS = ("tabular", "q_net", "quantile_net", "value_head", "recurrent", "critic")
+#: A ``Discrete`` observation space of at most this many states is valued in all its states at once (one batched pass
+#: per update of the algorithm) instead of once per step.
+VALUE_TABLE_STATES = 256
 
 
 def value_kind(model: Any) -> str:
     """Which of ``VALUE_KINDS`` gives the state value of ``model``; a TypeError naming the fix when none does."""
-    from sb3_affect.agents.tabular import TabularQAlgorithm
-
     policy = getattr(model, "policy", None)
-    if isinstance(model, TabularQAlgorithm):
+    # the package's tabular agents, known by their base class's name: a user's DQN run never imports them
+    if any(cls.__name__ == "TabularQAlgorithm" and cls.__module__.startswith("sb3_affect.") for cls in type(model).__mro__):
         return "tabular"
     if hasattr(model, "q_net"):
         return "q_net"
@@ -113,7 +124,8 @@ def _model_values(model: Any, kind: str, obs: Any, lstm: Any = None, starts: Any
         return np.array([max(table[int(cell)]) for cell in cells], dtype=float)
     policy = model.policy
     training = policy.training
-    policy.set_training_mode(False)  # batch norm (CrossQ) and dropout: evaluate, never update
+    if training:  # batch norm (CrossQ) and dropout: evaluate, never update (SB3 collects in evaluation mode already)
+        policy.set_training_mode(False)
     try:
         with th.no_grad():
             tensor, _ = policy.obs_to_tensor(obs)
@@ -133,8 +145,22 @@ def _model_values(model: Any, kind: str, obs: Any, lstm: Any = None, starts: Any
                 else:  # TQC: (batch, critics, quantiles)
                     values = out.reshape(len(out), -1).mean(dim=1)
     finally:
-        policy.set_training_mode(training)
-    return values.reshape(-1).cpu().numpy().astype(float)
+        if training:
+            policy.set_training_mode(True)
+    return _as_floats(values)
+
+
+def _as_floats(values: Any) -> np.ndarray:
+    """Values (one per env, a tensor or an array) as a float64 array."""
+    if isinstance(values, th.Tensor):
+        values = values.cpu().numpy()
+    return np.asarray(values, dtype=float).reshape(-1)
+
+
+def _versioned_updates(model: Any) -> bool:
+    """Whether ``model``'s parameters change only in a ``train`` of SB3 or sb3-contrib, which counts its updates."""
+    train = getattr(type(model), "train", None)
+    return getattr(train, "__module__", "").startswith(("stable_baselines3.", "sb3_contrib."))
 
 
 def _batch_of_one(obs: Any) -> Any:
@@ -149,6 +175,18 @@ def _row(obs: Any, index: int) -> Any:
     if isinstance(obs, dict):
         return {key: np.asarray(value)[index : index + 1] for key, value in obs.items()}
     return np.asarray(obs)[index : index + 1]
+
+
+class _Step(NamedTuple):
+    """What one step of the VecEnv gave, kept until the values of the observations it reached are known."""
+
+    dones: list[bool]
+    rewards: list[float]
+    cut: dict[int, float | None]  # truncated env -> V of its episode's last observation (None: no such observation)
+    new_obs: Any
+    done_array: np.ndarray
+    cell_rewards: list[float] | None
+    cells: list[int] | None  # each env's cell after the step (``position=``), None without a position
 
 
 class BroekensCallback(BaseCallback):
@@ -193,19 +231,35 @@ class BroekensCallback(BaseCallback):
         self.rows: list[list[Any]] = []
         self._kind = "user"
         self._gamma = 1.0
-        self._v = np.zeros(1)
-        self._sums = np.zeros((1, 4))
-        self._steps = np.zeros(1, dtype=np.int64)
-        self._reward = np.zeros(1)
-        self._window: deque[list[float]] = deque(maxlen=100)
+        # per env: V of its current state, the emotions' sums, steps and reward of its episode in progress
+        self._v: list[float] = [0.0]
+        self._sums: list[list[float]] = [[0.0] * 4]
+        self._steps: list[int] = [0]
+        self._reward: list[float] = [0.0]
+        self._window = WindowMeans(len(BROEKENS_EMOTIONS))
         self._csv_path: Path | None = None
         self._position: Position | None = None
         self._cells: list[int] = []
         self._cell_sums: dict[int, np.ndarray] = {}  # cell -> [steps, joy, distress, hope, fear] summed
+        # where the values come from (see the module docstring): the algorithm's own (on-policy), a table of all states
+        self._settle_later = False
+        self._pending: _Step | None = None
+        self._seen_values: Any = None
+        self._table_states = self._table_start = 0
+        self._table: np.ndarray | None = None
+        self._table_version: int | None = None
 
     def _init_callback(self) -> None:
-        self._kind = "user" if self.value_fn is not None else value_kind(self.model)
-        self._gamma = float(self.gamma if self.gamma is not None else getattr(self.model, "gamma", 1.0))
+        model = self.model
+        self._kind = "user" if self.value_fn is not None else value_kind(model)
+        self._gamma = float(self.gamma if self.gamma is not None else getattr(model, "gamma", 1.0))
+        self._settle_later = self._kind in ("value_head", "recurrent") and isinstance(model, OnPolicyAlgorithm)
+        space = model.observation_space
+        tabled = self._kind in ("q_net", "quantile_net", "value_head", "critic") and _versioned_updates(model)
+        small = isinstance(space, spaces.Discrete) and int(space.n) <= VALUE_TABLE_STATES
+        self._table_states = int(space.n) if tabled and small else 0  # type: ignore[attr-defined]
+        self._table_start = int(space.start) if self._table_states else 0  # type: ignore[attr-defined]
+        self._table = None
 
     # -- values ------------------------------------------------------------------------------------------------
     def _values(self, obs: Any, dones: np.ndarray | None = None) -> np.ndarray:
@@ -214,10 +268,21 @@ class BroekensCallback(BaseCallback):
             assert self.value_fn is not None
             n = len(next(iter(obs.values()))) if isinstance(obs, dict) else len(np.asarray(obs))
             return np.array([float(self.value_fn(self.model, _row(obs, i))) for i in range(n)])
+        if self._table_states:
+            return self._value_table()[np.asarray(obs).reshape(-1) - self._table_start]
         lstm = starts = None
         if self._kind == "recurrent":
             lstm, starts = self._recurrent_inputs(dones)
         return _model_values(self.model, self._kind, obs, lstm, starts)
+
+    def _value_table(self) -> np.ndarray:
+        """``V`` of every state of a small Discrete space, valued again after each update of the algorithm."""
+        version = int(self.model._n_updates)
+        if self._table is None or version != self._table_version:
+            start = self._table_start
+            self._table = _model_values(self.model, self._kind, np.arange(start, start + self._table_states))
+            self._table_version = version
+        return self._table
 
     def _recurrent_inputs(self, dones: np.ndarray | None, index: int | None = None) -> tuple[Any, th.Tensor]:
         """RecurrentPPO's value-LSTM states for the next observation (``index``: one env's, for its last observation)."""
@@ -236,6 +301,8 @@ class BroekensCallback(BaseCallback):
     def _terminal_value(self, terminal_obs: Any, index: int) -> float:
         """``V`` of the last observation of a truncated episode of env ``index``."""
         batch = _batch_of_one(terminal_obs)
+        if self._table_states:
+            return float(self._values(batch)[0])
         if self._kind == "user":
             assert self.value_fn is not None
             return float(self.value_fn(self.model, batch))
@@ -250,12 +317,13 @@ class BroekensCallback(BaseCallback):
         if last_obs is None:
             raise RuntimeError("BroekensCallback: the algorithm has no current observation at training start")
         n = self.training_env.num_envs
-        self._v = self._values(last_obs)
-        self._sums = np.zeros((n, 4))
-        self._steps = np.zeros(n, dtype=np.int64)
-        self._reward = np.zeros(n)
-        self._window = deque(self._window, maxlen=int(getattr(self.model, "_stats_window_size", 100)))
+        self._v = self._values(last_obs).tolist()
+        self._sums = [[0.0] * 4 for _ in range(n)]
+        self._steps = [0] * n
+        self._reward = [0.0] * n
+        self._window = self._window.resized(int(getattr(self.model, "_stats_window_size", 100)))
         self._csv_path = self._episode_csv()
+        self._pending = None
         if self.position is not None:
             self._position = make_position(self.position, self.model.observation_space)
             assert self._position is not None
@@ -268,72 +336,110 @@ class BroekensCallback(BaseCallback):
 
     def _on_step(self) -> bool:
         check_step_locals(self)
-        dones = np.asarray(self.locals["dones"], dtype=bool).reshape(-1)
-        rewards = np.asarray(self.locals["rewards"], dtype=float).reshape(-1)
-        infos = self.locals["infos"]
-        new_obs = self.locals["new_obs"]
-        cell_rewards = self.locals.get("cell_rewards")  # the package's tabular agents: this decision's cells
+        locals_ = self.locals
+        dones = np.asarray(locals_["dones"], dtype=bool).reshape(-1)
+        new_obs = locals_["new_obs"]
+        cell_rewards = locals_.get("cell_rewards")  # the package's tabular agents: this decision's cells
         if cell_rewards is not None and len(cell_rewards) == 0:  # a wait: no transition, no update, no emotion
             if dones[0]:  # the decision cap fell on a wait: the episode ends all the same
                 self._close_episode(0, math.nan)
-                self._v[0] = self._values(new_obs, dones)[0]
+                self._v[0] = float(self._values(new_obs, dones)[0])
             return True
-        new_values = self._values(new_obs, dones)
-        new_cells = None if self._position is None else self._position.cells(self.training_env, new_obs, infos)
-        for i in range(len(dones)):
-            done = bool(dones[i])
+        infos = locals_["infos"]
+        # truncated envs -> V of their last observation, valued now (RecurrentPPO's: with this step's LSTM states)
+        cut: dict[int, float | None] = {}
+        for i in np.flatnonzero(dones).tolist():
             info = infos[i]
-            truncated = done and bool(info.get("TimeLimit.truncated", False))
-            if done and not truncated:
-                reached = 0.0  # a terminal state anticipates nothing
-            elif done:
+            if info.get("TimeLimit.truncated", False):
                 terminal = info.get("terminal_observation")
-                reached = float(new_values[i]) if terminal is None else self._terminal_value(terminal, i)
-            else:
-                reached = float(new_values[i])
-            delta = self._return(float(rewards[i]), reached, cell_rewards) - self._v[i]
-            joy, distress = max(delta, 0.0), max(-delta, 0.0)
-            felt = (joy, distress, max(reached, 0.0), max(-reached, 0.0))
-            self._sums[i] += felt
-            if new_cells is not None:
-                sums = self._cell_sums.setdefault(self._cells[i], np.zeros(5))
-                sums[0] += 1
-                sums[1:] += felt
-                self._cells[i] = new_cells[i]
-            self._steps[i] += 1
-            self._reward[i] += float(rewards[i])
-            if done:
-                self._close_episode(i, joy if not truncated else math.nan)
-                self._v[i] = new_values[i]  # the first state of the next episode
-            else:
-                self._v[i] = reached
+                cut[i] = None if terminal is None else self._terminal_value(terminal, i)
+        rewards = np.asarray(locals_["rewards"], dtype=float).reshape(-1).tolist()
+        cells = None if self._position is None else self._position.cells(self.training_env, new_obs, infos)
+        step = _Step(dones.tolist(), rewards, cut, new_obs, dones, cell_rewards, cells)
+        if not self._settle_later:
+            self._settle(step, self._values(new_obs, dones))
+            return True
+        values = locals_.get("values")  # the algorithm's values of the states the previous step reached
+        if values is None:  # an algorithm that does not show them: value each step here from now on
+            self._settle_pending()
+            self._settle_later = False
+            self._settle(step, self._values(new_obs, dones))
+            return True
+        if self._pending is not None:
+            self._settle(self._pending, _as_floats(values))
+        self._pending, self._seen_values = step, values
         return True
 
-    def _return(self, reward: float, reached: float, cell_rewards: list[float] | None) -> float:
-        """What the step earned, discounted as the learner discounts it: ``r + gamma V(s')`` for one env step."""
+    def _settle_pending(self) -> None:
+        """Settle the last step: with the values the algorithm gave its rollout's last observations, else its own."""
+        step = self._pending
+        if step is None:
+            return
+        values = self.locals.get("values") if self.locals else None
+        fresh = values is not None and values is not self._seen_values
+        self._settle(step, _as_floats(values) if fresh else self._values(step.new_obs, step.done_array))
+        self._pending = None
+
+    def _settle(self, step: _Step, new_values: np.ndarray) -> None:
+        """The emotions of one step of each env, with ``new_values``, ``V`` of the observations it reached."""
+        values = new_values.tolist()
+        rewards, cut, v, sums, gamma = step.rewards, step.cut, self._v, self._sums, self._gamma
+        for i, done in enumerate(step.dones):
+            truncated = done and i in cut
+            if done and not truncated:
+                reached = 0.0  # a terminal state anticipates nothing
+            else:
+                terminal = cut.get(i) if truncated else None
+                reached = values[i] if terminal is None else terminal
+            if step.cell_rewards is None:  # one env step: r + gamma V(s')
+                delta = rewards[i] + gamma * reached - v[i]
+            else:
+                delta = self._return(reached, step.cell_rewards) - v[i]
+            joy = delta if delta > 0.0 else 0.0
+            row = sums[i]
+            row[0] += joy
+            row[1] += 0.0 if delta > 0.0 else -delta
+            row[2 if reached > 0.0 else 3] += abs(reached)
+            if step.cells is not None:  # the step's emotions, felt in the cell it was taken in
+                felt = (joy, 0.0 if delta > 0.0 else -delta, max(reached, 0.0), max(-reached, 0.0))
+                cell_sums = self._cell_sums.setdefault(self._cells[i], np.zeros(5))
+                cell_sums[0] += 1
+                cell_sums[1:] += felt
+                self._cells[i] = step.cells[i]
+            self._steps[i] += 1
+            self._reward[i] += rewards[i]
+            if done:
+                self._close_episode(i, joy if not truncated else math.nan)
+                v[i] = values[i]  # the first state of the next episode
+            else:
+                v[i] = reached
+
+    def _return(self, reached: float, cell_rewards: list[float]) -> float:
+        """What a decision of the package's agents earned, discounted as the learner discounts it."""
         gamma = self._gamma
-        if cell_rewards is None or len(cell_rewards) == 1 or getattr(self.model, "multi_cell", None) == "jump":
-            total = reward if cell_rewards is None else float(sum(cell_rewards))
-            return total + gamma * reached
+        if len(cell_rewards) == 1 or getattr(self.model, "multi_cell", None) == "jump":
+            return float(sum(cell_rewards)) + gamma * reached
         discounted = sum(r * gamma**j for j, r in enumerate(cell_rewards))  # one Eq. 1 update per cell
         return discounted + gamma ** len(cell_rewards) * reached
 
     def _on_rollout_end(self) -> None:
+        self._settle_pending()
         self._record_window()
 
     def _on_training_end(self) -> None:
+        self._settle_pending()
         self._record_window()
 
     def _record_window(self) -> None:
-        if self._window:
-            means = np.asarray(self._window, dtype=float).mean(axis=0)
-            for name, value in zip(BROEKENS_EMOTIONS, means):
-                self.logger.record(self.prefix + name, float(value))
+        record = self.logger.record
+        for name, mean in zip(BROEKENS_EMOTIONS, self._window.means()):
+            if mean == mean:  # NaN: no episode in the window yet
+                record(self.prefix + name, mean)
 
     def _close_episode(self, index: int, goal_joy: float) -> None:
-        steps = int(self._steps[index])
-        means = (self._sums[index] / steps).tolist() if steps else [math.nan] * 4
-        row = [len(self.rows) + 1, steps, float(self._reward[index]), *means, goal_joy, index]
+        steps = self._steps[index]
+        means = [total / steps for total in self._sums[index]] if steps else [math.nan] * 4
+        row = [len(self.rows) + 1, steps, self._reward[index], *means, goal_joy, index]
         self.rows.append(row)
         self._window.append(means)
         self._record_window()
@@ -345,7 +451,7 @@ class BroekensCallback(BaseCallback):
                 if new:
                     writer.writerow(BROEKENS_COLUMNS)
                 writer.writerow(row)
-        self._sums[index] = 0.0
+        self._sums[index] = [0.0] * 4
         self._steps[index] = 0
         self._reward[index] = 0.0
 

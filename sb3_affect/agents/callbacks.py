@@ -21,7 +21,9 @@ two ways:
       callback.end_episode(reached_goal)      # at the end of an episode (then begin_episode() for the next)
 
   ``feel`` is called exactly once per decision and counts it (the appraisal of a decision sees the decisions
-  before it).
+  before it). Call ``bind(n_states)`` first; the hooks need no SB3 model, so an agent of your own can drive them
+  the same way. ``callback.emotion`` is the emotion of the next decision (what ``feel`` last returned; in observer
+  mode, the one felt for the next decision of the env last updated).
 
   and uses the returned emotion to look up direction and speed in its behaviour table (Table III). Swap the
   appraisal by passing your own ``Appraiser`` subclass, or the emotion rule by passing ``emotion_rule``.
@@ -103,7 +105,9 @@ class EmotionCallback(BaseCallback):
         self.appraiser: Appraiser | None = appraiser
         if appraiser is None:
             Appraiser(1, act=act, units=units)  # validate the options now, with a clear error
+        #: the emotion of the next decision (what ``feel`` returned last), what an agent reads to steer
         self.emotion: Emotion = Emotion.JOY
+        #: the emotion counts of the episode in progress (joy, sadness, fear, anger)
         self.counts = [0, 0, 0, 0]
         self.rows: list[list[Any]] = []
         self.episode_log_path = episode_log_path
@@ -113,8 +117,7 @@ class EmotionCallback(BaseCallback):
         #: set by an agent that repeats actions before each step: which envs' decisions end with it (None: all)
         self.decision_ends: np.ndarray | None = None
         self._lanes: list[_Lane] = []
-        self._window: deque[list[float]] = deque(maxlen=100)
-        self._means: list[tuple[str, float]] | None = None  # the window's means, until it changes
+        self._window = WindowMeans(len(EMOTION_NAMES) + 1)
         self._csv_path: Path | None = None
         self._episodes = self._goals = 0
         self._warned = False
@@ -177,11 +180,22 @@ class EmotionCallback(BaseCallback):
         self.appraiser.end_episode(reached_goal)
         counts = self.counts
         total = sum(counts)
-        if total and self.model is not None:  # per episode; SB3 records whenever a logger exists
+        model = getattr(self, "model", None)  # None: the hooks driven by an agent of the user's own
+        if total and model is not None:  # per episode; SB3 records whenever a logger exists
             for name, count in zip(EMOTION_NAMES, counts):
-                self.logger.record(f"affect/{name}", count / total)
-            self.logger.record("affect/norm", norm if norm == norm else 0.0)
+                model.logger.record(f"affect/{name}", count / total)
+            model.logger.record("affect/norm", norm if norm == norm else 0.0)
+        self.count_episodes(1, reached_goal)
         return counts, norm
+
+    def count_episodes(self, episodes: int, reached_goal: bool) -> None:
+        """
+        ``episodes`` more ended (``reached_goal``: one of them reached the goal): warn once when ``warn_after`` have
+        ended and the appraisal knows no goal (``end_episode`` calls it; AffectQ's compiled engine after a run).
+        """
+        self._episodes += episodes
+        self._goals += int(reached_goal)
+        self._warn_if_degenerate()
 
     @property
     def norm(self) -> float:
@@ -194,8 +208,7 @@ class EmotionCallback(BaseCallback):
             raise RuntimeError("EmotionCallback: the algorithm has no current observation at training start")
         n_envs = self.training_env.num_envs
         self._geometry = self._find_geometry()
-        self._window = deque(maxlen=int(getattr(self.model, "_stats_window_size", 100)))
-        self._means = None
+        self._window = WindowMeans(len(EMOTION_NAMES) + 1, int(getattr(self.model, "_stats_window_size", 100)))
         self._csv_path = self._episode_csv()
         # one lane per env: its own appraisal (env 0 keeps the callback's appraiser), counts and episode in progress
         assert self.appraiser is not None
@@ -242,8 +255,8 @@ class EmotionCallback(BaseCallback):
 
     def _on_step(self) -> bool:
         check_step_locals(self)
-        dones = np.asarray(self.locals["dones"]).reshape(-1)
-        rewards = np.asarray(self.locals["rewards"], dtype=float).reshape(-1)
+        dones = np.asarray(self.locals["dones"]).reshape(-1).tolist()
+        rewards = np.asarray(self.locals["rewards"], dtype=float).reshape(-1).tolist()
         infos = self.locals["infos"]
         new_obs = self.locals["new_obs"]
         position = self._position
@@ -253,7 +266,7 @@ class EmotionCallback(BaseCallback):
         for index, lane in enumerate(self._lanes):
             done = bool(dones[index])
             info = infos[index]
-            reward = float(rewards[index])
+            reward = rewards[index]
             truncated = done and bool(info.get("TimeLimit.truncated", False))
             terminated = done and not truncated
             reached_goal = terminated and bool(self.goal(reward, info))
@@ -284,18 +297,10 @@ class EmotionCallback(BaseCallback):
 
     def _record_window(self) -> None:
         """``affect/*``: means over the last episodes (the stats window), as SB3 logs ``rollout/ep_rew_mean``."""
-        if not self._window:
-            return
-        if self._means is None:  # computed once per change of the window (an episode's end), recorded at every call
-            profiles = np.asarray(self._window, dtype=float)
-            self._means = []
-            for column, name in enumerate((*EMOTION_NAMES, "norm")):
-                values = profiles[:, column]
-                values = values[~np.isnan(values)]
-                if len(values):
-                    self._means.append((f"affect/{name}", float(values.mean())))
-        for key, value in self._means:
-            self.logger.record(key, value)
+        record = self.logger.record
+        for name, mean in zip((*EMOTION_NAMES, "norm"), self._window.means()):
+            if mean == mean:  # NaN: no episode (with a norm) in the window yet
+                record(f"affect/{name}", mean)
 
     def _close_lane(self, index: int, lane: _Lane, terminated: bool, truncated: bool, reached_goal: bool) -> None:
         appraiser = lane.appraiser
@@ -305,7 +310,6 @@ class EmotionCallback(BaseCallback):
         self.counts = counts
         total = sum(counts)
         self._window.append([*(c / total for c in counts), norm])
-        self._means = None
         self._record_window()
         self._episodes += 1
         self._goals += int(reached_goal)
@@ -326,14 +330,20 @@ class EmotionCallback(BaseCallback):
     def _warn_if_degenerate(self) -> None:
         if self._warned or self._goals or self.warn_after is None or self._episodes < self.warn_after:
             return
+        if self._lanes == [] and self.appraiser is not None and _knows_a_goal(self.appraiser):
+            return  # driven by an agent whose appraisal learnt the goal before (an earlier learn, a loaded model)
         self._warned = True
+        model = getattr(self, "model", None)
+        driver = type(model).__name__ if model is not None and getattr(model, "emotion_callback", None) is self else ""
+        option = "EmotionCallback(goal=lambda reward, info: ...)"
+        where = f"{driver}(..., emotion_callback={option})" if driver else option
         warnings.warn(
-            f"EmotionCallback: none of the first {self._episodes} episodes reached the goal, so the appraisal knows no "
-            "distance to it (act) and Table II can only give joy (or fear under comparison='valence'). If this env's "
-            "success is not 'terminated with a reward > 0' (or info['is_success']), pass "
-            "EmotionCallback(goal=lambda reward, info: ...) (see sb3_affect.core.goals, e.g. every_termination)",
+            f"{driver or 'EmotionCallback'}: none of the first {self._episodes} episodes reached the goal, so the "
+            "appraisal knows no distance to it (act) and Table II can only give joy (or fear under "
+            "comparison='valence'). If this env's success is not 'terminated with a reward > 0' (or "
+            f"info['is_success']), pass {where} (see sb3_affect.core.goals, e.g. every_termination)",
             RuntimeWarning,
-            stacklevel=2,
+            stacklevel=3,
         )
 
     def _episode_csv(self) -> Path | None:
@@ -361,6 +371,13 @@ class EmotionCallback(BaseCallback):
         return frame
 
 
+def _knows_a_goal(appraiser: Appraiser) -> bool:
+    """Whether the appraiser's known map has a goal (the compiled engine's map is read without building it)."""
+    kept = appraiser.deferred("known")
+    goal = getattr(kept, "goal", None)
+    return bool(np.any(goal)) if goal is not None else bool(appraiser.known.goals)
+
+
 class _Lane:
     """The observer's state for one env of the VecEnv: its appraisal, emotion counts and episode in progress."""
 
@@ -379,6 +396,53 @@ class _Lane:
         self.state = state
         self.decisions = self.cells = 0
         self.reward = 0.0
+
+
+class WindowMeans:
+    """
+    The mean of each column over the last ``size`` rows (an episode's figures each), NaN values left out, as the
+    callbacks log their keys over SB3's stats window. Running sums make a row and a read O(1); they are summed afresh
+    every ``size`` rows, so rounding never accumulates.
+    """
+
+    def __init__(self, columns: int, size: int = 100) -> None:
+        self.size = size
+        self.rows: deque[list[float]] = deque(maxlen=size)
+        self._sums = [0.0] * columns
+        self._counts = [0] * columns
+        self._added = 0
+
+    def __len__(self) -> int:
+        return len(self.rows)
+
+    def append(self, row: list[float]) -> None:
+        rows = self.rows
+        if len(rows) == self.size:
+            self._add(rows[0], -1)
+        rows.append(row)
+        self._added += 1
+        if self._added % self.size == 0:
+            self._sums = [math.fsum(value for value in column if value == value) for column in zip(*rows)]
+            self._counts = [sum(value == value for value in column) for column in zip(*rows)]
+        else:
+            self._add(row, 1)
+
+    def resized(self, size: int) -> WindowMeans:
+        """A window of ``size`` rows holding this one's last rows."""
+        window = WindowMeans(len(self._sums), size)
+        for row in self.rows:
+            window.append(row)
+        return window
+
+    def _add(self, row: list[float], sign: int) -> None:
+        for column, value in enumerate(row):
+            if value == value:
+                self._sums[column] += sign * value
+                self._counts[column] += sign
+
+    def means(self) -> list[float]:
+        """Each column's mean over the window (NaN for a column with no value in it)."""
+        return [total / count if count else math.nan for total, count in zip(self._sums, self._counts)]
 
 
 def check_step_locals(callback: BaseCallback) -> None:

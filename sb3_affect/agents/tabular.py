@@ -65,7 +65,9 @@ class TabularQAlgorithm(ModelFiles):
     :param device: torch device of the Q-table (``"cpu"`` is all a table needs)
     :param engine: ``"auto"`` (default: the compiled kernel where it applies, else the Python loop), ``"python"``
         (always the readable Python loop) or ``"compiled"`` (the kernel; an error says why when it can not apply).
-        Both give the same episode log and Q-table for the same seed (see ``sb3_affect.kernel``)
+        Both give the same episode log and Q-table for the same seed (see ``sb3_affect.kernel``). Which one the last
+        ``learn`` ran on: ``engine_used`` and the logger key ``train/engine`` (said once at ``verbose=1``, with why
+        ``"auto"`` ran the Python loop)
     :param tie_break: how greedy ties are broken while learning: ``"random"`` (uniformly, one random draw) or
         ``"first"`` (the lowest action, no draw)
     :param _init_setup_model: build the policy now (SB3 convention)
@@ -99,6 +101,9 @@ class TabularQAlgorithm(ModelFiles):
         self.engine, self.tie_break, self.gamma, self.q_init, max_episode_decisions = check_tabular(
             learning_rate, gamma, q_init, max_episode_decisions, engine, tie_break
         )
+        #: the engine the last ``learn`` ran on, ``"compiled"`` or ``"python"`` (None before the first)
+        self.engine_used: str | None = None
+        self._engine_reason = ""
         seed = check_seed(seed)
         self.max_episode_decisions = max_episode_decisions
         if env is not None and not isinstance(env, str):
@@ -156,7 +161,8 @@ class TabularQAlgorithm(ModelFiles):
             self._episode_blocks = EpisodeBlocks.from_rows(rows)
 
     def _excluded_save_params(self) -> list[str]:
-        return [*super()._excluded_save_params(), "_rng", "_q", "_tie_first", "_episode_blocks", "_warned_non_finite"]
+        return [*super()._excluded_save_params(), "_rng", "_q", "_tie_first", "_episode_blocks", "_warned_non_finite",
+                "_engine_said", "_engine_reason"]
 
     def set_random_seed(self, seed: int | None = None) -> None:
         """Seed Python, NumPy, torch, the action space, the env and the agent's own generator (SB3 convention)."""
@@ -264,6 +270,7 @@ class TabularQAlgorithm(ModelFiles):
         )
         env = self._single_env()
         plan = self._use_kernel(env, callback)
+        self._say_engine("compiled" if plan is not None else "python")
         try:
             if plan is not None:  # the kernel's table: an array (the Python loop makes a row the first time it visits a state)
                 from sb3_affect.agents.compiled import learn_compiled
@@ -346,14 +353,30 @@ class TabularQAlgorithm(ModelFiles):
         progress bar, or callbacks marked ``episode_level = True``) all allow it. Returns what the kernel runs (the
         settings and the kernel's agent: ``compiled.compiled_plan``), or None for the Python loop.
         """
-        if self.engine == "python" or not numba_usable(self.engine):
+        self._engine_reason = "engine='python'"
+        if self.engine == "python":
+            return None
+        if not numba_usable(self.engine):
+            self._engine_reason = "numba can not be imported"
             return None
         from sb3_affect.agents.compiled import compiled_plan
 
         plan = compiled_plan(self, env, callback)
         if isinstance(plan, str) and self.engine == "compiled":
             raise ValueError(f"engine='compiled' can not run this learn call: {plan}; use engine='auto' or 'python'")
-        return None if isinstance(plan, str) else plan
+        if isinstance(plan, str):
+            self._engine_reason = plan
+            return None
+        return plan
+
+    def _say_engine(self, engine: str) -> None:
+        """Set ``engine_used``, record ``train/engine``; at ``verbose >= 1`` say which engine runs (when it changes)."""
+        self.engine_used = engine
+        self.logger.record("train/engine", engine, exclude="tensorboard")
+        if self.verbose >= 1 and getattr(self, "_engine_said", None) != engine:
+            self._engine_said = engine
+            what = "on the compiled engine" if engine == "compiled" else f"the Python loop ({self._engine_reason})"
+            print(f"{type(self).__name__}.learn runs {what}")
 
     def _run_loop(
         self, env: Any, q: LoopTable, total_timesteps: int, callback: BaseCallback, log_interval: int | None
@@ -389,6 +412,8 @@ class TabularQAlgorithm(ModelFiles):
         record("time/total_timesteps", self.num_timesteps, exclude="tensorboard")
         record("train/learning_rate", self._alpha)
         record("train/n_updates", self.num_timesteps)
+        if self.engine_used is not None:
+            record("train/engine", self.engine_used, exclude="tensorboard")
         self.logger.dump(step=self.num_timesteps)
 
     # -- the Q-table -------------------------------------------------------------------------------------------

@@ -15,8 +15,8 @@ import warnings
 
 #: Extra name -> the modules it installs that the package imports (checked by ``require_extra``).
 EXTRAS: dict[str, tuple[str, ...]] = {
-    "experiments": ("yaml", "pydantic", "pyarrow", "tqdm"),
-    "report": ("yaml", "pydantic", "pyarrow", "tqdm", "matplotlib", "scipy", "markdown", "rliable", "lifelines",
+    "experiments": ("yaml", "pydantic", "pyarrow"),
+    "report": ("yaml", "pydantic", "pyarrow", "matplotlib", "scipy", "markdown", "rliable", "lifelines",
                "statsmodels", "adastop"),
     "hunters": ("pettingzoo",),
     "ray": ("ray",),

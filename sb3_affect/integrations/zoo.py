@@ -34,7 +34,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from sb3_affect.core.extras import require_extra
+from sb3_affect.core.extras import MissingExtraError, require_extra
 
 #: The hyperparameter files of the package's agents, one per algorithm (``<algo>.yml``).
 HYPERPARAMS_FOLDER = Path(__file__).with_name("zoo_hyperparams")
@@ -160,7 +160,11 @@ def main(argv: list[str] | None = None) -> None:
         commands = ",".join(COMMANDS)
         raise SystemExit(f"usage: python -m sb3_affect.integrations.zoo {{{commands}}} [the zoo command's arguments]")
     command, rest = args[0], args[1:]
-    register_with_zoo()
+    try:
+        register_with_zoo()
+    except MissingExtraError as error:  # one line naming the extra, as the sb3-affect command says it
+        print(f"python -m sb3_affect.integrations.zoo: error: {error}", file=sys.stderr)
+        raise SystemExit(2) from None
     algo = _algo(rest)
     if command == "train" and algo in ("qlearning", "affectq") and "--conf-file" not in rest and "-conf" not in rest:
         conf = HYPERPARAMS_FOLDER / f"{algo}.yml"
