@@ -18,6 +18,8 @@ from sb3_affect.study.report.output_files import cached_json, output_folder, rep
 
 #: Traced runs (seeds 0..SEEDS-1) of the paper's affective agent on the paper's task, and their episodes.
 SEEDS, EPISODES = 10, 200
+#: The traces' columns, by version: a cache of another version is traced again.
+TRACE_VERSION = 2
 LATE = (151, 200)
 
 
@@ -25,7 +27,8 @@ def traced(folder: Path, seeds: int = SEEDS, episodes: int = EPISODES) -> pd.Dat
     """The traced runs, from ``folder/episodes.csv`` when it holds the same size, else computed and written there."""
     folder = Path(folder)
     meta, table = folder / "meta.json", folder / "episodes.csv"
-    if table.exists() and cached_json(meta) == {"seeds": seeds, "episodes": episodes}:
+    wanted = {"seeds": seeds, "episodes": episodes, "version": TRACE_VERSION}
+    if table.exists() and cached_json(meta) == wanted:
         return pd.read_csv(table)
     from sb3_affect.study.report.joy_trace_runs import trace
 
@@ -33,7 +36,7 @@ def traced(folder: Path, seeds: int = SEEDS, episodes: int = EPISODES) -> pd.Dat
     output_folder(folder)
     with replacing(table) as tmp:
         frame.to_csv(tmp, index=False)
-    write_text(meta, json.dumps({"seeds": seeds, "episodes": episodes}))
+    write_text(meta, json.dumps(wanted))
     return frame
 
 
@@ -52,27 +55,29 @@ def summary(frame: pd.DataFrame) -> dict[str, float]:
         "late norm, median": float(late.norm.median()),
         "late decisions without crossing, median": float(late[late.joy == 0].decisions.median()),
         "first joy decision in crossing late episodes, median": float(crossing.first_joy.median()),
+        "act at the crossing in late episodes, median (cells)": float(crossing.act_at_first_joy.median()),
         "decisions of crossing late episodes, median": float(crossing.decisions.median()),
     }
 
 
 def norm_figure(frame: pd.DataFrame, path: Path, shortest: int | None) -> Path:
-    """The norm per episode (median over runs) and, for episodes that cross it, the decision of the first joy."""
+    """
+    The norm per episode (median over runs) and, for episodes that cross it, ``act`` at the first joy decision: both
+    in cells, the appraisal's units (Table II compares them).
+    """
     from sb3_affect.study.report.figures import plt, save
 
     fig, ax = plt.subplots(figsize=(7.0, 4.0))
     norm = frame.groupby("episode").norm.median()
-    ax.plot(norm.index, norm.to_numpy(), color="black", lw=1.8, label="norm (median over runs, cells)")
-    greedy = frame[frame.joy == 0].groupby("episode").decisions.median()
-    ax.plot(greedy.index, greedy.to_numpy(), color="tab:blue", lw=1, label="decisions of episodes without joy (median)")
+    ax.plot(norm.index, norm.to_numpy(), color="black", lw=1.8, label="norm (median over runs)")
     crossing = frame[frame.joy > 0]
-    label = "first joy decision (crossing episodes)"
-    ax.scatter(crossing.episode, crossing.first_joy, s=8, color="tab:red", alpha=0.5, label=label)
+    label = "act at the first joy decision (crossing episodes)"
+    ax.scatter(crossing.episode, crossing.act_at_first_joy, s=8, color="tab:red", alpha=0.5, label=label)
     if shortest:
         ax.axhline(shortest, color="grey", ls=":", lw=1, label=f"shortest path ({shortest} cells)")
     ax.set_yscale("log")
     ax.set_xlabel("episode")
-    ax.set_ylabel("cells or decisions (log scale)")
-    ax.set_title("Where episodes cross the norm")
+    ax.set_ylabel("cells (log scale)")
+    ax.set_title("Where episodes cross the norm: act against the norm, in cells")
     ax.legend(fontsize=7)
     return save(fig, path)

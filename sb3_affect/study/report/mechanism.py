@@ -159,11 +159,12 @@ def joy_section(ctx: ReportContext) -> None:
         "shortens the known remaining path. In episodes "
         f"{joy_trace.LATE[0]}-{joy_trace.LATE[1]}, {b['share of late episodes that cross the norm']:.1%} of the episodes "
         f"still cross the norm although Q has long converged: the norm has fallen to {sig(b['late norm, median'])} cells "
-        f"(median), barely above the shortest path, and the crossing comes at decision "
+        f"(median), barely above the shortest path, and the crossing comes when act reaches "
+        f"{sig(b['act at the crossing in late episodes, median (cells)'])} cells (median), at decision "
         f"{sig(b['first joy decision in crossing late episodes, median'])} (median) of an episode that without joy takes "
         f"{sig(b['late decisions without crossing, median'])} decisions: near the goal, once act has met a norm that "
         "leaves a greedy walk little room. From there joy turns the end of the episode into a random walk "
         f"({sig(b['decisions of crossing late episodes, median'])} decisions, median)."
     )
-    ctx.doc.img(path, "The norm per episode and, for the episodes that cross it, the decision at which joy starts")
+    ctx.doc.img(path, "The norm per episode and, for the episodes that cross it, act at the decision where joy starts (cells)")
 
