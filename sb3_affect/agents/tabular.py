@@ -291,10 +291,14 @@ class TabularQAlgorithm(ModelFiles):
     def _warn_non_finite(self) -> None:
         """Warn (once per model) when the Q-table holds NaN or infinite values: the env gave such rewards (or ones so
         large that their sums overflow), and every greedy choice over such a row is arbitrary."""
-        if getattr(self, "_warned_non_finite", False) or bool(th.isfinite(self.policy.q_table).all()):
+        if getattr(self, "_warned_non_finite", False):
+            return
+        values = self.policy.q_table.detach().numpy().reshape(-1)
+        block = 1 << 20  # a block at a time: torch's isfinite of a large table takes several copies of it
+        bad = sum(int(np.count_nonzero(~np.isfinite(values[i : i + block]))) for i in range(0, len(values), block))
+        if bad == 0:
             return
         self._warned_non_finite = True
-        bad = int((~th.isfinite(self.policy.q_table)).sum())
         warnings.warn(
             f"{type(self).__name__}: {bad:,} Q-values are NaN or infinite after learn: the env gave rewards that are NaN, "
             "infinite or large enough for their discounted sums to overflow (rewards within +-1e300 / (1 - gamma) fit)",
