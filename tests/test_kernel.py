@@ -186,6 +186,7 @@ def test_logger_output_is_the_python_engines(cls: type, tmp_path: Path) -> None:
         model.set_logger(configure(str(tmp_path / engine), ["csv"]))
         model.learn(3000, log_interval=3)
         rows.append(_csv_rows(tmp_path / engine))
+        assert {row.pop("train/engine") for row in rows[-1]} == {engine}  # the one key that says which engine ran
     assert len(rows[0]) >= 5 and rows[1] == rows[0]
 
 
