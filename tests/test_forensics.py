@@ -224,3 +224,18 @@ def test_self_check_recovers_the_candidate_that_printed_the_numbers(tmp_path: Pa
     assert run_units(SummaryStore(tmp_path / "f", TINY), units, workers=1, progress=False) == 0
     with pytest.raises(StoreError, match="another protocol"):
         SummaryStore(tmp_path / "f", dataclasses.replace(TINY, seeds=5))
+
+
+def test_the_sensitivity_row_gives_each_printed_number_beside_the_leaders_mean(tmp_path: Path) -> None:
+    from sb3_affect.study.forensics.section import leader_sensitivity_lines
+    from sb3_affect.study.forensics.statistics import STATISTICS
+
+    sample = pd.DataFrame({s: [1.0 + i, 3.0 + i] for i, s in enumerate(STATISTICS)})  # mean: 2 + i
+    sample.to_csv(tmp_path / "sample_top1.csv", index=False)
+    leaders = pd.DataFrame({"candidate": ["a"], "alpha": [0.5], "gamma": [0.9]})
+    intervals = pd.DataFrame({"printed": [4.0 + 2 * i for i in range(len(STATISTICS))]}, index=list(STATISTICS))
+    lines = leader_sensitivity_lines(tmp_path, leaders, intervals)
+    assert "alpha 0.5, gamma 0.9; 2 replications" in lines[0]
+    body = "\n".join(lines)
+    assert f"| {STATISTICS[0]} | 4 | 2 | 0.50 |" in body and f"| {STATISTICS[-1]} | 28 | 14 | 0.50 |" in body
+    assert leader_sensitivity_lines(tmp_path / "none", leaders, intervals) == []
