@@ -454,4 +454,5 @@ def test_a_cache_cut_short_is_redone_not_an_error(tmp_path: Path) -> None:
     (folder / "meta.json").write_text("")
     (folder / "episodes.csv").write_text("stale\n")
     frame = joy_trace.traced(folder, seeds=1, episodes=3)
-    assert len(frame) > 0 and json.loads((folder / "meta.json").read_text()) == {"seeds": 1, "episodes": 3}
+    meta = json.loads((folder / "meta.json").read_text())
+    assert len(frame) > 0 and meta == {"seeds": 1, "episodes": 3, "version": joy_trace.TRACE_VERSION}
