@@ -29,7 +29,9 @@ last one of a rollout before it learns: the callback settles a step when the alg
 reached, one step later (the episode log is complete at the end of ``learn``). On a ``Discrete`` observation space of at
 most ``VALUE_TABLE_STATES`` states, SB3's and sb3-contrib's other algorithms are valued in all states at once, and again
 only after their next update (their ``train`` counts the updates). Otherwise every step is one batched pass over the
-VecEnv's observations; a ``value_fn`` is called once per env and step.
+VecEnv's observations; a ``value_fn`` is called once per env and step. The pass of a DQN with SB3's default MLP
+Q-network is made in numpy on the network's own parameters (``sb3_affect.agents.numpy_values``): on a small network a
+torch pass costs more than the step it values.
 
 The paper's experiments are not reproduced: the package has no stored source for their learner or any further
 scaling, so only the definitions above are used.
@@ -50,6 +52,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
 
 from sb3_affect.agents.callbacks import WindowMeans, check_step_locals, logger_file_folder
+from sb3_affect.agents.numpy_values import NumpyQValues, q_values_fn
 from sb3_affect.core.positions import Position, PositionSpec, check_position, make_position
 
 if TYPE_CHECKING:
@@ -248,6 +251,7 @@ class BroekensCallback(BaseCallback):
         self._table_states = self._table_start = 0
         self._table: np.ndarray | None = None
         self._table_version: int | None = None
+        self._mirror: NumpyQValues | None = None
 
     def _init_callback(self) -> None:
         model = self.model
@@ -260,6 +264,7 @@ class BroekensCallback(BaseCallback):
         self._table_states = int(space.n) if tabled and small else 0  # type: ignore[attr-defined]
         self._table_start = int(space.start) if self._table_states else 0  # type: ignore[attr-defined]
         self._table = None
+        self._mirror = q_values_fn(model) if self._kind == "q_net" else None
 
     # -- values ------------------------------------------------------------------------------------------------
     def _values(self, obs: Any, dones: np.ndarray | None = None) -> np.ndarray:
@@ -273,6 +278,13 @@ class BroekensCallback(BaseCallback):
         lstm = starts = None
         if self._kind == "recurrent":
             lstm, starts = self._recurrent_inputs(dones)
+        return self._net_values(obs, lstm, starts)
+
+    def _net_values(self, obs: Any, lstm: Any = None, starts: Any = None) -> np.ndarray:
+        """The model's values of a batch: in numpy where ``numpy_values`` mirrors its network, else by torch."""
+        mirror = self._mirror
+        if mirror is not None and not mirror.stale():
+            return mirror(obs).max(axis=1).astype(float)
         return _model_values(self.model, self._kind, obs, lstm, starts)
 
     def _value_table(self) -> np.ndarray:
@@ -280,7 +292,7 @@ class BroekensCallback(BaseCallback):
         version = int(self.model._n_updates)
         if self._table is None or version != self._table_version:
             start = self._table_start
-            self._table = _model_values(self.model, self._kind, np.arange(start, start + self._table_states))
+            self._table = self._net_values(np.arange(start, start + self._table_states))
             self._table_version = version
         return self._table
 
@@ -309,7 +321,7 @@ class BroekensCallback(BaseCallback):
         lstm = starts = None
         if self._kind == "recurrent":
             lstm, starts = self._recurrent_inputs(None, index)
-        return float(_model_values(self.model, self._kind, batch, lstm, starts)[0])
+        return float(self._net_values(batch, lstm, starts)[0])
 
     # -- SB3 hooks ---------------------------------------------------------------------------------------------
     def _on_training_start(self) -> None:
@@ -348,14 +360,16 @@ class BroekensCallback(BaseCallback):
         infos = locals_["infos"]
         # truncated envs -> V of their last observation, valued now (RecurrentPPO's: with this step's LSTM states)
         cut: dict[int, float | None] = {}
-        for i in np.flatnonzero(dones).tolist():
-            info = infos[i]
-            if info.get("TimeLimit.truncated", False):
-                terminal = info.get("terminal_observation")
-                cut[i] = None if terminal is None else self._terminal_value(terminal, i)
+        done_list = dones.tolist()
+        if True in done_list:
+            for i, done in enumerate(done_list):
+                info = infos[i]
+                if done and info.get("TimeLimit.truncated", False):
+                    terminal = info.get("terminal_observation")
+                    cut[i] = None if terminal is None else self._terminal_value(terminal, i)
         rewards = np.asarray(locals_["rewards"], dtype=float).reshape(-1).tolist()
         cells = None if self._position is None else self._position.cells(self.training_env, new_obs, infos)
-        step = _Step(dones.tolist(), rewards, cut, new_obs, dones, cell_rewards, cells)
+        step = _Step(done_list, rewards, cut, new_obs, dones, cell_rewards, cells)
         if not self._settle_later:
             self._settle(step, self._values(new_obs, dones))
             return True

@@ -255,13 +255,13 @@ class EmotionCallback(BaseCallback):
 
     def _on_step(self) -> bool:
         check_step_locals(self)
-        dones = np.asarray(self.locals["dones"]).reshape(-1).tolist()
-        rewards = np.asarray(self.locals["rewards"], dtype=float).reshape(-1).tolist()
-        infos = self.locals["infos"]
-        new_obs = self.locals["new_obs"]
+        locals_ = self.locals
+        dones = np.asarray(locals_["dones"]).reshape(-1).tolist()
+        rewards = np.asarray(locals_["rewards"], dtype=float).reshape(-1).tolist()
+        infos = locals_["infos"]
         position = self._position
-        new_cells = self._cells(new_obs, infos)
-        actions = self.locals.get("actions")
+        new_cells = self._cells(locals_["new_obs"], infos)
+        actions = locals_.get("actions")
         ends = self.decision_ends
         for index, lane in enumerate(self._lanes):
             done = bool(dones[index])

@@ -97,8 +97,9 @@ class ObservationCells(Position):
 
     def cells(self, venv: Any, observations: Any, infos: Sequence[dict[str, Any]]) -> list[int]:
         obs = np.asarray(observations)
-        obs = obs.reshape(-1) if self.nvec is None else obs.reshape(-1, len(self.nvec))
-        return [self.cell_of(row) for row in obs]
+        if self.nvec is None:
+            return (obs.reshape(-1).astype(np.int64) - self.start).tolist()
+        return [self.cell_of(row) for row in obs.reshape(-1, len(self.nvec))]
 
 
 class MiniGridPosition(Position):
