@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 import pytest
@@ -168,14 +169,17 @@ def test_resumed_replicate_keeps_the_times_of_its_runs_and_refuses_a_sweep(
 ) -> None:
     files = tmp_path / "files"
     tiny(files, "paper")
+    for name in replicate.SIZED:  # the shipped studies, at toy size (below)
+        shutil.copy(ROOT / "experiments" / f"{name}.yaml", files / f"{name}.yaml")
     monkeypatch.setattr(replicate, "EXPERIMENTS", files)
-    monkeypatch.setattr(replicate, "PARTS", (("paper", "a tiny paper protocol"),))
+    studied = tuple(part for part in replicate.PARTS if part[0] in replicate.SIZED)
+    monkeypatch.setattr(replicate, "PARTS", (("paper", "a tiny paper protocol"), *studied))
     for name, value in (("LARGE_SEEDS", 1), ("ABLATION_SEEDS", 1), ("BEYOND_SEEDS", 1), ("ENGINE_EPISODES", 5)):
         monkeypatch.setattr(replicate, name, value)
     runs = tmp_path / "runs"
     assert main(["replicate", "--out", str(runs), "--workers", "2", "--no-forensics"]) == 0
     first = json.loads((runs / "replicate.json").read_text())["timings"]
-    studies = ("large-N", "reading ablation", "speed ablation", "long runs", "ε tuned per task", "static grid, moving and")
+    studies = ("large (", "ablation (", "speed_one (", "long (", "ε tuned per task", "static grid, moving and")
     assert first["paper (a tiny paper protocol)"] > 0 and len(first) == 1 + len(studies)
     assert all(sum(key.startswith(study) for key in first) == 1 for study in studies), sorted(first)
     assert main(["replicate", "--out", str(runs), "--workers", "2", "--no-forensics"]) == 0  # a resume: nothing to do

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -10,7 +11,7 @@ import pytest
 
 from sb3_affect.study.launcher import run_sweep
 from sb3_affect.study.report import claims
-from sb3_affect.study.report.engine_studies import Cell, run_cells
+from sb3_affect.study.report.engine_studies import Cell, run_cells, study
 from sb3_affect.study.report.evidence import sensitivity
 from sb3_affect.study.report.metrics import load_results, run_metrics
 
@@ -165,6 +166,44 @@ def test_engine_study_gives_the_launchers_runs(tmp_path: Path) -> None:
         run_cells(tmp_path / "engine", [cell], seeds=0)
 
 
+EPSILONS = [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9]
+COMMON = {"learning_rate": 1.0, "gamma": 0.8, "q_init": 0.0}
+AFFECT = {**COMMON, "comparison": "literal", "act": "episode", "units": "cells"}
+PAPER_ENV = {"size": 15, "start": [0, 0], "goal": [6, 6], "goal_reward": 100.0}
+
+
+def study_cells(name: str) -> list[Cell]:
+    """The cells of a shipped study file, written out as ``run_cells`` took them (the seeds' sweep and grid point)."""
+    env = ("sb3_affect/GridPursuit-v0", PAPER_ENV)
+    if name == "speed_one":
+        table = {"joy": [True, [1]], "sadness": [False, [1]], "fear": [False, [1]], "anger": [False, [1]]}
+        return [Cell("affective-speed-1", "AffectQ", {**AFFECT, "behaviour_table": table}, {"epsilon": e}, "speed-one",
+                     {"epsilon": e}, *env) for e in EPSILONS]
+    cells = [Cell("epsilon-greedy", "QLearning", {**COMMON, "exploration_rate": e}, {"epsilon": e}, "paper", {"epsilon": e},
+                  *env) for e in EPSILONS]
+    cells += [Cell("affective", "AffectQ", AFFECT, {"epsilon": e}, "paper", {"epsilon": e}, *env) for e in EPSILONS]
+    speed = {**COMMON, "exploration_rate": 0.01, "speeds": [1, 2]}
+    return [*cells, Cell("speed-epsilon-greedy", "sb3_affect.agents.baselines:SpeedEpsilonGreedy", speed, {"epsilon": 0.01},
+                         "large", {}, *env)]
+
+
+@pytest.mark.parametrize(("name", "seeds", "episodes"), [("large", 2, 12), ("speed_one", 55, 3)])
+def test_a_study_run_by_the_launcher_reads_as_the_engine_table(tmp_path: Path, name: str, seeds: int, episodes: int) -> None:
+    """
+    A study's sweep file through the launcher gives, row for row, the table ``run_cells`` gives for its cells: the same
+    seeds (``seeds_from``: the paper sweep's), fixed labels, a behaviour table by emotion names, the rows in the
+    cells' order (more than one ``CHUNK`` of replicates), the run ids and the dtypes the report reads back.
+    """
+    run_sweep(ROOT / "experiments" / f"{name}.yaml", tmp_path / name, workers=1, progress=False,
+              overrides=[f"seeds={seeds}", f"episodes={episodes}"])
+    found = study(tmp_path, name)
+    assert found is not None
+    table, meta = found
+    assert (meta["seeds"], meta["episodes"], meta["runs"]) == (seeds, episodes, len(table))
+    expected, _ = run_cells(tmp_path / "engine", study_cells(name), seeds, episodes, workers=1)
+    pd.testing.assert_frame_equal(table, expected)
+
+
 def test_seeds_needed_and_adastop_on_a_clear_difference() -> None:
     from sb3_affect.study.report.evidence import adastop_table, seeds_needed
 
@@ -186,7 +225,9 @@ def test_replicate_writes_every_part_and_the_record(tmp_path: Path, monkeypatch:
     from sb3_affect.study import replicate
     from sb3_affect.study.replicate import main
 
-    monkeypatch.setattr(replicate, "PARTS", (("paper", "toy paper"), ("dqn", "toy dqn"), ("baselines", "toy baselines")))
+    studied = tuple(part for part in replicate.PARTS if part[0] in replicate.SIZED)
+    toys = (("paper", "toy paper"), ("dqn", "toy dqn"), ("baselines", "toy baselines"))
+    monkeypatch.setattr(replicate, "PARTS", (*toys, *studied))
 
     experiments = tmp_path / "experiments"
     experiments.mkdir()
@@ -194,13 +235,17 @@ def test_replicate_writes_every_part_and_the_record(tmp_path: Path, monkeypatch:
     for name in ("paper", "dqn", "baselines"):
         text = smoke.replace("name: smoke", f"name: {name}").replace("episodes: 20", "episodes: 5")
         (experiments / f"{name}.yaml").write_text(text)
+    for name in replicate.SIZED:  # the shipped studies, sized down by main's arguments
+        (experiments / f"{name}.yaml").write_text((ROOT / "experiments" / f"{name}.yaml").read_text())
     report = main(tmp_path / "out", workers=1, experiments=experiments, large_seeds=1, ablation_seeds=1, beyond_seeds=1,
                   engine_episodes=5, forensics=False)
     text = report.read_text()
     assert "No verdict: too few runs" in text
-    for part in ("large", "ablation_engine", "speed_one", "long", "beyond"):
-        assert (tmp_path / "out" / part / "runs.csv.gz").exists(), part
-    assert int(pd.read_csv(tmp_path / "out" / "long" / "runs.csv.gz").episodes.max()) == 50  # 10 x the engine episodes
+    for part in replicate.SIZED:  # launcher folders
+        assert json.loads((tmp_path / "out" / part / "sweep.json").read_text())["sweep"]["episodes"] in (5, 50), part
+    assert (tmp_path / "out" / "beyond" / "runs.csv.gz").exists()
+    long = study(tmp_path / "out", "long")
+    assert long is not None and int(long[0].episodes.max()) == 50  # 10 x the engine episodes
     assert "evading prey 7x7 / affective" in text and "maze: rooms / speed-epsilon-greedy, tuned ε (" in text
     assert (tmp_path / "out" / "tuning" / "tuning.json").exists() and "ε tuned on each task" in text
     assert "evading prey 7x7 / epsilon-greedy, tuned ε (" in text and ") (" not in text.split("tuned ε (")[1].split("|")[0]

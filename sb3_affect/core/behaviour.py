@@ -42,17 +42,26 @@ def behaviour_by_emotion(stored: Mapping[str, Any]) -> list[Behaviour]:
 MAX_SPEED = 10_000
 
 
-def validate_behaviour_table(table: Mapping[Emotion, Behaviour]) -> dict[Emotion, Behaviour]:
-    """Check a user's emotion-to-behaviour table: one entry per emotion, speeds non-empty ints >= 0."""
+def validate_behaviour_table(table: Mapping[Any, Any]) -> dict[Emotion, Behaviour]:
+    """
+    Check a user's emotion-to-behaviour table: one entry per emotion, keyed by ``Emotion`` or by its name (``"joy"``,
+    as a sweep file writes it), each ``Behaviour(random_direction, speeds)`` or ``[random_direction, speeds]``, speeds
+    non-empty ints >= 0.
+    """
     if not isinstance(table, Mapping):
         raise TypeError(f"behaviour_table must be a mapping from Emotion to Behaviour, got {type(table).__name__}")
+    names = {emotion.name.lower() for emotion in Emotion}
+    unknown = [key for key in table if key not in set(Emotion) and key not in names]
+    if unknown:
+        raise ValueError(f"behaviour_table: {unknown[0]!r} is not an emotion; the keys are joy, sadness, fear, anger")
     checked: dict[Emotion, Behaviour] = {}
     for emotion in Emotion:
-        if emotion not in table:
+        key: Emotion | str = emotion if emotion in table else emotion.name.lower()
+        if key not in table:
             raise ValueError(
                 f"behaviour_table has no entry for {emotion.name.lower()}; it needs all of joy, sadness, fear, anger"
             )
-        entry = table[emotion]
+        entry = table[key]
         random_direction, speeds = Behaviour(*entry)
         speeds = tuple(speeds)
         if not speeds or not all(isinstance(k, int) and not isinstance(k, bool) and 0 <= k <= MAX_SPEED for k in speeds):

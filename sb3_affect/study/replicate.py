@@ -1,8 +1,9 @@
 """
-The main job: the paper's protocol and the DQN comparison through the launcher (run files), the fair baselines,
-then the engine studies (large-N, reading ablation, speed ablation, long runs), ε tuned on each task beyond the paper
-and those tasks with the tuned ε (static grid, moving and evading prey, mazes), the replication forensics at a reduced
-size, then one report (the forensics section passed in from here: the report layer does not import the forensics).
+The main job: the sweep files of ``PARTS`` through the launcher (the paper's protocol, the DQN comparison, the fair
+baselines, the hunters, the large-N study, the reading and speed ablations, the long runs), ε tuned on each task
+beyond the paper and those tasks with the tuned ε (static grid, moving and evading prey, mazes), the replication
+forensics at a reduced size, then one report (the forensics section passed in from here: the report layer does not
+import the forensics).
 """
 
 from __future__ import annotations
@@ -18,30 +19,36 @@ from typing import Any
 
 #: The folder of the sweep files; None: those installed with the package (``experiments/`` of the source tree).
 EXPERIMENTS: Path | None = None
-#: Launcher sweeps: (name of experiments/<name>.yaml and of the results folder, description).
+#: The sweeps of the main job, in order: (name of experiments/<name>.yaml and of the results folder, description).
 PARTS = (
     ("paper", "the paper's protocol ({runs} runs)"),
     ("dqn", "SB3 DQN beside the tabular agents, equal seeds and budget ({runs} runs)"),
     ("baselines", "fair baselines beside both paper agents"),
     ("hunters", "two hunters on Kuremoto's pursuit problem"),
     ("hunters_moving", "two hunters, moving prey"),
+    ("large", "large-N study: the paper's 18 cells and the speed-matched ε-greedy ({runs} runs)"),
+    ("ablation", "reading ablation: the 8 readings of the appraisal x 9 ε ({runs} runs)"),
+    ("speed_one", "speed ablation: the affective agent with speed fixed at 1 cell ({runs} runs)"),
+    ("long", "long runs: both paper agents, runs of 2,000 episodes ({runs} runs)"),
 )
-#: Sizes of the engine studies (seeds per cell; episodes per run), read when ``main`` runs.
-LARGE_SEEDS, ABLATION_SEEDS, BEYOND_SEEDS, ENGINE_EPISODES = 1000, 20, 1000, 200
-#: Seeds per cell of the speed ablation and of the long-run study (whose runs have ``engine_studies.LONG_EPISODES`` episodes).
-SPEED_ONE_SEEDS, LONG_SEEDS = 500, 50
+#: The parts sized by ``main``'s ``large_seeds`` (a cap on their seeds per cell) and ``engine_episodes`` (their
+#: episodes per run; ``long``: 10 x as many); ``ablation`` by ``ablation_seeds``.
+SIZED = ("large", "ablation", "speed_one", "long")
+#: Seeds per agent and task beyond the paper (``report.beyond_tasks``), read when ``main`` runs.
+BEYOND_SEEDS = 1000
+#: Sizes for quick checks, read when ``main`` runs (None: the sweep files' own sizes and the paper's 200 episodes):
+#: a cap on the seeds per cell of the ``SIZED`` parts (and of the tuning), the ablation's seeds, the episodes per run.
+LARGE_SEEDS: int | None = None
+ABLATION_SEEDS: int | None = None
+ENGINE_EPISODES: int | None = None
 #: Tuning seeds per ε value of the per-task tuning (``report.tuning``), disjoint from the evaluation's seeds.
 TUNING_SEEDS = 200
 #: The forensics' size inside the main job (``sb3-affect forensics`` alone defaults to 3 / 4 / 100).
 FORENSICS = {"screen_reps": 2, "leaders": 4, "reps": 30}
 #: The main job's wall time on 2 idle cores, as the help and the docs quote it (measured: see the README).
 MINUTES = "about 6-9 minutes"
-#: Engine studies: (results folder, description), for the help.
+#: The studies after the sweeps: (results folder, description), for the help.
 STUDIES = (
-    ("large", f"the paper's 18 cells and the speed-matched ε-greedy at {LARGE_SEEDS:,} seeds per cell (engine)"),
-    ("ablation_engine", f"the 8 readings of the appraisal x 9 ε x {ABLATION_SEEDS} seeds (engine)"),
-    ("speed_one", f"the affective agent with speed fixed at 1 cell, 9 ε labels x {SPEED_ONE_SEEDS} seeds (engine)"),
-    ("long", f"both paper agents, 9 ε x {LONG_SEEDS} seeds, runs of 2,000 episodes (engine)"),
     (
         "tuning",
         f"ε of ε-greedy and speed-matched ε-greedy tuned on each task beyond the paper, {TUNING_SEEDS} seeds per value "
@@ -109,27 +116,28 @@ def main(
     command: str | None = None,
 ) -> Path:
     """
-    Run the sweeps of ``SWEEPS`` into ``out_dir/<name>`` (resuming what is there) and the engine studies into
-    ``out_dir/large``, ``out_dir/ablation_engine``, ..., the per-task tuning of ε into ``out_dir/tuning`` and the tasks
-    beyond the paper with the tuned ε into ``out_dir/beyond`` (reused when complete), then write
+    Run the sweeps of ``PARTS`` into ``out_dir/<name>`` through the launcher (resuming what is there), the per-task
+    tuning of ε into ``out_dir/tuning`` and the tasks beyond the paper with the tuned ε into ``out_dir/beyond``
+    (reused when complete), the forensics into ``out_dir/forensics``, then write
     ``out_dir/report.md`` (and .html, tables/, figures/). Prints the wall time of each part.
 
     :param out_dir: the replicate folder
     :param workers: processes (default: usable CPUs)
     :param experiments: the folder holding the experiment files (default: the ones installed with the package)
-    :param large_seeds: seeds per cell of the large-N study (default ``LARGE_SEEDS``)
-    :param ablation_seeds: seeds per cell of the reading ablation (default ``ABLATION_SEEDS``)
+    :param large_seeds: a cap on the seeds per cell of the ``SIZED`` parts and the tuning (default ``LARGE_SEEDS``;
+        None: the sweep files' sizes)
+    :param ablation_seeds: seeds per cell of the reading ablation (default ``ABLATION_SEEDS``; None: the file's)
     :param beyond_seeds: seeds per agent and task beyond the paper (default ``BEYOND_SEEDS``)
-    :param engine_episodes: episodes per run of the engine studies (default the paper's 200; fewer for quick checks)
+    :param engine_episodes: episodes per run of the ``SIZED`` parts (``long``: 10 x as many), the tuning and the tasks
+        beyond the paper (default ``ENGINE_EPISODES``; None: the files' and the paper's 200; fewer for quick checks)
     :param forensics: run the replication forensics (size ``FORENSICS``) into ``out_dir/forensics``
     :param command: the command line to record (default: this process's)
     :return: the path of report.md
     """
     from sb3_affect.study.launcher import run_sweep
     from sb3_affect.study.report import build_report, paper
-    from sb3_affect.study.report.ablation import ablation_cells
     from sb3_affect.study.report.beyond_tasks import beyond_cells
-    from sb3_affect.study.report.engine_studies import LONG_EPISODES, large_cells, long_cells, run_cells, speed_one_cells
+    from sb3_affect.study.report.engine_studies import run_cells
     from sb3_affect.study.report.tuning import run_tuning
 
     experiments = sweeps_folder(experiments)
@@ -142,9 +150,13 @@ def main(
     record = _Record(out_dir)
     timings: dict[str, float] = {}
     for name, description in PARTS:
+        path = experiments / f"{name}.yaml"
+        overrides = _sized(name, path, large_seeds, ablation_seeds, engine_episodes) if name in SIZED else []
         description = part_description(name, description, experiments)
-        print(f"== {description}: {experiments / f'{name}.yaml'} -> {out_dir / name}", flush=True)
-        summary = run_sweep(experiments / f"{name}.yaml", out_dir / name, workers=workers)
+        if overrides:
+            description += f" [{', '.join(overrides)}]"
+        print(f"== {description}: {path} -> {out_dir / name}", flush=True)
+        summary = run_sweep(path, out_dir / name, workers=workers, overrides=overrides)
         key = f"{name} ({description})"
         timings[key] = record.part(key, summary.seconds, done_before=summary.skipped, todo=summary.total - summary.skipped)
         print(
@@ -152,28 +164,8 @@ def main(
             f"{summary.seconds:.1f} s",
             flush=True,
         )
-    speed_seeds = min(SPEED_ONE_SEEDS, large_seeds)
-    long_seeds = min(LONG_SEEDS, large_seeds)
-    long_episodes = engine_episodes * LONG_EPISODES // paper.EPISODES  # 2,000 at the paper's 200 (10 x as long)
-    studies = (
-        ("large", f"large-N study, {large_seeds} seeds per cell (engine)", large_cells(), large_seeds, engine_episodes),
-        ("ablation_engine", f"reading ablation, {ablation_seeds} seeds per cell (engine)", ablation_cells(), ablation_seeds,
-         engine_episodes),
-        ("speed_one", f"speed ablation, {speed_seeds} seeds per cell (engine)", speed_one_cells(), speed_seeds,
-         engine_episodes),
-        ("long", f"long runs, {long_seeds} seeds per cell x {long_episodes} episodes (engine)", long_cells(), long_seeds,
-         long_episodes),
-    )
-    for name, description, cells, seeds, episodes in studies:
-        print(f"== {description} -> {out_dir / name}", flush=True)
-        start = time.perf_counter()
-        with _heartbeat(description):
-            table, meta = run_cells(out_dir / name, cells, seeds, episodes, workers=workers)
-        seconds = time.perf_counter() - start
-        # The study's own record of the run that computed it (a complete study is read back, not recomputed).
-        timings[description] = record.set(description, float(meta.get("wall_seconds", seconds)), seconds)
-        print(f"   {len(table)} runs, {seconds:.1f} s", flush=True)
-    tuning_seeds = min(TUNING_SEEDS, large_seeds)
+    tuning_seeds = min(TUNING_SEEDS, large_seeds or TUNING_SEEDS)
+    engine_episodes = engine_episodes or paper.EPISODES
     description = f"ε tuned per task beyond the paper, {tuning_seeds} seeds per value (engine)"
     print(f"== {description} -> {out_dir / 'tuning'}", flush=True)
     start = time.perf_counter()
@@ -221,6 +213,23 @@ def main(
     print("wall time: " + ", ".join(f"{name} {seconds:.1f} s" for name, seconds in timings.items()))
     print(f"report: {report} (and {report.with_suffix('.html')})")
     return report
+
+
+def _sized(
+    name: str, path: Path, large_seeds: int | None, ablation_seeds: int | None, episodes: int | None
+) -> list[str]:
+    """
+    The ``--set`` overrides of a ``SIZED`` part for a quick check: its seeds capped at ``ablation_seeds`` (``ablation``)
+    or ``large_seeds`` (the others), its episodes ``episodes`` (``long``: 10 x as many). None: the file's own size.
+    """
+    import yaml
+
+    data = yaml.safe_load(path.read_text())
+    cap = ablation_seeds if name == "ablation" else large_seeds
+    overrides = [] if cap is None else [f"seeds={min(int(data['seeds']), cap)}"]
+    if episodes is not None:
+        overrides.append(f"episodes={episodes * (10 if name == 'long' else 1)}")
+    return overrides
 
 
 #: Seconds between the lines an engine study prints while it runs (it has no progress bar of its own).

@@ -170,6 +170,17 @@ class AgentSpec(BaseModel):
         min_length=1,
         description="instead of algo, on a multi-agent env: one {algo, kwargs} per hunter (below)",
     )
+    labels: dict[str, Any] = Field(
+        default_factory=dict,
+        description="fixed labels of every run of the agent (columns of the results beside the grid's); unlike a grid "
+        "label they do not enter the derived seeds",
+    )
+    seeds_from: str | None = Field(
+        default=None,
+        pattern=NAME_PATTERN,
+        description="derive the agent's seeds as the sweep of this name does (default: this sweep's name): an agent "
+        "of the same name and grid point there has the same seeds, so a larger study extends that sweep's runs",
+    )
 
     @field_validator("algo")
     @classmethod
@@ -203,6 +214,14 @@ class AgentSpec(BaseModel):
                 sizes = " x ".join(str(len(v)) for v in value.values())
                 raise ValueError(f"the grid has {sizes} points, more than the {MAX_GRID_POINTS:,} allowed per agent")
         return value
+
+    @model_validator(mode="after")
+    def _fixed_labels(self) -> AgentSpec:
+        for key in self.labels:
+            if key in RESERVED_LABELS or key in self.grid:
+                taken = "a grid label" if key in self.grid else "a column of the results"
+                raise ValueError(f"labels.{key}: {key!r} is {taken}; a fixed label needs a name of its own")
+        return self
 
     def point_count(self) -> int:
         """The number of grid points (from the grid's lengths, nothing built)."""
@@ -320,7 +339,8 @@ class Sweep(BaseModel):
         for agent in self.agents:
             for point in agent.points():
                 count = self.seeds if isinstance(self.seeds, int) else len(self.seeds)
-                seeds = list(self.seeds) if isinstance(self.seeds, list) else derive_seeds(self.name, agent.name, point, count)
+                named = agent.seeds_from or self.name
+                seeds = list(self.seeds) if isinstance(self.seeds, list) else derive_seeds(named, agent.name, point, count)
                 base: dict[str, Any] = {
                     "sweep": self.name,
                     "agent": agent.name,
@@ -331,7 +351,7 @@ class Sweep(BaseModel):
                     "seed": None,
                     "episodes": self.episodes,
                     "max_timesteps": self.max_timesteps,
-                    "labels": dict(point),
+                    "labels": {**point, **agent.labels},
                 }
                 if agent.team is not None:  # only team runs carry the key: other run ids are unchanged
                     base["team"] = agent.team_at(point)

@@ -1,13 +1,11 @@
 """
 The reading ablation: rank the 8 readings of the appraisal (comparison x act x units) by how close they come to the
-paper. Runs: experiments/ablation.yaml through the launcher (``DIR/ablation/runs``) or the same cells through the
-engine (``ablation_cells``, ``DIR/ablation_engine``); both give the same runs for the same seeds.
+paper. Runs: experiments/ablation.yaml through the launcher (``DIR/ablation``).
 """
 
 from __future__ import annotations
 
 import math
-from itertools import product
 
 import pandas as pd
 
@@ -16,7 +14,6 @@ from sb3_affect.study.report import figures, paper
 from sb3_affect.study.report.claims_emotions import km_restricted_mean
 from sb3_affect.study.report.context import ReportContext
 from sb3_affect.study.report.document import fmt
-from sb3_affect.study.report.engine_studies import Cell, study
 from sb3_affect.study.report.metrics import load_results, run_metrics
 
 MEASURE = (
@@ -28,17 +25,6 @@ MEASURE = (
     "fractions). Lower is closer."
 )
 EMOTIONS = EMOTION_NAMES
-
-
-def ablation_cells() -> list[Cell]:
-    """experiments/ablation.yaml's cells (same seeds: sweep "ablation", agent "affective")."""
-    cells = []
-    readings = product(("literal", "valence"), ("episode", "remaining"), ("cells", "decisions"), paper.EPSILONS)
-    for comparison, act, units, eps in readings:
-        point = {"comparison": comparison, "act": act, "units": units, "epsilon": eps}
-        kwargs = {"comparison": comparison, "act": act, "units": units}  # the classes' defaults are the paper's
-        cells.append(Cell("affective", "AffectQ", kwargs, point, "ablation", point))
-    return cells
 
 
 def rank_readings(m: pd.DataFrame) -> tuple[pd.DataFrame, str]:
@@ -82,13 +68,10 @@ def rank_readings(m: pd.DataFrame) -> tuple[pd.DataFrame, str]:
 
 def ablation_section(ctx: ReportContext) -> None:
     ctx.doc.h("Reading ablation: which reading of the appraisal comes closest to the paper")
-    engine = study(ctx.root, "ablation_engine")
     if "ablation" in ctx.folders:
         results = load_results(ctx.folders["ablation"])
         m = run_metrics(results.episodes, results.runs) if len(results.episodes) else pd.DataFrame()
         source = f"launcher runs in {ctx.folders['ablation']}"
-    elif engine is not None:
-        m, source = engine[0], f"engine runs ({engine[1]['seeds']} seeds per cell, {fmt(engine[1]['wall_seconds'], 1)} s)"
     else:
         ctx.doc.p("Skipped: no ablation results (run experiments/ablation.yaml, or `sb3-affect replicate`).")
         return

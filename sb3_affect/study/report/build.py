@@ -1,6 +1,6 @@
 """
 ``build_report``: the replication report from a results folder (the paper sweep) or a ``replicate`` folder
-(paper/, dqn/, ablation/, baselines*/, beyond/, large/).
+(paper/, dqn/, ablation/, baselines*/, beyond/, large/, ...).
 
 The report is the list ``SECTIONS`` of section functions, each ``section(ctx: ReportContext) -> None`` adding its
 blocks to ``ctx.doc`` (see ``report.context``): the main text, then ``APPENDIX``. To add a section, write the function
@@ -12,8 +12,6 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from pathlib import Path
-
-import pandas as pd
 
 from sb3_affect.study.report import engine_studies
 from sb3_affect.study.report.ablation import ablation_section
@@ -280,8 +278,7 @@ def build_report(
     if not len(results.runs) or not int(results.runs.episodes.sum()):
         raise ValueError(f"{paper_dir / 'runs'} holds no finished runs")
     found = scan(results, (*EARLY_WINDOWS, *LATE_WINDOWS))  # one pass over the episode rows, by parts
-    meta = engine_studies.large_meta(run_dir)
-    large = pd.read_csv(run_dir / "large" / "runs.csv.gz") if meta else None
+    large, meta = engine_studies.study(run_dir, "large") or (None, None)
     ctx = ReportContext(
         Document("Q-Learning with Basic Emotions: a replication study"),
         out,

@@ -1,12 +1,13 @@
 """
-Studies run through ``sb3_affect.engine.simulation.simulate`` (one call per chunk of seeds, no run files): the large-N study
-(the paper's 18 cells and the speed-matched epsilon-greedy at many seeds per cell), the reading ablation, and the
-tasks beyond the paper (moving and evading prey, mazes).
+The per-run tables of the studies: ``study`` reads a study's folder, a results folder of the launcher (the large-N
+study, the reading and speed ablations, the long runs: experiments/large.yaml, ablation.yaml, speed_one.yaml,
+long.yaml) or the table ``run_cells`` wrote.
 
-Seeds are the launcher's (``derive_seed(sweep, agent, point, replicate)``): the large-N study uses the paper sweep's,
-so its replicates 0-19 are the very runs of experiments/paper.yaml, and replicate r is the same run whatever the seed
-count. Only per-run metrics are kept (``report.metrics.run_metrics``): ``DIR/<study>/runs.csv.gz`` and
-``DIR/<study>/meta.json`` (seeds, episodes, wall time); a folder that already holds them for the same study is reused.
+``run_cells`` runs ``Cell``s through ``sb3_affect.engine.simulation.simulate`` (one call per chunk of seeds, no run files):
+the per-task tuning and the tasks beyond the paper (moving and evading prey, mazes). Seeds are the launcher's
+(``derive_seed(sweep, agent, point, replicate)``). Only per-run metrics are kept (``report.metrics.run_metrics``):
+``DIR/<study>/runs.csv.gz`` and ``DIR/<study>/meta.json`` (seeds, episodes, wall time); a folder that already holds
+them for the same study is reused.
 """
 
 from __future__ import annotations
@@ -27,15 +28,13 @@ from sb3_affect.study.report.output_files import cached_json, output_folder, rep
 PAPER_ENV = ("sb3_affect/GridPursuit-v0", {"size": 15, "start": [0, 0], "goal": [6, 6], "goal_reward": 100.0})
 COMMON = {"learning_rate": 1.0, "gamma": 0.8, "q_init": 0.0}
 AFFECT_DEFAULT = {"comparison": "literal", "act": "episode", "units": "cells"}
+#: Agents of the studies' sweep files the sections name: the speed-matched ε-greedy of experiments/large.yaml, the
+#: affective agent at 1 cell per decision of experiments/speed_one.yaml.
 SPEED_AGENT = "speed-epsilon-greedy"
-#: The speed-matched epsilon-greedy (a fair baseline): the tuned epsilon 0.01, 1 or 2 cells per decision.
-SPEED_KWARGS = {"exploration_rate": 0.01, "speeds": [1, 2]}
-#: The speed ablation: the affective agent with every emotion's speed fixed at 1 cell (Table III's directions kept).
 SPEED_ONE_AGENT = "affective-speed-1"
-SPEED_ONE_TABLE = {"joy": [True, [1]], "sadness": [False, [1]], "fear": [False, [1]], "anger": [False, [1]]}
-#: Episodes per run of the long-run study (the paper's "in the long run", tested directly).
-LONG_EPISODES = 2000
 CHUNK = 50
+#: Runs read at a time from a study's results folder (``folder_study``).
+RUNS_PER_PART = 10_000
 
 
 @dataclass(frozen=True)
@@ -63,56 +62,6 @@ class Cell:
     env_kwargs: dict[str, Any] = field(default_factory=lambda: dict(PAPER_ENV[1]))
 
 
-def large_cells() -> list[Cell]:
-    """The large-N study: both paper agents at every epsilon, and the speed-matched epsilon-greedy."""
-    out = [
-        Cell("epsilon-greedy", "QLearning", {**COMMON, "exploration_rate": eps}, {"epsilon": eps}, "paper", {"epsilon": eps})
-        for eps in paper.EPSILONS
-    ]
-    out += [
-        Cell("affective", "AffectQ", {**COMMON, **AFFECT_DEFAULT}, {"epsilon": eps}, "paper", {"epsilon": eps})
-        for eps in paper.EPSILONS
-    ]
-    out.append(
-        Cell(
-            SPEED_AGENT, "sb3_affect.agents.baselines:SpeedEpsilonGreedy", {**COMMON, **SPEED_KWARGS}, {"epsilon": 0.01},
-            "large", {}
-        ),
-    )
-    return out
-
-
-def speed_one_cells() -> list[Cell]:
-    """The speed ablation: AffectQ with every speed fixed at 1 cell, at every ε label (seeds of its own)."""
-    kwargs = {**COMMON, **AFFECT_DEFAULT, "behaviour_table": SPEED_ONE_TABLE}
-    return [
-        Cell(SPEED_ONE_AGENT, "AffectQ", kwargs, {"epsilon": eps}, "speed-one", {"epsilon": eps}) for eps in paper.EPSILONS
-    ]
-
-
-def long_cells() -> list[Cell]:
-    """The long-run study: both paper agents at every ε (seeds of its own; run with ``LONG_EPISODES`` episodes)."""
-    return [
-        Cell(cell.agent, cell.algo, cell.kwargs, cell.labels, "long", cell.point)
-        for cell in large_cells()
-        if cell.agent != SPEED_AGENT
-    ]
-
-
-def _kwargs(kwargs: dict[str, Any]) -> dict[str, Any]:
-    """A cell's kwargs for the engine: a behaviour table by emotion name becomes one keyed by ``Emotion``."""
-    table = kwargs.get("behaviour_table")
-    if not isinstance(table, dict) or not table or not all(isinstance(k, str) for k in table):
-        return kwargs
-    from sb3_affect.core.behaviour import Behaviour
-    from sb3_affect.core.emotions import Emotion
-
-    converted = {
-        Emotion[name.upper()]: Behaviour(bool(r), tuple(int(k) for k in speeds)) for name, (r, speeds) in table.items()
-    }
-    return {**kwargs, "behaviour_table": converted}
-
-
 def _chunk(job: tuple[Cell, list[int], int]) -> pd.DataFrame:
     from sb3_affect.engine.simulation import simulate
     from sb3_affect.study.launcher.schema import derive_seed
@@ -120,7 +69,7 @@ def _chunk(job: tuple[Cell, list[int], int]) -> pd.DataFrame:
 
     cell, replicates, episodes = job
     seeds = [derive_seed(cell.sweep, cell.agent, cell.point, r) for r in replicates]
-    frame = simulate(cell.algo, _kwargs(cell.kwargs), cell.env_id, cell.env_kwargs, seeds, episodes)
+    frame = simulate(cell.algo, cell.kwargs, cell.env_id, cell.env_kwargs, seeds, episodes)
     bound = _capture_distance(cell.env_id, cell.env_kwargs)
     if bound is not None:  # moving prey: optimal = a capture within the prey's starting distance
         frame["optimal"] = ~frame.truncated.astype(bool) & (frame.cells <= bound)
@@ -188,8 +137,13 @@ def run_cells(
 
 
 def study(out_dir: Path, name: str) -> tuple[pd.DataFrame, dict[str, Any]] | None:
-    """A study's per-run table and meta data from ``out_dir/<name>`` (None when there is none)."""
+    """
+    A study's per-run table and meta data from ``out_dir/<name>`` (None when there is none): a results folder of the
+    launcher (``folder_study``), else the ``runs.csv.gz`` and ``meta.json`` of ``run_cells``.
+    """
     folder = Path(out_dir) / name
+    if (folder / "chunks").is_dir() or (folder / "runs").is_dir():
+        return folder_study(folder)
     if not (folder / "meta.json").exists() or not (folder / "runs.csv.gz").exists():
         return None
     meta = cached_json(folder / "meta.json")
@@ -198,7 +152,73 @@ def study(out_dir: Path, name: str) -> tuple[pd.DataFrame, dict[str, Any]] | Non
     return pd.read_csv(folder / "runs.csv.gz"), meta
 
 
-def large_meta(out_dir: Path) -> dict[str, Any] | None:
-    """``meta.json`` of the large-N study in ``out_dir`` (None when there is none)."""
-    found = study(out_dir, "large")
-    return found[1] if found else None
+def folder_study(folder: Path) -> tuple[pd.DataFrame, dict[str, Any]] | None:
+    """
+    The per-run table of a study run by the launcher into ``folder`` (None when it holds no finished run), as
+    ``run_cells`` gives it: ``run_metrics`` of every run (read a part of the folder at a time; a run longer than the
+    paper's 200 episodes also gets the window of its last 200), the label columns, ``replicate`` and ``seed``, run ids
+    ``<agent>-<label values>-r<replicate>``, the rows in the order of the sweep's cells. Meta data: ``seeds`` (replicates
+    per cell), ``episodes``, ``runs`` and ``wall_seconds`` (the runs' own seconds, summed over the workers).
+    """
+    from sb3_affect.study.launcher.store import ResultsStore
+    from sb3_affect.study.report.metrics import EARLY, LATE, join_parts, load_results, run_metrics
+
+    saved = ResultsStore(folder).saved_sweep()
+    results = load_results(folder)
+    if saved is None or not len(results.runs):
+        return None
+    sweep = saved["sweep"]
+    episodes = int(sweep["episodes"])
+    last = (max(episodes - 199, 1), episodes)
+    windows = (EARLY, LATE) if last[0] <= LATE[0] else (EARLY, LATE, last)
+    bound = _capture_distance(sweep["env"]["id"], dict(sweep["env"].get("kwargs") or {}))
+    frames = []
+    for runs, part in results.parts(results.columns, runs_per_part=RUNS_PER_PART):
+        if bound is not None:  # moving prey: optimal = a capture within the prey's starting distance
+            part["optimal"] = ~part.truncated.astype(bool) & (part.cells <= bound)
+        frames.append(run_metrics(part, runs, windows))
+    table = join_parts(frames)
+    labels = _cell_labels(sweep)
+    table = _in_cell_order(table, labels)
+    meta = {
+        "seeds": int(table.replicate.max()) + 1,
+        "episodes": episodes,
+        "runs": len(table),
+        "wall_seconds": float(results.runs.wall_seconds.sum()),
+    }
+    return table, meta
+
+
+def _cell_labels(sweep: dict[str, Any]) -> list[tuple[str, dict[str, Any]]]:
+    """``(agent, labels)`` of each cell of a saved sweep, in the sweep's order (agents, then their grid points)."""
+    from itertools import product
+
+    cells = []
+    for agent in sweep["agents"]:
+        grid = agent.get("grid") or {}
+        for values in product(*grid.values()):
+            cells.append((agent["name"], {**dict(zip(grid, values)), **(agent.get("labels") or {})}))
+    return cells
+
+
+def _in_cell_order(table: pd.DataFrame, cells: list[tuple[str, dict[str, Any]]]) -> pd.DataFrame:
+    """
+    ``table``'s rows in ``run_cells``' order (cell by cell, ``CHUNK`` replicates at a time, each chunk by run id) with its
+    run ids and column order: the tables and resamples of the report see the same rows in the same places.
+    """
+    names = [key for _, labels in cells for key in labels if key in table.columns]
+    names = list(dict.fromkeys(names))
+    index = {(agent, *(labels.get(k) for k in names)): i for i, (agent, labels) in enumerate(cells)}
+    keys = zip(table.agent.astype(str), *(table[k].tolist() for k in names))
+    cell = [index.get(key, len(cells)) for key in keys]
+    tags = ["-".join(str(labels[k]) for k in labels) for _, labels in cells] + [""]
+    replicate = table.replicate.astype(int).tolist()
+    table = table.assign(run_id=[f"{a}-{tags[c]}-r{r}" for a, c, r in zip(table.agent.astype(str), cell, replicate)])
+    order = sorted(range(len(table)), key=lambda i: (cell[i], replicate[i] // CHUNK, table.run_id.iat[i]))
+    table = table.iloc[order].reset_index(drop=True)
+    first = ["run_id", "seed", "replicate", "agent", *names]
+    table = table[first + [c for c in table.columns if c not in first]]
+    for name in ("agent", *names):
+        if isinstance(table[name].dtype, pd.CategoricalDtype):
+            table[name] = table[name].astype(object)
+    return table

@@ -199,7 +199,7 @@ def evidence_section(ctx: ReportContext) -> None:
     large = ctx.large
     if large is None or ctx.verdict_refusal():
         ctx.doc.p(
-            "Skipped: no large-N study in this folder (`sb3-affect replicate` runs it through the engine), or too few "
+            "Skipped: no large-N study in this folder (`sb3-affect replicate` runs experiments/large.yaml), or too few "
             "runs for a verdict."
         )
         return
@@ -207,9 +207,9 @@ def evidence_section(ctx: ReportContext) -> None:
     meta = ctx.large_meta or {}
     ctx.doc.p(
         f"The large-N study runs the paper's 18 cells and the speed-matched ε-greedy at {n_large} seeds per cell "
-        f"({len(large)} runs of {meta.get('episodes', 200)} episodes, through `sb3_affect.engine.simulation.simulate`, "
-        f"{fmt(meta.get('wall_seconds', math.nan), 1)} s). Seeds are the launcher's, so its first 20 replicates per "
-        "cell are the runs of the paper protocol above."
+        f"({len(large)} runs of {meta.get('episodes', 200)} episodes: experiments/large.yaml through the launcher, "
+        f"{fmt(meta.get('wall_seconds', math.nan), 1)} s of the workers' time). The paper's agents take the paper "
+        "sweep's seeds, so their first 20 replicates per cell are the runs of the paper protocol above."
     )
     ctx.table(
         "headline_tables",

@@ -1,8 +1,8 @@
 """
 The reading decides: every claim's verdict under every reading of the appraisal (comparison x act x units), and the
-emotion shares per reading. The affective runs are the reading ablation's (``DIR/ablation_engine``); the ε-greedy
-runs are the paper sweep's (no reading applies to them). Never-found runs are censored (Kaplan-Meier) as in the
-verdict.
+emotion shares per reading. The affective runs are the reading ablation's (``DIR/ablation``,
+experiments/ablation.yaml); the ε-greedy runs are the paper sweep's (no reading applies to them). Never-found runs
+are censored (Kaplan-Meier) as in the verdict.
 """
 
 from __future__ import annotations
@@ -85,7 +85,7 @@ def emotion_shares(ablation: pd.DataFrame) -> pd.DataFrame:
 
 
 def readings_section(ctx: ReportContext) -> None:
-    ablation = ctx.study("ablation_engine")
+    ablation = ctx.study("ablation")
     if ablation is None or not ctx.has_paper_agents or ctx.verdict_refusal() or "comparison" not in ablation.columns:
         return
     if int(ablation.groupby([*list(READING), "epsilon"]).size().min()) < 5:

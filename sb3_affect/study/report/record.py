@@ -153,7 +153,7 @@ def record_section(ctx: ReportContext) -> None:
         ]
     )
     rows = {name: {"wall seconds": seconds} for name, seconds in ctx.timings.items()}
-    studies = ("large", "ablation_engine", "speed_one", "long", "beyond")
+    studies = ("beyond",)  # the engine study with a meta.json (the launcher's folders: in replicate's timings)
     for name in studies if not rows else ():  # replicate's timings hold them already
         meta_path = ctx.root / name / "meta.json"
         if meta_path.exists():

@@ -1,6 +1,6 @@
 """
 The speed ablation: does the affective agent's advantage come from its 2-cell moves? The affective agent with every
-speed fixed at 1 cell (``report.engine_studies.speed_one_cells``) beside the affective agent and ε-greedy, in decisions (time)
+speed fixed at 1 cell (experiments/speed_one.yaml) beside the affective agent and ε-greedy, in decisions (time)
 and in cells (distance).
 """
 
