@@ -46,7 +46,8 @@ class AffectQ(TabularQAlgorithm):
     :param comparison: Table II reading: ``"literal"`` (compare step counts) or ``"valence"`` (compare their negations)
     :param act: ``"episode"`` (act = elapsed + known remaining) or ``"remaining"`` (known remaining only)
     :param units: ``"cells"`` or ``"decisions"``: what norm, exp1 and act count
-    :param behaviour_table: emotion -> ``Behaviour(random_direction, speeds)``; default Table III
+    :param behaviour_table: emotion -> ``Behaviour(random_direction, speeds)``, or a table's name (``"table-iii"``,
+        ``"table-iii-reversed"``: ``sb3_affect.core.behaviour.BEHAVIOUR_TABLES``); default Table III
     :param emotion_callback: an ``EmotionCallback`` (or subclass) to drive instead of one built from the options above
     :param max_episode_decisions: safety cap: an episode that reaches this many decisions is truncated (and counted)
     :param stats_window_size: window of the rollout/ep_*_mean logger keys (episodes)
@@ -76,7 +77,7 @@ class AffectQ(TabularQAlgorithm):
         comparison: str = _S.comparison,
         act: str = _S.act,
         units: str = _S.units,
-        behaviour_table: Mapping[Emotion, Behaviour] | None = _S.behaviour_table,
+        behaviour_table: Mapping[Emotion, Behaviour] | str | None = _S.behaviour_table,
         emotion_callback: EmotionCallback | None = None,
         max_episode_decisions: int = _S.max_episode_decisions,
         stats_window_size: int = 100,

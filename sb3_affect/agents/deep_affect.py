@@ -15,7 +15,8 @@ action; there is no epsilon) and its speed k:
   ``wait_action`` the decision is taken at speed 1 (the emotion's direction for one step), because an env step with
   no action does not exist.
 
-Everything else is SB3's loop: ``learning_starts`` warms the buffer up with SB3's uniformly random actions (the
+The repeats, the waits and their logging are ``sb3_affect.agents.action_repeat.ActionRepeat``'s, which the exploration
+controls of ``sb3_affect.agents.deep_controls`` share: the emotions are one decision rule among them. Everything else is SB3's loop: ``learning_starts`` warms the buffer up with SB3's uniformly random actions (the
 appraisal watches them), the buffer stores the executed action, and training, target updates, saving and loading are
 the base algorithm's. Logged besides ``affect/*`` (the emotion profile, from the callback): ``affect/random_share``
 (the share of decisions after ``learning_starts`` that took a random action, the equivalent epsilon, also logged as
@@ -29,11 +30,11 @@ from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
-from gymnasium import spaces
 from stable_baselines3 import DQN
 from stable_baselines3.common.callbacks import BaseCallback, ConvertCallback
 from stable_baselines3.common.type_aliases import MaybeCallback
 
+from sb3_affect.agents.action_repeat import ActionRepeat
 from sb3_affect.agents.callbacks import EmotionCallback
 from sb3_affect.core.behaviour import Behaviour, behaviour_by_emotion, stored_behaviour_table
 from sb3_affect.core.emotions import Emotion
@@ -43,13 +44,15 @@ from sb3_affect.core.positions import PositionSpec, check_position
 _EPSILON_ARGUMENTS = ("exploration_initial_eps", "exploration_final_eps")
 
 
-class AffectiveExploration:
+class AffectiveExploration(ActionRepeat):
     """
     A mixin giving an ``OffPolicyAlgorithm`` with a Discrete action space emotion-driven exploration (see the module
     docstring). Put it first: ``class MyAgent(AffectiveExploration, MyOffPolicyAlgorithm)``. The algorithm's greedy
-    action is its ``predict(obs, deterministic=False)`` with ``exploration_rate`` 0.
+    action is its ``predict(obs, deterministic=False)`` with ``exploration_rate`` 0. The repeats and waits are
+    ``sb3_affect.agents.action_repeat.ActionRepeat``'s; the emotion of each env is the decision rule.
 
-    :param behaviour_table: emotion -> ``Behaviour(random_direction, speeds)``; default Table III
+    :param behaviour_table: emotion -> ``Behaviour(random_direction, speeds)``, or a table's name (``"table-iii"``,
+        ``"table-iii-reversed"``: ``sb3_affect.core.behaviour.BEHAVIOUR_TABLES``); default Table III
     :param emotion_callback: the ``EmotionCallback`` whose appraisal and emotion rule drive the agent (default: a
         Table II one); it is added to the callbacks of ``learn``
     :param position: how each env's cell is found for the appraisal's map (``sb3_affect.core.positions``): None (the
@@ -58,19 +61,12 @@ class AffectiveExploration:
     :param wait_action: the action a wait (speed 0) takes, e.g. MiniGrid's ``done`` (6); None: waits move at speed 1
     """
 
-    # attributes of the base algorithm the mixin uses
-    action_space: spaces.Space
-    num_timesteps: int
-    learning_starts: int
-    exploration_rate: float
-    logger: Any
-    _last_obs: Any
-    n_envs: int
+    LOG_PREFIX = "affect"
 
     def __init__(
         self,
         *args: Any,
-        behaviour_table: Mapping[Emotion, Behaviour] | None = None,
+        behaviour_table: Mapping[Emotion, Behaviour] | str | None = None,
         emotion_callback: EmotionCallback | None = None,
         position: PositionSpec = None,
         wait_action: int | None = None,
@@ -83,47 +79,26 @@ class AffectiveExploration:
         if emotion_callback is not None and not isinstance(emotion_callback, EmotionCallback):
             raise TypeError(f"emotion_callback must be an EmotionCallback, got {type(emotion_callback).__name__}")
         self.behaviour_table = stored_behaviour_table(behaviour_table)  # plain data, saved with the model
-        if wait_action is not None and (isinstance(wait_action, bool) or not isinstance(wait_action, (int, np.integer))):
-            raise TypeError(f"wait_action must be an integer action or None, got {wait_action!r}")
-        self.wait_action = None if wait_action is None else int(wait_action)
         self.position = check_position(position)
         self.emotion_callback = emotion_callback
-        parameters = inspect.signature(super().__init__).parameters
+        parameters = inspect.signature(super(ActionRepeat, self).__init__).parameters  # the algorithm's own
         for key in _EPSILON_ARGUMENTS:
             if key in parameters:
                 kwargs[key] = 0.0
-        super().__init__(*args, **kwargs)
+        super().__init__(*args, wait_action=wait_action, **kwargs)
 
     # -- set-up ----------------------------------------------------------------------------------------------------
     def _setup_model(self) -> None:
-        super()._setup_model()  # type: ignore[misc]
-        name = type(self).__name__
-        space = self.action_space
-        if not isinstance(space, spaces.Discrete):
-            raise TypeError(f"{name} needs a Discrete action space (its random actions are uniform), got {space}")
-        if self.wait_action is not None and not space.contains(np.int64(self.wait_action)):
-            raise ValueError(
-                f"wait_action={self.wait_action} is outside the action space {space}: give an action "
-                f"{int(space.start)}..{int(space.start) + int(space.n) - 1} or None"
-            )
+        super()._setup_model()
         if self.emotion_callback is None:
             self.emotion_callback = EmotionCallback()
         if self.position is not None:
             self.emotion_callback.position = self.position
         self._behaviour = behaviour_by_emotion(self.behaviour_table)
-        self._affect_rng = np.random.default_rng(getattr(self, "seed", None))
-        self._remaining = np.zeros(0, dtype=np.int64)
-        self._repeated = np.zeros(0, dtype=np.int64)
-        self._decisions = self._random_decisions = self._speed_sum = 0
+        self._emotions: list[Emotion] = []
 
     def _excluded_save_params(self) -> list[str]:
-        excluded: list[str] = super()._excluded_save_params()  # type: ignore[misc]
-        return [*excluded, "emotion_callback", "_behaviour", "_affect_rng", "_remaining", "_repeated"]
-
-    def set_random_seed(self, seed: int | None = None) -> None:
-        super().set_random_seed(seed)  # type: ignore[misc]
-        if seed is not None:
-            self._affect_rng = np.random.default_rng(seed)
+        return [*super()._excluded_save_params(), "emotion_callback", "_behaviour", "_emotions"]
 
     def _init_callback(self, callback: MaybeCallback, progress_bar: bool = False) -> BaseCallback:
         """The emotion callback first, then the user's (SB3 makes them one ``CallbackList``)."""
@@ -137,59 +112,25 @@ class AffectiveExploration:
         others = [c for c in given if c is not self.emotion_callback]
         return super()._init_callback([self.emotion_callback, *others], progress_bar)  # type: ignore[misc]
 
-    # -- the decisions -----------------------------------------------------------------------------------------------
-    def _sample_action(self, learning_starts: int, action_noise: Any = None, n_envs: int = 1) -> tuple[np.ndarray, np.ndarray]:
-        """SB3's action (random in the warm-up, else greedy: epsilon is 0), replaced by each env's affective decision."""
-        actions, _ = super()._sample_action(learning_starts, action_noise, n_envs)  # type: ignore[misc]
-        callback = self.emotion_callback
-        assert callback is not None
-        if len(self._remaining) != n_envs:
-            self._remaining = np.zeros(n_envs, dtype=np.int64)
-            self._repeated = np.zeros(n_envs, dtype=np.int64)
-        remaining = self._remaining
-        if self.num_timesteps < learning_starts:  # SB3's warm-up: every step is a random decision of its own
-            remaining[:] = 0
-            callback.decision_ends = None
-            return actions, actions
-        actions = np.array(actions, copy=True).reshape(n_envs)
-        emotions = callback.lane_emotions()
-        rng = self._affect_rng
-        n_actions = int(self.action_space.n)  # type: ignore[attr-defined]
-        start = int(self.action_space.start)  # type: ignore[attr-defined]
-        for index in range(n_envs):
-            if remaining[index] > 0:  # repeating: the action of the decision in progress
-                remaining[index] -= 1
-                actions[index] = self._repeated[index]
-                continue
-            random_direction, speeds = self._behaviour[emotions[index]]
-            speed = speeds[0] if len(speeds) == 1 else speeds[int(rng.integers(len(speeds)))]
-            if random_direction:
-                actions[index] = start + int(rng.integers(n_actions))
-            if speed == 0 and self.wait_action is not None:
-                actions[index] = self.wait_action
-            self._decisions += 1
-            self._random_decisions += random_direction
-            self._speed_sum += speed if self.wait_action is not None else max(speed, 1)
-            remaining[index] = max(speed, 1) - 1
-            self._repeated[index] = actions[index]
-        callback.decision_ends = remaining == 0
-        return actions, actions
+    # -- the decisions: each env's emotion ---------------------------------------------------------------------------
+    def _begin_decisions(self, n_envs: int) -> None:
+        assert self.emotion_callback is not None
+        self._emotions = self.emotion_callback.lane_emotions()
 
-    def _store_transition(self, replay_buffer: Any, buffer_action: np.ndarray, new_obs: Any, reward: np.ndarray,
-                          dones: np.ndarray, infos: list[dict[str, Any]]) -> None:
-        super()._store_transition(replay_buffer, buffer_action, new_obs, reward, dones, infos)  # type: ignore[misc]
-        if len(self._remaining) == len(dones):
-            self._remaining[np.asarray(dones, dtype=bool)] = 0  # an episode's end ends the repeat
+    def _decide(self, index: int) -> tuple[bool, int]:
+        random_direction, speeds = self._behaviour[self._emotions[index]]
+        speed = speeds[0] if len(speeds) == 1 else speeds[int(self._decision_rng.integers(len(speeds)))]
+        return random_direction, speed
+
+    def _decision_ends(self, ends: np.ndarray | None) -> None:
+        assert self.emotion_callback is not None
+        self.emotion_callback.decision_ends = ends
 
     # -- logging ---------------------------------------------------------------------------------------------------
     def dump_logs(self) -> None:
         if self._decisions:
-            share = self._random_decisions / self._decisions
-            self.logger.record("affect/random_share", share)
-            self.logger.record("affect/mean_repeat", self._speed_sum / self._decisions)
-            self.logger.record("rollout/exploration_rate", share)
-            self._decisions = self._random_decisions = self._speed_sum = 0
-        super().dump_logs()  # type: ignore[misc]
+            self.logger.record("rollout/exploration_rate", self._random_decisions / self._decisions)
+        super().dump_logs()
 
 
 class AffectDQN(AffectiveExploration, DQN):

@@ -27,8 +27,25 @@ TABLE_III: dict[Emotion, Behaviour] = {
 }
 
 
-def stored_behaviour_table(table: Mapping[Emotion, Behaviour] | None) -> dict[str, list]:
-    """A user's table (None: Table III), checked, as the plain data a model saves: ``{"joy": [random, speeds], ...}``."""
+#: Table III with its directions swapped (joy greedy; sadness, fear and anger random), the speeds kept: the opposite
+#: hypothesis of Broekens et al. 2007 (positive affect exploits, negative affect explores).
+TABLE_III_REVERSED: dict[Emotion, Behaviour] = {
+    emotion: Behaviour(not behaviour.random_direction, behaviour.speeds) for emotion, behaviour in TABLE_III.items()
+}
+
+#: Behaviour tables by name: what ``behaviour_table=`` takes as a string (a sweep file names a table this way).
+BEHAVIOUR_TABLES: dict[str, dict[Emotion, Behaviour]] = {"table-iii": TABLE_III, "table-iii-reversed": TABLE_III_REVERSED}
+
+
+def stored_behaviour_table(table: Mapping[Emotion, Behaviour] | str | None) -> dict[str, list]:
+    """
+    A user's table (None: Table III; a name of ``BEHAVIOUR_TABLES``), checked, as the plain data a model saves:
+    ``{"joy": [random, speeds], ...}``.
+    """
+    if isinstance(table, str):
+        if table not in BEHAVIOUR_TABLES:
+            raise ValueError(f"behaviour_table={table!r} is not a named table; the names are {', '.join(BEHAVIOUR_TABLES)}")
+        table = BEHAVIOUR_TABLES[table]
     checked = validate_behaviour_table(TABLE_III if table is None else table)
     return {emotion.name.lower(): list(behaviour) for emotion, behaviour in checked.items()}
 

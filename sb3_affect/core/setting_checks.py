@@ -100,7 +100,7 @@ def check_affect(
     comparison: str,
     act: str,
     units: str,
-    behaviour_table: Mapping[Emotion, Any] | None,
+    behaviour_table: Mapping[Emotion, Any] | str | None,
     emotion_callback: Any = None,
 ) -> tuple[str, str, str, str, str, dict[str, list[Any]]]:
     """

@@ -280,7 +280,8 @@ class AffectQSettings(TabularSettings):
     :param comparison: ``"literal"`` or ``"valence"``
     :param act: ``"episode"`` or ``"remaining"``
     :param units: ``"cells"`` or ``"decisions"``
-    :param behaviour_table: emotion -> ``Behaviour(random_direction, speeds)``; None: Table III
+    :param behaviour_table: emotion -> ``Behaviour(random_direction, speeds)``, or a name of ``BEHAVIOUR_TABLES``; None:
+        Table III
     :param personality: ``"neutral"``, ``"optimistic"`` or ``"pessimistic"``
     :param multi_cell: ``"steps"`` or ``"jump"``
     """
@@ -288,7 +289,7 @@ class AffectQSettings(TabularSettings):
     comparison: str = "literal"
     act: str = "episode"
     units: str = "cells"
-    behaviour_table: Mapping[Emotion, Any] | None = None
+    behaviour_table: Mapping[Emotion, Any] | str | None = None
     personality: str = "neutral"
     multi_cell: str = "steps"
 
