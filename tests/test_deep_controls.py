@@ -146,7 +146,7 @@ def test_reversed_table_iii_swaps_the_directions_and_keeps_the_speeds() -> None:
         assert TABLE_III_REVERSED[emotion].speeds == TABLE_III[emotion].speeds
     assert not TABLE_III_REVERSED[Emotion.JOY].random_direction and TABLE_III_REVERSED[Emotion.FEAR].random_direction
     model = AffectQ("Grid", "sb3_affect/GridPursuit-v0", behaviour_table="table-iii-reversed")
-    assert model.behaviour_table == {e.name.lower(): [b.random_direction, list(b.speeds)] for e, b in TABLE_III_REVERSED.items()}
+    assert model.behaviour_table == {e.name.lower(): [b.random_direction, b.speeds] for e, b in TABLE_III_REVERSED.items()}
     with pytest.raises(ValueError, match=r"^behaviour_table='table-3' is not a named table; the names are table-iii, "):
         AffectQ("Grid", "sb3_affect/GridPursuit-v0", behaviour_table="table-3")
     assert set(BEHAVIOUR_TABLES) == {"table-iii", "table-iii-reversed"}
