@@ -7,6 +7,10 @@ or a ``package.module:Class`` path (``package.module.Class`` is accepted too). T
 known without importing them (``known_settings``: their settings class, ``sb3_affect.core.settings``); any other class is
 imported to be checked (``resolve_class``): a dotted name imports code, as rl-zoo3's ``--gym-packages`` does, and must
 name a subclass of SB3's ``BaseAlgorithm`` (checked before anything is made of it).
+
+Env wrappers are named only (``ENV_WRAPPERS``: MiniGrid's observation wrappers, its count bonus and the package's
+``TabularMiniGrid``), never given as module paths; the env ids of ``ENV_PACKAGES`` (``MiniGrid-*``) import the one
+package that registers them.
 """
 
 from __future__ import annotations
@@ -22,7 +26,22 @@ AGENTS: dict[str, str] = {
     "DQN": "stable_baselines3:DQN",
     "PPO": "stable_baselines3:PPO",
     "A2C": "stable_baselines3:A2C",
+    "AffectDQN": "sb3_affect.agents.deep_affect:AffectDQN",
+    "AffectQRDQN": "sb3_affect.agents.deep_affect_qrdqn:AffectQRDQN",
+    "EzGreedyDQN": "sb3_affect.agents.deep_controls:EzGreedyDQN",
+    "SpeedEpsilonGreedyDQN": "sb3_affect.agents.deep_controls:SpeedEpsilonGreedyDQN",
 }
+
+#: Env wrappers a sweep file may name (``env.wrappers``), applied in the order given: only these, by name.
+ENV_WRAPPERS: dict[str, str] = {
+    "TabularMiniGrid": "sb3_affect.agents.minigrid_tabular:TabularMiniGrid",
+    "FlatObsWrapper": "minigrid.wrappers:FlatObsWrapper",
+    "ImgObsWrapper": "minigrid.wrappers:ImgObsWrapper",
+    "PositionBonus": "minigrid.wrappers:PositionBonus",
+}
+
+#: Env ids registered by importing a package: (id prefix, package, the extra that installs it).
+ENV_PACKAGES: tuple[tuple[str, str, str], ...] = (("MiniGrid-", "minigrid", "minigrid"),)
 
 #: Where the package's agents lived before its modules moved into layer folders: sweep files and model files written
 #: then name these modules, read as the ones the agents live in now.
@@ -96,3 +115,39 @@ def check_algo(algo: str) -> None:
     """That ``algo`` names a class (the package's agents by name, others by importing them); ValueError if not."""
     if known_settings(algo) is None:
         resolve_class(algo)
+
+
+def env_package(env_id: str) -> tuple[str, str] | None:
+    """``(package, extra)`` of an env id that a package of ``ENV_PACKAGES`` registers, else None."""
+    return next(((package, extra) for prefix, package, extra in ENV_PACKAGES if env_id.startswith(prefix)), None)
+
+
+def import_env_package(env_id: str) -> None:
+    """Import the package that registers ``env_id`` (``ENV_PACKAGES``), if any; ValueError naming the extra if missing."""
+    found = env_package(env_id)
+    if found is None:
+        return
+    package, extra = found
+    try:
+        importlib.import_module(package)
+    except ImportError:
+        raise ValueError(f"env id {env_id!r} needs {package}: pip install \"sb3-affect[{extra}]\"") from None
+
+
+def check_wrapper(name: str) -> str:
+    """A wrapper's name of ``ENV_WRAPPERS`` as given, or a one-line ValueError naming those allowed (nothing imported)."""
+    if name not in ENV_WRAPPERS:
+        raise ValueError(f"env wrapper {name!r} is not known; the wrappers are {', '.join(ENV_WRAPPERS)}")
+    return name
+
+
+def resolve_wrapper(name: str) -> type:
+    """The wrapper class of a name of ``ENV_WRAPPERS`` (imports its module; ValueError naming the extra if missing)."""
+    module_name, _, attr = ENV_WRAPPERS[check_wrapper(name)].partition(":")
+    try:
+        module = importlib.import_module(module_name)
+    except ImportError:
+        package = module_name.partition(".")[0]
+        raise ValueError(f"env wrapper {name!r} needs {package}: pip install \"sb3-affect[{package}]\"") from None
+    cls: type = getattr(module, attr)
+    return cls

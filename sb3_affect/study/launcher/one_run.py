@@ -69,25 +69,37 @@ def build_team(config: dict[str, Any]) -> Any:
 
 
 def _make_env(config: dict[str, Any]) -> Any:
-    import gymnasium as gym
-
     from sb3_affect.envs import PARALLEL_ENVS, make_parallel
 
     if config["env_id"] in PARALLEL_ENVS:
         return make_parallel(config["env_id"], **config["env_kwargs"])
-    return gym.make(config["env_id"], **config["env_kwargs"])
+    return make_single_env(config)
+
+
+def make_single_env(config: dict[str, Any]) -> Any:
+    """
+    The single-agent env of a run config: ``gym.make`` of its id (after importing the package the registry says
+    registers it: ``MiniGrid-*``), inside the wrappers it names (``env_wrappers``, the registry's ``ENV_WRAPPERS``).
+    """
+    import gymnasium as gym
+
+    import sb3_affect  # noqa: F401  (registers the package's envs)
+    from sb3_affect.core.registry import import_env_package, resolve_wrapper
+
+    import_env_package(config["env_id"])
+    env = gym.make(config["env_id"], **config["env_kwargs"])
+    for name in config.get("env_wrappers", ()):
+        env = resolve_wrapper(name)(env)
+    return env
 
 
 def build_model(config: dict[str, Any]) -> tuple[Any, bool]:
     """The env and the algorithm of a run config: ``(model, tabular)`` (``tabular``: keeps its own ``episode_log``)."""
-    import gymnasium as gym
-
-    import sb3_affect  # noqa: F401  (registers the envs)
     from sb3_affect.agents.tabular import TabularQAlgorithm
     from sb3_affect.core.registry import resolve_class
 
     cls: Any = resolve_class(config["algo"])
-    env = gym.make(config["env_id"], **config["env_kwargs"])
+    env = make_single_env(config)
     kwargs = dict(config["algo_kwargs"])
     if issubclass(cls, TabularQAlgorithm):
         return cls("Grid", env, seed=config["seed"], **kwargs), True
@@ -249,7 +261,7 @@ def execute_run(config: dict[str, Any], log_dir: str | None = None, log_formats:
     import torch as th
 
     th.set_num_threads(1)
-    from stable_baselines3.common.callbacks import CallbackList, StopTrainingOnMaxEpisodes
+    from stable_baselines3.common.callbacks import StopTrainingOnMaxEpisodes
     from stable_baselines3.common.logger import Logger, configure
 
     from sb3_affect.agents.callbacks import EmotionCallback
@@ -263,8 +275,9 @@ def execute_run(config: dict[str, Any], log_dir: str | None = None, log_formats:
         callback: Any = StopTrainingOnMaxEpisodes(episodes)
     else:
         budget = config["max_timesteps"] or episodes * 20_000
-        emotions = EmotionCallback()
-        callback = CallbackList([emotions, StopTrainingOnMaxEpisodes(episodes)])
+        # an agent driven by emotions logs its own (the callback that steers it); any other is watched by one
+        emotions = getattr(model, "emotion_callback", None) or EmotionCallback(position=config.get("env_position"))
+        callback = [emotions, StopTrainingOnMaxEpisodes(episodes)]
     if log_dir is not None:
         Path(log_dir).mkdir(parents=True, exist_ok=True)
         model.set_logger(configure(log_dir, list(log_formats)))

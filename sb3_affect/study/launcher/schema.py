@@ -41,9 +41,11 @@ import re
 from dataclasses import dataclass
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, SerializerFunctionWrapHandler, ValidationInfo, field_validator
+from pydantic import model_serializer, model_validator
 
-from sb3_affect.core.registry import check_algo, known_settings, resolve_class
+from sb3_affect.core.positions import POSITION_PRESETS
+from sb3_affect.core.registry import ENV_WRAPPERS, check_algo, check_wrapper, import_env_package, known_settings, resolve_class
 from sb3_affect.study.launcher.run_ids import RESERVED_LABELS
 
 __all__ = ["AgentSpec", "Cell", "EnvSpec", "MemberSpec", "Sweep", "SweepError"]
@@ -99,6 +101,41 @@ class EnvSpec(BaseModel):
     kwargs: dict[str, Any] = Field(
         default_factory=dict, description="keyword arguments of the env, e.g. {size: 15, goal: [6, 6]}"
     )
+    wrappers: list[str] = Field(
+        default_factory=list,
+        description=f"wrappers put around the env, innermost first, by name: {', '.join(ENV_WRAPPERS)}",
+    )
+    position: str | None = Field(
+        default=None,
+        description=f"where the agent is, for the emotion callback that watches an agent of SB3 (not for the tabular "
+        f"agents, whose observation is the cell): {', '.join(POSITION_PRESETS)} or null (the observation)",
+    )
+
+    @field_validator("wrappers")
+    @classmethod
+    def _known_wrappers(cls, value: list[str]) -> list[str]:
+        return [check_wrapper(name) for name in value]
+
+    @field_validator("position")
+    @classmethod
+    def _preset(cls, value: str | None) -> str | None:
+        if value is not None and value not in POSITION_PRESETS:
+            raise ValueError(f"position {value!r} is not a preset; the presets are {', '.join(POSITION_PRESETS)} (or null)")
+        return value
+
+    @model_serializer(mode="wrap")
+    def _dump(self, handler: SerializerFunctionWrapHandler) -> dict[str, Any]:
+        """Without the wrappers and position when not given: a saved sweep of one env reads as before they existed."""
+        return _without_unset(handler(self), {"wrappers": [], "position": None})
+
+    def config(self) -> dict[str, Any]:
+        """The run config's env keys (the wrappers and position only when given: other run ids are unchanged)."""
+        config: dict[str, Any] = {"env_id": self.id, "env_kwargs": dict(self.kwargs)}
+        if self.wrappers:
+            config["env_wrappers"] = list(self.wrappers)
+        if self.position is not None:
+            config["env_position"] = self.position
+        return config
 
     @field_validator("id")
     @classmethod
@@ -111,6 +148,7 @@ class EnvSpec(BaseModel):
         from sb3_affect.envs import PARALLEL_ENVS
 
         module, _, env_id = value.rpartition(":")  # "my_package.envs:MyEnv-v0": import the module that registers it
+        import_env_package(env_id)  # MiniGrid-*: the package of the registry's allow-list
         if module:
             try:
                 importlib.import_module(module)
@@ -265,6 +303,11 @@ class Sweep(BaseModel):
         "enters the derived seeds and the run files",
     )
     env: EnvSpec = Field(default_factory=EnvSpec, description="the environment section (below)")
+    tasks: dict[str, EnvSpec] | None = Field(
+        default=None,
+        description="instead of env: several envs by task name (each an env section); every agent runs on each task "
+        "with the same seeds, its runs labelled task",
+    )
     episodes: int = Field(
         gt=0, le=MAX_EPISODES, description=f"episodes per run (1 to {MAX_EPISODES:,}); a run stops after this many"
     )
@@ -319,6 +362,8 @@ class Sweep(BaseModel):
         names = [a.name for a in self.agents]
         if len(set(names)) != len(names):
             raise ValueError(f"agents: names must be unique, got {names}")
+        if self.tasks is not None:
+            self._check_tasks()
         multi = is_multi_agent(self.env.id)
         for i, agent in enumerate(self.agents):
             if multi and agent.team is None:
@@ -328,39 +373,72 @@ class Sweep(BaseModel):
         if multi and self.max_timesteps is not None:
             raise ValueError("max_timesteps is not supported for teams: their runs are counted in episodes")
         replicates = self.seeds if isinstance(self.seeds, int) else len(self.seeds)
-        runs = sum(agent.point_count() for agent in self.agents) * replicates
+        runs = sum(agent.point_count() for agent in self.agents) * replicates * len(self.tasks or [None])
         if runs > MAX_RUNS:
             raise ValueError(f"the sweep has {runs:,} runs (grid points x seeds), more than the {MAX_RUNS:,} allowed")
         return self
 
+    @model_serializer(mode="wrap")
+    def _dump(self, handler: SerializerFunctionWrapHandler) -> dict[str, Any]:
+        """Without ``tasks`` when not given: a saved sweep of one env reads (and resumes) as before tasks existed."""
+        return _without_unset(handler(self), {"tasks": None})
+
+    def _check_tasks(self) -> None:
+        """``tasks`` instead of ``env``: named tasks of single-agent envs, agents without a grid label ``task``."""
+        if self.env.config() != EnvSpec.model_construct().config():  # (a saved sweep holds the default env)
+            raise ValueError("give either env (one env) or tasks (several, by name), not both")
+        if not self.tasks:
+            raise ValueError("tasks is empty: give at least one task (name: {id: ..., kwargs: ...})")
+        for task, env in self.tasks.items():
+            if not re.match(NAME_PATTERN, task):
+                raise ValueError(f"tasks: {task!r} is not a task name (letters, digits, _ . + -, at most 64 characters)")
+            if is_multi_agent(env.id):
+                raise ValueError(f"tasks.{task}: {env.id!r} is multi-agent; tasks are single-agent envs")
+        for i, agent in enumerate(self.agents):
+            if "task" in agent.grid or "task" in agent.labels:
+                where = "grid" if "task" in agent.grid else "labels"
+                raise ValueError(f"agents[{i}] ({agent.name}): {where}.task names the tasks' label; rename the label")
+
     def cells(self) -> list[Cell]:
-        """The sweep as cells: one per agent and grid point, holding every replicate's seed (see ``Cell``)."""
+        """
+        The sweep as cells: one per (task,) agent and grid point, holding every replicate's seed (see ``Cell``). The
+        seeds do not depend on the task: each task runs an agent on the same seeds.
+        """
         cells = []
-        for agent in self.agents:
-            for point in agent.points():
-                count = self.seeds if isinstance(self.seeds, int) else len(self.seeds)
-                named = agent.seeds_from or self.name
-                seeds = list(self.seeds) if isinstance(self.seeds, list) else derive_seeds(named, agent.name, point, count)
-                base: dict[str, Any] = {
-                    "sweep": self.name,
-                    "agent": agent.name,
-                    "algo": agent.algo or "team",
-                    "algo_kwargs": agent.kwargs_at(point),
-                    "env_id": self.env.id,
-                    "env_kwargs": dict(self.env.kwargs),
-                    "seed": None,
-                    "episodes": self.episodes,
-                    "max_timesteps": self.max_timesteps,
-                    "labels": {**point, **agent.labels},
-                }
-                if agent.team is not None:  # only team runs carry the key: other run ids are unchanged
-                    base["team"] = agent.team_at(point)
-                cells.append(Cell(base, seeds))
+        envs: list[tuple[str | None, EnvSpec]] = list(self.tasks.items()) if self.tasks else [(None, self.env)]
+        for task, env in envs:
+            for agent in self.agents:
+                for point in agent.points():
+                    count = self.seeds if isinstance(self.seeds, int) else len(self.seeds)
+                    named = agent.seeds_from or self.name
+                    seeds = list(self.seeds) if isinstance(self.seeds, list) else derive_seeds(named, agent.name, point, count)
+                    labels = {**point, **agent.labels}
+                    base: dict[str, Any] = {
+                        "sweep": self.name,
+                        "agent": agent.name,
+                        "algo": agent.algo or "team",
+                        "algo_kwargs": agent.kwargs_at(point),
+                        **env.config(),
+                        "seed": None,
+                        "episodes": self.episodes,
+                        "max_timesteps": self.max_timesteps,
+                        "labels": labels if task is None else {**labels, "task": task},
+                    }
+                    if agent.team is not None:  # only team runs carry the key: other run ids are unchanged
+                        base["team"] = agent.team_at(point)
+                    if agent.wrappers:
+                        base["env_wrappers"] = [*base.get("env_wrappers", []), *agent.wrappers]
+                    cells.append(Cell(base, seeds))
         return cells
 
     def run_configs(self) -> list[dict[str, Any]]:
         """Every run of the sweep as a plain-data config (the unit the launcher executes and stores)."""
         return [cell.config(replicate) for cell in self.cells() for replicate in range(len(cell.seeds))]
+
+
+def _without_unset(dumped: dict[str, Any], defaults: dict[str, Any]) -> dict[str, Any]:
+    """A model's dump without the keys whose value is their default (keys added after folders were saved)."""
+    return {key: value for key, value in dumped.items() if key not in defaults or value != defaults[key]}
 
 
 @dataclass
