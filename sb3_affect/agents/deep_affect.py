@@ -16,9 +16,10 @@ action; there is no epsilon) and its speed k:
   no action does not exist.
 
 The repeats, the waits and their logging are ``sb3_affect.agents.action_repeat.ActionRepeat``'s, which the exploration
-controls of ``sb3_affect.agents.deep_controls`` share: the emotions are one decision rule among them. Everything else is SB3's loop: ``learning_starts`` warms the buffer up with SB3's uniformly random actions (the
-appraisal watches them), the buffer stores the executed action, and training, target updates, saving and loading are
-the base algorithm's. Logged besides ``affect/*`` (the emotion profile, from the callback): ``affect/random_share``
+controls of ``sb3_affect.agents.deep_controls`` share: the emotions are one decision rule among them. Everything else
+is SB3's loop: ``learning_starts`` warms the buffer up with SB3's uniformly random actions (the appraisal watches
+them), the buffer stores the executed action, and training, target updates, saving and loading are the base
+algorithm's. Logged besides ``affect/*`` (the emotion profile, from the callback): ``affect/random_share``
 (the share of decisions after ``learning_starts`` that took a random action, the equivalent epsilon, also logged as
 ``rollout/exploration_rate``) and ``affect/mean_repeat`` (their mean speed k), over the decisions since the last log.
 """

@@ -30,7 +30,10 @@ PARTS = (
     ("ablation", "reading ablation: the 8 readings of the appraisal x 9 ε ({runs} runs)"),
     ("speed_one", "speed ablation: the affective agent with speed fixed at 1 cell ({runs} runs)"),
     ("long", "long runs: both paper agents, runs of 2,000 episodes ({runs} runs)"),
+    ("minigrid", "the tabular agents on MiniGrid ({runs} runs)"),
 )
+#: Parts that need a package of an extra: (part, package, extra); without it the part is skipped with one line.
+PART_PACKAGES = (("minigrid", "minigrid", "minigrid"),)
 #: The parts sized by ``main``'s ``large_seeds`` (a cap on their seeds per cell) and ``engine_episodes`` (their
 #: episodes per run; ``long``: 10 x as many); ``ablation`` by ``ablation_seeds``.
 SIZED = ("large", "ablation", "speed_one", "long")
@@ -75,9 +78,20 @@ def sweep_runs(path: Path) -> int | None:
         seeds = data["seeds"]
         agents = data["agents"].values() if isinstance(data["agents"], dict) else data["agents"]
         per_agent = [math.prod(len(v) for v in (agent.get("grid") or {}).values()) for agent in agents]
+        tasks = len(data.get("tasks") or [None])
     except (OSError, yaml.YAMLError, KeyError, TypeError, AttributeError):
         return None
-    return (len(seeds) if isinstance(seeds, list) else int(seeds)) * sum(per_agent)
+    return (len(seeds) if isinstance(seeds, list) else int(seeds)) * sum(per_agent) * tasks
+
+
+def missing_package(part: str) -> str | None:
+    """What to install when a part needs a package that is not installed (``PART_PACKAGES``), else None."""
+    import importlib.util
+
+    for name, package, extra in PART_PACKAGES:
+        if name == part and importlib.util.find_spec(package) is None:
+            return f"{package} is not installed: pip install \"sb3-affect[{extra}]\""
+    return None
 
 
 def sweeps_folder(experiments: Path | None = None) -> Path:
@@ -153,6 +167,10 @@ def main(
         path = experiments / f"{name}.yaml"
         overrides = _sized(name, path, large_seeds, ablation_seeds, engine_episodes) if name in SIZED else []
         description = part_description(name, description, experiments)
+        missing = missing_package(name)
+        if missing:
+            print(f"== skipped: {description} ({missing})", flush=True)
+            continue
         if overrides:
             description += f" [{', '.join(overrides)}]"
         print(f"== {description}: {path} -> {out_dir / name}", flush=True)

@@ -41,8 +41,16 @@ import re
 from dataclasses import dataclass
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, SerializerFunctionWrapHandler, ValidationInfo, field_validator
-from pydantic import model_serializer, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    SerializerFunctionWrapHandler,
+    ValidationInfo,
+    field_validator,
+    model_serializer,
+    model_validator,
+)
 
 from sb3_affect.core.positions import POSITION_PRESETS
 from sb3_affect.core.registry import ENV_WRAPPERS, check_algo, check_wrapper, import_env_package, known_settings, resolve_class
@@ -219,6 +227,21 @@ class AgentSpec(BaseModel):
         description="derive the agent's seeds as the sweep of this name does (default: this sweep's name): an agent "
         "of the same name and grid point there has the same seeds, so a larger study extends that sweep's runs",
     )
+    wrappers: list[str] = Field(
+        default_factory=list,
+        description=f"wrappers of this agent's env only, outside the env section's, by name: {', '.join(ENV_WRAPPERS)} "
+        "(e.g. a count bonus for one agent of the sweep)",
+    )
+
+    @field_validator("wrappers")
+    @classmethod
+    def _known_wrappers(cls, value: list[str]) -> list[str]:
+        return [check_wrapper(name) for name in value]
+
+    @model_serializer(mode="wrap")
+    def _dump(self, handler: SerializerFunctionWrapHandler) -> dict[str, Any]:
+        """Without ``wrappers`` when not given: a saved sweep reads (and resumes) as before the key existed."""
+        return _without_unset(handler(self), {"wrappers": []})
 
     @field_validator("algo")
     @classmethod
@@ -231,8 +254,8 @@ class AgentSpec(BaseModel):
     def _one_kind(self) -> AgentSpec:
         if (self.algo is None) == (self.team is None):
             raise ValueError("give either algo (one agent) or team (one {algo, kwargs} per hunter of a multi-agent env)")
-        if self.team is not None and self.kwargs:
-            raise ValueError("a team agent has no kwargs of its own: give each member's under team[i].kwargs")
+        if self.team is not None and (self.kwargs or self.wrappers):
+            raise ValueError("a team agent has no kwargs or wrappers of its own: give each member's under team[i].kwargs")
         return self
 
     @field_validator("grid")

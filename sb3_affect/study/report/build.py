@@ -1,6 +1,6 @@
 """
 ``build_report``: the replication report from a results folder (the paper sweep) or a ``replicate`` folder
-(paper/, dqn/, ablation/, baselines*/, beyond/, large/, ...).
+(paper/, dqn/, ablation/, baselines*/, beyond/, large/, minigrid*/, ...).
 
 The report is the list ``SECTIONS`` of section functions, each ``section(ctx: ReportContext) -> None`` adding its
 blocks to ``ctx.doc`` (see ``report.context``): the main text, then ``APPENDIX``. To add a section, write the function
@@ -24,6 +24,8 @@ from sb3_affect.study.report.dqn import dqn_section, learning_curves_section
 from sb3_affect.study.report.evidence import evidence_section
 from sb3_affect.study.report.mechanism import mechanism_section
 from sb3_affect.study.report.metrics import EARLY_WINDOWS, LATE_WINDOWS, load_results, run_metrics
+from sb3_affect.study.report.minigrid import FOLDERS as MINIGRID_FOLDERS
+from sb3_affect.study.report.minigrid import minigrid_sections
 from sb3_affect.study.report.output_files import output_folder, write_text
 from sb3_affect.study.report.reading_verdicts import readings_section
 from sb3_affect.study.report.record import record_section
@@ -36,7 +38,8 @@ from sb3_affect.study.report.windows import windows_section
 
 Section = Callable[[ReportContext], None]
 #: Sub-folders of a replicate folder the sections may read (``ctx.folders[name]``).
-FOLDERS = ("dqn", "ablation", "baselines", "baselines_moving7", "baselines_moving", "beyond", "hunters", "hunters_moving")
+FOLDERS = ("dqn", "ablation", "baselines", "baselines_moving7", "baselines_moving", "beyond", "hunters", "hunters_moving",
+           *(name for name, _, _ in MINIGRID_FOLDERS))
 #: Two-hunter results folders (experiments/hunters*.yaml): two hunters, and the two emotion models side by side.
 HUNTER_FOLDERS = ("hunters", "hunters_moving")
 
@@ -193,6 +196,7 @@ SECTIONS: list[Section] = [
     learning_curves_section,
     beyond_section,
     hunters_sections,
+    minigrid_sections,
     ablation_section,
 ]
 #: The appendix, in order.

@@ -1,0 +1,174 @@
+"""
+The MiniGrid sections: the tabular agents (experiments/minigrid.yaml, folder ``minigrid``) and the deep agents with
+their exploration controls (experiments/minigrid_dqn.yaml, folder ``minigrid_dqn``), each when its folder is present.
+
+Per run, from its episode log: the success rate and the mean return over its last ``LAST_EPISODES`` episodes (a
+success: an episode that ended at the goal, MiniGrid's reward > 0), and the env steps until its first success. Per
+task and agent: rliable's interquartile mean with a 95% bootstrap CI over runs (the stratified bootstrap of one task),
+the probability that the reference agent (the affective one) does better than each other agent with its CI, and the
+emotion profile over training (the share of each emotion among the decisions of each fifth of the run's env steps).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+from rliable import metrics as rmetrics
+
+from sb3_affect.core.emotions import EMOTION_NAMES
+from sb3_affect.study.report.context import ReportContext
+from sb3_affect.study.report.document import fmt
+from sb3_affect.study.report.metrics import load_results
+from sb3_affect.study.report.stats import bootstrap_improvement, bootstrap_iqm_cis
+
+#: The results folders of the sections: (folder, title, what it holds).
+FOLDERS = (
+    ("minigrid", "MiniGrid: the tabular agents", "the tabular agents on TabularMiniGrid (experiments/minigrid.yaml)"),
+    ("minigrid_dqn", "MiniGrid: the deep agents and their controls", "DQN, AffectDQN and the exploration controls "
+     "(experiments/minigrid_dqn.yaml)"),
+)  # fmt: skip
+#: The episodes at the end of each run its success rate and return are read over.
+LAST_EPISODES = 10
+#: Training windows of the emotion profile (equal shares of the run's env steps).
+WINDOWS = 5
+#: The agent the probabilities of improvement compare with the others (when a folder has it).
+REFERENCE = "affective"
+#: Bootstrap resamples of the IQM CIs (the probability of improvement takes REPS // 5).
+REPS = 1000
+COLUMNS = ("episode", "decisions", "cells", "reward", "truncated", *EMOTION_NAMES)
+#: The per-run scores: (column, label, higher is better).
+SCORES = (("success", "success rate", True), ("return", "return", True), ("steps_to_success", "env steps to the first "
+          "success", False))  # fmt: skip
+
+
+def run_scores(episodes: pd.DataFrame) -> pd.DataFrame:
+    """One row per run: agent, task, success rate and return over its last episodes, env steps to its first success."""
+    e = episodes.sort_values(["run_id", "episode"], kind="stable")
+    e = e.assign(success=(e.reward > 0) & ~e.truncated.astype(bool))
+    rows = []
+    for run_id, g in e.groupby("run_id", observed=True, sort=False):
+        last = g.tail(LAST_EPISODES)
+        steps = g.cells.cumsum().to_numpy()
+        hits = np.flatnonzero(g.success.to_numpy())
+        rows.append({
+            "run_id": run_id, "agent": str(g.agent.iloc[0]), "task": str(g.task.iloc[0]) if "task" in g else "",
+            "success": float(last.success.mean()), "return": float(last.reward.mean()),
+            "steps_to_success": float(steps[hits[0]]) if len(hits) else math.nan,
+        })  # fmt: skip
+    return pd.DataFrame(rows)
+
+
+def emotion_profile(episodes: pd.DataFrame) -> pd.DataFrame:
+    """The share of each emotion per (task, agent, training window), pooled over the runs' decisions."""
+    e = episodes.sort_values(["run_id", "episode"], kind="stable")
+    steps = e.groupby("run_id", observed=True).cells.cumsum()
+    total = e.groupby("run_id", observed=True).cells.transform("sum")
+    window = np.minimum((WINDOWS * (steps - e.cells) / total.clip(lower=1)).astype(int), WINDOWS - 1) + 1
+    task = e.task.astype(str) if "task" in e else pd.Series("", index=e.index)
+    frame = pd.DataFrame({"task": task, "agent": e.agent.astype(str), "window": window})
+    for name in EMOTION_NAMES:
+        frame[name] = e[name].to_numpy(float)
+    sums = frame.groupby(["task", "agent", "window"])[list(EMOTION_NAMES)].sum()
+    counted = sums.sum(axis=1)
+    return sums[counted > 0].div(counted[counted > 0], axis=0)
+
+
+def score_table(scores: pd.DataFrame, reference: str | None) -> pd.DataFrame:
+    """IQM [95% CI] of each score and P(reference better) [95% CI], per task and agent; success and return as text."""
+    rows = {}
+    for (task, agent), g in scores.groupby(["task", "agent"], sort=True):
+        values = [g[column].to_numpy(float) for column, _, _ in SCORES]
+        cis = bootstrap_iqm_cis(values, n_boot=REPS, seed=0)
+        row: dict[str, object] = {"runs": len(g)}
+        for (column, label, higher), data, (_, low, high) in zip(SCORES, values, cis):
+            found = data[~np.isnan(data)]
+            point = float(rmetrics.aggregate_iqm(found[:, None])) if len(found) else math.nan
+            digits = 0 if column == "steps_to_success" else 2
+            row[f"IQM {label} [95% CI]"] = f"{fmt(point, digits)} [{fmt(low, digits)}, {fmt(high, digits)}]"
+            if column == "steps_to_success":
+                row["runs without a success"] = int(np.isnan(data).sum())
+            mine = scores[(scores.task == task) & (scores.agent == reference)][column].to_numpy(float)
+            if reference is not None and agent != reference and len(mine) and len(found):
+                p, lo, hi = bootstrap_improvement(mine[~np.isnan(mine)], found, REPS // 5, seed=0, lower_is_better=not higher)
+                row[f"P({reference} better), {label}"] = f"{fmt(p, 2)} [{fmt(lo, 2)}, {fmt(hi, 2)}]"
+        rows[(task, agent)] = row
+    table = pd.DataFrame.from_dict(rows, orient="index")
+    table.index.names = ["task", "agent"]
+    return table.reset_index().set_index("agent")
+
+
+def verdict(scores: pd.DataFrame) -> list[str]:
+    """
+    One sentence per task: the agent with the highest IQM success rate (then return), and whether its bootstrap CI
+    of the success rate clears the next best's (a win) or overlaps it (no clear winner).
+    """
+    out = []
+    for task, t in scores.groupby("task", sort=True):
+        rows = []
+        for agent, g in t.groupby("agent", sort=True):
+            success, ret = g.success.to_numpy(float), g["return"].to_numpy(float)
+            (_, low, high), _ = bootstrap_iqm_cis([success, ret], n_boot=REPS, seed=0)
+            rows.append((float(rmetrics.aggregate_iqm(success[:, None])), float(rmetrics.aggregate_iqm(ret[:, None])),
+                         str(agent), low, high))  # fmt: skip
+        rows.sort(key=lambda row: (-row[0], -row[1], row[2]))
+        best, *others = rows
+        where = f"On {task}" if task else "Here"
+        if not others:
+            out.append(f"{where} only {best[2]} ran (IQM success rate {fmt(best[0], 2)}).")
+            continue
+        second = others[0]
+        lead = (f"{where}, {best[2]} has the highest IQM success rate over the last {LAST_EPISODES} episodes "
+                f"({fmt(best[0], 2)} [{fmt(best[3], 2)}, {fmt(best[4], 2)}], return {fmt(best[1], 2)}); the next is "
+                f"{second[2]} ({fmt(second[0], 2)} [{fmt(second[3], 2)}, {fmt(second[4], 2)}]).")  # fmt: skip
+        if all(best[3] > row[4] for row in others):
+            out.append(f"{lead} {best[2]} wins there: its CI lies above every other agent's IQM interval.")
+        else:
+            tied = [row[2] for row in others if row[4] >= best[3]]
+            out.append(f"{lead} No clear winner: the CIs of {best[2]} and {', '.join(tied)} overlap.")
+    return out
+
+
+def minigrid_sections(ctx: ReportContext) -> None:
+    """A section for each MiniGrid results folder present (``FOLDERS``)."""
+    for name, title, holds in FOLDERS:
+        if name in ctx.folders:
+            minigrid_section(ctx, name, title, holds)
+
+
+def minigrid_section(ctx: ReportContext, name: str, title: str, holds: str) -> None:
+    results = load_results(ctx.folders[name], columns=COLUMNS)
+    ctx.doc.h(title)
+    if results.episodes.empty:
+        ctx.doc.p(f"Skipped: {ctx.folders[name]} holds no finished runs.")
+        return
+    episodes = results.episodes
+    scores = run_scores(episodes)
+    reference = REFERENCE if (scores.agent == REFERENCE).any() else None
+    runs = results.runs
+    budget = runs.max_timesteps.dropna()
+    ctx.doc.p(
+        f"{len(scores)} runs of {holds}, {len(set(runs.seed))} seeds per agent and task"
+        + (f", {fmt(int(budget.max()))} steps each" if len(budget) else "")
+        + f". Success rate and return: over each run's last {LAST_EPISODES} episodes (a success ends at the goal; "
+        "MiniGrid's return is 1 - 0.9 x steps / max steps there, 0 otherwise). IQM: rliable's interquartile mean over "
+        f"runs, with a 95% bootstrap CI ({REPS} resamples of runs within each task)"
+        + (
+            f"; P({reference} better): the probability that a run of {reference} scores better than a run of the agent "
+            "(ties count half), with its bootstrap CI."
+            if reference
+            else "."
+        )
+    )
+    ctx.table(f"{name}_scores", score_table(scores, reference), f"{title}: scores per task and agent")
+    for sentence in verdict(scores):
+        ctx.doc.p(sentence)
+    profile = emotion_profile(episodes)
+    if len(profile):
+        shown = profile.reset_index()
+        shown["window"] = shown.window.map(lambda w: f"{w}/{WINDOWS}")
+        ctx.table(
+            f"{name}_emotions", shown.set_index("agent"),
+            f"{title}: the share of each emotion among the decisions of each fifth of training (pooled over runs)",
+        )  # fmt: skip
