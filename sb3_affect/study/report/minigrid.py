@@ -114,7 +114,7 @@ def verdict(scores: pd.DataFrame) -> list[str]:
                          str(agent), low, high))  # fmt: skip
         rows.sort(key=lambda row: (-row[0], -row[1], row[2]))
         best, *others = rows
-        where = f"On {task}" if task else "Here"
+        where = f"On {str(task)}" if task else "Here"
         if not others:
             out.append(f"{where} only {best[2]} ran (IQM success rate {fmt(best[0], 2)}).")
             continue
