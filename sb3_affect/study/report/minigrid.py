@@ -105,7 +105,8 @@ def verdict(scores: pd.DataFrame) -> list[str]:
     of the success rate clears the next best's (a win) or overlaps it (no clear winner).
     """
     out = []
-    for task, t in scores.groupby("task", sort=True):
+    for key, t in scores.groupby("task", sort=True):
+        task = str(key)
         rows = []
         for agent, g in t.groupby("agent", sort=True):
             success, ret = g.success.to_numpy(float), g["return"].to_numpy(float)
@@ -114,7 +115,7 @@ def verdict(scores: pd.DataFrame) -> list[str]:
                          str(agent), low, high))  # fmt: skip
         rows.sort(key=lambda row: (-row[0], -row[1], row[2]))
         best, *others = rows
-        where = f"On {str(task)}" if task else "Here"
+        where = f"On {task}" if task else "Here"
         if not others:
             out.append(f"{where} only {best[2]} ran (IQM success rate {fmt(best[0], 2)}).")
             continue
