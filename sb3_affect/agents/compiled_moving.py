@@ -23,6 +23,7 @@ from sb3_affect.kernel.agents import KernelAgent
 from sb3_affect.kernel.mt19937 import TW_SIZE
 from sb3_affect.kernel.pcg64 import state_from_generator, state_to_generator
 from sb3_affect.kernel.prey_batch import moving_inputs
+from sb3_affect.kernel.steps import ObsAppraisal
 
 __all__ = ["MovingKernelRun", "MovingKnownArrays"]
 
@@ -85,17 +86,19 @@ class MovingKernelRun(RunArrays):
         fst[moving.S_LAST_ACT] = math.inf
         n_states, n_actions = self.q.shape
         self.dist = np.full(n_states, math.inf)
-        self.succ = np.zeros((n_states, inputs.succ_width), dtype=np.int32)
+        self.succ = np.zeros((n_states, inputs.env.succ_width), dtype=np.int32)
         self.succ_n = np.zeros(n_states, dtype=np.int64)
-        self.pred = np.zeros((n_states, inputs.pred_width), dtype=np.int32)
+        self.pred = np.zeros((n_states, inputs.env.pred_width), dtype=np.int32)
         self.pred_n = np.zeros(n_states, dtype=np.int64)
         self.goal = np.zeros(n_states, dtype=np.bool_)
         if agent.kind == arrays.AFFECT:
             self._read_appraisal()
-        self.work = np.empty(n_actions)
-        self.queue = np.empty(n_states + 1, dtype=np.int64)
-        self.tw = np.empty(TW_SIZE, dtype=np.int64)
-        self.ties = np.empty(inputs.cell_trans.shape[1] + 1, dtype=np.int64)
+        self.work = moving.Work(
+            np.empty(n_actions),
+            np.empty(n_states + 1, dtype=np.int64),
+            np.empty(TW_SIZE, dtype=np.int64),
+            np.empty(inputs.env.cell_trans.shape[1] + 1, dtype=np.int64),
+        )
 
     # -- appraisal in and out ------------------------------------------------------------------------------------
     def _read_appraisal(self) -> None:
@@ -129,20 +132,25 @@ class MovingKernelRun(RunArrays):
     def step(self, alpha: np.ndarray, p: np.ndarray, total_timesteps: int, max_episodes: int) -> tuple[int, int]:
         """Run the kernel (``moving.moving_loop``); returns (episodes finished, 0)."""
         cells_before = self._room(max_episodes)
-        inputs, behaviour = self.inputs, self.agent.behaviour
+        inputs = self.inputs
         finished = moving.moving_loop(
-            self.q, inputs.cell_trans, inputs.far, inputs.icfg, inputs.fcfg, behaviour.random, behaviour.speeds,
-            behaviour.n, self.ucb_n, self.ucb_tot, self.mt, self.pcg, self.ist, self.fst, self.dist, self.succ,
-            self.succ_n, self.pred, self.pred_n, self.goal, self.fit_vals, alpha, p, int(total_timesteps),
-            int(max_episodes), self.out_i, self.out_f, self.work, self.queue, self.tw, self.ties,
-        )  # fmt: skip
+            inputs.env,
+            inputs.config,
+            self.agent.behaviour,
+            moving.RunState(self.q, self.mt, self.pcg, self.ist, self.fst, self.ucb_n, self.ucb_tot),
+            ObsAppraisal(self.dist, self.succ, self.succ_n, self.pred, self.pred_n, self.goal, self.fit_vals),
+            arrays.Episodes(alpha, p, self.out_i, self.out_f),
+            self.work,
+            int(total_timesteps),
+            int(max_episodes),
+        )
         self._stepped(finished, cells_before)
         return int(finished), 0
 
     def monitor_episodes(self, cells: np.ndarray, truncated: np.ndarray) -> None:
         """The Monitor's bookkeeping of the episode ends the env reported (``compiled_run.monitor_episodes``)."""
         base = self.base
-        limit = int(self.inputs.icfg[moving.C_TIME_LIMIT])
+        limit = self.inputs.config.time_limit
         self.last_monitor_info = monitor_episodes(self.monitor, cells, truncated, limit, base.step_reward, base.goal_reward)
 
     def write_back(self) -> None:

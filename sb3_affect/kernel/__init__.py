@@ -6,9 +6,13 @@ decisions with the same random draws and the same floating-point operations, so 
 the identical episode log, Q-table, random-generator state and appraisal. Modules:
 
 - ``mt19937``: CPython's ``random.Random`` (MT19937) in numba, the stream both engines draw from;
-- ``affect``: the appraisal (known map, power fit) and Table II;
-- ``loop``: the decision loop (every agent kind, the env's moves, Eq. 1, the episode rows);
-- ``arrays``: the decision loop's arguments (named tuples of arrays) and the indices of its scalars;
+- ``affect``: the appraisal (known map, power fit, ``exp1`` and ``act``) and Table II (``feel``);
+- ``steps``: the decision step of every agent kind (``decide``) and Eq. 1 (``q_update``), which all three loops call;
+- ``loop``: the grid's decision loop (the env's moves, the episode rows);
+- ``moving`` (batches: ``prey_batch``) and ``team`` (inputs and columns: ``team_inputs``; the env: ``hunter_step``):
+  the loops on MovingPursuit and of hunter teams on HunterPursuit;
+- ``arrays``: the decision loop's arguments (named tuples of arrays) and the indices of its scalars; every entry
+  point of the kernel takes its arguments grouped so (``moving`` and ``team`` define their own beside these);
 - ``agents``: what the kernel needs to know about an agent, read from its settings object (``sb3_affect.core.settings``);
 - ``inputs``: an env's transition table as arrays (``sb3_affect.envs.transition_table``), a batch's inputs;
 - ``batch``: many fresh runs in one call (``simulate``).

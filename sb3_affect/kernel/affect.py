@@ -1,6 +1,7 @@
 """
-The affective appraisal in numba: the known map, the power fit, Table II (``sb3_affect.core.appraisal`` and
-``sb3_affect.core.emotions`` are the readable reference; every operation here is the same, in the same order).
+The affective appraisal in numba: the known map, the power fit, ``exp1`` and ``act`` and Table II (``feel``: the
+kernel's one copy of them; ``sb3_affect.core.appraisal`` and ``sb3_affect.core.emotions`` are the readable reference;
+every operation here is the same, in the same order).
 
 The known map lives in arrays: ``dist[s]`` the shortest known distance (cells) to a reached goal (``inf`` unknown),
 ``edge[s, a]`` whether the transition ``s -> trans[s, a]`` has been experienced, ``pred[v, :pred_n[v]]`` the cells with an
@@ -117,6 +118,25 @@ def table_ii(norm: float, exp1: float, act: float, valence: bool) -> int:
     if act < norm:
         return ANGER if exp1 > act else SADNESS
     return JOY
+
+
+@kernel_inline
+def feel(norm: float, elapsed: int, remaining: float, last_act: float, act_episode: bool, valence: bool) -> tuple[int, float]:
+    """
+    The emotion before a decision: ``Appraiser.appraise`` and Table II (``table_ii``), the kernel's one copy of both.
+
+    ``norm`` is the episode's norm (NaN before the first finished episode: joy), ``elapsed`` the cells or decisions
+    of the episode so far, ``remaining`` the known distance to a goal from the current state (``inf`` unknown: ``act``
+    keeps its last value ``last_act``). ``exp1 = max(norm, elapsed)``; ``act = elapsed + remaining`` (``act_episode``)
+    or ``remaining``. Returns ``(emotion, act)``.
+    """
+    emotion = JOY
+    if norm == norm:
+        if remaining != INF:
+            last_act = elapsed + remaining if act_episode else remaining
+        exp1 = norm if norm > elapsed else float(elapsed)
+        emotion = table_ii(norm, exp1, last_act, valence)
+    return emotion, last_act
 
 
 @kernel_jit

@@ -23,10 +23,14 @@ EPSILON, AFFECT, BOLTZMANN, UCB = 0, 1, 2, 3
 
 
 class EnvTable(NamedTuple):
-    """The env's moves (read only): ``trans[s, a]`` (int64) and the true distance to the goal ``tdist[s]``."""
+    """
+    The env's moves (read only): ``trans[s, a]`` (int64), the true distance to the goal ``tdist[s]`` and the most
+    cells with a move into one cell (the width of the known map's predecessor rows).
+    """
 
     trans: np.ndarray
     tdist: np.ndarray
+    max_pred: int
 
 
 class Config(NamedTuple):
@@ -49,6 +53,8 @@ class Config(NamedTuple):
     step_reward: float
     norm_scale: float  # the personality's bias on the norm
     ucb_coef: float  # UCB's exploration weight
+    q_init: float  # a fresh run's Q-values
+    n_actions: int
 
 
 class BehaviourRows(NamedTuple):
@@ -88,6 +94,13 @@ class Episodes(NamedTuple):
     p: np.ndarray  # float64: epsilon or the inverse temperature
     rows_i: np.ndarray  # int64[episodes, N_OUT_I]: the row's int columns (O_*)
     rows_f: np.ndarray  # float64[episodes, 2]: reward, norm
+
+
+class Seeds(NamedTuple):
+    """Fresh runs' seeds: the ``random.Random`` seed words of run ``r``, ``keys[r, :lengths[r]]``."""
+
+    keys: np.ndarray
+    lengths: np.ndarray
 
 
 class Work(NamedTuple):

@@ -24,13 +24,15 @@ if TYPE_CHECKING:
 
 
 @njit(cache=True)
-def run_seeds(keys, key_lengths, q_init, n_actions, env, config, behaviour, max_pred, alpha_e, p_e, episodes, out_i, out_f):
+def run_seeds(seeds, env, config, behaviour, episodes, n_episodes):
     """
-    Run ``episodes`` episodes from scratch for each seed key; rows of run ``r`` go to ``out[r * episodes ...]``.
+    Run ``n_episodes`` episodes from scratch for each of ``seeds`` (``arrays.Seeds``); rows of run ``r`` go to
+    ``episodes.rows_*[r * n_episodes ...]``, each run's episode ``j`` with ``episodes.alpha[j]``, ``episodes.p[j]``.
     The arrays of a run are allocated once and reset for each run (the known map's ``pred`` needs no reset: only its
     first ``pred_n[v]`` entries are read).
     """
     n_states = env.trans.shape[0]
+    n_actions = config.n_actions
     state = arrays.RunState(
         np.empty((n_states, n_actions)),
         np.empty(STATE_SIZE, dtype=np.int64),
@@ -42,17 +44,17 @@ def run_seeds(keys, key_lengths, q_init, n_actions, env, config, behaviour, max_
     appraisal = arrays.Appraisal(
         np.empty(n_states),
         np.empty((n_states, n_actions), dtype=np.bool_),
-        np.zeros((n_states, max_pred), dtype=np.int64),
+        np.zeros((n_states, env.max_pred), dtype=np.int64),
         np.empty(n_states, dtype=np.int64),
         np.empty(n_states, dtype=np.bool_),
-        np.zeros(episodes),
+        np.zeros(n_episodes),
     )
     work = arrays.work_space(n_states, n_actions)
     ist, fst = state.ist, state.fst
-    total_timesteps = episodes * config.cap
-    for r in range(keys.shape[0]):
-        state.q[:] = q_init
-        seed_state(state.mt, keys[r], key_lengths[r])
+    total_timesteps = n_episodes * config.cap
+    for r in range(seeds.keys.shape[0]):
+        state.q[:] = config.q_init
+        seed_state(state.mt, seeds.keys[r], seeds.lengths[r])
         ist[:] = 0
         ist[arrays.I_STATE] = config.start
         ist[arrays.I_CHANGED] = 1
@@ -67,9 +69,9 @@ def run_seeds(keys, key_lengths, q_init, n_actions, env, config, behaviour, max_
         state.ucb_n[:] = 0
         state.ucb_tot[:] = 0
         work.seen[:] = 0
-        lo, hi = r * episodes, (r + 1) * episodes
-        rows = arrays.Episodes(alpha_e, p_e, out_i[lo:hi], out_f[lo:hi])
-        loop.decision_loop(env, config, behaviour, state, appraisal, rows, work, total_timesteps, episodes)
+        lo, hi = r * n_episodes, (r + 1) * n_episodes
+        rows = arrays.Episodes(episodes.alpha, episodes.p, episodes.rows_i[lo:hi], episodes.rows_f[lo:hi])
+        loop.decision_loop(env, config, behaviour, state, appraisal, rows, work, total_timesteps, n_episodes)
 
 
 def simulate_batch(inputs: BatchInputs, seeds: Sequence[int], episodes: int) -> pd.DataFrame:
@@ -92,22 +94,8 @@ def run_batch(
 ) -> None:
     """The kernel call of ``batch_columns``: ``episodes`` episodes of a fresh run per key into the rows ``out_i``,
     ``out_f`` (run ``r``'s from row ``r * episodes``)."""
-    table = inputs.table
-    run_seeds(
-        keys,
-        lengths,
-        inputs.q_init,
-        inputs.n_actions,
-        table.env,
-        inputs.config,
-        inputs.agent.behaviour,
-        table.max_pred,
-        inputs.alpha,
-        inputs.p,
-        episodes,
-        out_i,
-        out_f,
-    )
+    rows = arrays.Episodes(inputs.alpha, inputs.p, out_i, out_f)
+    run_seeds(arrays.Seeds(keys, lengths), inputs.table.env, inputs.config, inputs.agent.behaviour, rows, episodes)
 
 
 def batch_columns(inputs: BatchInputs, seeds: Sequence[int], episodes: int) -> dict[str, np.ndarray]:
@@ -157,7 +145,7 @@ def warm_up() -> None:
     alpha, p = np.ones(1), np.zeros(1)
     out_i, out_f = np.zeros((1, arrays.N_OUT_I), dtype=np.int64), np.zeros((1, 2))
     keys, lengths = np.zeros((1, 1), dtype=np.int64), np.ones(1, dtype=np.int64)
-    run_seeds(keys, lengths, 0.0, 4, table.env, config, agent.behaviour, 2, alpha, p, 1, out_i, out_f)
+    run_seeds(arrays.Seeds(keys, lengths), table.env, config, agent.behaviour, arrays.Episodes(alpha, p, out_i, out_f), 1)
     mt = np.zeros(STATE_SIZE, dtype=np.int64)
     seed_state(mt, keys[0], 1)
     ist = np.zeros(arrays.N_IST, dtype=np.int64)

@@ -69,7 +69,7 @@ class TableArrays:
     @property
     def env(self) -> arrays.EnvTable:
         """The kernel's ``EnvTable``."""
-        return arrays.EnvTable(self.trans, self.tdist)
+        return arrays.EnvTable(self.trans, self.tdist, self.max_pred)
 
 
 def kernel_config(settings: Any, agent: KernelAgent, table: TableArrays, time_limit: int) -> arrays.Config:
@@ -92,6 +92,8 @@ def kernel_config(settings: Any, agent: KernelAgent, table: TableArrays, time_li
         step_reward=table.step_reward,
         norm_scale=float(agent.norm_scale),
         ucb_coef=float(agent.ucb_coef),
+        q_init=float(settings.q_init),
+        n_actions=int(table.trans.shape[1]),
     )
 
 

@@ -1,7 +1,9 @@
 """
-The compiled decision loop: ``sb3_affect.agents.reference_loop.run_loop`` with the agent's ``_decide``, the appraisal and the
-env's moves, in numba. ``agents/reference_loop.py`` is the readable reference; this file does the same operations in the
-same order (same random draws, same floating-point expressions), so both give the same episode log and Q-table.
+The compiled decision loop on a transition table (GridPursuit, MazePursuit): ``sb3_affect.agents.reference_loop.run_loop``
+with the agent's ``_decide``, the appraisal and the env's moves, in numba; the decision and Eq. 1 are ``kernel.steps``'s,
+which the moving-prey and team loops call too. ``agents/reference_loop.py`` is the readable reference; this file does
+the same operations in the same order (same random draws, same floating-point expressions), so both give the same
+episode log and Q-table.
 
 State crosses the boundary as arrays, grouped in a few named tuples (``sb3_affect.kernel.arrays``; numba passes
 each as one argument): ``EnvTable``, ``Config``, ``BehaviourRows``, ``RunState``, ``Appraisal``, ``Episodes`` and
@@ -15,11 +17,9 @@ import math
 import numpy as np
 from numba import njit
 
-from sb3_affect.kernel.affect import fit_add, known_add, known_add_goal, start_norm, table_ii
+from sb3_affect.kernel.affect import fit_add, known_add, known_add_goal, start_norm
 from sb3_affect.kernel.arrays import (
     AFFECT,
-    BOLTZMANN,
-    EPSILON,
     I_CELLS,
     I_CHANGED,
     I_DECISIONS,
@@ -54,24 +54,11 @@ from sb3_affect.kernel.arrays import (
     STOP_TIMESTEPS,
     work_space,
 )
-from sb3_affect.kernel.choice import greedy, row_max, softmax_action, ucb_action
-from sb3_affect.kernel.jit import kernel_inline, kernel_jit
+from sb3_affect.kernel.choice import row_max
+from sb3_affect.kernel.jit import kernel_jit
 from sb3_affect.kernel.mt19937 import N as MT_N
-from sb3_affect.kernel.mt19937 import bit_length, draw01, draw_below, temper_all
-
-
-@kernel_inline
-def q_update(q, s, action, reward, s2, terminated, alpha, gamma):
-    """
-    Eq. 1 for ``q[s, action]`` after a move to ``s2`` with ``reward`` (the only place the kernel writes it); returns
-    whether the entry changed.
-    """
-    old = q[s, action]
-    new = old + alpha * ((reward if terminated else reward + gamma * row_max(q, s2)) - old)
-    if new != old:
-        q[s, action] = new
-        return True
-    return False
+from sb3_affect.kernel.mt19937 import temper_all
+from sb3_affect.kernel.steps import decide, q_update
 
 
 @kernel_jit
@@ -132,33 +119,23 @@ def decision_loop(env, config, behaviour, state, appraisal, episodes, work, tota
     Q-table changes mark the greedy walk's answer out of date only in rows that walk read (``seen[s] == walks``):
     the walk reads no other row, so a change elsewhere can not change its answer.
     """
-    trans, tdist = env
-    q, mt, ist, fst, ucb_n, ucb_tot = state
+    trans, tdist = env.trans, env.tdist
+    q, mt, ist, fst = state.q, state.mt, state.ist, state.fst
     dist, edge, pred, pred_n, goal, fit_vals = appraisal
     alpha_e, p_e, out_i, out_f = episodes
-    work_row, seen, stack, queue, tw = work
-    beh_rand, beh_speeds, beh_n = behaviour
+    seen, stack, queue, tw = work.seen, work.stack, work.queue, work.tw
     kind = config.kind
     goal_state = config.goal
     start_state = config.start
     shortest = config.shortest
     time_limit = config.time_limit
     cap = config.cap
-    act_episode = config.act_episode
     units_cells = config.units_cells
-    valence = config.valence
-    tie_first = config.tie_first
     jump = config.jump
-    compensated = config.compensated_sum
     gamma = config.gamma
     goal_reward = config.goal_reward
     step_reward = config.step_reward
     norm_scale = config.norm_scale
-    ucb_coef = config.ucb_coef
-    n_actions = q.shape[1]
-    action_shift = 32 - bit_length(n_actions)  # randrange(n_actions) draws this many bits fewer than 32
-    speeds0 = beh_n[0]  # the epsilon family's speeds: row 0
-    speed0 = beh_speeds[0, 0]
     fsum = fst[S_FIT0 : S_FIT0 + 4]
 
     r = mt[MT_N]  # the random stream's index
@@ -189,53 +166,14 @@ def decision_loop(env, config, behaviour, state, appraisal, episodes, work, tota
     prev = s
     stop = STOP_TIMESTEPS
     while t < total_timesteps:
-        # 1. decide: direction and speed
-        explored = False
+        # 1. decide: the emotion (AffectQ), direction and speed
+        elapsed = el_cells if units_cells else el_decisions
+        action, k, explored, emotion, last_act, r = decide(
+            config, behaviour, state, work, s, r, p, norm, elapsed, last_act, dist
+        )
         if kind == AFFECT:
-            emotion = 0
-            if norm == norm:
-                elapsed = el_cells if units_cells else el_decisions
-                remaining = dist[s]
-                if remaining != math.inf:
-                    last_act = elapsed + remaining if act_episode else remaining
-                exp1 = norm if norm > elapsed else float(elapsed)
-                emotion = table_ii(norm, exp1, last_act, valence)
             el_decisions += 1
             ist[I_JOY + emotion] += 1
-            ns = beh_n[emotion]
-            if ns == 1:
-                k = beh_speeds[emotion, 0]
-            else:
-                pick, r = draw_below(mt, tw, r, ns, 32 - bit_length(ns))
-                k = beh_speeds[emotion, pick]
-            if beh_rand[emotion]:
-                action, r = draw_below(mt, tw, r, n_actions, action_shift)
-                explored = True
-            else:
-                action, r = greedy(q, s, mt, tw, r, tie_first)
-        elif kind == EPSILON:
-            if speeds0 == 1:
-                k = speed0
-            else:
-                pick, r = draw_below(mt, tw, r, speeds0, 32 - bit_length(speeds0))
-                k = beh_speeds[0, pick]
-            u, r = draw01(mt, tw, r)
-            if u < p:
-                action, r = draw_below(mt, tw, r, n_actions, action_shift)
-                explored = True
-            else:
-                action, r = greedy(q, s, mt, tw, r, tie_first)
-        elif kind == BOLTZMANN:
-            k = 1
-            u, r = draw01(mt, tw, r)
-            action = softmax_action(q, s, p, u, compensated, work_row)
-            explored = q[s, action] != row_max(q, s)
-        else:
-            k = 1
-            action, r = ucb_action(q, s, ucb_n, ucb_tot[s], ucb_coef, mt, tw, r, work_row)
-            ucb_n[s, action] += 1
-            ucb_tot[s] += 1
-            explored = q[s, action] != row_max(q, s)
         # 2. move k cells, one Eq. 1 update per cell (or one for the whole move)
         start_cell = s
         jump_reward = 0.0

@@ -13,47 +13,96 @@ hunter. The observation is ``hunter * n_cells + prey``. The appraisal's known ma
 (``steps.obs_known_add``). The env has no fixed goal, so the ``optimal`` and ``greedy_optimal`` columns are NaN, as the
 Python loop gives them.
 
-State crosses the boundary as arrays: ``ist`` (int64) and ``fst`` (float64) at the indices below, ``mt`` the agent's
-MT19937 state, ``pcg`` the env's PCG64 state.
+State crosses the boundary as arrays grouped in named tuples, as ``kernel.loop``'s: ``PreyEnv``, ``Config``,
+``arrays.BehaviourRows``, ``RunState`` (its ``ist`` and ``fst`` at the indices below, ``mt`` the agent's MT19937
+state, ``pcg`` the env's PCG64 state), ``steps.ObsAppraisal``, ``arrays.Episodes`` and ``Work``.
 """
 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
 from sb3_affect.kernel.affect import fit_add, known_add_goal, start_norm
+from sb3_affect.kernel.arrays import Episodes
 from sb3_affect.kernel.jit import kernel_inline, kernel_jit
 from sb3_affect.kernel.mt19937 import STATE_SIZE, TW_SIZE, seed_state, temper_all
 from sb3_affect.kernel.mt19937 import N as MT_N
 from sb3_affect.kernel.pcg64 import integers, random01
-from sb3_affect.kernel.steps import AFFECT, decide, obs_known_add, q_update
+from sb3_affect.kernel.steps import AFFECT, ObsAppraisal, decide, obs_known_add, q_update
 
 PREY_STATIC, PREY_RANDOM, PREY_EVADE = 0, 1, 2
 PREY_KINDS = {"static": PREY_STATIC, "random": PREY_RANDOM, "evade": PREY_EVADE}
 
-# icfg: fixed configuration
-(
-    C_KIND,
-    C_N_CELLS,
-    C_HUNTER_START,
-    C_PREY_START,
-    C_PREY,
-    C_TIME_LIMIT,
-    C_CAP,
-    C_ACT_EPISODE,
-    C_UNITS_CELLS,
-    C_VALENCE,
-    C_TIE_FIRST,
-    C_JUMP,
-    C_COMPENSATED_SUM,
-) = range(13)
-N_ICFG = 13
-# fcfg: fixed float configuration
-F_GAMMA, F_GOAL_REWARD, F_STEP_REWARD, F_NORM_SCALE, F_UCB_COEF, F_PREY_SPEED = range(6)
-N_FCFG = 6
+
+class PreyEnv(NamedTuple):
+    """The env's moves (read only) and the widths of the known map over its observations (``steps.known_widths``)."""
+
+    cell_trans: np.ndarray  # int64[n_cells, n_moves]: the cells' one-move table
+    far: np.ndarray  # float64[n_cells, n_cells]: far[h, c], the distance from cell c to cell h (the evading prey's)
+    succ_width: int
+    pred_width: int
+
+
+class Config(NamedTuple):
+    """The run's fixed scalars (read only): the agent's (as ``arrays.Config``) and the env's."""
+
+    kind: int  # EPSILON, AFFECT, BOLTZMANN or UCB
+    n_cells: int
+    hunter_start: int
+    prey_start: int
+    prey: int  # PREY_STATIC, PREY_RANDOM or PREY_EVADE
+    time_limit: int  # the env's TimeLimit (0: none)
+    cap: int  # max_episode_decisions
+    act_episode: bool
+    units_cells: bool
+    valence: bool
+    tie_first: bool
+    jump: bool
+    compensated_sum: bool
+    gamma: float
+    goal_reward: float
+    step_reward: float
+    norm_scale: float
+    ucb_coef: float
+    prey_speed: float
+    q_init: float
+    n_actions: int
+
+
+class RunState(NamedTuple):
+    """The run's state (read and written): ``arrays.RunState`` (at this module's indices) and the env's generator."""
+
+    q: np.ndarray
+    mt: np.ndarray
+    pcg: np.ndarray  # uint64[pcg64.STATE_SIZE]: the env's PCG64 state (the prey's draws)
+    ist: np.ndarray  # int64[N_IST]
+    fst: np.ndarray  # float64[N_FST]
+    ucb_n: np.ndarray
+    ucb_tot: np.ndarray
+
+
+class Work(NamedTuple):
+    """Work space: ``work`` (n_actions floats), ``queue`` (n_states + 1), ``tw`` (the random stream's tempered words),
+    ``ties`` (n_moves + 1)."""
+
+    work: np.ndarray
+    queue: np.ndarray
+    tw: np.ndarray
+    ties: np.ndarray
+
+
+class Seeds(NamedTuple):
+    """Fresh runs' seeds: the agent's ``random.Random`` seed words (``keys``, ``lengths``) and the env's generator
+    state after ``reset(seed=seed)`` (``pcg``), one row per run."""
+
+    keys: np.ndarray
+    lengths: np.ndarray
+    pcg: np.ndarray
+
 
 # ist: int run state
 (
@@ -154,35 +203,31 @@ def evade_target(
 
 
 @kernel_jit
-def moving_loop(
-    q, cell_trans, far, icfg, fcfg, beh_rand, beh_speeds, beh_n, ucb_n, ucb_tot, mt, pcg, ist, fst,
-    dist, succ, succ_n, pred, pred_n, goal, fit_vals, alpha_e, p_e, total_timesteps, max_episodes, out_i, out_f,
-    work, queue, tw, ties,
-):  # fmt: skip
+def moving_loop(env, config, behaviour, state, appraisal, episodes, work, total_timesteps, max_episodes):
     """
-    Run decisions until ``ist[I_T]`` reaches ``total_timesteps`` or ``max_episodes`` episodes have finished; episode
-    ``j`` of this call (``j = 0``: the one in progress) learns with ``alpha_e[j]`` and explores with ``p_e[j]``.
-    Finished episodes go to ``out_i``/``out_f``. ``work`` (``n_actions`` floats) and ``queue`` (``n_states + 1``) are
-    work space (``ties``: ``n_moves + 1`` entries), ``tw`` (``mt19937.TW_SIZE``) the random stream's tempered words.
-    Returns the episodes finished.
+    Run decisions until ``state.ist[I_T]`` reaches ``total_timesteps`` or ``max_episodes`` episodes have finished;
+    episode ``j`` of this call (``j = 0``: the one in progress) learns with ``episodes.alpha[j]`` and explores with
+    ``episodes.p[j]``. Finished episodes go to ``episodes.rows_i``/``rows_f``. The arguments: ``PreyEnv``, ``Config``,
+    ``arrays.BehaviourRows``, ``RunState``, ``steps.ObsAppraisal``, ``arrays.Episodes`` and ``Work``. Returns the
+    episodes finished.
     """
-    kind = icfg[C_KIND]
-    n_cells = icfg[C_N_CELLS]
-    prey_kind = icfg[C_PREY]
-    time_limit = icfg[C_TIME_LIMIT]
-    cap = icfg[C_CAP]
-    act_episode = icfg[C_ACT_EPISODE] != 0
-    units_cells = icfg[C_UNITS_CELLS] != 0
-    valence = icfg[C_VALENCE] != 0
-    tie_first = icfg[C_TIE_FIRST] != 0
-    jump = icfg[C_JUMP] != 0
-    compensated = icfg[C_COMPENSATED_SUM] != 0
-    gamma = fcfg[F_GAMMA]
-    goal_reward = fcfg[F_GOAL_REWARD]
-    step_reward = fcfg[F_STEP_REWARD]
-    norm_scale = fcfg[F_NORM_SCALE]
-    ucb_coef = fcfg[F_UCB_COEF]
-    speed = fcfg[F_PREY_SPEED]
+    cell_trans, far = env.cell_trans, env.far
+    q, mt, pcg, ist, fst = state.q, state.mt, state.pcg, state.ist, state.fst
+    dist, succ, succ_n, pred, pred_n, goal, fit_vals = appraisal
+    alpha_e, p_e, out_i, out_f = episodes
+    queue, tw, ties = work.queue, work.tw, work.ties
+    kind = config.kind
+    n_cells = config.n_cells
+    prey_kind = config.prey
+    time_limit = config.time_limit
+    cap = config.cap
+    units_cells = config.units_cells
+    jump = config.jump
+    gamma = config.gamma
+    goal_reward = config.goal_reward
+    step_reward = config.step_reward
+    norm_scale = config.norm_scale
+    speed = config.prey_speed
     fsum = fst[S_FIT0 : S_FIT0 + 4]
 
     r = mt[MT_N]
@@ -207,9 +252,8 @@ def moving_loop(
         s = hunter * n_cells + prey
         elapsed = el_cells if units_cells else el_decisions
         action, k, explored, emotion, last_act, r = decide(
-            kind, q, s, mt, tw, r, tie_first, beh_rand, beh_speeds, beh_n, p, compensated, ucb_n, ucb_tot, ucb_coef,
-            work, norm, elapsed, last_act, dist[s], act_episode, valence,
-        )  # fmt: skip
+            config, behaviour, state, work, s, r, p, norm, elapsed, last_act, dist
+        )
         if kind == AFFECT:
             el_decisions += 1
             ist[I_JOY + emotion] += 1
@@ -275,8 +319,8 @@ def moving_loop(
             ist[I_LAST_TERMINATED] = 1 if terminated else 0
             fst[S_LAST_REWARD] = reward if k == 1 else reward_sum - before
             # the next episode starts: the env's reset (its generator goes on), the appraisal's new norm
-            hunter = icfg[C_HUNTER_START]
-            prey = icfg[C_PREY_START]
+            hunter = config.hunter_start
+            prey = config.prey_start
             decisions = cells = random_moves = waits = tl_elapsed = 0
             reward_sum = 0.0
             if kind == AFFECT:
@@ -305,57 +349,59 @@ def moving_loop(
 
 
 @njit(cache=True)
-def run_seeds(
-    keys, key_lengths, pcg_init, q_init, n_actions, cell_trans, far, icfg, fcfg, beh_rand, beh_speeds, beh_n,
-    succ_width, pred_width, alpha_e, p_e, episodes, total_timesteps, out_i, out_f, q, mt, pcg, dist,
-):  # fmt: skip
+def run_seeds(seeds, env, config, behaviour, episodes, n_episodes):
     """
-    ``episodes`` episodes of a fresh run for each seed (``keys``: the agent's ``random.Random`` seed words,
-    ``pcg_init``: the env's generator state after ``reset(seed=seed)``); rows of run ``r`` go to
-    ``out[r * episodes ...]``. The work arrays are allocated once and reset for each run; ``q``, ``mt``, ``pcg`` and
-    ``dist`` are the run's own and hold the last run's state when this returns.
+    ``n_episodes`` episodes of a fresh run for each of ``seeds`` (``Seeds``); rows of run ``r`` go to
+    ``episodes.rows_*[r * n_episodes ...]``, each run's episode ``j`` with ``episodes.alpha[j]``, ``episodes.p[j]``.
+    The run's arrays are allocated once and reset for each run; returns the last run's ``(q, mt, pcg, dist)``.
     """
-    n_cells = cell_trans.shape[0]
+    n_cells = env.cell_trans.shape[0]
     n_states = n_cells * n_cells
-    ist = np.empty(N_IST, dtype=np.int64)
-    fst = np.empty(N_FST)
-    succ = np.zeros((n_states, succ_width), dtype=np.int32)
-    succ_n = np.empty(n_states, dtype=np.int64)
-    pred = np.zeros((n_states, pred_width), dtype=np.int32)
-    pred_n = np.empty(n_states, dtype=np.int64)
-    goal = np.empty(n_states, dtype=np.bool_)
-    fit_vals = np.zeros(episodes)
-    ucb_n = np.empty((n_states, n_actions), dtype=np.int64)
-    ucb_tot = np.empty(n_states, dtype=np.int64)
-    work = np.empty(n_actions)
-    queue = np.empty(n_states + 1, dtype=np.int64)
-    tw = np.empty(TW_SIZE, dtype=np.int64)
-    ties = np.empty(cell_trans.shape[1] + 1, dtype=np.int64)
-    affect = icfg[C_KIND] == AFFECT
-    for r in range(keys.shape[0]):
-        q[:] = q_init
-        seed_state(mt, keys[r], key_lengths[r])
-        pcg[:] = pcg_init[r]
+    n_actions = config.n_actions
+    state = RunState(
+        np.empty((n_states, n_actions)),
+        np.zeros(STATE_SIZE, dtype=np.int64),
+        np.zeros(seeds.pcg.shape[1], dtype=np.uint64),
+        np.empty(N_IST, dtype=np.int64),
+        np.empty(N_FST),
+        np.empty((n_states, n_actions), dtype=np.int64),
+        np.empty(n_states, dtype=np.int64),
+    )
+    appraisal = ObsAppraisal(
+        np.empty(n_states),
+        np.zeros((n_states, env.succ_width), dtype=np.int32),
+        np.empty(n_states, dtype=np.int64),
+        np.zeros((n_states, env.pred_width), dtype=np.int32),
+        np.empty(n_states, dtype=np.int64),
+        np.empty(n_states, dtype=np.bool_),
+        np.zeros(n_episodes),
+    )
+    work = Work(
+        np.empty(n_actions),
+        np.empty(n_states + 1, dtype=np.int64),
+        np.empty(TW_SIZE, dtype=np.int64),
+        np.empty(env.cell_trans.shape[1] + 1, dtype=np.int64),
+    )
+    ist, fst = state.ist, state.fst
+    affect = config.kind == AFFECT
+    for r in range(seeds.keys.shape[0]):
+        state.q[:] = config.q_init
+        seed_state(state.mt, seeds.keys[r], seeds.lengths[r])
+        state.pcg[:] = seeds.pcg[r]
         ist[:] = 0
-        ist[I_HUNTER] = icfg[C_HUNTER_START]
-        ist[I_PREY] = icfg[C_PREY_START]
+        ist[I_HUNTER] = config.hunter_start
+        ist[I_PREY] = config.prey_start
         fst[:] = 0.0
         fst[S_NORM] = math.nan
         fst[S_LAST_ACT] = math.inf
-        dist[:] = math.inf
+        appraisal.dist[:] = math.inf
         if affect:
-            succ_n[:] = 0
-            pred_n[:] = 0
-            goal[:] = False
-        ucb_n[:] = 0
-        ucb_tot[:] = 0
-        lo, hi = r * episodes, (r + 1) * episodes
-        moving_loop(
-            q, cell_trans, far, icfg, fcfg, beh_rand, beh_speeds, beh_n, ucb_n, ucb_tot, mt, pcg, ist, fst,
-            dist, succ, succ_n, pred, pred_n, goal, fit_vals, alpha_e, p_e, total_timesteps, episodes, out_i[lo:hi],
-            out_f[lo:hi], work, queue, tw, ties,
-        )  # fmt: skip
-
-
-#: the MT19937 state's size, for callers allocating ``run_seeds``' ``mt``
-MT_STATE_SIZE = STATE_SIZE
+            appraisal.succ_n[:] = 0
+            appraisal.pred_n[:] = 0
+            appraisal.goal[:] = False
+        state.ucb_n[:] = 0
+        state.ucb_tot[:] = 0
+        lo, hi = r * n_episodes, (r + 1) * n_episodes
+        rows = Episodes(episodes.alpha, episodes.p, episodes.rows_i[lo:hi], episodes.rows_f[lo:hi])
+        moving_loop(env, config, behaviour, state, appraisal, rows, work, n_episodes * config.cap, n_episodes)
+    return state.q, state.mt, state.pcg, appraisal.dist

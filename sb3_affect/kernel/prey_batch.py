@@ -21,8 +21,9 @@ from gymnasium.wrappers import OrderEnforcing, PassiveEnvChecker, TimeLimit
 from sb3_affect.core.registry import known_settings
 from sb3_affect.kernel import moving
 from sb3_affect.kernel.agents import COMPENSATED_SUM, KernelAgent, kernel_agent
+from sb3_affect.kernel.arrays import Episodes
 from sb3_affect.kernel.inputs import unwrap
-from sb3_affect.kernel.mt19937 import STATE_SIZE, seed_keys
+from sb3_affect.kernel.mt19937 import seed_keys
 from sb3_affect.kernel.pcg64 import STATE_SIZE as PCG_SIZE
 from sb3_affect.kernel.pcg64 import seeded_state
 from sb3_affect.kernel.steps import known_widths
@@ -32,17 +33,10 @@ class MovingInputs(NamedTuple):
     """Everything ``moving_columns`` needs besides the seeds: the same for every run of the batch."""
 
     agent: KernelAgent
-    icfg: np.ndarray
-    fcfg: np.ndarray
-    cell_trans: np.ndarray  # the cells' one-move table
-    far: np.ndarray  # far[h, c]: distance from cell c to cell h (the evading prey's)
+    env: moving.PreyEnv
+    config: moving.Config
     alpha: np.ndarray  # learning rate per episode
     p: np.ndarray  # exploration parameter per episode
-    q_init: float
-    n_actions: int
-    cap: int  # max_episode_decisions
-    succ_width: int
-    pred_width: int
 
 
 class MovingRun(NamedTuple):
@@ -97,36 +91,35 @@ def moving_inputs(settings: Any, env: Any, episodes: int) -> MovingInputs:
     assert isinstance(agent, KernelAgent), agent
     base, wrappers = unwrap(env)
     limits = [int(w._max_episode_steps) for w in wrappers if hasattr(w, "_max_episode_steps")]
-    icfg = np.zeros(moving.N_ICFG, dtype=np.int64)
-    icfg[moving.C_KIND] = agent.kind
-    icfg[moving.C_N_CELLS] = base.n_cells
-    icfg[moving.C_HUNTER_START] = base.hunter_start_cell
-    icfg[moving.C_PREY_START] = base.prey_start_cell
-    icfg[moving.C_PREY] = moving.PREY_KINDS[base.prey]
-    icfg[moving.C_TIME_LIMIT] = limits[0] if limits else 0
-    icfg[moving.C_CAP] = settings.max_episode_decisions
-    icfg[moving.C_ACT_EPISODE] = agent.act_episode
-    icfg[moving.C_UNITS_CELLS] = agent.units_cells
-    icfg[moving.C_VALENCE] = agent.valence
-    icfg[moving.C_TIE_FIRST] = getattr(settings, "tie_break", "random") == "first"
-    icfg[moving.C_JUMP] = getattr(settings, "multi_cell", "steps") == "jump"
-    icfg[moving.C_COMPENSATED_SUM] = COMPENSATED_SUM
-    fcfg = np.zeros(moving.N_FCFG)
-    fcfg[moving.F_GAMMA] = settings.gamma
-    fcfg[moving.F_GOAL_REWARD] = base.goal_reward
-    fcfg[moving.F_STEP_REWARD] = base.step_reward
-    fcfg[moving.F_NORM_SCALE] = agent.norm_scale
-    fcfg[moving.F_UCB_COEF] = agent.ucb_coef
-    fcfg[moving.F_PREY_SPEED] = base.prey_speed
+    config = moving.Config(
+        kind=int(agent.kind),
+        n_cells=int(base.n_cells),
+        hunter_start=int(base.hunter_start_cell),
+        prey_start=int(base.prey_start_cell),
+        prey=moving.PREY_KINDS[base.prey],
+        time_limit=limits[0] if limits else 0,
+        cap=int(settings.max_episode_decisions),
+        act_episode=bool(agent.act_episode),
+        units_cells=bool(agent.units_cells),
+        valence=bool(agent.valence),
+        tie_first=getattr(settings, "tie_break", "random") == "first",
+        jump=getattr(settings, "multi_cell", "steps") == "jump",
+        compensated_sum=COMPENSATED_SUM,
+        gamma=float(settings.gamma),
+        goal_reward=float(base.goal_reward),
+        step_reward=float(base.step_reward),
+        norm_scale=float(agent.norm_scale),
+        ucb_coef=float(agent.ucb_coef),
+        prey_speed=float(base.prey_speed),
+        q_init=float(settings.q_init),
+        n_actions=int(env.action_space.n),
+    )
     parameters = settings.episode_parameters(0, episodes)  # None: a schedule on the training progress (learn's)
     alpha, p = parameters if parameters is not None else (np.empty(0), np.empty(0))
     cell_trans = np.asarray(base.cell_transitions, dtype=np.int64)
     far = _far(base) if base.prey == "evade" else np.zeros((1, 1))
     succ_width, pred_width = known_widths(cell_trans, base.prey != "static")
-    return MovingInputs(
-        agent, icfg, fcfg, cell_trans, far, alpha, p, float(settings.q_init), int(env.action_space.n),
-        int(settings.max_episode_decisions), succ_width, pred_width,
-    )  # fmt: skip
+    return MovingInputs(agent, moving.PreyEnv(cell_trans, far, succ_width, pred_width), config, alpha, p)
 
 
 def moving_settings_inputs(
@@ -153,7 +146,6 @@ def moving_settings_inputs(
 
 def run_moving(inputs: MovingInputs, seeds: Sequence[int], episodes: int) -> MovingRun:
     """Fresh runs of ``episodes`` episodes for each seed in one kernel call (``moving.run_seeds``)."""
-    behaviour = inputs.agent.behaviour
     keys, lengths = seed_keys(seeds)
     pcg_init = np.zeros((len(seeds), PCG_SIZE), dtype=np.uint64)
     for r, seed in enumerate(seeds):
@@ -161,16 +153,10 @@ def run_moving(inputs: MovingInputs, seeds: Sequence[int], episodes: int) -> Mov
     n_rows = len(seeds) * episodes
     out_i = np.zeros((n_rows, moving.N_OUT_I), dtype=np.int64)
     out_f = np.zeros((n_rows, 2))
-    n_states = inputs.cell_trans.shape[0] ** 2
-    q = np.empty((n_states, inputs.n_actions))
-    mt = np.zeros(STATE_SIZE, dtype=np.int64)
-    pcg = np.zeros(PCG_SIZE, dtype=np.uint64)
-    dist = np.empty(n_states)
-    moving.run_seeds(
-        keys, lengths, pcg_init, inputs.q_init, inputs.n_actions, inputs.cell_trans, inputs.far, inputs.icfg,
-        inputs.fcfg, behaviour.random, behaviour.speeds, behaviour.n, inputs.succ_width, inputs.pred_width, inputs.alpha,
-        inputs.p, episodes, episodes * inputs.cap, out_i, out_f, q, mt, pcg, dist,
-    )  # fmt: skip
+    rows = Episodes(inputs.alpha, inputs.p, out_i, out_f)
+    q, mt, pcg, dist = moving.run_seeds(
+        moving.Seeds(keys, lengths, pcg_init), inputs.env, inputs.config, inputs.agent.behaviour, rows, episodes
+    )
     return MovingRun(out_i, out_f, q, mt, pcg, dist)
 
 

@@ -1,61 +1,90 @@
 """
-The pieces of a decision that the kernels of moving prey (``kernel.moving``) and of hunter teams (``kernel.team``)
-share: the choice of direction and speed of every agent kind (``decide``) and the known map over observations
-(``obs_known_add``), each doing the same operations, with the same random draws in the same order, as its Python
-reference (``_decide`` of each agent class, ``appraisal.KnownMap.add``). Eq. 1 is the decision loop's own
-``q_update`` (``kernel.loop``), re-exported here.
+The decision step every compiled loop runs (the grid's ``kernel.loop``, moving prey's ``kernel.moving``, hunter teams'
+``kernel.team``): the choice of direction and speed of every agent kind after the appraisal's emotion (``decide``),
+Eq. 1 (``q_update``) and the known map over observations (``obs_known_add``), each doing the same operations, with
+the same random draws in the same order, as its Python reference (``_decide`` of each agent class,
+``reference_loop.q_update``, ``appraisal.KnownMap.add``).
 """
 
 from __future__ import annotations
 
-import math
+from typing import NamedTuple
 
 import numpy as np
 
-from sb3_affect.kernel.affect import propagate, table_ii
+from sb3_affect.kernel.affect import feel, propagate
 from sb3_affect.kernel.arrays import AFFECT, BOLTZMANN, EPSILON
 from sb3_affect.kernel.choice import greedy, row_max, softmax_action, ucb_action
 from sb3_affect.kernel.jit import kernel_inline, kernel_jit
-from sb3_affect.kernel.loop import q_update
 from sb3_affect.kernel.mt19937 import bit_length, draw01, draw_below
 
-__all__ = ["AFFECT", "decide", "known_widths", "obs_known_add", "q_update"]
+__all__ = ["AFFECT", "ObsAppraisal", "decide", "known_widths", "obs_known_add", "q_update"]
+
+
+class ObsAppraisal(NamedTuple):
+    """
+    AffectQ's appraisal over observations (read and written; ``obs_known_add``): the known distances ``dist``, the
+    successors seen from each observation (``succ[s, :succ_n[s]]``), the predecessors of each in the order they were
+    added (``pred[v, :pred_n[v]]``), the goals reached and the power fit's values (``fit_vals``). The moving-prey
+    kernel's are one agent's; the team kernel's have one row per hunter first.
+    """
+
+    dist: np.ndarray  # float64[n_states]
+    succ: np.ndarray  # int32[n_states, succ_width]
+    succ_n: np.ndarray  # int64[n_states]
+    pred: np.ndarray  # int32[n_states, pred_width]
+    pred_n: np.ndarray  # int64[n_states]
+    goal: np.ndarray  # bool[n_states]
+    fit_vals: np.ndarray  # float64[episodes]
 
 
 @kernel_inline
-def decide(
-    kind, q, s, mt, tw, r, tie_first, beh_rand, beh_speeds, beh_n, p, compensated, ucb_n, ucb_tot, ucb_coef, work,
-    norm, elapsed, last_act, remaining, act_episode, valence,
-):  # fmt: skip
+def q_update(q, s, action, reward, s2, terminated, alpha, gamma):
     """
-    One decision of an agent of ``kind`` in state ``s``: ``(action, cells, explored, emotion, last_act, r)``.
+    Eq. 1 for ``q[s, action]`` after a move to ``s2`` with ``reward`` (the only place the kernel writes it); returns
+    whether the entry changed.
+    """
+    old = q[s, action]
+    new = old + alpha * ((reward if terminated else reward + gamma * row_max(q, s2)) - old)
+    if new != old:
+        q[s, action] = new
+        return True
+    return False
 
-    ``r`` is the random stream's index (``mt19937.draw``); ``p`` epsilon or the inverse temperature. For AffectQ the
-    appraisal's ``norm``, ``elapsed`` (cells or decisions of the episode so far), ``last_act`` and the known distance
-    ``remaining`` of ``s`` give the emotion (Table II; -1 for the other kinds) and the new ``last_act``. UCB's counts
-    are updated here, as ``UCBQLearning._decide`` does.
+
+@kernel_inline
+def decide(config, behaviour, state, work, s, r, p, norm, elapsed, last_act, dist):
     """
+    One decision of an agent in state ``s``: ``(action, cells, explored, emotion, last_act, r)``.
+
+    ``config`` is the agent's fixed scalars (``kind``, ``tie_first``, ``compensated_sum``, ``ucb_coef``,
+    ``act_episode``, ``valence``: any named tuple with them, such as ``arrays.Config``), ``behaviour`` its
+    ``arrays.BehaviourRows``, ``state`` its Q-table ``q``, random stream ``mt`` and UCB counts ``ucb_n``, ``ucb_tot``
+    (``arrays.RunState``), ``work`` its work space ``work`` and ``tw`` (``arrays.Work``); ``r`` is the random stream's
+    index (``mt19937.draw``), ``p`` epsilon or the inverse temperature. For AffectQ the appraisal's ``norm``,
+    ``elapsed`` (cells or decisions of the episode so far), ``last_act`` and the known distances ``dist`` give the
+    emotion (``affect.feel``; -1 for the other kinds) and the new ``last_act``. UCB's counts are updated here, as
+    ``UCBQLearning._decide`` does.
+    """
+    q, mt, tw = state.q, state.mt, work.tw
+    beh_n, beh_speeds = behaviour.n, behaviour.speeds
     n_actions = q.shape[1]
+    kind = config.kind
     explored = False
     emotion = -1
     if kind == AFFECT:
-        emotion = 0
-        if norm == norm:
-            if remaining != math.inf:
-                last_act = elapsed + remaining if act_episode else remaining
-            exp1 = norm if norm > elapsed else float(elapsed)
-            emotion = table_ii(norm, exp1, last_act, valence)
+        emotion, last_act = feel(norm, elapsed, dist[s], last_act, config.act_episode, config.valence)
         ns = beh_n[emotion]
         if ns == 1:
             k = beh_speeds[emotion, 0]
         else:
             pick, r = draw_below(mt, tw, r, ns, 32 - bit_length(ns))
             k = beh_speeds[emotion, pick]
-        if beh_rand[emotion]:
+        if behaviour.random[emotion]:
             action, r = draw_below(mt, tw, r, n_actions, 32 - bit_length(n_actions))
             explored = True
         else:
-            action, r = greedy(q, s, mt, tw, r, tie_first)
+            action, r = greedy(q, s, mt, tw, r, config.tie_first)
     elif kind == EPSILON:
         ns = beh_n[0]
         if ns == 1:
@@ -68,15 +97,16 @@ def decide(
             action, r = draw_below(mt, tw, r, n_actions, 32 - bit_length(n_actions))
             explored = True
         else:
-            action, r = greedy(q, s, mt, tw, r, tie_first)
+            action, r = greedy(q, s, mt, tw, r, config.tie_first)
     elif kind == BOLTZMANN:
         k = 1
         u, r = draw01(mt, tw, r)
-        action = softmax_action(q, s, p, u, compensated, work)
+        action = softmax_action(q, s, p, u, config.compensated_sum, work.work)
         explored = q[s, action] != row_max(q, s)
     else:
+        ucb_n, ucb_tot = state.ucb_n, state.ucb_tot
         k = 1
-        action, r = ucb_action(q, s, ucb_n, ucb_tot[s], ucb_coef, mt, tw, r, work)
+        action, r = ucb_action(q, s, ucb_n, ucb_tot[s], config.ucb_coef, mt, tw, r, work.work)
         ucb_n[s, action] += 1
         ucb_tot[s] += 1
         explored = q[s, action] != row_max(q, s)

@@ -17,10 +17,12 @@ observations, the surround test, the prey's move) are in ``kernel.hunter_step``.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
 from sb3_affect.kernel.affect import fit_add, known_add_goal, start_norm
+from sb3_affect.kernel.arrays import BehaviourRows, RunState, Work
 from sb3_affect.kernel.choice import row_max
 from sb3_affect.kernel.hunter_step import PREY_STATIC, encode, surrounded, team_prey
 from sb3_affect.kernel.jit import kernel_inline, kernel_jit
@@ -29,18 +31,119 @@ from sb3_affect.kernel.mt19937 import N as MT_N
 from sb3_affect.kernel.mt19937 import temper_all
 from sb3_affect.kernel.steps import AFFECT, decide, obs_known_add, q_update
 
-# ecfg: the env's configuration (int)
-E_N_CELLS, E_PREY_START, E_PREY, E_SURROUND, E_OBS_ALL, E_MAX_CYCLES, E_CAPTURE_DISTANCE, E_GEOMETRY = range(8)
-N_ECFG = 8
-# efcfg: the env's configuration (float)
-EF_GOAL_REWARD, EF_STEP_REWARD, EF_PREY_SPEED = range(3)
-N_EFCFG = 3
-# mcfg[m]: hunter m's configuration (int)
-K_KIND, K_CAP, K_ACT_EPISODE, K_UNITS_CELLS, K_VALENCE, K_TIE_FIRST, K_JUMP, K_COMPENSATED_SUM = range(8)
-N_MCFG = 8
-# mfcfg[m]: hunter m's configuration (float)
-G_GAMMA, G_NORM_SCALE, G_UCB_COEF = range(3)
-N_MFCFG = 3
+
+class TeamEnv(NamedTuple):
+    """The env's arrays (read only): the cells' one-move table, ``far[h, c]`` (the evading prey's distances, else a
+    1 x 1 placeholder), ``tdist`` the distances to the prey's start, the hunters' start cells."""
+
+    cell_trans: np.ndarray  # int64[n_cells, n_moves]
+    far: np.ndarray  # float64[n_cells, n_cells]
+    tdist: np.ndarray  # float64[n_cells]
+    hunter_starts: np.ndarray  # int64[hunters]
+
+
+class Config(NamedTuple):
+    """The env's fixed scalars (read only)."""
+
+    n_cells: int
+    prey_start: int
+    prey: int  # hunter_step.PREY_STATIC, PREY_RANDOM or PREY_EVADE
+    surround: bool  # capture="surround" (else "enter")
+    obs_all: bool  # observation="all" (else "self")
+    max_cycles: int  # 0: none
+    capture_distance: int
+    geometry: bool  # a static prey entered by hunters observing only themselves: optimal and greedy columns apply
+    goal_reward: float
+    step_reward: float
+    prey_speed: float
+
+
+class Hunter(NamedTuple):
+    """A hunter's fixed scalars, as ``arrays.Config`` names them (what ``steps.decide`` reads)."""
+
+    kind: int
+    cap: int
+    act_episode: bool
+    units_cells: bool
+    valence: bool
+    tie_first: bool
+    jump: bool
+    compensated_sum: bool
+    gamma: float
+    norm_scale: float
+    ucb_coef: float
+
+
+class Hunters(NamedTuple):
+    """Every hunter's ``Hunter`` fields as arrays, one entry per hunter (read only; ``hunter`` reads one)."""
+
+    kind: np.ndarray
+    cap: np.ndarray
+    act_episode: np.ndarray
+    units_cells: np.ndarray
+    valence: np.ndarray
+    tie_first: np.ndarray
+    jump: np.ndarray
+    compensated_sum: np.ndarray
+    gamma: np.ndarray
+    norm_scale: np.ndarray
+    ucb_coef: np.ndarray
+
+
+class TeamState(NamedTuple):
+    """The run's state (read and written), one row per hunter first: Q-tables, random streams (``mt``, ``tw`` their
+    tempered words), UCB counts, run scalars (``ist``, ``fst``); the env's generator and the hunters' cells."""
+
+    q: np.ndarray  # float64[hunters, n_states, n_actions]
+    mt: np.ndarray  # int64[hunters, mt19937.STATE_SIZE]
+    tw: np.ndarray  # int64[hunters, mt19937.TW_SIZE]
+    ucb_n: np.ndarray  # int64[hunters, n_states, n_actions]
+    ucb_tot: np.ndarray  # int64[hunters, n_states]
+    ist: np.ndarray  # int64[hunters, N_IST]
+    fst: np.ndarray  # float64[hunters, N_FST]
+    pcg: np.ndarray  # uint64[pcg64.STATE_SIZE]
+    cells: np.ndarray  # int64[hunters]
+
+
+class TeamEpisodes(NamedTuple):
+    """Per hunter and episode its parameters (read); the rows of each hunter and of the team (written)."""
+
+    alpha: np.ndarray  # float64[hunters, episodes]
+    p: np.ndarray  # float64[hunters, episodes]
+    rows_i: np.ndarray  # int64[hunters, episodes, N_OUT_I]
+    rows_f: np.ndarray  # float64[hunters, episodes, N_OUT_F]
+    team_i: np.ndarray  # int64[episodes, N_TEAM_I]
+    team_f: np.ndarray  # float64[episodes]: the team's reward
+
+
+class TeamWork(NamedTuple):
+    """Work space: ``work`` (n_actions floats), ``queue`` (n_states + 1), ``seen`` (hunters x n_states zeros),
+    ``stack`` (n_states * n_actions + 1), ``ties`` (5)."""
+
+    work: np.ndarray
+    queue: np.ndarray
+    seen: np.ndarray
+    stack: np.ndarray
+    ties: np.ndarray
+
+
+@kernel_inline
+def hunter(hunters: Hunters, m: int) -> Hunter:
+    """Hunter ``m``'s ``Hunter``."""
+    return Hunter(
+        hunters.kind[m],
+        hunters.cap[m],
+        hunters.act_episode[m],
+        hunters.units_cells[m],
+        hunters.valence[m],
+        hunters.tie_first[m],
+        hunters.jump[m],
+        hunters.compensated_sum[m],
+        hunters.gamma[m],
+        hunters.norm_scale[m],
+        hunters.ucb_coef[m],
+    )
+
 
 # out_i[m, episode]: each hunter's episode row (ints); out_f[m, episode]: its floats and Broekens' means
 (O_DECISIONS, O_CELLS, O_OPTIMAL, O_TRUNCATED, O_RANDOM, O_WAITS, O_JOY, O_SADNESS, O_FEAR, O_ANGER, O_GREEDY) = range(11)
@@ -53,40 +156,40 @@ N_TEAM_I = 5
 
 
 @kernel_jit
-def team_loop(
-    ecfg, efcfg, mcfg, mfcfg, cell_trans, far, tdist, hunter_starts, beh_rand, beh_speeds, beh_n, alpha_e, p_e,
-    q, mt, tw, pcg, ucb_n, ucb_tot, dist, succ, succ_n, pred, pred_n, goal, fit_vals, fsum, episodes,
-    out_i, out_f, team_i, team_f, ist, fst, hunters, work, queue, seen, stack, ties,
-):  # fmt: skip
+def team_loop(env, config, hunters, behaviour, state, appraisal, episodes, work, n_episodes):
     """
-    Run ``episodes`` team episodes of a fresh run (the arrays as a new team has them). ``ist`` (int64, hunters x
-    ``N_IST``) and ``fst`` (float64, hunters x ``N_FST``) are work space for the hunters' run state, ``hunters`` the
-    hunters' cells, ``work`` (``n_actions`` floats), ``queue`` (``n_states + 1``), ``seen`` (hunters x ``n_states``
-    zeros), ``stack`` (``n_states * n_actions + 1``) and ``ties`` (5) work space of the functions called.
+    Run ``n_episodes`` team episodes of a fresh run (the arrays as a new team has them). The arguments: ``TeamEnv``,
+    ``Config``, ``Hunters``, ``arrays.BehaviourRows`` (one row per hunter first), ``TeamState``,
+    ``steps.ObsAppraisal`` (one row per hunter first), ``TeamEpisodes`` and ``TeamWork``.
     """
-    n_cells = ecfg[E_N_CELLS]
-    prey_kind = ecfg[E_PREY]
-    surround = ecfg[E_SURROUND] != 0
-    obs_all = ecfg[E_OBS_ALL] != 0
-    max_cycles = ecfg[E_MAX_CYCLES]
-    geometry = ecfg[E_GEOMETRY] != 0
+    cell_trans, far, tdist, hunter_starts = env
+    q, mt, tw, ucb_n, ucb_tot, ist, fst, pcg, cells_of = state
+    dist, succ, succ_n, pred, pred_n, goal, fit_vals = appraisal
+    alpha_e, p_e, out_i, out_f, team_i, team_f = episodes
+    queue, seen, stack, ties = work.queue, work.seen, work.stack, work.ties
+    n_cells = config.n_cells
+    prey_kind = config.prey
+    surround = config.surround
+    obs_all = config.obs_all
+    max_cycles = config.max_cycles
+    geometry = config.geometry
     prey_moves = prey_kind != PREY_STATIC
-    goal_reward = efcfg[EF_GOAL_REWARD]
-    step_reward = efcfg[EF_STEP_REWARD]
-    speed = efcfg[EF_PREY_SPEED]
-    n = hunters.shape[0]
-    team_cap = mcfg[0, K_CAP]
+    goal_reward = config.goal_reward
+    step_reward = config.step_reward
+    speed = config.prey_speed
+    n = cells_of.shape[0]
+    team_cap = hunters.cap[0]
     for m in range(1, n):
-        team_cap = min(team_cap, mcfg[m, K_CAP])
+        team_cap = min(team_cap, hunters.cap[m])
     shortest = np.int64(-1)
     # the run starts: the env at its start, each hunter's first observation and Broekens' first value
-    prey = ecfg[E_PREY_START]
+    prey = config.prey_start
     for m in range(n):
-        hunters[m] = hunter_starts[m]
+        cells_of[m] = hunter_starts[m]
     for m in range(n):
         temper_all(mt[m], tw[m])
         ist[m, I_R] = mt[m, MT_N]
-        ist[m, I_S] = encode(hunters, prey, m, n_cells, obs_all, prey_moves)
+        ist[m, I_S] = encode(cells_of, prey, m, n_cells, obs_all, prey_moves)
         ist[m, I_GREEDY] = -1
         ist[m, I_CHANGED] = 1
         fst[m, S_NORM] = math.nan
@@ -96,23 +199,29 @@ def team_loop(
     rounds = 0
     steps = 0
     team_reward = 0.0
-    while episode < episodes:
+    while episode < n_episodes:
         # every hunter decides
         length = 0
         for m in range(n):
-            kind = mcfg[m, K_KIND]
+            h = hunter(hunters, m)
             s = ist[m, I_S]
-            units_cells = mcfg[m, K_UNITS_CELLS] != 0
-            elapsed = ist[m, I_EL_CELLS] if units_cells else ist[m, I_EL_DECISIONS]
+            elapsed = ist[m, I_EL_CELLS] if h.units_cells else ist[m, I_EL_DECISIONS]
             action, k, explored, emotion, last_act, r = decide(
-                kind, q[m], s, mt[m], tw[m], ist[m, I_R], mcfg[m, K_TIE_FIRST] != 0, beh_rand[m], beh_speeds[m],
-                beh_n[m], p_e[m, episode], mcfg[m, K_COMPENSATED_SUM] != 0, ucb_n[m], ucb_tot[m], mfcfg[m, G_UCB_COEF],
-                work, fst[m, S_NORM], elapsed, fst[m, S_LAST_ACT], dist[m, s], mcfg[m, K_ACT_EPISODE] != 0,
-                mcfg[m, K_VALENCE] != 0,
-            )  # fmt: skip
+                h,
+                BehaviourRows(behaviour.random[m], behaviour.speeds[m], behaviour.n[m]),
+                RunState(q[m], mt[m], ist[m], fst[m], ucb_n[m], ucb_tot[m]),
+                Work(work.work, seen[m], stack, queue, tw[m]),
+                s,
+                ist[m, I_R],
+                p_e[m, episode],
+                fst[m, S_NORM],
+                elapsed,
+                fst[m, S_LAST_ACT],
+                dist[m],
+            )
             ist[m, I_R] = r
             fst[m, S_LAST_ACT] = last_act
-            if kind == AFFECT:
+            if h.kind == AFFECT:
                 ist[m, I_EL_DECISIONS] += 1
                 ist[m, I_JOY + emotion] += 1
             ist[m, I_ACTION] = action
@@ -128,40 +237,40 @@ def team_loop(
         for j in range(length):
             # the env's step: every hunter at once
             for m in range(n):
-                before = hunters[m]
+                before = cells_of[m]
                 target = before if j >= ist[m, I_K] else cell_trans[before, ist[m, I_ACTION]]
                 if surround and target == prey:
                     target = before
-                hunters[m] = target
+                cells_of[m] = target
             steps += 1
             if surround:
-                captured = surrounded(hunters, prey, cell_trans)
+                captured = surrounded(cells_of, prey, cell_trans)
             else:
                 for m in range(n):
-                    if hunters[m] == prey:
+                    if cells_of[m] == prey:
                         captured = True
             if not captured:
-                prey = team_prey(pcg, cell_trans, far, prey_kind, speed, hunters, prey, ties)
+                prey = team_prey(pcg, cell_trans, far, prey_kind, speed, cells_of, prey, ties)
                 if surround:
-                    captured = surrounded(hunters, prey, cell_trans)
+                    captured = surrounded(cells_of, prey, cell_trans)
             truncated = not captured and max_cycles > 0 and steps >= max_cycles
             step_sum = 0.0
             for m in range(n):
-                rewarded = captured and (surround or hunters[m] == prey)
+                rewarded = captured and (surround or cells_of[m] == prey)
                 reward = goal_reward if rewarded else step_reward
                 step_sum += reward
-                s2 = encode(hunters, prey, m, n_cells, obs_all, prey_moves)
+                s2 = encode(cells_of, prey, m, n_cells, obs_all, prey_moves)
                 if j < ist[m, I_K]:
                     # the hunter's transition (DecisionStepper.transition)
                     ended = captured and rewarded
                     ist[m, I_ENDED] = 1 if ended else 0
                     s = ist[m, I_S]
                     action = ist[m, I_ACTION]
-                    if mcfg[m, K_JUMP] != 0:
+                    if hunters.jump[m]:
                         fst[m, S_JUMP_REWARD] += reward
-                    elif q_update(q[m], s, action, reward, s2, ended, alpha_e[m, episode], mfcfg[m, G_GAMMA]):
+                    elif q_update(q[m], s, action, reward, s2, ended, alpha_e[m, episode], hunters.gamma[m]):
                         ist[m, I_CHANGED] = 1
-                    if mcfg[m, K_KIND] == AFFECT:
+                    if hunters.kind[m] == AFFECT:
                         ist[m, I_EL_CELLS] += 1
                         if ended and reward > 0.0:
                             known_add_goal(dist[m], goal[m], pred[m], pred_n[m], s2, queue)
@@ -180,18 +289,18 @@ def team_loop(
         rounds += 1
         over = captured or truncated or rounds >= team_cap
         if over:  # the env's reset (its generator goes on)
-            prey = ecfg[E_PREY_START]
+            prey = config.prey_start
             for m in range(n):
-                hunters[m] = hunter_starts[m]
+                cells_of[m] = hunter_starts[m]
         # every hunter closes its decision (DecisionStepper.end_decision), then its Broekens observer sees it
         for m in range(n):
-            kind = mcfg[m, K_KIND]
+            h = hunter(hunters, m)
             ended = ist[m, I_ENDED] != 0
             k = ist[m, I_K]
-            jump = mcfg[m, K_JUMP] != 0 and k > 0
+            jump = h.jump and k > 0
             if jump and q_update(
                 q[m], ist[m, I_START], ist[m, I_ACTION], fst[m, S_JUMP_REWARD], ist[m, I_S], ended,
-                alpha_e[m, episode], mfcfg[m, G_GAMMA],
+                alpha_e[m, episode], h.gamma,
             ):  # fmt: skip
                 ist[m, I_CHANGED] = 1
             if k == 0:
@@ -205,7 +314,7 @@ def team_loop(
             reward = float(np.float32(fst[m, S_DECISION_REWARD]))
             cut = over and not ended
             reached = 0.0 if over and not cut else row_max(q[m], ist[m, I_LAST_S2] if over else ist[m, I_S])
-            delta = reward + mfcfg[m, G_GAMMA] * reached - fst[m, S_BV]
+            delta = reward + h.gamma * reached - fst[m, S_BV]
             joy = max(delta, 0.0)
             fst[m, S_BJOY] += joy
             fst[m, S_BDISTRESS] += max(-delta, 0.0)
@@ -237,21 +346,21 @@ def team_loop(
                 decisions = float(ist[m, I_DECISIONS])
                 frow = out_f[m, episode]
                 frow[F_REWARD] = fst[m, S_REWARD]
-                frow[F_NORM] = fst[m, S_NORM] if kind == AFFECT else math.nan
+                frow[F_NORM] = fst[m, S_NORM] if h.kind == AFFECT else math.nan
                 frow[F_B_JOY] = fst[m, S_BJOY] / decisions
                 frow[F_B_DISTRESS] = fst[m, S_BDISTRESS] / decisions
                 frow[F_B_HOPE] = fst[m, S_BHOPE] / decisions
                 frow[F_B_FEAR] = fst[m, S_BFEAR] / decisions
                 frow[F_B_GOAL_JOY] = math.nan if cut else joy
-                if kind == AFFECT:
-                    units_cells = mcfg[m, K_UNITS_CELLS] != 0
-                    y = ist[m, I_EL_CELLS] if units_cells else ist[m, I_EL_DECISIONS]
-                    ist[m, I_NFIT] = fit_add(fit_vals[m], fsum[m], ist[m, I_NFIT], float(y))
+                if h.kind == AFFECT:
+                    fsum = fst[m, S_FIT0 : S_FIT0 + 4]
+                    y = ist[m, I_EL_CELLS] if h.units_cells else ist[m, I_EL_DECISIONS]
+                    ist[m, I_NFIT] = fit_add(fit_vals[m], fsum, ist[m, I_NFIT], float(y))
                     ist[m, I_EL_CELLS] = 0
                     ist[m, I_EL_DECISIONS] = 0
-                    fst[m, S_NORM] = start_norm(fit_vals[m], fsum[m], ist[m, I_NFIT], mfcfg[m, G_NORM_SCALE])
+                    fst[m, S_NORM] = start_norm(fit_vals[m], fsum, ist[m, I_NFIT], h.norm_scale)
                 # the next episode
-                ist[m, I_S] = encode(hunters, prey, m, n_cells, obs_all, prey_moves)
+                ist[m, I_S] = encode(cells_of, prey, m, n_cells, obs_all, prey_moves)
                 ist[m, I_DECISIONS] = ist[m, I_CELLS] = ist[m, I_RANDOM] = ist[m, I_WAITS] = 0
                 fst[m, S_REWARD] = 0.0
                 fst[m, S_BJOY] = fst[m, S_BDISTRESS] = fst[m, S_BHOPE] = fst[m, S_BFEAR] = 0.0
@@ -261,7 +370,7 @@ def team_loop(
             team_i[episode, T_STEPS] = steps
             team_i[episode, T_TRUNCATED] = 0 if captured else 1
             team_i[episode, T_CAPTURER] = capturer
-            team_i[episode, T_OPTIMAL] = 1 if captured and team_optimal(out_i, episode, ecfg) else 0
+            team_i[episode, T_OPTIMAL] = 1 if captured and team_optimal(out_i, episode, config) else 0
             team_f[episode] = team_reward
             episode += 1
             rounds = 0
@@ -272,14 +381,14 @@ def team_loop(
 
 
 @kernel_inline
-def team_optimal(out_i: np.ndarray, episode: int, ecfg: np.ndarray) -> bool:
+def team_optimal(out_i: np.ndarray, episode: int, config: Config) -> bool:
     """
     ``HunterPursuitEnv.optimal_capture`` of the episode's rows: with ``"enter"`` the fewest moves of a hunter
     rewarded for the capture (a hunter's row ended at the goal: ``truncated`` 0), with ``"surround"`` the most moves
     of any hunter, at most the capture distance.
     """
-    bound = ecfg[E_CAPTURE_DISTANCE]
-    if ecfg[E_SURROUND] != 0:
+    bound = config.capture_distance
+    if config.surround:
         most = 0
         for m in range(out_i.shape[0]):
             most = max(most, out_i[m, episode, O_CELLS])
@@ -331,5 +440,6 @@ N_IST = 22
     S_BDISTRESS,
     S_BHOPE,
     S_BFEAR,
-) = range(11)
-N_FST = 11
+    S_FIT0,  # S_FIT0..S_FIT0+3: the power fit's running sums
+) = range(12)
+N_FST = 15

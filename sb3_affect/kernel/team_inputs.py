@@ -19,10 +19,11 @@ from sb3_affect.core.registry import known_settings
 from sb3_affect.core.team_seeds import member_seed
 from sb3_affect.kernel import team
 from sb3_affect.kernel.agents import COMPENSATED_SUM, kernel_agent
+from sb3_affect.kernel.arrays import BehaviourRows
 from sb3_affect.kernel.hunter_step import PREY_EVADE, PREY_RANDOM, PREY_STATIC
 from sb3_affect.kernel.mt19937 import STATE_SIZE, TW_SIZE, seed_key, seed_state
 from sb3_affect.kernel.pcg64 import seeded_state
-from sb3_affect.kernel.steps import AFFECT
+from sb3_affect.kernel.steps import AFFECT, ObsAppraisal
 
 #: The most bytes the known maps of a team's hunters may take (larger observation spaces run on the Python team).
 MAX_KNOWN_BYTES = 1 << 30
@@ -41,17 +42,10 @@ BROEKENS_OUT = (
 class TeamInputs(NamedTuple):
     """Everything ``run_team`` needs besides the seed: the env and every hunter as the kernel runs them."""
 
-    ecfg: np.ndarray
-    efcfg: np.ndarray
-    mcfg: np.ndarray
-    mfcfg: np.ndarray
-    cell_trans: np.ndarray
-    far: np.ndarray
-    tdist: np.ndarray
-    hunter_starts: np.ndarray
-    beh_rand: np.ndarray
-    beh_speeds: np.ndarray
-    beh_n: np.ndarray
+    env: team.TeamEnv
+    config: team.Config
+    hunters: team.Hunters
+    behaviour: BehaviourRows  # one row per hunter first
     alpha: np.ndarray  # [hunter, episode]
     p: np.ndarray  # [hunter, episode]
     q_init: np.ndarray  # [hunter]
@@ -108,46 +102,63 @@ def team_inputs(agents: Sequence[Any], env: Any, episodes: int) -> TeamInputs | 
     width = 5**digits if affect else 1  # a hunter's own cell, each other hunter's and the prey's: staying or a move
     if 2 * n * n_states * width * 4 > MAX_KNOWN_BYTES:
         return f"the hunters' known maps over {n_states:,} observations would need more than {MAX_KNOWN_BYTES >> 30} GB"
-    ecfg = np.zeros(team.N_ECFG, dtype=np.int64)
-    ecfg[team.E_N_CELLS] = n_cells
-    ecfg[team.E_PREY_START] = env.prey_start_cell
-    ecfg[team.E_PREY] = PREY[env.prey]
-    ecfg[team.E_SURROUND] = env.capture == "surround"
-    ecfg[team.E_OBS_ALL] = env.observation == "all"
-    ecfg[team.E_MAX_CYCLES] = env.max_cycles or 0
-    ecfg[team.E_CAPTURE_DISTANCE] = env.capture_distance
-    geometry = env.prey == "static" and env.capture == "enter" and env.observation == "self"
-    ecfg[team.E_GEOMETRY] = geometry
-    efcfg = np.array([env.goal_reward, env.step_reward, env.prey_speed], dtype=np.float64)
-    mcfg = np.zeros((n, team.N_MCFG), dtype=np.int64)
-    mfcfg = np.zeros((n, team.N_MFCFG))
-    speeds_width = max(spec.behaviour.speeds.shape[1] for spec in specs)
-    beh_rand = np.zeros((n, 4), dtype=np.int64)
-    beh_speeds = np.zeros((n, 4, speeds_width), dtype=np.int64)
-    beh_n = np.zeros((n, 4), dtype=np.int64)
-    for m, (agent, spec) in enumerate(zip(agents, specs)):
-        mcfg[m] = (
-            spec.kind,
-            agent.max_episode_decisions,
-            spec.act_episode,
-            spec.units_cells,
-            spec.valence,
-            getattr(agent, "tie_break", "random") == "first",
-            getattr(agent, "multi_cell", "steps") == "jump",
-            COMPENSATED_SUM,
+    config = team.Config(
+        n_cells=int(n_cells),
+        prey_start=int(env.prey_start_cell),
+        prey=PREY[env.prey],
+        surround=env.capture == "surround",
+        obs_all=env.observation == "all",
+        max_cycles=int(env.max_cycles or 0),
+        capture_distance=int(env.capture_distance),
+        geometry=env.prey == "static" and env.capture == "enter" and env.observation == "self",
+        goal_reward=float(env.goal_reward),
+        step_reward=float(env.step_reward),
+        prey_speed=float(env.prey_speed),
+    )
+    hunters = [
+        team.Hunter(
+            kind=int(spec.kind),
+            cap=int(agent.max_episode_decisions),
+            act_episode=bool(spec.act_episode),
+            units_cells=bool(spec.units_cells),
+            valence=bool(spec.valence),
+            tie_first=getattr(agent, "tie_break", "random") == "first",
+            jump=getattr(agent, "multi_cell", "steps") == "jump",
+            compensated_sum=COMPENSATED_SUM,
+            gamma=float(agent.gamma),
+            norm_scale=float(spec.norm_scale),
+            ucb_coef=float(spec.ucb_coef),
         )
-        mfcfg[m] = (agent.gamma, spec.norm_scale, spec.ucb_coef)
-        beh_rand[m] = spec.behaviour.random
-        beh_speeds[m, :, : spec.behaviour.speeds.shape[1]] = spec.behaviour.speeds
-        beh_n[m] = spec.behaviour.n
+        for agent, spec in zip(agents, specs)
+    ]
+    speeds_width = max(spec.behaviour.speeds.shape[1] for spec in specs)
+    behaviour = BehaviourRows(
+        np.array([spec.behaviour.random for spec in specs], dtype=np.int64),
+        np.zeros((n, 4, speeds_width), dtype=np.int64),
+        np.array([spec.behaviour.n for spec in specs], dtype=np.int64),
+    )
+    for m, spec in enumerate(specs):
+        behaviour.speeds[m, :, : spec.behaviour.speeds.shape[1]] = spec.behaviour.speeds
     cell_trans = np.asarray(env.cell_transitions, dtype=np.int64)
     far = np.array([env.distances_to(h) for h in range(n_cells)]) if env.prey == "evade" else np.zeros((1, 1))
+    team_env = team.TeamEnv(
+        cell_trans,
+        far,
+        np.asarray(env.distances_to(env.prey_start_cell), dtype=np.float64),
+        np.asarray(env.hunter_start_cells, dtype=np.int64),
+    )
     return TeamInputs(
-        ecfg, efcfg, mcfg, mfcfg, cell_trans, far, np.asarray(env.distances_to(env.prey_start_cell), dtype=np.float64),
-        np.asarray(env.hunter_start_cells, dtype=np.int64), beh_rand, beh_speeds, beh_n,
-        np.array([a for a, _ in schedules]), np.array([p for _, p in schedules]),
-        np.array([float(agent.q_init) for agent in agents]), n_states, width, width,
-    )  # fmt: skip
+        team_env,
+        config,
+        team.Hunters(*(np.array(field) for field in zip(*hunters))),
+        behaviour,
+        np.array([a for a, _ in schedules]),
+        np.array([p for _, p in schedules]),
+        np.array([float(agent.q_init) for agent in agents]),
+        n_states,
+        width,
+        width,
+    )
 
 
 def team_settings_inputs(
@@ -173,7 +184,7 @@ def team_settings_inputs(
 
 def run_team(inputs: TeamInputs, seed: int, episodes: int) -> TeamRun:
     """One fresh team run of ``episodes`` episodes with the run seed ``seed`` (``team.team_loop``)."""
-    n = inputs.mcfg.shape[0]
+    n = len(inputs.q_init)
     n_states = inputs.n_states
     q = np.empty((n, n_states, N_ACTIONS))
     mt = np.zeros((n, STATE_SIZE), dtype=np.int64)
@@ -181,27 +192,43 @@ def run_team(inputs: TeamInputs, seed: int, episodes: int) -> TeamRun:
         q[m] = inputs.q_init[m]
         key = np.asarray(seed_key(member_seed(seed, m)), dtype=np.int64)
         seed_state(mt[m], key, len(key))
-    out_i = np.zeros((n, episodes, team.N_OUT_I), dtype=np.int64)
-    out_f = np.zeros((n, episodes, team.N_OUT_F))
-    team_i = np.zeros((episodes, team.N_TEAM_I), dtype=np.int64)
-    team_f = np.zeros(episodes)
-    pcg = seeded_state(seed)
-    dist = np.full((n, n_states), math.inf)
-    width = inputs.succ_width
-    fit_vals = np.zeros((n, episodes + 1))
-    team.team_loop(
-        inputs.ecfg, inputs.efcfg, inputs.mcfg, inputs.mfcfg, inputs.cell_trans, inputs.far, inputs.tdist,
-        inputs.hunter_starts, inputs.beh_rand, inputs.beh_speeds, inputs.beh_n, inputs.alpha, inputs.p,
-        q, mt, np.empty((n, TW_SIZE), dtype=np.int64), pcg, np.zeros((n, n_states, N_ACTIONS), dtype=np.int64),
-        np.zeros((n, n_states), dtype=np.int64), dist, np.zeros((n, n_states, width), dtype=np.int32),
-        np.zeros((n, n_states), dtype=np.int64), np.zeros((n, n_states, inputs.pred_width), dtype=np.int32),
-        np.zeros((n, n_states), dtype=np.int64), np.zeros((n, n_states), dtype=np.bool_), fit_vals,
-        np.zeros((n, 4)), episodes, out_i, out_f, team_i, team_f, np.zeros((n, team.N_IST), dtype=np.int64),
-        np.zeros((n, team.N_FST)), np.zeros(n, dtype=np.int64), np.empty(N_ACTIONS), np.empty(n_states + 1, dtype=np.int64),
-        np.zeros((n, n_states), dtype=np.int64), np.empty(n_states * N_ACTIONS + 1, dtype=np.int64),
+    state = team.TeamState(
+        q,
+        mt,
+        np.empty((n, TW_SIZE), dtype=np.int64),
+        np.zeros((n, n_states, N_ACTIONS), dtype=np.int64),
+        np.zeros((n, n_states), dtype=np.int64),
+        np.zeros((n, team.N_IST), dtype=np.int64),
+        np.zeros((n, team.N_FST)),
+        seeded_state(seed),
+        np.zeros(n, dtype=np.int64),
+    )
+    appraisal = ObsAppraisal(
+        np.full((n, n_states), math.inf),
+        np.zeros((n, n_states, inputs.succ_width), dtype=np.int32),
+        np.zeros((n, n_states), dtype=np.int64),
+        np.zeros((n, n_states, inputs.pred_width), dtype=np.int32),
+        np.zeros((n, n_states), dtype=np.int64),
+        np.zeros((n, n_states), dtype=np.bool_),
+        np.zeros((n, episodes + 1)),
+    )
+    rows = team.TeamEpisodes(
+        inputs.alpha,
+        inputs.p,
+        np.zeros((n, episodes, team.N_OUT_I), dtype=np.int64),
+        np.zeros((n, episodes, team.N_OUT_F)),
+        np.zeros((episodes, team.N_TEAM_I), dtype=np.int64),
+        np.zeros(episodes),
+    )
+    work = team.TeamWork(
+        np.empty(N_ACTIONS),
+        np.empty(n_states + 1, dtype=np.int64),
+        np.zeros((n, n_states), dtype=np.int64),
+        np.empty(n_states * N_ACTIONS + 1, dtype=np.int64),
         np.empty(5, dtype=np.int64),
-    )  # fmt: skip
-    return TeamRun(out_i, out_f, team_i, team_f, q, mt, pcg, dist)
+    )
+    team.team_loop(inputs.env, inputs.config, inputs.hunters, inputs.behaviour, state, appraisal, rows, work, episodes)
+    return TeamRun(rows.rows_i, rows.rows_f, rows.team_i, rows.team_f, q, mt, state.pcg, appraisal.dist)
 
 
 def _plain(values: np.ndarray) -> list[Any]:
@@ -213,8 +240,8 @@ def hunter_columns(inputs: TeamInputs, run: TeamRun, m: int) -> dict[str, list[A
     """Hunter ``m``'s episode log (``EPISODE_COLUMNS``), as lists of plain values (NaN as None)."""
     ints, floats = run.out_i[m], run.out_f[m]
     episodes = ints.shape[0]
-    geometry = bool(inputs.ecfg[team.E_GEOMETRY])
-    kind = int(inputs.mcfg[m, team.K_KIND])
+    geometry = inputs.config.geometry
+    kind = int(inputs.hunters.kind[m])
     nan = [None] * episodes
     return {
         "episode": list(range(1, episodes + 1)),
