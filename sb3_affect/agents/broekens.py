@@ -54,15 +54,14 @@ from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
 from sb3_affect.agents.callbacks import WindowMeans, check_step_locals, logger_file_folder
 from sb3_affect.agents.numpy_values import NumpyQValues, q_values_fn
 from sb3_affect.core.positions import Position, PositionSpec, check_position, make_position
+from sb3_affect.core.registry import EMOTION_MODELS
 
 if TYPE_CHECKING:
     import pandas as pd
 
-#: Columns of ``BroekensCallback.episode_log``.
-BROEKENS_COLUMNS: tuple[str, ...] = (
-    "episode", "steps", "reward", "joy", "distress", "hope", "fear", "goal_joy", "env"
-)
-BROEKENS_EMOTIONS: tuple[str, ...] = ("joy", "distress", "hope", "fear")
+#: Columns of ``BroekensCallback.episode_log`` (its emotions and columns as the registry names them: ``EMOTION_MODELS``).
+BROEKENS_COLUMNS: tuple[str, ...] = ("episode", "steps", "reward", *EMOTION_MODELS["broekens"].columns, "env")
+BROEKENS_EMOTIONS: tuple[str, ...] = EMOTION_MODELS["broekens"].emotions
 
 ValueFn = Callable[[Any, Any], float]
 

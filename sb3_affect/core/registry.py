@@ -16,7 +16,7 @@ package that registers them.
 from __future__ import annotations
 
 import importlib
-from typing import Any
+from typing import Any, NamedTuple
 
 from sb3_affect.core.settings import AGENT_SETTINGS, TabularSettings, settings_class
 
@@ -151,3 +151,34 @@ def resolve_wrapper(name: str) -> type:
         raise ValueError(f"env wrapper {name!r} needs {package}: pip install \"sb3-affect[{package}]\"") from None
     cls: type = getattr(module, attr)
     return cls
+
+
+class EmotionModel(NamedTuple):
+    """
+    An emotion model besides the paper's (which every tabular agent's episode log holds): where its observer and,
+    if the team kernel runs it, its kernel module live, its emotions and the columns a team run records of it per
+    hunter and episode (``<hunter>/<name>_<column>``).
+    """
+
+    observer: str  # ``module:Class`` of its SB3 callback
+    kernel: str | None  # the module the team kernel computes it with (None: Python teams only)
+    emotions: tuple[str, ...]
+    columns: tuple[str, ...]
+
+
+#: The emotion models a team run records beside the paper's, by name (the prefix of their columns): the launcher's
+#: Python teams attach their observers, the team kernel computes them, the report reads their columns.
+EMOTION_MODELS: dict[str, EmotionModel] = {
+    "broekens": EmotionModel(
+        observer="sb3_affect.agents.broekens:BroekensCallback",
+        kernel="sb3_affect.kernel.broekens",
+        emotions=("joy", "distress", "hope", "fear"),
+        columns=("joy", "distress", "hope", "fear", "goal_joy"),
+    ),
+}
+
+
+def observer_class(name: str) -> type:
+    """The SB3 callback class of the emotion model ``name`` (``EMOTION_MODELS``); imports its module."""
+    module_name, _, attr = EMOTION_MODELS[name].observer.partition(":")
+    return getattr(importlib.import_module(module_name), attr)

@@ -15,9 +15,9 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from sb3_affect.core.registry import known_settings
+from sb3_affect.core.registry import EMOTION_MODELS, known_settings
 from sb3_affect.core.team_seeds import member_seed
-from sb3_affect.kernel import team
+from sb3_affect.kernel import broekens, team
 from sb3_affect.kernel.agents import COMPENSATED_SUM, kernel_agent
 from sb3_affect.kernel.arrays import BehaviourRows
 from sb3_affect.kernel.hunter_step import PREY_EVADE, PREY_RANDOM, PREY_STATIC
@@ -29,14 +29,8 @@ from sb3_affect.kernel.steps import AFFECT, ObsAppraisal
 MAX_KNOWN_BYTES = 1 << 30
 N_ACTIONS = 4
 PREY = {"static": PREY_STATIC, "random": PREY_RANDOM, "evade": PREY_EVADE}
-#: Broekens' columns of a hunter in a team run's record (``broekens.BROEKENS_COLUMNS[3:]``), with their ``out_f`` index.
-BROEKENS_OUT = (
-    ("joy", team.F_B_JOY),
-    ("distress", team.F_B_DISTRESS),
-    ("hope", team.F_B_HOPE),
-    ("fear", team.F_B_FEAR),
-    ("goal_joy", team.F_B_GOAL_JOY),
-)
+#: The emotion model the team kernel computes beside each hunter (``kernel.broekens``), as the registry names it.
+OBSERVER = "broekens"
 
 
 class TeamInputs(NamedTuple):
@@ -290,8 +284,8 @@ def team_columns(inputs: TeamInputs, run: TeamRun) -> dict[str, list[Any]]:
         agent = f"hunter_{m}"
         for name, values in hunter_columns(inputs, run, m).items():
             columns[f"{agent}/{name}"] = values
-        for name, index in BROEKENS_OUT:
-            columns[f"{agent}/broekens_{name}"] = _plain(run.out_f[m, :, index])
+        for name in EMOTION_MODELS[OBSERVER].columns:
+            columns[f"{agent}/{OBSERVER}_{name}"] = _plain(run.out_f[m, :, team.F_OBSERVER + broekens.COLUMNS.index(name)])
     return columns
 
 

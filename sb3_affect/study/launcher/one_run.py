@@ -330,31 +330,34 @@ def _execute_team_compiled(config: dict[str, Any], start: float) -> dict[str, An
 def _execute_team(config: dict[str, Any], log_dir: str | None, log_formats: tuple[str, ...], start: float) -> dict[str, Any]:
     """
     A team run. Its ``episodes`` columns: the team's (``TEAM_COLUMNS``: ``EPISODE_COLUMNS`` for the team, then
-    ``capturer``), then per hunter ``<hunter>/<column>`` for its own episode log and ``<hunter>/broekens_<emotion>``
-    (mean intensity per decision, and ``broekens_goal_joy``) from a ``BroekensCallback`` observing it.
+    ``capturer``), then per hunter ``<hunter>/<column>`` for its own episode log and, for each emotion model of the
+    registry (``EMOTION_MODELS``: Broekens'), ``<hunter>/<model>_<column>`` (mean intensity per decision, and
+    ``broekens_goal_joy``) from its observer watching the hunter.
     """
+    from stable_baselines3.common.callbacks import CallbackList
     from stable_baselines3.common.logger import configure
 
-    from sb3_affect.agents.broekens import BROEKENS_COLUMNS, BroekensCallback
     from sb3_affect.agents.hunter_team import TEAM_COLUMNS
+    from sb3_affect.core.registry import EMOTION_MODELS, observer_class
 
     team = build_team(config)
     if log_dir is not None:
         for agent, model in team.models.items():
             Path(log_dir, agent).mkdir(parents=True, exist_ok=True)
             model.set_logger(configure(str(Path(log_dir, agent)), list(log_formats)))
-    observers = {agent: BroekensCallback() for agent in team.models}
-    team.learn(int(config["episodes"]), callbacks=observers)
+    observers = {agent: {name: observer_class(name)() for name in EMOTION_MODELS} for agent in team.models}
+    callbacks = {agent: [*watching.values()] for agent, watching in observers.items()}
+    team.learn(int(config["episodes"]), callbacks={a: c[0] if len(c) == 1 else CallbackList(c) for a, c in callbacks.items()})
     log = team.episode_log
     columns = {name: [_plain(v) for v in log[name].tolist()] for name in TEAM_COLUMNS}
     for agent, model in team.models.items():
         own = model.episode_log
         for name in EPISODE_COLUMNS:
             columns[f"{agent}/{name}"] = [_plain(v) for v in own[name].tolist()]
-        felt = observers[agent].episode_log
-        for name in BROEKENS_COLUMNS[3:]:
-            if name != "env":  # (a hunter observes one env: the column would be all 0)
-                columns[f"{agent}/broekens_{name}"] = [_plain(v) for v in felt[name].tolist()]
+        for model, observer in observers[agent].items():
+            felt = observer.episode_log
+            for name in EMOTION_MODELS[model].columns:
+                columns[f"{agent}/{model}_{name}"] = [_plain(v) for v in felt[name].tolist()]
     return {
         "episodes": columns,
         "timings": {

@@ -16,11 +16,12 @@ import numpy as np
 import pandas as pd
 
 from sb3_affect.core.emotions import EMOTION_NAMES
+from sb3_affect.core.registry import EMOTION_MODELS
 from sb3_affect.study.report.hunters import markdown_table, team_runs
 from sb3_affect.study.report.output_files import output_folder, replacing
 
 PAPER = EMOTION_NAMES
-BROEKENS = ("joy", "distress", "hope", "fear")
+BROEKENS = EMOTION_MODELS["broekens"].emotions
 EARLY, LATE = 10, 20
 
 
