@@ -121,17 +121,20 @@ def table_ii(norm: float, exp1: float, act: float, valence: bool) -> int:
 
 
 @kernel_inline
-def feel(norm: float, elapsed: int, remaining: float, last_act: float, act_episode: bool, valence: bool) -> tuple[int, float]:
+def feel(
+    norm: float, elapsed: int, dist: np.ndarray, s: int, last_act: float, act_episode: bool, valence: bool
+) -> tuple[int, float]:
     """
     The emotion before a decision: ``Appraiser.appraise`` and Table II (``table_ii``), the kernel's one copy of both.
 
     ``norm`` is the episode's norm (NaN before the first finished episode: joy), ``elapsed`` the cells or decisions
-    of the episode so far, ``remaining`` the known distance to a goal from the current state (``inf`` unknown: ``act``
-    keeps its last value ``last_act``). ``exp1 = max(norm, elapsed)``; ``act = elapsed + remaining`` (``act_episode``)
-    or ``remaining``. Returns ``(emotion, act)``.
+    of the episode so far, ``dist[s]`` the known distance to a goal from the current state ``s`` (``inf`` unknown:
+    ``act`` keeps its last value ``last_act``). ``exp1 = max(norm, elapsed)``; ``act = elapsed + dist[s]`` (``act_episode``)
+    or ``dist[s]``. Returns ``(emotion, act)``.
     """
     emotion = JOY
     if norm == norm:
+        remaining = dist[s]
         if remaining != INF:
             last_act = elapsed + remaining if act_episode else remaining
         exp1 = norm if norm > elapsed else float(elapsed)

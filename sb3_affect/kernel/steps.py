@@ -53,6 +53,12 @@ def q_update(q, s, action, reward, s2, terminated, alpha, gamma):
 
 
 @kernel_inline
+def action_shift(n_actions: int) -> int:
+    """``32 - n_actions.bit_length()`` (``mt19937.draw_below``'s shift), a constant for four actions (the grids')."""
+    return 29 if n_actions == 4 else 32 - bit_length(n_actions)
+
+
+@kernel_inline
 def decide(config, behaviour, state, work, s, r, p, norm, elapsed, last_act, dist):
     """
     One decision of an agent in state ``s``: ``(action, cells, explored, emotion, last_act, r)``.
@@ -73,7 +79,7 @@ def decide(config, behaviour, state, work, s, r, p, norm, elapsed, last_act, dis
     explored = False
     emotion = -1
     if kind == AFFECT:
-        emotion, last_act = feel(norm, elapsed, dist[s], last_act, config.act_episode, config.valence)
+        emotion, last_act = feel(norm, elapsed, dist, s, last_act, config.act_episode, config.valence)
         ns = beh_n[emotion]
         if ns == 1:
             k = beh_speeds[emotion, 0]
@@ -81,7 +87,7 @@ def decide(config, behaviour, state, work, s, r, p, norm, elapsed, last_act, dis
             pick, r = draw_below(mt, tw, r, ns, 32 - bit_length(ns))
             k = beh_speeds[emotion, pick]
         if behaviour.random[emotion]:
-            action, r = draw_below(mt, tw, r, n_actions, 32 - bit_length(n_actions))
+            action, r = draw_below(mt, tw, r, n_actions, action_shift(n_actions))
             explored = True
         else:
             action, r = greedy(q, s, mt, tw, r, config.tie_first)
@@ -94,7 +100,7 @@ def decide(config, behaviour, state, work, s, r, p, norm, elapsed, last_act, dis
             k = beh_speeds[0, pick]
         u, r = draw01(mt, tw, r)
         if u < p:
-            action, r = draw_below(mt, tw, r, n_actions, 32 - bit_length(n_actions))
+            action, r = draw_below(mt, tw, r, n_actions, action_shift(n_actions))
             explored = True
         else:
             action, r = greedy(q, s, mt, tw, r, config.tie_first)
