@@ -77,6 +77,8 @@ def team_inputs(agents: Sequence[Any], env: Any, episodes: int) -> TeamInputs | 
         return f"the env {type(env).__name__} is not HunterPursuit"
     if len(agents) != len(env.possible_agents):
         return f"{len(agents)} agents for {len(env.possible_agents)} hunters"
+    if set(EMOTION_MODELS) != {OBSERVER}:  # (a run records every model the registry lists)
+        return f"the team kernel computes the emotion model {OBSERVER} only, the registry lists {', '.join(EMOTION_MODELS)}"
     specs = []
     schedules = []
     for agent in agents:
