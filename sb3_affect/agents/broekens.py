@@ -248,7 +248,7 @@ class BroekensCallback(BaseCallback):
         self._pending: _Step | None = None
         self._seen_values: Any = None
         self._table_states = self._table_start = 0
-        self._table: np.ndarray | None = None
+        self._table: list[float] | None = None
         self._table_version: int | None = None
         self._mirror: NumpyQValues | None = None
 
@@ -266,14 +266,15 @@ class BroekensCallback(BaseCallback):
         self._mirror = q_values_fn(model) if self._kind == "q_net" else None
 
     # -- values ------------------------------------------------------------------------------------------------
-    def _values(self, obs: Any, dones: np.ndarray | None = None) -> np.ndarray:
+    def _values(self, obs: Any, dones: np.ndarray | None = None) -> np.ndarray | list[float]:
         """``V`` of each env's observation in a VecEnv batch (``dones``: which envs start a new episode with it)."""
         if self._kind == "user":
             assert self.value_fn is not None
             n = len(next(iter(obs.values()))) if isinstance(obs, dict) else len(np.asarray(obs))
             return np.array([float(self.value_fn(self.model, _row(obs, i))) for i in range(n)])
         if self._table_states:
-            return self._value_table()[np.asarray(obs).reshape(-1) - self._table_start]
+            table, start = self._value_table(), self._table_start
+            return [table[int(state) - start] for state in np.asarray(obs).reshape(-1).tolist()]
         lstm = starts = None
         if self._kind == "recurrent":
             lstm, starts = self._recurrent_inputs(dones)
@@ -286,12 +287,12 @@ class BroekensCallback(BaseCallback):
             return mirror(obs).max(axis=1).astype(float)
         return _model_values(self.model, self._kind, obs, lstm, starts)
 
-    def _value_table(self) -> np.ndarray:
+    def _value_table(self) -> list[float]:
         """``V`` of every state of a small Discrete space, valued again after each update of the algorithm."""
         version = int(self.model._n_updates)
         if self._table is None or version != self._table_version:
             start = self._table_start
-            self._table = self._net_values(np.arange(start, start + self._table_states))
+            self._table = self._net_values(np.arange(start, start + self._table_states)).tolist()
             self._table_version = version
         return self._table
 
@@ -328,7 +329,7 @@ class BroekensCallback(BaseCallback):
         if last_obs is None:
             raise RuntimeError("BroekensCallback: the algorithm has no current observation at training start")
         n = self.training_env.num_envs
-        self._v = self._values(last_obs).tolist()
+        self._v = [float(v) for v in self._values(last_obs)]
         self._sums = [[0.0] * 4 for _ in range(n)]
         self._steps = [0] * n
         self._reward = [0.0] * n
@@ -393,9 +394,9 @@ class BroekensCallback(BaseCallback):
         self._settle(step, _as_floats(values) if fresh else self._values(step.new_obs, step.done_array))
         self._pending = None
 
-    def _settle(self, step: _Step, new_values: np.ndarray) -> None:
+    def _settle(self, step: _Step, new_values: np.ndarray | list[float]) -> None:
         """The emotions of one step of each env, with ``new_values``, ``V`` of the observations it reached."""
-        values = new_values.tolist()
+        values = new_values if isinstance(new_values, list) else new_values.tolist()
         rewards, cut, v, sums, gamma = step.rewards, step.cut, self._v, self._sums, self._gamma
         for i, done in enumerate(step.dones):
             truncated = done and i in cut

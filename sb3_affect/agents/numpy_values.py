@@ -40,20 +40,22 @@ class NumpyQValues:
                 self.layers.append((module.weight.detach().numpy().T, module.bias.detach().numpy()))
             else:
                 self.layers.append(ACTIVATIONS[type(module)])
-        discrete = isinstance(observation_space, spaces.Discrete)
-        self.eye = np.eye(int(observation_space.n), dtype=np.float32) if discrete else None  # type: ignore[attr-defined]
-        self.width = 0 if discrete else int(np.prod(observation_space.shape or ()))
+        self.discrete = isinstance(observation_space, spaces.Discrete)
+        self.width = 0 if self.discrete else int(np.prod(observation_space.shape or ()))
 
     def stale(self) -> bool:
         """Whether a parameter was replaced (not updated in place) since the mirror was made."""
         return any(m.weight is not w or m.bias is not b for m, w, b in self.linears)
 
     def __call__(self, obs: Any) -> np.ndarray:
-        if self.eye is not None:  # Discrete: SB3's one-hot of the observation's value
-            x = self.eye[np.asarray(obs, dtype=np.int64).reshape(-1)]
+        layers = self.layers
+        if self.discrete:  # SB3's one-hot of the observation's value times the first layer: that layer's rows
+            weight, bias = layers[0]  # type: ignore[misc]
+            x = weight[np.asarray(obs, dtype=np.int64).reshape(-1)] + bias
+            layers = layers[1:]
         else:
             x = np.asarray(obs, dtype=np.float32).reshape(-1, self.width)
-        for layer in self.layers:
+        for layer in layers:
             x = x @ layer[0] + layer[1] if isinstance(layer, tuple) else layer(x)
         return x
 
@@ -68,6 +70,8 @@ def q_values_fn(model: Any) -> NumpyQValues | None:
     if not (isinstance(space, spaces.Discrete) or (isinstance(space, spaces.Box) and not is_image_space(space))):
         return None
     if any(p.device.type != "cpu" or p.dtype != th.float32 for p in q_net.parameters()):
+        return None
+    if not len(head) or not isinstance(head[0], th.nn.Linear):
         return None
     if not all((isinstance(m, th.nn.Linear) and m.bias is not None) or type(m) in ACTIVATIONS for m in head):
         return None
