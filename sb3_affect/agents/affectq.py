@@ -46,7 +46,8 @@ class AffectQ(TabularQAlgorithm):
     :param comparison: Table II reading: ``"literal"`` (compare step counts) or ``"valence"`` (compare their negations)
     :param act: ``"episode"`` (act = elapsed + known remaining) or ``"remaining"`` (known remaining only)
     :param units: ``"cells"`` or ``"decisions"``: what norm, exp1 and act count
-    :param behaviour_table: emotion -> ``Behaviour(random_direction, speeds)``, or a table's name (``"table-iii"``,
+    :param behaviour_table: emotion -> ``Behaviour(random_direction, speeds)`` (keys ``Emotion`` or their names,
+        ``"joy"``, as a sweep file writes ``{joy: [true, [1, 2]], ...}``), or a table's name (``"table-iii"``,
         ``"table-iii-reversed"``: ``sb3_affect.core.behaviour.BEHAVIOUR_TABLES``); default Table III
     :param emotion_callback: an ``EmotionCallback`` (or subclass) to drive instead of one built from the options above
     :param max_episode_decisions: safety cap: an episode that reaches this many decisions is truncated (and counted)
