@@ -133,3 +133,32 @@ def test_the_hooks_drive_an_agent_of_ones_own_with_no_sb3_model() -> None:
     # then norm 7 (the first episode), act 5 (the known path): act < norm and exp1 = 7 > act: anger at every step
     assert norm == 7.0 and counts == [0, 0, 0, 5] and felt[7:] == [Emotion.ANGER] * 5
     assert callback.appraiser is not None and callback.appraiser.known.goals == {5}
+
+
+def test_the_window_records_again_only_after_a_new_row_or_a_dump() -> None:
+    from sb3_affect.agents.callbacks import WindowMeans, flat_array
+
+    logger = configure(None, [])
+    window = WindowMeans(2, size=3)
+    keys = ("affect/a", "affect/b")
+    window.record(logger, keys, again=False)  # no row yet: NaN means are left out
+    assert logger.name_to_value == {}
+    window.append([1.0, math.nan])
+    window.record(logger, keys, again=False)
+    assert logger.name_to_value == {"affect/a": 1.0}
+    logger.name_to_value["affect/a"] = -1.0  # nothing new: not recorded again
+    window.record(logger, keys, again=False)
+    assert logger.name_to_value["affect/a"] == -1.0
+    window.record(logger, keys)  # asked to: recorded
+    assert logger.name_to_value["affect/a"] == 1.0
+    logger.dump()  # the logger wrote them out: recorded again at the next rollout end
+    window.record(logger, keys, again=False)
+    assert logger.name_to_value == {"affect/a": 1.0}
+    window.append([3.0, 2.0])
+    window.record(logger, keys, again=False)
+    assert logger.name_to_value == {"affect/a": 2.0, "affect/b": 2.0}
+    # a VecEnv's per-env array: a 1-d array of the asked dtype is not copied; anything else is converted
+    dones = np.array([True, False])
+    assert flat_array(dones, bool) is dones
+    np.testing.assert_array_equal(flat_array([[1], [0]], bool), dones)
+    assert flat_array(np.array([[0.5], [1.0]], dtype=np.float32)).tolist() == [0.5, 1.0]

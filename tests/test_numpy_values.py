@@ -33,6 +33,11 @@ def test_the_mirror_gives_the_networks_values_before_and_after_learning(env_id: 
     assert not np.allclose(after, before)
     assert not mirror.stale()
     np.testing.assert_allclose(mirror(obs), after, rtol=1e-5, atol=1e-6)
+    if isinstance(space, gym.spaces.Discrete):  # the table of every state: the same rows, in state order
+        np.testing.assert_allclose(mirror.every_state(), after, rtol=1e-5, atol=1e-6)
+    else:
+        with pytest.raises(ValueError, match="only a Discrete observation space"):
+            mirror.every_state()
 
 
 def test_a_replaced_parameter_makes_the_mirror_stale() -> None:
@@ -40,6 +45,10 @@ def test_a_replaced_parameter_makes_the_mirror_stale() -> None:
     mirror = q_values_fn(model)
     assert mirror is not None and not mirror.stale()
     model.q_net.q_net[0].weight = th.nn.Parameter(model.q_net.q_net[0].weight.detach().clone())
+    assert mirror.stale()
+    mirror = q_values_fn(model)
+    assert mirror is not None and not mirror.stale()
+    model.q_net.q_net[-1].bias = th.nn.Parameter(model.q_net.q_net[-1].bias.detach().clone())
     assert mirror.stale()
 
 

@@ -51,7 +51,7 @@ from gymnasium import spaces
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
 
-from sb3_affect.agents.callbacks import WindowMeans, check_step_locals, logger_file_folder
+from sb3_affect.agents.callbacks import WindowMeans, check_step_locals, flat_array, logger_file_folder
 from sb3_affect.agents.numpy_values import NumpyQValues, q_values_fn
 from sb3_affect.core.positions import Position, PositionSpec, check_position, make_position
 from sb3_affect.core.registry import EMOTION_MODELS
@@ -229,6 +229,7 @@ class BroekensCallback(BaseCallback):
         self.value_fn = value_fn
         self.gamma = gamma
         self.prefix = prefix
+        self._keys = tuple(prefix + name for name in BROEKENS_EMOTIONS)
         self.episode_log_path = episode_log_path
         self.rows: list[list[Any]] = []
         self._kind = "user"
@@ -274,7 +275,7 @@ class BroekensCallback(BaseCallback):
             return np.array([float(self.value_fn(self.model, _row(obs, i))) for i in range(n)])
         if self._table_states:
             table, start = self._value_table(), self._table_start
-            return [table[int(state) - start] for state in np.asarray(obs).reshape(-1).tolist()]
+            return [table[int(state) - start] for state in flat_array(obs).tolist()]
         lstm = starts = None
         if self._kind == "recurrent":
             lstm, starts = self._recurrent_inputs(dones)
@@ -291,8 +292,12 @@ class BroekensCallback(BaseCallback):
         """``V`` of every state of a small Discrete space, valued again after each update of the algorithm."""
         version = int(self.model._n_updates)
         if self._table is None or version != self._table_version:
-            start = self._table_start
-            self._table = self._net_values(np.arange(start, start + self._table_states)).tolist()
+            mirror = self._mirror
+            if mirror is not None and not self._table_start and not mirror.stale():
+                self._table = mirror.every_state().max(axis=1).tolist()
+            else:
+                start = self._table_start
+                self._table = self._net_values(np.arange(start, start + self._table_states)).tolist()
             self._table_version = version
         return self._table
 
@@ -349,7 +354,7 @@ class BroekensCallback(BaseCallback):
     def _on_step(self) -> bool:
         check_step_locals(self)
         locals_ = self.locals
-        dones = np.asarray(locals_["dones"], dtype=bool).reshape(-1)
+        dones = flat_array(locals_["dones"], bool)
         new_obs = locals_["new_obs"]
         cell_rewards = locals_.get("cell_rewards")  # the package's tabular agents: this decision's cells
         if cell_rewards is not None and len(cell_rewards) == 0:  # a wait: no transition, no update, no emotion
@@ -367,7 +372,7 @@ class BroekensCallback(BaseCallback):
                 if done and info.get("TimeLimit.truncated", False):
                     terminal = info.get("terminal_observation")
                     cut[i] = None if terminal is None else self._terminal_value(terminal, i)
-        rewards = np.asarray(locals_["rewards"], dtype=float).reshape(-1).tolist()
+        rewards = flat_array(locals_["rewards"]).tolist()
         cells = None if self._position is None else self._position.cells(self.training_env, new_obs, infos)
         step = _Step(done_list, rewards, cut, new_obs, dones, cell_rewards, cells)
         if not self._settle_later:
@@ -438,17 +443,11 @@ class BroekensCallback(BaseCallback):
 
     def _on_rollout_end(self) -> None:
         self._settle_pending()
-        self._record_window()
+        self._window.record(self.logger, self._keys, again=False)
 
     def _on_training_end(self) -> None:
         self._settle_pending()
-        self._record_window()
-
-    def _record_window(self) -> None:
-        record = self.logger.record
-        for name, mean in zip(BROEKENS_EMOTIONS, self._window.means()):
-            if mean == mean:  # NaN: no episode in the window yet
-                record(self.prefix + name, mean)
+        self._window.record(self.logger, self._keys)
 
     def _close_episode(self, index: int, goal_joy: float) -> None:
         steps = self._steps[index]
@@ -456,7 +455,7 @@ class BroekensCallback(BaseCallback):
         row = [len(self.rows) + 1, steps, self._reward[index], *means, goal_joy, index]
         self.rows.append(row)
         self._window.append(means)
-        self._record_window()
+        self._window.record(self.logger, self._keys)
         if self._csv_path is not None:
             new = not self._csv_path.exists()
             self._csv_path.parent.mkdir(parents=True, exist_ok=True)

@@ -36,6 +36,7 @@ import csv
 import math
 import warnings
 from collections import deque
+from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -54,6 +55,8 @@ if TYPE_CHECKING:
 
 #: Columns of ``EmotionCallback.episode_log`` (observer mode): the agents' ``EPISODE_COLUMNS`` and the env index.
 EMOTION_CALLBACK_COLUMNS: tuple[str, ...] = (*EPISODE_COLUMNS, "env")
+#: The logger keys of the observer's means over the stats window (each emotion's share of decisions, and the norm).
+WINDOW_KEYS: tuple[str, ...] = tuple(f"affect/{name}" for name in (*EMOTION_NAMES, "norm"))
 
 
 class EmotionCallback(BaseCallback):
@@ -117,7 +120,7 @@ class EmotionCallback(BaseCallback):
         #: set by an agent that repeats actions before each step: which envs' decisions end with it (None: all)
         self.decision_ends: np.ndarray | None = None
         self._lanes: list[_Lane] = []
-        self._window = WindowMeans(len(EMOTION_NAMES) + 1)
+        self._window = WindowMeans(len(WINDOW_KEYS))
         self._csv_path: Path | None = None
         self._episodes = self._goals = 0
         self._warned = False
@@ -208,7 +211,7 @@ class EmotionCallback(BaseCallback):
             raise RuntimeError("EmotionCallback: the algorithm has no current observation at training start")
         n_envs = self.training_env.num_envs
         self._geometry = self._find_geometry()
-        self._window = WindowMeans(len(EMOTION_NAMES) + 1, int(getattr(self.model, "_stats_window_size", 100)))
+        self._window = WindowMeans(len(WINDOW_KEYS), int(getattr(self.model, "_stats_window_size", 100)))
         self._csv_path = self._episode_csv()
         # one lane per env: its own appraisal (env 0 keeps the callback's appraiser), counts and episode in progress
         assert self.appraiser is not None
@@ -239,8 +242,7 @@ class EmotionCallback(BaseCallback):
         n = len(self._lanes)
         if self._position is None:
             return [0] * n
-        infos = list(infos) if infos else [{} for _ in range(n)]
-        return self._position.cells(self.training_env, obs, infos)
+        return self._position.cells(self.training_env, obs, infos or [{} for _ in range(n)])
 
     def _feel_lane(self, lane: _Lane) -> None:
         emotion = self.emotion_rule(lane.appraiser.appraise(lane.state))
@@ -256,8 +258,8 @@ class EmotionCallback(BaseCallback):
     def _on_step(self) -> bool:
         check_step_locals(self)
         locals_ = self.locals
-        dones = np.asarray(locals_["dones"]).reshape(-1).tolist()
-        rewards = np.asarray(locals_["rewards"], dtype=float).reshape(-1).tolist()
+        dones = flat_array(locals_["dones"]).tolist()
+        rewards = flat_array(locals_["rewards"]).tolist()
         infos = locals_["infos"]
         position = self._position
         new_cells = self._cells(locals_["new_obs"], infos)
@@ -290,17 +292,10 @@ class EmotionCallback(BaseCallback):
         return True
 
     def _on_rollout_end(self) -> None:
-        self._record_window()
+        self._window.record(self.logger, WINDOW_KEYS, again=False)
 
     def _on_training_end(self) -> None:
-        self._record_window()
-
-    def _record_window(self) -> None:
-        """``affect/*``: means over the last episodes (the stats window), as SB3 logs ``rollout/ep_rew_mean``."""
-        record = self.logger.record
-        for name, mean in zip((*EMOTION_NAMES, "norm"), self._window.means()):
-            if mean == mean:  # NaN: no episode (with a norm) in the window yet
-                record(f"affect/{name}", mean)
+        self._window.record(self.logger, WINDOW_KEYS)
 
     def _close_lane(self, index: int, lane: _Lane, terminated: bool, truncated: bool, reached_goal: bool) -> None:
         appraiser = lane.appraiser
@@ -310,7 +305,7 @@ class EmotionCallback(BaseCallback):
         self.counts = counts
         total = sum(counts)
         self._window.append([*(c / total for c in counts), norm])
-        self._record_window()
+        self._window.record(self.logger, WINDOW_KEYS)
         self._episodes += 1
         self._goals += int(reached_goal)
         self._warn_if_degenerate()
@@ -411,6 +406,7 @@ class WindowMeans:
         self._sums = [0.0] * columns
         self._counts = [0] * columns
         self._added = 0
+        self._recorded = -1  # rows appended when the means were last recorded in a logger
 
     def __len__(self) -> int:
         return len(self.rows)
@@ -443,6 +439,26 @@ class WindowMeans:
     def means(self) -> list[float]:
         """Each column's mean over the window (NaN for a column with no value in it)."""
         return [total / count if count else math.nan for total, count in zip(self._sums, self._counts)]
+
+    def record(self, logger: Any, keys: Sequence[str], again: bool = True) -> None:
+        """
+        Record each column's mean under its key in an SB3 logger (a NaN mean is left out); ``again=False``: only if a
+        row was appended since they were last recorded or the logger has written them out since (an off-policy
+        rollout is a few steps: most rollouts have neither, and recording costs more than the step's own work).
+        """
+        if not again and self._recorded == self._added and keys[0] in getattr(logger, "name_to_value", ()):
+            return
+        for key, mean in zip(keys, self.means()):
+            if mean == mean:
+                logger.record(key, mean)
+        self._recorded = self._added
+
+
+def flat_array(values: Any, dtype: type | None = None) -> np.ndarray:
+    """A VecEnv's per-env array as a 1-d array (``dtype``: converted to it), not copied when it is one already."""
+    if type(values) is np.ndarray and values.ndim == 1 and (dtype is None or values.dtype == dtype):
+        return values
+    return np.asarray(values, dtype=dtype).reshape(-1)
 
 
 def check_step_locals(callback: BaseCallback) -> None:

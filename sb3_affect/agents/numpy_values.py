@@ -33,7 +33,8 @@ class NumpyQValues:
 
     def __init__(self, q_net: Any, observation_space: spaces.Space) -> None:
         self.q_net = q_net
-        self.linears = [(m, m.weight, m.bias) for m in q_net.q_net if isinstance(m, th.nn.Linear)]
+        # each Linear's parameter dict and the weight and bias it held when mirrored (read without nn.Module's lookup)
+        self.linears = [(m._parameters, m.weight, m.bias) for m in q_net.q_net if isinstance(m, th.nn.Linear)]
         self.layers: list[tuple[np.ndarray, np.ndarray] | Callable[[np.ndarray], np.ndarray]] = []
         for module in q_net.q_net:
             if isinstance(module, th.nn.Linear):
@@ -45,17 +46,26 @@ class NumpyQValues:
 
     def stale(self) -> bool:
         """Whether a parameter was replaced (not updated in place) since the mirror was made."""
-        return any(m.weight is not w or m.bias is not b for m, w, b in self.linears)
+        for parameters, weight, bias in self.linears:
+            if parameters["weight"] is not weight or parameters["bias"] is not bias:
+                return True
+        return False
 
     def __call__(self, obs: Any) -> np.ndarray:
-        layers = self.layers
         if self.discrete:  # SB3's one-hot of the observation's value times the first layer: that layer's rows
-            weight, bias = layers[0]  # type: ignore[misc]
-            x = weight[np.asarray(obs, dtype=np.int64).reshape(-1)] + bias
-            layers = layers[1:]
-        else:
-            x = np.asarray(obs, dtype=np.float32).reshape(-1, self.width)
-        for layer in layers:
+            weight, bias = self.layers[0]  # type: ignore[misc]
+            return self._rest(weight[np.asarray(obs, dtype=np.int64).reshape(-1)] + bias)
+        return self._rest(np.asarray(obs, dtype=np.float32).reshape(-1, self.width), first=0)
+
+    def every_state(self) -> np.ndarray:
+        """``Q(s, .)`` of every state of a ``Discrete`` space in order (its first layer's rows are the one-hots')."""
+        if not self.discrete:
+            raise ValueError("every_state: only a Discrete observation space has a table of states")
+        weight, bias = self.layers[0]  # type: ignore[misc]
+        return self._rest(weight + bias)
+
+    def _rest(self, x: np.ndarray, first: int = 1) -> np.ndarray:
+        for layer in self.layers[first:]:
             x = x @ layer[0] + layer[1] if isinstance(layer, tuple) else layer(x)
         return x
 

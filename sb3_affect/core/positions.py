@@ -98,7 +98,10 @@ class ObservationCells(Position):
     def cells(self, venv: Any, observations: Any, infos: Sequence[dict[str, Any]]) -> list[int]:
         obs = np.asarray(observations)
         if self.nvec is None:
-            return (obs.reshape(-1).astype(np.int64) - self.start).tolist()
+            flat = obs.reshape(-1)
+            if not self.start and flat.dtype.kind in "iu":  # the cells as they are (the common case, once a step)
+                return flat.tolist()
+            return (flat.astype(np.int64) - self.start).tolist()
         return [self.cell_of(row) for row in obs.reshape(-1, len(self.nvec))]
 
 
