@@ -443,16 +443,3 @@ def test_report_of_a_folder_in_use_or_incomplete_says_so(
     assert f"Incomplete: {out} holds {runs:,} of the 8 runs of sweep 'faults'" in report and runs < 8
     listed = sorted(line.split("  ", 1)[1] for line in (out / "checksums.sha256").read_text().splitlines())
     assert listed == sorted(p.relative_to(out).as_posix() for p in [*counted.run_files, *counted.chunk_files])
-
-
-def test_a_cache_cut_short_is_redone_not_an_error(tmp_path: Path) -> None:
-    """An empty ``joy_trace/meta.json`` (a kill mid-write, before it was written atomically): traced again."""
-    from sb3_affect.study.report import joy_trace
-
-    folder = tmp_path / "joy_trace"
-    folder.mkdir()
-    (folder / "meta.json").write_text("")
-    (folder / "episodes.csv").write_text("stale\n")
-    frame = joy_trace.traced(folder, seeds=1, episodes=3)
-    meta = json.loads((folder / "meta.json").read_text())
-    assert len(frame) > 0 and meta == {"seeds": 1, "episodes": 3, "version": joy_trace.TRACE_VERSION}

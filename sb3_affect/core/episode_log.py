@@ -26,6 +26,14 @@ EPISODE_COLUMNS: tuple[str, ...] = (
     "norm",  # the appraisal norm in force during the episode (NaN when there was none)
 )
 
+#: The columns a traced run adds to its episodes (a sweep file's ``trace: true``: each decision's emotion and ``act``
+#: recorded on the Python loop, stored per episode).
+TRACE_COLUMNS: tuple[str, ...] = (
+    "first_joy",  # the first decision felt in joy (1-based; NaN when the episode never feels joy)
+    "act_at_first_joy",  # act at that decision (the appraisal's units), when the episode crosses the norm
+    "joy_exits",  # decisions in joy followed by another emotion in the same episode
+)
+
 #: The columns by type: counts, flags (NaN where a run can not tell) and floats.
 INT_COLUMNS: tuple[str, ...] = ("episode", "decisions", "cells", "waits", *EMOTION_NAMES)
 FLAG_COLUMNS: tuple[str, ...] = ("optimal", "truncated", "greedy_optimal")

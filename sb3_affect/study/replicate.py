@@ -1,9 +1,9 @@
 """
 The main job: the sweep files of ``PARTS`` through the launcher (the paper's protocol, the DQN comparison, the fair
-baselines, the hunters, the large-N study, the reading and speed ablations, the long runs), ε tuned on each task
-beyond the paper and those tasks with the tuned ε (static grid, moving and evading prey, mazes), the replication
-forensics at a reduced size, then one report (the forensics section passed in from here: the report layer does not
-import the forensics).
+baselines, the hunters, the large-N study, the reading and speed ablations, the long runs, the joy trace), ε tuned on
+each task beyond the paper and those tasks with the tuned ε (static grid, moving and evading prey, mazes), the
+replication forensics at a reduced size, then one report (the forensics section passed in from here: the report layer
+does not import the forensics).
 """
 
 from __future__ import annotations
@@ -30,6 +30,7 @@ PARTS = (
     ("ablation", "reading ablation: the 8 readings of the appraisal x 9 ε ({runs} runs)"),
     ("speed_one", "speed ablation: the affective agent with speed fixed at 1 cell ({runs} runs)"),
     ("long", "long runs: both paper agents, runs of 2,000 episodes ({runs} runs)"),
+    ("joy_trace", "joy trace: the paper's affective agent, each decision's emotion and act recorded ({runs} runs)"),
     ("minigrid", "the tabular agents on MiniGrid ({runs} runs)"),
 )
 #: Parts that need a package of an extra: (part, package, extra); without it the part is skipped with one line.

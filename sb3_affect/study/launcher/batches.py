@@ -3,10 +3,11 @@ Units of work of the launcher: batches of tabular runs (one ``engine.simulate`` 
 single runs (``execute_run``, stored as one JSON file).
 
 A run goes into a batch when ``simulate`` computes exactly what ``execute_run`` would: a tabular agent class of this
-package on one of its envs, stopped by the episode count alone (no ``max_timesteps``), without per-run SB3 logs.
-The runs of a batch share one cell (agent and grid point: the same config but for seed and replicate). Team runs of the
-package's agents go into team batches (``TeamBatch``: one worker runs them one after the other on the team kernel, each
-stored as its own run file). Anything else (DQN, a user's class, ``--logs``) runs on its own, as before.
+package on one of its envs, stopped by the episode count alone (no ``max_timesteps``), without per-run SB3 logs or a
+trace (``launcher.emotion_trace``: the Python loop). The runs of a batch share one cell (agent and grid point: the
+same config but for seed and replicate). Team runs of the package's agents go into team batches (``TeamBatch``: one
+worker runs them one after the other on the team kernel, each stored as its own run file). Anything else (DQN, a
+user's class, ``--logs``, a trace) runs on its own, as before.
 """
 
 from __future__ import annotations
@@ -125,7 +126,7 @@ Job = Batch | Single
 
 def batchable(base: dict[str, Any], logs: bool) -> bool:
     """Whether the runs of a cell can run as batches (see the module docstring)."""
-    if logs or base.get("max_timesteps") is not None or not package_env(base["env_id"]):
+    if logs or base.get("trace") or base.get("max_timesteps") is not None or not package_env(base["env_id"]):
         return False
     from sb3_affect.core.registry import known_settings, resolve_class
 

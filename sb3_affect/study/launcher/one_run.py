@@ -102,9 +102,20 @@ def build_model(config: dict[str, Any]) -> tuple[Any, bool]:
     env = make_single_env(config)
     kwargs = dict(config["algo_kwargs"])
     if issubclass(cls, TabularQAlgorithm):
+        if config.get("trace"):
+            kwargs["emotion_callback"] = _trace_callback(kwargs)
         return cls("Grid", env, seed=config["seed"], **kwargs), True
     policy = kwargs.pop("policy", "MlpPolicy")
     return cls(policy, env, seed=config["seed"], **kwargs), False
+
+
+def _trace_callback(kwargs: dict[str, Any]) -> Any:
+    """The ``TraceCallback`` a traced AffectQ run drives, reading as its kwargs say (``launcher.emotion_trace``)."""
+    from sb3_affect.core.settings import AffectQSettings
+    from sb3_affect.study.launcher.emotion_trace import TraceCallback
+
+    settings = AffectQSettings(**kwargs)
+    return TraceCallback(comparison=settings.comparison, act=settings.act, units=settings.units)
 
 
 def package_env(env_id: str) -> bool:
@@ -286,6 +297,8 @@ def execute_run(config: dict[str, Any], log_dir: str | None = None, log_formats:
     model.learn(int(budget), callback=callback)
     log = model.episode_log if tabular else emotions.episode_log
     columns = {name: [_plain(v) for v in log[name].tolist()] for name in EPISODE_COLUMNS}
+    if config.get("trace"):  # the TraceCallback AffectQ drove (``build_model``)
+        columns.update({name: [_plain(v) for v in values] for name, values in model.emotion_callback.trace_columns().items()})
     return {
         "episodes": columns,
         "timings": {

@@ -17,12 +17,12 @@ import re
 from collections.abc import Sequence
 from typing import Any
 
-from sb3_affect.core.episode_log import EPISODE_COLUMNS
+from sb3_affect.core.episode_log import EPISODE_COLUMNS, TRACE_COLUMNS
 
 #: The columns of the run table besides the labels (one column per label, ``replicate`` included).
 RUN_COLUMNS = ("run_id", "agent", "algo", "seed", "decisions", "episodes", "wall_seconds", "max_timesteps")
 #: Names a grid label can not take: the results' own columns (a label named so would replace one).
-RESERVED_LABELS = frozenset({*RUN_COLUMNS, "replicate", "run", *EPISODE_COLUMNS})
+RESERVED_LABELS = frozenset({*RUN_COLUMNS, "replicate", "run", *EPISODE_COLUMNS, *TRACE_COLUMNS})
 
 _SEED, _REPLICATE = 8_101_999_202_707_303, 8_101_999_202_707_404  # stand-ins no real config holds
 

@@ -52,8 +52,10 @@ from pydantic import (
     model_validator,
 )
 
+from sb3_affect.core.episode_log import TRACE_COLUMNS
 from sb3_affect.core.positions import POSITION_PRESETS
 from sb3_affect.core.registry import ENV_WRAPPERS, check_algo, check_wrapper, import_env_package, known_settings, resolve_class
+from sb3_affect.core.settings import AffectQSettings
 from sb3_affect.study.launcher.run_ids import RESERVED_LABELS
 
 __all__ = ["AgentSpec", "Cell", "EnvSpec", "MemberSpec", "Sweep", "SweepError"]
@@ -233,6 +235,12 @@ class AgentSpec(BaseModel):
         "(e.g. a count bonus for one agent of the sweep)",
     )
 
+    trace: bool = Field(
+        default=False,
+        description=f"record each decision's emotion and act (AffectQ only; on the Python loop, one run at a time): "
+        f"per episode {', '.join(TRACE_COLUMNS)} beside the episode log",
+    )
+
     @field_validator("wrappers")
     @classmethod
     def _known_wrappers(cls, value: list[str]) -> list[str]:
@@ -240,8 +248,16 @@ class AgentSpec(BaseModel):
 
     @model_serializer(mode="wrap")
     def _dump(self, handler: SerializerFunctionWrapHandler) -> dict[str, Any]:
-        """Without ``wrappers`` when not given: a saved sweep reads (and resumes) as before the key existed."""
-        return _without_unset(handler(self), {"wrappers": []})
+        """Without ``wrappers`` and ``trace`` when not given: a saved sweep reads (and resumes) as before they existed."""
+        return _without_unset(handler(self), {"wrappers": [], "trace": False})
+
+    @model_validator(mode="after")
+    def _traced_affectq(self) -> AgentSpec:
+        if self.trace and known_settings(self.algo or "") is not AffectQSettings:
+            raise ValueError(f"trace: only AffectQ's runs can be traced (its emotion callback), not {self.algo or 'a team'!r}")
+        if self.trace and self.kwargs.get("personality", "neutral") != "neutral":
+            raise ValueError("trace: a traced run's appraisal is the neutral one; give no personality with trace: true")
+        return self
 
     @field_validator("algo")
     @classmethod
@@ -451,6 +467,8 @@ class Sweep(BaseModel):
                         base["team"] = agent.team_at(point)
                     if agent.wrappers:
                         base["env_wrappers"] = [*base.get("env_wrappers", []), *agent.wrappers]
+                    if agent.trace:  # only traced runs carry the key: other run ids are unchanged
+                        base["trace"] = True
                     cells.append(Cell(base, seeds))
         return cells
 

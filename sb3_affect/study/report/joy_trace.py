@@ -1,43 +1,40 @@
 """
 The affective agent decision by decision: how often joy is left once felt (near-absorbing), and where late episodes
-cross the norm. The episode log keeps counts only, so a few runs are traced with an ``EmotionCallback`` that records
-each decision's emotion (the Python loop; the compiled engine does not call back). Cached as
-``DIR/joy_trace/episodes.csv``; the tracing itself (an agent and SB3, so torch) is in ``report.joy_trace_runs``, imported
-only when the cache is missing.
+cross the norm. The episode log keeps counts only, so a few runs are traced (experiments/joy_trace.yaml, an agent with
+``trace: true``: the launcher stores each episode's first joy decision, ``act`` at it and joy's exits,
+``sb3_affect.study.launcher.emotion_trace``); this module reads them from the results folder ``DIR/joy_trace``.
 """
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-from sb3_affect.study.report.output_files import cached_json, output_folder, replacing, write_text
+from sb3_affect.core.episode_log import TRACE_COLUMNS
 
-#: Traced runs (seeds 0..SEEDS-1) of the paper's affective agent on the paper's task, and their episodes.
-SEEDS, EPISODES = 10, 200
-#: The traces' columns, by version: a cache of another version is traced again.
-TRACE_VERSION = 2
+#: The late episodes whose crossings of the norm the section reads.
 LATE = (151, 200)
 
 
-def traced(folder: Path, seeds: int = SEEDS, episodes: int = EPISODES) -> pd.DataFrame:
-    """The traced runs, from ``folder/episodes.csv`` when it holds the same size, else computed and written there."""
-    folder = Path(folder)
-    meta, table = folder / "meta.json", folder / "episodes.csv"
-    wanted = {"seeds": seeds, "episodes": episodes, "version": TRACE_VERSION}
-    if table.exists() and cached_json(meta) == wanted:
-        return pd.read_csv(table)
-    from sb3_affect.study.report.joy_trace_runs import trace
+def traced(folder: Path) -> pd.DataFrame | None:
+    """
+    The traced runs of the results folder ``folder``, one row per episode (``seed``, ``episode``, ``norm``,
+    ``decisions``, ``joy`` and ``TRACE_COLUMNS``) in seed and episode order; None when it holds no finished run.
+    """
+    from sb3_affect.study.launcher.store import ResultsStore
+    from sb3_affect.study.report.metrics import load_results
 
-    frame = pd.concat([trace(seed, episodes) for seed in range(seeds)], ignore_index=True)
-    output_folder(folder)
-    with replacing(table) as tmp:
-        frame.to_csv(tmp, index=False)
-    write_text(meta, json.dumps(wanted))
-    return frame
+    if ResultsStore(folder).saved_sweep() is None:
+        return None
+    results = load_results(Path(folder), ("episode", "norm", "decisions", "joy", *TRACE_COLUMNS))
+    if not len(results.runs):
+        return None
+    seeds = results.runs.set_index("run_id").seed
+    frame = results.episodes.drop(columns=["agent", "replicate"], errors="ignore")
+    frame.insert(0, "seed", seeds.loc[frame.pop("run_id").astype(str)].to_numpy())
+    return frame.sort_values(["seed", "episode"], kind="stable").reset_index(drop=True)
 
 
 def summary(frame: pd.DataFrame) -> dict[str, float]:
@@ -47,6 +44,7 @@ def summary(frame: pd.DataFrame) -> dict[str, float]:
     crossing = late[late.joy > 0]
     return {
         "runs": float(frame.seed.nunique()),
+        "episodes": float(frame.episode.max()),
         "joy decisions": float(frame.joy.sum()),
         "exits per joy decision": float(frame.joy_exits.sum() / max(frame.joy.sum(), 1)),
         "share of joy episodes that ever leave joy": float((with_joy.joy_exits > 0).mean()) if len(with_joy) else np.nan,

@@ -143,16 +143,16 @@ def mechanism_section(ctx: ReportContext) -> None:
 
 
 def joy_section(ctx: ReportContext) -> None:
-    """Joy near-absorbing, and where late episodes cross the norm (traced runs, ``report.joy_trace``)."""
-    if ctx.verdict_refusal():
-        return
+    """Joy near-absorbing, and where late episodes cross the norm (the traced runs of ``DIR/joy_trace``)."""
     frame = joy_trace.traced(ctx.root / "joy_trace")
+    if frame is None or ctx.verdict_refusal():
+        return
     b = joy_trace.summary(frame)
     ctx.doc.h("Joy is near-absorbing; where late episodes cross the norm", 3)
     path = joy_trace.norm_figure(frame, ctx.figure("norm_crossings"), ctx.cache.get("shortest path"))
     ctx.doc.p(
-        f"Traced decision by decision ({int(b['runs'])} runs of the paper's affective agent, seeds 0-"
-        f"{int(b['runs']) - 1}, {joy_trace.EPISODES} episodes; the episode log keeps only counts): of "
+        f"Traced decision by decision ({int(b['runs'])} runs of the paper's affective agent, seeds {frame.seed.min()}-"
+        f"{frame.seed.max()}, {int(b['episodes'])} episodes; the episode log keeps only counts): of "
         f"{int(b['joy decisions']):,} joy decisions, {sig(b['exits per joy decision'])} per decision are followed by "
         f"another emotion in the same episode, and {b['share of joy episodes that ever leave joy']:.1%} of the episodes "
         "that feel joy ever leave it. Joy is near-absorbing, not absorbing: act can fall when a newly seen transition "
