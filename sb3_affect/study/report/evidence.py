@@ -21,6 +21,9 @@ SEED_COUNTS = (5, 10, 20, 50, 100, 1000)
 #: Random subsamples of the power study (at the paper's 20 seeds per cell), and the agreement called "usually".
 REPETITIONS = 200
 AGREEMENT = 0.8
+#: The subsamples are drawn from this many seeded random streams (seeds ``seed``, ``seed + 1``, ...), near-equal
+#: shares of ``REPETITIONS`` each: the power study's numbers depend on it, not on the machine's CPUs.
+STREAMS = 2
 
 
 def subset(large: pd.DataFrame, n: int) -> pd.DataFrame:
@@ -43,18 +46,24 @@ def sensitivity(large: pd.DataFrame, counts: tuple[int, ...] = SEED_COUNTS) -> p
     return table
 
 
-def _agreement(job: tuple[pd.DataFrame, dict[str, tuple[str, ...]], int, int, int]) -> dict[str, list[int]]:
-    """How many of ``repetitions`` random ``n``-seed subsamples (seeded) reach each claim's target verdict words (by key)."""
-    large, target, n, repetitions, seed = job
+def _agreement(
+    large: pd.DataFrame, target: dict[str, tuple[str, ...]], n: int, repetitions: int, seed: int
+) -> dict[str, list[int]]:
+    """
+    How many random ``n``-seed subsamples reach each claim's target verdict words (by key): ``repetitions`` of them,
+    drawn from ``STREAMS`` seeded streams (``seed``, ``seed + 1``, ...).
+    """
     available = int(large.replicate.max()) + 1
-    rng = np.random.default_rng(seed)
     hits = {key: [0] * len(words) for key, words in target.items()}
-    for _ in range(repetitions):
-        chosen = rng.choice(available, size=n, replace=False)
-        for j in claims.judge_all(large[large.replicate.isin(chosen)], cells=False):
-            word = claims.verdict_word(j.verdict)
-            for i, wanted in enumerate(target.get(j.key, ())):
-                hits[j.key][i] += word == wanted
+    streams = max(1, min(STREAMS, repetitions))
+    for stream in range(streams):
+        rng = np.random.default_rng(seed + stream)
+        for _ in range(repetitions // streams + (stream < repetitions % streams)):
+            chosen = rng.choice(available, size=n, replace=False)
+            for j in claims.judge_all(large[large.replicate.isin(chosen)], cells=False):
+                word = claims.verdict_word(j.verdict)
+                for i, wanted in enumerate(target.get(j.key, ())):
+                    hits[j.key][i] += word == wanted
     return hits
 
 
@@ -63,13 +72,12 @@ def seeds_needed(
     n: int = paper.SEEDS_PER_CELL,
     repetitions: int = REPETITIONS,
     seed: int = 0,
-    workers: int = 1,
     full: list[claims.Judgement] | None = None,
     protocol: list[claims.Judgement] | None = None,
 ) -> pd.DataFrame:
     """
     The power of the paper's ``n``-seed protocol for each claim: the share of ``repetitions`` random ``n``-seed
-    subsamples of the large-N runs (seeded; split over ``workers`` processes) whose verdict (its first words) is the
+    subsamples of the large-N runs (seeded: ``_agreement``) whose verdict (its first words) is the
     full-sample verdict, and (given ``protocol``, the verdicts of the paper protocol's own runs) the share whose verdict
     is the protocol's. Claims whose outcome is fixed by the design (the 9 ε values), not by seeds, say so.
     """
@@ -78,21 +86,7 @@ def seeds_needed(
     # by key: a claim's label may name its data (the long run's window), its key does not
     own = {j.key: claims.verdict_word(j.verdict) for j in protocol or []}
     target = {j.key: (claims.verdict_word(j.verdict), *((own[j.key],) if j.key in own else ())) for j in full}
-    hits = {key: [0] * len(words) for key, words in target.items()}
-    if n < available:
-        parts = max(1, min(workers, repetitions))
-        sizes = [repetitions // parts + (i < repetitions % parts) for i in range(parts)]
-        jobs = [(large, target, n, size, seed + i) for i, size in enumerate(sizes)]
-        if parts > 1:
-            from concurrent.futures import ProcessPoolExecutor
-
-            with ProcessPoolExecutor(parts) as pool:
-                results = list(pool.map(_agreement, jobs))
-        else:
-            results = [_agreement(job) for job in jobs]
-        for part in results:
-            for key, counts in part.items():
-                hits[key] = [a + b for a, b in zip(hits[key], counts)]
+    hits = _agreement(large, target, n, repetitions if n < available else 0, seed)
     rows = {}
     for j in full:
         shares = [count / repetitions if n < available and j.seed_dependent else math.nan for count in hits[j.key]]
@@ -224,13 +218,10 @@ def evidence_section(ctx: ReportContext) -> None:
         "Each verdict (its first words; the full verdicts are in the verdict table) at 5 to 1,000 seeds per cell "
         "(the first n replicates of each cell)",
     )
-    import os
-
-    workers = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else 1
     from sb3_affect.study.report.verdict import judged
 
     _main, _n, protocol, _n_protocol = judged(ctx)
-    needed = seeds_needed(large, workers=workers, full=ctx.judgements or None, protocol=protocol)
+    needed = seeds_needed(large, full=ctx.judgements or None, protocol=protocol)
     ctx.cache["seeds needed"] = needed
     ctx.table(
         "seeds_needed",
