@@ -239,3 +239,21 @@ def test_the_sensitivity_row_gives_each_printed_number_beside_the_leaders_mean(t
     body = "\n".join(lines)
     assert f"| {STATISTICS[0]} | 4 | 2 | 0.50 |" in body and f"| {STATISTICS[-1]} | 28 | 14 | 0.50 |" in body
     assert leader_sensitivity_lines(tmp_path / "none", leaders, intervals) == []
+
+
+@pytest.mark.parametrize("backend", ["local", pytest.param("ray", marks=pytest.mark.ray)])
+def test_units_on_the_launchers_executor_store_what_one_process_stores(tmp_path: Path, backend: str) -> None:
+    """The same summary files in this process and on the launcher's executor (2 forked workers, or Ray tasks)."""
+    if backend == "ray":
+        pytest.importorskip("ray")
+    protocol = Protocol(epsilons=(0.1, 0.2, 0.9), seeds=2, episodes=8)
+    frozen = Simulation("epsilon-greedy", 1.0, 0.8)
+    units = [(AFFECTIVE, 0), (AFFECTIVE, 1), (frozen, 0)]
+    stored = {}
+    for name, workers, where in (("one", 1, "local"), ("executor", 2, backend)):
+        store = SummaryStore(tmp_path / name, protocol)
+        assert run_units(store, units, workers=workers, progress=False, backend=where) == 3
+        assert run_units(store, [(frozen, 1)], workers=workers, progress=False, stop_above={frozen: 1.0}, backend=where) == 1
+        files = (store.root / "summaries").rglob("*.json")
+        stored[name] = {p.relative_to(store.root).as_posix(): p.read_bytes() for p in files}
+    assert len(stored["one"]) == 4 and stored["executor"] == stored["one"]

@@ -130,6 +130,8 @@ def run_forensics(
     workers: int = 2,
     progress: bool = True,
     printed: np.ndarray | None = None,
+    backend: str = "local",
+    ray_address: str | None = None,
 ) -> ForensicsResult:
     """
     Screen the candidate space, replicate the leaders, score the printed numbers, write the tables and the report.
@@ -140,11 +142,14 @@ def run_forensics(
     :param screen_reps: replications of every simulation in the screen (>= 2)
     :param leaders: affective simulations given the full number of replications
     :param reps: replications of each leader (>= screen_reps)
-    :param workers: worker processes
+    :param workers: worker processes (Ray: tasks at a time on a private instance)
     :param progress: show progress bars
     :param printed: the numbers to explain, one per ``STATISTICS`` entry (default: the paper's)
+    :param backend: where the replications run: ``"local"`` (forked processes) or ``"ray"`` (Ray tasks), as a sweep's
+    :param ray_address: the Ray cluster, HOST:PORT or ray://HOST:PORT (default: a private instance)
     """
     start = time.perf_counter()
+    executor = (backend, ray_address)
     space = space or CandidateSpace.default()
     protocol = protocol or Protocol()
     if screen_reps < 2:
@@ -164,14 +169,14 @@ def run_forensics(
     samples = _Samples(store)
     cells = len(protocol.epsilons)
     stop = {sim: REJECT_FACTOR * cells * _printed_steps(observed, sim.agent == STANDARD) for sim in standard + affective}
-    run_units(store, _units(standard + affective, range(1)), workers, progress, "pre-screen", stop_above=stop)
+    run_units(store, _units(standard + affective, range(1)), workers, progress, "pre-screen", stop, *executor)
     ratios = {
         sim: _steps_ratio(store.read(sim, 0, partial_ok=True), observed, sim.agent == STANDARD, cells)
         for sim in standard + affective
     }
     kept = [sim for sim in affective if max(ratios[sim], ratios[sim.standard]) <= REJECT_FACTOR]
     partners = list(dict.fromkeys(sim.standard for sim in kept))
-    run_units(store, _units(partners + kept, screen_range), workers, progress, "screen")
+    run_units(store, _units(partners + kept, screen_range), workers, progress, "screen", None, *executor)
 
     rows = []
     screened = {}
@@ -193,7 +198,7 @@ def run_forensics(
             break
     full_range = range(reps)
     leader_units = _units(list(dict.fromkeys([s.standard for s in leading])) + leading, full_range)
-    run_units(store, leader_units, workers, progress, "leaders")
+    run_units(store, leader_units, workers, progress, "leaders", None, *executor)
 
     finalists = [c for c in space.candidates() if c.affective in leading]
     full = {c.name: samples.sample(c, full_range) for c in finalists}

@@ -27,6 +27,10 @@ def add_forensics_parser(sub: Any) -> argparse.ArgumentParser:
     )
     parser.add_argument("--out", required=True, help="results folder, e.g. runs/forensics")
     parser.add_argument("--workers", type=int, default=2, help="worker processes (default: 2)")
+    parser.add_argument("--backend", choices=("local", "ray"), default="local", help="local processes (default) or Ray tasks")
+    parser.add_argument(
+        "--ray-address", default=None, help="Ray cluster address, HOST:PORT or ray://HOST:PORT (default: a private instance)"
+    )
     parser.add_argument("--screen-reps", type=int, default=3, help="replications per simulation in the screen (default: 3)")
     parser.add_argument("--leaders", type=int, default=4, help="affective simulations replicated in full (default: 4)")
     parser.add_argument("--reps", type=int, default=100, help="replications of each leader (default: 100)")
@@ -62,6 +66,8 @@ def forensics_command(args: argparse.Namespace) -> int:
             reps=args.reps,
             workers=args.workers,
             progress=not args.no_progress,
+            backend=args.backend,
+            ray_address=args.ray_address,
         )
     except ValueError as error:
         raise SystemExit(f"sb3-affect forensics: error: {error}") from None

@@ -1,11 +1,14 @@
-"""Simulate (simulation, replication) units in parallel worker processes, with a progress bar; resumable."""
+"""
+Simulate (simulation, replication) units on the launcher's executor (local worker processes or Ray tasks, as a sweep's
+runs), with a progress bar; resumable.
+"""
 
 from __future__ import annotations
 
-import multiprocessing as mp
-import os
-import sys
+import socket
 from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from typing import Any
 
 from sb3_affect.study.forensics.candidates import STEP_UNITS, Protocol, Simulation
 from sb3_affect.study.forensics.statistics import cell_summary
@@ -47,13 +50,26 @@ def simulate_unit(
     return unit, cells, True
 
 
-def _init_worker(driver: int) -> None:
-    import torch
+@dataclass(frozen=True)
+class UnitJob:
+    """One (simulation, replication) unit as a unit of work of the launcher's executors (``launcher.batches.Work``)."""
 
-    from sb3_affect.study.launcher.signals import worker_signals
+    unit: Unit
+    protocol: Protocol
+    stop_above: float | None = None
 
-    worker_signals(driver)  # Ctrl-C is the driver's (it terminates the pool), whose SIGTERM ends a worker at once
-    torch.set_num_threads(1)
+    @property
+    def name(self) -> str:
+        simulation, replication = self.unit
+        return f"forensics:{simulation.algo}:{replication}"
+
+    def execute(self) -> dict[str, Any]:
+        """``simulate_unit`` of the unit: its cells and whether it is complete (with the versions and host it ran on)."""
+        from sb3_affect.study.launcher.one_run import package_versions
+
+        _, cells, complete = simulate_unit(self.unit, self.protocol, self.stop_above)
+        host = {"host": socket.gethostname()}
+        return {"cells": cells, "complete": complete, "versions": package_versions(), "timings": host}
 
 
 def _warm_up(units: list[Unit], protocol: Protocol) -> None:
@@ -69,10 +85,6 @@ def _warm_up(units: list[Unit], protocol: Protocol) -> None:
 _warmed: list[Simulation] = []
 
 
-def _work(args: tuple[Unit, Protocol, float | None]) -> tuple[Unit, dict[float, dict[str, float]], bool]:
-    return simulate_unit(*args)
-
-
 def run_units(
     store: SummaryStore,
     units: Iterable[Unit],
@@ -80,18 +92,23 @@ def run_units(
     progress: bool = True,
     desc: str = "simulating",
     stop_above: Mapping[Simulation, float] | None = None,
+    backend: str = "local",
+    ray_address: str | None = None,
 ) -> int:
     """
     Simulate every unit not yet in ``store`` and write each one as soon as it finishes (the driver is the only
-    writer). Returns how many were simulated now.
+    writer), on the launcher's executor: ``workers`` local processes, or Ray tasks, as a sweep's runs. Returns how many
+    were simulated now.
 
     :param store: the results folder
     :param units: (simulation, replication) pairs; those already stored are skipped
-    :param workers: worker processes (1: in this process)
+    :param workers: worker processes (1 and the local backend: in this process)
     :param progress: show a tqdm progress bar
     :param desc: the bar's label
     :param stop_above: per simulation, ``simulate_unit``'s early stop (a stopped replication is stored as partial and
         counts as done only for callers that also pass ``stop_above``)
+    :param backend: ``"local"`` (forked processes) or ``"ray"`` (``launcher.run_ray``)
+    :param ray_address: the Ray cluster (default: a private instance of ``workers`` CPUs)
     """
     from tqdm.auto import tqdm
 
@@ -99,23 +116,33 @@ def run_units(
     todo = [u for u in dict.fromkeys(units) if not store.has(*u, partial_ok=partial_ok)]
     if not todo:
         return 0
-    if workers > 1:
-        _warm_up(todo, store.protocol)
     bar = tqdm(total=len(todo), desc=desc, unit="replication", disable=not progress, dynamic_ncols=True)
-    tasks = [(u, store.protocol, (stop_above or {}).get(u[0])) for u in todo]
+    jobs = [UnitJob(u, store.protocol, (stop_above or {}).get(u[0])) for u in todo]
+    failures: list[str] = []
+
+    def on_result(job: UnitJob, result: dict[str, Any]) -> None:
+        store.write(*job.unit, result["cells"], result["complete"])
+        bar.update()
+
+    def on_failure(job: UnitJob, error: str) -> None:
+        failures.append(f"{job.name}: {error}")
+        bar.update()
+
     try:
-        if workers <= 1:
-            for task in tasks:
-                unit, cells, complete = _work(task)
-                store.write(*unit, cells, complete)
-                bar.update()
+        if backend == "ray":
+            from sb3_affect.study.launcher.launcher import run_ray
+
+            run_ray(jobs, workers, on_result, on_failure, ray_address)
+        elif workers <= 1:
+            for job in jobs:
+                on_result(job, job.execute())
         else:
-            # fork (Linux): the workers are the driver's children, so PR_SET_PDEATHSIG ends them if it is killed
-            context = mp.get_context("fork" if sys.platform.startswith("linux") else "spawn")
-            with context.Pool(workers, initializer=_init_worker, initargs=(os.getpid(),)) as pool:
-                for unit, cells, complete in pool.imap_unordered(_work, tasks):
-                    store.write(*unit, cells, complete)
-                    bar.update()
+            from sb3_affect.study.launcher.local_pool import run_local
+
+            _warm_up(todo, store.protocol)
+            run_local(jobs, workers, on_result, on_failure)
     finally:
         bar.close()
+    if failures:
+        raise RuntimeError(f"{len(failures)} of {len(jobs)} units failed (the others are kept); the first: {failures[0]}")
     return len(todo)

@@ -20,7 +20,7 @@ import socket
 import time
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
 from sb3_affect.study.launcher.chunks import encode_chunk
 from sb3_affect.study.launcher.one_run import execute_run, package_env, package_versions
@@ -122,6 +122,20 @@ class Single:
 
 
 Job = Batch | Single
+
+
+class Work(Protocol):
+    """
+    A unit of work the executors run (``local_pool.run_local``, ``launcher.run_ray``): a ``Batch``, a ``Single``, or a
+    study's own unit (the forensics' replications). Only a ``Single`` gets a fresh process of its own; anything else
+    runs in a long-lived worker, one unit after the other. ``execute`` returns the unit's result, with ``versions``
+    and ``timings`` (``host``) for the Ray backend's check of a node's package versions.
+    """
+
+    @property
+    def name(self) -> str: ...
+
+    def execute(self) -> dict[str, Any]: ...
 
 
 def batchable(base: dict[str, Any], logs: bool) -> bool:

@@ -27,6 +27,7 @@ import os
 import sys
 import time
 import traceback
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -36,12 +37,13 @@ from sb3_affect.study.launcher.batches import (
     Job,
     Single,
     TeamBatch,
+    Work,
     batch_size,
     batchable,
     split_cell,
     team_batchable,
 )
-from sb3_affect.study.launcher.local_pool import OnFailure, OnResult, run_local
+from sb3_affect.study.launcher.local_pool import OnFailure, OnResult, W, run_local
 from sb3_affect.study.launcher.schema import Cell
 from sb3_affect.study.launcher.store import SWEEP_SCHEMA, ResultsStore, cell_run_ids
 from sb3_affect.study.launcher.sweep_file import load_sweep
@@ -60,8 +62,8 @@ class SweepSummary:
     out_dir: Path
 
 
-def _ray_batch(job: Batch) -> tuple[str, Any]:
-    """A Ray task running a batch: ``("ok", result)`` or ``("error", traceback)`` (as on the local backend)."""
+def _ray_batch(job: Work) -> tuple[str, Any]:
+    """A Ray task running a batch (any ``Work``): ``("ok", result)`` or ``("error", traceback)`` (as on the local backend)."""
     try:
         return "ok", job.execute()
     except Exception:
@@ -69,10 +71,10 @@ def _ray_batch(job: Batch) -> tuple[str, Any]:
 
 
 def run_ray(
-    jobs: list[Job],
+    jobs: Sequence[W],
     workers: int,
-    on_result: OnResult,
-    on_failure: OnFailure,
+    on_result: OnResult[W],
+    on_failure: OnFailure[W],
     address: str | None = None,
     cap: int | None = None,
     timeout: float = 60.0,
@@ -80,8 +82,8 @@ def run_ray(
     """
     Run ``jobs`` as Ray core tasks on the cluster at ``address`` (at most ``cap`` at a time), or on a private instance
     of ``workers`` CPUs started and stopped here; connection, shipping the code, version checks and a lost cluster are
-    handled in :mod:`sb3_affect.study.launcher.ray_cluster`. A batch is one task (``Batch.execute``), a lone run one
-    ``ray_cluster.execute_task``.
+    handled in :mod:`sb3_affect.study.launcher.ray_cluster`. A batch (or any other ``Work``) is one task (its
+    ``execute``), a lone run one ``ray_cluster.execute_task``.
     """
     import sb3_affect.study.launcher.ray_cluster as ray_cluster
     from sb3_affect.study.launcher.one_run import package_versions
@@ -91,12 +93,12 @@ def run_ray(
         remote = session.ray.remote(num_cpus=1, max_retries=1)(ray_cluster.execute_task)
         remote_batch = session.ray.remote(num_cpus=1, max_retries=1)(_ray_batch)
 
-        def submit(job: Job) -> Any:
-            if isinstance(job, Batch):
-                return remote_batch.remote(job)
-            return remote.remote(job.config, job.log_dir, job.formats)
+        def submit(job: W) -> Any:
+            if isinstance(job, Single):
+                return remote.remote(job.config, job.log_dir, job.formats)
+            return remote_batch.remote(job)
 
-        def on_value(job: Job, value: tuple[Any, ...]) -> None:
+        def on_value(job: W, value: tuple[Any, ...]) -> None:
             if value[0] != "ok":
                 on_failure(job, value[1])
                 return
@@ -110,11 +112,11 @@ def run_ray(
                 ray_cluster.write_logs(job.log_dir, value[2])
             on_result(job, result)
 
-        def on_error(job: Job, error: BaseException) -> None:  # the worker died (after Ray's retry), or Ray failed
+        def on_error(job: W, error: BaseException) -> None:  # the worker died (after Ray's retry), or Ray failed
             text = ray_cluster.plain_text(str(error))
             on_failure(job, f"the Ray task failed: {type(error).__name__}: {text}")
 
-        session.run(jobs, submit, on_value, on_error, cap=cap)
+        session.run(list(jobs), submit, on_value, on_error, cap=cap)
 
 
 def run_sweep(

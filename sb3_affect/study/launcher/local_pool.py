@@ -1,9 +1,10 @@
 """
 The ``local`` backend: jobs in forked worker processes, at most ``workers`` at a time.
 
-A batch (``batches.Batch``: one ``engine.simulate`` call, a pure function of its config) runs in a long-lived worker,
-which is forked once and then takes batch after batch over a pipe: the fork, and the copy-on-write and page faults
-that follow it, are paid once per worker instead of once per batch. A single run (``batches.Single``: DQN, a user's
+A batch (``batches.Batch``: one ``engine.simulate`` call, a pure function of its config), or any other unit of work
+that is not a single run (``batches.Work``: a forensics replication), runs in a long-lived worker, which is forked
+once and then takes unit after unit over a pipe: the fork, and the copy-on-write and page faults
+that follow it, are paid once per worker instead of once per unit. A single run (``batches.Single``: DQN, a user's
 class, a run with logs) keeps a fresh process of its own, as it always had, so nothing one run leaves in a process
 (global random states, warnings filters, registered envs, torch settings) can reach another; the process exits
 after that one run.
@@ -23,30 +24,31 @@ import os
 import signal
 import traceback
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Generic, TypeVar
 
-from sb3_affect.study.launcher.batches import Batch, Job
+from sb3_affect.study.launcher.batches import Batch, Single, Work
 from sb3_affect.study.launcher.signals import STOP_SIGNALS, worker_signals
 
-OnResult = Callable[[Job, dict[str, Any]], None]
-OnFailure = Callable[[Job, str], None]
+W = TypeVar("W", bound=Work)
+OnResult = Callable[[W, dict[str, Any]], None]
+OnFailure = Callable[[W, str], None]
 
-def _execute(job: Job) -> tuple[str, Any]:
+def _execute(job: Work) -> tuple[str, Any]:
     try:
         return "ok", job.execute()
     except BaseException:
         return "error", traceback.format_exc()
 
 
-def _worker(first: Job, conn: Any, launcher: int) -> None:
-    """A worker's life: ``first``, then (a batch worker) every job the launcher sends, until it sends None."""
+def _worker(first: Work, conn: Any, launcher: int) -> None:
+    """A worker's life: ``first``, then (a long-lived worker) every job the launcher sends, until it sends None."""
     worker_signals(launcher)  # Ctrl-C is the launcher's; its SIGTERM stops the worker; the worker dies with it
-    job: Job | None = first
+    job: Work | None = first
     while job is not None:
         conn.send(_execute(job))
-        if not isinstance(job, Batch):
+        if isinstance(job, Single):
             break  # a single run's process ends with it
         try:
             job = conn.recv()
@@ -63,7 +65,7 @@ def describe_exit(code: int | None) -> str:
     return f"exit code {code}"
 
 
-def preload(jobs: list[Job]) -> None:
+def preload(jobs: Sequence[Work]) -> None:
     """
     Load here, once, what every forked worker would otherwise load again: every kernel of the compiled engine (no torch),
     ``simulate``, the Parquet writer and the package versions the chunks record (no pandas: the chunks are written
@@ -82,22 +84,25 @@ def preload(jobs: list[Job]) -> None:
 
 
 @dataclass
-class _Worker:
-    """A worker process, the launcher's end of its pipe and the job it is running (None: idle, a batch worker)."""
+class _Worker(Generic[W]):
+    """A worker process, the launcher's end of its pipe and the job it is running (None: idle, a long-lived worker)."""
 
     process: Any
     conn: Any
-    job: Job | None
+    job: W | None
 
 
-def run_local(jobs: list[Job], workers: int, on_result: OnResult, on_failure: OnFailure) -> None:
-    """Run ``jobs`` in forked worker processes, ``workers`` at a time (see the module's docstring)."""
+def run_local(jobs: Sequence[W], workers: int, on_result: OnResult[W], on_failure: OnFailure[W]) -> None:
+    """
+    Run ``jobs`` in forked worker processes, ``workers`` at a time (see the module's docstring): any ``Work``, a
+    ``Single`` in a process of its own, anything else in long-lived workers.
+    """
     preload(jobs)
     context = multiprocessing.get_context("fork")
     queue = deque(jobs)
-    pool: list[_Worker] = []
+    pool: list[_Worker[W]] = []
 
-    def start(job: Job) -> None:
+    def start(job: W) -> None:
         mine, theirs = context.Pipe(duplex=True)
         process = context.Process(target=_worker, args=(job, theirs, os.getpid()), name=f"sb3-affect:{job.name}")
         # Ctrl-C or SIGTERM during the fork would be swallowed by an at-fork hook ("Exception ignored"): hold them
@@ -110,7 +115,7 @@ def run_local(jobs: list[Job], workers: int, on_result: OnResult, on_failure: On
         finally:
             signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
-    def retire(worker: _Worker) -> None:
+    def retire(worker: _Worker[W]) -> None:
         pool.remove(worker)
         with contextlib.suppress(OSError):
             worker.conn.send(None)  # (a batch worker waits for its next job; a single run's worker has exited)
@@ -119,8 +124,8 @@ def run_local(jobs: list[Job], workers: int, on_result: OnResult, on_failure: On
 
     try:
         while queue or any(worker.job is not None for worker in pool):
-            for worker in [w for w in pool if w.job is None]:  # idle batch workers: the next job, or retire
-                if queue and isinstance(queue[0], Batch):
+            for worker in [w for w in pool if w.job is None]:  # idle long-lived workers: the next job, or retire
+                if queue and not isinstance(queue[0], Single):
                     worker.job = queue.popleft()
                     try:
                         worker.conn.send(worker.job)
@@ -153,7 +158,7 @@ def run_local(jobs: list[Job], workers: int, on_result: OnResult, on_failure: On
                     on_failure(job, f"the worker process died before returning a result ({how})")
                     continue
                 worker.job = None
-                if not isinstance(job, Batch):
+                if isinstance(job, Single):
                     retire(worker)
                 if message[0] == "ok":
                     on_result(job, message[1])
