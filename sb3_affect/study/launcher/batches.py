@@ -6,8 +6,9 @@ A run goes into a batch when ``simulate`` computes exactly what ``execute_run`` 
 package on one of its envs, stopped by the episode count alone (no ``max_timesteps``), without per-run SB3 logs or a
 trace (``launcher.emotion_trace``: the Python loop). The runs of a batch share one cell (agent and grid point: the
 same config but for seed and replicate). Team runs of the package's agents go into team batches (``TeamBatch``: one
-worker runs them one after the other on the team kernel, each stored as its own run file). Anything else (DQN, a
-user's class, ``--logs``, a trace) runs on its own, as before.
+worker runs them one after the other on the team kernel, each stored as its own run file), traced runs into traced
+batches (``TracedBatch``: the same on the Python loop). Anything else (DQN, a user's class, ``--logs``) runs on its
+own, as before.
 """
 
 from __future__ import annotations
@@ -91,6 +92,15 @@ class TeamBatch(Batch):
 
 
 @dataclass(frozen=True)
+class TracedBatch(TeamBatch):
+    """
+    Many traced runs of one cell (``trace: true``: the Python loop, ``launcher.emotion_trace``), executed one after the
+    other in one long-lived worker by ``execute_run`` and stored as one run file each, as team batches are: SB3 and
+    torch are imported once per worker, not once per run.
+    """
+
+
+@dataclass(frozen=True)
 class Single:
     """
     One run executed on its own by ``execute_run`` (stored as one JSON file).
@@ -166,6 +176,20 @@ def team_batchable(base: dict[str, Any], logs: bool) -> bool:
         if settings is None or not set(member["kwargs"]) <= set(settings.names()):
             return False
     return True
+
+
+def traced_batchable(base: dict[str, Any], logs: bool) -> bool:
+    """Whether the runs of a cell can run as traced batches: traced runs without per-run SB3 logs."""
+    return bool(base.get("trace")) and not logs
+
+
+def batch_kind(base: dict[str, Any], logs: bool) -> type[Batch] | None:
+    """The kind of batch the runs of a cell go into, or None: each run on its own (``Single``)."""
+    if batchable(base, logs):
+        return Batch
+    if team_batchable(base, logs):
+        return TeamBatch
+    return TracedBatch if traced_batchable(base, logs) else None
 
 
 def batch_size(runs: int, workers: int) -> int:

@@ -38,10 +38,9 @@ from sb3_affect.study.launcher.batches import (
     Single,
     TeamBatch,
     Work,
+    batch_kind,
     batch_size,
-    batchable,
     split_cell,
-    team_batchable,
 )
 from sb3_affect.study.launcher.local_pool import OnFailure, OnResult, W, run_local
 from sb3_affect.study.launcher.schema import Cell
@@ -209,15 +208,12 @@ def plan_jobs(cells: list[Cell], cell_ids: list[list[str]], store: ResultsStore,
     done = store.done_ids()
     formats = tuple(logs) or ("csv",)
     todo = [[(rid, cell.seeds[i], i) for i, rid in enumerate(ids) if rid not in done] for cell, ids in zip(cells, cell_ids)]
-    can_batch = [batchable(cell.base, bool(logs)) for cell in cells]
-    can_team = [team_batchable(cell.base, bool(logs)) for cell in cells]
-    size = batch_size(sum(len(runs) for runs, ok, team in zip(todo, can_batch, can_team) if ok or team), workers)
+    kinds = [batch_kind(cell.base, bool(logs)) for cell in cells]
+    size = batch_size(sum(len(runs) for runs, kind in zip(todo, kinds) if kind is not None), workers)
     jobs: list[Job] = []
-    for cell, runs, ok, team in zip(cells, todo, can_batch, can_team):
-        if ok:
-            jobs.extend(split_cell(cell.base, runs, size))
-        elif team:
-            jobs.extend(split_cell(cell.base, runs, size, TeamBatch))
+    for cell, runs, kind in zip(cells, todo, kinds):
+        if kind is not None:
+            jobs.extend(split_cell(cell.base, runs, size, kind))
         else:
             jobs.extend(
                 Single(rid, cell.config(i), str(store.logs / rid) if logs else None, formats) for rid, _, i in runs
