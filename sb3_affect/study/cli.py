@@ -157,13 +157,16 @@ def _cmd_replicate(args: argparse.Namespace) -> int:
 
 def _replicate_help() -> str:
     """``replicate --help``: what it runs (from ``sb3_affect.study.replicate.PARTS``, so it can not drift) and writes."""
-    from sb3_affect.study.replicate import FORENSICS, MINUTES, PARTS, STUDIES, part_description
+    from sb3_affect.study.replicate import FORENSICS, MINUTES, PARTS, STUDIES, TUNED_PARTS, part_description
 
     lines = [
-        "The main job (`make replicate` runs it): runs these sweeps and engine studies, each into its own sub-folder",
+        "The main job (`make replicate` runs it): runs these sweeps and the forensics, each into its own sub-folder",
         "of OUT, then writes one report from all of them.",
         "",
-        *(f"  OUT/{name + '/':16s} experiments/{name}.yaml: {part_description(name, d)}" for name, d in PARTS),
+        *(
+            f"  OUT/{name + '/':16s} experiments/{name}.yaml: {part_description(name, d)}"
+            for name, d in (*PARTS, *TUNED_PARTS)
+        ),
         *(f"  OUT/{name + '/':16s} {description.format(**FORENSICS)}" for name, description in STUDIES),
         f"  {'OUT/report.html':20s} the report (also report.md, tables/*.csv, figures/*.png): open it in a browser",
         "",

@@ -1,9 +1,10 @@
 """
 The main job: the sweep files of ``PARTS`` through the launcher (the paper's protocol, the DQN comparison, the fair
-baselines, the hunters, the large-N study, the reading and speed ablations, the long runs, the joy trace), ε tuned on
-each task beyond the paper and those tasks with the tuned ε (static grid, moving and evading prey, mazes), the
-replication forensics at a reduced size, then one report (the forensics section passed in from here: the report layer
-does not import the forensics).
+baselines, the hunters, the large-N study, the reading and speed ablations, the long runs, the joy trace), then
+through the launcher too ε tuned on each task beyond the paper (experiments/tuning.yaml, in rounds) and those tasks with
+the tuned ε (experiments/beyond.yaml: static grid, moving and evading prey, mazes), the replication forensics at a
+reduced size, then one report (the forensics section passed in from here: the report layer does not import the
+forensics).
 """
 
 from __future__ import annotations
@@ -38,35 +39,33 @@ PART_PACKAGES = (("minigrid", "minigrid", "minigrid"),)
 #: The parts sized by ``main``'s ``large_seeds`` (a cap on their seeds per cell) and ``engine_episodes`` (their
 #: episodes per run; ``long``: 10 x as many); ``ablation`` by ``ablation_seeds``.
 SIZED = ("large", "ablation", "speed_one", "long")
-#: Seeds per agent and task beyond the paper (``report.beyond_tasks``), read when ``main`` runs.
-BEYOND_SEEDS = 1000
-#: Sizes for quick checks, read when ``main`` runs (None: the sweep files' own sizes and the paper's 200 episodes):
-#: a cap on the seeds per cell of the ``SIZED`` parts (and of the tuning), the ablation's seeds, the episodes per run.
+#: Sizes for quick checks, read when ``main`` runs (None: the sweep files' own sizes): a cap on the seeds per cell of
+#: the ``SIZED`` parts and of the tuning, the ablation's seeds, a cap on the seeds per agent and task beyond the paper,
+#: the episodes per run.
 LARGE_SEEDS: int | None = None
 ABLATION_SEEDS: int | None = None
+BEYOND_SEEDS: int | None = None
 ENGINE_EPISODES: int | None = None
-#: Tuning seeds per ε value of the per-task tuning (``report.tuning``), disjoint from the evaluation's seeds.
-TUNING_SEEDS = 200
 #: The forensics' size inside the main job (``sb3-affect forensics`` alone defaults to 3 / 4 / 100).
 FORENSICS = {"screen_reps": 2, "leaders": 4, "reps": 30}
 #: The main job's wall time on 2 idle cores, as the help and the docs quote it (measured: see the README).
 MINUTES = "about 6-9 minutes"
+#: The sweeps after ``PARTS``, in order: the tuning (its rounds in ``OUT/tuning/round<k>``), then the tasks beyond the
+#: paper with the tuned ε: (name of experiments/<name>.yaml and of the results folder, description).
+TUNED_PARTS = (
+    ("tuning", "ε of ε-greedy and speed-matched ε-greedy tuned on each task beyond the paper: the grid ({runs} runs) in "
+     "round0/, then one value further out where the best sits at an edge (round1/, ...)"),
+    ("beyond", "static grid, moving and evading prey, mazes, with the tuned ε ({runs} runs)"),
+)  # fmt: skip
 #: The studies after the sweeps: (results folder, description), for the help.
-STUDIES = (
-    (
-        "tuning",
-        f"ε of ε-greedy and speed-matched ε-greedy tuned on each task beyond the paper, {TUNING_SEEDS} seeds per value "
-        "(engine)",
-    ),
-    ("beyond", f"static grid, moving and evading prey, mazes with the tuned ε, {BEYOND_SEEDS:,} seeds (engine)"),
-    ("forensics", "the replication forensics at a reduced size: {screen_reps} screen and {reps} leader replications"),
-)
+STUDIES = (("forensics", "the replication forensics at a reduced size: {screen_reps} screen and {reps} leader replications"),)
 
 
 def sweep_runs(path: Path) -> int | None:
     """
-    How many runs an experiment file asks for: seeds x the grid points of each agent (read with yaml alone, so the
-    help stays fast; the launcher's ``Sweep.run_configs`` gives the same count). None when it can not be read.
+    How many runs an experiment file asks for: seeds x the grid points of each agent on each task (read with yaml
+    alone, so the help stays fast; the launcher's ``Sweep.run_configs`` gives the same count). None when it can not be
+    read.
     """
     import math
 
@@ -78,11 +77,13 @@ def sweep_runs(path: Path) -> int | None:
         data = yaml.safe_load(Path(path).read_text())
         seeds = data["seeds"]
         agents = data["agents"].values() if isinstance(data["agents"], dict) else data["agents"]
-        per_agent = [math.prod(len(v) for v in (agent.get("grid") or {}).values()) for agent in agents]
         tasks = len(data.get("tasks") or [None])
+        grids = [(agent["grid_by_task"].values(), 1) if "grid_by_task" in agent else ([agent.get("grid") or {}], tasks)
+                 for agent in agents]  # fmt: skip
+        per_agent = [sum(math.prod(len(v) for v in grid.values()) for grid in each) * times for each, times in grids]
     except (OSError, yaml.YAMLError, KeyError, TypeError, AttributeError):
         return None
-    return (len(seeds) if isinstance(seeds, list) else int(seeds)) * sum(per_agent) * tasks
+    return (len(seeds) if isinstance(seeds, list) else int(seeds)) * sum(per_agent)
 
 
 def missing_package(part: str) -> str | None:
@@ -131,9 +132,9 @@ def main(
     command: str | None = None,
 ) -> Path:
     """
-    Run the sweeps of ``PARTS`` into ``out_dir/<name>`` through the launcher (resuming what is there), the per-task
-    tuning of ε into ``out_dir/tuning`` and the tasks beyond the paper with the tuned ε into ``out_dir/beyond``
-    (reused when complete), the forensics into ``out_dir/forensics``, then write
+    Run the sweeps of ``PARTS`` into ``out_dir/<name>`` through the launcher (resuming what is there), then those of
+    ``TUNED_PARTS``: the per-task tuning of ε into ``out_dir/tuning/round<k>`` and the tasks beyond the paper with the
+    tuned ε into ``out_dir/beyond``; the forensics into ``out_dir/forensics``, then write
     ``out_dir/report.md`` (and .html, tables/, figures/). Prints the wall time of each part.
 
     :param out_dir: the replicate folder
@@ -142,18 +143,16 @@ def main(
     :param large_seeds: a cap on the seeds per cell of the ``SIZED`` parts and the tuning (default ``LARGE_SEEDS``;
         None: the sweep files' sizes)
     :param ablation_seeds: seeds per cell of the reading ablation (default ``ABLATION_SEEDS``; None: the file's)
-    :param beyond_seeds: seeds per agent and task beyond the paper (default ``BEYOND_SEEDS``)
+    :param beyond_seeds: a cap on the seeds per agent and task beyond the paper (default ``BEYOND_SEEDS``; None: the
+        file's)
     :param engine_episodes: episodes per run of the ``SIZED`` parts (``long``: 10 x as many), the tuning and the tasks
-        beyond the paper (default ``ENGINE_EPISODES``; None: the files' and the paper's 200; fewer for quick checks)
+        beyond the paper (default ``ENGINE_EPISODES``; None: the files'; fewer for quick checks)
     :param forensics: run the replication forensics (size ``FORENSICS``) into ``out_dir/forensics``
     :param command: the command line to record (default: this process's)
     :return: the path of report.md
     """
     from sb3_affect.study.launcher import run_sweep
-    from sb3_affect.study.report import build_report, paper
-    from sb3_affect.study.report.beyond_tasks import beyond_cells
-    from sb3_affect.study.report.engine_studies import run_cells
-    from sb3_affect.study.report.tuning import run_tuning
+    from sb3_affect.study.report import build_report
 
     experiments = sweeps_folder(experiments)
     large_seeds = large_seeds or LARGE_SEEDS
@@ -183,26 +182,28 @@ def main(
             f"{summary.seconds:.1f} s",
             flush=True,
         )
-    tuning_seeds = min(TUNING_SEEDS, large_seeds or TUNING_SEEDS)
-    engine_episodes = engine_episodes or paper.EPISODES
-    description = f"ε tuned per task beyond the paper, {tuning_seeds} seeds per value (engine)"
-    print(f"== {description} -> {out_dir / 'tuning'}", flush=True)
-    start = time.perf_counter()
-    with _heartbeat(description):
-        tuned, seconds = run_tuning(out_dir / "tuning", tuning_seeds, engine_episodes, beyond_seeds, workers=workers)
-    # the rounds' own time (rounds read back keep theirs)
-    timings[description] = record.set(description, seconds, time.perf_counter() - start)
+    tuning, beyond = (experiments / f"{name}.yaml" for name, _ in TUNED_PARTS)
+    tuning_sized = _capped(tuning, large_seeds, engine_episodes)
+    beyond_sized = _capped(beyond, beyond_seeds, engine_episodes)
+    _check_disjoint(tuning, tuning_sized, beyond, beyond_sized)
+    description = f"ε tuned per task beyond the paper, {_seeds(tuning, tuning_sized)} seeds per value"
+    print(f"== {description}: {tuning} -> {out_dir / 'tuning'}/round<k>", flush=True)
+    tuned, summaries = tune_rounds(tuning, out_dir / "tuning", tuning_sized, workers)
+    timings[description] = record.part(
+        description,
+        sum(summary.seconds for summary in summaries),
+        done_before=sum(summary.skipped for summary in summaries),
+        todo=sum(summary.total - summary.skipped for summary in summaries),
+    )
     chosen = ", ".join(f"{agent} on {task}: {t.best:g}{'' if t.interior else ' (edge)'}" for (task, agent), t in tuned.items())
-    print(f"   {timings[description]:.1f} s; chosen: {chosen}", flush=True)
-    description = f"static grid, moving and evading prey, mazes, {beyond_seeds} seeds (engine)"
-    print(f"== {description} -> {out_dir / 'beyond'}", flush=True)
-    start = time.perf_counter()
-    with _heartbeat(description):
-        cells = beyond_cells({key: t.best for key, t in tuned.items()})
-        table, meta = run_cells(out_dir / "beyond", cells, beyond_seeds, engine_episodes, workers=workers)
-    own = time.perf_counter() - start
-    timings[description] = record.set(description, float(meta.get("wall_seconds", own)), own)
-    print(f"   {len(table)} runs, {own:.1f} s", flush=True)
+    print(f"   {len(summaries)} round(s), {timings[description]:.1f} s; chosen: {chosen}", flush=True)
+    description = f"static grid, moving and evading prey, mazes, {_seeds(beyond, beyond_sized)} seeds"
+    print(f"== {description}: {beyond} -> {out_dir / 'beyond'}", flush=True)
+    summary = run_sweep(beyond, out_dir / "beyond", workers=workers, overrides=[*beyond_sized, *_tuned(beyond, tuned)])
+    timings[description] = record.part(
+        description, summary.seconds, done_before=summary.skipped, todo=summary.total - summary.skipped
+    )
+    print(f"   {summary.total} runs, {summary.skipped} already done, {summary.seconds:.1f} s", flush=True)
     extra = []
     if forensics:
         from sb3_affect.study.forensics.analysis import run_forensics
@@ -234,6 +235,88 @@ def main(
     return report
 
 
+def tune_rounds(
+    path: Path, folder: Path, overrides: list[str], workers: int | None = None
+) -> tuple[dict[tuple[str, str], Any], list[Any]]:
+    """
+    The per-task tuning (``report.tuning.tune``) through the launcher: the sweep file ``path`` into ``folder/round0``,
+    then each extension round's values into ``folder/round<k>`` (the file's agents that still need a value, each on
+    those tasks only: ``grid_by_task``). Finished rounds are resumed (nothing left to run).
+
+    :param overrides: ``--set`` overrides of every round (its size)
+    :return: the tuning of each (task, agent), and the launcher's summary of each round
+    """
+    import yaml
+
+    from sb3_affect.study.launcher import run_sweep
+    from sb3_affect.study.report.engine_studies import folder_study
+    from sb3_affect.study.report.tuning import round_values, tune, tuning_grid
+
+    data = yaml.safe_load(Path(path).read_text())
+    agents = data["agents"]
+    label, grid = tuning_grid(data)
+    summaries = []
+
+    def run_round(k: int, values: dict[tuple[str, str], list[float]]) -> Any:
+        round_agents = []
+        for agent in agents:
+            by_task = {task: {label: eps} for (task, name), eps in values.items() if name == agent["name"]}
+            if by_task:
+                round_agents.append({**{key: v for key, v in agent.items() if key != "grid"}, "grid_by_task": by_task})
+        extra = [f"agents={json.dumps(round_agents)}"] if k else []
+        summaries.append(run_sweep(path, folder / f"round{k}", workers=workers, overrides=[*overrides, *extra]))
+        found = folder_study(folder / f"round{k}")
+        if found is None or round_values(found[0]) != values:
+            raise RuntimeError(f"{folder / f'round{k}'} does not hold every run of the round ({summaries[-1].failed} failed)")
+        return found[0]
+
+    choices, _ = tune(run_round, [(task, agent["name"]) for task in data["tasks"] for agent in agents], grid)
+    return choices, summaries
+
+
+def _tuned(path: Path, tuned: dict[tuple[str, str], Any]) -> list[str]:
+    """The ``--set`` overrides that give each agent of sweep file ``path`` tuned in ``tuned`` its ε on each task."""
+    import yaml
+
+    agents = yaml.safe_load(Path(path).read_text())["agents"]
+    overrides = []
+    for i, agent in enumerate(agents):
+        by_task = {task: {"epsilon": [t.best]} for (task, name), t in tuned.items() if name == agent["name"]}
+        if by_task:
+            overrides.append(f"agents.{i}.grid_by_task={json.dumps(by_task)}")
+    return overrides
+
+
+def _check_disjoint(tuning: Path, tuning_sized: list[str], beyond: Path, beyond_sized: list[str]) -> None:
+    """Refuse a tuning whose seeds for a task and agent are also evaluation seeds of that task and agent."""
+    from sb3_affect.study.launcher.sweep_file import load_sweep
+
+    seeds: dict[tuple[Any, ...], set[int]] = {}
+    for cell in load_sweep(tuning, tuning_sized, build=False).cells():
+        seeds.setdefault((cell.base["agent"], cell.base["labels"].get("task")), set()).update(cell.seeds)
+    for cell in load_sweep(beyond, beyond_sized, build=False).cells():
+        shared = seeds.get((cell.base["agent"], cell.base["labels"].get("task")), set()) & set(cell.seeds)
+        if shared:
+            raise ValueError(f"{tuning} and {beyond} share seeds of {cell.base['agent']}: {sorted(shared)[:5]}")
+
+
+def _capped(path: Path, seeds: int | None, episodes: int | None) -> list[str]:
+    """The ``--set`` overrides of a sweep file for a quick check: its seeds capped at ``seeds``, its episodes ``episodes``."""
+    import yaml
+
+    data = yaml.safe_load(path.read_text())
+    overrides = [] if seeds is None else [f"seeds={min(int(data['seeds']), seeds)}"]
+    return overrides + ([] if episodes is None else [f"episodes={episodes}"])
+
+
+def _seeds(path: Path, overrides: list[str]) -> int:
+    """The seeds per cell of sweep file ``path`` under ``overrides`` (``_capped``)."""
+    import yaml
+
+    given = [int(o.split("=", 1)[1]) for o in overrides if o.startswith("seeds=")]
+    return given[-1] if given else int(yaml.safe_load(path.read_text())["seeds"])
+
+
 def _sized(
     name: str, path: Path, large_seeds: int | None, ablation_seeds: int | None, episodes: int | None
 ) -> list[str]:
@@ -241,14 +324,8 @@ def _sized(
     The ``--set`` overrides of a ``SIZED`` part for a quick check: its seeds capped at ``ablation_seeds`` (``ablation``)
     or ``large_seeds`` (the others), its episodes ``episodes`` (``long``: 10 x as many). None: the file's own size.
     """
-    import yaml
-
-    data = yaml.safe_load(path.read_text())
     cap = ablation_seeds if name == "ablation" else large_seeds
-    overrides = [] if cap is None else [f"seeds={min(int(data['seeds']), cap)}"]
-    if episodes is not None:
-        overrides.append(f"episodes={episodes * (10 if name == 'long' else 1)}")
-    return overrides
+    return _capped(path, cap, None if episodes is None else episodes * (10 if name == "long" else 1))
 
 
 #: Seconds between the lines an engine study prints while it runs (it has no progress bar of its own).

@@ -155,6 +155,8 @@ def run_sweep(
     cell_ids = [cell_run_ids(cell) for cell in cells]
     total = sum(len(ids) for ids in cell_ids)
     resolved = {"schema": SWEEP_SCHEMA, "name": sweep.name, "sweep": sweep.model_dump(mode="json"), "total_runs": total}
+    if sweep.tasks:  # the file's order of the tasks (sweep.json sorts the keys of a mapping)
+        resolved["task_order"] = list(sweep.tasks)
     store = ResultsStore(out_dir)
     try:
         store.root.mkdir(parents=True, exist_ok=True)

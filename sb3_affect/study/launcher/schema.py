@@ -61,8 +61,11 @@ from sb3_affect.study.launcher.run_ids import RESERVED_LABELS
 __all__ = ["AgentSpec", "Cell", "EnvSpec", "MemberSpec", "Sweep", "SweepError"]
 
 KWARG_REFERENCE = re.compile(r"^\$([A-Za-z_][A-Za-z0-9_]*)$")
-#: Names of sweeps and agents: they name files, so no leading dot (hidden files) and at most 64 characters.
+#: Names of sweeps: they name files, so no leading dot (hidden files) and at most 64 characters.
 NAME_PATTERN = r"^[A-Za-z0-9_+-][A-Za-z0-9_.+-]{0,63}$"
+#: Names of agents and tasks: text of at most 64 characters, not starting with a dot or a space, without a slash, a
+#: backslash or a control character (they name runs through run ids, which keep only ``[A-Za-z0-9_.+-]``).
+LABEL_PATTERN = r"^[^\s./\\\x00-\x1f\x7f][^/\\\x00-\x1f\x7f]{0,63}$"
 #: Limits checked from the numbers before anything is allocated.
 MAX_SEEDS = 1_000_000  # seeds per grid point (a count, or the length of a list)
 MAX_SEED = 2**32 - 1  # seeds are NumPy seeds: integers in [0, 2**32 - 1]
@@ -173,6 +176,24 @@ class EnvSpec(BaseModel):
         return value
 
 
+def _checked_grid(value: dict[str, list[Any]]) -> dict[str, list[Any]]:
+    """A grid's labels are not result columns, its value lists not empty, its points at most ``MAX_GRID_POINTS``."""
+    points = 1
+    for key, values in value.items():
+        if key in RESERVED_LABELS:
+            raise ValueError(
+                f"grid.{key}: {key!r} names a column of the results; a grid label may be any name but "
+                f"{', '.join(sorted(RESERVED_LABELS))}"
+            )
+        if not values:
+            raise ValueError(f"grid.{key} is empty: give at least one value")
+        points *= len(values)
+        if points > MAX_GRID_POINTS:
+            sizes = " x ".join(str(len(v)) for v in value.values())
+            raise ValueError(f"the grid has {sizes} points, more than the {MAX_GRID_POINTS:,} allowed per agent")
+    return value
+
+
 class MemberSpec(BaseModel):
     """One hunter of a team agent: its algorithm and constructor arguments (``$label`` references allowed)."""
 
@@ -195,9 +216,9 @@ class AgentSpec(BaseModel):
 
     model_config = ConfigDict(extra="forbid")
     name: str = Field(
-        pattern=NAME_PATTERN,
-        description="unique within the file; names the runs (letters, digits, _ . + -, not starting with a dot, at most "
-        "64 characters) and groups them in the report",
+        pattern=LABEL_PATTERN,
+        description="unique within the file; names the runs and groups them in the report, and enters the derived seeds "
+        "(at most 64 characters, not starting with a dot or a space, no slash, backslash or control character)",
     )
     algo: str | None = Field(
         default=None,
@@ -222,6 +243,16 @@ class AgentSpec(BaseModel):
         default_factory=dict,
         description="fixed labels of every run of the agent (columns of the results beside the grid's); unlike a grid "
         "label they do not enter the derived seeds",
+    )
+    grid_by_task: dict[str, dict[str, list[Any]]] | None = Field(
+        default=None,
+        description="instead of grid, on a sweep with tasks: the agent's grid on each task, by task name (e.g. the ε "
+        "tuned on each task); the agent runs on the tasks named only",
+    )
+    seeds_by: list[str] | None = Field(
+        default=None,
+        description="the labels whose values derive the agent's seeds (default: its grid labels): [task] gives each "
+        "task its own seeds and every grid value the same seeds (paired comparisons); grid labels, fixed labels or task",
     )
     seeds_from: str | None = Field(
         default=None,
@@ -248,8 +279,8 @@ class AgentSpec(BaseModel):
 
     @model_serializer(mode="wrap")
     def _dump(self, handler: SerializerFunctionWrapHandler) -> dict[str, Any]:
-        """Without ``wrappers`` and ``trace`` when not given: a saved sweep reads (and resumes) as before they existed."""
-        return _without_unset(handler(self), {"wrappers": [], "trace": False})
+        """Without the keys added later when not given: a saved sweep reads (and resumes) as before they existed."""
+        return _without_unset(handler(self), {"wrappers": [], "trace": False, "grid_by_task": None, "seeds_by": None})
 
     @model_validator(mode="after")
     def _traced_affectq(self) -> AgentSpec:
@@ -277,32 +308,57 @@ class AgentSpec(BaseModel):
     @field_validator("grid")
     @classmethod
     def _non_empty(cls, value: dict[str, list[Any]]) -> dict[str, list[Any]]:
-        points = 1
-        for key, values in value.items():
-            if key in RESERVED_LABELS:
-                raise ValueError(
-                    f"grid.{key}: {key!r} names a column of the results; a grid label may be any name but "
-                    f"{', '.join(sorted(RESERVED_LABELS))}"
-                )
-            if not values:
-                raise ValueError(f"grid.{key} is empty: give at least one value")
-            points *= len(values)
-            if points > MAX_GRID_POINTS:
-                sizes = " x ".join(str(len(v)) for v in value.values())
-                raise ValueError(f"the grid has {sizes} points, more than the {MAX_GRID_POINTS:,} allowed per agent")
+        return _checked_grid(value)
+
+    @field_validator("grid_by_task")
+    @classmethod
+    def _task_grids(cls, value: dict[str, dict[str, list[Any]]] | None) -> dict[str, dict[str, list[Any]]] | None:
+        if value is not None and not value:
+            raise ValueError("grid_by_task is empty: name at least one task (task: {label: [values]})")
+        for task, grid in (value or {}).items():
+            try:
+                _checked_grid(grid)
+            except ValueError as error:
+                raise ValueError(f"grid_by_task.{task}: {error}") from None
         return value
+
+    def grids(self) -> list[dict[str, list[Any]]]:
+        """Every grid the agent runs: ``grid``, or each task's of ``grid_by_task``."""
+        return list(self.grid_by_task.values()) if self.grid_by_task is not None else [self.grid]
+
+    def grid_on(self, task: str | None) -> dict[str, list[Any]] | None:
+        """The agent's grid on ``task`` (None: the agent does not run there)."""
+        if self.grid_by_task is None:
+            return self.grid
+        return self.grid_by_task.get(task) if task is not None else None
 
     @model_validator(mode="after")
     def _fixed_labels(self) -> AgentSpec:
+        if self.grid_by_task is not None and self.grid:
+            raise ValueError("give either grid or grid_by_task (a grid per task), not both")
+        grid_labels = {key for grid in self.grids() for key in grid}
         for key in self.labels:
-            if key in RESERVED_LABELS or key in self.grid:
-                taken = "a grid label" if key in self.grid else "a column of the results"
+            if key in RESERVED_LABELS or key in grid_labels:
+                taken = "a grid label" if key in grid_labels else "a column of the results"
                 raise ValueError(f"labels.{key}: {key!r} is {taken}; a fixed label needs a name of its own")
+        for key in self.seeds_by or []:
+            if key != "task" and key not in grid_labels and key not in self.labels:
+                known = sorted({*grid_labels, *self.labels}) or "none"
+                raise ValueError(f"seeds_by: {key!r} is not a label of the agent (its labels: {known}; or task)")
         return self
 
-    def point_count(self) -> int:
-        """The number of grid points (from the grid's lengths, nothing built)."""
-        return math.prod(len(values) for values in self.grid.values())
+    def point_count(self, tasks: int = 1) -> int:
+        """The number of grid points on ``tasks`` tasks (from the grids' lengths, nothing built)."""
+        if self.grid_by_task is not None:
+            return sum(math.prod(len(values) for values in grid.values()) for grid in self.grid_by_task.values())
+        return math.prod(len(values) for values in self.grid.values()) * tasks
+
+    def seed_point(self, point: dict[str, Any], task: str | None) -> dict[str, Any]:
+        """What derives a run's seeds: its grid point, or the labels ``seeds_by`` names (``task`` among them)."""
+        if self.seeds_by is None:
+            return point
+        labels = {**point, **self.labels, "task": task}
+        return {key: labels[key] for key in self.seeds_by}
 
     @model_validator(mode="after")
     def _references(self) -> AgentSpec:
@@ -310,15 +366,18 @@ class AgentSpec(BaseModel):
         for where, kwargs in places:
             for key, raw in kwargs.items():
                 match = KWARG_REFERENCE.match(raw) if isinstance(raw, str) else None
-                if match and match.group(1) not in self.grid:
-                    raise ValueError(
-                        f"{where}.{key}={raw!r} refers to no grid label; the grid has {sorted(self.grid) or 'none'}"
-                    )
+                for grid in self.grids():
+                    if match and match.group(1) not in grid:
+                        raise ValueError(
+                            f"{where}.{key}={raw!r} refers to no grid label; the grid has {sorted(grid) or 'none'}"
+                        )
         return self
 
-    def points(self) -> list[dict[str, Any]]:
-        keys = list(self.grid)
-        return [dict(zip(keys, values)) for values in itertools.product(*(self.grid[k] for k in keys))]
+    def points(self, grid: dict[str, list[Any]] | None = None) -> list[dict[str, Any]]:
+        """The grid points of ``grid`` (default: the agent's ``grid``) in order, the last label fastest."""
+        grid = self.grid if grid is None else grid
+        keys = list(grid)
+        return [dict(zip(keys, values)) for values in itertools.product(*(grid[k] for k in keys))]
 
     def kwargs_at(self, point: dict[str, Any], kwargs: dict[str, Any] | None = None) -> dict[str, Any]:
         out = {}
@@ -403,6 +462,10 @@ class Sweep(BaseModel):
             raise ValueError(f"agents: names must be unique, got {names}")
         if self.tasks is not None:
             self._check_tasks()
+        for i, agent in enumerate(self.agents):
+            if self.tasks is None and (agent.grid_by_task is not None or "task" in (agent.seeds_by or [])):
+                key = "grid_by_task" if agent.grid_by_task is not None else "seeds_by: [task]"
+                raise ValueError(f"agents[{i}] ({agent.name}): {key} needs tasks (several envs by name) instead of env")
         multi = is_multi_agent(self.env.id)
         for i, agent in enumerate(self.agents):
             if multi and agent.team is None:
@@ -412,7 +475,7 @@ class Sweep(BaseModel):
         if multi and self.max_timesteps is not None:
             raise ValueError("max_timesteps is not supported for teams: their runs are counted in episodes")
         replicates = self.seeds if isinstance(self.seeds, int) else len(self.seeds)
-        runs = sum(agent.point_count() for agent in self.agents) * replicates * len(self.tasks or [None])
+        runs = sum(agent.point_count(len(self.tasks or [None])) for agent in self.agents) * replicates
         if runs > MAX_RUNS:
             raise ValueError(f"the sweep has {runs:,} runs (grid points x seeds), more than the {MAX_RUNS:,} allowed")
         return self
@@ -429,28 +492,40 @@ class Sweep(BaseModel):
         if not self.tasks:
             raise ValueError("tasks is empty: give at least one task (name: {id: ..., kwargs: ...})")
         for task, env in self.tasks.items():
-            if not re.match(NAME_PATTERN, task):
-                raise ValueError(f"tasks: {task!r} is not a task name (letters, digits, _ . + -, at most 64 characters)")
+            if not re.fullmatch(LABEL_PATTERN, task):
+                raise ValueError(
+                    f"tasks: {task!r} is not a task name (at most 64 characters, not starting with a dot or a space, no "
+                    "slash, backslash or control character)"
+                )
             if is_multi_agent(env.id):
                 raise ValueError(f"tasks.{task}: {env.id!r} is multi-agent; tasks are single-agent envs")
         for i, agent in enumerate(self.agents):
-            if "task" in agent.grid or "task" in agent.labels:
-                where = "grid" if "task" in agent.grid else "labels"
+            if any("task" in grid for grid in agent.grids()) or "task" in agent.labels:
+                where = "labels" if "task" in agent.labels else "grid"
                 raise ValueError(f"agents[{i}] ({agent.name}): {where}.task names the tasks' label; rename the label")
+            unknown = [task for task in agent.grid_by_task or {} if task not in self.tasks]
+            if unknown:
+                raise ValueError(
+                    f"agents[{i}] ({agent.name}): grid_by_task names {unknown[0]!r}, not a task of the sweep "
+                    f"({', '.join(self.tasks)})"
+                )
 
     def cells(self) -> list[Cell]:
         """
         The sweep as cells: one per (task,) agent and grid point, holding every replicate's seed (see ``Cell``). The
-        seeds do not depend on the task: each task runs an agent on the same seeds.
+        seeds do not depend on the task (each task runs an agent on the same seeds) unless the agent's ``seeds_by``
+        names it.
         """
         cells = []
         envs: list[tuple[str | None, EnvSpec]] = list(self.tasks.items()) if self.tasks else [(None, self.env)]
         for task, env in envs:
             for agent in self.agents:
-                for point in agent.points():
+                grid = agent.grid_on(task)
+                for point in agent.points(grid) if grid is not None else []:
                     count = self.seeds if isinstance(self.seeds, int) else len(self.seeds)
                     named = agent.seeds_from or self.name
-                    seeds = list(self.seeds) if isinstance(self.seeds, list) else derive_seeds(named, agent.name, point, count)
+                    at = agent.seed_point(point, task)
+                    seeds = list(self.seeds) if isinstance(self.seeds, list) else derive_seeds(named, agent.name, at, count)
                     labels = {**point, **agent.labels}
                     base: dict[str, Any] = {
                         "sweep": self.name,

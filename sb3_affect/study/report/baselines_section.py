@@ -19,15 +19,14 @@ import numpy as np
 import pandas as pd
 
 from sb3_affect.study.report.baseline_summary import emotion_profile, focus_ranks, markdown, profile_markdown, summarise
-from sb3_affect.study.report.beyond_tasks import BEYOND_AGENTS, BEYOND_CAP, TASKS, TUNED_AGENTS, beyond_cells
 from sb3_affect.study.report.context import ReportContext
 from sb3_affect.study.report.document import fmt
-from sb3_affect.study.report.engine_studies import study
+from sb3_affect.study.report.engine_studies import episode_cap, study
 from sb3_affect.study.report.metrics import load_run_records
 from sb3_affect.study.report.stats import bootstrap_ci
 from sb3_affect.study.report.tuning import tuning_section
 
-__all__ = ["BEYOND_AGENTS", "BEYOND_CAP", "TASKS", "TUNED_AGENTS", "baselines_section", "beyond_cells", "beyond_section"]
+__all__ = ["baselines_section", "beyond_section"]
 
 #: Fair-baselines results folders a replicate folder may hold (experiments/baselines*.yaml).
 BASELINE_FOLDERS = ("baselines", "baselines_moving7", "baselines_moving")
@@ -100,7 +99,8 @@ def beyond_table(m: pd.DataFrame) -> pd.DataFrame:
 
 
 def beyond_section(ctx: ReportContext) -> None:
-    """The static grid, moving and evading prey and mazes with ε tuned per task (engine study), then the fair baselines."""
+    """The static grid, moving and evading prey and mazes with ε tuned per task (experiments/beyond.yaml), then the fair
+    baselines."""
     ctx.doc.h("Beyond the paper: moving prey, evading prey, mazes and fair baselines")
     found = study(ctx.root, "beyond")
     if found is None:
@@ -108,13 +108,15 @@ def beyond_section(ctx: ReportContext) -> None:
     else:
         m, meta = found
         tuned = "epsilon" in m.columns and m.epsilon.notna().any()
+        cap = episode_cap(meta["sweep"])
         ctx.doc.p(
-            f"Each task, {meta['seeds']:,} seeds per agent, {meta['episodes']} episodes ({fmt(meta['wall_seconds'], 1)} "
-            "s through the engine). Static grid: the paper's task (15 x 15, goal at (6, 6)). Moving prey: the hunter "
+            f"Each task, {meta['seeds']:,} seeds per agent, {meta['episodes']} episodes (launcher runs in "
+            f"{ctx.root / 'beyond'}, {fmt(meta['wall_seconds'], 1)} s of the runs' own time). Static grid: the paper's "
+            "task (15 x 15, goal at (6, 6)). Moving prey: the hunter "
             "starts at (0, 0), the prey at (3, 3) and moves after every cell the hunter moves, with probability 0.5, at "
             "random or away from the hunter (evading): once per cell, so a 2-cell decision gives the prey two chances to "
             "move; optimal means a capture within the prey's starting distance. Mazes: shipped maps `wall` (shortest "
-            f"path 24) and `rooms` (21), static goal. Episodes are cut at {BEYOND_CAP:,} decisions: a truncated "
+            f"path 24) and `rooms` (21), static goal. Episodes are cut at {cap or 0:,} decisions: a truncated "
             "episode's length is a lower bound, so where a row has truncated episodes its means are restricted means, "
             "lower bounds of the uncapped means (counted in the table). "
             + (
@@ -148,7 +150,7 @@ def beyond_section(ctx: ReportContext) -> None:
             )
             ranks.append(f"{task}: " + "; in cells: ".join(parts) + note)
         ctx.doc.ul(ranks)
-        tuning_section(ctx)
+        tuning_section(ctx, m)
     dirs = [ctx.root / name for name in BASELINE_FOLDERS if (ctx.root / name / "runs").is_dir()]
     if dirs:
         title = "Fair baselines: tuned, decaying, optimistic and speed-matched agents"

@@ -1,22 +1,22 @@
 """
-ε tuned on each task beyond the paper, for each agent of ``beyond_tasks.TUNED_AGENTS``, on seeds disjoint from the
-evaluation seeds.
+ε tuned on each task beyond the paper, for ε-greedy and the speed-matched ε-greedy, on seeds disjoint from the
+evaluation seeds: how the tuning chooses, as pure functions over the tables of its rounds.
 
-Criterion: mean decisions per episode over the run (lower is better), each episode counted at most ``BEYOND_CAP``
-decisions: a truncated episode's length is a lower bound, so the criterion is a restricted mean (the mean of
-min(length, cap)), and the tuning curve counts the truncated episodes beside it. The grid ``GRID`` is log-spaced; when
-the best value is at an edge of the values run, one more value one grid step further out is run (``extension``), up to
-``MAX_EXTENSIONS`` times and within ``RANGE``; a best value still at an edge is reported as such, never as interior.
-The same tuning seeds serve every ε of a (task, agent), so the curve's differences are paired (common random numbers).
+Criterion: mean decisions per episode over the run (lower is better), each episode counted at most the sweep's
+``max_episode_decisions``: a truncated episode's length is a lower bound, so the criterion is a restricted mean (the
+mean of min(length, cap)), and the tuning curve counts the truncated episodes beside it. The grid
+(experiments/tuning.yaml) is log-spaced; when the best value is at an edge of the values run, one more value one grid
+step further out is run (``extension``), up to ``MAX_EXTENSIONS`` times and within ``RANGE``; a best value still at an
+edge is reported as such, never as interior. The same tuning seeds serve every ε of a (task, agent), so the curve's
+differences are paired (common random numbers).
 
-Results: ``DIR/round<k>/`` (``engine_studies.run_cells``: one folder per round, the grid first, then the extensions) and
-``DIR/tuning.json`` (the rounds that make the result, seeds, episodes, the chosen values). The report recomputes the
-curves and choices from the rounds' tables with the same functions.
+Results: ``DIR/round<k>/``, results folders of the launcher (the grid first, then the extensions), which
+``sb3_affect.study.replicate`` runs with ``tune``; the report reads them back with ``load_tuning`` (the same ``tune``
+over the folders).
 """
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass
@@ -26,18 +26,10 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from sb3_affect.study.report.beyond_tasks import BEYOND_CAP, SWEEP, TASKS, TUNED_AGENTS
-from sb3_affect.study.report.engine_studies import Cell, run_cells
-from sb3_affect.study.report.output_files import write_text
-
-#: The tuning grid: log-spaced from 0.001 to 0.5.
-GRID: tuple[float, ...] = (0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5)
 #: The values an extension may try: ε in [1e-4, 1] (1: a uniform random walk).
 RANGE = (1e-4, 1.0)
 #: Extensions of the grid at most (one value each, one grid step beyond the edge the best value sits on).
 MAX_EXTENSIONS = 3
-#: The sweep name the tuning seeds derive from (``derive_seed``), disjoint from the evaluation's ``beyond_tasks.SWEEP``.
-TUNING_SWEEP = "beyond-tuning"
 CRITERION = "decisions_per_episode"
 
 
@@ -102,7 +94,7 @@ class Tuning:
     :param curve: ``tuning_curve`` of every value run
     :param best: the ε with the lowest mean decisions per episode
     :param interior: whether ``best`` lies strictly inside the values run
-    :param added: the values run beyond ``GRID`` (the extensions), in the order run
+    :param added: the values run beyond the grid (the extensions), in the order run
     """
 
     task: str
@@ -136,7 +128,7 @@ class Tuning:
         return text
 
 
-def choose(runs: pd.DataFrame, task: str, agent: str, grid: Sequence[float] = GRID) -> Tuning:
+def choose(runs: pd.DataFrame, task: str, agent: str, grid: Sequence[float]) -> Tuning:
     """The best ε of one (task, agent) from its tuning runs (every round), and whether it is interior."""
     curve = tuning_curve(runs)
     best = _best(curve)
@@ -147,7 +139,7 @@ def choose(runs: pd.DataFrame, task: str, agent: str, grid: Sequence[float] = GR
     return Tuning(task, agent, curve, best, interior, added)
 
 
-def choose_all(table: pd.DataFrame, grid: Sequence[float] = GRID) -> dict[tuple[str, str], Tuning]:
+def choose_all(table: pd.DataFrame, grid: Sequence[float]) -> dict[tuple[str, str], Tuning]:
     """``choose`` for every (task, agent) of a table of tuning runs (``task``, ``agent``, ``epsilon`` columns)."""
     return {
         (str(task), str(agent)): choose(g, str(task), str(agent), grid)
@@ -155,44 +147,17 @@ def choose_all(table: pd.DataFrame, grid: Sequence[float] = GRID) -> dict[tuple[
     }
 
 
-def tuning_cells(values: Mapping[tuple[str, str], Sequence[float]]) -> list[Cell]:
-    """The tuning runs of ``values`` (ε per (task, agent)); seeds from ``TUNING_SWEEP``, the same for every ε."""
-    envs = {task: (env_id, env_kwargs) for task, env_id, env_kwargs in TASKS}
-    algos = {agent: (algo, kwargs) for agent, algo, kwargs in TUNED_AGENTS}
-    cells = []
-    for (task, agent), epsilons in values.items():
-        algo, kwargs = algos[agent]
-        env_id, env_kwargs = envs[task]
-        for eps in epsilons:
-            cap = {**kwargs, "exploration_rate": float(eps), "max_episode_decisions": BEYOND_CAP}
-            labels = {"task": task, "epsilon": float(eps)}
-            cells.append(Cell(agent, algo, cap, labels, TUNING_SWEEP, {"task": task}, env_id, env_kwargs))
-    return cells
-
-
-def check_disjoint(tuning_seeds: int, evaluation_seeds: int) -> None:
-    """Raise when a tuning seed of any (task, agent) is also one of its evaluation seeds."""
-    from sb3_affect.study.launcher.schema import derive_seeds
-
-    for task, _, _ in TASKS:
-        for agent, _, _ in TUNED_AGENTS:
-            tuning = set(derive_seeds(TUNING_SWEEP, agent, {"task": task}, tuning_seeds))
-            shared = tuning & set(derive_seeds(SWEEP, agent, {"task": task}, evaluation_seeds))
-            if shared:
-                raise ValueError(f"tuning and evaluation seeds of {agent} on {task} share {sorted(shared)[:5]}")
-
-
 def tune(
     run_round: Callable[[int, dict[tuple[str, str], list[float]]], pd.DataFrame],
     keys: Iterable[tuple[str, str]],
-    grid: Sequence[float] = GRID,
+    grid: Sequence[float],
 ) -> tuple[dict[tuple[str, str], Tuning], int]:
     """
     The tuning loop: run ``grid`` for every key, then, while a best value is at an edge of the values run, one more value
     beyond it (``extension``), at most ``MAX_EXTENSIONS`` rounds more.
 
-    :param run_round: ``run_round(k, values)`` runs round ``k`` (the ε values per (task, agent)) and returns its runs
-        (``task``, ``agent``, ``epsilon``, ``replicate`` and ``run_metrics``' columns)
+    :param run_round: ``run_round(k, values)`` runs (or reads) round ``k`` (the ε values per (task, agent)) and returns
+        its runs (``task``, ``agent``, ``epsilon``, ``replicate`` and ``run_metrics``' columns)
     :param keys: the (task, agent) pairs to tune
     :param grid: the first round's values
     :return: the tuning of each key, and the number of rounds run
@@ -213,53 +178,74 @@ def tune(
     return choices, len(tables)
 
 
-def run_tuning(
-    folder: Path, seeds: int, episodes: int, evaluation_seeds: int, workers: int | None = None
-) -> tuple[dict[tuple[str, str], Tuning], float]:
-    """
-    Tune ε for every (task, agent) of ``TASKS`` x ``TUNED_AGENTS`` through the engine (``tune``); finished rounds are
-    read back. Writes ``folder/tuning.json``.
+def round_values(table: pd.DataFrame) -> dict[tuple[str, str], list[float]]:
+    """The ε values a round's table holds per (task, agent), in the order run."""
+    values: dict[tuple[str, str], list[float]] = {}
+    for task, agent, eps in zip(table.task.astype(str), table.agent.astype(str), table.epsilon.astype(float)):
+        got = values.setdefault((task, agent), [])
+        if eps not in got:
+            got.append(eps)
+    return values
 
-    :param folder: the tuning folder
-    :param seeds: tuning seeds per value
-    :param episodes: episodes per run
-    :param evaluation_seeds: the evaluation's seed count (its seeds must not be tuning seeds: checked)
-    :param workers: processes (default: usable CPUs)
-    :return: the tuning of each (task, agent), and the wall seconds of the runs that computed its rounds (rounds read
-        back keep the time they took)
-    """
-    check_disjoint(seeds, evaluation_seeds)
-    folder = Path(folder)
-    seconds: list[float] = []
 
-    def run_round(k: int, values: dict[tuple[str, str], list[float]]) -> pd.DataFrame:
-        table, meta = run_cells(folder / f"round{k}", tuning_cells(values), seeds, episodes, workers)
-        seconds.append(float(meta["wall_seconds"]))
-        return table
-
-    choices, rounds = tune(run_round, [(t, a) for t, _, _ in TASKS for a, _, _ in TUNED_AGENTS])
-    record = {
-        "rounds": rounds,
-        "seeds": seeds,
-        "episodes": episodes,
-        "grid": list(GRID),
-        "evaluation_seeds": evaluation_seeds,
-        "chosen": [{"task": t, "agent": a, "epsilon": c.best, "interior": c.interior} for (t, a), c in choices.items()],
-        "wall_seconds": sum(seconds),
-    }
-    write_text(folder / "tuning.json", json.dumps(record, indent=1))
-    return choices, sum(seconds)
+def tuning_grid(sweep: Mapping[str, Any]) -> tuple[str, list[float]]:
+    """The label a tuning sweep (experiments/tuning.yaml, saved in ``round0``) sweeps and its grid, one for every agent."""
+    grids = [agent.get("grid") or {} for agent in sweep["agents"]]
+    if any(len(grid) != 1 or grid != grids[0] for grid in grids):
+        raise ValueError(f"a tuning sweep gives every agent one grid label with the same values, not {grids}")
+    label, values = next(iter(grids[0].items()))
+    return label, [float(v) for v in values]
 
 
 def load_tuning(folder: Path) -> tuple[dict[tuple[str, str], Tuning], dict[str, Any]] | None:
-    """The tuning of a ``run_tuning`` folder, recomputed from its rounds' tables (None when it holds none)."""
-    folder = Path(folder)
-    try:
-        record = json.loads((folder / "tuning.json").read_text())
-        tables = [pd.read_csv(folder / f"round{k}" / "runs.csv.gz") for k in range(int(record["rounds"]))]
-    except (OSError, ValueError, KeyError):
+    """
+    The tuning in ``folder`` (``round0``, ``round1``, ...: results folders of the launcher, the grid first, then the
+    extensions), recomputed round by round with ``tune``; None when it holds no finished tuning.
+
+    :return: the tuning of each (task, agent), and the record: ``rounds``, ``seeds``, ``episodes``, ``grid``, ``sweep``
+        (its name, from which the seeds derive), ``cap`` (decisions an episode counts at most), ``seeds by key`` (the
+        seeds of each (task, agent))
+    """
+    from sb3_affect.study.report.engine_studies import episode_cap, study
+
+    first = study(Path(folder), "round0")
+    if first is None:
         return None
-    return choose_all(pd.concat(tables, ignore_index=True), record.get("grid", GRID)), record
+    table, meta = first
+    label, grid = tuning_grid(meta["sweep"])
+    if label != "epsilon":
+        raise ValueError(f"{Path(folder) / 'round0'}: the tuning sweeps epsilon, not {label!r}")
+    tables = [table]
+
+    def read_round(k: int, values: dict[tuple[str, str], list[float]]) -> pd.DataFrame:
+        if k:
+            found = study(Path(folder), f"round{k}")
+            if found is None:
+                raise LookupError(f"round{k}")
+            tables.append(found[0])
+        held = round_values(tables[k])
+        if held != values:
+            raise ValueError(
+                f"{Path(folder) / f'round{k}'} holds {held}, not the values the tuning runs there ({values}); "
+                "rerun `sb3-affect replicate` into a new folder"
+            )
+        return tables[k]
+
+    try:
+        choices, rounds = tune(read_round, list(round_values(table)), grid)
+    except LookupError:
+        return None  # a round the tuning needs is not run yet
+    runs = pd.concat(tables, ignore_index=True)
+    record = {
+        "rounds": rounds,
+        "seeds": meta["seeds"],
+        "episodes": meta["episodes"],
+        "grid": grid,
+        "sweep": meta["sweep"]["name"],
+        "cap": episode_cap(meta["sweep"]),
+        "seeds by key": {key: set(g.seed) for key, g in runs.groupby(["task", "agent"], sort=False)},
+    }
+    return choices, record
 
 
 def _best(curve: pd.DataFrame) -> float:
@@ -271,21 +257,39 @@ def _eps(value: float) -> str:
     return f"{value:g}"
 
 
-def tuning_section(ctx: Any) -> dict[tuple[str, str], Tuning] | None:
-    """The tuning's subsection of the section beyond the paper (None, and nothing added, when the folder has none)."""
+def shared_seeds(seeds: Mapping[tuple[str, str], set[int]], evaluation: pd.DataFrame) -> int:
+    """How many tuning seeds (``seeds`` per (task, agent)) the evaluation's runs of the same (task, agent) also use."""
+    used = {key: set(g.seed) for key, g in evaluation.groupby(["task", "agent"], sort=False)}
+    return sum(len(seeds[key] & used.get(key, set())) for key in seeds)
+
+
+def tuning_section(ctx: Any, evaluation: pd.DataFrame) -> dict[tuple[str, str], Tuning] | None:
+    """
+    The tuning's subsection of the section beyond the paper (None, and nothing added, when the folder has none).
+
+    :param evaluation: the per-run table of the evaluation (the tasks beyond the paper), whose seeds the tuning's must
+        not be
+    """
     from sb3_affect.study.report.document import fmt
 
     found = load_tuning(Path(ctx.root) / "tuning")
     if found is None:
         return None
     choices, record = found
+    shared = shared_seeds(record["seeds by key"], evaluation)
+    evaluation_seeds = int(evaluation.replicate.max()) + 1
+    disjoint = (
+        f"disjoint from the {evaluation_seeds:,} evaluation seeds: checked"
+        if not shared
+        else f"but {shared:,} of them are also evaluation seeds of the same task and agent"
+    )
     ctx.doc.h("ε tuned on each task", 3)
     ctx.doc.p(
         "ε-greedy and the speed-matched ε-greedy get their ε tuned on each task before the evaluation: grid "
         f"{', '.join(_eps(v) for v in record['grid'])} (log-spaced), {record['seeds']:,} tuning seeds per value (sweep "
-        f"`{TUNING_SWEEP}`, the same seeds for every value, disjoint from the {record['evaluation_seeds']:,} evaluation "
-        f"seeds: checked), {record['episodes']} episodes per run. Criterion: mean decisions per episode, lower is "
-        f"better; each episode counts at most {BEYOND_CAP:,} decisions, so a truncated episode contributes a lower bound "
+        f"`{record['sweep']}`, the same seeds for every value, {disjoint}), {record['episodes']} episodes per run. "
+        "Criterion: mean decisions per episode, lower is "
+        f"better; each episode counts at most {record['cap']:,} decisions, so a truncated episode contributes a lower bound "
         "of its length and a value with truncated episodes has a restricted mean (a lower bound of the uncapped mean); "
         "the truncated episodes are counted. When the best value is at an edge of the values run, one value one grid "
         f"step further out is run (at most {MAX_EXTENSIONS} times, ε within [1e-4, 1]); a best value still at an edge "
@@ -327,7 +331,7 @@ def tuning_section(ctx: Any) -> dict[tuple[str, str], Tuning] | None:
         "Tuning curves: mean decisions per episode per ε on the tuning seeds (truncated episodes in brackets; * the "
         "chosen value; blank: not run)",
     )
-    static = TASKS[0][0]
+    static = next(iter(choices))[0]  # the first task: the paper's static grid
     kept = []
     for (task, agent), t in choices.items():
         if task != static or 0.01 not in t.curve.index:
