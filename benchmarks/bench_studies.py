@@ -9,8 +9,9 @@ The studies beyond the single static task on their kernels: hunter teams (``kern
 Paired rounds: one run on the Python side and the same run (same seed) on the kernel, alternately first, each round
 timed side by side, so that the machine's load (other processes) weighs on both alike; every round's ratio is printed,
 not only the best. The studies: ``experiments/hunters.yaml`` and ``hunters_moving.yaml`` through the launcher (2
-workers, seeds overridden), and the moving-prey and maze tasks of ``sb3-affect replicate`` (``beyond``) through the
-engine. The 1-minute load average is printed with every figure. Results: ``benchmarks/results_studies.csv``.
+workers, seeds overridden), and the moving-prey and maze tasks of ``sb3-affect replicate`` (``experiments/beyond.yaml``
+with the file's ε, through the launcher). The 1-minute load average is printed with every figure. Results:
+``benchmarks/results_studies.csv``.
 """
 
 from __future__ import annotations
@@ -94,8 +95,6 @@ def paired(name: str, pair: tuple[Callable[[], int], Callable[[], int]], rounds:
 
 def studies(seeds: int) -> list[dict[str, Any]]:
     from sb3_affect.study.launcher import run_sweep
-    from sb3_affect.study.report.beyond_tasks import TASKS, TUNED_AGENTS, beyond_cells
-    from sb3_affect.study.report.engine_studies import run_cells
 
     rows = []
     listed = "[" + ", ".join(str(i) for i in range(seeds)) + "]"
@@ -111,12 +110,12 @@ def studies(seeds: int) -> list[dict[str, Any]]:
             print(f"{name}: {summary.finished} team runs in {wall:.1f} s (2 workers, load {load():.1f})", flush=True)
         before = load()
         start = time.perf_counter()
-        fixed = {(task, agent): 0.01 for task, _, _ in TASKS for agent, _, _ in TUNED_AGENTS}  # timing only: no tuning
-        table, _ = run_cells(Path(tmp) / "beyond", beyond_cells(fixed), seeds, 200, workers=2)
+        summary = run_sweep(ROOT / "experiments" / "beyond.yaml", Path(tmp) / "beyond", workers=2,
+                            overrides=[f"seeds={seeds}"], progress=False)  # fmt: skip
         wall = time.perf_counter() - start
         rows.append({"measure": f"beyond study (moving and evading prey, mazes), {seeds} seeds, 2 workers",
-                     "wall_s": wall, "runs": len(table), "load": max(before, load())})  # fmt: skip
-        print(f"beyond: {len(table)} runs in {wall:.1f} s (2 workers, load {load():.1f})", flush=True)
+                     "wall_s": wall, "runs": summary.finished, "load": max(before, load())})  # fmt: skip
+        print(f"beyond: {summary.finished} runs in {wall:.1f} s (2 workers, load {load():.1f})", flush=True)
     return rows
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Any, NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -11,9 +12,9 @@ import pytest
 
 from sb3_affect.study.launcher import run_sweep
 from sb3_affect.study.report import claims
-from sb3_affect.study.report.engine_studies import Cell, run_cells, study
+from sb3_affect.study.report.engine_studies import study
 from sb3_affect.study.report.evidence import sensitivity
-from sb3_affect.study.report.metrics import load_results, run_metrics
+from sb3_affect.study.report.metrics import run_metrics
 
 ROOT = Path(__file__).resolve().parents[1]
 EPS = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9)
@@ -147,23 +148,48 @@ def test_seed_sensitivity_uses_the_first_replicates() -> None:
     assert len(table) == len(claims.judge_all(_runs(10)))
 
 
-def test_engine_study_gives_the_launchers_runs(tmp_path: Path) -> None:
-    """A cell run through the engine with the sweep's seed derivation equals the launcher's run files."""
-    run_sweep(ROOT / "experiments" / "smoke.yaml", tmp_path / "smoke", workers=1, progress=False)
-    results = load_results(tmp_path / "smoke")
-    launcher = run_metrics(results.episodes, results.runs)
-    launcher = launcher[(launcher.agent == "epsilon-greedy") & (launcher.epsilon == 0.9)].sort_values("replicate")
-    cell = Cell("epsilon-greedy", "QLearning", {"exploration_rate": 0.9}, {"epsilon": 0.9}, "smoke", {"epsilon": 0.9},
-                "sb3_affect/GridPursuit-v0", {})
-    engine, meta = run_cells(tmp_path / "engine", [cell], seeds=2, episodes=20, workers=1)
-    engine = engine.sort_values("replicate")
-    for column in ("decisions_per_episode", "decisions_before_optimal", "first_optimal", "eqeps_1_10"):
-        assert np.allclose(engine[column].to_numpy(float), launcher[column].to_numpy(float), equal_nan=True), column
-    assert meta["seeds"] == 2
-    again, _ = run_cells(tmp_path / "engine", [cell], seeds=2, episodes=20, workers=1)  # reused, not recomputed
-    pd.testing.assert_frame_equal(again.reset_index(drop=True), pd.read_csv(tmp_path / "engine" / "runs.csv.gz"))
-    with pytest.raises(ValueError, match="seeds=0"):
-        run_cells(tmp_path / "engine", [cell], seeds=0)
+class Cell(NamedTuple):
+    """One configuration run at many seeds through the engine, as the report's engine studies ran it."""
+
+    agent: str
+    algo: str
+    kwargs: dict[str, Any]
+    labels: dict[str, Any]
+    sweep: str
+    point: dict[str, Any]
+    env_id: str
+    env_kwargs: dict[str, Any]
+
+
+def engine_table(cells: list[Cell], seeds: int, episodes: int) -> pd.DataFrame:
+    """
+    What the engine gives for ``cells`` at ``seeds`` replicates (``derive_seed(sweep, agent, point, r)``): one
+    ``simulate`` call per cell and 50 replicates, each run's ``run_metrics`` (moving prey: optimal = a capture within
+    the prey's starting distance), run ids ``<agent>-<label values>-r<replicate>``, the cells' tables joined in order.
+    """
+    from sb3_affect.engine.simulation import simulate
+    from sb3_affect.study.launcher.schema import derive_seed
+    from sb3_affect.study.report.baseline_summary import capture_distance
+    from sb3_affect.study.report.metrics import EARLY, LATE
+
+    frames = []
+    for cell in cells:
+        for start in range(0, seeds, 50):
+            replicates = list(range(start, min(seeds, start + 50)))
+            drawn = [derive_seed(cell.sweep, cell.agent, cell.point, r) for r in replicates]
+            frame = simulate(cell.algo, cell.kwargs, cell.env_id, cell.env_kwargs, drawn, episodes)
+            if "MovingPursuit" in cell.env_id:
+                bound = capture_distance({"env_id": cell.env_id, "env_kwargs": cell.env_kwargs})
+                frame["optimal"] = ~frame.truncated.astype(bool) & (frame.cells <= bound)
+            frame["replicate"] = frame.seed.map(dict(zip(drawn, replicates)))
+            tag = "-".join(f"{v}" for v in cell.labels.values())
+            frame["run_id"] = [f"{cell.agent}-{tag}-r{r}" for r in frame.replicate]
+            frame["agent"] = cell.agent
+            for key, value in cell.labels.items():
+                frame[key] = value
+            last = (max(episodes - 199, 1), episodes)
+            frames.append(run_metrics(frame, windows=(EARLY, LATE) if last[0] <= LATE[0] else (EARLY, LATE, last)))
+    return pd.concat(frames, ignore_index=True)
 
 
 EPSILONS = [0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9]
@@ -172,10 +198,46 @@ AFFECT = {**COMMON, "comparison": "literal", "act": "episode", "units": "cells"}
 PAPER_ENV = {"size": 15, "start": [0, 0], "goal": [6, 6], "goal_reward": 100.0}
 
 
+TASKS = (
+    ("static grid 15x15 (the paper's task)", "sb3_affect/GridPursuit-v0", PAPER_ENV),
+    ("moving prey 7x7 (random walk)", "sb3_affect/MovingPursuit-v0",
+     {"size": 7, "start": [0, 0], "prey_start": [3, 3], "prey": "random", "prey_speed": 0.5}),
+    ("evading prey 7x7", "sb3_affect/MovingPursuit-v0",
+     {"size": 7, "start": [0, 0], "prey_start": [3, 3], "prey": "evade", "prey_speed": 0.5}),
+    ("maze: wall", "sb3_affect/MazePursuit-v0", {"maze": "wall"}),
+    ("maze: rooms", "sb3_affect/MazePursuit-v0", {"maze": "rooms"}),
+)  # fmt: skip
+TUNED = (("epsilon-greedy, tuned ε", "QLearning", {}),
+         ("speed-epsilon-greedy, tuned ε", "sb3_affect.agents.baselines:SpeedEpsilonGreedy", {"speeds": [1, 2]}))
+GRID = (0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5)
+CAP = {"max_episode_decisions": 2000}
+#: The ε of each tuned agent on each task in experiments/beyond.yaml, in the order of TASKS x TUNED.
+BEYOND_EPS = (0.000125, 0.002, 0.001, 0.002, 0.5, 0.2, 0.02, 0.002, 0.1, 0.02)
+
+
 def study_cells(name: str) -> list[Cell]:
-    """The cells of a shipped study file, written out as ``run_cells`` took them (the seeds' sweep and grid point)."""
+    """
+    The cells of a shipped study file, written out as the report's engine studies ran them (the seeds' sweep and grid
+    point; the tuning and the tasks beyond the paper: each task its own seeds, the same for every ε).
+    """
     env = ("sb3_affect/GridPursuit-v0", PAPER_ENV)
+    if name == "tuning":
+        return [Cell(agent, algo, {**kwargs, "exploration_rate": e, **CAP}, {"task": task, "epsilon": e}, "beyond-tuning",
+                     {"task": task}, env_id, env_kwargs)
+                for task, env_id, env_kwargs in TASKS for agent, algo, kwargs in TUNED for e in GRID]  # fmt: skip
+    if name == "beyond":
+        fixed = (("affective", "AffectQ", {}), ("epsilon-greedy 0.1", "QLearning", {"exploration_rate": 0.1}))
+        tuned = dict(zip(((t, a) for t, _, _ in TASKS for a, _, _ in TUNED), BEYOND_EPS))
+        cells = []
+        for task, env_id, env_kwargs in TASKS:
+            cells += [Cell(a, algo, {**kw, **CAP}, {"task": task}, "beyond", {"task": task}, env_id, env_kwargs)
+                      for a, algo, kw in fixed]  # fmt: skip
+            cells += [Cell(a, algo, {**kw, "exploration_rate": tuned[task, a], **CAP},
+                           {"task": task, "epsilon": tuned[task, a]}, "beyond", {"task": task}, env_id, env_kwargs)
+                      for a, algo, kw in TUNED]  # fmt: skip
+        return cells
     if name == "speed_one":
+
         table = {"joy": [True, [1]], "sadness": [False, [1]], "fear": [False, [1]], "anger": [False, [1]]}
         return [Cell("affective-speed-1", "AffectQ", {**AFFECT, "behaviour_table": table}, {"epsilon": e}, "speed-one",
                      {"epsilon": e}, *env) for e in EPSILONS]
@@ -187,12 +249,14 @@ def study_cells(name: str) -> list[Cell]:
                          "large", {}, *env)]
 
 
-@pytest.mark.parametrize(("name", "seeds", "episodes"), [("large", 2, 12), ("speed_one", 55, 3)])
+@pytest.mark.parametrize(("name", "seeds", "episodes"),
+                         [("large", 2, 12), ("speed_one", 55, 3), ("tuning", 2, 4), ("beyond", 3, 5)])
 def test_a_study_run_by_the_launcher_reads_as_the_engine_table(tmp_path: Path, name: str, seeds: int, episodes: int) -> None:
     """
-    A study's sweep file through the launcher gives, row for row, the table ``run_cells`` gives for its cells: the same
-    seeds (``seeds_from``: the paper sweep's), fixed labels, a behaviour table by emotion names, the rows in the
-    cells' order (more than one ``CHUNK`` of replicates), the run ids and the dtypes the report reads back.
+    A study's sweep file through the launcher gives, row for row, the table the engine gives for its cells: the same
+    seeds (``seeds_from``: the paper sweep's; ``seeds_by: [task]``: each task's own, the same for every ε), fixed
+    labels, a behaviour table by emotion names, tasks in the file's order, moving prey's optimal episodes, the rows in
+    the cells' order (more than one ``CHUNK`` of replicates), the run ids, column order and dtypes the report reads.
     """
     run_sweep(ROOT / "experiments" / f"{name}.yaml", tmp_path / name, workers=1, progress=False,
               overrides=[f"seeds={seeds}", f"episodes={episodes}"])
@@ -200,8 +264,7 @@ def test_a_study_run_by_the_launcher_reads_as_the_engine_table(tmp_path: Path, n
     assert found is not None
     table, meta = found
     assert (meta["seeds"], meta["episodes"], meta["runs"]) == (seeds, episodes, len(table))
-    expected, _ = run_cells(tmp_path / "engine", study_cells(name), seeds, episodes, workers=1)
-    pd.testing.assert_frame_equal(table, expected)
+    pd.testing.assert_frame_equal(table, engine_table(study_cells(name), seeds, episodes))
 
 
 def test_seeds_needed_and_adastop_on_a_clear_difference() -> None:
@@ -374,9 +437,9 @@ def _tuning_runs(response, replicates: int = 20, noise: float = 0.05):  # type: 
 
 
 def test_tuning_chooses_an_interior_best_in_one_round() -> None:
-    from sb3_affect.study.report.tuning import GRID, tune
+    from sb3_affect.study.report.tuning import tune
 
-    choices, rounds = tune(_tuning_runs(lambda e: 100 + 50 * (np.log10(e) - np.log10(0.05)) ** 2), [("task", "agent")])
+    choices, rounds = tune(_tuning_runs(lambda e: 100 + 50 * (np.log10(e) - np.log10(0.05)) ** 2), [("task", "agent")], GRID)
     t = choices[("task", "agent")]
     assert rounds == 1 and t.best == 0.05 and t.interior and t.added == ()
     assert list(t.curve.index) == list(GRID) and t.note == "interior (best inside the grid)"
@@ -391,17 +454,17 @@ def test_tuning_extends_a_grid_whose_best_is_at_an_edge() -> None:
     with pytest.raises(ValueError, match="not one of the values run"):
         extension([0.1, 0.2], 0.3)
     # optimum below the grid (0.0005 lies between 0.00025 and 0.001): extended twice, then interior
-    choices, rounds = tune(_tuning_runs(lambda e: 100 + 50 * (np.log10(e) - np.log10(0.0005)) ** 2), [("task", "agent")])
+    choices, rounds = tune(_tuning_runs(lambda e: 100 + 50 * (np.log10(e) - np.log10(0.0005)) ** 2), [("task", "agent")], GRID)
     t = choices[("task", "agent")]
     assert rounds == 3 and t.best == 0.0005 and t.interior and t.added == (0.0005, 0.00025)
     assert t.note == "interior (best at the edge of the grid, extended to 0.0005, 0.00025)"
     # better and better towards ε = 1: extended to the end of the range and said to be not interior
-    choices, rounds = tune(_tuning_runs(lambda e: 100 - 10 * e), [("task", "agent")])
+    choices, rounds = tune(_tuning_runs(lambda e: 100 - 10 * e), [("task", "agent")], GRID)
     t = choices[("task", "agent")]
     assert rounds == 2 and t.best == 1.0 and not t.interior and t.note.startswith("not interior")
     assert "still at the edge of the range" in t.note
     # better and better towards ε = 0: extensions stop after MAX_EXTENSIONS, still not interior
-    choices, rounds = tune(_tuning_runs(lambda e: 100 + 10 * np.log10(e)), [("task", "agent")])
+    choices, rounds = tune(_tuning_runs(lambda e: 100 + 10 * np.log10(e)), [("task", "agent")], GRID)
     t = choices[("task", "agent")]
     assert rounds == MAX_EXTENSIONS + 1 and not t.interior and t.added == (0.0005, 0.00025, 0.000125)
     assert t.best == 0.000125 and t.note.startswith("not interior") and "flat" not in t.note
@@ -422,39 +485,56 @@ def test_a_flat_edge_is_said_to_be_flat() -> None:
     assert t.note == f"not interior: best at the edge of the grid; still at the edge {flat}"
 
 
-def test_the_tuning_section_reads_the_rounds_back(tmp_path: Path) -> None:
-    """The report's tuning subsection recomputes the choice from the rounds on disk and says what it found."""
-    import json
+def test_the_tuning_section_reads_the_rounds_replicate_ran(tmp_path: Path) -> None:
+    """
+    ``replicate.tune_rounds`` runs a tuning sweep through the launcher round by round (an extension where the best
+    value sits at an edge); the report's subsection recomputes the same choice from the round folders alone, says
+    whether the evaluation's seeds are disjoint from the tuning's, and shows nothing while a needed round is missing.
+    """
+    import shutil
 
+    from sb3_affect.study.replicate import tune_rounds
     from sb3_affect.study.report.document import Document
-    from sb3_affect.study.report.tuning import GRID, TASKS, TUNED_AGENTS, tune, tuning_section
+    from sb3_affect.study.report.tuning import tuning_section
 
-    folder = tmp_path / "tuning"
-    keys = [(TASKS[0][0], TUNED_AGENTS[1][0])]
-
-    def on_disk(k: int, values: dict[tuple[str, str], list[float]]) -> pd.DataFrame:
-        table = _tuning_runs(lambda e: 100 + 50 * (np.log10(e) - np.log10(0.0005)) ** 2)(k, values)
-        (folder / f"round{k}").mkdir(parents=True)
-        table.to_csv(folder / f"round{k}" / "runs.csv.gz", index=False)
-        return table
-
-    _, rounds = tune(on_disk, keys)
-    record = {"rounds": rounds, "seeds": 20, "episodes": 200, "evaluation_seeds": 1000, "grid": list(GRID)}
-    (folder / "tuning.json").write_text(json.dumps(record))
+    static = "static grid 15x15 (the paper's task)"
+    sweep = tmp_path / "tuning.yaml"
+    sweep.write_text(
+        "name: beyond-tuning\n"
+        f'tasks: {{"{static}": {{id: sb3_affect/GridPursuit-v0, kwargs: {json.dumps(PAPER_ENV)}}}}}\n'
+        "episodes: 12\nseeds: 4\nagents:\n"
+        "  - {name: 'epsilon-greedy, tuned ε', algo: QLearning, seeds_by: [task], grid: {epsilon: [0.5, 0.9]},\n"
+        "     kwargs: {exploration_rate: $epsilon, max_episode_decisions: 2000}}\n"
+    )
+    tuned, summaries = tune_rounds(sweep, tmp_path / "run" / "tuning", [], workers=1)
+    key = (static, "epsilon-greedy, tuned ε")
+    assert len(summaries) >= 2 and tuned[key].added  # 0.5 beats 0.9 at the edge: 0.278 run next (and so on)
+    assert sorted(p.name for p in (tmp_path / "run" / "tuning").iterdir()) == [f"round{k}" for k in range(len(summaries))]
 
     class Ctx:
-        root, doc = tmp_path, Document("tuning")
+        root, doc = tmp_path / "run", Document("tuning")
 
         def table(self, name: str, frame: pd.DataFrame, caption: str) -> None:
             self.doc.table(frame, caption)
 
+    evaluation = pd.DataFrame({"task": [static] * 3, "agent": [key[1]] * 3, "seed": [1, 2, 3], "replicate": [0, 1, 2]})
     ctx = Ctx()
-    choices = tuning_section(ctx)
-    assert choices is not None and choices[keys[0]].best == 0.0005
+    choices = tuning_section(ctx, evaluation)
+    assert choices is not None and list(choices) == [key]
+    assert (choices[key].best, choices[key].added, choices[key].interior) == (tuned[key].best, tuned[key].added,
+                                                                              tuned[key].interior)  # fmt: skip
+    pd.testing.assert_frame_equal(choices[key].curve, tuned[key].curve)
     text = ctx.doc.markdown(tmp_path)
-    assert "| static grid 15x15 (the paper's task) / speed-epsilon-greedy, tuned ε | 0.00025, 0.0005, 0.001," in text
-    assert "interior (best at the edge of the grid, extended to 0.0005, 0.00025)" in text
-    assert "disjoint from the 1,000 evaluation seeds" in text
+    assert "4 tuning seeds per value (sweep `beyond-tuning`" in text and "disjoint from the 3 evaluation seeds" in text
+    assert f"| {static} / epsilon-greedy, tuned ε | " in text and "each episode counts at most 2,000 decisions" in text
+    found = study(tmp_path / "run" / "tuning", "round0")
+    assert found is not None
+    shared = evaluation.assign(seed=[int(found[0].seed.iloc[0]), 2, 3])  # one tuning seed among the evaluation's
+    ctx = Ctx()
+    tuning_section(ctx, shared)
+    assert "but 1 of them are also evaluation seeds" in ctx.doc.markdown(tmp_path)
+    shutil.rmtree(tmp_path / "run" / "tuning" / f"round{len(summaries) - 1}")  # a round the tuning needs: not run yet
+    assert tuning_section(Ctx(), evaluation) is None
 
 
 def test_the_launcher_tuning_table_says_whether_its_best_is_interior() -> None:
