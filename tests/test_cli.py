@@ -132,7 +132,7 @@ def test_help_describes_every_argument(capsys: pytest.CaptureFixture[str]) -> No
     assert "a results folder (the --out of `run` or `replicate`)" in helps["report"]
     assert "report.html" in helps["report"]
     text = " ".join(helps["replicate"].split())
-    for name, description in replicate.PARTS:
+    for name, description in (*replicate.PARTS, *replicate.TUNED_PARTS):
         assert f"experiments/{name}.yaml: {replicate.part_description(name, description)}" in helps["replicate"]
     assert "open it in a browser" in helps["replicate"] and "results folder (default: runs)" in helps["replicate"]
     # one source for each fact: the run counts are read from the experiment files, the wall time from MINUTES
@@ -152,10 +152,12 @@ def test_replicate_says_where_the_report_is(tmp_path: Path, capsys: pytest.Captu
                                              monkeypatch: pytest.MonkeyPatch) -> None:
     files = tmp_path / "files"
     tiny(files, "paper")
+    for name, _ in replicate.TUNED_PARTS:  # the shipped tuning and tasks beyond the paper, at toy size (below)
+        shutil.copy(ROOT / "experiments" / f"{name}.yaml", files / f"{name}.yaml")
     monkeypatch.setattr(replicate, "EXPERIMENTS", files)
     monkeypatch.setattr(replicate, "PARTS", (("paper", "a tiny paper protocol"),))
     for name, value in (("LARGE_SEEDS", 1), ("ABLATION_SEEDS", 1), ("BEYOND_SEEDS", 1), ("ENGINE_EPISODES", 5)):
-        monkeypatch.setattr(replicate, name, value)  # the engine studies at toy size
+        monkeypatch.setattr(replicate, name, value)  # the studies at toy size
     assert main(["replicate", "--out", str(tmp_path / "runs"), "--workers", "2", "--no-forensics"]) == 0
     out = capsys.readouterr().out
     html = tmp_path / "runs" / "report.html"
@@ -169,7 +171,7 @@ def test_resumed_replicate_keeps_the_times_of_its_runs_and_refuses_a_sweep(
 ) -> None:
     files = tmp_path / "files"
     tiny(files, "paper")
-    for name in replicate.SIZED:  # the shipped studies, at toy size (below)
+    for name in (*replicate.SIZED, *(name for name, _ in replicate.TUNED_PARTS)):  # the shipped studies, at toy size
         shutil.copy(ROOT / "experiments" / f"{name}.yaml", files / f"{name}.yaml")
     monkeypatch.setattr(replicate, "EXPERIMENTS", files)
     studied = tuple(part for part in replicate.PARTS if part[0] in replicate.SIZED)

@@ -82,6 +82,14 @@ def test_good_file_resolves_runs(tmp_path: Path) -> None:
         (GOOD.replace("id: sb3_affect/GridPursuit-v0", "id: sb3_affect/GridPursuit-v9"), "env.id", "not registered"),
         (GOOD.replace("$epsilon", "$eps"), "agents[0] (q)", "refers to no grid label"),
         (GOOD.replace("name: tiny", "name: 'a b/c'"), "name", "pattern"),
+        (GOOD.replace("  - name: q", "  - name: '.q'"), "agents[0]", "pattern"),
+        (GOOD.replace("  - name: q", "  - name: 'q/r'"), "agents[0]", "pattern"),
+        (GOOD.replace("    kwargs: {exploration_rate", "    seeds_by: [task]\n    kwargs: {exploration_rate"), "agents[0]",
+         "seeds_by: [task] needs tasks"),
+        (GOOD.replace("    kwargs: {exploration_rate", "    seeds_by: [eps]\n    kwargs: {exploration_rate"), "agents[0]",
+         "'eps' is not a label of the agent"),
+        (GOOD.replace("    grid: {epsilon: [0.1, 0.5]}\n    kwargs", "    grid_by_task: {a: {epsilon: [0.1]}}\n    kwargs"),
+         "agents[0] (q)", "grid_by_task needs tasks"),
         (GOOD.replace("  - name: affective", "  - name: q"), "agents", "unique"),
         (GOOD.replace("max_timesteps", "x") + "max_timesteps: 0\n", "max_timesteps", "greater than 0"),
         (GOOD + "logs: [csv, excel]\n", "logs", "excel"),
@@ -206,3 +214,49 @@ def test_env_of_your_own_as_module_colon_id(tmp_path: Path, monkeypatch: pytest.
     assert len(result["episodes"]["episode"]) == 2 and result["episodes"]["optimal"] is not None
     assert "module 'no_such_module' can not be imported" in error_of(tmp_path, text.replace("my_sweep_envs", "no_such_module"))
     assert "'your_module:YourEnv-v0'" in error_of(tmp_path, text.replace("MyPursuit-v0", "Other-v0"))
+
+
+TASKS = """\
+name: tasks
+tasks:
+  "static grid (the paper's)": {id: sb3_affect/GridPursuit-v0, kwargs: {size: 5, goal: [2, 2]}}
+  "maze: wall": {id: sb3_affect/MazePursuit-v0, kwargs: {maze: wall}}
+episodes: 5
+seeds: 3
+agents:
+  - name: epsilon-greedy, tuned ε
+    algo: QLearning
+    seeds_by: [task]
+    grid_by_task: {"maze: wall": {epsilon: [0.2, 0.3]}}
+    kwargs: {exploration_rate: $epsilon}
+  - name: fixed 0.1
+    algo: QLearning
+    seeds_by: [task]
+    kwargs: {exploration_rate: 0.1}
+"""
+
+
+def test_a_grid_per_task_and_seeds_by_task(tmp_path: Path) -> None:
+    """
+    ``grid_by_task`` runs an agent on the tasks it names, each with its grid; ``seeds_by: [task]`` derives its seeds
+    from the task alone (the same for every ε, another per task); names may be text (spaces, commas, ε, a colon).
+    """
+    sweep = load_sweep(write(tmp_path, TASKS), build=False)
+    cells = [(c.base["agent"], c.base["labels"], c.seeds) for c in sweep.cells()]
+    tuned, fixed = "epsilon-greedy, tuned ε", "fixed 0.1"
+    assert [(a, labels) for a, labels, _ in cells] == [
+        (fixed, {"task": "static grid (the paper's)"}),
+        (tuned, {"epsilon": 0.2, "task": "maze: wall"}),
+        (tuned, {"epsilon": 0.3, "task": "maze: wall"}),
+        (fixed, {"task": "maze: wall"}),
+    ]
+    assert cells[1][2] == cells[2][2] == [derive_seed("tasks", tuned, {"task": "maze: wall"}, r) for r in range(3)]
+    assert cells[0][2] == [derive_seed("tasks", fixed, {"task": "static grid (the paper's)"}, r) for r in range(3)]
+    assert cells[3][2] != cells[0][2] and len(sweep.run_configs()) == 12
+    dumped = load_sweep(write(tmp_path, GOOD), build=False).model_dump(mode="json")
+    assert "grid_by_task" not in dumped["agents"][0] and "seeds_by" not in dumped["agents"][0]  # old folders resume
+    both = TASKS.replace("    seeds_by: [task]\n    grid_by_task", "    grid: {epsilon: [0.1]}\n    grid_by_task", 1)
+    assert "either grid or grid_by_task" in error_of(tmp_path, both)
+    unknown = TASKS.replace('grid_by_task: {"maze: wall"', 'grid_by_task: {"maze: hall"')
+    assert "grid_by_task names 'maze: hall', not a task of the sweep" in error_of(tmp_path, unknown)
+    assert "is not a task name" in error_of(tmp_path, TASKS.replace('"maze: wall":', '"maze/wall":', 1))

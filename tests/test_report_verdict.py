@@ -284,7 +284,7 @@ def test_seeds_needed_and_adastop_on_a_clear_difference() -> None:
 
 @pytest.mark.slow
 def test_replicate_writes_every_part_and_the_record(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """replicate end to end at toy size: launcher sweeps, the three engine studies, one report with their sections."""
+    """replicate end to end at toy size: launcher sweeps, the tuning rounds and beyond, one report with their sections."""
     from sb3_affect.study import replicate
     from sb3_affect.study.replicate import main
 
@@ -298,7 +298,7 @@ def test_replicate_writes_every_part_and_the_record(tmp_path: Path, monkeypatch:
     for name in ("paper", "dqn", "baselines"):
         text = smoke.replace("name: smoke", f"name: {name}").replace("episodes: 20", "episodes: 5")
         (experiments / f"{name}.yaml").write_text(text)
-    for name in replicate.SIZED:  # the shipped studies, sized down by main's arguments
+    for name in (*replicate.SIZED, *(name for name, _ in replicate.TUNED_PARTS)):  # the shipped studies, sized down
         (experiments / f"{name}.yaml").write_text((ROOT / "experiments" / f"{name}.yaml").read_text())
     report = main(tmp_path / "out", workers=1, experiments=experiments, large_seeds=1, ablation_seeds=1, beyond_seeds=1,
                   engine_episodes=5, forensics=False)
@@ -306,15 +306,15 @@ def test_replicate_writes_every_part_and_the_record(tmp_path: Path, monkeypatch:
     assert "No verdict: too few runs" in text
     for part in replicate.SIZED:  # launcher folders
         assert json.loads((tmp_path / "out" / part / "sweep.json").read_text())["sweep"]["episodes"] in (5, 50), part
-    assert (tmp_path / "out" / "beyond" / "runs.csv.gz").exists()
+    assert json.loads((tmp_path / "out" / "beyond" / "sweep.json").read_text())["name"] == "beyond"  # launcher folders
     long = study(tmp_path / "out", "long")
     assert long is not None and int(long[0].episodes.max()) == 50  # 10 x the engine episodes
     assert "evading prey 7x7 / affective" in text and "maze: rooms / speed-epsilon-greedy, tuned ε (" in text
-    assert (tmp_path / "out" / "tuning" / "tuning.json").exists() and "ε tuned on each task" in text
+    assert (tmp_path / "out" / "tuning" / "round0" / "sweep.json").exists() and "ε tuned on each task" in text
     assert "evading prey 7x7 / epsilon-greedy, tuned ε (" in text and ") (" not in text.split("tuned ε (")[1].split("|")[0]
     assert "Readings ranked by distance" in text
     wall = pd.read_csv(tmp_path / "out" / "tables" / "wall_times.csv")
-    assert len(wall) == 9 and (wall["wall seconds"] >= 0).all()  # 3 sweeps + 4 engine studies + tuning + beyond
+    assert len(wall) == 9 and (wall["wall seconds"] >= 0).all()  # 3 sweeps + 4 studies + tuning + beyond
     assert "Replication forensics: not run" in text
 
 

@@ -185,7 +185,7 @@ sys.exit(main(["replicate", "--out", "runs", "--workers", "1"]))
 
 
 def test_wheel_replicates_from_an_empty_folder(full: Path, tmp_path: Path) -> None:
-    """``sb3-affect replicate`` from the wheel, at toy size: the shipped paper sweep, the engine studies, the report."""
+    """``sb3-affect replicate`` from the wheel, at toy size: the shipped paper sweep, the studies, the report."""
     result = run(full, ["-c", REPLICATE], tmp_path)
     assert result.returncode == 0, result.stderr[-3000:]
     assert (tmp_path / "runs" / "report.html").exists() and (tmp_path / "runs" / "paper" / "sweep.json").exists()

@@ -77,13 +77,13 @@ def lock_lines() -> list[str]:
 def run_tables(root: Path) -> list[Path]:
     """
     The files holding the runs of a replicate (or results) folder: the chunks and run files that count (those a
-    report reads: ``ResultsStore.checked_files``), the engine studies' tables.
+    report reads: ``ResultsStore.checked_files``; the tuning's rounds included), the other studies' CSV tables.
     """
     from sb3_affect.study.launcher.store import ResultsStore, StoreError
 
-    patterns = ("*/runs.csv.gz", "*/*.csv", "tuning/round*/runs.csv.gz")
-    files = {path for pattern in patterns for path in root.glob(pattern) if "tables" not in path.parts}
-    for folder in (root, *(path.parent for path in root.glob("*/sweep.json"))):
+    files = {path for path in root.glob("*/*.csv") if "tables" not in path.parts}
+    launched = (path.parent for pattern in ("*/sweep.json", "tuning/round*/sweep.json") for path in root.glob(pattern))
+    for folder in (root, *launched):
         if (folder / "runs").is_dir():
             try:
                 checked = ResultsStore(folder).checked_files()
@@ -144,7 +144,7 @@ def record_section(ctx: ReportContext) -> None:
             + f"; every installed package's version: `{lock.name}` ({len(lock_lines())} packages)",
             "Replication forensics: " + str(ctx.cache.get("forensics", "not run (`sb3-affect forensics` was not part of "
                                                              "this run; `make replicate` runs it)")),
-            f"Checksums: sha256 of the {len(tables)} run tables (run files, Parquet chunks, engine study tables) in "
+            f"Checksums: sha256 of the {len(tables)} run tables (run files, Parquet chunks, study tables) in "
             f"`{checksums.name}` (check with `sha256sum -c {checksums.name}` from {ctx.root})",
             "Seeds: the launcher derives each run's seed from (sweep, agent, grid point, replicate) with sha256 "
             "(`sb3_affect.study.launcher.schema.derive_seed`); every run file records its seed, and the engine studies use "
@@ -153,14 +153,6 @@ def record_section(ctx: ReportContext) -> None:
         ]
     )
     rows = {name: {"wall seconds": seconds} for name, seconds in ctx.timings.items()}
-    studies = ("beyond",)  # the engine study with a meta.json (the launcher's folders: in replicate's timings)
-    for name in studies if not rows else ():  # replicate's timings hold them already
-        meta_path = ctx.root / name / "meta.json"
-        if meta_path.exists():
-            import json
-
-            meta = json.loads(meta_path.read_text())
-            rows[f"{name} (engine, {meta['seeds']} seeds per cell)"] = {"wall seconds": meta["wall_seconds"]}
     runs = replicate_runs(ctx.root)
     if rows:
         ctx.table(
