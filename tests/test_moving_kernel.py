@@ -43,7 +43,9 @@ CASES: list[tuple[str, type, dict[str, Any], dict[str, Any], int]] = [
      {**SMALL, "prey": "random"}, 8),
     ("affectq-optimistic-step-reward", AffectQ, {"personality": "optimistic"},
      {**SMALL, "prey": "random", "step_reward": -1.0}, 8),
-    ("affectq-table-jump-tie-first", AffectQ, {"behaviour_table": TABLE, "multi_cell": "jump", "tie_break": "first"},
+    # (this agent feels joy at every decision and never catches the prey: each episode ends at its cap, kept small)
+    ("affectq-table-jump-tie-first", AffectQ,
+     {"behaviour_table": TABLE, "multi_cell": "jump", "tie_break": "first", "max_episode_decisions": 300},
      {**SMALL, "prey": "evade", "prey_speed": 0.4}, 8),
     ("affectq-time-limit-cap", AffectQ, {"max_episode_decisions": 30},
      {**SMALL, "prey": "random", "max_episode_steps": 25}, 8),

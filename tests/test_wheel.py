@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import os
 import re
+import shutil
 import subprocess
 import sys
 import sysconfig
@@ -89,11 +90,30 @@ def core(wheel: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     return python
 
 
+def _copy_compiled_code(site: Path) -> None:
+    """
+    Copy numba's cache of the checkout's compiled functions (the kernels, compiled or loaded here first, and what else
+    this session compiled) into the install's ``__pycache__`` folders, with the kernel's digest of its sources. numba
+    keys a cached function by its source file's content, not its path, so the install loads them as it would after
+    its own first run, instead of compiling every kernel again (minutes) in each of its commands. Compiling on a cold
+    cache is ``make venv``'s step (``python -m sb3_affect.kernel``) and the checkout's first import.
+    """
+    from sb3_affect.kernel import warm_up
+
+    warm_up()
+    for cache in (ROOT / "sb3_affect").rglob("__pycache__"):
+        target = site / cache.relative_to(ROOT)
+        for path in [*cache.glob("*.nbi"), *cache.glob("*.nbc"), *cache.glob("*.sha256")]:
+            target.mkdir(exist_ok=True)
+            shutil.copy2(path, target / path.name)
+
+
 @pytest.fixture(scope="module")
 def full(wheel: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
     python, site = _venv(tmp_path_factory.mktemp("full") / "venv")
     (site / "test-environment.pth").write_text(sysconfig.get_paths()["purelib"] + "\n")  # every library, not sb3_affect
     _install(wheel, site)
+    _copy_compiled_code(site)
     return python
 
 
