@@ -194,6 +194,7 @@ assert "site-packages" in replicate.__file__
 replicate.PARTS = (("paper", "the paper's protocol, at toy size"),)
 replicate.LARGE_SEEDS = replicate.ABLATION_SEEDS = replicate.BEYOND_SEEDS = 1
 replicate.ENGINE_EPISODES = 5
+replicate.FORENSICS = {"screen_reps": 2, "leaders": 1, "reps": 2}  # the forensics run, with one leader replicated twice
 from sb3_affect.study.launcher import sweep_file
 load = sweep_file.load_sweep
 sweep_file.load_sweep = lambda path, overrides=(), **kw: load(path, [*overrides, "seeds=1", "episodes=5"], **kw)
@@ -205,7 +206,8 @@ sys.exit(main(["replicate", "--out", "runs", "--workers", "1"]))
 
 
 def test_wheel_replicates_from_an_empty_folder(full: Path, tmp_path: Path) -> None:
-    """``sb3-affect replicate`` from the wheel, at toy size: the shipped paper sweep, the studies, the report."""
+    """``sb3-affect replicate`` from the wheel, at toy size: the shipped paper sweep, the studies, the forensics, the
+    report."""
     result = run(full, ["-c", REPLICATE], tmp_path)
     assert result.returncode == 0, result.stderr[-3000:]
     assert (tmp_path / "runs" / "report.html").exists() and (tmp_path / "runs" / "paper" / "sweep.json").exists()

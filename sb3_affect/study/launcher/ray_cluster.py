@@ -61,11 +61,14 @@ def stage_package(folder: Path) -> Path:
     """
     Copy the ``sb3_affect`` package the driver imports into ``folder/sb3_affect``, with ``envs`` inside it (an editable
     install maps ``sb3_affect.envs`` to the top-level ``envs/`` folder): the exact code the worker nodes will run.
+    numba's cache of the compiled functions (``__pycache__/*.nbi``, ``*.nbc``, keyed by the source's content and the
+    CPU) goes with it, so a node with the driver's CPU loads the kernels instead of compiling them (minutes) for each
+    new package; another CPU compiles its own. Python's bytecode (``*.pyc``) stays behind.
     """
     import sb3_affect
     import sb3_affect.envs
 
-    ignore = shutil.ignore_patterns("__pycache__", "*.pyc")
+    ignore = shutil.ignore_patterns("*.pyc")
     target = folder / "sb3_affect"
     shutil.copytree(Path(sb3_affect.__file__).parent, target, ignore=ignore)
     envs = Path(sb3_affect.envs.__file__).parent
