@@ -137,3 +137,10 @@ def test_replicate_skips_a_part_whose_package_is_missing_with_one_line(monkeypat
     monkeypatch.setattr(replicate, "PART_PACKAGES", (("minigrid", "no_such_package_xyz", "minigrid"),))
     assert replicate.missing_package("minigrid") == 'no_such_package_xyz is not installed: pip install "sb3-affect[minigrid]"'
     assert replicate.missing_package("paper") is None
+
+
+def test_an_agents_unknown_wrapper_is_one_line_naming_the_agent_and_what_is_allowed(tmp_path: Path) -> None:
+    text = ("name: bad\nenv: {id: MiniGrid-Empty-5x5-v0}\nepisodes: 1\nseeds: 1\n"
+            "agents: [{name: a, algo: DQN, wrappers: [os:system]}]\n")
+    with pytest.raises(SweepError, match=r"agents\[0\] \(a\)\.wrappers: env wrapper 'os:system' is not known; the wrappers"):
+        load_sweep(write(tmp_path, "bad", text), build=False)

@@ -39,9 +39,10 @@ import json
 import math
 import re
 from dataclasses import dataclass
-from typing import Any
+from typing import Annotated, Any
 
 from pydantic import (
+    AfterValidator,
     BaseModel,
     ConfigDict,
     Field,
@@ -57,6 +58,9 @@ from sb3_affect.core.positions import POSITION_PRESETS
 from sb3_affect.core.registry import ENV_WRAPPERS, check_algo, check_wrapper, import_env_package, known_settings, resolve_class
 from sb3_affect.core.settings import AffectQSettings
 from sb3_affect.study.launcher.run_ids import RESERVED_LABELS
+
+#: Wrapper names (the env section's and an agent's own), each checked against the registry's ``ENV_WRAPPERS``.
+WrapperNames = Annotated[list[str], AfterValidator(lambda names: [check_wrapper(name) for name in names])]
 
 __all__ = ["AgentSpec", "Cell", "EnvSpec", "MemberSpec", "Sweep", "SweepError"]
 
@@ -114,7 +118,7 @@ class EnvSpec(BaseModel):
     kwargs: dict[str, Any] = Field(
         default_factory=dict, description="keyword arguments of the env, e.g. {size: 15, goal: [6, 6]}"
     )
-    wrappers: list[str] = Field(
+    wrappers: WrapperNames = Field(
         default_factory=list,
         description=f"wrappers put around the env, innermost first, by name: {', '.join(ENV_WRAPPERS)}",
     )
@@ -123,11 +127,6 @@ class EnvSpec(BaseModel):
         description=f"where the agent is, for the emotion callback that watches an agent of SB3 (not for the tabular "
         f"agents, whose observation is the cell): {', '.join(POSITION_PRESETS)} or null (the observation)",
     )
-
-    @field_validator("wrappers")
-    @classmethod
-    def _known_wrappers(cls, value: list[str]) -> list[str]:
-        return [check_wrapper(name) for name in value]
 
     @field_validator("position")
     @classmethod
@@ -260,7 +259,7 @@ class AgentSpec(BaseModel):
         description="derive the agent's seeds as the sweep of this name does (default: this sweep's name): an agent "
         "of the same name and grid point there has the same seeds, so a larger study extends that sweep's runs",
     )
-    wrappers: list[str] = Field(
+    wrappers: WrapperNames = Field(
         default_factory=list,
         description=f"wrappers of this agent's env only, outside the env section's, by name: {', '.join(ENV_WRAPPERS)} "
         "(e.g. a count bonus for one agent of the sweep)",
@@ -271,11 +270,6 @@ class AgentSpec(BaseModel):
         description=f"record each decision's emotion and act (AffectQ only; on the Python loop, one run at a time): "
         f"per episode {', '.join(TRACE_COLUMNS)} beside the episode log",
     )
-
-    @field_validator("wrappers")
-    @classmethod
-    def _known_wrappers(cls, value: list[str]) -> list[str]:
-        return [check_wrapper(name) for name in value]
 
     @model_serializer(mode="wrap")
     def _dump(self, handler: SerializerFunctionWrapHandler) -> dict[str, Any]:
