@@ -171,7 +171,7 @@ class EmotionModel(NamedTuple):
 EMOTION_MODELS: dict[str, EmotionModel] = {
     "broekens": EmotionModel(
         observer="sb3_affect.agents.broekens:BroekensCallback",
-        kernel="sb3_affect.kernel.broekens",
+        kernel="sb3_affect.kernel.td_emotions",
         emotions=("joy", "distress", "hope", "fear"),
         columns=("joy", "distress", "hope", "fear", "goal_joy"),
     ),

@@ -3,7 +3,7 @@ The compiled team of independent learners on HunterPursuit (``sb3_affect.agents.
 ``DecisionStepper``, and ``envs.hunter_pursuit.HunterPursuitEnv``'s step, are the reference). For the same seeds it
 gives the identical team log, each hunter's episode log, Q-table and ``random.Random`` state, the env's NumPy
 generator state (``kernel.pcg64``: the prey's draws) and what a ``BroekensCallback`` observing each hunter records
-(``kernel.broekens``).
+(``kernel.td_emotions``).
 
 A round: every hunter decides in agent order (``steps.decide``); the round lasts as many env steps as the longest
 decision, a hunter whose decision is over stays (``STAY``) and only observes. The env's step moves all hunters at
@@ -22,7 +22,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from sb3_affect.kernel import broekens
+from sb3_affect.kernel import td_emotions
 from sb3_affect.kernel.affect import fit_add, known_add_goal, start_norm
 from sb3_affect.kernel.arrays import BehaviourRows, RunState, Work
 from sb3_affect.kernel.choice import row_max
@@ -150,8 +150,8 @@ def hunter(hunters: Hunters, m: int) -> Hunter:
 # out_i[m, episode]: each hunter's episode row (ints); out_f[m, episode]: its floats and Broekens' means
 (O_DECISIONS, O_CELLS, O_OPTIMAL, O_TRUNCATED, O_RANDOM, O_WAITS, O_JOY, O_SADNESS, O_FEAR, O_ANGER, O_GREEDY) = range(11)
 N_OUT_I = 11
-F_REWARD, F_NORM, F_OBSERVER = range(3)  # F_OBSERVER..: the Broekens observer's columns (broekens.COLUMNS)
-N_OUT_F = F_OBSERVER + broekens.N_OUT
+F_REWARD, F_NORM, F_OBSERVER = range(3)  # F_OBSERVER..: the Broekens observer's columns (td_emotions.COLUMNS)
+N_OUT_F = F_OBSERVER + td_emotions.N_OUT
 # team_i[episode]: the team's row (team_f[episode]: its reward)
 T_ROUNDS, T_STEPS, T_OPTIMAL, T_TRUNCATED, T_CAPTURER = range(5)
 N_TEAM_I = 5
@@ -196,7 +196,7 @@ def team_loop(env, config, hunters, behaviour, state, appraisal, episodes, work,
         ist[m, I_CHANGED] = 1
         fst[m, S_NORM] = math.nan
         fst[m, S_LAST_ACT] = math.inf
-        broekens.start(fst[m, S_OBSERVER:], row_max(q[m], ist[m, I_S]))
+        td_emotions.start(fst[m, S_OBSERVER:], row_max(q[m], ist[m, I_S]))
     episode = 0
     rounds = 0
     steps = 0
@@ -316,7 +316,7 @@ def team_loop(env, config, hunters, behaviour, state, appraisal, episodes, work,
             observer = fst[m, S_OBSERVER:]
             cut = over and not ended
             reached = 0.0 if over and not cut else row_max(q[m], ist[m, I_LAST_S2] if over else ist[m, I_S])
-            joy = broekens.observe(observer, fst[m, S_DECISION_REWARD], h.gamma, reached)
+            joy = td_emotions.observe(observer, fst[m, S_DECISION_REWARD], h.gamma, reached)
             if over:
                 row = out_i[m, episode]
                 cells = ist[m, I_CELLS]
@@ -343,7 +343,7 @@ def team_loop(env, config, hunters, behaviour, state, appraisal, episodes, work,
                 frow = out_f[m, episode]
                 frow[F_REWARD] = fst[m, S_REWARD]
                 frow[F_NORM] = fst[m, S_NORM] if h.kind == AFFECT else math.nan
-                broekens.close_episode(observer, frow[F_OBSERVER:], decisions, joy, cut)
+                td_emotions.close_episode(observer, frow[F_OBSERVER:], decisions, joy, cut)
                 if h.kind == AFFECT:
                     fsum = fst[m, S_FIT0 : S_FIT0 + 4]
                     y = ist[m, I_EL_CELLS] if h.units_cells else ist[m, I_EL_DECISIONS]
@@ -355,7 +355,7 @@ def team_loop(env, config, hunters, behaviour, state, appraisal, episodes, work,
                 ist[m, I_S] = encode(cells_of, prey, m, n_cells, obs_all, prey_moves)
                 ist[m, I_DECISIONS] = ist[m, I_CELLS] = ist[m, I_RANDOM] = ist[m, I_WAITS] = 0
                 fst[m, S_REWARD] = 0.0
-                broekens.start(observer, row_max(q[m], ist[m, I_S]))
+                td_emotions.start(observer, row_max(q[m], ist[m, I_S]))
         if over:
             team_i[episode, T_ROUNDS] = rounds
             team_i[episode, T_STEPS] = steps
@@ -428,5 +428,5 @@ N_IST = 22
     S_LAST_REWARD,
     S_FIT0,  # S_FIT0..S_FIT0+3: the power fit's running sums
 ) = range(7)
-S_OBSERVER = S_FIT0 + 4  # S_OBSERVER..: the Broekens observer's state (kernel.broekens)
-N_FST = S_OBSERVER + broekens.N_STATE
+S_OBSERVER = S_FIT0 + 4  # S_OBSERVER..: the Broekens observer's state (kernel.td_emotions)
+N_FST = S_OBSERVER + td_emotions.N_STATE

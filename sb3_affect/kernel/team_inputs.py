@@ -17,7 +17,7 @@ import numpy as np
 
 from sb3_affect.core.registry import EMOTION_MODELS, known_settings
 from sb3_affect.core.team_seeds import member_seed
-from sb3_affect.kernel import broekens, team
+from sb3_affect.kernel import td_emotions, team
 from sb3_affect.kernel.agents import COMPENSATED_SUM, kernel_agent
 from sb3_affect.kernel.arrays import BehaviourRows
 from sb3_affect.kernel.hunter_step import PREY_EVADE, PREY_RANDOM, PREY_STATIC
@@ -29,7 +29,7 @@ from sb3_affect.kernel.steps import AFFECT, ObsAppraisal
 MAX_KNOWN_BYTES = 1 << 30
 N_ACTIONS = 4
 PREY = {"static": PREY_STATIC, "random": PREY_RANDOM, "evade": PREY_EVADE}
-#: The emotion model the team kernel computes beside each hunter (``kernel.broekens``), as the registry names it.
+#: The emotion model the team kernel computes beside each hunter (``kernel.td_emotions``), as the registry names it.
 OBSERVER = "broekens"
 
 
@@ -287,7 +287,7 @@ def team_columns(inputs: TeamInputs, run: TeamRun) -> dict[str, list[Any]]:
         for name, values in hunter_columns(inputs, run, m).items():
             columns[f"{agent}/{name}"] = values
         for name in EMOTION_MODELS[OBSERVER].columns:
-            columns[f"{agent}/{OBSERVER}_{name}"] = _plain(run.out_f[m, :, team.F_OBSERVER + broekens.COLUMNS.index(name)])
+            columns[f"{agent}/{OBSERVER}_{name}"] = _plain(run.out_f[m, :, team.F_OBSERVER + td_emotions.COLUMNS.index(name)])
     return columns
 
 
