@@ -9,6 +9,8 @@ import pytest
 from sb3_affect.study.cli import main
 from sb3_affect.study.launcher import SweepError, load_sweep
 from sb3_affect.study.launcher.schema import derive_seed
+from sb3_affect.study.launcher.study_schema import ForensicsStudy
+from sb3_affect.study.launcher.sweep_file import load_sweep_file
 
 EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
 
@@ -260,3 +262,53 @@ def test_a_grid_per_task_and_seeds_by_task(tmp_path: Path) -> None:
     unknown = TASKS.replace('grid_by_task: {"maze: wall"', 'grid_by_task: {"maze: hall"')
     assert "grid_by_task names 'maze: hall', not a task of the sweep" in error_of(tmp_path, unknown)
     assert "is not a task name" in error_of(tmp_path, TASKS.replace('"maze: wall":', '"maze/wall":', 1))
+
+
+FORENSICS = """\
+name: tiny-forensics
+study: forensics
+screen_reps: 2
+leaders: 1
+reps: 3
+alphas: [1.0]
+gammas: [0.8]
+"""
+
+
+def test_a_forensics_study_file_validates_and_is_no_sweep_of_runs(tmp_path: Path) -> None:
+    study = load_sweep_file(write(tmp_path, FORENSICS))
+    assert isinstance(study, ForensicsStudy)
+    assert (study.screen_reps, study.leaders, study.reps, study.alphas, study.gammas) == (2, 1, 3, [1.0], [0.8])
+    assert study.protocol.model_dump() == {"epsilons": None, "seeds": None, "episodes": None}  # the paper's
+    overridden = load_sweep_file(write(tmp_path, FORENSICS), ["reps=5", "protocol.seeds=2", "gammas=[0.7, 0.9]"])
+    assert isinstance(overridden, ForensicsStudy)
+    assert (overridden.reps, overridden.protocol.seeds, overridden.gammas) == (5, 2, [0.7, 0.9])
+    with pytest.raises(SweepError, match=r"the forensics study has no runs of its own; run it with `sb3-affect run"):
+        load_sweep(write(tmp_path, FORENSICS))
+
+
+@pytest.mark.parametrize(
+    "change, overrides, expected",
+    [
+        (("reps: 3", "reps: 1"), (), "  reps: Input should be greater than or equal to 2 (got 1)\n"),
+        (("study: forensics", "study: forensic"), (), "  study: Input should be 'forensics' (got 'forensic')\n"),
+        (("alphas: [1.0]", "alphas: [0.0]"), (), "  alphas[0]: Input should be greater than 0 (got 0.0)\n"),
+        (("reps: 3", "reps: 3\nepisodes: 5"), (), "  episodes: Extra inputs are not permitted (got 5)\n"),
+        (("", ""), ("screen_reps=4",), "  reps: fewer than screen_reps (4); give reps >= 4 (got 3)\n"),
+        (("", ""), ("protocol.epsilons=[0.5]",), "  protocol.epsilons: List should have at least 2 items after validation"),
+    ],
+)
+def test_a_bad_forensics_field_is_one_line_naming_it_its_value_and_what_is_allowed(
+    tmp_path: Path, change: tuple[str, str], overrides: tuple[str, ...], expected: str
+) -> None:
+    message = error_of(tmp_path, FORENSICS.replace(*change), overrides)
+    assert expected in message, message
+    assert message.splitlines()[-1] == "  (allowed top-level keys: name, study, screen_reps, leaders, reps, alphas, gammas, protocol)"
+    assert len(message.splitlines()) == 3, message  # the file, the one bad field, the keys allowed
+
+
+def test_a_forensics_set_typo_names_the_keys_allowed(tmp_path: Path) -> None:
+    message = error_of(tmp_path, FORENSICS, ("rep=3",))
+    assert "'rep' is not a key of a forensics study file; did you mean 'reps'? (allowed: name, study, " in message
+    assert "'seed' is not a key of protocol; did you mean 'seeds'?" in error_of(tmp_path, FORENSICS, ("protocol.seed=2",))
+    assert "'reps' is a single value; use --set reps=VALUE" in error_of(tmp_path, FORENSICS, ("reps.x=2",))

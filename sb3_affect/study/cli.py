@@ -7,6 +7,7 @@ import os
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 
 class UsageError(Exception):
@@ -49,9 +50,14 @@ def _existing_folder(directory: str, command: str) -> Path:
 def _cmd_run(args: argparse.Namespace) -> int:
     from sb3_affect.study.launcher import run_sweep
     from sb3_affect.study.launcher.signals import stop_on_sigterm
+    from sb3_affect.study.launcher.study_schema import ForensicsStudy
+    from sb3_affect.study.launcher.sweep_file import load_sweep_file
 
     _check_out(args.out)
+    study = load_sweep_file(args.file, args.set or (), build=False)
     stop_on_sigterm()
+    if isinstance(study, ForensicsStudy):
+        return _run_forensics(study, args)
     summary = run_sweep(
         args.file,
         args.out,
@@ -72,25 +78,52 @@ def _cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
+def _run_forensics(study: Any, args: argparse.Namespace) -> int:
+    """``sb3-affect run`` of a forensics study file (``study: forensics``) on the launcher's executor."""
+    from sb3_affect.study.forensics.study_run import run_study, summary_lines
+
+    if args.logs:
+        raise UsageError(f"--logs {args.logs}: the forensics study runs on the compiled engine and writes no SB3 logs")
+    result = run_study(
+        study,
+        args.out,
+        workers=args.workers,
+        backend=args.backend,
+        ray_address=args.ray_address,
+        ray_timeout=args.ray_timeout,
+        progress=not args.no_progress,
+    )
+    print("\n".join(summary_lines(study, result, args.out)))
+    return 0
+
+
 def _cmd_status(args: argparse.Namespace) -> int:
     from sb3_affect.study.launcher import ResultsStore
+
+    from sb3_affect.study.forensics.unit_files import PROTOCOL_FILE, folder_status
 
     root = _existing_folder(args.dir, "status")
     if ResultsStore(root).saved_sweep() is not None:  # sweep.json, or a copy of it when it was deleted
         _print_status(root)
         return 0
-    # A `replicate` folder: one sweep folder per part (paper/, dqn/, ...).
+    if (root / PROTOCOL_FILE).exists():  # a forensics folder (`sb3-affect run forensics`)
+        print(folder_status(root))
+        return 0
+    # A `replicate` folder: one sweep folder per part (paper/, dqn/, ...), and the forensics'.
     parts = sorted(p for p in root.iterdir() if (p / "sweep.json").exists())
-    if not parts:
+    studies = sorted(p for p in root.iterdir() if (p / PROTOCOL_FILE).exists())
+    if not parts and not studies:
         print(
             f"{root}: no sweep has been run here (no sweep.json, nor sub-folders with one); "
             "start one with `sb3-affect run FILE --out DIR`",
             file=sys.stderr,
         )
         return 2
-    print(f"{root}: {len(parts)} sweeps")
+    print(f"{root}: {len(parts)} sweeps" + (" and the forensics" if studies else ""))
     for part in parts:
         _print_status(part)
+    for folder in studies:
+        print(folder_status(folder))
     report = root / "report.html"
     if report.exists():
         print(f"report: {report}")
@@ -148,7 +181,7 @@ def _cmd_replicate(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     report = replicate(
         out_dir=Path(args.out), workers=args.workers, large_seeds=args.large_seeds, forensics=not args.no_forensics,
-        command=" ".join(["sb3-affect", *sys.argv[1:]]),
+        command=" ".join(["sb3-affect", *sys.argv[1:]]), backend=args.backend, ray_address=args.ray_address,
     )
     minutes, seconds = divmod(time.perf_counter() - start, 60)
     print(f"done in {int(minutes)} min {seconds:.0f} s. Open {report.with_suffix('.html')} in a browser to read the report.")
@@ -157,17 +190,16 @@ def _cmd_replicate(args: argparse.Namespace) -> int:
 
 def _replicate_help() -> str:
     """``replicate --help``: what it runs (from ``sb3_affect.study.replicate.PARTS``, so it can not drift) and writes."""
-    from sb3_affect.study.replicate import FORENSICS, MINUTES, PARTS, STUDIES, TUNED_PARTS, part_description
+    from sb3_affect.study.replicate import MINUTES, PARTS, TUNED_PARTS, part_description
 
     lines = [
-        "The main job (`make replicate` runs it): runs these sweeps and the forensics, each into its own sub-folder",
-        "of OUT, then writes one report from all of them.",
+        "The main job (`make replicate` runs it): runs these sweep files, each into its own sub-folder of OUT (local",
+        "processes, or Ray tasks with --backend ray), then writes one report from all of them.",
         "",
         *(
             f"  OUT/{name + '/':16s} experiments/{name}.yaml: {part_description(name, d)}"
             for name, d in (*PARTS, *TUNED_PARTS)
         ),
-        *(f"  OUT/{name + '/':16s} {description.format(**FORENSICS)}" for name, description in STUDIES),
         f"  {'OUT/report.html':20s} the report (also report.md, tables/*.csv, figures/*.png): open it in a browser",
         "",
         f"{MINUTES[0].upper() + MINUTES[1:]} on 2 idle cores. Interrupted? Rerun the same command: finished runs are kept",
@@ -257,6 +289,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     replicate.add_argument(
         "--no-forensics", action="store_true", help="leave out the replication forensics (the report says so)"
+    )
+    replicate.add_argument(
+        "--backend", choices=("local", "ray"), default="local", help="where every part runs: local processes (default) or Ray tasks"
+    )
+    replicate.add_argument(
+        "--ray-address", default=None, help="Ray cluster address, HOST:PORT or ray://HOST:PORT (default: a private instance)"
     )
     replicate.set_defaults(func=_cmd_replicate)
     from sb3_affect.study.forensics.command import add_forensics_parser

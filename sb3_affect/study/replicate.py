@@ -1,10 +1,11 @@
 """
 The main job: the sweep files of ``PARTS`` through the launcher (the paper's protocol, the DQN comparison, the fair
-baselines, the hunters, the large-N study, the reading and speed ablations, the long runs, the joy trace), then
+baselines, the hunters, the large-N study, the reading and speed ablations, the long runs, the joy trace, MiniGrid,
+the replication forensics at a reduced size: a study file whose replications run on the launcher's executor), then
 through the launcher too ε tuned on each task beyond the paper (experiments/tuning.yaml, in rounds) and those tasks with
-the tuned ε (experiments/beyond.yaml: static grid, moving and evading prey, mazes), the replication forensics at a
-reduced size, then one report (the forensics section passed in from here: the report layer does not import the
-forensics).
+the tuned ε (experiments/beyond.yaml: static grid, moving and evading prey, mazes), then one report (the forensics
+section passed in from here: the report layer does not import the forensics). Every part runs on the same backend,
+local processes or Ray.
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ PARTS = (
     ("long", "long runs: both paper agents, runs of 2,000 episodes ({runs} runs)"),
     ("joy_trace", "joy trace: the paper's affective agent, each decision's emotion and act recorded ({runs} runs)"),
     ("minigrid", "the tabular agents on MiniGrid ({runs} runs)"),
+    ("forensics", "replication forensics: {screen_reps} screen, {leaders} leaders x {reps} replications"),
 )
 #: Parts that need a package of an extra: (part, package, extra); without it the part is skipped with one line.
 PART_PACKAGES = (("minigrid", "minigrid", "minigrid"),)
@@ -46,8 +48,8 @@ LARGE_SEEDS: int | None = None
 ABLATION_SEEDS: int | None = None
 BEYOND_SEEDS: int | None = None
 ENGINE_EPISODES: int | None = None
-#: The forensics' size inside the main job (``sb3-affect forensics`` alone defaults to 3 / 4 / 100).
-FORENSICS = {"screen_reps": 2, "leaders": 4, "reps": 30}
+#: Further ``--set`` overrides of a part by name, for quick checks (e.g. ``{"forensics": ["reps=2"]}``).
+OVERRIDES: dict[str, list[str]] = {}
 #: The main job's wall time on 2 idle cores, as the help and the docs quote it (measured: see the README).
 MINUTES = "about 6-9 minutes"
 #: The sweeps after ``PARTS``, in order: the tuning (its rounds in ``OUT/tuning/round<k>``), then the tasks beyond the
@@ -57,8 +59,6 @@ TUNED_PARTS = (
      "round0/, then one value further out where the best sits at an edge (round1/, ...)"),
     ("beyond", "static grid, moving and evading prey, mazes, with the tuned ε ({runs} runs)"),
 )  # fmt: skip
-#: The studies after the sweeps: (results folder, description), for the help.
-STUDIES = (("forensics", "the replication forensics at a reduced size: {screen_reps} screen and {reps} leader replications"),)
 
 
 def sweep_runs(path: Path) -> int | None:
@@ -106,11 +106,31 @@ def sweeps_folder(experiments: Path | None = None) -> Path:
 
 
 def part_description(name: str, description: str, experiments: Path | None = None) -> str:
-    """A part's description with its run count read from its experiment file (one source for that number)."""
-    if "{runs}" not in description:
+    """
+    A part's description with its sizes read from its sweep file (one source for those numbers): ``{runs}`` (a sweep's
+    run count) and any top-level key of the file (a study's ``{reps}``); "?" where the file can not be read.
+    """
+    if "{" not in description:
         return description
-    runs = sweep_runs(sweeps_folder(experiments) / f"{name}.yaml")
-    return description.format(runs=runs if runs is not None else "?")
+    path = sweeps_folder(experiments) / f"{name}.yaml"
+    values: dict[str, Any] = {}
+    try:
+        import yaml
+
+        data = yaml.safe_load(path.read_text())
+        values.update(data if isinstance(data, dict) else {})
+    except (ImportError, OSError, ValueError):  # without the experiments extra the help gives no sizes
+        pass
+    if "{runs}" in description:
+        values["runs"] = sweep_runs(path)
+    return description.format_map(_Unknown({key: value for key, value in values.items() if value is not None}))
+
+
+class _Unknown(dict[str, Any]):
+    """``str.format_map`` values that give "?" for a key they do not hold."""
+
+    def __missing__(self, key: str) -> str:
+        return "?"
 
 
 def forensics_extra(folder: Path) -> Any:
@@ -130,11 +150,13 @@ def main(
     engine_episodes: int | None = None,
     forensics: bool = True,
     command: str | None = None,
+    backend: str = "local",
+    ray_address: str | None = None,
 ) -> Path:
     """
-    Run the sweeps of ``PARTS`` into ``out_dir/<name>`` through the launcher (resuming what is there), then those of
-    ``TUNED_PARTS``: the per-task tuning of ε into ``out_dir/tuning/round<k>`` and the tasks beyond the paper with the
-    tuned ε into ``out_dir/beyond``; the forensics into ``out_dir/forensics``, then write
+    Run the sweep files of ``PARTS`` into ``out_dir/<name>`` (resuming what is there): the sweeps through the launcher,
+    the forensics study on its executor; then those of ``TUNED_PARTS``: the per-task tuning of ε into
+    ``out_dir/tuning/round<k>`` and the tasks beyond the paper with the tuned ε into ``out_dir/beyond``; then write
     ``out_dir/report.md`` (and .html, tables/, figures/). Prints the wall time of each part.
 
     :param out_dir: the replicate folder
@@ -147,11 +169,16 @@ def main(
         file's)
     :param engine_episodes: episodes per run of the ``SIZED`` parts (``long``: 10 x as many), the tuning and the tasks
         beyond the paper (default ``ENGINE_EPISODES``; None: the files'; fewer for quick checks)
-    :param forensics: run the replication forensics (size ``FORENSICS``) into ``out_dir/forensics``
+    :param forensics: run the replication forensics (experiments/forensics.yaml) into ``out_dir/forensics``
     :param command: the command line to record (default: this process's)
+    :param backend: where every part runs: ``"local"`` (processes) or ``"ray"`` (Ray tasks)
+    :param ray_address: the Ray cluster of every part, HOST:PORT or ray://HOST:PORT (default: a private instance)
     :return: the path of report.md
     """
+    from sb3_affect.study.forensics.study_run import run_study
     from sb3_affect.study.launcher import run_sweep
+    from sb3_affect.study.launcher.study_schema import ForensicsStudy
+    from sb3_affect.study.launcher.sweep_file import load_sweep_file
     from sb3_affect.study.report import build_report
 
     experiments = sweeps_folder(experiments)
@@ -163,9 +190,14 @@ def main(
     _refuse_a_sweep_folder(out_dir)
     record = _Record(out_dir)
     timings: dict[str, float] = {}
+    executor = {"workers": workers, "backend": backend, "ray_address": ray_address}
+    extra = []
     for name, description in PARTS:
+        if name == "forensics" and not forensics:
+            continue
         path = experiments / f"{name}.yaml"
         overrides = _sized(name, path, large_seeds, ablation_seeds, engine_episodes) if name in SIZED else []
+        overrides += OVERRIDES.get(name, [])
         description = part_description(name, description, experiments)
         missing = missing_package(name)
         if missing:
@@ -174,8 +206,18 @@ def main(
         if overrides:
             description += f" [{', '.join(overrides)}]"
         print(f"== {description}: {path} -> {out_dir / name}", flush=True)
-        summary = run_sweep(path, out_dir / name, workers=workers, overrides=overrides)
         key = f"{name} ({description})"
+        study = load_sweep_file(path, overrides, build=False)
+        if isinstance(study, ForensicsStudy):  # a study: no progress bar of its own in the log, a heartbeat instead
+            with _heartbeat(description):
+                result = run_study(study, out_dir / name, progress=False, **executor)
+            timings[key] = record.part(key, result.seconds, done_before=result.reused, todo=result.simulated)
+            print(f"   {result.simulated} replications now, {result.reused} already done, {result.seconds:.1f} s", flush=True)
+            section = forensics_extra(out_dir / name)
+            if section is not None:
+                extra.append(section)
+            continue
+        summary = run_sweep(path, out_dir / name, overrides=overrides, **executor)
         timings[key] = record.part(key, summary.seconds, done_before=summary.skipped, todo=summary.total - summary.skipped)
         print(
             f"   {summary.finished} runs now, {summary.skipped} already done, {summary.failed} failed, "
@@ -188,7 +230,7 @@ def main(
     _check_disjoint(tuning, tuning_sized, beyond, beyond_sized)
     description = f"ε tuned per task beyond the paper, {_seeds(tuning, tuning_sized)} seeds per value"
     print(f"== {description}: {tuning} -> {out_dir / 'tuning'}/round<k>", flush=True)
-    tuned, summaries = tune_rounds(tuning, out_dir / "tuning", tuning_sized, workers)
+    tuned, summaries = tune_rounds(tuning, out_dir / "tuning", tuning_sized, **executor)
     timings[description] = record.part(
         description,
         sum(summary.seconds for summary in summaries),
@@ -199,33 +241,11 @@ def main(
     print(f"   {len(summaries)} round(s), {timings[description]:.1f} s; chosen: {chosen}", flush=True)
     description = f"static grid, moving and evading prey, mazes, {_seeds(beyond, beyond_sized)} seeds"
     print(f"== {description}: {beyond} -> {out_dir / 'beyond'}", flush=True)
-    summary = run_sweep(beyond, out_dir / "beyond", workers=workers, overrides=[*beyond_sized, *_tuned(beyond, tuned)])
+    summary = run_sweep(beyond, out_dir / "beyond", overrides=[*beyond_sized, *_tuned(beyond, tuned)], **executor)
     timings[description] = record.part(
         description, summary.seconds, done_before=summary.skipped, todo=summary.total - summary.skipped
     )
     print(f"   {summary.total} runs, {summary.skipped} already done, {summary.seconds:.1f} s", flush=True)
-    extra = []
-    if forensics:
-        from sb3_affect.study.forensics.analysis import run_forensics
-
-        description = "replication forensics ({screen_reps} screen, {leaders} leaders x {reps} replications)"
-        description = description.format(**FORENSICS)
-        print(f"== {description} -> {out_dir / 'forensics'}", flush=True)
-        start = time.perf_counter()
-        with _heartbeat(description):
-            run_forensics(
-                out_dir / "forensics",
-                screen_reps=FORENSICS["screen_reps"],
-                leaders=FORENSICS["leaders"],
-                reps=FORENSICS["reps"],
-                workers=workers or len(_cpus()),
-                progress=False,
-            )
-        timings[description] = record.set(description, time.perf_counter() - start)
-        print(f"   {timings[description]:.1f} s", flush=True)
-        section = forensics_extra(out_dir / "forensics")
-        if section is not None:
-            extra.append(section)
     start = time.perf_counter()
     report = build_report(out_dir, timings=timings, extra_sections=extra, command=command or " ".join(sys.argv))
     timings["report"] = time.perf_counter() - start
@@ -236,7 +256,7 @@ def main(
 
 
 def tune_rounds(
-    path: Path, folder: Path, overrides: list[str], workers: int | None = None
+    path: Path, folder: Path, overrides: list[str], workers: int | None = None, **executor: Any
 ) -> tuple[dict[tuple[str, str], Any], list[Any]]:
     """
     The per-task tuning (``report.tuning.tune``) through the launcher: the sweep file ``path`` into ``folder/round0``,
@@ -244,6 +264,7 @@ def tune_rounds(
     those tasks only: ``grid_by_task``). Finished rounds are resumed (nothing left to run).
 
     :param overrides: ``--set`` overrides of every round (its size)
+    :param executor: ``run_sweep``'s ``backend`` and ``ray_address``
     :return: the tuning of each (task, agent), and the launcher's summary of each round
     """
     import yaml
@@ -264,7 +285,7 @@ def tune_rounds(
             if by_task:
                 round_agents.append({**{key: v for key, v in agent.items() if key != "grid"}, "grid_by_task": by_task})
         extra = [f"agents={json.dumps(round_agents)}"] if k else []
-        summaries.append(run_sweep(path, folder / f"round{k}", workers=workers, overrides=[*overrides, *extra]))
+        summaries.append(run_sweep(path, folder / f"round{k}", workers=workers, overrides=[*overrides, *extra], **executor))
         found = folder_study(folder / f"round{k}")
         if found is None or round_values(found[0]) != values:
             raise RuntimeError(f"{folder / f'round{k}'} does not hold every run of the round ({summaries[-1].failed} failed)")
@@ -416,8 +437,3 @@ class _Record:
         tmp.write_text(json.dumps({"timings": self.timings, "runs": self.runs}, indent=1))
         tmp.replace(self.path)
 
-
-def _cpus() -> set[int]:
-    import os
-
-    return os.sched_getaffinity(0) if hasattr(os, "sched_getaffinity") else set(range(os.cpu_count() or 1))

@@ -63,6 +63,8 @@ class ForensicsResult:
     :param unreached: the printed statistics that no leader candidate reaches (``intervals``' "finding" says whether a
         screen-size interval covers them: not ruled out, not shown)
     :param seconds: wall time
+    :param simulated: the replications simulated by this call
+    :param reused: the replications the folder held already (an earlier run's), read back instead
     """
 
     screen: pd.DataFrame
@@ -70,6 +72,8 @@ class ForensicsResult:
     intervals: pd.DataFrame
     unreached: list[str]
     seconds: float
+    simulated: int = 0
+    reused: int = 0
 
 
 class _Samples:
@@ -132,6 +136,7 @@ def run_forensics(
     printed: np.ndarray | None = None,
     backend: str = "local",
     ray_address: str | None = None,
+    ray_timeout: float = 60.0,
 ) -> ForensicsResult:
     """
     Screen the candidate space, replicate the leaders, score the printed numbers, write the tables and the report.
@@ -147,9 +152,9 @@ def run_forensics(
     :param printed: the numbers to explain, one per ``STATISTICS`` entry (default: the paper's)
     :param backend: where the replications run: ``"local"`` (forked processes) or ``"ray"`` (Ray tasks), as a sweep's
     :param ray_address: the Ray cluster, HOST:PORT or ray://HOST:PORT (default: a private instance)
+    :param ray_timeout: seconds to wait for the Ray cluster to answer
     """
     start = time.perf_counter()
-    executor = (backend, ray_address)
     space = space or CandidateSpace.default()
     protocol = protocol or Protocol()
     if screen_reps < 2:
@@ -168,15 +173,23 @@ def run_forensics(
     screen_range = range(screen_reps)
     samples = _Samples(store)
     cells = len(protocol.epsilons)
+    requested: dict[tuple[Simulation, int], None] = {}
+    simulated = 0
+
+    def phase(units: list[tuple[Simulation, int]], desc: str, stop_above: dict[Simulation, float] | None) -> None:
+        nonlocal simulated
+        requested.update(dict.fromkeys(units))
+        simulated += run_units(store, units, workers, progress, desc, stop_above, backend, ray_address, ray_timeout)
+
     stop = {sim: REJECT_FACTOR * cells * _printed_steps(observed, sim.agent == STANDARD) for sim in standard + affective}
-    run_units(store, _units(standard + affective, range(1)), workers, progress, "pre-screen", stop, *executor)
+    phase(_units(standard + affective, range(1)), "pre-screen", stop)
     ratios = {
         sim: _steps_ratio(store.read(sim, 0, partial_ok=True), observed, sim.agent == STANDARD, cells)
         for sim in standard + affective
     }
     kept = [sim for sim in affective if max(ratios[sim], ratios[sim.standard]) <= REJECT_FACTOR]
     partners = list(dict.fromkeys(sim.standard for sim in kept))
-    run_units(store, _units(partners + kept, screen_range), workers, progress, "screen", None, *executor)
+    phase(_units(partners + kept, screen_range), "screen", None)
 
     rows = []
     screened = {}
@@ -198,7 +211,7 @@ def run_forensics(
             break
     full_range = range(reps)
     leader_units = _units(list(dict.fromkeys([s.standard for s in leading])) + leading, full_range)
-    run_units(store, leader_units, workers, progress, "leaders", None, *executor)
+    phase(leader_units, "leaders", None)
 
     finalists = [c for c in space.candidates() if c.affective in leading]
     full = {c.name: samples.sample(c, full_range) for c in finalists}
@@ -217,7 +230,8 @@ def run_forensics(
     leaders_table["loglik_reachable_mc_error"] = [
         monte_carlo_error(full[name], reachable) for name in leaders_table.candidate
     ]
-    result = ForensicsResult(screen, leaders_table, table, unreached, time.perf_counter() - start)
+    seconds = time.perf_counter() - start
+    result = ForensicsResult(screen, leaders_table, table, unreached, seconds, simulated, len(requested) - simulated)
     screen.to_csv(out / "screen.csv", index=False)
     leaders_table.to_csv(out / "leaders.csv", index=False)
     table.to_csv(out / "intervals.csv")

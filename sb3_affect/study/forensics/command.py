@@ -23,7 +23,9 @@ def add_forensics_parser(sub: Any) -> argparse.ArgumentParser:
         help="which candidate implementation could have produced the paper's printed numbers (resumable)",
         description="Simulate the paper's protocol many times per candidate implementation, score the printed "
         "numbers of Tables IV and V and the 27.35 episodes under each, rank the candidates (docs/forensics.md). "
-        "Writes DIR/forensics.md (tables and a figure); rerun the same command to resume.",
+        "Writes DIR/forensics.md (tables and a figure); rerun the same command to resume. The study of the shipped "
+        "sweep file experiments/forensics.yaml with the sizes and grid below: the same as `sb3-affect run forensics "
+        "--out DIR --set reps=100 ...`.",
     )
     parser.add_argument("--out", required=True, help="results folder, e.g. runs/forensics")
     parser.add_argument("--workers", type=int, default=2, help="worker processes (default: 2)")
@@ -34,45 +36,38 @@ def add_forensics_parser(sub: Any) -> argparse.ArgumentParser:
     parser.add_argument("--screen-reps", type=int, default=3, help="replications per simulation in the screen (default: 3)")
     parser.add_argument("--leaders", type=int, default=4, help="affective simulations replicated in full (default: 4)")
     parser.add_argument("--reps", type=int, default=100, help="replications of each leader (default: 100)")
-    parser.add_argument("--alphas", type=_floats, default=None, help="learning rates of the grid (default: 0.5,1.0)")
-    parser.add_argument("--gammas", type=_floats, default=None, help="discounts of the grid (default: 0.7,0.8,0.9)")
+    parser.add_argument(
+        "--alphas", type=_floats, default=None, help="learning rates of the grid (default: experiments/forensics.yaml's)"
+    )
+    parser.add_argument("--gammas", type=_floats, default=None, help="discounts of the grid (default: experiments/forensics.yaml's)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.set_defaults(func=forensics_command)
     return parser
 
 
 def forensics_command(args: argparse.Namespace) -> int:
-    """Run the forensics and print where the report is."""
-    import dataclasses
+    """Run the study of the shipped experiments/forensics.yaml with the command's sizes and grid."""
+    from pydantic import ValidationError
 
-    from sb3_affect.study.forensics.analysis import run_forensics
-    from sb3_affect.study.forensics.candidates import CandidateSpace
+    from sb3_affect.study.forensics.study_run import run_study, summary_lines
     from sb3_affect.study.launcher.signals import stop_on_sigterm
+    from sb3_affect.study.launcher.study_schema import ForensicsStudy
+    from sb3_affect.study.launcher.sweep_file import load_sweep_file, shipped_sweeps_folder
 
     if args.workers < 1:
         raise SystemExit(f"sb3-affect forensics: error: --workers={args.workers} must be >= 1")
-    stop_on_sigterm()  # `kill`: stop like Ctrl-C (the pool's workers first), exit 143
-    space = CandidateSpace.default()
-    if args.alphas:
-        space = dataclasses.replace(space, alphas=args.alphas)
-    if args.gammas:
-        space = dataclasses.replace(space, gammas=args.gammas)
+    shipped = load_sweep_file(shipped_sweeps_folder() / "forensics.yaml", build=False)
+    given = {"screen_reps": args.screen_reps, "leaders": args.leaders, "reps": args.reps}
+    given.update({key: list(getattr(args, key)) for key in ("alphas", "gammas") if getattr(args, key)})
     try:
-        result = run_forensics(
-            args.out,
-            space,
-            screen_reps=args.screen_reps,
-            leaders=args.leaders,
-            reps=args.reps,
-            workers=args.workers,
-            progress=not args.no_progress,
-            backend=args.backend,
-            ray_address=args.ray_address,
-        )
-    except ValueError as error:
-        raise SystemExit(f"sb3-affect forensics: error: {error}") from None
-    best = result.leaders.iloc[0]
-    print(f"best candidate: {best.candidate} (posterior {best.posterior:.3g} among the leaders' candidates)")
-    print(f"printed numbers no leading candidate reaches: {', '.join(result.unreached) or 'none'}")
-    print(f"{result.seconds:.1f} s; report section: {args.out}/forensics.md")
+        study = ForensicsStudy.model_validate({**shipped.model_dump(), **given})
+    except ValidationError as error:
+        first = error.errors()[0]
+        option = f"--{str(first['loc'][0]).replace('_', '-')}={first['input']!r}: " if first["loc"] else ""
+        raise SystemExit(f"sb3-affect forensics: error: {option}{first['msg'].removeprefix('Value error, ')}") from None
+    stop_on_sigterm()  # `kill`: stop like Ctrl-C (the pool's workers first), exit 143
+    result = run_study(
+        study, args.out, workers=args.workers, backend=args.backend, ray_address=args.ray_address, progress=not args.no_progress
+    )
+    print("\n".join(summary_lines(study, result, args.out)))
     return 0

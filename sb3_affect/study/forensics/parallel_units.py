@@ -94,6 +94,7 @@ def run_units(
     stop_above: Mapping[Simulation, float] | None = None,
     backend: str = "local",
     ray_address: str | None = None,
+    ray_timeout: float = 60.0,
 ) -> int:
     """
     Simulate every unit not yet in ``store`` and write each one as soon as it finishes (the driver is the only
@@ -109,6 +110,7 @@ def run_units(
         counts as done only for callers that also pass ``stop_above``)
     :param backend: ``"local"`` (forked processes) or ``"ray"`` (``launcher.run_ray``)
     :param ray_address: the Ray cluster (default: a private instance of ``workers`` CPUs)
+    :param ray_timeout: seconds to wait for the Ray cluster to answer
     """
     from tqdm.auto import tqdm
 
@@ -132,7 +134,7 @@ def run_units(
         if backend == "ray":
             from sb3_affect.study.launcher.launcher import run_ray
 
-            run_ray(jobs, workers, on_result, on_failure, ray_address)
+            run_ray(jobs, workers, on_result, on_failure, ray_address, timeout=ray_timeout)
         elif workers <= 1:
             for job in jobs:
                 on_result(job, job.execute())

@@ -22,6 +22,9 @@ import pandas as pd
 from sb3_affect.study.forensics.candidates import Protocol, Simulation
 from sb3_affect.study.launcher.store import StoreError, _write_atomic
 
+#: The file that marks a forensics folder and holds its protocol.
+PROTOCOL_FILE = "forensics.json"
+
 
 class SummaryStore:
     """
@@ -35,7 +38,7 @@ class SummaryStore:
         self.root = Path(root)
         self.protocol = protocol
         self.root.mkdir(parents=True, exist_ok=True)
-        saved = self.root / "forensics.json"
+        saved = self.root / PROTOCOL_FILE
         wanted = {"protocol": protocol.as_dict()}
         if saved.exists():
             found = json.loads(saved.read_text())
@@ -83,3 +86,25 @@ class SummaryStore:
         """The complete replications stored for a simulation."""
         folder = self.root / "summaries" / simulation.key
         return sorted(int(p.stem[1:]) for p in folder.glob("r[0-9][0-9][0-9][0-9].json")) if folder.is_dir() else []
+
+
+def folder_status(root: str | Path) -> str:
+    """
+    One line on how far a forensics folder is: the replications stored (and stopped early), of how many simulations,
+    and the sizes of the last analysis written (``run.json``). Reads only; writes nothing.
+    """
+    root = Path(root)
+    summaries = root / "summaries"
+    folders = [p for p in summaries.iterdir() if p.is_dir()] if summaries.is_dir() else []
+    complete = sum(1 for folder in folders for _ in folder.glob("r[0-9][0-9][0-9][0-9].json"))
+    partial = sum(1 for folder in folders for _ in folder.glob("r[0-9][0-9][0-9][0-9].partial.json"))
+    line = (
+        f"forensics in {root}: {complete} replications stored ({partial} more stopped early in the pre-screen) "
+        f"of {len(folders)} simulations"
+    )
+    try:
+        run = json.loads((root / "run.json").read_text())
+        sizes = f"{run['screen_reps']} screen, {run['leaders']} leaders x {run['reps']} replications"
+    except (OSError, ValueError, KeyError, TypeError):
+        return f"{line}; no analysis written yet (rerun the same command to resume)"
+    return f"{line}; analysis of {sizes} in {root / 'forensics.md'}"

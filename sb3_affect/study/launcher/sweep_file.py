@@ -20,8 +20,9 @@ import yaml
 from pydantic import ValidationError
 
 from sb3_affect.study.launcher.schema import KWARG_REFERENCE, AgentSpec, EnvSpec, Sweep, SweepError
+from sb3_affect.study.launcher.study_schema import ForensicsStudy, ProtocolSpec
 
-__all__ = ["load_sweep", "resolve_sweep_path", "shipped_sweeps", "shipped_sweeps_folder"]
+__all__ = ["load_sweep", "load_sweep_file", "resolve_sweep_path", "shipped_sweeps", "shipped_sweeps_folder"]
 
 
 def shipped_sweeps_folder() -> Path:
@@ -101,6 +102,11 @@ def _check_size(data: Any, where: str) -> None:
             stack.extend((v, f"{key}[{i}]", depth + 1) for i, v in enumerate(value))
 
 
+def _model_of(data: dict[str, Any]) -> type[Sweep] | type[ForensicsStudy]:
+    """The model a file's data is validated with: a study's (``study:``) or a sweep of runs'."""
+    return ForensicsStudy if "study" in data else Sweep
+
+
 def _override_path(assignment: str, data: dict[str, Any]) -> tuple[list[Any], Any]:
     """
     Check the key path of one ``--set key.path=value`` against the schema; return the path (list items as ints) and
@@ -125,9 +131,16 @@ def _override_path(assignment: str, data: dict[str, Any]) -> tuple[list[Any], An
             f"--set {assignment!r}: {key!r} is not a key of {where}{hint} (allowed: {', '.join(allowed)})"
         )
 
-    top = list(Sweep.model_fields)
+    model = _model_of(data)
+    top = list(model.model_fields)
     if keys[0] not in top:
-        raise unknown(keys[0], top, "a sweep file")
+        raise unknown(keys[0], top, "a sweep file" if model is Sweep else "a forensics study file")
+    if model is ForensicsStudy:
+        if keys[0] == "protocol" and len(keys) > 1 and keys[1] not in ProtocolSpec.model_fields:
+            raise unknown(keys[1], list(ProtocolSpec.model_fields), "protocol")
+        if keys[0] != "protocol" and len(keys) > 1:
+            raise SweepError(f"--set {assignment!r}: {keys[0]!r} is a single value; use --set {keys[0]}=VALUE")
+        return keys, value
     if keys[0] == "env" and len(keys) > 1 and keys[1] not in EnvSpec.model_fields:
         raise unknown(keys[1], list(EnvSpec.model_fields), "env")
     if keys[0] in ("name", "episodes", "seeds", "max_timesteps", "logs") and len(keys) > 1:
@@ -201,10 +214,28 @@ def _key_path(location: tuple[Any, ...], data: dict[str, Any]) -> str:
 
 def load_sweep(path: str | Path, overrides: tuple[str, ...] | list[str] = (), *, build: bool = True) -> Sweep:
     """
-    Read, override and validate a sweep file; every problem is a ``SweepError`` naming the file and the key.
+    Read, override and validate a sweep file of runs; every problem is a ``SweepError`` naming the file and the key.
 
     :param build: also build the env and each agent once (without training, in a short-lived child process), so
         that an unknown or impossible kwarg is reported now rather than by every run of the sweep
+    """
+    sweep = load_sweep_file(path, overrides, build=build)
+    if not isinstance(sweep, Sweep):
+        raise SweepError(
+            f"{resolve_sweep_path(path)}: the {sweep.study} study has no runs of its own; run it with "
+            f"`sb3-affect run {path} --out DIR`"
+        )
+    return sweep
+
+
+def load_sweep_file(
+    path: str | Path, overrides: tuple[str, ...] | list[str] = (), *, build: bool = True
+) -> Sweep | ForensicsStudy:
+    """
+    Read, override and validate a sweep file: a sweep of runs (``Sweep``) or a study (``study: forensics``, a
+    ``ForensicsStudy``); every problem is a ``SweepError`` naming the file and the key.
+
+    :param build: for a sweep of runs, also build the env and each agent once (``load_sweep``)
     """
     path = resolve_sweep_path(path)
     try:
@@ -242,8 +273,9 @@ def load_sweep(path: str | Path, overrides: tuple[str, ...] | list[str] = (), *,
         except (KeyError, IndexError, ValueError, TypeError, AttributeError) as error:
             raise SweepError(f"--set {assignment!r} does not apply to {path} ({error})") from None
     _check_size(data, str(path))
+    model = _model_of(data)
     try:
-        sweep = Sweep.model_validate(data)
+        sweep = model.model_validate(data)
     except ValidationError as error:
         lines, from_file = [], False
         for item in error.errors():
@@ -256,10 +288,10 @@ def load_sweep(path: str | Path, overrides: tuple[str, ...] | list[str] = (), *,
             setters = [a for a, keys in overridden if _overlaps(location, keys)]
             from_file = from_file or not setters
             lines.append(f"  {key}: {message}{shown}" + (f" [from --set {setters[-1]}]" if setters else ""))
-        allowed = "allowed top-level keys: " + ", ".join(Sweep.model_fields)
+        allowed = "allowed top-level keys: " + ", ".join(model.model_fields)
         what = "invalid sweep file" if from_file else "invalid --set value"
         raise SweepError(f"{path}: {what}\n" + "\n".join(lines) + f"\n  ({allowed})") from None
-    if build:
+    if build and isinstance(sweep, Sweep):
         from sb3_affect.study.launcher.one_run import check_configs_in_child
 
         index = {agent.name: i for i, agent in enumerate(sweep.agents)}
