@@ -11,6 +11,8 @@ import pytest
 import sb3_affect
 from sb3_affect.study import replicate
 from sb3_affect.study.cli import main
+from sb3_affect.study.forensics import Protocol
+from sb3_affect.study.forensics.unit_files import SummaryStore
 from sb3_affect.study.launcher import SweepError, load_sweep, run_sweep
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -74,11 +76,13 @@ def test_status_of_missing_folder_and_of_a_replicate_folder(tmp_path: Path, caps
     # The layout `replicate` writes: one sweep per sub-folder.
     for part in ("paper", "dqn"):
         run_sweep(tiny(tmp_path / "files", part), tmp_path / "runs" / part, workers=1, progress=False)
+    SummaryStore(tmp_path / "runs" / "forensics", Protocol())  # the forensics' folder, before its first replication
     capsys.readouterr()
     assert main(["status", str(tmp_path / "runs")]) == 0
     out = capsys.readouterr().out
-    assert "2 sweeps" in out
+    assert "2 sweeps and the forensics" in out
     assert "sweep 'paper'" in out and "sweep 'dqn'" in out and out.count("8/8 runs done") == 2
+    assert f"forensics in {tmp_path / 'runs' / 'forensics'}: 0 replications stored" in out and "no analysis written yet" in out
 
 
 def test_run_out_is_a_file_and_workers_below_one(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -145,6 +149,9 @@ def test_help_describes_every_argument(capsys: pytest.CaptureFixture[str]) -> No
         assert f"{replicate.MINUTES} on 2 idle cores" in (ROOT / page).read_text(), page
     assert "min" not in (ROOT / "Makefile").read_text().split("replicate: venv")[1].split("\n\n")[0]
     assert "parallel runs, >= 1" in helps["run"]
+    # the forensics is a part like the others, its sizes read from its sweep file; every part runs local or on Ray
+    assert "experiments/forensics.yaml: replication forensics: 2 screen, 4 leaders x 30 replications" in helps["replicate"]
+    assert "--backend {local,ray}" in helps["replicate"] and "--ray-address" in helps["replicate"]
 
 
 @pytest.mark.slow

@@ -292,10 +292,11 @@ def test_a_forensics_study_file_validates_and_is_no_sweep_of_runs(tmp_path: Path
     [
         (("reps: 3", "reps: 1"), (), "  reps: Input should be greater than or equal to 2 (got 1)\n"),
         (("study: forensics", "study: forensic"), (), "  study: Input should be 'forensics' (got 'forensic')\n"),
-        (("alphas: [1.0]", "alphas: [0.0]"), (), "  alphas[0]: Input should be greater than 0 (got 0.0)\n"),
+        (("alphas: [1.0]", "alphas: [0.0]"), (), "  alphas: 0.0 is not a learning rate; each is in (0, 1]\n"),
         (("reps: 3", "reps: 3\nepisodes: 5"), (), "  episodes: Extra inputs are not permitted (got 5)\n"),
         (("", ""), ("screen_reps=4",), "  reps: fewer than screen_reps (4); give reps >= 4 (got 3)\n"),
         (("", ""), ("protocol.epsilons=[0.5]",), "  protocol.epsilons: List should have at least 2 items after validation"),
+        (("", ""), ("protocol.epsilons=[0.5, 1.5]",), "  protocol.epsilons: 1.5 is not an ε; each is in [0, 1] [from --set"),
     ],
 )
 def test_a_bad_forensics_field_is_one_line_naming_it_its_value_and_what_is_allowed(
@@ -303,7 +304,8 @@ def test_a_bad_forensics_field_is_one_line_naming_it_its_value_and_what_is_allow
 ) -> None:
     message = error_of(tmp_path, FORENSICS.replace(*change), overrides)
     assert expected in message, message
-    assert message.splitlines()[-1] == "  (allowed top-level keys: name, study, screen_reps, leaders, reps, alphas, gammas, protocol)"
+    allowed = "  (allowed top-level keys: name, study, screen_reps, leaders, reps, alphas, gammas, protocol)"
+    assert message.splitlines()[-1] == allowed
     assert len(message.splitlines()) == 3, message  # the file, the one bad field, the keys allowed
 
 

@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
+import re
 import shutil
 from pathlib import Path
 
@@ -12,7 +14,7 @@ import pandas as pd
 import pytest
 
 from sb3_affect.engine.simulation import simulate
-from sb3_affect.study.cli import build_parser
+from sb3_affect.study.cli import build_parser, main
 from sb3_affect.study.forensics import (
     STATISTICS,
     CandidateSpace,
@@ -36,9 +38,12 @@ from sb3_affect.study.forensics.scoring import (
 )
 from sb3_affect.study.forensics.section import findings_lines, forensics_section, report_section
 from sb3_affect.study.forensics.statistics import candidate_statistics, cell_summary
+from sb3_affect.study.forensics.study_run import study_protocol, study_space
 from sb3_affect.study.forensics.unit_files import SummaryStore
 from sb3_affect.study.launcher import run_sweep
 from sb3_affect.study.launcher.store import StoreError
+from sb3_affect.study.launcher.study_schema import ForensicsStudy
+from sb3_affect.study.launcher.sweep_file import load_sweep_file
 from sb3_affect.study.report import build_report, paper
 from sb3_affect.study.report.metrics import run_metrics
 
@@ -183,6 +188,24 @@ def test_cli_parses_forensics() -> None:
         build_parser().parse_args(["forensics", "--out", "x", "--gammas", "high"])
 
 
+def test_the_shipped_sweep_file_is_the_main_jobs_forensics() -> None:
+    """experiments/forensics.yaml: the main job's sizes, the default candidate space and the paper's protocol, so the
+    forensics run from it is the one run before with those sizes."""
+    study = load_sweep_file("forensics")  # by name: the file shipped with the package
+    assert isinstance(study, ForensicsStudy)
+    assert (study.screen_reps, study.leaders, study.reps) == (2, 4, 30)
+    assert study_space(study) == CandidateSpace.default() and study_protocol(study) == Protocol()
+
+
+def test_the_forensics_command_names_a_bad_size(tmp_path: Path) -> None:
+    with pytest.raises(SystemExit, match=r"^sb3-affect forensics: error: --reps=2: fewer than screen_reps \(3\); give "):
+        main(["forensics", "--out", str(tmp_path / "f"), "--reps", "2"])
+    bad_alpha = r"^sb3-affect forensics: error: --alphas=\[0.0, 1.0\]: 0.0 is not a learning rate; each is in \(0, 1\]$"
+    with pytest.raises(SystemExit, match=bad_alpha):
+        main(["forensics", "--out", str(tmp_path / "f"), "--alphas", "0,1"])
+    assert not (tmp_path / "f").exists()
+
+
 @pytest.mark.slow
 def test_self_check_recovers_the_candidate_that_printed_the_numbers(tmp_path: Path) -> None:
     """Numbers 'printed' by one replication of a known candidate: the analysis ranks that candidate first."""
@@ -241,9 +264,26 @@ def test_the_sensitivity_row_gives_each_printed_number_beside_the_leaders_mean(t
     assert leader_sensitivity_lines(tmp_path / "none", leaders, intervals) == []
 
 
+TINY_STUDY = """\
+name: tiny-forensics
+study: forensics
+screen_reps: 2
+leaders: 1
+reps: 2
+alphas: [1.0]
+gammas: [0.8]
+protocol: {epsilons: [0.2, 0.6], seeds: 2, episodes: 10}
+"""
+
+
 @pytest.mark.parametrize("backend", ["local", pytest.param("ray", marks=pytest.mark.ray)])
-def test_units_on_the_launchers_executor_store_what_one_process_stores(tmp_path: Path, backend: str) -> None:
-    """The same summary files in this process and on the launcher's executor (2 forked workers, or Ray tasks)."""
+def test_units_on_the_launchers_executor_store_what_one_process_stores(
+    tmp_path: Path, backend: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """
+    The same summary files in this process and on the launcher's executor (2 forked workers, or Ray tasks); a
+    forensics sweep file runs there with ``sb3-affect run`` and resumes.
+    """
     if backend == "ray":
         pytest.importorskip("ray")
     protocol = Protocol(epsilons=(0.1, 0.2, 0.9), seeds=2, episodes=8)
@@ -257,3 +297,24 @@ def test_units_on_the_launchers_executor_store_what_one_process_stores(tmp_path:
         files = (store.root / "summaries").rglob("*.json")
         stored[name] = {p.relative_to(store.root).as_posix(): p.read_bytes() for p in files}
     assert len(stored["one"]) == 4 and stored["executor"] == stored["one"]
+    # a forensics sweep file through `sb3-affect run`, on the same executor; the second run simulates nothing new
+    (tmp_path / "tiny.yaml").write_text(TINY_STUDY)
+    out = tmp_path / "study"
+    command = ["run", str(tmp_path / "tiny.yaml"), "--out", str(out), "--workers", "2", "--backend", backend, "--no-progress"]
+    printed = []
+    for _ in range(2):
+        capsys.readouterr()
+        assert main(command) == 0
+        printed.append(capsys.readouterr().out.splitlines())
+    simulated, reused = (int(n) for n in re.findall(r"(\d+) replications simulated now, (\d+) already done", printed[0][0])[0])
+    units = len(list((out / "summaries").rglob("*.json")))
+    assert simulated == units > 0 and reused == 0
+    assert printed[1][0].startswith(f"tiny-forensics: 0 replications simulated now, {units} already done")
+    assert printed[1][1:] == printed[0][1:] and printed[0][1].startswith("best candidate: affective_a1_g0.8_")
+    run = json.loads((out / "run.json").read_text())
+    assert (run["screen_reps"], run["leaders"], run["reps"]) == (2, 1, 2) and (out / "forensics.md").exists()
+    assert json.loads((out / "forensics.json").read_text())["protocol"] == {**TINY.as_dict(), "epsilons": [0.2, 0.6],
+                                                                            "seeds": 2, "episodes": 10}
+    assert main(["status", str(out)]) == 0
+    status = capsys.readouterr().out
+    assert status.startswith(f"forensics in {out}: ") and "analysis of 2 screen, 1 leaders x 2 replications" in status

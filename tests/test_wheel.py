@@ -191,10 +191,10 @@ REPLICATE = """
 import sys
 import sb3_affect.study.replicate as replicate
 assert "site-packages" in replicate.__file__
-replicate.PARTS = (("paper", "the paper's protocol, at toy size"),)
+replicate.PARTS = (("paper", "the paper's protocol, at toy size"), *(p for p in replicate.PARTS if p[0] == "forensics"))
 replicate.LARGE_SEEDS = replicate.ABLATION_SEEDS = replicate.BEYOND_SEEDS = 1
 replicate.ENGINE_EPISODES = 5
-replicate.FORENSICS = {"screen_reps": 2, "leaders": 1, "reps": 2}  # the forensics run, with one leader replicated twice
+replicate.OVERRIDES = {"forensics": ["leaders=1", "reps=2"]}  # the forensics run, with one leader replicated twice
 from sb3_affect.study.launcher import sweep_file
 load = sweep_file.load_sweep
 sweep_file.load_sweep = lambda path, overrides=(), **kw: load(path, [*overrides, "seeds=1", "episodes=5"], **kw)
@@ -211,3 +211,4 @@ def test_wheel_replicates_from_an_empty_folder(full: Path, tmp_path: Path) -> No
     result = run(full, ["-c", REPLICATE], tmp_path)
     assert result.returncode == 0, result.stderr[-3000:]
     assert (tmp_path / "runs" / "report.html").exists() and (tmp_path / "runs" / "paper" / "sweep.json").exists()
+    assert (tmp_path / "runs" / "forensics" / "forensics.md").exists()  # the shipped experiments/forensics.yaml

@@ -1,9 +1,10 @@
 """
 Directives that generate documentation from the code, so the pages can not drift from it:
 
-* ``.. sweep-schema::`` (reStructuredText: in a Markdown page, inside an ``{eval-rst}`` block): the experiment-file
-  reference, one table per section, from the pydantic models of
-  ``sb3_affect.study.launcher.schema`` (field names, types, defaults, constraints and descriptions);
+* ``.. sweep-schema:: [forensics]`` (reStructuredText: in a Markdown page, inside an ``{eval-rst}`` block): the
+  experiment-file reference, one table per section, from the pydantic models of ``sb3_affect.study.launcher.schema``
+  (with ``forensics``: of ``sb3_affect.study.launcher.study_schema``, a forensics study file) (field names, types,
+  defaults, constraints and descriptions);
 * ``.. cli-help:: [COMMAND]`` the ``--help`` text of the ``sb3-affect`` command (or one sub-command), from its parser.
 """
 
@@ -28,7 +29,9 @@ CONSTRAINTS = {
 def _type_name(annotation: Any) -> str:
     text = getattr(annotation, "__name__", None) if not getattr(annotation, "__args__", None) else None
     text = text or str(annotation).replace("typing.", "")
-    return text.replace("sb3_affect.study.launcher.schema.", "").replace("NoneType", "None")
+    for module in ("sb3_affect.study.launcher.schema.", "sb3_affect.study.launcher.study_schema."):
+        text = text.replace(module, "")
+    return text.replace("NoneType", "None")
 
 
 def _constraints(schema: dict[str, Any]) -> list[str]:
@@ -41,22 +44,26 @@ def _constraints(schema: dict[str, Any]) -> list[str]:
 
 
 class SweepSchema(Directive):
-    """One table per section of an experiment file: top-level keys, ``env``, an item of ``agents``."""
+    """One table per section of an experiment file: top-level keys, ``env``, an item of ``agents`` (or a study's)."""
 
+    optional_arguments = 1
     has_content = False
 
     def run(self) -> list[nodes.Node]:
         from pydantic_core import PydanticUndefined
 
         from sb3_affect.study.launcher.schema import AgentSpec, EnvSpec, MemberSpec, Sweep
+        from sb3_affect.study.launcher.study_schema import ForensicsStudy, ProtocolSpec
 
         lines: list[str] = []
-        sections = (
+        sections: tuple[tuple[str, Any], ...] = (
             ("Top-level keys", Sweep),
             ("``env``", EnvSpec),
             ("Each item of ``agents``", AgentSpec),
             ("Each item of an agent's ``team``", MemberSpec),
         )
+        if self.arguments == ["forensics"]:
+            sections = (("Top-level keys of a forensics study file", ForensicsStudy), ("``protocol``", ProtocolSpec))
         for title, model in sections:
             properties = model.model_json_schema()["properties"]
             lines += [f".. rubric:: {title}", "", (model.__doc__ or "").strip().splitlines()[0], "",
@@ -69,6 +76,8 @@ class SweepSchema(Directive):
                     default = f"``{field.default_factory()!r}``".replace("EnvSpec(", "see ``env``").replace("``see", "see")
                     if "see ``env``" in default:
                         default = "see ``env``"
+                    if "ProtocolSpec(" in default:
+                        default = "the paper's (below)"
                 elif field.default is PydanticUndefined:
                     default = "required"
                 else:

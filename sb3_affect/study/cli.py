@@ -98,9 +98,8 @@ def _run_forensics(study: Any, args: argparse.Namespace) -> int:
 
 
 def _cmd_status(args: argparse.Namespace) -> int:
-    from sb3_affect.study.launcher import ResultsStore
-
     from sb3_affect.study.forensics.unit_files import PROTOCOL_FILE, folder_status
+    from sb3_affect.study.launcher import ResultsStore
 
     root = _existing_folder(args.dir, "status")
     if ResultsStore(root).saved_sweep() is not None:  # sweep.json, or a copy of it when it was deleted
@@ -291,7 +290,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--no-forensics", action="store_true", help="leave out the replication forensics (the report says so)"
     )
     replicate.add_argument(
-        "--backend", choices=("local", "ray"), default="local", help="where every part runs: local processes (default) or Ray tasks"
+        "--backend", choices=("local", "ray"), default="local", help="every part on local processes (default) or Ray tasks"
     )
     replicate.add_argument(
         "--ray-address", default=None, help="Ray cluster address, HOST:PORT or ray://HOST:PORT (default: a private instance)"

@@ -175,10 +175,8 @@ def main(
     :param ray_address: the Ray cluster of every part, HOST:PORT or ray://HOST:PORT (default: a private instance)
     :return: the path of report.md
     """
-    from sb3_affect.study.forensics.study_run import run_study
     from sb3_affect.study.launcher import run_sweep
-    from sb3_affect.study.launcher.study_schema import ForensicsStudy
-    from sb3_affect.study.launcher.sweep_file import load_sweep_file
+    from sb3_affect.study.launcher.launcher import ray_session
     from sb3_affect.study.report import build_report
 
     experiments = sweeps_folder(experiments)
@@ -190,62 +188,50 @@ def main(
     _refuse_a_sweep_folder(out_dir)
     record = _Record(out_dir)
     timings: dict[str, float] = {}
-    executor = {"workers": workers, "backend": backend, "ray_address": ray_address}
+    executor: dict[str, Any] = {"workers": workers, "backend": backend, "ray_address": ray_address}
     extra = []
-    for name, description in PARTS:
-        if name == "forensics" and not forensics:
-            continue
-        path = experiments / f"{name}.yaml"
-        overrides = _sized(name, path, large_seeds, ablation_seeds, engine_episodes) if name in SIZED else []
-        overrides += OVERRIDES.get(name, [])
-        description = part_description(name, description, experiments)
-        missing = missing_package(name)
-        if missing:
-            print(f"== skipped: {description} ({missing})", flush=True)
-            continue
-        if overrides:
-            description += f" [{', '.join(overrides)}]"
-        print(f"== {description}: {path} -> {out_dir / name}", flush=True)
-        key = f"{name} ({description})"
-        study = load_sweep_file(path, overrides, build=False)
-        if isinstance(study, ForensicsStudy):  # a study: no progress bar of its own in the log, a heartbeat instead
-            with _heartbeat(description):
-                result = run_study(study, out_dir / name, progress=False, **executor)
-            timings[key] = record.part(key, result.seconds, done_before=result.reused, todo=result.simulated)
-            print(f"   {result.simulated} replications now, {result.reused} already done, {result.seconds:.1f} s", flush=True)
-            section = forensics_extra(out_dir / name)
-            if section is not None:
-                extra.append(section)
-            continue
-        summary = run_sweep(path, out_dir / name, overrides=overrides, **executor)
-        timings[key] = record.part(key, summary.seconds, done_before=summary.skipped, todo=summary.total - summary.skipped)
-        print(
-            f"   {summary.finished} runs now, {summary.skipped} already done, {summary.failed} failed, "
-            f"{summary.seconds:.1f} s",
-            flush=True,
+    with ray_session(backend):  # on Ray: one connection (one private instance) for every part
+        for name, description in PARTS:
+            if name == "forensics" and not forensics:
+                continue
+            path = experiments / f"{name}.yaml"
+            overrides = _sized(name, path, large_seeds, ablation_seeds, engine_episodes) if name in SIZED else []
+            overrides += OVERRIDES.get(name, [])
+            description = part_description(name, description, experiments)
+            missing = missing_package(name)
+            if missing:
+                print(f"== skipped: {description} ({missing})", flush=True)
+                continue
+            if overrides:
+                description += f" [{', '.join(overrides)}]"
+            print(f"== {description}: {path} -> {out_dir / name}", flush=True)
+            key = f"{name} ({description})"
+            timings[key], section = _run_part(path, out_dir / name, overrides, key, record, executor)
+            extra.extend([section] if section is not None else [])
+        tuning, beyond = (experiments / f"{name}.yaml" for name, _ in TUNED_PARTS)
+        tuning_sized = _capped(tuning, large_seeds, engine_episodes)
+        beyond_sized = _capped(beyond, beyond_seeds, engine_episodes)
+        _check_disjoint(tuning, tuning_sized, beyond, beyond_sized)
+        description = f"ε tuned per task beyond the paper, {_seeds(tuning, tuning_sized)} seeds per value"
+        print(f"== {description}: {tuning} -> {out_dir / 'tuning'}/round<k>", flush=True)
+        tuned, summaries = tune_rounds(tuning, out_dir / "tuning", tuning_sized, **executor)
+        timings[description] = record.part(
+            description,
+            sum(summary.seconds for summary in summaries),
+            done_before=sum(summary.skipped for summary in summaries),
+            todo=sum(summary.total - summary.skipped for summary in summaries),
         )
-    tuning, beyond = (experiments / f"{name}.yaml" for name, _ in TUNED_PARTS)
-    tuning_sized = _capped(tuning, large_seeds, engine_episodes)
-    beyond_sized = _capped(beyond, beyond_seeds, engine_episodes)
-    _check_disjoint(tuning, tuning_sized, beyond, beyond_sized)
-    description = f"ε tuned per task beyond the paper, {_seeds(tuning, tuning_sized)} seeds per value"
-    print(f"== {description}: {tuning} -> {out_dir / 'tuning'}/round<k>", flush=True)
-    tuned, summaries = tune_rounds(tuning, out_dir / "tuning", tuning_sized, **executor)
-    timings[description] = record.part(
-        description,
-        sum(summary.seconds for summary in summaries),
-        done_before=sum(summary.skipped for summary in summaries),
-        todo=sum(summary.total - summary.skipped for summary in summaries),
-    )
-    chosen = ", ".join(f"{agent} on {task}: {t.best:g}{'' if t.interior else ' (edge)'}" for (task, agent), t in tuned.items())
-    print(f"   {len(summaries)} round(s), {timings[description]:.1f} s; chosen: {chosen}", flush=True)
-    description = f"static grid, moving and evading prey, mazes, {_seeds(beyond, beyond_sized)} seeds"
-    print(f"== {description}: {beyond} -> {out_dir / 'beyond'}", flush=True)
-    summary = run_sweep(beyond, out_dir / "beyond", overrides=[*beyond_sized, *_tuned(beyond, tuned)], **executor)
-    timings[description] = record.part(
-        description, summary.seconds, done_before=summary.skipped, todo=summary.total - summary.skipped
-    )
-    print(f"   {summary.total} runs, {summary.skipped} already done, {summary.seconds:.1f} s", flush=True)
+        chosen = ", ".join(
+            f"{agent} on {task}: {t.best:g}{'' if t.interior else ' (edge)'}" for (task, agent), t in tuned.items()
+        )
+        print(f"   {len(summaries)} round(s), {timings[description]:.1f} s; chosen: {chosen}", flush=True)
+        description = f"static grid, moving and evading prey, mazes, {_seeds(beyond, beyond_sized)} seeds"
+        print(f"== {description}: {beyond} -> {out_dir / 'beyond'}", flush=True)
+        summary = run_sweep(beyond, out_dir / "beyond", overrides=[*beyond_sized, *_tuned(beyond, tuned)], **executor)
+        timings[description] = record.part(
+            description, summary.seconds, done_before=summary.skipped, todo=summary.total - summary.skipped
+        )
+        print(f"   {summary.total} runs, {summary.skipped} already done, {summary.seconds:.1f} s", flush=True)
     start = time.perf_counter()
     report = build_report(out_dir, timings=timings, extra_sections=extra, command=command or " ".join(sys.argv))
     timings["report"] = time.perf_counter() - start
@@ -253,6 +239,34 @@ def main(
     print("wall time: " + ", ".join(f"{name} {seconds:.1f} s" for name, seconds in timings.items()))
     print(f"report: {report} (and {report.with_suffix('.html')})")
     return report
+
+
+def _run_part(
+    path: Path, folder: Path, overrides: list[str], key: str, record: _Record, executor: dict[str, Any]
+) -> tuple[float, Any]:
+    """
+    Run one part's sweep file into ``folder`` on ``executor`` (``run_sweep``'s workers, backend, ray_address): a sweep
+    of runs through the launcher, the forensics study on the launcher's executor. Prints what it did.
+
+    :return: the part's time as ``record`` keeps it under ``key``, and the report section it adds (None: none)
+    """
+    from sb3_affect.study.forensics.study_run import run_study
+    from sb3_affect.study.launcher import run_sweep
+    from sb3_affect.study.launcher.study_schema import ForensicsStudy
+    from sb3_affect.study.launcher.sweep_file import load_sweep_file
+
+    study = load_sweep_file(path, overrides, build=False)
+    if isinstance(study, ForensicsStudy):  # no progress bars of its own in the log: a heartbeat instead
+        with _heartbeat(key):
+            result = run_study(study, folder, progress=False, **executor)
+        print(f"   {result.simulated} replications now, {result.reused} already done, {result.seconds:.1f} s", flush=True)
+        return record.part(key, result.seconds, done_before=result.reused, todo=result.simulated), forensics_extra(folder)
+    summary = run_sweep(path, folder, overrides=overrides, **executor)
+    print(
+        f"   {summary.finished} runs now, {summary.skipped} already done, {summary.failed} failed, {summary.seconds:.1f} s",
+        flush=True,
+    )
+    return record.part(key, summary.seconds, done_before=summary.skipped, todo=summary.total - summary.skipped), None
 
 
 def tune_rounds(

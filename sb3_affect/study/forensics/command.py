@@ -39,7 +39,9 @@ def add_forensics_parser(sub: Any) -> argparse.ArgumentParser:
     parser.add_argument(
         "--alphas", type=_floats, default=None, help="learning rates of the grid (default: experiments/forensics.yaml's)"
     )
-    parser.add_argument("--gammas", type=_floats, default=None, help="discounts of the grid (default: experiments/forensics.yaml's)")
+    parser.add_argument(
+        "--gammas", type=_floats, default=None, help="discounts of the grid (default: experiments/forensics.yaml's)"
+    )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     parser.set_defaults(func=forensics_command)
     return parser
@@ -66,8 +68,7 @@ def forensics_command(args: argparse.Namespace) -> int:
         option = f"--{str(first['loc'][0]).replace('_', '-')}={first['input']!r}: " if first["loc"] else ""
         raise SystemExit(f"sb3-affect forensics: error: {option}{first['msg'].removeprefix('Value error, ')}") from None
     stop_on_sigterm()  # `kill`: stop like Ctrl-C (the pool's workers first), exit 143
-    result = run_study(
-        study, args.out, workers=args.workers, backend=args.backend, ray_address=args.ray_address, progress=not args.no_progress
-    )
+    executor = {"backend": args.backend, "ray_address": args.ray_address}
+    result = run_study(study, args.out, workers=args.workers, progress=not args.no_progress, **executor)
     print("\n".join(summary_lines(study, result, args.out)))
     return 0

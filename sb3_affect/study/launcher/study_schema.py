@@ -15,7 +15,7 @@ run on the launcher's executor (local processes or Ray tasks)::
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator
 
@@ -24,16 +24,19 @@ from sb3_affect.study.launcher.schema import MAX_EPISODES, MAX_SEEDS, NAME_PATTE
 #: Replications of one simulation: the summaries' file names hold 4 digits (``r0000.json`` to ``r9999.json``).
 MAX_REPS = 10_000
 
-Rate = Annotated[float, Field(gt=0, le=1)]
-Discount = Annotated[float, Field(ge=0, le=1)]
-Epsilon = Annotated[float, Field(ge=0, le=1)]
+
+def _check_range(values: list[float] | None, what: str, low_open: bool) -> None:
+    """Each value in [0, 1] (``low_open``: in (0, 1]), or a one-line error naming the first that is not."""
+    for value in values or []:
+        if not (0 < value <= 1 if low_open else 0 <= value <= 1):
+            raise ValueError(f"{value!r} is not {what}; each is in {'(0, 1]' if low_open else '[0, 1]'}")
 
 
 class ProtocolSpec(BaseModel):
     """The forensics' ``protocol``: what one replication of a simulation runs (a key left out: the paper's)."""
 
     model_config = ConfigDict(extra="forbid")
-    epsilons: list[Epsilon] | None = Field(
+    epsilons: list[float] | None = Field(
         default=None,
         min_length=2,
         description="the ε values, each in [0, 1]; the affective agent runs once per value (null: the paper's 0.1, "
@@ -45,6 +48,12 @@ class ProtocolSpec(BaseModel):
     episodes: int | None = Field(
         default=None, gt=0, le=MAX_EPISODES, description="episodes per simulation (null: the paper's 200)"
     )
+
+    @field_validator("epsilons")
+    @classmethod
+    def _epsilons(cls, value: list[float] | None) -> list[float] | None:
+        _check_range(value, "an ε", low_open=False)
+        return value
 
 
 class ForensicsStudy(BaseModel):
@@ -63,11 +72,23 @@ class ForensicsStudy(BaseModel):
     reps: int = Field(
         ge=2, le=MAX_REPS, description=f"replications of each leader, at least screen_reps (at most {MAX_REPS:,})"
     )
-    alphas: list[Rate] = Field(min_length=1, description="the learning rates of the candidate grid, each in (0, 1]")
-    gammas: list[Discount] = Field(min_length=1, description="the discounts of the candidate grid, each in [0, 1]")
+    alphas: list[float] = Field(min_length=1, description="the learning rates of the candidate grid, each in (0, 1]")
+    gammas: list[float] = Field(min_length=1, description="the discounts of the candidate grid, each in [0, 1]")
     protocol: ProtocolSpec = Field(
         default_factory=ProtocolSpec, description="what one replication runs (below; default: the paper's protocol)"
     )
+
+    @field_validator("alphas")
+    @classmethod
+    def _alphas(cls, value: list[float]) -> list[float]:
+        _check_range(value, "a learning rate", low_open=True)
+        return value
+
+    @field_validator("gammas")
+    @classmethod
+    def _gammas(cls, value: list[float]) -> list[float]:
+        _check_range(value, "a discount", low_open=False)
+        return value
 
     @field_validator("reps")
     @classmethod
