@@ -20,7 +20,7 @@ from typing import Any
 import pandas as pd
 
 from sb3_affect.study.forensics.candidates import Protocol, Simulation
-from sb3_affect.study.launcher.store import StoreError, _write_atomic
+from sb3_affect.study.launcher.store import StoreError, _write_atomic, replication_parts
 
 #: The file that marks a forensics folder and holds its protocol.
 PROTOCOL_FILE = "forensics.json"
@@ -30,13 +30,19 @@ class SummaryStore:
     """
     Read and write the per-replication summaries of a forensics folder.
 
-    :param root: the folder (created when missing)
+    :param root: the folder (created when missing; a replication's or a sweep's folder is refused)
     :param protocol: the protocol its summaries belong to
     """
 
     def __init__(self, root: str | Path, protocol: Protocol) -> None:
         self.root = Path(root)
         self.protocol = protocol
+        held = replication_parts(self.root) or (["sweep.json"] if (self.root / "sweep.json").exists() else [])
+        if held:
+            raise StoreError(
+                f"{self.root} holds a replication or a sweep ({', '.join(held)}), which the forensics would mix with; "
+                f"give the forensics a folder of its own, e.g. --out {self.root / 'forensics'}"
+            )
         self.root.mkdir(parents=True, exist_ok=True)
         saved = self.root / PROTOCOL_FILE
         wanted = {"protocol": protocol.as_dict()}
