@@ -1,8 +1,9 @@
 """
-Reading a sweep file: ``load_sweep`` parses the YAML, applies ``--set key.path=value`` overrides (each checked
-against the schema of ``schema``, naming the keys allowed where one is unknown), validates the result and turns
-every problem into one ``SweepError`` that names the file, the key (agents by name) and whether the file or an
-override caused it; it then builds the env and each agent once, so that a bad kwarg is reported before anything runs.
+Reading a sweep file: ``load_sweep_file`` parses the YAML, applies ``--set key.path=value`` overrides (each checked
+against the schema of ``schema``, or of ``study_schema`` for a file with ``study:``, naming the keys allowed where one
+is unknown), validates the result and turns every problem into one ``SweepError`` that names the file, the key
+(agents by name) and whether the file or an override caused it; for a sweep of runs (``load_sweep``) it then builds the
+env and each agent once, so that a bad kwarg is reported before anything runs.
 
 The YAML is read strictly: a key given twice in one mapping is an error (not "the last wins"), and a file that
 expands to more than ``MAX_VALUES`` values (YAML aliases repeat what they name: a few hundred bytes can stand for
