@@ -7,7 +7,10 @@ import os
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from sb3_affect.study.launcher.study_schema import ForensicsStudy
 
 
 class UsageError(Exception):
@@ -78,7 +81,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _run_forensics(study: Any, args: argparse.Namespace) -> int:
+def _run_forensics(study: ForensicsStudy, args: argparse.Namespace) -> int:
     """``sb3-affect run`` of a forensics study file (``study: forensics``) on the launcher's executor."""
     from sb3_affect.study.forensics.study_run import run_study, summary_lines
 
