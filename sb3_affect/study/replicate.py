@@ -176,7 +176,6 @@ def main(
     :return: the path of report.md
     """
     from sb3_affect.study.launcher import run_sweep
-    from sb3_affect.study.launcher.launcher import ray_session
     from sb3_affect.study.report import build_report
 
     experiments = sweeps_folder(experiments)
@@ -190,48 +189,47 @@ def main(
     timings: dict[str, float] = {}
     executor: dict[str, Any] = {"workers": workers, "backend": backend, "ray_address": ray_address}
     extra = []
-    with ray_session(backend):  # on Ray: one connection (one private instance) for every part
-        for name, description in PARTS:
-            if name == "forensics" and not forensics:
-                continue
-            path = experiments / f"{name}.yaml"
-            overrides = _sized(name, path, large_seeds, ablation_seeds, engine_episodes) if name in SIZED else []
-            overrides += OVERRIDES.get(name, [])
-            description = part_description(name, description, experiments)
-            missing = missing_package(name)
-            if missing:
-                print(f"== skipped: {description} ({missing})", flush=True)
-                continue
-            if overrides:
-                description += f" [{', '.join(overrides)}]"
-            print(f"== {description}: {path} -> {out_dir / name}", flush=True)
-            key = f"{name} ({description})"
-            timings[key], section = _run_part(path, out_dir / name, overrides, key, record, executor)
-            extra.extend([section] if section is not None else [])
-        tuning, beyond = (experiments / f"{name}.yaml" for name, _ in TUNED_PARTS)
-        tuning_sized = _capped(tuning, large_seeds, engine_episodes)
-        beyond_sized = _capped(beyond, beyond_seeds, engine_episodes)
-        _check_disjoint(tuning, tuning_sized, beyond, beyond_sized)
-        description = f"ε tuned per task beyond the paper, {_seeds(tuning, tuning_sized)} seeds per value"
-        print(f"== {description}: {tuning} -> {out_dir / 'tuning'}/round<k>", flush=True)
-        tuned, summaries = tune_rounds(tuning, out_dir / "tuning", tuning_sized, **executor)
-        timings[description] = record.part(
-            description,
-            sum(summary.seconds for summary in summaries),
-            done_before=sum(summary.skipped for summary in summaries),
-            todo=sum(summary.total - summary.skipped for summary in summaries),
-        )
-        chosen = ", ".join(
-            f"{agent} on {task}: {t.best:g}{'' if t.interior else ' (edge)'}" for (task, agent), t in tuned.items()
-        )
-        print(f"   {len(summaries)} round(s), {timings[description]:.1f} s; chosen: {chosen}", flush=True)
-        description = f"static grid, moving and evading prey, mazes, {_seeds(beyond, beyond_sized)} seeds"
-        print(f"== {description}: {beyond} -> {out_dir / 'beyond'}", flush=True)
-        summary = run_sweep(beyond, out_dir / "beyond", overrides=[*beyond_sized, *_tuned(beyond, tuned)], **executor)
-        timings[description] = record.part(
-            description, summary.seconds, done_before=summary.skipped, todo=summary.total - summary.skipped
-        )
-        print(f"   {summary.total} runs, {summary.skipped} already done, {summary.seconds:.1f} s", flush=True)
+    for name, description in PARTS:
+        if name == "forensics" and not forensics:
+            continue
+        path = experiments / f"{name}.yaml"
+        overrides = _sized(name, path, large_seeds, ablation_seeds, engine_episodes) if name in SIZED else []
+        overrides += OVERRIDES.get(name, [])
+        description = part_description(name, description, experiments)
+        missing = missing_package(name)
+        if missing:
+            print(f"== skipped: {description} ({missing})", flush=True)
+            continue
+        if overrides:
+            description += f" [{', '.join(overrides)}]"
+        print(f"== {description}: {path} -> {out_dir / name}", flush=True)
+        key = f"{name} ({description})"
+        timings[key], section = _run_part(path, out_dir / name, overrides, key, record, executor)
+        extra.extend([section] if section is not None else [])
+    tuning, beyond = (experiments / f"{name}.yaml" for name, _ in TUNED_PARTS)
+    tuning_sized = _capped(tuning, large_seeds, engine_episodes)
+    beyond_sized = _capped(beyond, beyond_seeds, engine_episodes)
+    _check_disjoint(tuning, tuning_sized, beyond, beyond_sized)
+    description = f"ε tuned per task beyond the paper, {_seeds(tuning, tuning_sized)} seeds per value"
+    print(f"== {description}: {tuning} -> {out_dir / 'tuning'}/round<k>", flush=True)
+    tuned, summaries = tune_rounds(tuning, out_dir / "tuning", tuning_sized, **executor)
+    timings[description] = record.part(
+        description,
+        sum(summary.seconds for summary in summaries),
+        done_before=sum(summary.skipped for summary in summaries),
+        todo=sum(summary.total - summary.skipped for summary in summaries),
+    )
+    chosen = ", ".join(
+        f"{agent} on {task}: {t.best:g}{'' if t.interior else ' (edge)'}" for (task, agent), t in tuned.items()
+    )
+    print(f"   {len(summaries)} round(s), {timings[description]:.1f} s; chosen: {chosen}", flush=True)
+    description = f"static grid, moving and evading prey, mazes, {_seeds(beyond, beyond_sized)} seeds"
+    print(f"== {description}: {beyond} -> {out_dir / 'beyond'}", flush=True)
+    summary = run_sweep(beyond, out_dir / "beyond", overrides=[*beyond_sized, *_tuned(beyond, tuned)], **executor)
+    timings[description] = record.part(
+        description, summary.seconds, done_before=summary.skipped, todo=summary.total - summary.skipped
+    )
+    print(f"   {summary.total} runs, {summary.skipped} already done, {summary.seconds:.1f} s", flush=True)
     start = time.perf_counter()
     report = build_report(out_dir, timings=timings, extra_sections=extra, command=command or " ".join(sys.argv))
     timings["report"] = time.perf_counter() - start

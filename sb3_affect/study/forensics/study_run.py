@@ -54,23 +54,21 @@ def run_study(
     :param progress: show progress bars
     """
     from sb3_affect.study.forensics.analysis import run_forensics
-    from sb3_affect.study.launcher.launcher import ray_session
 
     workers = workers or (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
-    with ray_session(backend):  # one Ray connection for the three phases
-        return run_forensics(
-            out,
-            study_space(study),
-            study_protocol(study),
-            screen_reps=study.screen_reps,
-            leaders=study.leaders,
-            reps=study.reps,
-            workers=workers,
-            progress=progress,
-            backend=backend,
-            ray_address=ray_address,
-            ray_timeout=ray_timeout,
-        )
+    return run_forensics(
+        out,
+        study_space(study),
+        study_protocol(study),
+        screen_reps=study.screen_reps,
+        leaders=study.leaders,
+        reps=study.reps,
+        workers=workers,
+        progress=progress,
+        backend=backend,
+        ray_address=ray_address,
+        ray_timeout=ray_timeout,
+    )
 
 
 def summary_lines(study: ForensicsStudy, result: ForensicsResult, out: str | Path) -> list[str]:

@@ -23,12 +23,11 @@ same per-episode records on either backend.
 
 from __future__ import annotations
 
-import contextlib
 import os
 import sys
 import time
 import traceback
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -88,10 +87,7 @@ def run_ray(
     import sb3_affect.study.launcher.ray_cluster as ray_cluster
     from sb3_affect.study.launcher.one_run import package_versions
 
-    if _SESSIONS and not _SESSIONS[-1].connected:  # inside a ray_session: connect for the rest of it
-        _SESSIONS[-1].stack.enter_context(ray_cluster.connect(address, workers, timeout))
-        _SESSIONS[-1].connected = True
-    with ray_cluster.connect(address, workers, timeout) as session:  # (an open connection is reused as it is)
+    with ray_cluster.connect(address, workers, timeout) as session:
         ours = package_versions() if address else None
         remote = session.ray.remote(num_cpus=1, max_retries=1)(ray_cluster.execute_task)
         remote_batch = session.ray.remote(num_cpus=1, max_retries=1)(_ray_batch)
@@ -120,38 +116,6 @@ def run_ray(
             on_failure(job, f"the Ray task failed: {type(error).__name__}: {text}")
 
         session.run(list(jobs), submit, on_value, on_error, cap=cap)
-
-
-class _Session:
-    """An open ``ray_session``: the connection ``run_ray`` made on its first call with work, closed when it ends."""
-
-    def __init__(self) -> None:
-        self.stack = contextlib.ExitStack()
-        self.connected = False
-
-
-#: The open ``ray_session``s, innermost last.
-_SESSIONS: list[_Session] = []
-
-
-@contextlib.contextmanager
-def ray_session(backend: str) -> Iterator[None]:
-    """
-    Hold one Ray connection across the ``run_ray`` calls made inside (the phases of a study, the parts of the main
-    job): the first call with work connects (a private instance, or the cluster at its address), the others reuse the
-    connection instead of each starting and stopping an instance, and it is closed when the block ends. Calls with
-    nothing to run connect to nothing. Nothing for the local backend.
-    """
-    if backend != "ray":
-        yield
-        return
-    session = _Session()
-    _SESSIONS.append(session)
-    try:
-        with session.stack:
-            yield
-    finally:
-        _SESSIONS.remove(session)
 
 
 def run_sweep(
