@@ -26,3 +26,18 @@ def _sb3_logdir(tmp_path_factory: pytest.TempPathFactory) -> object:
         os.environ.pop("SB3_LOGDIR", None)
     else:
         os.environ["SB3_LOGDIR"] = before
+
+
+#: Gymnasium's own time limit. Importing rl_zoo3 replaces it for the whole process (``rl_zoo3.gym_patches``), and the
+#: compiled engine does not step an env wrapped in rl_zoo3's (the Python loop runs instead).
+TIME_LIMIT = gym.wrappers.TimeLimit
+TIME_LIMIT_MODULES = (gym.wrappers, gym.wrappers.common, gym.envs.registration)
+
+
+@pytest.fixture(autouse=True)
+def _gymnasium_time_limit() -> object:
+    """Gymnasium's time limit back after each test: a test that ran the zoo does not change the envs of the tests run
+    after it in the same process (whatever order they run in: pytest-xdist gives each worker its own)."""
+    yield
+    for module in TIME_LIMIT_MODULES:
+        module.TimeLimit = TIME_LIMIT  # type: ignore[attr-defined]

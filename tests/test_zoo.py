@@ -27,8 +27,12 @@ from sb3_affect.integrations.zoo import main as zoo_main
 def zoo(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> Callable[[list[str], Path], str]:
     """``python -m sb3_affect.integrations.zoo ARGS`` in ``cwd``, in this process (the zoo's modules run as ``__main__``)."""
     import matplotlib
+    import rl_zoo3.gym_patches
+    from conftest import TIME_LIMIT_MODULES
 
     matplotlib.use("Agg")
+    for module in TIME_LIMIT_MODULES:  # rl_zoo3's time limit, as its users have it (conftest puts Gymnasium's back)
+        module.TimeLimit = rl_zoo3.gym_patches.PatchedTimeLimit
 
     def run(args: list[str], cwd: Path) -> str:
         monkeypatch.chdir(cwd)
@@ -168,3 +172,20 @@ def test_hub_packaging_refuses_paths_code_and_other_envs(tmp_path: Path) -> None
         package_model(model, tmp_path / "file", GRID_PURSUIT_ID, eval_env=gym.make(GRID_PURSUIT_ID, **small),
                       n_eval_episodes=1)
     assert not (tmp_path.parent / "x.zip").exists() and not list(tmp_path.glob("hub/*"))
+
+
+def test_the_kernel_steps_gymnasiums_time_limit_while_rl_zoo3_has_rebound_it_and_refuses_rl_zoo3s() -> None:
+    import rl_zoo3.gym_patches
+    from conftest import TIME_LIMIT, TIME_LIMIT_MODULES
+
+    from sb3_affect.agents.compiled import compiled_reason
+
+    for module in TIME_LIMIT_MODULES:  # as after `import rl_zoo3` (conftest puts Gymnasium's back after the test)
+        module.TimeLimit = rl_zoo3.gym_patches.PatchedTimeLimit
+    zoo_env = gym.make(GRID_PURSUIT_ID)
+    reason = compiled_reason(QLearning("Grid", zoo_env), zoo_env, None)
+    assert reason == "the env is wrapped in PatchedTimeLimit, which may change what a step does"
+    plain = TIME_LIMIT(gym.make(GRID_PURSUIT_ID).unwrapped, MAX_EPISODE_STEPS)  # Gymnasium's own, made before the rebinding
+    assert compiled_reason(QLearning("Grid", plain), plain, None) is None
+    model = QLearning("Grid", plain, seed=0).learn(300)
+    assert model.num_timesteps == 300

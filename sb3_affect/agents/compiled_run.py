@@ -15,7 +15,6 @@ from itertools import repeat
 from typing import Any, ClassVar
 
 import numpy as np
-from gymnasium.wrappers import TimeLimit
 from stable_baselines3.common.monitor import Monitor
 
 from sb3_affect.kernel import arrays
@@ -140,7 +139,7 @@ class RunArrays:
         self.model, self.agent = model, agent
         self.base, wrappers = unwrap(env)
         self.monitor = next((w for w in wrappers if isinstance(w, Monitor)), None)
-        self.time_limit = next((w for w in wrappers if isinstance(w, TimeLimit)), None)
+        self.time_limit = next((w for w in wrappers if hasattr(w, "_max_episode_steps")), None)  # (as time_limit_of)
         self.obs_start = int(model.observation_space.start)
         self.act_start = int(model.action_space.start)
         self.q = np.ascontiguousarray(model._q, dtype=np.float64)
@@ -255,7 +254,7 @@ class RunArrays:
         }
         model._last_obs = np.array([s + self.obs_start])
         if self.time_limit is not None:
-            self.time_limit._elapsed_steps = int(ist[at.I_TL_ELAPSED])  # type: ignore[assignment]
+            self.time_limit._elapsed_steps = int(ist[at.I_TL_ELAPSED])
         if self.monitor is not None:
             self.monitor.rewards = [step_reward] * int(ist[at.I_CELLS])
             self.monitor.needs_reset = False

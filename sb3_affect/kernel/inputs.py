@@ -20,7 +20,6 @@ from typing import Any, NamedTuple
 
 import gymnasium as gym
 import numpy as np
-from gymnasium.wrappers import OrderEnforcing, PassiveEnvChecker, TimeLimit
 
 from sb3_affect.core.registry import known_settings
 from sb3_affect.envs.transition_table import TransitionTable
@@ -107,6 +106,13 @@ def unwrap(env: Any) -> tuple[Any, list[Any]]:
     return env, wrappers
 
 
+#: Gymnasium's wrappers that ``gym.make`` adds and the kernel steps as they do, by where they are defined: a library may
+#: rebind ``gymnasium.wrappers.TimeLimit`` to a subclass of its own (rl_zoo3 does, on import), which is not one of them.
+STANDARD_WRAPPERS = frozenset(
+    f"gymnasium.wrappers.common.{name}" for name in ("TimeLimit", "OrderEnforcing", "PassiveEnvChecker")
+)
+
+
 def env_reason(env: Any, also_allowed: tuple[type, ...] = ()) -> str | None:
     """
     Why the kernel can not step ``env`` (None: it can): its base env gives no transition table, or a wrapper other
@@ -119,10 +125,15 @@ def env_reason(env: Any, also_allowed: tuple[type, ...] = ()) -> str | None:
         return table
     if not isinstance(table, TransitionTable):
         return f"the env {type(base).__name__} does not describe its moves as a transition table (transition_table())"
-    known = (TimeLimit, OrderEnforcing, PassiveEnvChecker, *also_allowed)
+    return wrapper_reason(wrappers, also_allowed)
+
+
+def wrapper_reason(wrappers: list[Any], also_allowed: tuple[type, ...] = ()) -> str | None:
+    """Why the kernel can not step through ``wrappers`` (None: it can): one that is not standard nor ``also_allowed``."""
     for wrapper in wrappers:
-        if type(wrapper) not in known:
-            return f"the env is wrapped in {type(wrapper).__name__}, which may change what a step does"
+        kind = type(wrapper)
+        if f"{kind.__module__}.{kind.__qualname__}" not in STANDARD_WRAPPERS and kind not in also_allowed:
+            return f"the env is wrapped in {kind.__name__}, which may change what a step does"
     return None
 
 

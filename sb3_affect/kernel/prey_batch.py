@@ -16,13 +16,12 @@ from typing import Any, NamedTuple
 
 import gymnasium as gym
 import numpy as np
-from gymnasium.wrappers import OrderEnforcing, PassiveEnvChecker, TimeLimit
 
 from sb3_affect.core.registry import known_settings
 from sb3_affect.kernel import moving
 from sb3_affect.kernel.agents import COMPENSATED_SUM, KernelAgent, kernel_agent
 from sb3_affect.kernel.arrays import Episodes
-from sb3_affect.kernel.inputs import unwrap
+from sb3_affect.kernel.inputs import unwrap, wrapper_reason
 from sb3_affect.kernel.mt19937 import seed_keys
 from sb3_affect.kernel.pcg64 import STATE_SIZE as PCG_SIZE
 from sb3_affect.kernel.pcg64 import seeded_state
@@ -63,10 +62,10 @@ def moving_reason(env: Any) -> str | None:
     if type(base) is not MovingPursuitEnv:
         return f"the env {type(base).__name__} is not MovingPursuit"
     monitor = _monitor_class()
-    known = (TimeLimit, OrderEnforcing, PassiveEnvChecker) + (() if monitor is None else (monitor,))
+    reason = wrapper_reason(wrappers, () if monitor is None else (monitor,))
+    if reason is not None:
+        return reason
     for wrapper in wrappers:
-        if type(wrapper) not in known:
-            return f"the env is wrapped in {type(wrapper).__name__}, which may change what a step does"
         if monitor is not None and isinstance(wrapper, monitor) and wrapper.info_keywords:
             return "the Monitor records info_keywords, which the kernel does not produce"
     return None
