@@ -6,6 +6,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.sb3-affect-installed
 OUT ?= runs
 DOCS_OUT ?= docs/_build/html
+TEST_WORKERS ?= auto
 
 .PHONY: venv test replicate docs lint bench clean
 
@@ -34,7 +35,10 @@ test: venv
 	$(PY) -m mypy
 	$(VENV)/bin/lint-imports --no-logo
 	$(MAKE) --no-print-directory docs
-	$(PY) -m pytest -q
+	@# the suite on every core (pytest-xdist, each test file on one worker), then the Ray tests on their own: they start Ray
+	@# instances and clusters, and a Ray driver whose node is stopped under load may exit before Python sees the loss
+	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile -m "not ray"
+	$(PY) -m pytest -q -m ray
 
 # The documentation site: warnings are errors (-W), every internal reference is checked (-n: nitpicky).
 docs: venv

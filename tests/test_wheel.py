@@ -70,8 +70,9 @@ def _venv(path: Path) -> tuple[Path, Path]:
 @pytest.fixture(scope="module")
 def wheel(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("dist")
-    subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "--no-build-isolation", "-w", str(out),
-                    str(ROOT)], check=True, capture_output=True)
+    built = subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "--no-build-isolation", "-w", str(out),
+                            str(ROOT)], capture_output=True, text=True)
+    assert built.returncode == 0, built.stderr
     return next(out.glob("sb3_affect-*.whl"))
 
 

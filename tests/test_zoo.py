@@ -188,4 +188,4 @@ def test_the_kernel_steps_gymnasiums_time_limit_while_rl_zoo3_has_rebound_it_and
     plain = TIME_LIMIT(gym.make(GRID_PURSUIT_ID).unwrapped, MAX_EPISODE_STEPS)  # Gymnasium's own, made before the rebinding
     assert compiled_reason(QLearning("Grid", plain), plain, None) is None
     model = QLearning("Grid", plain, seed=0).learn(300)
-    assert model.num_timesteps == 300
+    assert model.num_timesteps == 300 and model.engine_used == "compiled"
