@@ -142,11 +142,6 @@ class MovingPursuitEnv(gym.Env[Any, Any]):
         hunter, prey = divmod(int(observation), self.n_cells)
         return divmod(hunter, self.size), divmod(prey, self.size)
 
-    def is_capture(self, observation: int) -> bool:
-        """Whether an observation is a capture (hunter and prey in the same cell): the known map's goals."""
-        hunter, prey = divmod(int(observation), self.n_cells)
-        return hunter == prey
-
     def optimal_capture(self, cells: int, captured: bool) -> bool:
         """An episode that captured the prey within ``capture_distance`` cells (see the class docstring)."""
         return bool(captured) and int(cells) <= self.capture_distance

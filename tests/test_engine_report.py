@@ -7,10 +7,18 @@ from pathlib import Path
 import pandas as pd
 
 from sb3_affect.study.launcher import ResultsStore, run_sweep
-from sb3_affect.study.report.build import summary_numbers
-from sb3_affect.study.report.metrics import load_results
+from sb3_affect.study.report.metrics import load_results, run_metrics
 
 PAPER = Path(__file__).resolve().parents[1] / "experiments" / "paper.yaml"
+
+
+def summary_numbers(run_dir: Path) -> dict[str, float]:
+    """A few headline numbers of a results folder: decisions per episode per agent, runs, censored runs."""
+    metrics = run_metrics(load_results(Path(run_dir)).episodes)
+    return {
+        f"{agent} decisions_per_episode": float(group.decisions_per_episode.mean())
+        for agent, group in metrics.groupby("agent")
+    } | {"runs": float(len(metrics)), "censored": float(metrics.censored.sum())}
 
 
 def test_paper_sweep_and_its_report_numbers_are_the_python_engines(tmp_path: Path) -> None:

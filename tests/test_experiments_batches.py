@@ -14,12 +14,12 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
+from test_engine_report import summary_numbers
 from test_experiments_local import EXPERIMENTS, children, contents, launcher, linux_only, no_partial_files, running
 
 from sb3_affect.study.cli import main
 from sb3_affect.study.launcher import ResultsStore, run_sweep
 from sb3_affect.study.launcher.chunks import chunk_meta
-from sb3_affect.study.report.build import summary_numbers
 from sb3_affect.study.report.metrics import load_results
 
 SMOKE = EXPERIMENTS / "smoke.yaml"

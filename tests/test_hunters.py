@@ -164,7 +164,7 @@ def test_a_mixed_team_learns_and_every_hunter_keeps_its_own_log() -> None:
     log = team.episode_log
     assert tuple(log.columns) == TEAM_COLUMNS and len(log) == 60
     assert isinstance(team.models["hunter_0"], AffectQ) and isinstance(team.models["hunter_1"], QLearning)
-    own = team.hunter_logs()
+    own = {agent: model.episode_log for agent, model in team.models.items()}
     for i, agent in enumerate(team.models):
         assert len(own[agent]) == 60
         assert (own[agent].decisions == log.decisions).all()  # one decision per hunter per round
@@ -190,7 +190,7 @@ def test_teams_of_baselines_and_surrounding_hunters() -> None:
     )
     log = team.learn(15).episode_log
     assert len(log) == 15 and (log.capturer == 0).all()  # surround: every hunter is rewarded, the first is named
-    own = team.hunter_logs()
+    own = {agent: model.episode_log for agent, model in team.models.items()}
     assert env.capture_distance == 5 and (log.optimal == (np.maximum(own["hunter_0"].cells, own["hunter_1"].cells) <= 5)).all()
     assert (~log.truncated).all() and (log.reward == 200.0).all()  # both rewarded for every capture
 

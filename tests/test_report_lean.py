@@ -25,7 +25,6 @@ from sb3_affect.study.report.metrics import (
     REPORT_COLUMNS,
     load_results,
     profile,
-    rows_where,
     run_metrics,
     run_windows,
 )
@@ -53,7 +52,7 @@ def test_parts_give_the_whole_frame_numbers(paper5: Path, monkeypatch: pytest.Mo
     assert len(list(results.parts(("episode",), runs_per_part=7))) > 2
     pd.testing.assert_frame_equal(results.metrics(), run_metrics(whole, whole_runs))
     windows = ((1, 5), (11, 30), (191, 200))
-    aff_rows = rows_where(whole, whole.agent == AFFECTIVE)
+    aff_rows = whole[whole.agent == AFFECTIVE]
     pd.testing.assert_frame_equal(results.metrics(AFFECTIVE, windows, with_runs=False), run_metrics(aff_rows, windows=windows))
     for agent in (STANDARD, AFFECTIVE):
         part = results.agent_episodes(agent, ("episode", "decisions", "joy"), 181, 200)
@@ -177,7 +176,7 @@ def test_the_scan_gives_the_whole_frame_numbers(paper5: Path, monkeypatch: pytes
     extra = ((1, 5), (11, 30), (191, 200))
     found = scan(results, extra)
     pd.testing.assert_frame_equal(found.metrics, run_metrics(whole, whole_runs), check_exact=True)
-    aff_rows = rows_where(whole, whole.agent == AFFECTIVE)
+    aff_rows = whole[whole.agent == AFFECTIVE]
     aff = run_metrics(aff_rows, windows=(metrics.EARLY, metrics.LATE, *extra))
     assert list(found.windows.run_id) == list(aff.run_id)
     for column in found.windows.columns.drop(["run_id", "agent"]):

@@ -20,7 +20,6 @@ from sb3_affect.study.report.metrics import (
     load_results,
     load_run_records,
     profile,
-    rows_where,
     run_metrics,
 )
 from sb3_affect.study.report.settled import bimodality
@@ -64,7 +63,7 @@ def test_loader_and_metrics_equal_the_record_path_on_a_mixed_folder(mixed: Path)
     pd.testing.assert_frame_equal(run_metrics(shuffled, records), slow)
     pd.testing.assert_frame_equal(profile(e), profile(reference))
     aff = e.agent == "affective"
-    assert bimodality(rows_where(e, aff), 1, 12) == bimodality(reference[reference.agent == "affective"], 1, 12)
+    assert bimodality(e[aff], 1, 12) == bimodality(reference[reference.agent == "affective"], 1, 12)
 
 
 def test_runs_that_finished_no_episode_are_kept_censored(mixed: Path) -> None:
@@ -73,15 +72,6 @@ def test_runs_that_finished_no_episode_are_kept_censored(mixed: Path) -> None:
     metrics = run_metrics(results.episodes, pd.concat([results.runs, ghost], ignore_index=True)).set_index("run_id")
     row = metrics.loc["zz-no-episodes"]
     assert row.censored and row.decisions_before_optimal == 777 and row.episodes == 0 and row.seed == ghost.seed.iloc[0]
-
-
-def test_rows_where_copies_only_the_rows_asked(mixed: Path) -> None:
-    e = load_results(mixed).episodes
-    contiguous = rows_where(e, e.agent == "affective", ("episode", "decisions"))
-    scattered = rows_where(e, e.epsilon == 0.9, ("episode", "decisions"))
-    for part, mask in ((contiguous, e.agent == "affective"), (scattered, e.epsilon == 0.9)):
-        pd.testing.assert_frame_equal(part, e.loc[mask, ["episode", "decisions"]])
-    assert rows_where(e, e.agent == "affective").shape[1] == e.shape[1]
 
 
 def test_status_counts_from_the_footers(mixed: Path) -> None:

@@ -66,29 +66,6 @@ BROEKENS_EMOTIONS: tuple[str, ...] = EMOTION_MODELS["broekens"].emotions
 ValueFn = Callable[[Any, Any], float]
 
 
-def tabular_value(model: Any, obs: Any) -> float:
-    """``max_a Q(s, a)`` of a tabular agent of this package (its live table during ``learn``)."""
-    q = getattr(model, "_q", None)
-    index = int(np.asarray(obs).reshape(-1)[0]) - int(model.observation_space.start)
-    if q is not None:
-        return float(max(q[index]))
-    return float(model.q_table[index].max())
-
-
-def dqn_value(model: Any, obs: Any) -> float:
-    """``max_a Q(s, a)`` of SB3's DQN (its online Q-network)."""
-    with th.no_grad():
-        tensor, _ = model.policy.obs_to_tensor(np.asarray(obs))
-        return float(model.q_net(tensor).max())
-
-
-def critic_value(model: Any, obs: Any) -> float:
-    """``V(s)`` from the value head of an actor-critic policy (PPO, A2C)."""
-    with th.no_grad():
-        tensor, _ = model.policy.obs_to_tensor(np.asarray(obs))
-        return float(model.policy.predict_values(tensor).reshape(-1)[0])
-
-
 #: How a model's values are read (``value_kind``).
 VALUE_KINDS = ("tabular", "q_net", "quantile_net", "value_head", "recurrent", "critic")
 #: A ``Discrete`` observation space of at most this many states is valued in all its states at once (one batched pass

@@ -237,6 +237,3 @@ class HunterTeam:
             frame[name] = frame[name].astype(bool)
         return frame
 
-    def hunter_logs(self) -> dict[str, pd.DataFrame]:
-        """Each hunter's own ``episode_log``, by hunter name."""
-        return {agent: model.episode_log for agent, model in self.models.items()}

@@ -23,7 +23,7 @@ from sb3_affect.study.report.document import APPENDIX_HEADING, Document, fmt
 from sb3_affect.study.report.dqn import dqn_section, learning_curves_section
 from sb3_affect.study.report.evidence import evidence_section
 from sb3_affect.study.report.mechanism import mechanism_section
-from sb3_affect.study.report.metrics import EARLY_WINDOWS, LATE_WINDOWS, load_results, run_metrics
+from sb3_affect.study.report.metrics import EARLY_WINDOWS, LATE_WINDOWS, load_results
 from sb3_affect.study.report.minigrid import FOLDERS as MINIGRID_FOLDERS
 from sb3_affect.study.report.minigrid import minigrid_sections
 from sb3_affect.study.report.output_files import output_folder, write_text
@@ -307,12 +307,3 @@ def build_report(
     write_text(out / "report.html", ctx.doc.html())
     return md
 
-
-def summary_numbers(run_dir: Path) -> dict[str, float]:
-    """A few headline numbers (for notes and tests)."""
-    results = load_results(Path(run_dir))
-    metrics = run_metrics(results.episodes)
-    return {
-        f"{agent} decisions_per_episode": float(group.decisions_per_episode.mean())
-        for agent, group in metrics.groupby("agent")
-    } | {"runs": float(len(metrics)), "censored": float(metrics.censored.sum())}

@@ -140,22 +140,6 @@ class Results:
             del joined
         return frame
 
-    def agent_columns(self, agent: str, columns: Sequence[str], labels: dict[str, Any] | None = None) -> dict[str, np.ndarray]:
-        """
-        ``columns`` of ``agent``'s episode rows (``labels``: of the runs with these label values) as arrays, in no
-        particular order (for reductions that do not depend on it: counts, quantiles), read a part at a time.
-        """
-        pieces: dict[str, list[np.ndarray]] = {name: [] for name in columns}
-        for _, part in self.parts(tuple(columns), agent, RUNS_PER_PART, labels):
-            keep = np.ones(len(part), bool)
-            for key, value in (labels or {}).items():
-                keep &= np.asarray(part[key] == value) if key in part.columns else False
-            for name in columns:
-                values = part[name].to_numpy()
-                pieces[name].append(values if keep.all() else values[keep])
-            del part
-        return {name: np.concatenate(arrays) if arrays else np.zeros(0) for name, arrays in pieces.items()}
-
     def last_episode(self, agent: str) -> int:
         """The largest episode number of ``agent``'s runs (0: none)."""
         parts = self.parts(("episode",), agent, RUNS_PER_PART)
@@ -534,20 +518,6 @@ def _window(
     if sources is None or "cells" in sources:
         out[f"cells_{lo}_{hi}"] = segment_means(column("cells"), first, last)[0]
     return out
-
-
-def rows_where(frame: pd.DataFrame, mask: pd.Series | np.ndarray, columns: Sequence[str] | None = None) -> pd.DataFrame:
-    """
-    The rows of ``frame`` where ``mask`` holds (``columns``: only those), copying no more than those rows: a slice
-    (a view) when they are contiguous (one agent's runs are: rows are in run id order, and a run id starts with its
-    agent's name), else a copy of the selected rows of the selected columns.
-    """
-    where = np.flatnonzero(np.asarray(mask))
-    if len(where) and where[-1] - where[0] + 1 == len(where):
-        part = frame.iloc[where[0] : where[-1] + 1]
-        return part if columns is None else part[list(columns)]
-    names = frame.columns if columns is None else list(columns)
-    return pd.DataFrame({name: frame[name].iloc[where] for name in names})
 
 
 def plain_labels(frame: pd.DataFrame) -> pd.DataFrame:

@@ -8,12 +8,10 @@ writes where one points). A cache it wrote and can not read back is redone.
 from __future__ import annotations
 
 import contextlib
-import json
 import os
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
 
 
 def output_folder(folder: Path) -> Path:
@@ -50,16 +48,3 @@ def write_text(path: Path, text: str) -> None:
     with replacing(path) as tmp:
         tmp.write_text(text)
 
-
-def cached_json(path: Path) -> Any:
-    """
-    The JSON a report wrote earlier as a cache (``meta.json`` of a traced or computed study), or None when it is
-    missing or unusable (not a regular file, over 64 MiB, not JSON: a cache cut short by a kill): then it is redone.
-    """
-    from sb3_affect.study.launcher.folder_files import DamagedFile, regular_file
-
-    try:
-        regular_file(Path(path), 64 * 2**20)
-        return json.loads(Path(path).read_bytes())
-    except (DamagedFile, OSError, ValueError):
-        return None
