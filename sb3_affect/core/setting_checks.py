@@ -1,14 +1,15 @@
 """
-The checks of the tabular agents' hyperparameters and the per-episode schedules they define, without torch: each
-agent's constructor and its settings dataclass (``sb3_affect.core.settings``) call the same functions in the same order, so
-a bad value is the same error either way (the argument, the value, what is allowed).
+The core's validation, each bad value one error naming the argument, the value and what is allowed: numbers and rates
+(``check_number``, ``check_rate``), then the checks of the tabular agents' hyperparameters and the per-episode schedules
+they define, without torch. Each agent's constructor and its settings dataclass (``sb3_affect.core.settings``) call the
+same functions in the same order, so a bad value is the same error either way.
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -16,7 +17,9 @@ from sb3_affect.core.appraisal import ACT_MODES, UNITS, check_choice
 from sb3_affect.core.behaviour import MAX_SPEED, stored_behaviour_table
 from sb3_affect.core.emotions import COMPARISONS, Emotion
 from sb3_affect.core.personalities import check_personality
-from sb3_affect.core.validation import check_number, check_rate
+
+if TYPE_CHECKING:
+    from stable_baselines3.common.type_aliases import Schedule
 
 #: A number, or an SB3-style schedule of the remaining progress.
 Rate = float | Callable[[float], float]
@@ -28,6 +31,28 @@ ENGINES = ("auto", "python", "compiled")
 TIE_BREAKS = ("random", "first")
 MULTI_CELLS = ("steps", "jump")
 DECAYS = ("linear", "exponential")
+
+
+# -- numbers and rates: a clear error naming the argument, the value and the allowed range -------------------------
+def check_number(name: str, value: Any, low: float, high: float, low_open: bool = False) -> float:
+    """Validate a float hyperparameter in ``[low, high]`` (``(low, high]`` when ``low_open``)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise TypeError(f"{name} must be a number, got {value!r} ({type(value).__name__})")
+    value = float(value)
+    bad = not math.isfinite(value) or value > high or (value <= low if low_open else value < low)
+    if bad:
+        interval = f"{'(' if low_open else '['}{low:g}, {high:g}]"
+        raise ValueError(f"{name}={value!r} is out of range: it must be in {interval}")
+    return value
+
+
+def check_rate(name: str, value: float | Schedule, low: float, high: float, low_open: bool = False) -> None:
+    """A rate may be a number or an SB3-style schedule (a callable of the remaining progress)."""
+    if callable(value):
+        for progress in (1.0, 0.0):
+            check_number(f"{name}({progress:g})", value(progress), low, high, low_open)
+    else:
+        check_number(name, value, low, high, low_open)
 
 
 # -- the checks (each agent's constructor calls those of its own arguments) -------------------------------------------

@@ -33,12 +33,12 @@ from sb3_affect.core.setting_checks import (
     check_boltzmann,
     check_decaying,
     check_exploration_rate,
+    check_number,
     check_speeds,
     check_tabular,
     episode_decay,
     temperature_at,
 )
-from sb3_affect.core.validation import check_number
 
 
 # -- one dataclass per agent -----------------------------------------------------------------------------------------

@@ -10,8 +10,8 @@ from stable_baselines3.common.type_aliases import GymEnv, Schedule
 from sb3_affect.agents.policies import TabularQPolicy
 from sb3_affect.agents.tabular import TabularQAlgorithm
 from sb3_affect.core.episode_log import Rows
+from sb3_affect.core.setting_checks import check_number
 from sb3_affect.core.settings import UCBQLearningSettings
-from sb3_affect.core.validation import check_number
 
 _S = UCBQLearningSettings  # the defaults (one source: ``sb3_affect.core.settings``)
 
