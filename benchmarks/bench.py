@@ -13,7 +13,7 @@ the launcher; with ``--all``, also the other speed figures of the studies (below
 Every figure is the median of repeated runs in this one process. The learn loops are measured in paired rounds (the
 bare loop, then each learn loop, each compiled one followed by the kernel alone on its decisions); a ratio is the
 median of the rounds' ratios, and every round is printed with the machine's load. "Kernel alone" is the kernel's
-batch call (``simulate``'s, ``kernel.batch.run_batch``) for the same seed and the episodes the compiled ``learn``
+batch call (``simulate``'s, ``kernel.grid_batch.run_batch``) for the same seed and the episodes the compiled ``learn``
 finished; only the call is timed (its inputs, seed key and output rows are made before it): compiled ``learn`` /
 kernel alone is what ``learn`` adds to the decisions themselves.
 
@@ -113,13 +113,13 @@ def learn_rate(cls: type, steps: int, **kwargs: object) -> Callable[[], float]:
 
 def kernel_alone(algo: str, steps: int, **kwargs: object) -> Callable[[], float]:
     """
-    The kernel alone on ``learn_rate``'s decisions: the one kernel call ``simulate`` makes (``kernel.batch.run_batch``)
+    The kernel alone on ``learn_rate``'s decisions: the one kernel call ``simulate`` makes (``kernel.grid_batch.run_batch``)
     for seed 0 and the episodes a compiled ``learn(steps)`` finishes (checked to be the same episodes). Only the call
     is timed: its inputs, its seed key and its output rows are made before it.
     """
-    from sb3_affect.kernel import arrays
-    from sb3_affect.kernel.batch import batch_columns, run_batch
-    from sb3_affect.kernel.inputs import settings_inputs
+    from sb3_affect.kernel import state_layout
+    from sb3_affect.kernel.grid_batch import batch_columns, run_batch
+    from sb3_affect.kernel.grid_inputs import settings_inputs
     from sb3_affect.kernel.mt19937 import seed_keys
 
     model = getattr(sb3_affect, algo)("Grid", gym.make(ENV_ID), seed=0, **kwargs)
@@ -133,12 +133,12 @@ def kernel_alone(algo: str, steps: int, **kwargs: object) -> Callable[[], float]
     keys, lengths = seed_keys([0])
 
     def run() -> float:
-        out_i = np.empty((episodes, arrays.N_OUT_I), dtype=np.int64)  # as learn's: rows the kernel writes in full
+        out_i = np.empty((episodes, state_layout.N_OUT_I), dtype=np.int64)  # as learn's: rows the kernel writes in full
         out_f = np.empty((episodes, 2))
         start = time.perf_counter()
         run_batch(inputs, keys, lengths, episodes, out_i, out_f)
         seconds = time.perf_counter() - start
-        return int(out_i[:, arrays.O_DECISIONS].sum()) / seconds
+        return int(out_i[:, state_layout.O_DECISIONS].sum()) / seconds
 
     return run
 

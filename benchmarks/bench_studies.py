@@ -1,6 +1,6 @@
 """
-The studies beyond the single static task on their kernels: hunter teams (``kernel.team``) and moving prey
-(``kernel.moving``), each against its Python reference in paired rounds, then the report's studies at full size.
+The studies beyond the single static task on their kernels: hunter teams (``kernel.team_loop``) and moving prey
+(``kernel.moving_loop``), each against its Python reference in paired rounds, then the report's studies at full size.
 
     python benchmarks/bench_studies.py                 # paired rounds, then the studies at 1,000 seeds
     python benchmarks/bench_studies.py --seeds 100     # the studies with fewer seeds
@@ -40,7 +40,7 @@ def team_pair(seeds: list[int], episodes: int) -> tuple[Callable[[], int], Calla
     from sb3_affect.agents.broekens import BroekensCallback
     from sb3_affect.agents.hunter_team import HunterTeam
     from sb3_affect.envs import HUNTER_PURSUIT_ID, make_parallel
-    from sb3_affect.kernel.team_inputs import run_team, team_columns, team_settings_inputs
+    from sb3_affect.kernel.team_batch import run_team, team_columns, team_settings_inputs
 
     def python() -> int:
         total = 0

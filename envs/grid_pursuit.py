@@ -16,6 +16,8 @@ from sb3_affect.envs.transition_table import TransitionTable
 UP, DOWN, LEFT, RIGHT = 0, 1, 2, 3
 MOVES: tuple[tuple[int, int], ...] = ((-1, 0), (1, 0), (0, -1), (0, 1))
 ACTION_NAMES: tuple[str, ...] = ("up", "down", "left", "right")
+#: How a prey moves (MovingPursuit, HunterPursuit), the one list of its modes (the kernel codes each by its index).
+PREY_MODES: tuple[str, ...] = ("static", "random", "evade")
 
 Cell = tuple[int, int]
 

@@ -18,12 +18,11 @@ except ImportError as error:  # one line naming the extra (the envs import nothi
         f"the multi-agent pursuit env (HunterPursuit) needs the 'hunters' extra ({error}): pip install \"sb3-affect[hunters]\""
     ) from None
 
-from sb3_affect.envs.grid_pursuit import MOVES, _as_cell, build_transitions, check_size, distances_to
+from sb3_affect.envs.grid_pursuit import MOVES, PREY_MODES, _as_cell, build_transitions, check_size, distances_to
 from sb3_affect.envs.maze import load_maze
 
 #: The action that leaves a hunter where it is (0-3 are ``MOVES``: up, down, left, right).
 STAY = len(MOVES)
-PREY_MODES = ("static", "random", "evade")
 CAPTURE_MODES = ("enter", "surround")
 OBSERVATION_MODES = ("self", "all")
 #: Kuremoto et al.'s layout: a 17 x 17 grid, the prey at (9, 9), two hunters from (2, 2) and (14, 14).

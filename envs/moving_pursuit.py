@@ -10,10 +10,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from sb3_affect.envs.grid_pursuit import MOVES, _as_cell, build_transitions, check_size, distances_to
+from sb3_affect.envs.grid_pursuit import MOVES, PREY_MODES, _as_cell, build_transitions, check_size, distances_to
 from sb3_affect.envs.maze import load_maze
-
-PREY_MODES = ("random", "evade", "static")
 
 
 class MovingPursuitEnv(gym.Env[Any, Any]):
@@ -150,7 +148,7 @@ class MovingPursuitEnv(gym.Env[Any, Any]):
         """Why this env has no transition table (``sb3_affect.envs.transition_table``) for the compiled engine."""
         return (
             "MovingPursuit's prey moves at random, so its moves are no fixed transition table: the grid kernel can "
-            "not step it (its own kernel, sb3_affect.kernel.moving, does)"
+            "not step it (its own kernel, sb3_affect.kernel.moving_loop, does)"
         )
 
     def _distances(self) -> list[list[float]]:

@@ -21,7 +21,7 @@ from sb3_affect.engine.simulation import simulate
 from sb3_affect.envs import TransitionTable
 from sb3_affect.envs.grid_pursuit import RIGHT
 from sb3_affect.kernel import choice
-from sb3_affect.kernel.agents import COMPENSATED_SUM
+from sb3_affect.kernel.agent_settings import COMPENSATED_SUM
 from sb3_affect.kernel.mt19937 import STATE_SIZE, randbelow, random01, seed_key, seed_state, state_from_rng
 
 GRID = "sb3_affect/GridPursuit-v0"
@@ -315,7 +315,7 @@ def test_the_kernels_cache_is_dropped_when_any_kernel_source_changes(tmp_path: P
 
 
 def test_envs_built_anew_with_the_same_table_share_its_arrays_and_others_get_their_own() -> None:
-    from sb3_affect.kernel.inputs import TableArrays
+    from sb3_affect.kernel.grid_inputs import TableArrays
 
     def arrays_of(**kwargs: Any) -> TableArrays:
         return TableArrays.of(gym.make("sb3_affect/GridPursuit-v0", **kwargs).unwrapped)

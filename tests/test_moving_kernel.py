@@ -1,5 +1,5 @@
 """
-The moving-prey kernel's contract: on MovingPursuit, for the same seed, ``kernel.moving`` gives the identical episode
+The moving-prey kernel's contract: on MovingPursuit, for the same seed, ``kernel.moving_loop`` gives the identical episode
 log, Q-table, agent generator state (MT19937), env generator state (NumPy's PCG64, the prey's draws) and known map as
 the Python loop, for every agent kind, reading and prey, over many seeds; and ``simulate`` uses it.
 """
@@ -18,9 +18,9 @@ from stable_baselines3.common.callbacks import StopTrainingOnMaxEpisodes
 from sb3_affect import AffectQ, Behaviour, Emotion, QLearning
 from sb3_affect.agents.baselines import Boltzmann, DecayingEpsilonGreedy, OptimisticQLearning, SpeedEpsilonGreedy, UCBQLearning
 from sb3_affect.engine.simulation import simulate
+from sb3_affect.kernel.moving_batch import moving_inputs, run_moving
 from sb3_affect.kernel.mt19937 import state_from_rng
 from sb3_affect.kernel.pcg64 import integers, random01, seeded_state, state_from_generator, state_to_generator
-from sb3_affect.kernel.prey_batch import moving_inputs, run_moving
 
 MOVING = "sb3_affect/MovingPursuit-v0"
 SMALL = {"size": 5, "start": (0, 0), "prey_start": (2, 2)}

@@ -1,5 +1,5 @@
 """
-The team kernel's contract: on HunterPursuit, for the same run seed, ``kernel.team`` gives the identical team log,
+The team kernel's contract: on HunterPursuit, for the same run seed, ``kernel.team_loop`` gives the identical team log,
 each hunter's episode log, Q-table, ``random.Random`` state and known map, the env's NumPy generator state and each
 hunter's Broekens observations as ``HunterTeam`` driving the agents one decision at a time, over the env's options
 (static, random and evading prey; enter and surround captures; own or all cells observed; 2 and 3 hunters; obstacles,
@@ -22,7 +22,7 @@ from sb3_affect.agents.hunter_team import HunterTeam
 from sb3_affect.envs import HUNTER_PURSUIT_ID, make_parallel
 from sb3_affect.kernel.mt19937 import state_from_rng
 from sb3_affect.kernel.pcg64 import state_from_generator
-from sb3_affect.kernel.team_inputs import hunter_columns, run_team, team_columns, team_settings_inputs
+from sb3_affect.kernel.team_batch import hunter_columns, run_team, team_columns, team_settings_inputs
 from sb3_affect.study.launcher import run_sweep
 from sb3_affect.study.launcher.one_run import execute_run
 

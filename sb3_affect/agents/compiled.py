@@ -32,10 +32,10 @@ from sb3_affect.agents.reference_loop import episode_end_info, step_locals
 from sb3_affect.core.emotions import EMOTION_NAMES
 from sb3_affect.core.episode_log import COLUMN
 from sb3_affect.core.settings import TabularSettings
-from sb3_affect.kernel import arrays
-from sb3_affect.kernel.agents import KernelAgent, kernel_agent
-from sb3_affect.kernel.inputs import env_reason, unwrap
-from sb3_affect.kernel.prey_batch import moving_reason
+from sb3_affect.kernel import agent_settings
+from sb3_affect.kernel.agent_settings import KernelAgent, kernel_agent
+from sb3_affect.kernel.grid_inputs import env_reason, unwrap
+from sb3_affect.kernel.moving_batch import moving_reason
 
 __all__ = ["batch_reason", "callback_reason", "compiled_plan", "compiled_reason", "learn_compiled", "model_env_reason"]
 _CHUNK_EPISODES = 16384
@@ -67,8 +67,8 @@ def callback_reason(callback: BaseCallback | None) -> str | None:
 
 def model_env_reason(env: Any) -> str | None:
     """
-    Why the kernel can not step a model's ``env`` (None: it can): ``kernel.inputs.env_reason`` with SB3's Monitor
-    allowed, or a MovingPursuit the moving-prey kernel steps (``kernel.prey_batch.moving_reason``).
+    Why the kernel can not step a model's ``env`` (None: it can): ``kernel.grid_inputs.env_reason`` with SB3's Monitor
+    allowed, or a MovingPursuit the moving-prey kernel steps (``kernel.moving_batch.moving_reason``).
     """
     from sb3_affect.envs import MovingPursuitEnv
 
@@ -78,7 +78,7 @@ def model_env_reason(env: Any) -> str | None:
 
 
 def grid_env_reason(env: Any) -> str | None:
-    """Why the grid kernel (``kernel.loop``) can not step a model's ``env`` (None: it can)."""
+    """Why the grid kernel (``kernel.grid_loop``) can not step a model's ``env`` (None: it can)."""
     reason = env_reason(env, (Monitor,))
     if reason is None and any(isinstance(w, Monitor) and w.info_keywords for w in unwrap(env)[1]):
         return "the Monitor records info_keywords, which the kernel does not produce"
@@ -191,7 +191,7 @@ def learn_compiled(
 
 
 def _close_episodes(model: Any, run: RunArrays, finished: int) -> None:
-    """``loop.close_episode`` for the kernel's ``finished`` episodes (the logger aside), in bulk: the
+    """``grid_loop.close_episode`` for the kernel's ``finished`` episodes (the logger aside), in bulk: the
     episode log gets them as one block of columns, with no Python work per episode."""
     block = run.block(finished)
     first = len(model._episode_blocks) + 1
@@ -213,7 +213,7 @@ def _record(model: Any, run: RunArrays, log_interval: int | None) -> None:
     """The logger keys of an episode end (only the last episode before a dump matters: records overwrite)."""
     logger = model.logger  # recorded whenever a logger exists, as SB3 does (per chunk of episodes, never per decision)
     row = model._episode_blocks.last()
-    if run.agent.kind == arrays.AFFECT:
+    if run.agent.kind == agent_settings.AFFECT:
         counts = [row[COLUMN[name]] for name in EMOTION_NAMES]
         total = sum(counts)
         for name, count in zip(EMOTION_NAMES, counts):

@@ -1,7 +1,7 @@
 """
 A model's run state on MovingPursuit as the moving-prey kernel's arrays (``MovingKernelRun``), and back: what
 ``sb3_affect.agents.compiled_state.KernelRun`` is for the grid kernel (both on ``compiled_run.RunArrays``), for
-``sb3_affect.kernel.moving``.
+``sb3_affect.kernel.moving_loop``.
 
 Read at the start of a compiled ``learn``: the Q-table, the agent's MT19937 state, the env's PCG64 state (the prey's
 draws), hunter and prey cells, the episode in progress, the appraisal (known map over observations, power fit,
@@ -18,12 +18,12 @@ import numpy as np
 
 from sb3_affect.agents.compiled_run import RunArrays, monitor_episodes, read_appraisal_scalars, write_appraisal_scalars
 from sb3_affect.core.settings import TabularSettings
-from sb3_affect.kernel import arrays, moving
-from sb3_affect.kernel.agents import KernelAgent
+from sb3_affect.kernel import agent_settings, grid_arrays, moving_loop, state_layout
+from sb3_affect.kernel.agent_settings import KernelAgent
+from sb3_affect.kernel.decision import ObsAppraisal
+from sb3_affect.kernel.moving_batch import moving_inputs
 from sb3_affect.kernel.mt19937 import TW_SIZE
 from sb3_affect.kernel.pcg64 import state_from_generator, state_to_generator
-from sb3_affect.kernel.prey_batch import moving_inputs
-from sb3_affect.kernel.steps import ObsAppraisal
 
 __all__ = ["MovingKernelRun", "MovingKnownArrays"]
 
@@ -74,16 +74,17 @@ class MovingKernelRun(RunArrays):
     :param agent: the agent as the kernel runs it
     """
 
-    at: ClassVar[Any] = moving
+    n_ist: ClassVar[int] = moving_loop.N_MOVING_IST
+    fixed_goal: ClassVar[bool] = False
 
     def __init__(self, model: Any, env: Any, settings: TabularSettings, agent: KernelAgent) -> None:
         super().__init__(model, env, agent)
         base, ist, fst = self.base, self.ist, self.fst
         self.inputs = inputs = moving_inputs(settings, env, 1)
         self.pcg = state_from_generator(base.np_random)
-        ist[moving.I_HUNTER], ist[moving.I_PREY] = base.hunter, base.prey_cell  # the env's state is the observation
-        fst[moving.S_NORM] = math.nan
-        fst[moving.S_LAST_ACT] = math.inf
+        ist[moving_loop.I_HUNTER], ist[moving_loop.I_PREY] = base.hunter, base.prey_cell  # the env's state is the observation
+        fst[state_layout.S_NORM] = math.nan
+        fst[state_layout.S_LAST_ACT] = math.inf
         n_states, n_actions = self.q.shape
         self.dist = np.full(n_states, math.inf)
         self.succ = np.zeros((n_states, inputs.env.succ_width), dtype=np.int32)
@@ -91,9 +92,9 @@ class MovingKernelRun(RunArrays):
         self.pred = np.zeros((n_states, inputs.env.pred_width), dtype=np.int32)
         self.pred_n = np.zeros(n_states, dtype=np.int64)
         self.goal = np.zeros(n_states, dtype=np.bool_)
-        if agent.kind == arrays.AFFECT:
+        if agent.kind == agent_settings.AFFECT:
             self._read_appraisal()
-        self.work = moving.Work(
+        self.work = moving_loop.Work(
             np.empty(n_actions),
             np.empty(n_states + 1, dtype=np.int64),
             np.empty(TW_SIZE, dtype=np.int64),
@@ -108,7 +109,7 @@ class MovingKernelRun(RunArrays):
             kept.copy_into(self)  # as the last compiled learn left it: no Python objects in between
         else:
             self._read_known(callback.appraiser.known)
-        self.fit_vals = read_appraisal_scalars(callback, self.ist, self.fst, moving)
+        self.fit_vals = read_appraisal_scalars(callback, self.ist, self.fst)
 
     def _read_known(self, known: Any) -> None:
         self.dist[:] = np.asarray(known.distance, dtype=np.float64)
@@ -126,20 +127,20 @@ class MovingKernelRun(RunArrays):
         callback = self.model.emotion_callback
         known = MovingKnownArrays(self.dist, self.succ, self.succ_n, self.pred, self.pred_n, self.goal)
         callback.appraiser.defer("known", known)  # the run's arrays: this run is over, nothing writes them again
-        write_appraisal_scalars(callback, self.ist, self.fst, self.fit_vals, moving)
+        write_appraisal_scalars(callback, self.ist, self.fst, self.fit_vals)
 
     # -- running -------------------------------------------------------------------------------------------------
     def step(self, alpha: np.ndarray, p: np.ndarray, total_timesteps: int, max_episodes: int) -> tuple[int, int]:
-        """Run the kernel (``moving.moving_loop``); returns (episodes finished, 0)."""
+        """Run the kernel (``moving_loop.moving_loop``); returns (episodes finished, 0)."""
         cells_before = self._room(max_episodes)
         inputs = self.inputs
-        finished = moving.moving_loop(
+        finished = moving_loop.moving_loop(
             inputs.env,
             inputs.config,
             self.agent.behaviour,
-            moving.RunState(self.q, self.mt, self.pcg, self.ist, self.fst, self.ucb_n, self.ucb_tot),
+            moving_loop.RunState(self.q, self.mt, self.pcg, self.ist, self.fst, self.ucb_n, self.ucb_tot),
             ObsAppraisal(self.dist, self.succ, self.succ_n, self.pred, self.pred_n, self.goal, self.fit_vals),
-            arrays.Episodes(alpha, p, self.out_i, self.out_f),
+            grid_arrays.Episodes(alpha, p, self.out_i, self.out_f),
             self.work,
             int(total_timesteps),
             int(max_episodes),
@@ -157,9 +158,9 @@ class MovingKernelRun(RunArrays):
         """Return every piece of state to the model, its generator, its appraisal, the env and its wrappers."""
         base = self.base
         state_to_generator(base.np_random, self.pcg)
-        if self.agent.kind == arrays.AFFECT:
+        if self.agent.kind == agent_settings.AFFECT:
             self._write_appraisal()
-        base.hunter, base.prey_cell = int(self.ist[moving.I_HUNTER]), int(self.ist[moving.I_PREY])
+        base.hunter, base.prey_cell = int(self.ist[moving_loop.I_HUNTER]), int(self.ist[moving_loop.I_PREY])
         self.model._greedy_optimal = None
         self._write_back(base.step_reward)
 
@@ -171,4 +172,4 @@ class MovingKernelRun(RunArrays):
 
     @property
     def state(self) -> int:
-        return int(self.ist[moving.I_HUNTER]) * self.base.n_cells + int(self.ist[moving.I_PREY])
+        return int(self.ist[moving_loop.I_HUNTER]) * self.base.n_cells + int(self.ist[moving_loop.I_PREY])

@@ -4,8 +4,8 @@ episode in progress, UCB counts, the kernel's output rows, the Monitor and the e
 arrays at the start of a compiled ``learn`` and written back at its end. ``compiled_state.KernelRun`` adds the grid
 kernel's env and known map, ``compiled_moving.MovingKernelRun`` the moving-prey kernel's.
 
-A kernel's state arrays are laid out by its module (``kernel.arrays`` or ``kernel.moving``: ``RunArrays.at``), which
-names the same quantities with the same index names.
+A kernel's state arrays are laid out by ``kernel.state_layout`` in every world, each adding its own tail
+(``RunArrays.n_ist``).
 """
 
 from __future__ import annotations
@@ -17,9 +17,9 @@ from typing import Any, ClassVar
 import numpy as np
 from stable_baselines3.common.monitor import Monitor
 
-from sb3_affect.kernel import arrays
-from sb3_affect.kernel.agents import KernelAgent
-from sb3_affect.kernel.inputs import unwrap
+from sb3_affect.kernel import agent_settings, state_layout
+from sb3_affect.kernel.agent_settings import KernelAgent
+from sb3_affect.kernel.grid_inputs import unwrap
 from sb3_affect.kernel.mt19937 import state_from_rng, state_to_rng
 
 __all__ = ["FitArrays", "RunArrays", "monitor_episodes", "read_appraisal_scalars", "write_appraisal_scalars"]
@@ -43,10 +43,10 @@ class FitArrays:
         return fit
 
 
-def read_appraisal_scalars(callback: Any, ist: np.ndarray, fst: np.ndarray, at: Any) -> np.ndarray:
+def read_appraisal_scalars(callback: Any, ist: np.ndarray, fst: np.ndarray) -> np.ndarray:
     """
     An emotion callback's counts and its appraiser's power fit, norm, elapsed counters and ``last_act`` into a kernel's
-    ``ist``/``fst`` (at the indices of the module ``at``: ``kernel.arrays`` or ``kernel.moving``); returns the fit's
+    ``ist``/``fst`` (at ``kernel.state_layout``'s indices, every world's); returns the fit's
     values in an array with room to grow.
     """
     appraiser = callback.appraiser
@@ -58,27 +58,27 @@ def read_appraisal_scalars(callback: Any, ist: np.ndarray, fst: np.ndarray, at: 
         values, sums = np.asarray(fit.values, dtype=np.float64), np.array([fit._sx, fit._sy, fit._sxx, fit._sxy])
     fit_vals = np.zeros(max(64, 2 * len(values)))
     fit_vals[: len(values)] = values
-    fst[at.S_FIT0 : at.S_FIT0 + 4] = sums
-    ist[at.I_NFIT] = len(values)
-    ist[at.I_EL_CELLS] = appraiser.elapsed_cells
-    ist[at.I_EL_DECISIONS] = appraiser.elapsed_decisions
-    ist[at.I_JOY : at.I_ANGER + 1] = callback.counts
-    fst[at.S_NORM] = appraiser.norm
-    fst[at.S_LAST_ACT] = appraiser.last_act
+    fst[state_layout.S_FIT0 : state_layout.S_FIT0 + 4] = sums
+    ist[state_layout.I_NFIT] = len(values)
+    ist[state_layout.I_EL_CELLS] = appraiser.elapsed_cells
+    ist[state_layout.I_EL_DECISIONS] = appraiser.elapsed_decisions
+    ist[state_layout.I_JOY : state_layout.I_ANGER + 1] = callback.counts
+    fst[state_layout.S_NORM] = appraiser.norm
+    fst[state_layout.S_LAST_ACT] = appraiser.last_act
     return fit_vals
 
 
-def write_appraisal_scalars(callback: Any, ist: np.ndarray, fst: np.ndarray, fit_vals: np.ndarray, at: Any) -> None:
+def write_appraisal_scalars(callback: Any, ist: np.ndarray, fst: np.ndarray, fit_vals: np.ndarray) -> None:
     """``read_appraisal_scalars`` the other way: the kernel's values back into the callback and its appraiser (the fit
     kept as arrays until read: ``FitArrays``)."""
     appraiser = callback.appraiser
-    n_fit = int(ist[at.I_NFIT])
-    appraiser.defer("fit", FitArrays(fit_vals[:n_fit].copy(), fst[at.S_FIT0 : at.S_FIT0 + 4].copy()))
-    appraiser.norm = float(fst[at.S_NORM])
-    appraiser.elapsed_cells = int(ist[at.I_EL_CELLS])
-    appraiser.elapsed_decisions = int(ist[at.I_EL_DECISIONS])
-    appraiser.last_act = float(fst[at.S_LAST_ACT])
-    callback.counts = [int(v) for v in ist[at.I_JOY : at.I_ANGER + 1]]
+    n_fit = int(ist[state_layout.I_NFIT])
+    appraiser.defer("fit", FitArrays(fit_vals[:n_fit].copy(), fst[state_layout.S_FIT0 : state_layout.S_FIT0 + 4].copy()))
+    appraiser.norm = float(fst[state_layout.S_NORM])
+    appraiser.elapsed_cells = int(ist[state_layout.I_EL_CELLS])
+    appraiser.elapsed_decisions = int(ist[state_layout.I_EL_DECISIONS])
+    appraiser.last_act = float(fst[state_layout.S_LAST_ACT])
+    callback.counts = [int(v) for v in ist[state_layout.I_JOY : state_layout.I_ANGER + 1]]
 
 
 def monitor_episodes(
@@ -124,7 +124,8 @@ def monitor_episodes(
 
 class RunArrays:
     """
-    The state every compiled ``learn`` run carries (see the module docstring); subclasses set ``at`` and add their
+    The state every compiled ``learn`` run carries (see the module docstring); subclasses set ``n_ist`` and
+    ``fixed_goal`` and add their
     env's state, their known map, ``step``, ``state``, ``last_info`` and ``monitor_episodes``.
 
     :param model: the tabular model (its episode in progress already begun)
@@ -132,10 +133,11 @@ class RunArrays:
     :param agent: the agent as the kernel runs it
     """
 
-    at: ClassVar[Any] = arrays
+    #: the length of the kernel's ``ist`` (its world's tail included) and whether its world has a fixed goal
+    n_ist: ClassVar[int] = state_layout.N_IST
+    fixed_goal: ClassVar[bool] = True
 
     def __init__(self, model: Any, env: Any, agent: KernelAgent) -> None:
-        at = self.at
         self.model, self.agent = model, agent
         self.base, wrappers = unwrap(env)
         self.monitor = next((w for w in wrappers if isinstance(w, Monitor)), None)
@@ -146,23 +148,23 @@ class RunArrays:
         model._q = self.q  # the live table: what predict, q_table and save see from an episode-level callback
         n_states, n_actions = self.q.shape
         self.mt, self.gauss = state_from_rng(model._rng)
-        ist = self.ist = np.zeros(at.N_IST, dtype=np.int64)
-        fst = self.fst = np.zeros(at.N_FST)
-        ist[at.I_T] = model.num_timesteps
+        ist = self.ist = np.zeros(self.n_ist, dtype=np.int64)
+        fst = self.fst = np.zeros(state_layout.N_FST)
+        ist[state_layout.I_T] = model.num_timesteps
         st = model._episode_state
         if st is not None:
-            ist[at.I_DECISIONS], ist[at.I_CELLS] = st["decisions"], st["cells"]
-            ist[at.I_RANDOM], ist[at.I_WAITS] = st["random_moves"], st["waits"]
-            fst[at.S_REWARD] = st["reward"]
-        ist[at.I_TL_ELAPSED] = 0 if self.time_limit is None else int(self.time_limit._elapsed_steps or 0)
+            ist[state_layout.I_DECISIONS], ist[state_layout.I_CELLS] = st["decisions"], st["cells"]
+            ist[state_layout.I_RANDOM], ist[state_layout.I_WAITS] = st["random_moves"], st["waits"]
+            fst[state_layout.S_REWARD] = st["reward"]
+        ist[state_layout.I_TL_ELAPSED] = 0 if self.time_limit is None else int(self.time_limit._elapsed_steps or 0)
         self.fit_vals = np.zeros(64)
         self.ucb_n = np.zeros((n_states, n_actions), dtype=np.int64)
         self.ucb_tot = np.zeros(n_states, dtype=np.int64)
-        if agent.kind == arrays.UCB:
+        if agent.kind == agent_settings.UCB:
             self.ucb_n[:] = np.asarray(model.counts, dtype=np.int64)
             self.ucb_tot[:] = np.asarray(model._totals, dtype=np.int64)
-        self.out_i = np.zeros((1, at.N_OUT_I), dtype=np.int64)
-        self.out_f = np.zeros((1, 2))
+        self.out_i = np.zeros((1, state_layout.N_OUT_I), dtype=np.int64)
+        self.out_f = np.zeros((1, state_layout.N_OUT_F))
         self._handed_over = False  # whether the episode log holds the output rows (``block``)
         self.monitor_cells = 0
         self.last_monitor_info: dict[str, Any] | None = None
@@ -190,73 +192,71 @@ class RunArrays:
         """Room for ``max_episodes`` output rows and fit values; returns the cells of the episode in progress."""
         if self.out_i.shape[0] < max_episodes or self._handed_over:  # (not zeroed: the kernel writes every column of
             self._handed_over = False  # an episode's row, and only the rows it wrote are read)
-            self.out_i = np.empty((max_episodes, self.at.N_OUT_I), dtype=np.int64)
-            self.out_f = np.empty((max_episodes, 2))
-        need = int(self.ist[self.at.I_NFIT]) + max_episodes
-        if self.agent.kind == arrays.AFFECT and self.fit_vals.shape[0] < need:  # (only the affective agent fits)
+            self.out_i = np.empty((max_episodes, state_layout.N_OUT_I), dtype=np.int64)
+            self.out_f = np.empty((max_episodes, state_layout.N_OUT_F))
+        need = int(self.ist[state_layout.I_NFIT]) + max_episodes
+        if self.agent.kind == agent_settings.AFFECT and self.fit_vals.shape[0] < need:  # (only the affective agent fits)
             grown = np.zeros(max(need, 2 * self.fit_vals.shape[0]))
             grown[: self.fit_vals.shape[0]] = self.fit_vals
             self.fit_vals = grown
-        return int(self.ist[self.at.I_CELLS])
+        return int(self.ist[state_layout.I_CELLS])
 
     def _stepped(self, finished: int, cells_before: int) -> None:
         """Count the env steps of a kernel call that finished ``finished`` episodes (the Monitor's ``total_steps``)."""
-        cells = self.at.I_CELLS
-        stepped = int(self.out_i[:finished, self.at.O_CELLS].sum()) - (cells_before if finished else 0)
+        cells = state_layout.I_CELLS
+        stepped = int(self.out_i[:finished, state_layout.O_CELLS].sum()) - (cells_before if finished else 0)
         self.monitor_cells += stepped + int(self.ist[cells]) - (0 if finished else cells_before)
 
     def block(self, finished: int) -> dict[str, np.ndarray]:
         """The ``finished`` episodes of the last ``step`` as columns of the episode log (views of the output rows, which
         the run hands over, or of a copy when they fill less than a quarter of them; ``optimal`` and ``greedy_optimal``
         NaN unless the kernel's module has them)."""
-        at = self.at
         ints, floats = self.out_i[:finished], self.out_f[:finished]  # the columns are views of these
         if 4 * finished < self.out_i.shape[0]:  # a few rows of a large buffer: copied, the buffer kept for the next call
             ints, floats = ints.copy(), floats.copy()
         else:  # handed over: the next kernel call gets new rows
             self._handed_over = True
         return {
-            "decisions": ints[:, at.O_DECISIONS],
-            "cells": ints[:, at.O_CELLS],
+            "decisions": ints[:, state_layout.O_DECISIONS],
+            "cells": ints[:, state_layout.O_CELLS],
             "reward": floats[:, 0],
             "optimal": self._flags(ints, "O_OPTIMAL"),
-            "truncated": ints[:, at.O_TRUNCATED].astype(bool),
-            "random_moves": ints[:, at.O_RANDOM],
-            "waits": ints[:, at.O_WAITS],
-            "joy": ints[:, at.O_JOY],
-            "sadness": ints[:, at.O_SADNESS],
-            "fear": ints[:, at.O_FEAR],
-            "anger": ints[:, at.O_ANGER],
+            "truncated": ints[:, state_layout.O_TRUNCATED].astype(bool),
+            "random_moves": ints[:, state_layout.O_RANDOM],
+            "waits": ints[:, state_layout.O_WAITS],
+            "joy": ints[:, state_layout.O_JOY],
+            "sadness": ints[:, state_layout.O_SADNESS],
+            "fear": ints[:, state_layout.O_FEAR],
+            "anger": ints[:, state_layout.O_ANGER],
             "greedy_optimal": self._flags(ints, "O_GREEDY"),
             "norm": floats[:, 1],
         }
 
     def _flags(self, ints: np.ndarray, name: str) -> np.ndarray:
-        column = getattr(self.at, name, None)
-        return np.full(len(ints), np.nan) if column is None else ints[:, column].astype(bool)
+        return ints[:, getattr(state_layout, name)].astype(bool) if self.fixed_goal else np.full(len(ints), np.nan)
 
     def _write_back(self, step_reward: float) -> None:
         """The state every run returns: Q-table, generator, UCB counts, the episode in progress, the wrappers."""
-        model, ist, at = self.model, self.ist, self.at
+        model, ist = self.model, self.ist
         model._q = self.q
         state_to_rng(model._rng, self.mt, self.gauss)
-        if self.agent.kind == arrays.UCB:
+        if self.agent.kind == agent_settings.UCB:
             model.counts = self.ucb_n.tolist()
             model._totals = self.ucb_tot.tolist()
         s = self.state
         model._episode_state = {
             "state": s,
-            "decisions": int(ist[at.I_DECISIONS]),
-            "cells": int(ist[at.I_CELLS]),
-            "random_moves": int(ist[at.I_RANDOM]),
-            "waits": int(ist[at.I_WAITS]),
-            "reward": float(self.fst[at.S_REWARD]),
+            "decisions": int(ist[state_layout.I_DECISIONS]),
+            "cells": int(ist[state_layout.I_CELLS]),
+            "random_moves": int(ist[state_layout.I_RANDOM]),
+            "waits": int(ist[state_layout.I_WAITS]),
+            "reward": float(self.fst[state_layout.S_REWARD]),
         }
         model._last_obs = np.array([s + self.obs_start])
         if self.time_limit is not None:
-            self.time_limit._elapsed_steps = int(ist[at.I_TL_ELAPSED])
+            self.time_limit._elapsed_steps = int(ist[state_layout.I_TL_ELAPSED])
         if self.monitor is not None:
-            self.monitor.rewards = [step_reward] * int(ist[at.I_CELLS])
+            self.monitor.rewards = [step_reward] * int(ist[state_layout.I_CELLS])
             self.monitor.needs_reset = False
             self.monitor.total_steps += self.monitor_cells
 
@@ -267,24 +267,24 @@ class RunArrays:
 
     @property
     def timesteps(self) -> int:
-        return int(self.ist[self.at.I_T])
+        return int(self.ist[state_layout.I_T])
 
     @property
     def last_s2(self) -> int:
-        return int(self.ist[self.at.I_LAST_S2])
+        return int(self.ist[state_layout.I_LAST_S2])
 
     @property
     def last_prev(self) -> int:
-        return int(self.ist[self.at.I_LAST_PREV])
+        return int(self.ist[state_layout.I_LAST_PREV])
 
     @property
     def last_action(self) -> int:
-        return int(self.ist[self.at.I_LAST_ACTION])
+        return int(self.ist[state_layout.I_LAST_ACTION])
 
     @property
     def last_terminated(self) -> bool:
-        return bool(self.ist[self.at.I_LAST_TERMINATED])
+        return bool(self.ist[state_layout.I_LAST_TERMINATED])
 
     @property
     def last_reward(self) -> float:
-        return float(self.fst[self.at.S_LAST_REWARD])
+        return float(self.fst[state_layout.S_LAST_REWARD])

@@ -9,22 +9,22 @@ table and its time limit. ``write_back`` returns all of it to the Python objects
 from __future__ import annotations
 
 import math
-from typing import Any, ClassVar
+from typing import Any
 
 import numpy as np
 
 from sb3_affect.agents.compiled_run import RunArrays, monitor_episodes, read_appraisal_scalars, write_appraisal_scalars
 from sb3_affect.core.settings import TabularSettings
-from sb3_affect.kernel import arrays, loop
-from sb3_affect.kernel.agents import KernelAgent
-from sb3_affect.kernel.inputs import TableArrays, kernel_config
+from sb3_affect.kernel import agent_settings, grid_arrays, grid_loop, state_layout
+from sb3_affect.kernel.agent_settings import KernelAgent
+from sb3_affect.kernel.grid_inputs import TableArrays, kernel_config
 
 __all__ = ["GridKnownArrays", "KernelRun", "empty_appraisal"]
 
 
-def empty_appraisal(n_states: int, n_actions: int, max_pred: int, episodes: int) -> arrays.Appraisal:
+def empty_appraisal(n_states: int, n_actions: int, max_pred: int, episodes: int) -> grid_arrays.Appraisal:
     """An empty known map (``dist``, ``edge``, ``pred``, ``pred_n``, ``goal``) and room for ``episodes`` fit values."""
-    return arrays.Appraisal(
+    return grid_arrays.Appraisal(
         np.full(n_states, math.inf),
         np.zeros((n_states, n_actions), dtype=np.bool_),
         np.zeros((n_states, max_pred), dtype=np.int64),
@@ -74,7 +74,7 @@ class GridKnownArrays:
 
 class KernelRun(RunArrays):
     """
-    One model's state in the grid kernel's arrays (``kernel.loop``) for the length of a ``learn`` call.
+    One model's state in the grid kernel's arrays (``kernel.grid_loop``) for the length of a ``learn`` call.
 
     :param model: the tabular model (its episode in progress already begun)
     :param env: the model's single env (wrapped)
@@ -82,26 +82,25 @@ class KernelRun(RunArrays):
     :param agent: the agent as the kernel runs it
     """
 
-    at: ClassVar[Any] = arrays
 
     def __init__(self, model: Any, env: Any, settings: TabularSettings, agent: KernelAgent) -> None:
         super().__init__(model, env, agent)
         self.table = table = TableArrays.of(self.base)
         self.width = table.width
         limit = 0 if self.time_limit is None else int(self.time_limit._max_episode_steps)
-        self.config = kernel_config(settings, agent, table, limit)
+        self.config = kernel_config(agent, table, limit)
         ist = self.ist
         if model._episode_state is None:
-            ist[arrays.I_STATE] = int(np.asarray(model._last_obs).reshape(-1)[0]) - self.obs_start
+            ist[state_layout.I_STATE] = int(np.asarray(model._last_obs).reshape(-1)[0]) - self.obs_start
         else:
-            ist[arrays.I_STATE] = model._episode_state["state"]
-        ist[arrays.I_CHANGED] = 1
-        ist[arrays.I_GREEDY] = -1
+            ist[state_layout.I_STATE] = model._episode_state["state"]
+        ist[state_layout.I_CHANGED] = 1
+        ist[state_layout.I_GREEDY] = -1
         n_states, n_actions = self.q.shape
         self.dist, self.edge, self.pred, self.pred_n, self.goal, self.fit_vals = empty_appraisal(
             n_states, n_actions, table.max_pred, 64
         )
-        if agent.kind == arrays.AFFECT:
+        if agent.kind == agent_settings.AFFECT:
             self._read_appraisal()
 
     # -- appraisal in and out ------------------------------------------------------------------------------------
@@ -113,7 +112,7 @@ class KernelRun(RunArrays):
             kept.copy_into(self)  # as the last compiled learn left it: no Python objects in between
         else:
             self._read_known(appraiser.known)
-        self.fit_vals = read_appraisal_scalars(callback, self.ist, self.fst, arrays)
+        self.fit_vals = read_appraisal_scalars(callback, self.ist, self.fst)
 
     def _read_known(self, known: Any) -> None:
         trans = self.table.trans
@@ -138,16 +137,16 @@ class KernelRun(RunArrays):
         callback = self.model.emotion_callback
         known = GridKnownArrays(self.table.trans, self.dist, self.edge, self.pred, self.pred_n, self.goal)
         callback.appraiser.defer("known", known)  # the run's arrays: this run is over, nothing writes them again
-        write_appraisal_scalars(callback, self.ist, self.fst, self.fit_vals, arrays)
+        write_appraisal_scalars(callback, self.ist, self.fst, self.fit_vals)
 
     # -- running -------------------------------------------------------------------------------------------------
     def step(self, alpha: np.ndarray, p: np.ndarray, total_timesteps: int, max_episodes: int) -> tuple[int, int]:
-        """Run the kernel (see ``loop.run``); returns (episodes finished, why it stopped)."""
+        """Run the kernel (see ``grid_loop.run``); returns (episodes finished, why it stopped)."""
         cells_before = self._room(max_episodes)
-        state = arrays.RunState(self.q, self.mt, self.ist, self.fst, self.ucb_n, self.ucb_tot)
-        appraisal = arrays.Appraisal(self.dist, self.edge, self.pred, self.pred_n, self.goal, self.fit_vals)
-        episodes = arrays.Episodes(alpha, p, self.out_i, self.out_f)
-        finished, stop = loop.run(
+        state = grid_arrays.RunState(self.q, self.mt, self.ist, self.fst, self.ucb_n, self.ucb_tot)
+        appraisal = grid_arrays.Appraisal(self.dist, self.edge, self.pred, self.pred_n, self.goal, self.fit_vals)
+        episodes = grid_arrays.Episodes(alpha, p, self.out_i, self.out_f)
+        finished, stop = grid_loop.run(
             self.table.env,
             self.config,
             self.agent.behaviour,
@@ -169,9 +168,9 @@ class KernelRun(RunArrays):
 
     def write_back(self) -> None:
         """Return every piece of state to the model, its generator, its appraisal, the env and its wrappers."""
-        if self.agent.kind == arrays.AFFECT:
+        if self.agent.kind == agent_settings.AFFECT:
             self._write_appraisal()
-        greedy = int(self.ist[arrays.I_GREEDY])
+        greedy = int(self.ist[state_layout.I_GREEDY])
         self.model._greedy_optimal = None if greedy < 0 else bool(greedy)
         self._write_back(self.table.step_reward)
         self.base.state = self.state
@@ -183,4 +182,4 @@ class KernelRun(RunArrays):
 
     @property
     def state(self) -> int:
-        return int(self.ist[arrays.I_STATE])
+        return int(self.ist[state_layout.I_STATE])

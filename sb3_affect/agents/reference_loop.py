@@ -167,7 +167,7 @@ def q_update(
 ) -> bool:
     """
     Eq. 1 for ``q[s][action]`` after a move to ``s2`` with ``reward`` (``multi_cell="jump"``: the whole move, its
-    summed reward); returns whether the entry changed. (The kernel's twin: ``sb3_affect.kernel.steps.q_update``.)
+    summed reward); returns whether the entry changed. (The kernel's twin: ``sb3_affect.kernel.decision.q_update``.)
     """
     row = q[s]
     old = row[action]

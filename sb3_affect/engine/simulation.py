@@ -10,9 +10,9 @@ On the compiled engine (the default wherever it applies, see ``TabularQAlgorithm
 no SB3 model is built per seed, so a batch costs about what its decisions cost. For the package's own agents named
 with their settings' arguments (``sb3_affect.core.settings``) on its grid envs no model is built at all, and neither torch
 nor SB3 is imported: the kernel's inputs come from the agent's settings, checked as its constructor checks them
-(``kernel.inputs.settings_inputs``); anything else (a class of your own, an SB3 argument such as ``device``, a
+(``kernel.grid_inputs.settings_inputs``); anything else (a class of your own, an SB3 argument such as ``device``, a
 schedule of the training progress) builds one model as a template. MovingPursuit runs on its own kernel
-(``kernel.moving``, the prey drawing from a port of the env's NumPy generator, ``kernel.pcg64``). Memory: the table holds
+(``kernel.moving_loop``, the prey drawing from a port of the env's NumPy generator, ``kernel.pcg64``). Memory: the table holds
 ``len(seeds) * episodes`` rows (about 130 bytes each); give large studies in batches.
 """
 
@@ -105,7 +105,7 @@ def simulate_columns(
     own = kwargs.get("engine", "auto")
     if engine != "python" and own != "python":
         from sb3_affect.core.registry import known_settings
-        from sb3_affect.kernel.inputs import settings_inputs
+        from sb3_affect.kernel.grid_inputs import settings_inputs
 
         if known_settings(algo) is not None:  # the package's agent: no model (nor torch, when named)
             _check_args(episodes, engine, seeds)
@@ -113,10 +113,10 @@ def simulate_columns(
             if inputs is not None and not seeds:
                 return _batch_frame(inputs, seeds, episodes)
             if inputs is not None:
-                from sb3_affect.kernel.batch import batch_columns
+                from sb3_affect.kernel.grid_batch import batch_columns
 
                 return batch_columns(inputs, seeds, episodes)
-            from sb3_affect.kernel.prey_batch import moving_columns, moving_settings_inputs
+            from sb3_affect.kernel.moving_batch import moving_columns, moving_settings_inputs
 
             prey_inputs = moving_settings_inputs(algo, kwargs, env_id, env_kwargs, episodes)
             if prey_inputs is not None:
@@ -127,7 +127,7 @@ def simulate_columns(
 
     if engine != "python" and own != "python":
         from sb3_affect.agents.compiled import batch_reason
-        from sb3_affect.kernel.inputs import batch_inputs
+        from sb3_affect.kernel.grid_inputs import batch_inputs
 
         env = gym.make(env_id, **(env_kwargs or {}))
         template = cls("Grid", env, seed=0, **kwargs)
@@ -136,7 +136,7 @@ def simulate_columns(
             inputs = batch_inputs(template.compiled_settings(), template._single_env(), episodes)
             env.close()
             return _batch_frame(inputs, seeds, episodes)
-        from sb3_affect.kernel.prey_batch import moving_batch_reason, moving_columns, moving_inputs, moving_reason
+        from sb3_affect.kernel.moving_batch import moving_batch_reason, moving_columns, moving_inputs, moving_reason
 
         if moving_reason(template._single_env()) is None:  # MovingPursuit: the moving-prey kernel, or why not
             reason = moving_batch_reason(template)
@@ -170,11 +170,11 @@ def simulate_columns(
 
 
 def _batch_frame(inputs: Any, seeds: list[Any], episodes: int) -> pd.DataFrame:
-    """The rows of one kernel call for all seeds (``kernel.batch.simulate_batch``)."""
+    """The rows of one kernel call for all seeds (``kernel.grid_batch.simulate_batch``)."""
     import pandas as pd
 
     if not seeds or inputs is None:
         return pd.DataFrame(columns=list(SIMULATE_COLUMNS))
-    from sb3_affect.kernel.batch import simulate_batch
+    from sb3_affect.kernel.grid_batch import simulate_batch
 
     return simulate_batch(inputs, seeds, episodes)

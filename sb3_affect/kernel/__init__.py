@@ -7,15 +7,18 @@ the identical episode log, Q-table, random-generator state and appraisal. Module
 
 - ``mt19937``: CPython's ``random.Random`` (MT19937) in numba, the stream both engines draw from;
 - ``affect``: the appraisal (known map, power fit, ``exp1`` and ``act``) and Table II (``feel``);
-- ``steps``: the decision step of every agent kind (``decide``) and Eq. 1 (``q_update``), which all three loops call;
-- ``loop``: the grid's decision loop (the env's moves, the episode rows);
-- ``moving`` (batches: ``prey_batch``) and ``team`` (inputs and columns: ``team_inputs``; the env: ``hunter_step``):
-  the loops on MovingPursuit and of hunter teams on HunterPursuit;
-- ``arrays``: the decision loop's arguments (named tuples of arrays) and the indices of its scalars; every entry
-  point of the kernel takes its arguments grouped so (``moving`` and ``team`` define their own beside these);
-- ``agents``: what the kernel needs to know about an agent, read from its settings object (``sb3_affect.core.settings``);
-- ``inputs``: an env's transition table as arrays (``sb3_affect.envs.transition_table``), a batch's inputs;
-- ``batch``: many fresh runs in one call (``simulate``).
+- ``agent_settings``: an agent as the kernel runs it (``AgentSettings``, which every world's configuration nests, and
+  its behaviour rows), read from its settings object (``sb3_affect.core.settings``) by one builder (``kernel_agent``);
+- ``state_layout``: the index tables of the run's state arrays and of an episode's row, and the prey's modes, which
+  every world shares (each world adds only its own tail);
+- ``choice`` and ``decision``: the decision step of every agent kind (``decide``), Eq. 1 (``q_update``) and the end
+  of a single agent's episode (``end_episode``), which all three loops call;
+- the grid (GridPursuit, MazePursuit): ``grid_loop`` (its decision loop), ``grid_arrays`` (its arguments, named tuples
+  of arrays), ``grid_inputs`` (an env's transition table as arrays, a batch's inputs), ``grid_batch`` (many fresh runs
+  in one call, ``simulate``'s);
+- moving prey (MovingPursuit): ``moving_loop`` (its loop and arguments) and ``moving_batch`` (its inputs and batches);
+- hunter teams (HunterPursuit): ``team_loop`` (its loop and arguments), ``team_env`` (the env's own pieces) and
+  ``team_batch`` (its inputs and record columns); ``td_emotions``: the emotion model observing each hunter.
 
 The kernel imports the core modules only (settings, registry, envs), never an agent class. ``learn`` on the kernel,
 which needs SB3's objects (a model's state in and out, callbacks, the Monitor, the logger), is on the agents' side:
@@ -23,8 +26,8 @@ which needs SB3's objects (a model's state in and out, callbacks, the Monitor, t
 
 Compiled code is cached on disk (numba ``cache=True``, in ``__pycache__`` beside these files or numba's cache
 folder), so only the first import on a machine pays the compilation. numba checks a cached function against its own
-file only, not against the functions it calls from the other files (a cached ``batch.run_seeds`` would keep an old
-``loop.run``); so on import the kernel compares a digest of all its source files with the one its cache was built
+file only, not against the functions it calls from the other files (a cached ``grid_batch.run_seeds`` would keep an old
+``grid_loop.run``); so on import the kernel compares a digest of all its source files with the one its cache was built
 from, and drops the cached code of every kernel file when they differ (``refresh_cache``).
 """
 
@@ -69,9 +72,9 @@ def warm_up() -> None:
     not compile (on a cold cache) or load them again. Cheap once the cache is warm. ``make venv`` runs it once, so a
     first ``make replicate`` finds the kernels compiled (``python -m sb3_affect.kernel``).
     """
-    from sb3_affect.kernel.batch import warm_up as grid
-    from sb3_affect.kernel.prey_batch import warm_up as moving
-    from sb3_affect.kernel.team_inputs import warm_up as team
+    from sb3_affect.kernel.grid_batch import warm_up as grid
+    from sb3_affect.kernel.moving_batch import warm_up as moving
+    from sb3_affect.kernel.team_batch import warm_up as team
 
     for load in (grid, moving, team):
         load()

@@ -169,3 +169,19 @@ def ucb_action(
                 return a, i
             pick -= 1
     return 0, i
+
+
+@kernel_inline
+def insert_tie(ties: np.ndarray, count: int, c: int) -> int:
+    """Insert ``c`` into the sorted, distinct ties ``ties[:count]`` (the evading prey's candidates); returns their count."""
+    at = count
+    for i in range(count):
+        if ties[i] == c:
+            return count
+        if ties[i] > c:
+            at = i
+            break
+    for i in range(count, at, -1):
+        ties[i] = ties[i - 1]
+    ties[at] = c
+    return count + 1

@@ -1,24 +1,44 @@
 """
-The decision step every compiled loop runs (the grid's ``kernel.loop``, moving prey's ``kernel.moving``, hunter teams'
-``kernel.team``): the choice of direction and speed of every agent kind after the appraisal's emotion (``decide``),
-Eq. 1 (``q_update``) and the known map over observations (``obs_known_add``), each doing the same operations, with
-the same random draws in the same order, as its Python reference (``_decide`` of each agent class,
-``reference_loop.q_update``, ``appraisal.KnownMap.add``).
+The decision step every compiled loop runs (the grid's ``kernel.grid_loop``, moving prey's ``kernel.moving_loop``,
+hunter teams' ``kernel.team_loop``): the choice of direction and speed of every agent kind after the appraisal's
+emotion (``decide``), Eq. 1 (``q_update``), the known map over observations (``obs_known_add``) and the end of a
+single agent's episode (``end_episode``, ``last_decision``), each doing the same operations, with the same random
+draws in the same order, as its Python reference (``_decide`` of each agent class, ``reference_loop.q_update``,
+``appraisal.KnownMap.add``, the Python loop's episode end).
 """
 
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
 
-from sb3_affect.kernel.affect import feel, propagate
-from sb3_affect.kernel.arrays import AFFECT, BOLTZMANN, EPSILON
+from sb3_affect.kernel.affect import feel, fit_add, propagate, start_norm
+from sb3_affect.kernel.agent_settings import AFFECT, BOLTZMANN, EPSILON
 from sb3_affect.kernel.choice import greedy, row_max, softmax_action, ucb_action
 from sb3_affect.kernel.jit import kernel_inline, kernel_jit
 from sb3_affect.kernel.mt19937 import bit_length, draw01, draw_below
+from sb3_affect.kernel.state_layout import (
+    F_NORM,
+    F_REWARD,
+    I_JOY,
+    I_LAST_ACTION,
+    I_LAST_PREV,
+    I_LAST_S2,
+    I_LAST_TERMINATED,
+    I_NFIT,
+    O_CELLS,
+    O_DECISIONS,
+    O_JOY,
+    O_RANDOM,
+    O_TRUNCATED,
+    O_WAITS,
+    S_FIT0,
+    S_LAST_REWARD,
+)
 
-__all__ = ["AFFECT", "ObsAppraisal", "decide", "known_widths", "obs_known_add", "q_update"]
+__all__ = ["AFFECT", "ObsAppraisal", "decide", "end_episode", "known_widths", "last_decision", "obs_known_add", "q_update"]
 
 
 class ObsAppraisal(NamedTuple):
@@ -63,10 +83,10 @@ def decide(config, behaviour, state, work, s, r, p, norm, elapsed, last_act, dis
     """
     One decision of an agent in state ``s``: ``(action, cells, explored, emotion, last_act, r)``.
 
-    ``config`` is the agent's fixed scalars (``kind``, ``tie_first``, ``compensated_sum``, ``ucb_coef``,
-    ``act_episode``, ``valence``: any named tuple with them, such as ``arrays.Config``), ``behaviour`` its
-    ``arrays.BehaviourRows``, ``state`` its Q-table ``q``, random stream ``mt`` and UCB counts ``ucb_n``, ``ucb_tot``
-    (``arrays.RunState``), ``work`` its work space ``work`` and ``tw`` (``arrays.Work``); ``r`` is the random stream's
+    ``config`` is the agent's fixed scalars (``agent_settings.AgentSettings``), ``behaviour`` its
+    ``agent_settings.BehaviourRows``, ``state`` its Q-table ``q``, random stream ``mt`` and UCB counts ``ucb_n``, ``ucb_tot``
+    (``grid_arrays.RunState``), ``work`` its work space ``work`` and ``tw`` (``grid_arrays.Work``); ``r`` is the random
+    stream's
     index (``mt19937.draw``), ``p`` epsilon or the inverse temperature. For AffectQ the appraisal's ``norm``,
     ``elapsed`` (cells or decisions of the episode so far), ``last_act`` and the known distances ``dist`` give the
     emotion (``affect.feel``; -1 for the other kinds) and the new ``last_act``. UCB's counts are updated here, as
@@ -117,6 +137,42 @@ def decide(config, behaviour, state, work, s, r, p, norm, elapsed, last_act, dis
         ucb_tot[s] += 1
         explored = q[s, action] != row_max(q, s)
     return action, k, explored, emotion, last_act, r
+
+
+@kernel_inline
+def end_episode(
+    agent, row, frow, ist, fst, fit_vals, decisions, cells, terminated, random_moves, waits, reward_sum, norm, elapsed
+):
+    """
+    A single agent's episode ends (the grid's and moving prey's loops): its row (``row``: ints, ``frow``: floats; each
+    emotion's count moves from ``ist`` into the row), then for AffectQ the episode's ``elapsed`` cells or decisions
+    into its power fit. Returns the next episode's norm (``norm`` itself for the other kinds).
+    """
+    row[O_DECISIONS] = decisions
+    row[O_CELLS] = cells
+    row[O_TRUNCATED] = 0 if terminated else 1
+    row[O_RANDOM] = random_moves
+    row[O_WAITS] = waits
+    for e in range(4):
+        row[O_JOY + e] = ist[I_JOY + e]
+        ist[I_JOY + e] = 0
+    frow[F_REWARD] = reward_sum
+    frow[F_NORM] = norm if agent.kind == AFFECT else math.nan
+    if agent.kind != AFFECT:
+        return norm
+    fsum = fst[S_FIT0 : S_FIT0 + 4]
+    ist[I_NFIT] = fit_add(fit_vals, fsum, ist[I_NFIT], float(elapsed))
+    return start_norm(fit_vals, fsum, ist[I_NFIT], agent.norm_scale)
+
+
+@kernel_inline
+def last_decision(ist, fst, action, prev, s2, terminated, reward):
+    """The last decision of the episode that just ended, kept for its callbacks (``I_LAST_*``, ``S_LAST_REWARD``)."""
+    ist[I_LAST_ACTION] = action
+    ist[I_LAST_PREV] = prev
+    ist[I_LAST_S2] = s2
+    ist[I_LAST_TERMINATED] = 1 if terminated else 0
+    fst[S_LAST_REWARD] = reward
 
 
 @kernel_jit

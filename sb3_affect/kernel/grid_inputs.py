@@ -21,10 +21,9 @@ from typing import Any, NamedTuple
 import gymnasium as gym
 import numpy as np
 
-from sb3_affect.core.registry import known_settings
 from sb3_affect.envs.transition_table import TransitionTable
-from sb3_affect.kernel import arrays
-from sb3_affect.kernel.agents import COMPENSATED_SUM, KernelAgent, kernel_agent
+from sb3_affect.kernel import grid_arrays
+from sb3_affect.kernel.agent_settings import KernelAgent, kernel_agent, kernel_settings, settings_class
 
 
 class TableArrays:
@@ -66,32 +65,21 @@ class TableArrays:
         self.max_pred = max(1, int(into.max())) if into.size else 1
 
     @property
-    def env(self) -> arrays.EnvTable:
+    def env(self) -> grid_arrays.EnvTable:
         """The kernel's ``EnvTable``."""
-        return arrays.EnvTable(self.trans, self.tdist, self.max_pred)
+        return grid_arrays.EnvTable(self.trans, self.tdist, self.max_pred)
 
 
-def kernel_config(settings: Any, agent: KernelAgent, table: TableArrays, time_limit: int) -> arrays.Config:
-    """The kernel's ``Config`` for an agent of these settings on an env of this table."""
-    return arrays.Config(
-        kind=int(agent.kind),
+def kernel_config(agent: KernelAgent, table: TableArrays, time_limit: int) -> grid_arrays.Config:
+    """The kernel's ``Config`` for ``agent`` on an env of this table under a time limit of ``time_limit`` (0: none)."""
+    return grid_arrays.Config(
+        agent=agent.settings,
         goal=table.goal,
         start=table.start,
         shortest=table.shortest,
         time_limit=int(time_limit),
-        cap=int(settings.max_episode_decisions),
-        act_episode=bool(agent.act_episode),
-        units_cells=bool(agent.units_cells),
-        valence=bool(agent.valence),
-        tie_first=settings.tie_break == "first",
-        jump=getattr(settings, "multi_cell", "steps") == "jump",
-        compensated_sum=COMPENSATED_SUM,
-        gamma=float(settings.gamma),
         goal_reward=table.goal_reward,
         step_reward=table.step_reward,
-        norm_scale=float(agent.norm_scale),
-        ucb_coef=float(agent.ucb_coef),
-        q_init=float(settings.q_init),
         n_actions=int(table.trans.shape[1]),
     )
 
@@ -139,16 +127,14 @@ def wrapper_reason(wrappers: list[Any], also_allowed: tuple[type, ...] = ()) -> 
 
 # -- a batch's inputs -------------------------------------------------------------------------------------------------
 class BatchInputs(NamedTuple):
-    """Everything ``kernel.batch.simulate_batch`` needs besides the seeds: the same for every run of the batch."""
+    """Everything ``kernel.grid_batch.simulate_batch`` needs besides the seeds: the same for every run of the batch."""
 
     agent: KernelAgent
     table: TableArrays
-    config: arrays.Config
+    config: grid_arrays.Config
     alpha: np.ndarray  # learning rate per episode
     p: np.ndarray  # exploration parameter per episode
-    q_init: float
     n_actions: int
-    cap: int  # max_episode_decisions
 
 
 def time_limit_of(wrappers: list[Any]) -> int:
@@ -166,12 +152,12 @@ def batch_inputs(settings: Any, env: Any, episodes: int) -> BatchInputs:
     assert isinstance(agent, KernelAgent), agent
     base, wrappers = unwrap(env)
     table = TableArrays.of(base)
-    config = kernel_config(settings, agent, table, time_limit_of(wrappers))
+    config = kernel_config(agent, table, time_limit_of(wrappers))
     parameters = settings.episode_parameters(0, episodes)
     assert parameters is not None
     alpha, p = parameters
     n_actions = int(env.action_space.n)
-    return BatchInputs(agent, table, config, alpha, p, float(settings.q_init), n_actions, int(settings.max_episode_decisions))
+    return BatchInputs(agent, table, config, alpha, p, n_actions)
 
 
 def settings_inputs(
@@ -181,13 +167,13 @@ def settings_inputs(
     The kernel inputs of fresh runs of ``algo`` with ``kwargs`` on ``gym.make(env_id, **env_kwargs)``, without a model;
     None where the model-based path must decide (see the module docstring). Bad kwargs raise the constructor's error.
     """
-    settings_cls = known_settings(algo)
-    if settings_cls is None or not set(kwargs) <= set(settings_cls.names()):
+    settings_cls = settings_class(algo, kwargs)
+    if settings_cls is None:
         return None
     env = gym.make(env_id, **dict(env_kwargs or {}))  # first, as for a model: a bad env is the first error
     try:
-        settings = settings_cls(**kwargs)
-        if isinstance(kernel_agent(settings), str) or settings.episode_parameters(0, 1) is None:
+        settings = kernel_settings(settings_cls, kwargs)
+        if settings is None:
             return None
         if env_reason(env) is not None or not isinstance(env.observation_space, gym.spaces.Discrete):
             return None

@@ -1,25 +1,30 @@
 """
 The compiled decision loop on a transition table (GridPursuit, MazePursuit): ``sb3_affect.agents.reference_loop.run_loop``
-with the agent's ``_decide``, the appraisal and the env's moves, in numba; the decision and Eq. 1 are ``kernel.steps``'s,
+with the agent's ``_decide``, the appraisal and the env's moves, in numba; the decision and Eq. 1 are ``kernel.decision``'s,
 which the moving-prey and team loops call too. ``agents/reference_loop.py`` is the readable reference; this file does
 the same operations in the same order (same random draws, same floating-point expressions), so both give the same
 episode log and Q-table.
 
-State crosses the boundary as arrays, grouped in a few named tuples (``sb3_affect.kernel.arrays``; numba passes
-each as one argument): ``EnvTable``, ``Config``, ``BehaviourRows``, ``RunState``, ``Appraisal``, ``Episodes`` and
+State crosses the boundary as arrays, grouped in a few named tuples (``sb3_affect.kernel.grid_arrays``; numba passes
+each as one argument): ``EnvTable``, ``Config``, ``agent_settings.BehaviourRows``, ``RunState``, ``Appraisal``,
+``Episodes`` and
 ``Work``. The caller fills them and reads them back after the call.
 """
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import njit
 
-from sb3_affect.kernel.affect import fit_add, known_add, known_add_goal, start_norm
-from sb3_affect.kernel.arrays import (
-    AFFECT,
+from sb3_affect.kernel.affect import known_add, known_add_goal
+from sb3_affect.kernel.agent_settings import AFFECT
+from sb3_affect.kernel.choice import row_max
+from sb3_affect.kernel.decision import decide, end_episode, last_decision, q_update
+from sb3_affect.kernel.grid_arrays import STOP_EPISODES, STOP_TIMESTEPS, work_space
+from sb3_affect.kernel.jit import kernel_jit
+from sb3_affect.kernel.mt19937 import N as MT_N
+from sb3_affect.kernel.mt19937 import temper_all
+from sb3_affect.kernel.state_layout import (
     I_CELLS,
     I_CHANGED,
     I_DECISIONS,
@@ -27,38 +32,17 @@ from sb3_affect.kernel.arrays import (
     I_EL_DECISIONS,
     I_GREEDY,
     I_JOY,
-    I_LAST_ACTION,
-    I_LAST_PREV,
-    I_LAST_S2,
-    I_LAST_TERMINATED,
-    I_NFIT,
     I_RANDOM,
     I_STATE,
     I_T,
     I_TL_ELAPSED,
     I_WAITS,
-    O_CELLS,
-    O_DECISIONS,
     O_GREEDY,
-    O_JOY,
     O_OPTIMAL,
-    O_RANDOM,
-    O_TRUNCATED,
-    O_WAITS,
-    S_FIT0,
     S_LAST_ACT,
-    S_LAST_REWARD,
     S_NORM,
     S_REWARD,
-    STOP_EPISODES,
-    STOP_TIMESTEPS,
-    work_space,
 )
-from sb3_affect.kernel.choice import row_max
-from sb3_affect.kernel.jit import kernel_jit
-from sb3_affect.kernel.mt19937 import N as MT_N
-from sb3_affect.kernel.mt19937 import temper_all
-from sb3_affect.kernel.steps import decide, q_update
 
 
 @kernel_jit
@@ -124,19 +108,18 @@ def decision_loop(env, config, behaviour, state, appraisal, episodes, work, tota
     dist, edge, pred, pred_n, goal, fit_vals = appraisal
     alpha_e, p_e, out_i, out_f = episodes
     seen, stack, queue, tw = work.seen, work.stack, work.queue, work.tw
-    kind = config.kind
+    agent = config.agent
+    kind = agent.kind
     goal_state = config.goal
     start_state = config.start
     shortest = config.shortest
     time_limit = config.time_limit
-    cap = config.cap
-    units_cells = config.units_cells
-    jump = config.jump
-    gamma = config.gamma
+    cap = agent.cap
+    units_cells = agent.units_cells
+    jump = agent.jump
+    gamma = agent.gamma
     goal_reward = config.goal_reward
     step_reward = config.step_reward
-    norm_scale = config.norm_scale
-    fsum = fst[S_FIT0 : S_FIT0 + 4]
 
     r = mt[MT_N]  # the random stream's index
     temper_all(mt, tw)
@@ -169,7 +152,7 @@ def decision_loop(env, config, behaviour, state, appraisal, episodes, work, tota
         # 1. decide: the emotion (AffectQ), direction and speed
         elapsed = el_cells if units_cells else el_decisions
         action, k, explored, emotion, last_act, r = decide(
-            config, behaviour, state, work, s, r, p, norm, elapsed, last_act, dist
+            agent, behaviour, state, work, s, r, p, norm, elapsed, last_act, dist
         )
         if kind == AFFECT:
             el_decisions += 1
@@ -212,30 +195,20 @@ def decision_loop(env, config, behaviour, state, appraisal, episodes, work, tota
         # 3. episode end: at the goal, by the env's time limit, or by the safety cap
         if terminated or truncated or decisions >= cap:
             row = out_i[episode]
-            row[O_DECISIONS] = decisions
-            row[O_CELLS] = cells
             row[O_OPTIMAL] = 1 if terminated and cells == shortest else 0
-            row[O_TRUNCATED] = 0 if terminated else 1
-            row[O_RANDOM] = random_moves
-            row[O_WAITS] = waits
-            for e in range(4):
-                row[O_JOY + e] = ist[I_JOY + e]
             if changed or greedy_optimal < 0:
                 walks += 1
                 greedy_optimal = 1 if greedy_walks_shortest_path(q, trans, tdist, start_state, seen, walks, stack) else 0
             row[O_GREEDY] = greedy_optimal
-            out_f[episode, 0] = reward_sum
-            out_f[episode, 1] = norm if kind == AFFECT else math.nan
             changed = False
-            if kind == AFFECT:
-                y = el_cells if units_cells else el_decisions
-                ist[I_NFIT] = fit_add(fit_vals, fsum, ist[I_NFIT], float(y))
+            elapsed = el_cells if units_cells else el_decisions
+            norm = end_episode(
+                agent, row, out_f[episode], ist, fst, fit_vals, decisions, cells, terminated, random_moves, waits,
+                reward_sum, norm, elapsed,
+            )  # fmt: skip
             episode += 1
-            ist[I_LAST_ACTION] = action
-            ist[I_LAST_PREV] = prev
-            ist[I_LAST_S2] = s2
-            ist[I_LAST_TERMINATED] = 1 if terminated else 0
-            fst[S_LAST_REWARD] = reward if k == 1 else reward_sum - before  # the decision's reward, as callbacks get it
+            # the decision's reward, as callbacks get it
+            last_decision(ist, fst, action, prev, s2, terminated, reward if k == 1 else reward_sum - before)
             # the next episode starts
             s = start_state
             decisions = cells = random_moves = waits = tl_elapsed = 0
@@ -244,9 +217,6 @@ def decision_loop(env, config, behaviour, state, appraisal, episodes, work, tota
             if kind == AFFECT:
                 el_cells = 0
                 el_decisions = 0
-                norm = start_norm(fit_vals, fsum, ist[I_NFIT], norm_scale)
-            for e in range(4):
-                ist[I_JOY + e] = 0
             if episode >= max_episodes:
                 stop = STOP_EPISODES
                 break

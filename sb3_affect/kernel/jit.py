@@ -5,7 +5,7 @@ How the kernel's functions are compiled.
 arrays (the NRT, numba's ``_nrt`` option). Every function it compiles only reads and writes arrays it is given (it
 allocates none), so it needs no reference counting; with it, numba increments and decrements a counter (an atomic,
 locked instruction) around calls that pass an array, which in the decision loop cost about as much as the decisions
-themselves. The functions that allocate (``loop.run``'s work space, ``batch.run_seeds``'s fresh runs) use plain
+themselves. The functions that allocate (``grid_loop.run``'s work space, ``grid_batch.run_seeds``'s fresh runs) use plain
 ``njit(cache=True)`` and call these.
 
 ``kernel_inline`` also inlines the function into its callers (numba's ``inline="always"``): the small functions of

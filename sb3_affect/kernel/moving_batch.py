@@ -1,6 +1,6 @@
 """
 Many fresh runs of one agent on MovingPursuit in one kernel call (``sb3_affect.engine.simulation.simulate`` on the compiled
-engine; the loop is ``kernel.moving``).
+engine; the loop is ``kernel.moving_loop``).
 
 Each run starts as a new model does: the Q-table at ``q_init``, ``random.Random(seed)``'s state (seeded inside the
 kernel), the env's NumPy generator as ``env.reset(seed=seed)`` leaves it (``np.random.Generator(PCG64(seed))``,
@@ -17,23 +17,23 @@ from typing import Any, NamedTuple
 import gymnasium as gym
 import numpy as np
 
-from sb3_affect.core.registry import known_settings
-from sb3_affect.kernel import moving
-from sb3_affect.kernel.agents import COMPENSATED_SUM, KernelAgent, kernel_agent
-from sb3_affect.kernel.arrays import Episodes
-from sb3_affect.kernel.inputs import unwrap, wrapper_reason
+from sb3_affect.envs.grid_pursuit import PREY_MODES
+from sb3_affect.kernel import moving_loop, state_layout
+from sb3_affect.kernel.agent_settings import KernelAgent, kernel_agent, kernel_settings, settings_class
+from sb3_affect.kernel.decision import known_widths
+from sb3_affect.kernel.grid_arrays import Episodes
+from sb3_affect.kernel.grid_inputs import time_limit_of, unwrap, wrapper_reason
 from sb3_affect.kernel.mt19937 import seed_keys
 from sb3_affect.kernel.pcg64 import STATE_SIZE as PCG_SIZE
 from sb3_affect.kernel.pcg64 import seeded_state
-from sb3_affect.kernel.steps import known_widths
 
 
 class MovingInputs(NamedTuple):
     """Everything ``moving_columns`` needs besides the seeds: the same for every run of the batch."""
 
     agent: KernelAgent
-    env: moving.PreyEnv
-    config: moving.Config
+    env: moving_loop.PreyEnv
+    config: moving_loop.Config
     alpha: np.ndarray  # learning rate per episode
     p: np.ndarray  # exploration parameter per episode
 
@@ -89,28 +89,16 @@ def moving_inputs(settings: Any, env: Any, episodes: int) -> MovingInputs:
     agent = kernel_agent(settings)
     assert isinstance(agent, KernelAgent), agent
     base, wrappers = unwrap(env)
-    limits = [int(w._max_episode_steps) for w in wrappers if hasattr(w, "_max_episode_steps")]
-    config = moving.Config(
-        kind=int(agent.kind),
+    config = moving_loop.Config(
+        agent=agent.settings,
         n_cells=int(base.n_cells),
         hunter_start=int(base.hunter_start_cell),
         prey_start=int(base.prey_start_cell),
-        prey=moving.PREY_KINDS[base.prey],
-        time_limit=limits[0] if limits else 0,
-        cap=int(settings.max_episode_decisions),
-        act_episode=bool(agent.act_episode),
-        units_cells=bool(agent.units_cells),
-        valence=bool(agent.valence),
-        tie_first=getattr(settings, "tie_break", "random") == "first",
-        jump=getattr(settings, "multi_cell", "steps") == "jump",
-        compensated_sum=COMPENSATED_SUM,
-        gamma=float(settings.gamma),
+        prey=PREY_MODES.index(base.prey),
+        time_limit=time_limit_of(wrappers),
         goal_reward=float(base.goal_reward),
         step_reward=float(base.step_reward),
-        norm_scale=float(agent.norm_scale),
-        ucb_coef=float(agent.ucb_coef),
         prey_speed=float(base.prey_speed),
-        q_init=float(settings.q_init),
         n_actions=int(env.action_space.n),
     )
     parameters = settings.episode_parameters(0, episodes)  # None: a schedule on the training progress (learn's)
@@ -118,25 +106,25 @@ def moving_inputs(settings: Any, env: Any, episodes: int) -> MovingInputs:
     cell_trans = np.asarray(base.cell_transitions, dtype=np.int64)
     far = _far(base) if base.prey == "evade" else np.zeros((1, 1))
     succ_width, pred_width = known_widths(cell_trans, base.prey != "static")
-    return MovingInputs(agent, moving.PreyEnv(cell_trans, far, succ_width, pred_width), config, alpha, p)
+    return MovingInputs(agent, moving_loop.PreyEnv(cell_trans, far, succ_width, pred_width), config, alpha, p)
 
 
 def moving_settings_inputs(
     algo: str | type, kwargs: Mapping[str, Any], env_id: str, env_kwargs: Mapping[str, Any] | None, episodes: int
 ) -> MovingInputs | None:
     """
-    ``kernel.inputs.settings_inputs`` for MovingPursuit: the kernel inputs of fresh runs of ``algo`` with ``kwargs``
+    ``kernel.grid_inputs.settings_inputs`` for MovingPursuit: the kernel inputs of fresh runs of ``algo`` with ``kwargs``
     without a model, or None where the model-based path must decide. Bad kwargs raise the constructor's error.
     """
-    settings_cls = known_settings(algo)
-    if settings_cls is None or not set(kwargs) <= set(settings_cls.names()):
+    settings_cls = settings_class(algo, kwargs)
+    if settings_cls is None:
         return None
     env = gym.make(env_id, **dict(env_kwargs or {}))
     try:
         if moving_reason(env) is not None:
             return None
-        settings = settings_cls(**kwargs)
-        if isinstance(kernel_agent(settings), str) or settings.episode_parameters(0, 1) is None:
+        settings = kernel_settings(settings_cls, kwargs)
+        if settings is None:
             return None
         return moving_inputs(settings, env, episodes)
     finally:
@@ -144,17 +132,17 @@ def moving_settings_inputs(
 
 
 def run_moving(inputs: MovingInputs, seeds: Sequence[int], episodes: int) -> MovingRun:
-    """Fresh runs of ``episodes`` episodes for each seed in one kernel call (``moving.run_seeds``)."""
+    """Fresh runs of ``episodes`` episodes for each seed in one kernel call (``moving_loop.run_seeds``)."""
     keys, lengths = seed_keys(seeds)
     pcg_init = np.zeros((len(seeds), PCG_SIZE), dtype=np.uint64)
     for r, seed in enumerate(seeds):
         pcg_init[r] = seeded_state(int(seed))
     n_rows = len(seeds) * episodes
-    out_i = np.zeros((n_rows, moving.N_OUT_I), dtype=np.int64)
-    out_f = np.zeros((n_rows, 2))
+    out_i = np.zeros((n_rows, state_layout.N_OUT_I), dtype=np.int64)
+    out_f = np.zeros((n_rows, state_layout.N_OUT_F))
     rows = Episodes(inputs.alpha, inputs.p, out_i, out_f)
-    q, mt, pcg, dist = moving.run_seeds(
-        moving.Seeds(keys, lengths, pcg_init), inputs.env, inputs.config, inputs.agent.behaviour, rows, episodes
+    q, mt, pcg, dist = moving_loop.run_seeds(
+        moving_loop.Seeds(keys, lengths, pcg_init), inputs.env, inputs.config, inputs.agent.behaviour, rows, episodes
     )
     return MovingRun(out_i, out_f, q, mt, pcg, dist)
 
@@ -171,17 +159,17 @@ def moving_columns(inputs: MovingInputs, seeds: Sequence[int], episodes: int) ->
     return {
         "seed": np.repeat(np.asarray([int(s) for s in seeds], dtype=np.int64), episodes),
         "episode": np.tile(np.arange(1, episodes + 1, dtype=np.int64), len(seeds)),
-        "decisions": col_i[moving.O_DECISIONS],
-        "cells": col_i[moving.O_CELLS],
+        "decisions": col_i[state_layout.O_DECISIONS],
+        "cells": col_i[state_layout.O_CELLS],
         "reward": col_f[0],
         "optimal": np.full(n_rows, np.nan),
-        "truncated": col_i[moving.O_TRUNCATED].astype(bool),
-        "random_moves": col_i[moving.O_RANDOM].astype(np.float64),
-        "waits": col_i[moving.O_WAITS],
-        "joy": col_i[moving.O_JOY],
-        "sadness": col_i[moving.O_SADNESS],
-        "fear": col_i[moving.O_FEAR],
-        "anger": col_i[moving.O_ANGER],
+        "truncated": col_i[state_layout.O_TRUNCATED].astype(bool),
+        "random_moves": col_i[state_layout.O_RANDOM].astype(np.float64),
+        "waits": col_i[state_layout.O_WAITS],
+        "joy": col_i[state_layout.O_JOY],
+        "sadness": col_i[state_layout.O_SADNESS],
+        "fear": col_i[state_layout.O_FEAR],
+        "anger": col_i[state_layout.O_ANGER],
         "greedy_optimal": np.full(n_rows, np.nan),
         "norm": col_f[1],
     }

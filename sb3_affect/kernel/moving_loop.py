@@ -10,12 +10,12 @@ the prey's cell; otherwise, with probability ``prey_speed`` (one ``random()`` dr
 prey moves: ``"random"`` to one of its four moves (``integers(4)``), ``"evade"`` to the candidate (staying or a
 neighbour, never the hunter's cell) farthest from the hunter, ties sorted and drawn with ``integers``; never onto the
 hunter. The observation is ``hunter * n_cells + prey``. The appraisal's known map is over observations
-(``steps.obs_known_add``). The env has no fixed goal, so the ``optimal`` and ``greedy_optimal`` columns are NaN, as the
+(``decision.obs_known_add``). The env has no fixed goal, so the ``optimal`` and ``greedy_optimal`` columns are NaN, as the
 Python loop gives them.
 
-State crosses the boundary as arrays grouped in named tuples, as ``kernel.loop``'s: ``PreyEnv``, ``Config``,
-``arrays.BehaviourRows``, ``RunState`` (its ``ist`` and ``fst`` at the indices below, ``mt`` the agent's MT19937
-state, ``pcg`` the env's PCG64 state), ``steps.ObsAppraisal``, ``arrays.Episodes`` and ``Work``.
+State crosses the boundary as arrays grouped in named tuples, as ``kernel.grid_loop``'s: ``PreyEnv``, ``Config``,
+``agent_settings.BehaviourRows``, ``RunState`` (its ``ist`` and ``fst`` at the indices below, ``mt`` the agent's MT19937
+state, ``pcg`` the env's PCG64 state), ``decision.ObsAppraisal``, ``grid_arrays.Episodes`` and ``Work``.
 """
 
 from __future__ import annotations
@@ -26,20 +26,36 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from sb3_affect.kernel.affect import fit_add, known_add_goal, start_norm
-from sb3_affect.kernel.arrays import Episodes
+from sb3_affect.kernel.affect import known_add_goal
+from sb3_affect.kernel.agent_settings import AFFECT, AgentSettings
+from sb3_affect.kernel.choice import insert_tie
+from sb3_affect.kernel.decision import ObsAppraisal, decide, end_episode, last_decision, obs_known_add, q_update
+from sb3_affect.kernel.grid_arrays import Episodes
 from sb3_affect.kernel.jit import kernel_inline, kernel_jit
 from sb3_affect.kernel.mt19937 import STATE_SIZE, TW_SIZE, seed_state, temper_all
 from sb3_affect.kernel.mt19937 import N as MT_N
 from sb3_affect.kernel.pcg64 import integers, random01
-from sb3_affect.kernel.steps import AFFECT, ObsAppraisal, decide, obs_known_add, q_update
-
-PREY_STATIC, PREY_RANDOM, PREY_EVADE = 0, 1, 2
-PREY_KINDS = {"static": PREY_STATIC, "random": PREY_RANDOM, "evade": PREY_EVADE}
+from sb3_affect.kernel.state_layout import (
+    I_CELLS,
+    I_DECISIONS,
+    I_EL_CELLS,
+    I_EL_DECISIONS,
+    I_JOY,
+    I_RANDOM,
+    I_T,
+    I_TL_ELAPSED,
+    I_WAITS,
+    N_FST,
+    N_IST,
+    PREY_RANDOM,
+    S_LAST_ACT,
+    S_NORM,
+    S_REWARD,
+)
 
 
 class PreyEnv(NamedTuple):
-    """The env's moves (read only) and the widths of the known map over its observations (``steps.known_widths``)."""
+    """The env's moves (read only) and the widths of the known map over its observations (``decision.known_widths``)."""
 
     cell_trans: np.ndarray  # int64[n_cells, n_moves]: the cells' one-move table
     far: np.ndarray  # float64[n_cells, n_cells]: far[h, c], the distance from cell c to cell h (the evading prey's)
@@ -48,39 +64,28 @@ class PreyEnv(NamedTuple):
 
 
 class Config(NamedTuple):
-    """The run's fixed scalars (read only): the agent's (as ``arrays.Config``) and the env's."""
+    """The run's fixed scalars (read only): the agent's and the env's."""
 
-    kind: int  # EPSILON, AFFECT, BOLTZMANN or UCB
+    agent: AgentSettings
     n_cells: int
     hunter_start: int
     prey_start: int
-    prey: int  # PREY_STATIC, PREY_RANDOM or PREY_EVADE
+    prey: int  # state_layout.PREY_STATIC, PREY_RANDOM or PREY_EVADE
     time_limit: int  # the env's TimeLimit (0: none)
-    cap: int  # max_episode_decisions
-    act_episode: bool
-    units_cells: bool
-    valence: bool
-    tie_first: bool
-    jump: bool
-    compensated_sum: bool
-    gamma: float
     goal_reward: float
     step_reward: float
-    norm_scale: float
-    ucb_coef: float
     prey_speed: float
-    q_init: float
     n_actions: int
 
 
 class RunState(NamedTuple):
-    """The run's state (read and written): ``arrays.RunState`` (at this module's indices) and the env's generator."""
+    """The run's state (read and written): ``grid_arrays.RunState`` (at this module's indices) and the env's generator."""
 
     q: np.ndarray
     mt: np.ndarray
     pcg: np.ndarray  # uint64[pcg64.STATE_SIZE]: the env's PCG64 state (the prey's draws)
-    ist: np.ndarray  # int64[N_IST]
-    fst: np.ndarray  # float64[N_FST]
+    ist: np.ndarray  # int64[N_MOVING_IST]
+    fst: np.ndarray  # float64[state_layout.N_FST]
     ucb_n: np.ndarray
     ucb_tot: np.ndarray
 
@@ -104,37 +109,9 @@ class Seeds(NamedTuple):
     pcg: np.ndarray
 
 
-# ist: int run state
-(
-    I_T,
-    I_HUNTER,
-    I_PREY,
-    I_DECISIONS,
-    I_CELLS,
-    I_RANDOM,
-    I_WAITS,
-    I_JOY,
-    I_SADNESS,
-    I_FEAR,
-    I_ANGER,
-    I_TL_ELAPSED,
-    I_NFIT,
-    I_EL_CELLS,
-    I_EL_DECISIONS,
-    I_LAST_S2,
-    I_LAST_PREV,
-    I_LAST_ACTION,
-    I_LAST_TERMINATED,
-) = range(19)
-N_IST = 19  # I_LAST_*: the last decision of the last finished episode (its callbacks' locals)
-# fst: float run state
-S_REWARD, S_NORM, S_LAST_ACT, S_FIT0 = range(4)  # S_FIT0..S_FIT0+3: the power fit's running sums
-S_LAST_REWARD = 7  # that decision's reward (its cells' rewards summed)
-N_FST = 8
-
-# out_i columns (out_f: reward, norm)
-O_DECISIONS, O_CELLS, O_TRUNCATED, O_RANDOM, O_WAITS, O_JOY, O_SADNESS, O_FEAR, O_ANGER = range(9)
-N_OUT_I = 9
+# ist: the run's int state, after state_layout's: the hunter's and the prey's cells
+I_HUNTER, I_PREY = range(N_IST, N_IST + 2)
+N_MOVING_IST = N_IST + 2
 
 
 @kernel_inline
@@ -182,21 +159,7 @@ def evade_target(
             best = d
             count = 0
         if d == best:
-            # insert c into the sorted, distinct ties
-            at = count
-            dup = False
-            for i in range(count):
-                if ties[i] == c:
-                    dup = True
-                    break
-                if ties[i] > c:
-                    at = i
-                    break
-            if not dup:
-                for i in range(count, at, -1):
-                    ties[i] = ties[i - 1]
-                ties[at] = c
-                count += 1
+            count = insert_tie(ties, count, c)
     if count == 0:
         return fallback
     return ties[integers(pcg, count)]
@@ -208,7 +171,8 @@ def moving_loop(env, config, behaviour, state, appraisal, episodes, work, total_
     Run decisions until ``state.ist[I_T]`` reaches ``total_timesteps`` or ``max_episodes`` episodes have finished;
     episode ``j`` of this call (``j = 0``: the one in progress) learns with ``episodes.alpha[j]`` and explores with
     ``episodes.p[j]``. Finished episodes go to ``episodes.rows_i``/``rows_f``. The arguments: ``PreyEnv``, ``Config``,
-    ``arrays.BehaviourRows``, ``RunState``, ``steps.ObsAppraisal``, ``arrays.Episodes`` and ``Work``. Returns the
+    ``agent_settings.BehaviourRows``, ``RunState``, ``decision.ObsAppraisal``, ``grid_arrays.Episodes`` and ``Work``.
+    Returns the
     episodes finished.
     """
     cell_trans, far = env.cell_trans, env.far
@@ -216,19 +180,18 @@ def moving_loop(env, config, behaviour, state, appraisal, episodes, work, total_
     dist, succ, succ_n, pred, pred_n, goal, fit_vals = appraisal
     alpha_e, p_e, out_i, out_f = episodes
     queue, tw, ties = work.queue, work.tw, work.ties
-    kind = config.kind
+    agent = config.agent
+    kind = agent.kind
     n_cells = config.n_cells
     prey_kind = config.prey
     time_limit = config.time_limit
-    cap = config.cap
-    units_cells = config.units_cells
-    jump = config.jump
-    gamma = config.gamma
+    cap = agent.cap
+    units_cells = agent.units_cells
+    jump = agent.jump
+    gamma = agent.gamma
     goal_reward = config.goal_reward
     step_reward = config.step_reward
-    norm_scale = config.norm_scale
     speed = config.prey_speed
-    fsum = fst[S_FIT0 : S_FIT0 + 4]
 
     r = mt[MT_N]
     temper_all(mt, tw)
@@ -252,7 +215,7 @@ def moving_loop(env, config, behaviour, state, appraisal, episodes, work, total_
         s = hunter * n_cells + prey
         elapsed = el_cells if units_cells else el_decisions
         action, k, explored, emotion, last_act, r = decide(
-            config, behaviour, state, work, s, r, p, norm, elapsed, last_act, dist
+            agent, behaviour, state, work, s, r, p, norm, elapsed, last_act, dist
         )
         if kind == AFFECT:
             el_decisions += 1
@@ -298,27 +261,14 @@ def moving_loop(env, config, behaviour, state, appraisal, episodes, work, total_
         decisions += 1
         t += 1
         if terminated or truncated or decisions >= cap:
-            row = out_i[episode]
-            row[O_DECISIONS] = decisions
-            row[O_CELLS] = cells
-            row[O_TRUNCATED] = 0 if terminated else 1
-            row[O_RANDOM] = random_moves
-            row[O_WAITS] = waits
-            for e in range(4):
-                row[O_JOY + e] = ist[I_JOY + e]
-                ist[I_JOY + e] = 0
-            out_f[episode, 0] = reward_sum
-            out_f[episode, 1] = norm if kind == AFFECT else math.nan
-            if kind == AFFECT:
-                y = el_cells if units_cells else el_decisions
-                ist[I_NFIT] = fit_add(fit_vals, fsum, ist[I_NFIT], float(y))
+            elapsed = el_cells if units_cells else el_decisions
+            norm = end_episode(
+                agent, out_i[episode], out_f[episode], ist, fst, fit_vals, decisions, cells, terminated, random_moves,
+                waits, reward_sum, norm, elapsed,
+            )  # fmt: skip
             episode += 1
-            ist[I_LAST_S2] = s
-            ist[I_LAST_PREV] = prev
-            ist[I_LAST_ACTION] = action
-            ist[I_LAST_TERMINATED] = 1 if terminated else 0
-            fst[S_LAST_REWARD] = reward if k == 1 else reward_sum - before
-            # the next episode starts: the env's reset (its generator goes on), the appraisal's new norm
+            last_decision(ist, fst, action, prev, s, terminated, reward if k == 1 else reward_sum - before)
+            # the next episode starts: the env's reset (its generator goes on)
             hunter = config.hunter_start
             prey = config.prey_start
             decisions = cells = random_moves = waits = tl_elapsed = 0
@@ -326,7 +276,6 @@ def moving_loop(env, config, behaviour, state, appraisal, episodes, work, total_
             if kind == AFFECT:
                 el_cells = 0
                 el_decisions = 0
-                norm = start_norm(fit_vals, fsum, ist[I_NFIT], norm_scale)
             if episode >= max_episodes:
                 break
             alpha = alpha_e[episode]
@@ -362,7 +311,7 @@ def run_seeds(seeds, env, config, behaviour, episodes, n_episodes):
         np.empty((n_states, n_actions)),
         np.zeros(STATE_SIZE, dtype=np.int64),
         np.zeros(seeds.pcg.shape[1], dtype=np.uint64),
-        np.empty(N_IST, dtype=np.int64),
+        np.empty(N_MOVING_IST, dtype=np.int64),
         np.empty(N_FST),
         np.empty((n_states, n_actions), dtype=np.int64),
         np.empty(n_states, dtype=np.int64),
@@ -383,9 +332,9 @@ def run_seeds(seeds, env, config, behaviour, episodes, n_episodes):
         np.empty(env.cell_trans.shape[1] + 1, dtype=np.int64),
     )
     ist, fst = state.ist, state.fst
-    affect = config.kind == AFFECT
+    affect = config.agent.kind == AFFECT
     for r in range(seeds.keys.shape[0]):
-        state.q[:] = config.q_init
+        state.q[:] = config.agent.q_init
         seed_state(state.mt, seeds.keys[r], seeds.lengths[r])
         state.pcg[:] = seeds.pcg[r]
         ist[:] = 0
@@ -403,5 +352,5 @@ def run_seeds(seeds, env, config, behaviour, episodes, n_episodes):
         state.ucb_tot[:] = 0
         lo, hi = r * n_episodes, (r + 1) * n_episodes
         rows = Episodes(episodes.alpha, episodes.p, episodes.rows_i[lo:hi], episodes.rows_f[lo:hi])
-        moving_loop(env, config, behaviour, state, appraisal, rows, work, n_episodes * config.cap, n_episodes)
+        moving_loop(env, config, behaviour, state, appraisal, rows, work, n_episodes * config.agent.cap, n_episodes)
     return state.q, state.mt, state.pcg, appraisal.dist

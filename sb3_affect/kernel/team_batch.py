@@ -1,5 +1,5 @@
 """
-What the team kernel (``kernel.team``) is fed, and what comes out: a team run of the package's own agents on
+What the team kernel (``kernel.team_loop``) is fed, and what comes out: a team run of the package's own agents on
 HunterPursuit from the members' settings (or freshly built models) and the env, without building a model, and the
 run's record columns (the team's log, each hunter's log and its Broekens observer's), as the launcher stores them.
 
@@ -15,20 +15,18 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from sb3_affect.core.registry import EMOTION_MODELS, known_settings
+from sb3_affect.core.registry import EMOTION_MODELS
 from sb3_affect.core.team_seeds import member_seed
-from sb3_affect.kernel import td_emotions, team
-from sb3_affect.kernel.agents import COMPENSATED_SUM, kernel_agent
-from sb3_affect.kernel.arrays import BehaviourRows
-from sb3_affect.kernel.hunter_step import PREY_EVADE, PREY_RANDOM, PREY_STATIC
+from sb3_affect.envs.grid_pursuit import MOVES, PREY_MODES
+from sb3_affect.kernel import state_layout, td_emotions, team_loop
+from sb3_affect.kernel.agent_settings import AFFECT, BehaviourRows, kernel_agent, settings_class
+from sb3_affect.kernel.decision import ObsAppraisal
 from sb3_affect.kernel.mt19937 import STATE_SIZE, TW_SIZE, seed_key, seed_state
 from sb3_affect.kernel.pcg64 import seeded_state
-from sb3_affect.kernel.steps import AFFECT, ObsAppraisal
 
 #: The most bytes the known maps of a team's hunters may take (larger observation spaces run on the Python team).
 MAX_KNOWN_BYTES = 1 << 30
-N_ACTIONS = 4
-PREY = {"static": PREY_STATIC, "random": PREY_RANDOM, "evade": PREY_EVADE}
+N_ACTIONS = len(MOVES)
 #: The emotion model the team kernel computes beside each hunter (``kernel.td_emotions``), as the registry names it.
 OBSERVER = "broekens"
 
@@ -36,13 +34,12 @@ OBSERVER = "broekens"
 class TeamInputs(NamedTuple):
     """Everything ``run_team`` needs besides the seed: the env and every hunter as the kernel runs them."""
 
-    env: team.TeamEnv
-    config: team.Config
-    hunters: team.Hunters
+    env: team_loop.TeamEnv
+    config: team_loop.Config
+    hunters: Any  # team_loop.Hunters
     behaviour: BehaviourRows  # one row per hunter first
     alpha: np.ndarray  # [hunter, episode]
     p: np.ndarray  # [hunter, episode]
-    q_init: np.ndarray  # [hunter]
     n_states: int
     succ_width: int
     pred_width: int
@@ -63,7 +60,7 @@ class TeamRun(NamedTuple):
     @property
     def decisions(self) -> int:
         """Decisions of all hunters (each hunter takes one per round)."""
-        return int(self.out_i[:, :, team.O_DECISIONS].sum())
+        return int(self.out_i[:, :, state_layout.O_DECISIONS].sum())
 
 
 def team_inputs(agents: Sequence[Any], env: Any, episodes: int) -> TeamInputs | str:
@@ -98,10 +95,10 @@ def team_inputs(agents: Sequence[Any], env: Any, episodes: int) -> TeamInputs | 
     width = 5**digits if affect else 1  # a hunter's own cell, each other hunter's and the prey's: staying or a move
     if 2 * n * n_states * width * 4 > MAX_KNOWN_BYTES:
         return f"the hunters' known maps over {n_states:,} observations would need more than {MAX_KNOWN_BYTES >> 30} GB"
-    config = team.Config(
+    config = team_loop.Config(
         n_cells=int(n_cells),
         prey_start=int(env.prey_start_cell),
-        prey=PREY[env.prey],
+        prey=PREY_MODES.index(env.prey),
         surround=env.capture == "surround",
         obs_all=env.observation == "all",
         max_cycles=int(env.max_cycles or 0),
@@ -111,22 +108,6 @@ def team_inputs(agents: Sequence[Any], env: Any, episodes: int) -> TeamInputs | 
         step_reward=float(env.step_reward),
         prey_speed=float(env.prey_speed),
     )
-    hunters = [
-        team.Hunter(
-            kind=int(spec.kind),
-            cap=int(agent.max_episode_decisions),
-            act_episode=bool(spec.act_episode),
-            units_cells=bool(spec.units_cells),
-            valence=bool(spec.valence),
-            tie_first=getattr(agent, "tie_break", "random") == "first",
-            jump=getattr(agent, "multi_cell", "steps") == "jump",
-            compensated_sum=COMPENSATED_SUM,
-            gamma=float(agent.gamma),
-            norm_scale=float(spec.norm_scale),
-            ucb_coef=float(spec.ucb_coef),
-        )
-        for agent, spec in zip(agents, specs)
-    ]
     speeds_width = max(spec.behaviour.speeds.shape[1] for spec in specs)
     behaviour = BehaviourRows(
         np.array([spec.behaviour.random for spec in specs], dtype=np.int64),
@@ -137,7 +118,7 @@ def team_inputs(agents: Sequence[Any], env: Any, episodes: int) -> TeamInputs | 
         behaviour.speeds[m, :, : spec.behaviour.speeds.shape[1]] = spec.behaviour.speeds
     cell_trans = np.asarray(env.cell_transitions, dtype=np.int64)
     far = np.array([env.distances_to(h) for h in range(n_cells)]) if env.prey == "evade" else np.zeros((1, 1))
-    team_env = team.TeamEnv(
+    team_env = team_loop.TeamEnv(
         cell_trans,
         far,
         np.asarray(env.distances_to(env.prey_start_cell), dtype=np.float64),
@@ -146,11 +127,10 @@ def team_inputs(agents: Sequence[Any], env: Any, episodes: int) -> TeamInputs | 
     return TeamInputs(
         team_env,
         config,
-        team.Hunters(*(np.array(field) for field in zip(*hunters))),
+        team_loop.Hunters(*(np.array(field) for field in zip(*(spec.settings for spec in specs)))),
         behaviour,
         np.array([a for a, _ in schedules]),
         np.array([p for _, p in schedules]),
-        np.array([float(agent.q_init) for agent in agents]),
         n_states,
         width,
         width,
@@ -170,8 +150,8 @@ def team_settings_inputs(
 
     settings = []
     for algo, kwargs in members:
-        settings_cls = known_settings(algo)
-        if settings_cls is None or not set(kwargs) <= set(settings_cls.names()):
+        settings_cls = settings_class(algo, kwargs)
+        if settings_cls is None:
             return None
         settings.append(settings_cls(**kwargs))
     inputs = team_inputs(settings, make_parallel(env_id, **dict(env_kwargs)), episodes)
@@ -179,23 +159,23 @@ def team_settings_inputs(
 
 
 def run_team(inputs: TeamInputs, seed: int, episodes: int) -> TeamRun:
-    """One fresh team run of ``episodes`` episodes with the run seed ``seed`` (``team.team_loop``)."""
-    n = len(inputs.q_init)
+    """One fresh team run of ``episodes`` episodes with the run seed ``seed`` (``team_loop.team_loop``)."""
+    n = len(inputs.hunters.q_init)
     n_states = inputs.n_states
     q = np.empty((n, n_states, N_ACTIONS))
     mt = np.zeros((n, STATE_SIZE), dtype=np.int64)
     for m in range(n):
-        q[m] = inputs.q_init[m]
+        q[m] = inputs.hunters.q_init[m]
         key = np.asarray(seed_key(member_seed(seed, m)), dtype=np.int64)
         seed_state(mt[m], key, len(key))
-    state = team.TeamState(
+    state = team_loop.TeamState(
         q,
         mt,
         np.empty((n, TW_SIZE), dtype=np.int64),
         np.zeros((n, n_states, N_ACTIONS), dtype=np.int64),
         np.zeros((n, n_states), dtype=np.int64),
-        np.zeros((n, team.N_IST), dtype=np.int64),
-        np.zeros((n, team.N_FST)),
+        np.zeros((n, team_loop.N_TEAM_IST), dtype=np.int64),
+        np.zeros((n, team_loop.N_TEAM_FST)),
         seeded_state(seed),
         np.zeros(n, dtype=np.int64),
     )
@@ -208,22 +188,22 @@ def run_team(inputs: TeamInputs, seed: int, episodes: int) -> TeamRun:
         np.zeros((n, n_states), dtype=np.bool_),
         np.zeros((n, episodes + 1)),
     )
-    rows = team.TeamEpisodes(
+    rows = team_loop.TeamEpisodes(
         inputs.alpha,
         inputs.p,
-        np.zeros((n, episodes, team.N_OUT_I), dtype=np.int64),
-        np.zeros((n, episodes, team.N_OUT_F)),
-        np.zeros((episodes, team.N_TEAM_I), dtype=np.int64),
+        np.zeros((n, episodes, state_layout.N_OUT_I), dtype=np.int64),
+        np.zeros((n, episodes, team_loop.N_TEAM_OUT_F)),
+        np.zeros((episodes, team_loop.N_TEAM_I), dtype=np.int64),
         np.zeros(episodes),
     )
-    work = team.TeamWork(
+    work = team_loop.TeamWork(
         np.empty(N_ACTIONS),
         np.empty(n_states + 1, dtype=np.int64),
         np.zeros((n, n_states), dtype=np.int64),
         np.empty(n_states * N_ACTIONS + 1, dtype=np.int64),
         np.empty(5, dtype=np.int64),
     )
-    team.team_loop(inputs.env, inputs.config, inputs.hunters, inputs.behaviour, state, appraisal, rows, work, episodes)
+    team_loop.team_loop(inputs.env, inputs.config, inputs.hunters, inputs.behaviour, state, appraisal, rows, work, episodes)
     return TeamRun(rows.rows_i, rows.rows_f, rows.team_i, rows.team_f, q, mt, state.pcg, appraisal.dist)
 
 
@@ -241,25 +221,25 @@ def hunter_columns(inputs: TeamInputs, run: TeamRun, m: int) -> dict[str, list[A
     nan = [None] * episodes
     return {
         "episode": list(range(1, episodes + 1)),
-        "decisions": ints[:, team.O_DECISIONS].tolist(),
-        "cells": ints[:, team.O_CELLS].tolist(),
-        "reward": floats[:, team.F_REWARD].tolist(),
-        "optimal": ints[:, team.O_OPTIMAL].astype(bool).tolist() if geometry else nan,
-        "truncated": ints[:, team.O_TRUNCATED].astype(bool).tolist(),
-        "random_moves": ints[:, team.O_RANDOM].astype(np.float64).tolist(),
-        "waits": ints[:, team.O_WAITS].tolist(),
-        "joy": ints[:, team.O_JOY].tolist(),
-        "sadness": ints[:, team.O_SADNESS].tolist(),
-        "fear": ints[:, team.O_FEAR].tolist(),
-        "anger": ints[:, team.O_ANGER].tolist(),
-        "greedy_optimal": ints[:, team.O_GREEDY].astype(bool).tolist() if geometry else nan,
-        "norm": _plain(floats[:, team.F_NORM]) if kind == AFFECT else nan,
+        "decisions": ints[:, state_layout.O_DECISIONS].tolist(),
+        "cells": ints[:, state_layout.O_CELLS].tolist(),
+        "reward": floats[:, state_layout.F_REWARD].tolist(),
+        "optimal": ints[:, state_layout.O_OPTIMAL].astype(bool).tolist() if geometry else nan,
+        "truncated": ints[:, state_layout.O_TRUNCATED].astype(bool).tolist(),
+        "random_moves": ints[:, state_layout.O_RANDOM].astype(np.float64).tolist(),
+        "waits": ints[:, state_layout.O_WAITS].tolist(),
+        "joy": ints[:, state_layout.O_JOY].tolist(),
+        "sadness": ints[:, state_layout.O_SADNESS].tolist(),
+        "fear": ints[:, state_layout.O_FEAR].tolist(),
+        "anger": ints[:, state_layout.O_ANGER].tolist(),
+        "greedy_optimal": ints[:, state_layout.O_GREEDY].astype(bool).tolist() if geometry else nan,
+        "norm": _plain(floats[:, state_layout.F_NORM]) if kind == AFFECT else nan,
     }
 
 
 def team_columns(inputs: TeamInputs, run: TeamRun) -> dict[str, list[Any]]:
     """
-    A team run's record columns, as the Python team gives them: the team's (``team.TEAM_COLUMNS``), then per hunter
+    A team run's record columns, as the Python team gives them: the team's (``team_loop.TEAM_COLUMNS``), then per hunter
     ``hunter_<i>/<column>`` (its episode log) and ``hunter_<i>/broekens_<joy|distress|hope|fear|goal_joy>``.
     """
     n, episodes = run.out_i.shape[0], run.out_i.shape[1]
@@ -267,27 +247,28 @@ def team_columns(inputs: TeamInputs, run: TeamRun) -> dict[str, list[Any]]:
     total = ints.sum(axis=0)
     columns: dict[str, list[Any]] = {
         "episode": list(range(1, episodes + 1)),
-        "decisions": run.team_i[:, team.T_ROUNDS].tolist(),
-        "cells": run.team_i[:, team.T_STEPS].tolist(),
+        "decisions": run.team_i[:, team_loop.T_ROUNDS].tolist(),
+        "cells": run.team_i[:, team_loop.T_STEPS].tolist(),
         "reward": run.team_f.tolist(),
-        "optimal": run.team_i[:, team.T_OPTIMAL].astype(bool).tolist(),
-        "truncated": run.team_i[:, team.T_TRUNCATED].astype(bool).tolist(),
-        "random_moves": total[:, team.O_RANDOM].tolist(),
-        "waits": total[:, team.O_WAITS].tolist(),
-        "joy": total[:, team.O_JOY].tolist(),
-        "sadness": total[:, team.O_SADNESS].tolist(),
-        "fear": total[:, team.O_FEAR].tolist(),
-        "anger": total[:, team.O_ANGER].tolist(),
+        "optimal": run.team_i[:, team_loop.T_OPTIMAL].astype(bool).tolist(),
+        "truncated": run.team_i[:, team_loop.T_TRUNCATED].astype(bool).tolist(),
+        "random_moves": total[:, state_layout.O_RANDOM].tolist(),
+        "waits": total[:, state_layout.O_WAITS].tolist(),
+        "joy": total[:, state_layout.O_JOY].tolist(),
+        "sadness": total[:, state_layout.O_SADNESS].tolist(),
+        "fear": total[:, state_layout.O_FEAR].tolist(),
+        "anger": total[:, state_layout.O_ANGER].tolist(),
         "greedy_optimal": [None] * episodes,
         "norm": [None] * episodes,
-        "capturer": run.team_i[:, team.T_CAPTURER].tolist(),
+        "capturer": run.team_i[:, team_loop.T_CAPTURER].tolist(),
     }
     for m in range(n):
         agent = f"hunter_{m}"
         for name, values in hunter_columns(inputs, run, m).items():
             columns[f"{agent}/{name}"] = values
         for name in EMOTION_MODELS[OBSERVER].columns:
-            columns[f"{agent}/{OBSERVER}_{name}"] = _plain(run.out_f[m, :, team.F_OBSERVER + td_emotions.COLUMNS.index(name)])
+            column = team_loop.F_OBSERVER + td_emotions.COLUMNS.index(name)
+            columns[f"{agent}/{OBSERVER}_{name}"] = _plain(run.out_f[m, :, column])
     return columns
 
 

@@ -10,12 +10,10 @@ import math
 
 import numpy as np
 
+from sb3_affect.kernel.choice import insert_tie
 from sb3_affect.kernel.jit import kernel_inline, kernel_jit
 from sb3_affect.kernel.pcg64 import integers, random01
-
-#: the action that leaves a hunter where it is, and the prey's modes
-STAY = 4
-PREY_STATIC, PREY_RANDOM, PREY_EVADE = 0, 1, 2
+from sb3_affect.kernel.state_layout import PREY_RANDOM
 
 
 @kernel_inline
@@ -86,20 +84,7 @@ def team_prey(
                 best = d
                 count = 0
             if d == best:
-                at = count
-                dup = False
-                for i in range(count):
-                    if ties[i] == c:
-                        dup = True
-                        break
-                    if ties[i] > c:
-                        at = i
-                        break
-                if not dup:
-                    for i in range(count, at, -1):
-                        ties[i] = ties[i - 1]
-                    ties[at] = c
-                    count += 1
+                count = insert_tie(ties, count, c)
         if count == 0:
             return prey
         target = ties[integers(pcg, count)]

@@ -5,33 +5,68 @@ gives the identical team log, each hunter's episode log, Q-table and ``random.Ra
 generator state (``kernel.pcg64``: the prey's draws) and what a ``BroekensCallback`` observing each hunter records
 (``kernel.td_emotions``).
 
-A round: every hunter decides in agent order (``steps.decide``); the round lasts as many env steps as the longest
+A round: every hunter decides in agent order (``decision.decide``); the round lasts as many env steps as the longest
 decision, a hunter whose decision is over stays (``STAY``) and only observes. The env's step moves all hunters at
 once (``"surround"``: not into the prey's cell), checks the capture, gives the prey its chance to move (``"random"``:
 one of its four moves; ``"evade"``: the candidate farthest from its nearest hunter, ties sorted, never onto a hunter)
-and checks a surround again. A hunter that moved in the step learns from it (``steps.q_update``, its appraisal's
+and checks a surround again. A hunter that moved in the step learns from it (``decision.q_update``, its appraisal's
 known map over its observations); the episode ends for everyone at a capture, at ``max_cycles`` env steps or at the
 team's cap of rounds. Hunter ``m``'s arrays are the ``m``-th of each stacked array. The env's own pieces (the
-observations, the surround test, the prey's move) are in ``kernel.hunter_step``.
+observations, the surround test, the prey's move) are in ``kernel.team_env``.
 """
 
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from collections import namedtuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from sb3_affect.kernel import td_emotions
 from sb3_affect.kernel.affect import fit_add, known_add_goal, start_norm
-from sb3_affect.kernel.arrays import BehaviourRows, RunState, Work
+from sb3_affect.kernel.agent_settings import AFFECT, AgentSettings, BehaviourRows
 from sb3_affect.kernel.choice import row_max
-from sb3_affect.kernel.hunter_step import PREY_STATIC, encode, surrounded, team_prey
+from sb3_affect.kernel.decision import decide, obs_known_add, q_update
+from sb3_affect.kernel.grid_arrays import RunState, Work
+from sb3_affect.kernel.grid_loop import greedy_walks_shortest_path
 from sb3_affect.kernel.jit import kernel_inline, kernel_jit
-from sb3_affect.kernel.loop import greedy_walks_shortest_path
 from sb3_affect.kernel.mt19937 import N as MT_N
 from sb3_affect.kernel.mt19937 import temper_all
-from sb3_affect.kernel.steps import AFFECT, decide, obs_known_add, q_update
+from sb3_affect.kernel.state_layout import (
+    F_NORM,
+    F_REWARD,
+    I_CELLS,
+    I_CHANGED,
+    I_DECISIONS,
+    I_EL_CELLS,
+    I_EL_DECISIONS,
+    I_GREEDY,
+    I_JOY,
+    I_LAST_S2,
+    I_NFIT,
+    I_RANDOM,
+    I_STATE,
+    I_WAITS,
+    N_FST,
+    N_IST,
+    N_OUT_F,
+    O_CELLS,
+    O_DECISIONS,
+    O_GREEDY,
+    O_JOY,
+    O_OPTIMAL,
+    O_RANDOM,
+    O_TRUNCATED,
+    O_WAITS,
+    PREY_STATIC,
+    S_FIT0,
+    S_LAST_ACT,
+    S_LAST_REWARD,
+    S_NORM,
+    S_REWARD,
+)
+from sb3_affect.kernel.team_env import encode, surrounded, team_prey
 
 
 class TeamEnv(NamedTuple):
@@ -49,7 +84,7 @@ class Config(NamedTuple):
 
     n_cells: int
     prey_start: int
-    prey: int  # hunter_step.PREY_STATIC, PREY_RANDOM or PREY_EVADE
+    prey: int  # state_layout.PREY_STATIC, PREY_RANDOM or PREY_EVADE
     surround: bool  # capture="surround" (else "enter")
     obs_all: bool  # observation="all" (else "self")
     max_cycles: int  # 0: none
@@ -60,36 +95,8 @@ class Config(NamedTuple):
     prey_speed: float
 
 
-class Hunter(NamedTuple):
-    """A hunter's fixed scalars, as ``arrays.Config`` names them (what ``steps.decide`` reads)."""
-
-    kind: int
-    cap: int
-    act_episode: bool
-    units_cells: bool
-    valence: bool
-    tie_first: bool
-    jump: bool
-    compensated_sum: bool
-    gamma: float
-    norm_scale: float
-    ucb_coef: float
-
-
-class Hunters(NamedTuple):
-    """Every hunter's ``Hunter`` fields as arrays, one entry per hunter (read only; ``hunter`` reads one)."""
-
-    kind: np.ndarray
-    cap: np.ndarray
-    act_episode: np.ndarray
-    units_cells: np.ndarray
-    valence: np.ndarray
-    tie_first: np.ndarray
-    jump: np.ndarray
-    compensated_sum: np.ndarray
-    gamma: np.ndarray
-    norm_scale: np.ndarray
-    ucb_coef: np.ndarray
+#: Every hunter's ``AgentSettings`` as arrays, one entry per hunter (read only; ``hunter`` reads one).
+Hunters: Any = namedtuple("Hunters", AgentSettings._fields)  # type: ignore[misc]
 
 
 class TeamState(NamedTuple):
@@ -101,8 +108,8 @@ class TeamState(NamedTuple):
     tw: np.ndarray  # int64[hunters, mt19937.TW_SIZE]
     ucb_n: np.ndarray  # int64[hunters, n_states, n_actions]
     ucb_tot: np.ndarray  # int64[hunters, n_states]
-    ist: np.ndarray  # int64[hunters, N_IST]
-    fst: np.ndarray  # float64[hunters, N_FST]
+    ist: np.ndarray  # int64[hunters, N_TEAM_IST]
+    fst: np.ndarray  # float64[hunters, N_TEAM_FST]
     pcg: np.ndarray  # uint64[pcg64.STATE_SIZE]
     cells: np.ndarray  # int64[hunters]
 
@@ -113,7 +120,7 @@ class TeamEpisodes(NamedTuple):
     alpha: np.ndarray  # float64[hunters, episodes]
     p: np.ndarray  # float64[hunters, episodes]
     rows_i: np.ndarray  # int64[hunters, episodes, N_OUT_I]
-    rows_f: np.ndarray  # float64[hunters, episodes, N_OUT_F]
+    rows_f: np.ndarray  # float64[hunters, episodes, N_TEAM_OUT_F]
     team_i: np.ndarray  # int64[episodes, N_TEAM_I]
     team_f: np.ndarray  # float64[episodes]: the team's reward
 
@@ -130,9 +137,9 @@ class TeamWork(NamedTuple):
 
 
 @kernel_inline
-def hunter(hunters: Hunters, m: int) -> Hunter:
-    """Hunter ``m``'s ``Hunter``."""
-    return Hunter(
+def hunter(hunters: Any, m: int) -> AgentSettings:
+    """Hunter ``m``'s ``AgentSettings``."""
+    return AgentSettings(
         hunters.kind[m],
         hunters.cap[m],
         hunters.act_episode[m],
@@ -144,14 +151,14 @@ def hunter(hunters: Hunters, m: int) -> Hunter:
         hunters.gamma[m],
         hunters.norm_scale[m],
         hunters.ucb_coef[m],
+        hunters.q_init[m],
     )
 
 
-# out_i[m, episode]: each hunter's episode row (ints); out_f[m, episode]: its floats and Broekens' means
-(O_DECISIONS, O_CELLS, O_OPTIMAL, O_TRUNCATED, O_RANDOM, O_WAITS, O_JOY, O_SADNESS, O_FEAR, O_ANGER, O_GREEDY) = range(11)
-N_OUT_I = 11
-F_REWARD, F_NORM, F_OBSERVER = range(3)  # F_OBSERVER..: the Broekens observer's columns (td_emotions.COLUMNS)
-N_OUT_F = F_OBSERVER + td_emotions.N_OUT
+# out_i[m, episode]: each hunter's episode row (state_layout's ints); out_f[m, episode]: its floats, then its
+# observer's columns from F_OBSERVER (td_emotions.COLUMNS)
+F_OBSERVER = N_OUT_F
+N_TEAM_OUT_F = F_OBSERVER + td_emotions.N_OUT
 # team_i[episode]: the team's row (team_f[episode]: its reward)
 T_ROUNDS, T_STEPS, T_OPTIMAL, T_TRUNCATED, T_CAPTURER = range(5)
 N_TEAM_I = 5
@@ -161,8 +168,8 @@ N_TEAM_I = 5
 def team_loop(env, config, hunters, behaviour, state, appraisal, episodes, work, n_episodes):
     """
     Run ``n_episodes`` team episodes of a fresh run (the arrays as a new team has them). The arguments: ``TeamEnv``,
-    ``Config``, ``Hunters``, ``arrays.BehaviourRows`` (one row per hunter first), ``TeamState``,
-    ``steps.ObsAppraisal`` (one row per hunter first), ``TeamEpisodes`` and ``TeamWork``.
+    ``Config``, ``Hunters``, ``agent_settings.BehaviourRows`` (one row per hunter first), ``TeamState``,
+    ``decision.ObsAppraisal`` (one row per hunter first), ``TeamEpisodes`` and ``TeamWork``.
     """
     cell_trans, far, tdist, hunter_starts = env
     q, mt, tw, ucb_n, ucb_tot, ist, fst, pcg, cells_of = state
@@ -191,12 +198,12 @@ def team_loop(env, config, hunters, behaviour, state, appraisal, episodes, work,
     for m in range(n):
         temper_all(mt[m], tw[m])
         ist[m, I_R] = mt[m, MT_N]
-        ist[m, I_S] = encode(cells_of, prey, m, n_cells, obs_all, prey_moves)
+        ist[m, I_STATE] = encode(cells_of, prey, m, n_cells, obs_all, prey_moves)
         ist[m, I_GREEDY] = -1
         ist[m, I_CHANGED] = 1
         fst[m, S_NORM] = math.nan
         fst[m, S_LAST_ACT] = math.inf
-        td_emotions.start(fst[m, S_OBSERVER:], row_max(q[m], ist[m, I_S]))
+        td_emotions.start(fst[m, S_OBSERVER:], row_max(q[m], ist[m, I_STATE]))
     episode = 0
     rounds = 0
     steps = 0
@@ -206,7 +213,7 @@ def team_loop(env, config, hunters, behaviour, state, appraisal, episodes, work,
         length = 0
         for m in range(n):
             h = hunter(hunters, m)
-            s = ist[m, I_S]
+            s = ist[m, I_STATE]
             elapsed = ist[m, I_EL_CELLS] if h.units_cells else ist[m, I_EL_DECISIONS]
             action, k, explored, emotion, last_act, r = decide(
                 h,
@@ -266,7 +273,7 @@ def team_loop(env, config, hunters, behaviour, state, appraisal, episodes, work,
                     # the hunter's transition (DecisionStepper.transition)
                     ended = captured and rewarded
                     ist[m, I_ENDED] = 1 if ended else 0
-                    s = ist[m, I_S]
+                    s = ist[m, I_STATE]
                     action = ist[m, I_ACTION]
                     if hunters.jump[m]:
                         fst[m, S_JUMP_REWARD] += reward
@@ -282,7 +289,7 @@ def team_loop(env, config, hunters, behaviour, state, appraisal, episodes, work,
                     fst[m, S_DECISION_REWARD] += reward
                     ist[m, I_LAST_S2] = s2
                     fst[m, S_LAST_REWARD] = reward
-                ist[m, I_S] = s2
+                ist[m, I_STATE] = s2
                 if captured and rewarded and capturer < 0:
                     capturer = m
             team_reward += step_sum
@@ -301,13 +308,13 @@ def team_loop(env, config, hunters, behaviour, state, appraisal, episodes, work,
             k = ist[m, I_K]
             jump = h.jump and k > 0
             if jump and q_update(
-                q[m], ist[m, I_START], ist[m, I_ACTION], fst[m, S_JUMP_REWARD], ist[m, I_S], ended,
+                q[m], ist[m, I_START], ist[m, I_ACTION], fst[m, S_JUMP_REWARD], ist[m, I_STATE], ended,
                 alpha_e[m, episode], h.gamma,
             ):  # fmt: skip
                 ist[m, I_CHANGED] = 1
             if k == 0:
                 ist[m, I_WAITS] += 1
-                ist[m, I_LAST_S2] = ist[m, I_S]
+                ist[m, I_LAST_S2] = ist[m, I_STATE]
                 fst[m, S_LAST_REWARD] = 0.0
             if ist[m, I_EXPLORED] != 0:
                 ist[m, I_RANDOM] += 1
@@ -315,7 +322,7 @@ def team_loop(env, config, hunters, behaviour, state, appraisal, episodes, work,
             # the Broekens observer: the decision's reward and the value reached
             observer = fst[m, S_OBSERVER:]
             cut = over and not ended
-            reached = 0.0 if over and not cut else row_max(q[m], ist[m, I_LAST_S2] if over else ist[m, I_S])
+            reached = 0.0 if over and not cut else row_max(q[m], ist[m, I_LAST_S2] if over else ist[m, I_STATE])
             joy = td_emotions.observe(observer, fst[m, S_DECISION_REWARD], h.gamma, reached)
             if over:
                 row = out_i[m, episode]
@@ -352,10 +359,10 @@ def team_loop(env, config, hunters, behaviour, state, appraisal, episodes, work,
                     ist[m, I_EL_DECISIONS] = 0
                     fst[m, S_NORM] = start_norm(fit_vals[m], fsum, ist[m, I_NFIT], h.norm_scale)
                 # the next episode
-                ist[m, I_S] = encode(cells_of, prey, m, n_cells, obs_all, prey_moves)
+                ist[m, I_STATE] = encode(cells_of, prey, m, n_cells, obs_all, prey_moves)
                 ist[m, I_DECISIONS] = ist[m, I_CELLS] = ist[m, I_RANDOM] = ist[m, I_WAITS] = 0
                 fst[m, S_REWARD] = 0.0
-                td_emotions.start(observer, row_max(q[m], ist[m, I_S]))
+                td_emotions.start(observer, row_max(q[m], ist[m, I_STATE]))
         if over:
             team_i[episode, T_ROUNDS] = rounds
             team_i[episode, T_STEPS] = steps
@@ -392,41 +399,10 @@ def team_optimal(out_i: np.ndarray, episode: int, config: Config) -> bool:
     return 0 <= fewest <= bound
 
 
-# ist[m]: hunter m's run state (int)
-(
-    I_R,
-    I_S,
-    I_DECISIONS,
-    I_CELLS,
-    I_RANDOM,
-    I_WAITS,
-    I_JOY,
-    I_SADNESS,
-    I_FEAR,
-    I_ANGER,
-    I_EL_CELLS,
-    I_EL_DECISIONS,
-    I_NFIT,
-    I_ACTION,
-    I_K,
-    I_EXPLORED,
-    I_START,
-    I_ENDED,
-    I_LAST_S2,
-    I_CHANGED,
-    I_GREEDY,
-    I_WALKS,
-) = range(22)
-N_IST = 22
-# fst[m]: hunter m's run state (float)
-(
-    S_REWARD,
-    S_NORM,
-    S_LAST_ACT,
-    S_DECISION_REWARD,
-    S_JUMP_REWARD,
-    S_LAST_REWARD,
-    S_FIT0,  # S_FIT0..S_FIT0+3: the power fit's running sums
-) = range(7)
-S_OBSERVER = S_FIT0 + 4  # S_OBSERVER..: the Broekens observer's state (kernel.td_emotions)
-N_FST = S_OBSERVER + td_emotions.N_STATE
+# ist[m]: hunter m's run state (int), after state_layout's: its random stream's index and its decision in progress
+(I_R, I_ACTION, I_K, I_EXPLORED, I_START, I_ENDED, I_WALKS) = range(N_IST, N_IST + 7)
+N_TEAM_IST = N_IST + 7
+# fst[m]: hunter m's run state (float), after state_layout's: its decision's rewards, then its observer's state
+S_DECISION_REWARD, S_JUMP_REWARD = range(N_FST, N_FST + 2)
+S_OBSERVER = N_FST + 2  # S_OBSERVER..: the Broekens observer's state (kernel.td_emotions)
+N_TEAM_FST = S_OBSERVER + td_emotions.N_STATE

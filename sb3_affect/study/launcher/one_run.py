@@ -313,23 +313,19 @@ def execute_run(config: dict[str, Any], log_dir: str | None = None, log_formats:
 
 def _execute_team_compiled(config: dict[str, Any], start: float) -> dict[str, Any] | None:
     """
-    A team run on the team kernel (``sb3_affect.kernel.team``), without building a model (no torch): the same
-    record as ``_execute_team`` gives. None when the kernel can not run it (an agent or argument the kernel does not
-    know, a member's ``engine="python"``, a schedule of the training progress).
+    A team run on the team kernel (``sb3_affect.engine.team_simulation``), without building a model (no torch): the
+    same record as ``_execute_team`` gives. None when the kernel can not run it (an agent or argument the kernel does
+    not know, a member's ``engine="python"``, a schedule of the training progress).
     """
     import sb3_affect  # noqa: F401
-    from sb3_affect.kernel.team_inputs import run_team, team_columns, team_settings_inputs
+    from sb3_affect.engine.team_simulation import simulate_team
 
     members = [(m["algo"], m["kwargs"]) for m in config["team"]]
-    if any(kwargs.get("engine", "auto") == "python" for _, kwargs in members):
+    run = simulate_team(members, config["env_id"], config["env_kwargs"], int(config["seed"]), int(config["episodes"]))
+    if run is None:
         return None
-    episodes = int(config["episodes"])
-    inputs = team_settings_inputs(members, config["env_id"], config["env_kwargs"], episodes)
-    if inputs is None:
-        return None
-    run = run_team(inputs, int(config["seed"]), episodes)
     return {
-        "episodes": team_columns(inputs, run),
+        "episodes": run.columns,
         "timings": {
             "wall_seconds": round(time.perf_counter() - start, 4),
             "decisions": run.decisions,
