@@ -437,7 +437,7 @@ def _tuning_runs(response, replicates: int = 20, noise: float = 0.05):  # type: 
 
 
 def test_tuning_chooses_an_interior_best_in_one_round() -> None:
-    from sb3_affect.study.report.tuning import tune
+    from sb3_affect.study.launcher.epsilon_tuning import tune
 
     choices, rounds = tune(_tuning_runs(lambda e: 100 + 50 * (np.log10(e) - np.log10(0.05)) ** 2), [("task", "agent")], GRID)
     t = choices[("task", "agent")]
@@ -447,7 +447,7 @@ def test_tuning_chooses_an_interior_best_in_one_round() -> None:
 
 
 def test_tuning_extends_a_grid_whose_best_is_at_an_edge() -> None:
-    from sb3_affect.study.report.tuning import MAX_EXTENSIONS, extension, tune
+    from sb3_affect.study.launcher.epsilon_tuning import MAX_EXTENSIONS, extension, tune
 
     assert extension([0.001, 0.002, 0.5], 0.001) == 0.0005 and extension([0.001, 0.2, 0.5], 0.5) == 1.0
     assert extension([0.001, 0.2, 0.5], 0.2) is None and extension([0.5, 1.0], 1.0) is None  # inside; end of range
@@ -472,7 +472,7 @@ def test_tuning_extends_a_grid_whose_best_is_at_an_edge() -> None:
 
 def test_a_flat_edge_is_said_to_be_flat() -> None:
     """Best at the edge by a difference the paired CI can not tell from 0: not interior, and flat there."""
-    from sb3_affect.study.report.tuning import choose
+    from sb3_affect.study.launcher.epsilon_tuning import choose
 
     decisions = {0.001: [10, 12, 10, 12], 0.002: [12, 10, 13, 10], 0.005: [20, 20, 20, 20]}
     runs = pd.DataFrame(

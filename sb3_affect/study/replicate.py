@@ -19,28 +19,18 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+from sb3_affect.study.studies import STUDIES
+
 #: The folder of the sweep files; None: those installed with the package (``experiments/`` of the source tree).
 EXPERIMENTS: Path | None = None
-#: The sweeps of the main job, in order: (name of experiments/<name>.yaml and of the results folder, description).
-PARTS = (
-    ("paper", "the paper's protocol ({runs} runs)"),
-    ("dqn", "SB3 DQN beside the tabular agents, equal seeds and budget ({runs} runs)"),
-    ("baselines", "fair baselines beside both paper agents"),
-    ("hunters", "two hunters on Kuremoto's pursuit problem"),
-    ("hunters_moving", "two hunters, moving prey"),
-    ("large", "large-N study: the paper's 18 cells and the speed-matched ε-greedy ({runs} runs)"),
-    ("ablation", "reading ablation: the 8 readings of the appraisal x 9 ε ({runs} runs)"),
-    ("speed_one", "speed ablation: the affective agent with speed fixed at 1 cell ({runs} runs)"),
-    ("long", "long runs: both paper agents, runs of 2,000 episodes ({runs} runs)"),
-    ("joy_trace", "joy trace: the paper's affective agent, each decision's emotion and act recorded ({runs} runs)"),
-    ("minigrid", "the tabular agents on MiniGrid ({runs} runs)"),
-    ("forensics", "replication forensics: {screen_reps} screen, {leaders} leaders x {reps} replications"),
-)
+#: The sweeps of the main job, in order (``studies.STUDIES``): (name of experiments/<name>.yaml and of the results
+#: folder, description).
+PARTS = tuple((study.name, study.description) for study in STUDIES if not study.tuned)
 #: Parts that need a package of an extra: (part, package, extra); without it the part is skipped with one line.
-PART_PACKAGES = (("minigrid", "minigrid", "minigrid"),)
+PART_PACKAGES = tuple((study.name, *study.extra) for study in STUDIES if study.extra)
 #: The parts sized by ``main``'s ``large_seeds`` (a cap on their seeds per cell) and ``engine_episodes`` (their
 #: episodes per run; ``long``: 10 x as many); ``ablation`` by ``ablation_seeds``.
-SIZED = ("large", "ablation", "speed_one", "long")
+SIZED = tuple(study.name for study in STUDIES if study.size and not study.tuned)
 #: Sizes for quick checks, read when ``main`` runs (None: the sweep files' own sizes): a cap on the seeds per cell of
 #: the ``SIZED`` parts and of the tuning, the ablation's seeds, a cap on the seeds per agent and task beyond the paper,
 #: the episodes per run.
@@ -54,11 +44,7 @@ OVERRIDES: dict[str, list[str]] = {}
 MINUTES = "about 6-9 minutes"
 #: The sweeps after ``PARTS``, in order: the tuning (its rounds in ``OUT/tuning/round<k>``), then the tasks beyond the
 #: paper with the tuned ε: (name of experiments/<name>.yaml and of the results folder, description).
-TUNED_PARTS = (
-    ("tuning", "ε of ε-greedy and speed-matched ε-greedy tuned on each task beyond the paper: the grid ({runs} runs) in "
-     "round0/, then one value further out where the best sits at an edge (round1/, ...)"),
-    ("beyond", "static grid, moving and evading prey, mazes, with the tuned ε ({runs} runs)"),
-)  # fmt: skip
+TUNED_PARTS = tuple((study.name, study.description) for study in STUDIES if study.tuned)
 
 
 def sweep_runs(path: Path) -> int | None:
@@ -271,9 +257,9 @@ def tune_rounds(
     path: Path, folder: Path, overrides: list[str], workers: int | None = None, **executor: Any
 ) -> tuple[dict[tuple[str, str], Any], list[Any]]:
     """
-    The per-task tuning (``report.tuning.tune``) through the launcher: the sweep file ``path`` into ``folder/round0``,
-    then each extension round's values into ``folder/round<k>`` (the file's agents that still need a value, each on
-    those tasks only: ``grid_by_task``). Finished rounds are resumed (nothing left to run).
+    The per-task tuning (``launcher.epsilon_tuning.tune``) through the launcher: the sweep file ``path`` into
+    ``folder/round0``, then each extension round's values into ``folder/round<k>`` (the file's agents that still need a
+    value, each on those tasks only: ``grid_by_task``). Finished rounds are resumed (nothing left to run).
 
     :param overrides: ``--set`` overrides of every round (its size)
     :param executor: ``run_sweep``'s ``backend`` and ``ray_address``
@@ -282,8 +268,8 @@ def tune_rounds(
     import yaml
 
     from sb3_affect.study.launcher import run_sweep
+    from sb3_affect.study.launcher.epsilon_tuning import round_values, tune, tuning_grid
     from sb3_affect.study.report.engine_studies import folder_study
-    from sb3_affect.study.report.tuning import round_values, tune, tuning_grid
 
     data = yaml.safe_load(Path(path).read_text())
     agents = data["agents"]
@@ -357,8 +343,9 @@ def _sized(
     The ``--set`` overrides of a ``SIZED`` part for a quick check: its seeds capped at ``ablation_seeds`` (``ablation``)
     or ``large_seeds`` (the others), its episodes ``episodes`` (``long``: 10 x as many). None: the file's own size.
     """
-    cap = ablation_seeds if name == "ablation" else large_seeds
-    return _capped(path, cap, None if episodes is None else episodes * (10 if name == "long" else 1))
+    size = next((study.size for study in STUDIES if study.name == name), None)
+    cap = ablation_seeds if size == "ablation" else large_seeds
+    return _capped(path, cap, None if episodes is None else episodes * (10 if size == "long" else 1))
 
 
 #: Seconds between the lines an engine study prints while it runs (it has no progress bar of its own).

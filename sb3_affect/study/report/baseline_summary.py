@@ -202,7 +202,7 @@ def profile_markdown(profile: pd.DataFrame) -> str:
 def tuning_choice(records: Iterable[dict[str, Any]]) -> pd.DataFrame:
     """
     Tuning runs: per agent and grid value, mean decisions per episode; the best value per agent is flagged, and
-    ``interior`` says whether it lies strictly inside the grid (at an edge: extend the grid; ``report.tuning`` does).
+    ``interior`` says whether it lies strictly inside the grid (at an edge: extend the grid; ``launcher.epsilon_tuning`` does).
     """
     frame = pd.DataFrame([record_metrics(r) for r in records])
     label = [c for c in frame.columns if c.startswith("label:")]

@@ -21,7 +21,9 @@ from sb3_affect.study.report.checks import checks_section
 from sb3_affect.study.report.context import ReportContext
 from sb3_affect.study.report.document import APPENDIX_HEADING, Document, fmt
 from sb3_affect.study.report.dqn import dqn_section, learning_curves_section
+from sb3_affect.study.report.emotion_models import emotion_models_sections
 from sb3_affect.study.report.evidence import evidence_section
+from sb3_affect.study.report.hunters import hunters_sections
 from sb3_affect.study.report.mechanism import mechanism_section
 from sb3_affect.study.report.metrics import EARLY_WINDOWS, LATE_WINDOWS, load_results
 from sb3_affect.study.report.minigrid import FOLDERS as MINIGRID_FOLDERS
@@ -40,8 +42,6 @@ Section = Callable[[ReportContext], None]
 #: Sub-folders of a replicate folder the sections may read (``ctx.folders[name]``).
 FOLDERS = ("dqn", "ablation", "baselines", "baselines_moving7", "baselines_moving", "beyond", "hunters", "hunters_moving",
            *(name for name, _, _ in MINIGRID_FOLDERS))
-#: Two-hunter results folders (experiments/hunters*.yaml): two hunters, and the two emotion models side by side.
-HUNTER_FOLDERS = ("hunters", "hunters_moving")
 
 
 def overview_section(ctx: ReportContext) -> None:
@@ -118,37 +118,6 @@ def agents_section(ctx: ReportContext) -> None:
         decisions_before_optimal=("decisions_before_optimal", "mean"),
     )
     ctx.table("agents", summary, "Per-agent summary (means over runs)")
-
-
-def _hunter_dirs(ctx: ReportContext) -> list[Path]:
-    dirs = [ctx.root / name for name in HUNTER_FOLDERS if (ctx.root / name / "runs").is_dir()]
-    if "team" in ctx.paper.runs.columns or (ctx.paper.runs.algo == "team").any():  # a single folder of team runs
-        dirs.append(ctx.paper.folder)
-    return dirs
-
-
-def hunters_sections(ctx: ReportContext) -> None:
-    """The two-hunter section, when a folder holds team runs."""
-    from sb3_affect.study.report.hunters import hunters_section
-
-    dirs = _hunter_dirs(ctx)
-    if dirs:
-        _add(ctx, *hunters_section(dirs, ctx.out))
-
-
-def emotion_models_sections(ctx: ReportContext) -> None:
-    """The two emotion models side by side on the two-hunter runs (appendix)."""
-    from sb3_affect.study.report.emotion_models import emotion_models_section
-
-    dirs = _hunter_dirs(ctx)
-    if dirs:
-        _add(ctx, *emotion_models_section(dirs, ctx.out))
-
-
-def _add(ctx: ReportContext, text: str, images: list[tuple[Path, str]]) -> None:
-    ctx.doc.md(text)
-    for path, caption in images:
-        ctx.doc.img(path, caption)
 
 
 def appendix_heading(ctx: ReportContext) -> None:

@@ -17,7 +17,8 @@ import pandas as pd
 
 from sb3_affect.core.emotions import EMOTION_NAMES
 from sb3_affect.core.registry import EMOTION_MODELS
-from sb3_affect.study.report.hunters import markdown_table, team_runs
+from sb3_affect.study.report.context import ReportContext
+from sb3_affect.study.report.hunters import add_markdown, hunter_folders, markdown_table, team_runs
 from sb3_affect.study.report.output_files import output_folder, replacing
 
 PAPER = EMOTION_NAMES
@@ -223,3 +224,10 @@ def _far_hunter_lines(runs: list[dict[str, Any]]) -> list[str]:
                 "so it exceeds the norm from the first decision: joy (a random walk) all the way."
             )
     return [*lines, ""] if lines else []
+
+
+def emotion_models_sections(ctx: ReportContext) -> None:
+    """The two emotion models side by side on the two-hunter runs (appendix), when a folder holds team runs."""
+    dirs = hunter_folders(ctx)
+    if dirs:
+        add_markdown(ctx, *emotion_models_section(dirs, ctx.out))

@@ -18,9 +18,12 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from sb3_affect.study.report.context import ReportContext
 from sb3_affect.study.report.output_files import output_folder, replacing
 from sb3_affect.study.report.stats import bootstrap_ci, bootstrap_improvement
 
+#: Two-hunter results folders (experiments/hunters*.yaml): two hunters, and the two emotion models side by side.
+HUNTER_FOLDERS = ("hunters", "hunters_moving")
 BASELINE = "epsilon-greedy"
 LATE = 20  # the last episodes, for "after learning"
 
@@ -243,3 +246,25 @@ def hunters_section(run_dirs: Sequence[str | Path], out: str | Path) -> tuple[st
     figure = learning_figure(runs, out / "figures" / "hunters_learning.png")
     caption = "Two hunters: decisions per episode (log scale), mean over runs and 95% CI per 10-episode block"
     return "\n".join(text), [(figure, caption)]
+
+
+def hunter_folders(ctx: ReportContext) -> list[Path]:
+    """The folders of team runs: the two-hunter sweeps of a replicate folder, or the paper folder if it holds teams."""
+    dirs = [ctx.root / name for name in HUNTER_FOLDERS if (ctx.root / name / "runs").is_dir()]
+    if "team" in ctx.paper.runs.columns or (ctx.paper.runs.algo == "team").any():  # a single folder of team runs
+        dirs.append(ctx.paper.folder)
+    return dirs
+
+
+def add_markdown(ctx: ReportContext, text: str, images: list[tuple[Path, str]]) -> None:
+    """A section's markdown and its figures into the report."""
+    ctx.doc.md(text)
+    for path, caption in images:
+        ctx.doc.img(path, caption)
+
+
+def hunters_sections(ctx: ReportContext) -> None:
+    """The two-hunter section, when a folder holds team runs."""
+    dirs = hunter_folders(ctx)
+    if dirs:
+        add_markdown(ctx, *hunters_section(dirs, ctx.out))
