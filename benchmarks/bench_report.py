@@ -40,7 +40,7 @@ WRAPPER = (
 )
 LOAD = (
     "import sys\n"
-    "from sb3_affect.study.report.metrics import load_results, run_metrics\n"
+    "from sb3_affect.study.report.reading.run_tables import load_results, run_metrics\n"
     "results = load_results(sys.argv[1])\n"
     "run_metrics(results.episodes, results.runs)\n"
 )

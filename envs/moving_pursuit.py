@@ -47,7 +47,7 @@ class MovingPursuitEnv(gym.Env[Any, Any]):
     deliberately does **not** expose GridPursuit's geometry attributes (``transitions``, ``distances``,
     ``shortest_path_length``): they assume a fixed goal. So the generic episode log has NaN in ``optimal`` and
     ``greedy_optimal`` for this env, and "steps before the optimal path" is computed from ``cells`` and
-    ``truncated`` with ``optimal_capture`` (``sb3_affect.study.report.baselines_section`` does).
+    ``truncated`` with ``optimal_capture`` (``sb3_affect.study.report.sections.beyond`` does).
 
     ## The affective appraisal's known map
     The appraiser's known map is over observations, i.e. hunter-x-prey pairs: its edges are the joint transitions

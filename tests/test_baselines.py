@@ -181,7 +181,13 @@ def test_baseline_sweep_runs_and_summary_ranks(tmp_path: Any) -> None:
     import yaml
 
     from sb3_affect.study.launcher import run_sweep
-    from sb3_affect.study.report.baseline_summary import bootstrap_ci, load_run_records, markdown, record_metrics, summarise
+    from sb3_affect.study.report.reading.baseline_ranks import (
+        bootstrap_ci,
+        load_run_records,
+        markdown,
+        record_metrics,
+        summarise,
+    )
 
     experiments = Path(__file__).resolve().parents[1] / "experiments"
     for name in ("baselines", "baselines_moving7"):

@@ -7,7 +7,7 @@ from pathlib import Path
 import pandas as pd
 
 from sb3_affect.study.launcher import ResultsStore, run_sweep
-from sb3_affect.study.report.metrics import load_results, run_metrics
+from sb3_affect.study.report.reading.run_tables import load_results, run_metrics
 
 PAPER = Path(__file__).resolve().parents[1] / "experiments" / "paper.yaml"
 

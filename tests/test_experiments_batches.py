@@ -20,7 +20,7 @@ from test_experiments_local import EXPERIMENTS, children, contents, launcher, li
 from sb3_affect.study.cli import main
 from sb3_affect.study.launcher import ResultsStore, run_sweep
 from sb3_affect.study.launcher.chunks import chunk_meta
-from sb3_affect.study.report.metrics import load_results
+from sb3_affect.study.report.reading.run_tables import load_results
 
 SMOKE = EXPERIMENTS / "smoke.yaml"
 

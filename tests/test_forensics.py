@@ -44,8 +44,9 @@ from sb3_affect.study.launcher import run_sweep
 from sb3_affect.study.launcher.store import StoreError
 from sb3_affect.study.launcher.study_schema import ForensicsStudy
 from sb3_affect.study.launcher.sweep_file import load_sweep_file
-from sb3_affect.study.report import build_report, paper
-from sb3_affect.study.report.metrics import run_metrics
+from sb3_affect.study.report import build_report
+from sb3_affect.study.report.reading.run_tables import run_metrics
+from sb3_affect.study.report.verdicts import paper_numbers as paper
 
 ROOT = Path(__file__).resolve().parents[1]
 ENV = "sb3_affect/GridPursuit-v0"

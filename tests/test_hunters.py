@@ -262,7 +262,7 @@ def test_two_hunter_sweep_runs_from_yaml_and_the_report_gets_both_sections(tmp_p
 
 def test_the_hunters_section_of_runs_shorter_than_a_block(tmp_path: Path) -> None:
     """Runs of fewer than 10 episodes (one block of 10 can not be formed): the figure has one block of them all."""
-    from sb3_affect.study.report.hunters import hunters_section
+    from sb3_affect.study.report.sections.hunters import hunters_section
 
     overrides = ["episodes=4", "seeds=[0, 1]", "env.kwargs={size: 5, starts: [[0, 0], [4, 4]], prey_start: [2, 2]}"]
     run_sweep(EXPERIMENTS / "hunters.yaml", tmp_path / "hunters", workers=1, overrides=overrides, progress=False)

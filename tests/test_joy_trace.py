@@ -10,7 +10,7 @@ import pytest
 
 from sb3_affect.core.episode_log import EPISODE_COLUMNS, TRACE_COLUMNS
 from sb3_affect.study.launcher import SweepError, load_sweep, run_sweep
-from sb3_affect.study.report import joy_trace
+from sb3_affect.study.report.sections import joy_trace
 
 SWEEP = """\
 name: traced
@@ -26,7 +26,7 @@ agents:
 
 def _episodes(folder: Path) -> dict[int, dict[str, np.ndarray]]:
     """The episode columns of each run of a folder, by seed (the report's loader)."""
-    from sb3_affect.study.report.metrics import load_results
+    from sb3_affect.study.report.reading.run_tables import load_results
 
     columns = [c for c in EPISODE_COLUMNS if c != "episode"]
     results = load_results(folder, ("episode", *columns))

@@ -16,9 +16,9 @@ pytest.importorskip("minigrid")  # the [minigrid] extra
 from sb3_affect.core.emotions import EMOTION_NAMES
 from sb3_affect.study.launcher import SweepError, load_sweep, run_sweep
 from sb3_affect.study.launcher.schema import Sweep
-from sb3_affect.study.report.context import ReportContext
-from sb3_affect.study.report.document import Document
-from sb3_affect.study.report.minigrid import minigrid_sections
+from sb3_affect.study.report.reading.context import ReportContext
+from sb3_affect.study.report.rendering.document import Document
+from sb3_affect.study.report.sections.minigrid import minigrid_sections
 
 TABULAR = """
 name: tiny-minigrid

@@ -24,8 +24,8 @@ from sb3_affect.study.report import (
     paired_ttest_table,
     probability_of_improvement,
 )
-from sb3_affect.study.report.metrics import run_metrics
-from sb3_affect.study.report.stats import TTEST_ROWS
+from sb3_affect.study.report.estimation.bootstrap import TTEST_ROWS
+from sb3_affect.study.report.reading.run_tables import run_metrics
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -192,7 +192,7 @@ def test_report_end_to_end_from_the_smoke_sweep(tmp_path: Path) -> None:
 
 def test_the_record_takes_no_commit_from_a_repository_around_an_installed_package(tmp_path: Path) -> None:
     """A package folder inside some other git repository (site-packages in a project) has no commit of its own."""
-    from sb3_affect.study.report.record import commit
+    from sb3_affect.study.report.sections.reproducibility import commit
 
     site = tmp_path / "project" / "venv" / "site-packages" / "sb3_affect"
     site.mkdir(parents=True)
@@ -229,7 +229,7 @@ def test_report_refuses_a_folder_without_results(tmp_path: Path) -> None:
 
 
 def test_html_inline_markup_renders_emphasis_bold_and_code_but_not_arithmetic() -> None:
-    from sb3_affect.study.report.document import _inline
+    from sb3_affect.study.report.rendering.document import _inline
 
     rendered = _inline("A *step* is one decision; **bold** and `code`; 2 * 3 * 4; a*b*c <x>")
     assert rendered == "A <i>step</i> is one decision; <b>bold</b> and <code>code</code>; 2 * 3 * 4; a*b*c &lt;x&gt;"

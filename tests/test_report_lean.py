@@ -1,8 +1,8 @@
 """
 The report read a part at a time (runs in parts, one agent's rows, the profile in ranges of episode numbers) gives
 the numbers of the whole-frame computation: the same per-run metrics, profile and rows, and the same report. The one
-pass (``report.scan``), its compiled grouped arithmetic (``report.grouped``) and the kept bootstrap resamples
-(``report.resamples``) give the numbers of the pandas and numpy code they replace, to the last bit.
+pass (``reading.episode_scan``), its compiled grouped arithmetic (``estimation.grouped_sums``) and the kept bootstrap resamples
+(``report.estimation.resamples``) give the numbers of the pandas and numpy code they replace, to the last bit.
 """
 
 from __future__ import annotations
@@ -15,12 +15,20 @@ import pytest
 
 from sb3_affect.study.launcher import ResultsStore, run_sweep
 from sb3_affect.study.launcher.folder_reading import ordered_file_parts
-from sb3_affect.study.report import mechanism, metrics, resamples, settled
 from sb3_affect.study.report.build import build_report
-from sb3_affect.study.report.context import AFFECTIVE, STANDARD
-from sb3_affect.study.report.figures import episode_quantiles
-from sb3_affect.study.report.grouped import KahanSums, Welford
-from sb3_affect.study.report.metrics import (
+from sb3_affect.study.report.estimation import resamples
+from sb3_affect.study.report.estimation.bootstrap import (
+    BLOCK_CELLS,
+    bootstrap_ci,
+    bootstrap_improvement,
+    bootstrap_iqm_cis,
+    iqm,
+)
+from sb3_affect.study.report.estimation.grouped_sums import KahanSums, Welford
+from sb3_affect.study.report.reading import run_tables, settled_window
+from sb3_affect.study.report.reading.context import AFFECTIVE, STANDARD
+from sb3_affect.study.report.reading.episode_scan import curve_quantiles, merge_curves, scan
+from sb3_affect.study.report.reading.run_tables import (
     EMOTIONS,
     REPORT_COLUMNS,
     load_results,
@@ -28,9 +36,9 @@ from sb3_affect.study.report.metrics import (
     run_metrics,
     run_windows,
 )
-from sb3_affect.study.report.scan import curve_quantiles, merge_curves, scan
-from sb3_affect.study.report.settled import bimodality, settled_numbers
-from sb3_affect.study.report.stats import BLOCK_CELLS, bootstrap_ci, bootstrap_improvement, bootstrap_iqm_cis, iqm
+from sb3_affect.study.report.reading.settled_window import bimodality, settled_numbers
+from sb3_affect.study.report.rendering.figures import episode_quantiles
+from sb3_affect.study.report.sections import mechanism
 
 ROOT = Path(__file__).resolve().parents[1]
 PAPER = ROOT / "experiments" / "paper.yaml"
@@ -45,7 +53,7 @@ def paper5(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def test_parts_give_the_whole_frame_numbers(paper5: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(metrics, "RUNS_PER_PART", 7)  # several chunks a part, 13 parts
+    monkeypatch.setattr(run_tables, "RUNS_PER_PART", 7)  # several chunks a part, 13 parts
     results = load_results(paper5)
     whole_runs, whole = ResultsStore(paper5).results(REPORT_COLUMNS, seed=False)
     pd.testing.assert_frame_equal(results.runs, whole_runs)
@@ -79,10 +87,10 @@ def test_the_report_read_in_parts_equals_the_report_read_whole(
     paper5: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """Every table and the text, byte for byte: parts of 7 runs and 7 episode numbers against one part of all."""
-    monkeypatch.setattr(metrics, "RUNS_PER_PART", 10**9)
+    monkeypatch.setattr(run_tables, "RUNS_PER_PART", 10**9)
     monkeypatch.setattr(mechanism, "PROFILE_EPISODES", 10**9)
     build_report(paper5, out=tmp_path / "whole")
-    monkeypatch.setattr(metrics, "RUNS_PER_PART", 7)
+    monkeypatch.setattr(run_tables, "RUNS_PER_PART", 7)
     monkeypatch.setattr(mechanism, "PROFILE_EPISODES", 7)
     build_report(paper5, out=tmp_path / "parts")
     tables = sorted(p.name for p in (tmp_path / "whole" / "tables").glob("*.csv"))
@@ -92,7 +100,7 @@ def test_the_report_read_in_parts_equals_the_report_read_whole(
     assert (tmp_path / "parts" / "report.md").read_text() == (tmp_path / "whole" / "report.md").read_text()
 
 
-# -- the one pass (report.scan), the compiled grouped arithmetic (report.grouped) and the kept resamples ------------
+# -- the one pass (episode_scan), the compiled grouped arithmetic (grouped_sums) and the kept resamples ------------------
 
 
 def _pandas_window(episodes: pd.DataFrame, lo: int, hi: int) -> pd.DataFrame:
@@ -170,14 +178,14 @@ def test_ordered_parts_follow_run_id_order(paper5: Path) -> None:
 
 
 def test_the_scan_gives_the_whole_frame_numbers(paper5: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(metrics, "RUNS_PER_PART", 7)
+    monkeypatch.setattr(run_tables, "RUNS_PER_PART", 7)
     results = load_results(paper5)
     whole_runs, whole = ResultsStore(paper5).results(REPORT_COLUMNS, seed=False)
     extra = ((1, 5), (11, 30), (191, 200))
     found = scan(results, extra)
     pd.testing.assert_frame_equal(found.metrics, run_metrics(whole, whole_runs), check_exact=True)
     aff_rows = whole[whole.agent == AFFECTIVE]
-    aff = run_metrics(aff_rows, windows=(metrics.EARLY, metrics.LATE, *extra))
+    aff = run_metrics(aff_rows, windows=(run_tables.EARLY, run_tables.LATE, *extra))
     assert list(found.windows.run_id) == list(aff.run_id)
     for column in found.windows.columns.drop(["run_id", "agent"]):
         np.testing.assert_array_equal(found.windows[column].to_numpy(), aff[column].to_numpy(), err_msg=column)
@@ -278,7 +286,7 @@ def test_the_mechanism_bootstrap_of_integer_sums_is_the_gathered_one() -> None:
     rng = np.random.default_rng(4)
     per_run = pd.DataFrame({"a": rng.integers(0, 50, 3001).astype(float), "b": rng.integers(1, 90, 3001).astype(float)})
     statistics = {"a over b": "a/b", "b over a": "b/a"}
-    got = settled._bootstrap(per_run, statistics, reps=300, seed=3)
+    got = settled_window._bootstrap(per_run, statistics, reps=300, seed=3)
     draws = np.random.default_rng(3).integers(0, 3001, size=(300, 3001))
     for key, ratio in statistics.items():
         num, den = (per_run[c].to_numpy()[draws].sum(axis=1) for c in ratio.split("/"))

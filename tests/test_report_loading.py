@@ -13,8 +13,8 @@ import pandas as pd
 import pytest
 
 from sb3_affect.study.launcher import ResultsStore, run_sweep
-from sb3_affect.study.report import stats
-from sb3_affect.study.report.metrics import (
+from sb3_affect.study.report.estimation import bootstrap
+from sb3_affect.study.report.reading.run_tables import (
     REPORT_COLUMNS,
     episodes_frame,
     load_results,
@@ -22,7 +22,7 @@ from sb3_affect.study.report.metrics import (
     profile,
     run_metrics,
 )
-from sb3_affect.study.report.settled import bimodality
+from sb3_affect.study.report.reading.settled_window import bimodality
 
 ROOT = Path(__file__).resolve().parents[1]
 SMOKE = ROOT / "experiments" / "smoke.yaml"
@@ -89,13 +89,13 @@ def test_probability_of_improvement_equals_the_pairwise_count() -> None:
     rng = np.random.default_rng(1)
     x, y = rng.integers(0, 30, 301).astype(float), rng.integers(5, 40, 203).astype(float)  # many ties
     for lower in (True, False):
-        assert stats.probability_of_improvement(x, y, lower) == _pairwise(x, y, lower)
+        assert bootstrap.probability_of_improvement(x, y, lower) == _pairwise(x, y, lower)
 
 
 def test_bootstrap_improvement_equals_resampling_each_pair() -> None:
     rng = np.random.default_rng(2)
     x, y = rng.integers(0, 20, 57).astype(float), rng.integers(3, 25, 41).astype(float)
-    point, low, high = stats.bootstrap_improvement(x, y, n_boot=300, seed=5)
+    point, low, high = bootstrap.bootstrap_improvement(x, y, n_boot=300, seed=5)
     draws = np.random.default_rng(5)
     boots = []
     for _ in range(300):  # each resample's pairs counted one by one: (better + half the ties) / pairs
@@ -108,9 +108,9 @@ def test_bootstrap_improvement_equals_resampling_each_pair() -> None:
 
 def test_bootstrap_ci_in_blocks_equals_one_draw(monkeypatch: pytest.MonkeyPatch) -> None:
     values = np.random.default_rng(3).exponential(10.0, 501)
-    whole = stats.bootstrap_ci(values, "iqm", n_boot=400, seed=7)
-    monkeypatch.setattr(stats, "BLOCK_CELLS", 501 * 7)  # blocks of 7 resamples
-    assert stats.bootstrap_ci(values, "iqm", n_boot=400, seed=7) == whole
+    whole = bootstrap.bootstrap_ci(values, "iqm", n_boot=400, seed=7)
+    monkeypatch.setattr(bootstrap, "BLOCK_CELLS", 501 * 7)  # blocks of 7 resamples
+    assert bootstrap.bootstrap_ci(values, "iqm", n_boot=400, seed=7) == whole
     samples = values[np.random.default_rng(7).integers(0, 501, size=(400, 501))]
     boots = np.sort(samples, axis=1)[:, 125:376].mean(axis=1)  # the 25%-trimmed mean of 501 values
     assert whole[1] == pytest.approx(np.percentile(boots, 2.5)) and whole[2] == pytest.approx(np.percentile(boots, 97.5))
@@ -119,7 +119,7 @@ def test_bootstrap_ci_in_blocks_equals_one_draw(monkeypatch: pytest.MonkeyPatch)
 def test_bootstrap_profile_bands_hold_the_fraction() -> None:
     values = np.random.default_rng(4).lognormal(5.0, 1.0, 400)
     taus = np.array([50.0, 150.0, 400.0, 1e6])
-    fraction, low, high = stats.bootstrap_profile(values, taus, n_boot=200, seed=0)
+    fraction, low, high = bootstrap.bootstrap_profile(values, taus, n_boot=200, seed=0)
     np.testing.assert_array_equal(fraction, [(values <= t).mean() for t in taus])
     assert np.all(low <= fraction) and np.all(fraction <= high) and high[-1] == low[-1] == 1.0
-    assert np.array_equal(stats.bootstrap_profile(values, taus, n_boot=200, seed=0)[1], low)  # seeded
+    assert np.array_equal(bootstrap.bootstrap_profile(values, taus, n_boot=200, seed=0)[1], low)  # seeded

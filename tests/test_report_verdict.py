@@ -11,10 +11,10 @@ import pandas as pd
 import pytest
 
 from sb3_affect.study.launcher import run_sweep
-from sb3_affect.study.report import claims
-from sb3_affect.study.report.engine_studies import study
-from sb3_affect.study.report.evidence import sensitivity
-from sb3_affect.study.report.metrics import run_metrics
+from sb3_affect.study.report.reading.run_tables import run_metrics
+from sb3_affect.study.report.reading.study_tables import study
+from sb3_affect.study.report.sections.evidence import sensitivity
+from sb3_affect.study.report.verdicts import claims
 
 ROOT = Path(__file__).resolve().parents[1]
 EPS = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9)
@@ -169,8 +169,8 @@ def engine_table(cells: list[Cell], seeds: int, episodes: int) -> pd.DataFrame:
     """
     from sb3_affect.engine.simulation import simulate
     from sb3_affect.study.launcher.schema import derive_seed
-    from sb3_affect.study.report.baseline_summary import capture_distance
-    from sb3_affect.study.report.metrics import EARLY, LATE
+    from sb3_affect.study.report.reading.baseline_ranks import capture_distance
+    from sb3_affect.study.report.reading.run_tables import EARLY, LATE
 
     frames = []
     for cell in cells:
@@ -268,7 +268,7 @@ def test_a_study_run_by_the_launcher_reads_as_the_engine_table(tmp_path: Path, n
 
 
 def test_seeds_needed_and_adastop_on_a_clear_difference() -> None:
-    from sb3_affect.study.report.evidence import adastop_table, seeds_needed
+    from sb3_affect.study.report.sections.evidence import adastop_table, seeds_needed
 
     runs = _runs(30)
     needed = seeds_needed(runs, n=10, repetitions=4)
@@ -320,7 +320,7 @@ def test_replicate_writes_every_part_and_the_record(tmp_path: Path, monkeypatch:
 
 def test_claims_by_reading_judges_each_reading_with_the_verdict_logic() -> None:
     """Two readings: one whose affective runs match the crossover data, one that never finds the path (censored)."""
-    from sb3_affect.study.report.reading_verdicts import claims_by_reading, emotion_shares, reading_runs
+    from sb3_affect.study.report.sections.readings import claims_by_reading, emotion_shares, reading_runs
 
     runs = _runs(20)
     standard = runs[runs.agent == "epsilon-greedy"]
@@ -366,7 +366,7 @@ def test_four_emotions_needs_each_emotion_above_its_share(sadness: float, fear: 
 def test_the_speed_ablation_concludes_per_epsilon() -> None:
     """Speed 1 at ~3,800 decisions before the optimal path against ε-greedy's 3,000 + 30,000 ε^4: ε-greedy fewer at ε
     0.1-0.3, no difference at 0.4 (3,768), speed 1 fewer from 0.5 (4,875) on."""
-    from sb3_affect.study.report.speed_ablation import per_eps_conclusion, speed_one_per_eps
+    from sb3_affect.study.report.sections.speed_ablation import per_eps_conclusion, speed_one_per_eps
 
     runs = _runs(200)
     rng = np.random.default_rng(5)
@@ -383,7 +383,7 @@ def test_the_speed_ablation_concludes_per_epsilon() -> None:
 
 
 def test_the_speed_ablation_table_puts_decisions_beside_cells() -> None:
-    from sb3_affect.study.report.speed_ablation import speed_table
+    from sb3_affect.study.report.sections.speed_ablation import speed_table
 
     runs = _runs(20)
     standard = runs.agent == "epsilon-greedy"  # ε-greedy moves one cell per decision
@@ -404,7 +404,7 @@ def test_the_speed_ablation_table_puts_decisions_beside_cells() -> None:
 
 
 def test_fig5_and_fig6_windows_move_the_verdicts() -> None:
-    from sb3_affect.study.report.windows import EARLY_WINDOWS, LATE_WINDOWS, window_verdicts
+    from sb3_affect.study.report.sections.window_verdicts import EARLY_WINDOWS, LATE_WINDOWS, window_verdicts
 
     runs = _runs(20)
     aff = runs[runs.agent == "affective"].copy()
@@ -494,8 +494,8 @@ def test_the_tuning_section_reads_the_rounds_replicate_ran(tmp_path: Path) -> No
     import shutil
 
     from sb3_affect.study.replicate import tune_rounds
-    from sb3_affect.study.report.document import Document
-    from sb3_affect.study.report.tuning import tuning_section
+    from sb3_affect.study.report.rendering.document import Document
+    from sb3_affect.study.report.sections.tuning import tuning_section
 
     static = "static grid 15x15 (the paper's task)"
     sweep = tmp_path / "tuning.yaml"
@@ -539,7 +539,7 @@ def test_the_tuning_section_reads_the_rounds_replicate_ran(tmp_path: Path) -> No
 
 def test_the_launcher_tuning_table_says_whether_its_best_is_interior() -> None:
     """``baseline_summary.tuning_choice``: a best value at the edge of its grid is flagged as not interior."""
-    from sb3_affect.study.report.baseline_summary import tuning_choice
+    from sb3_affect.study.report.reading.baseline_ranks import tuning_choice
 
     def record(agent: str, eps: float, decisions: int, seed: int) -> dict:  # type: ignore[type-arg]
         episodes = {"decisions": [decisions] * 3, "cells": [decisions] * 3, "optimal": [True] * 3,
@@ -559,7 +559,7 @@ def test_the_html_page_has_contents_cards_and_folded_appendix_tables(tmp_path: P
     """Contents links every heading; a card table shows one card per row; only the appendix's long tables fold."""
     import matplotlib.pyplot as plt
 
-    from sb3_affect.study.report.document import APPENDIX_HEADING, FOLD_ROWS, CardSpec, Document
+    from sb3_affect.study.report.rendering.document import APPENDIX_HEADING, FOLD_ROWS, CardSpec, Document
 
     fig, ax = plt.subplots()
     ax.plot([0, 1])
@@ -592,7 +592,7 @@ def test_the_wall_time_record_keeps_each_runs_own_times(tmp_path: Path) -> None:
     """A first run does a part's work, a resumed run reads it back: the results' time stays the first run's, each run
     keeps its own seconds, report step and total, and the record section tabulates one column per run."""
     from sb3_affect.study.replicate import _Record
-    from sb3_affect.study.report.record import replicate_runs, runs_table
+    from sb3_affect.study.report.sections.reproducibility import replicate_runs, runs_table
 
     first = _Record(tmp_path)
     first.part("paper", 60.0, done_before=0, todo=360)

@@ -269,7 +269,7 @@ def tune_rounds(
 
     from sb3_affect.study.launcher import run_sweep
     from sb3_affect.study.launcher.epsilon_tuning import round_values, tune, tuning_grid
-    from sb3_affect.study.report.engine_studies import folder_study
+    from sb3_affect.study.report.reading.study_tables import folder_study
 
     data = yaml.safe_load(Path(path).read_text())
     agents = data["agents"]

@@ -12,7 +12,7 @@ import pandas as pd
 
 from sb3_affect.study.forensics.scoring import MIN_REACH_REPS, NOT_REACHED, NOT_RULED_OUT, REACHED, transform
 from sb3_affect.study.forensics.statistics import LOG_SCALE, STATISTICS
-from sb3_affect.study.report.document import _md_table, fmt
+from sb3_affect.study.report.rendering.document import fmt, md_table
 
 FACTORS = ("comparison", "act", "units", "tie_break", "multi_cell", "alpha", "gamma", "optimal", "step", "table_v")
 
@@ -67,7 +67,7 @@ def _differences(table: pd.DataFrame, column: str, error: str) -> list[str]:
 def verdict_setting() -> dict[str, Any]:
     """The verdict's own implementation (the report's agents and their settings' defaults) in the screen's terms."""
     from sb3_affect.core.settings import AffectQSettings
-    from sb3_affect.study.report.engine_studies import AFFECT_DEFAULT, COMMON
+    from sb3_affect.study.report.reading.study_tables import AFFECT_DEFAULT, COMMON
 
     defaults = AffectQSettings()
     return {
@@ -103,7 +103,7 @@ def leader_sensitivity_lines(folder: Path, leaders: pd.DataFrame, intervals: pd.
         f"({setting}; {len(sample)} replications of the paper's protocol), where the verdict uses its own setting "
         "(alpha 1.0, gamma 0.8)*",
         "",
-        _md_table(rows, 2),
+        md_table(rows, 2),
         "",
     ]
 
@@ -182,7 +182,7 @@ def forensics_section(folder: str | Path, figures_dir: str | Path | None = None)
         "does not separate two candidates. The last column scores only the printed numbers a leading candidate "
         "reaches (below), ranked against its own best*",
         "",
-        _md_table(ranking, 2),
+        md_table(ranking, 2),
         "",
     ]
     lines += verdict_setting_lines(screen)
@@ -205,7 +205,7 @@ def forensics_section(folder: str | Path, figures_dir: str | Path | None = None)
             "",
         ]
     lines += [f"*Screen: the best 8 of {len(screen)} candidates (diagonal likelihood, few replications)*", ""]
-    lines += [_md_table(screened, 2), ""]
+    lines += [md_table(screened, 2), ""]
     shown = table.copy()
     for column in shown.columns:
         if "reaching" not in column and "covering" not in column and column != "finding":
@@ -216,7 +216,7 @@ def forensics_section(folder: str | Path, figures_dir: str | Path | None = None)
         f"'screened covering': how many screened candidates' predictive intervals from {run['screen_reps']} "
         "replications hold it (so wide that covering is no evidence); 'finding': what that shows*",
         "",
-        _md_table(shown, 3),
+        md_table(shown, 3),
         "",
     ]
     lines += findings_lines(table, run)

@@ -3,8 +3,8 @@ From simulated episode logs to the statistics the paper prints, for every readin
 
 One replication of one simulation is summarised per epsilon cell (``cell_summary``: a few sums over its runs, enough
 for every ``Reading``); a candidate's printed statistics then come from two such summaries (epsilon-greedy and
-affective) through the report's own paired t-test (``sb3_affect.study.report.stats.paired_ttest_table``). The per-run
-quantities are the report's definitions (``sb3_affect.study.report.metrics.run_metrics``: first optimal episode, steps
+affective) through the report's own paired t-test (``report.estimation.bootstrap.paired_ttest_table``). The per-run
+quantities are the report's definitions (``report.reading.run_tables.run_metrics``: first optimal episode, steps
 before it, censored runs contributing all their steps); a test checks the two agree.
 """
 
@@ -16,8 +16,8 @@ import numpy as np
 import pandas as pd
 
 from sb3_affect.study.forensics.candidates import OPTIMAL, STEP_UNITS, Reading
-from sb3_affect.study.report import paper
-from sb3_affect.study.report.stats import paired_ttest_table
+from sb3_affect.study.report.estimation.bootstrap import paired_ttest_table
+from sb3_affect.study.report.verdicts import paper_numbers as paper
 
 #: The printed statistics, in order: Table IV and Table V rows (epsilon-greedy = Variable 1), then the 27.35 episodes.
 STATISTICS: tuple[str, ...] = (

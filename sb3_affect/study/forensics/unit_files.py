@@ -20,7 +20,7 @@ from typing import Any
 import pandas as pd
 
 from sb3_affect.study.forensics.candidates import Protocol, Simulation
-from sb3_affect.study.launcher.store import StoreError, _write_atomic, replication_parts
+from sb3_affect.study.launcher.store import StoreError, replication_parts, write_atomic
 
 #: The file that marks a forensics folder and holds its protocol.
 PROTOCOL_FILE = "forensics.json"
@@ -54,7 +54,7 @@ class SummaryStore:
                     f"use another --out folder for {wanted['protocol']}"
                 )
         else:
-            _write_atomic(saved, wanted)
+            write_atomic(saved, wanted)
 
     def path(self, simulation: Simulation, replication: int, complete: bool = True) -> Path:
         name = f"r{replication:04d}.json" if complete else f"r{replication:04d}.partial.json"
@@ -77,7 +77,7 @@ class SummaryStore:
             "complete": complete,
             "cells": {repr(float(eps)): row for eps, row in cells.items()},
         }
-        _write_atomic(path, payload)
+        write_atomic(path, payload)
 
     def read(self, simulation: Simulation, replication: int, partial_ok: bool = False) -> pd.DataFrame:
         """One replication's ``cell_summary`` rows, index: epsilon (sorted); with ``partial_ok`` maybe fewer cells."""

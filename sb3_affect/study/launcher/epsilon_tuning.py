@@ -2,7 +2,7 @@
 How ε is tuned on each task beyond the paper, for ε-greedy and the speed-matched ε-greedy, on seeds disjoint from the
 evaluation seeds: the planning rule ``sb3_affect.study.replicate`` runs the tuning rounds with (``tune``), as pure
 functions over the tables of its rounds; the report reads the rounds back with the same ``tune``
-(``report.tuning.load_tuning``).
+(``report.sections.tuning.load_tuning``).
 
 Criterion: mean decisions per episode over the run (lower is better), each episode counted at most the sweep's
 ``max_episode_decisions``: a truncated episode's length is a lower bound, so the criterion is a restricted mean (the

@@ -161,9 +161,9 @@ def run_sweep(
     try:
         store.root.mkdir(parents=True, exist_ok=True)
     except OSError as error:
-        from sb3_affect.study.launcher.store import _store_error
+        from sb3_affect.study.launcher.store import store_error
 
-        raise _store_error(store.root, error) from None
+        raise store_error(store.root, error) from None
     with store.lock():
         for line in store.prepare(resolved, [rid for ids in cell_ids for rid in ids]):
             print(f"sb3-affect: {line}", file=sys.stderr, flush=True)

@@ -51,13 +51,13 @@ def cell_run_ids(cell: Cell) -> list[str]:
     return base_run_ids(cell.base, [(seed, index) for index, seed in enumerate(cell.seeds)])
 
 
-def _write_atomic(path: Path, payload: dict[str, Any] | bytes) -> None:
+def write_atomic(path: Path, payload: dict[str, Any] | bytes) -> None:
     """Temp file in the same folder, fsync, rename: a reader sees the whole file or none."""
     data = payload if isinstance(payload, bytes) else json.dumps(payload, sort_keys=True, indent=1).encode()
     try:
         fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=path.suffix)
     except OSError as error:
-        raise _store_error(path.parent, error) from None
+        raise store_error(path.parent, error) from None
     try:
         with os.fdopen(fd, "wb") as handle:
             handle.write(data)
@@ -68,7 +68,7 @@ def _write_atomic(path: Path, payload: dict[str, Any] | bytes) -> None:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
         if isinstance(error, OSError):
-            raise _store_error(path.parent, error) from None
+            raise store_error(path.parent, error) from None
         raise
 
 
@@ -81,7 +81,7 @@ def run_file(rid: str, config: dict[str, Any], result: dict[str, Any]) -> bytes:
     return json.dumps(payload, sort_keys=True, separators=(",", ":")).encode()
 
 
-def _store_error(folder: Path, error: OSError) -> StoreError:
+def store_error(folder: Path, error: OSError) -> StoreError:
     if error.errno == errno.ENOSPC:
         return StoreError(f"{folder}: the disk is full; finished runs are kept, free space and rerun to resume")
     if error.errno in (errno.EACCES, errno.EROFS, errno.EPERM):
@@ -145,7 +145,7 @@ class ResultsStore:
             for folder in (self.root, self.runs, self.chunks, self.failed):
                 folder.mkdir(parents=True, exist_ok=True)
         except OSError as error:
-            raise _store_error(self.root, error) from None
+            raise store_error(self.root, error) from None
         refusal = (
             f"{self.root} already holds the results of a different sweep ({{name!r}}, or the same file with other "
             "settings); resume only with the same file and --set options, or use another --out"
@@ -164,7 +164,7 @@ class ResultsStore:
         for name in ("sweep.json", *IDENTITY_COPIES):
             path = self.root / name
             if previous is None or not path.exists():
-                _write_atomic(path, previous or resolved_sweep)
+                write_atomic(path, previous or resolved_sweep)
         for folder in (self.runs, self.chunks, self.failed):
             for stale in folder.glob(".tmp-*"):
                 with contextlib.suppress(OSError):
@@ -174,7 +174,7 @@ class ResultsStore:
             probe.write_text("")
             probe.unlink()
         except OSError as error:
-            raise _store_error(self.runs, error) from None
+            raise store_error(self.runs, error) from None
         return self._set_aside(files.rejected)
 
     def _set_aside(self, rejected: list[tuple[Path, str]]) -> list[str]:
@@ -208,12 +208,12 @@ class ResultsStore:
         except folder_lock.FolderBusy as busy:
             raise StoreError(f"{self.root} is in use by another launcher ({busy}); wait for it or stop it first") from None
         except OSError as error:
-            raise _store_error(self.root, error) from None
+            raise store_error(self.root, error) from None
 
     # -- writing -----------------------------------------------------------------------------------------------
     def write_run(self, rid: str, config: dict[str, Any], result: dict[str, Any]) -> None:
         payload = {"schema": SCHEMA, "run_id": rid, "config": config, "status": "ok", **result}
-        _write_atomic(self.runs / f"{rid}.json", payload)
+        write_atomic(self.runs / f"{rid}.json", payload)
         with contextlib.suppress(FileNotFoundError):
             (self.failed / f"{rid}.json").unlink()
 
@@ -240,12 +240,12 @@ class ResultsStore:
                 with contextlib.suppress(OSError):
                     os.unlink(tmp)
             if isinstance(error, OSError):
-                raise _store_error(self.runs, error) from None
+                raise store_error(self.runs, error) from None
             raise
 
     def write_chunk(self, name: str, data: bytes, run_ids: Iterable[str]) -> None:
         """Store a batch's chunk (``chunks.encode_chunk``) and forget earlier failures of its runs."""
-        _write_atomic(self.chunks / f"{name}.parquet", data)
+        write_atomic(self.chunks / f"{name}.parquet", data)
         if self._failed is None:
             self._failed = self.failed_ids()
         for rid in self._failed.intersection(run_ids):
@@ -256,7 +256,7 @@ class ResultsStore:
     def write_failure(self, rid: str, config: dict[str, Any], error: str) -> None:
         if self._failed is not None:
             self._failed.add(rid)
-        _write_atomic(
+        write_atomic(
             self.failed / f"{rid}.json",
             {"schema": SCHEMA, "run_id": rid, "config": config, "status": "failed", "error": error},
         )

@@ -5,7 +5,7 @@ from sb3_affect.core.extras import require_extra
 require_extra("report", "the report")
 
 from sb3_affect.study.report.build import build_report
-from sb3_affect.study.report.stats import (
+from sb3_affect.study.report.estimation.bootstrap import (
     bootstrap_ci,
     bootstrap_improvement,
     iqm,

@@ -3,7 +3,7 @@
 (paper/, dqn/, ablation/, baselines*/, beyond/, large/, minigrid*/, ...).
 
 The report is the list ``SECTIONS`` of section functions, each ``section(ctx: ReportContext) -> None`` adding its
-blocks to ``ctx.doc`` (see ``report.context``): the main text, then ``APPENDIX``. To add a section, write the function
+blocks to ``ctx.doc`` (see ``report.reading.context``): the main text, then ``APPENDIX``. To add a section, write the function
 in its own module and append it to ``SECTIONS`` (or pass ``sections=`` to ``build_report``); a layer above the report
 (the forensics, wired by ``sb3_affect.study.replicate``) passes its own with ``extra_sections=``.
 """
@@ -13,30 +13,30 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from sb3_affect.study.report import engine_studies
-from sb3_affect.study.report.ablation import ablation_section
-from sb3_affect.study.report.abstract import abstract_section
-from sb3_affect.study.report.baselines_section import beyond_section
-from sb3_affect.study.report.checks import checks_section
-from sb3_affect.study.report.context import ReportContext
-from sb3_affect.study.report.document import APPENDIX_HEADING, Document, fmt
-from sb3_affect.study.report.dqn import dqn_section, learning_curves_section
-from sb3_affect.study.report.emotion_models import emotion_models_sections
-from sb3_affect.study.report.evidence import evidence_section
-from sb3_affect.study.report.hunters import hunters_sections
-from sb3_affect.study.report.mechanism import mechanism_section
-from sb3_affect.study.report.metrics import EARLY_WINDOWS, LATE_WINDOWS, load_results
-from sb3_affect.study.report.minigrid import FOLDERS as MINIGRID_FOLDERS
-from sb3_affect.study.report.minigrid import minigrid_sections
-from sb3_affect.study.report.output_files import output_folder, write_text
-from sb3_affect.study.report.reading_verdicts import readings_section
-from sb3_affect.study.report.record import record_section
-from sb3_affect.study.report.scan import scan
-from sb3_affect.study.report.speed_ablation import speed_one_section
-from sb3_affect.study.report.survival import survival_section
-from sb3_affect.study.report.tables import figures_3_4_section, table_iv_section, table_v_section
-from sb3_affect.study.report.verdict import tests_section, verdict_section
-from sb3_affect.study.report.windows import windows_section
+from sb3_affect.study.report.reading import study_tables as engine_studies
+from sb3_affect.study.report.reading.context import ReportContext
+from sb3_affect.study.report.reading.episode_scan import scan
+from sb3_affect.study.report.reading.run_tables import EARLY_WINDOWS, LATE_WINDOWS, load_results
+from sb3_affect.study.report.rendering.document import APPENDIX_HEADING, Document, fmt
+from sb3_affect.study.report.rendering.output_files import output_folder, write_text
+from sb3_affect.study.report.sections.ablation import ablation_section
+from sb3_affect.study.report.sections.abstract import abstract_section
+from sb3_affect.study.report.sections.beyond import beyond_section
+from sb3_affect.study.report.sections.dqn import dqn_section, learning_curves_section
+from sb3_affect.study.report.sections.emotion_models import emotion_models_sections
+from sb3_affect.study.report.sections.evidence import evidence_section
+from sb3_affect.study.report.sections.hunters import hunters_sections
+from sb3_affect.study.report.sections.mechanism import mechanism_section
+from sb3_affect.study.report.sections.minigrid import FOLDERS as MINIGRID_FOLDERS
+from sb3_affect.study.report.sections.minigrid import minigrid_sections
+from sb3_affect.study.report.sections.paper_tables import figures_3_4_section, table_iv_section, table_v_section
+from sb3_affect.study.report.sections.project_checks import checks_section
+from sb3_affect.study.report.sections.readings import readings_section
+from sb3_affect.study.report.sections.reproducibility import record_section
+from sb3_affect.study.report.sections.speed_ablation import speed_one_section
+from sb3_affect.study.report.sections.survival import survival_section
+from sb3_affect.study.report.sections.verdict import tests_section, verdict_section
+from sb3_affect.study.report.sections.window_verdicts import windows_section
 
 Section = Callable[[ReportContext], None]
 #: Sub-folders of a replicate folder the sections may read (``ctx.folders[name]``).

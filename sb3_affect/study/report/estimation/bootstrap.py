@@ -10,7 +10,7 @@ import numpy.typing as npt
 import pandas as pd
 from scipy import stats as sps
 
-from sb3_affect.study.report import resamples
+from sb3_affect.study.report.estimation import resamples
 
 #: Row labels of a spreadsheet "t-Test: Paired Two Sample for Means", in its order.
 TTEST_ROWS: tuple[str, ...] = (

@@ -1,7 +1,7 @@
 """
 The bootstraps' resamples (in the narrowest integer type) and their statistics computed in compiled loops.
 
-Every bootstrap of ``report.stats`` seeds its own generator, so its draws are those of the generator, in its order.
+Every bootstrap of ``bootstrap`` seeds its own generator, so its draws are those of the generator, in its order.
 The compiled statistics do the floating-point operations of the numpy code they replace in the same order (integer
 sums are exact in any order), so the numbers are the same to the last bit (tests/test_report_lean.py compares them
 with that code).

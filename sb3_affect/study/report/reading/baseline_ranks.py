@@ -2,15 +2,15 @@
 Rank the agents of the fair-baselines comparison: decisions per episode, cells per episode and steps before the optimal path,
 each a mean over runs with a percentile-bootstrap 95% confidence interval.
 
-Reads the launcher's results (``report.metrics.load_run_records``: chunks and run files, ``docs/interfaces.md``); groups by
+Reads the launcher's results (``run_tables.load_run_records``: chunks and run files, ``docs/interfaces.md``); groups by
 task (``labels["task"]``, else the sweep name) and ``config["agent"]``. "Optimal" is the episode log's ``optimal``
 column (a shortest path from the start) except on envs that define ``capture_distance``
 (``sb3_affect/MovingPursuit-v0``), where it is an optimal capture: captured within ``capture_distance`` cells (see
 ``MovingPursuitEnv``). Steps before the optimal path: decisions summed over the episodes before the first optimal
 one; a run that never finds it contributes all its decisions and is counted as censored.
 
-    python -m sb3_affect.study.report.baseline_summary runs/baselines [--markdown report.md]
-    python -m sb3_affect.study.report.baseline_summary runs/baselines-tuning --tuning
+    python -m sb3_affect.study.report.reading.baseline_ranks runs/baselines [--markdown report.md]
+    python -m sb3_affect.study.report.reading.baseline_ranks runs/baselines-tuning --tuning
 """
 
 from __future__ import annotations
@@ -27,8 +27,8 @@ import pandas as pd
 
 from sb3_affect.core.emotions import EMOTION_NAMES
 from sb3_affect.study.launcher.one_run import package_env
-from sb3_affect.study.report.document import fmt
-from sb3_affect.study.report.metrics import load_run_records
+from sb3_affect.study.report.reading.run_tables import load_run_records
+from sb3_affect.study.report.rendering.document import fmt
 
 METRICS = ("decisions_per_episode", "cells_per_episode", "steps_before_optimal")
 _CAPTURE: dict[str, int | None] = {}
@@ -61,7 +61,7 @@ def optimal_flags(record: dict[str, Any]) -> list[bool]:
 
 
 def record_metrics(record: dict[str, Any]) -> dict[str, Any]:
-    """One run record's numbers (a dict; ``report.metrics.run_metrics`` is the table of the paper's metrics)."""
+    """One run record's numbers (a dict; ``report.reading.run_tables.run_metrics`` is the table of the paper's metrics)."""
     config = record["config"]
     episodes = record["episodes"]
     decisions = [int(d) for d in episodes["decisions"]]

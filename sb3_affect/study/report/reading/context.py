@@ -16,9 +16,9 @@ from typing import Any
 
 import pandas as pd
 
-from sb3_affect.study.report.document import CardSpec, Document
-from sb3_affect.study.report.metrics import Results
-from sb3_affect.study.report.output_files import replacing
+from sb3_affect.study.report.reading.run_tables import Results
+from sb3_affect.study.report.rendering.document import CardSpec, Document
+from sb3_affect.study.report.rendering.output_files import replacing
 
 STANDARD, AFFECTIVE = "epsilon-greedy", "affective"
 #: Fewest runs per (agent, epsilon) cell, epsilon values and episodes for a verdict (the smoke sweep has fewer).
@@ -36,7 +36,7 @@ class ReportContext:
     :param paper: the paper sweep's results (``metrics`` holds one row per run)
     :param metrics: per-run metrics of ``paper``
     :param folders: other results folders found in ``root`` by name (dqn, ablation, baselines, ...)
-    :param large: per-run metrics of the large-N study (``report.engine_studies``), or None
+    :param large: per-run metrics of the large-N study (``report.reading.study_tables``), or None
     :param large_meta: its seeds, episodes and wall time
     :param judgements: the claims judged (filled by the verdict section)
     :param timings: wall time of each sweep (for the reproducibility record)
@@ -94,8 +94,8 @@ class ReportContext:
         self.doc.cards(frame, caption + f" (tables/{name}.csv)", spec, digits)
 
     def study(self, name: str) -> pd.DataFrame | None:
-        """The per-run table of the engine study ``root/<name>`` (``report.engine_studies``), or None."""
-        from sb3_affect.study.report.engine_studies import study
+        """The per-run table of the engine study ``root/<name>`` (``report.reading.study_tables``), or None."""
+        from sb3_affect.study.report.reading.study_tables import study
 
         found = study(self.root, name)
         return found[0] if found else None

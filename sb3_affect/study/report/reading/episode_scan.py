@@ -13,7 +13,7 @@ per-run metrics) is reduced here, part by part, while the rows are read once.
   a second pass over its rows for the delta-method bands, which need the pooled ratios of the first).
 
 Every reduction either sums integers (exact in any order) or adds floats in the order a whole-frame pandas groupby
-would (``report.grouped``), so the numbers are those of the whole-frame computations (tests/test_report_lean.py).
+would (``estimation.grouped_sums``), so the numbers are those of the whole-frame computations (tests/test_report_lean.py).
 Memory: one part's rows, the per-run table, the settled window's decisions and joy (8 bytes an episode of it).
 """
 
@@ -26,10 +26,10 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import pandas as pd
 
-from sb3_affect.study.report import metrics as metrics_module
-from sb3_affect.study.report.context import AFFECTIVE
-from sb3_affect.study.report.grouped import KahanSums, Welford
-from sb3_affect.study.report.metrics import (
+from sb3_affect.study.report.estimation.grouped_sums import KahanSums, Welford
+from sb3_affect.study.report.reading import run_tables as metrics_module
+from sb3_affect.study.report.reading.context import AFFECTIVE
+from sb3_affect.study.report.reading.run_tables import (
     EARLY,
     EARLY_WINDOWS,
     EMOTIONS,
@@ -40,10 +40,10 @@ from sb3_affect.study.report.metrics import (
     run_metrics,
     run_windows,
 )
-from sb3_affect.study.report.settled import SETTLED, settled_part
+from sb3_affect.study.report.reading.settled_window import SETTLED, settled_part
 
 if TYPE_CHECKING:
-    from sb3_affect.study.report.context import ReportContext
+    from sb3_affect.study.report.reading.context import ReportContext
 
 #: The profile's sources: each emotion, and the equivalent ε (random-direction decisions).
 SOURCES = (*((x, x) for x in EMOTIONS), ("equivalent_epsilon", "random_moves"))

@@ -20,7 +20,7 @@ import numpy as np
 import pandas as pd
 
 from sb3_affect.core.emotions import EMOTION_NAMES
-from sb3_affect.study.report.grouped import segment_means, window_bounds
+from sb3_affect.study.report.estimation.grouped_sums import segment_means, window_bounds
 
 EMOTIONS = EMOTION_NAMES
 #: Windows of episodes the report summarises (early, after the first optimal path on average, late).
@@ -499,7 +499,7 @@ def _window(
 ) -> dict[str, np.ndarray]:
     """
     Per run: mean over the window's episodes of per-episode fractions, and decision-weighted fractions (NaN: a run
-    without episodes in the window), with pandas' groupby arithmetic in row order (``report.grouped``); ``sources``:
+    without episodes in the window), with pandas' groupby arithmetic in row order (``estimation.grouped_sums``); ``sources``:
     only these (``run_windows``).
     """
     first, last = window_bounds(episode, starts, counts, lo, hi)

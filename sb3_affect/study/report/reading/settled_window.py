@@ -1,7 +1,7 @@
 """
 The affective agent's settled window (episodes 51-200): its episodes are bimodal, short greedy ones and long random
 walks in joy. ``settled_part`` reduces some runs' rows (parts of the runs, in run id order, joined end to end give the
-pieces of all of them: ``report.scan`` feeds it part by part), ``settled_numbers`` gives the mechanism section's
+pieces of all of them: ``episode_scan`` feeds it part by part), ``settled_numbers`` gives the mechanism section's
 figures with bootstrap CIs over runs.
 """
 
@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from sb3_affect.study.report import resamples
+from sb3_affect.study.report.estimation import resamples
 
 #: An episode longer than this many decisions is "long" (the shortest path is 12 cells, 6 to 12 decisions).
 LONG = 20

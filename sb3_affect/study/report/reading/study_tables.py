@@ -2,7 +2,7 @@
 The per-run tables of the studies run by the launcher that the report reads as one table each (the large-N study, the
 reading and speed ablations, the long runs, the tuning rounds and the tasks beyond the paper: experiments/large.yaml,
 ablation.yaml, speed_one.yaml, long.yaml, tuning.yaml, beyond.yaml): ``study`` / ``folder_study`` give each run's
-metrics (``report.metrics.run_metrics``), its labels, replicate and seed, in the order the report's resamples expect.
+metrics (``run_tables.run_metrics``), its labels, replicate and seed, in the order the report's resamples expect.
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ RUNS_PER_PART = 10_000
 def _capture_distance(env_id: str, env_kwargs: dict[str, Any]) -> int | None:
     if "MovingPursuit" not in env_id:
         return None
-    from sb3_affect.study.report.baseline_summary import capture_distance
+    from sb3_affect.study.report.reading.baseline_ranks import capture_distance
 
     return capture_distance({"env_id": env_id, "env_kwargs": env_kwargs})
 
@@ -60,7 +60,7 @@ def folder_study(folder: Path) -> tuple[pd.DataFrame, dict[str, Any]] | None:
     ``wall_seconds`` (the runs' own seconds, summed over the workers) and ``sweep`` (the sweep file as saved).
     """
     from sb3_affect.study.launcher.store import ResultsStore
-    from sb3_affect.study.report.metrics import EARLY, LATE, join_parts, load_results, run_metrics
+    from sb3_affect.study.report.reading.run_tables import EARLY, LATE, join_parts, load_results, run_metrics
 
     saved = ResultsStore(folder).saved_sweep()
     results = load_results(folder)

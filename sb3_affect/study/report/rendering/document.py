@@ -115,7 +115,7 @@ class Document:
                 frame, caption, digits = block[1], block[2], block[3]
                 if caption:
                     out += [f"*{caption}*", ""]
-                out += [_md_table(frame, digits), ""]
+                out += [md_table(frame, digits), ""]
             elif kind == "ul":
                 out += [f"- {item}" for item in block[1]] + [""]
             elif kind == "md":
@@ -341,7 +341,7 @@ def _numeric(cell: str) -> bool:
     return True
 
 
-def _md_table(frame: pd.DataFrame, digits: int) -> str:
+def md_table(frame: pd.DataFrame, digits: int) -> str:
     header, rows = _cells(frame, digits)
     lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
     lines += ["| " + " | ".join(row) + " |" for row in rows]

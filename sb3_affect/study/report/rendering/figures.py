@@ -14,8 +14,8 @@ import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
-from sb3_affect.study.report.output_files import replacing
-from sb3_affect.study.report.stats import bootstrap_ci
+from sb3_affect.study.report.estimation.bootstrap import bootstrap_ci
+from sb3_affect.study.report.rendering.output_files import replacing
 
 COLOURS = {
     "epsilon-greedy": "tab:blue",

@@ -10,11 +10,12 @@ import math
 import pandas as pd
 
 from sb3_affect.core.emotions import EMOTION_NAMES
-from sb3_affect.study.report import figures, paper
-from sb3_affect.study.report.claims_emotions import km_restricted_mean
-from sb3_affect.study.report.context import ReportContext
-from sb3_affect.study.report.document import fmt
-from sb3_affect.study.report.metrics import load_results, run_metrics
+from sb3_affect.study.report.reading.context import ReportContext
+from sb3_affect.study.report.reading.run_tables import load_results, run_metrics
+from sb3_affect.study.report.rendering import figures
+from sb3_affect.study.report.rendering.document import fmt
+from sb3_affect.study.report.verdicts import paper_numbers as paper
+from sb3_affect.study.report.verdicts.course_claims import km_restricted_mean
 
 MEASURE = (
     "Distance measure: the sum of six terms, each 0 for a perfect match: relative errors "

@@ -1,7 +1,7 @@
 """
 The report's first minute: an abstract that leads with the main finding and a headline table (one line per claim: the
 verdict at the largest seed count and at the paper's protocol), both written from the judged claims
-(``report.verdict.judged``) and the numbers other sections computed, never from fixed text. The abstract is placed
+(``report.sections.verdict.judged``) and the numbers other sections computed, never from fixed text. The abstract is placed
 first but written last (``ReportContext.later``), once the sections it quotes have run.
 """
 
@@ -11,11 +11,11 @@ import math
 
 import pandas as pd
 
-from sb3_affect.study.report import claims
-from sb3_affect.study.report.context import AFFECTIVE, ReportContext
-from sb3_affect.study.report.document import fmt, pval
-from sb3_affect.study.report.inference import welch
-from sb3_affect.study.report.verdict import judged, shown_word
+from sb3_affect.study.report.reading.context import AFFECTIVE, ReportContext
+from sb3_affect.study.report.rendering.document import fmt, pval
+from sb3_affect.study.report.sections.verdict import judged, shown_word
+from sb3_affect.study.report.verdicts import claims
+from sb3_affect.study.report.verdicts.inference import welch
 
 #: The row of the paper's own test outcome: given on its own, not counted as a claim.
 TEST_OUTCOME = "table_iv:test"
@@ -74,7 +74,7 @@ def test_outcome_sentence(judged_main: list[claims.Judgement]) -> str:
 
 def main_finding(m: pd.DataFrame, ranks: dict[str, tuple[int, int]]) -> str:
     """The speed-matched ε-greedy against the affective agent, and the affective agent's rank among the baselines."""
-    from sb3_affect.study.report.engine_studies import SPEED_AGENT
+    from sb3_affect.study.report.reading.study_tables import SPEED_AGENT
 
     aff, speed = m[m.agent == AFFECTIVE], m[m.agent == SPEED_AGENT]
     if len(aff) < 2 or len(speed) < 2:
@@ -155,7 +155,7 @@ def abstract_section(ctx: ReportContext) -> None:
 
 
 def _write_abstract(ctx: ReportContext) -> None:
-    from sb3_affect.study.report.checks import with_speed_matched
+    from sb3_affect.study.report.sections.project_checks import with_speed_matched
 
     judged_main, n, other, n_other = judged(ctx)
     runs = len(ctx.large) if ctx.large is not None else len(ctx.metrics)

@@ -2,10 +2,10 @@
 The fair-baselines report section: every agent ranked on decisions per episode, cells per episode and steps before the
 optimal path (bootstrap 95% CIs), on the static task and on moving prey, and the personalities' emotion profiles.
 
-The numbers come from ``report.baseline_summary`` (definitions there and in docs/beyond_the_paper.md); this module
+The numbers come from ``report.reading.baseline_ranks`` (definitions there and in docs/beyond_the_paper.md); this module
 only assembles the markdown, so the report build can add it::
 
-    from sb3_affect.study.report.baselines_section import baselines_section
+    from sb3_affect.study.report.sections.beyond import baselines_section
     text = baselines_section(["runs/baselines", "runs/baselines_moving7", "runs/baselines_moving"])
 """
 
@@ -18,13 +18,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from sb3_affect.study.report.baseline_summary import emotion_profile, focus_ranks, markdown, profile_markdown, summarise
-from sb3_affect.study.report.context import ReportContext
-from sb3_affect.study.report.document import fmt
-from sb3_affect.study.report.engine_studies import episode_cap, study
-from sb3_affect.study.report.metrics import load_run_records
-from sb3_affect.study.report.stats import bootstrap_ci
-from sb3_affect.study.report.tuning import tuning_section
+from sb3_affect.study.report.estimation.bootstrap import bootstrap_ci
+from sb3_affect.study.report.reading.baseline_ranks import emotion_profile, focus_ranks, markdown, profile_markdown, summarise
+from sb3_affect.study.report.reading.context import ReportContext
+from sb3_affect.study.report.reading.run_tables import load_run_records
+from sb3_affect.study.report.reading.study_tables import episode_cap, study
+from sb3_affect.study.report.rendering.document import fmt
+from sb3_affect.study.report.sections.tuning import tuning_section
 
 __all__ = ["baselines_section", "beyond_section"]
 

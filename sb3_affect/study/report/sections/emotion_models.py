@@ -17,9 +17,9 @@ import pandas as pd
 
 from sb3_affect.core.emotions import EMOTION_NAMES
 from sb3_affect.core.registry import EMOTION_MODELS
-from sb3_affect.study.report.context import ReportContext
-from sb3_affect.study.report.hunters import add_markdown, hunter_folders, markdown_table, team_runs
-from sb3_affect.study.report.output_files import output_folder, replacing
+from sb3_affect.study.report.reading.context import ReportContext
+from sb3_affect.study.report.rendering.output_files import output_folder, replacing
+from sb3_affect.study.report.sections.hunters import add_markdown, hunter_folders, markdown_table, team_runs
 
 PAPER = EMOTION_NAMES
 BROEKENS = EMOTION_MODELS["broekens"].emotions
@@ -87,7 +87,7 @@ def side_by_side_figure(frames: pd.DataFrame, path: Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from sb3_affect.study.report.figures import COLOURS
+    from sb3_affect.study.report.rendering.figures import COLOURS
 
     colours = {**COLOURS, "distress": "tab:gray", "hope": "tab:green"}
     tasks = list(dict.fromkeys(frames.task))

@@ -11,11 +11,12 @@ import math
 import numpy as np
 import pandas as pd
 
-from sb3_affect.study.report import claims, paper
-from sb3_affect.study.report.context import AFFECTIVE, STANDARD, ReportContext
-from sb3_affect.study.report.document import fmt
-from sb3_affect.study.report.stats import paired_ttest_table
-from sb3_affect.study.report.tables import DEFINITIONS, per_epsilon
+from sb3_affect.study.report.estimation.bootstrap import paired_ttest_table
+from sb3_affect.study.report.reading.context import AFFECTIVE, STANDARD, ReportContext
+from sb3_affect.study.report.rendering.document import fmt
+from sb3_affect.study.report.sections.paper_tables import DEFINITIONS, per_epsilon
+from sb3_affect.study.report.verdicts import claims
+from sb3_affect.study.report.verdicts import paper_numbers as paper
 
 SEED_COUNTS = (5, 10, 20, 50, 100, 1000)
 #: Random subsamples of the power study (at the paper's 20 seeds per cell), and the agreement called "usually".
@@ -218,7 +219,7 @@ def evidence_section(ctx: ReportContext) -> None:
         "Each verdict (its first words; the full verdicts are in the verdict table) at 5 to 1,000 seeds per cell "
         "(the first n replicates of each cell)",
     )
-    from sb3_affect.study.report.verdict import judged
+    from sb3_affect.study.report.sections.verdict import judged
 
     _main, _n, protocol, _n_protocol = judged(ctx)
     needed = seeds_needed(large, full=ctx.judgements or None, protocol=protocol)

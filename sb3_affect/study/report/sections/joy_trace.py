@@ -24,7 +24,7 @@ def traced(folder: Path) -> pd.DataFrame | None:
     ``decisions``, ``joy`` and ``TRACE_COLUMNS``) in seed and episode order; None when it holds no finished run.
     """
     from sb3_affect.study.launcher.store import ResultsStore
-    from sb3_affect.study.report.metrics import load_results
+    from sb3_affect.study.report.reading.run_tables import load_results
 
     if ResultsStore(folder).saved_sweep() is None:
         return None
@@ -63,7 +63,7 @@ def norm_figure(frame: pd.DataFrame, path: Path, shortest: int | None) -> Path:
     The norm per episode (median over runs) and, for episodes that cross it, ``act`` at the first joy decision: both
     in cells, the appraisal's units (Table II compares them).
     """
-    from sb3_affect.study.report.figures import plt, save
+    from sb3_affect.study.report.rendering.figures import plt, save
 
     fig, ax = plt.subplots(figsize=(7.0, 4.0))
     norm = frame.groupby("episode").norm.median()

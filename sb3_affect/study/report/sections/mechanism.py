@@ -7,12 +7,13 @@ from __future__ import annotations
 
 import pandas as pd
 
-from sb3_affect.study.report import figures, joy_trace
-from sb3_affect.study.report.context import AFFECTIVE, ReportContext
-from sb3_affect.study.report.document import fmt, sig
-from sb3_affect.study.report.metrics import EMOTIONS, profile, window_mean
-from sb3_affect.study.report.output_files import replacing
-from sb3_affect.study.report.settled import LONG, SETTLED, settled_numbers, settled_part
+from sb3_affect.study.report.reading.context import AFFECTIVE, ReportContext
+from sb3_affect.study.report.reading.run_tables import EMOTIONS, profile, window_mean
+from sb3_affect.study.report.reading.settled_window import LONG, SETTLED, settled_numbers, settled_part
+from sb3_affect.study.report.rendering import figures
+from sb3_affect.study.report.rendering.document import fmt, sig
+from sb3_affect.study.report.rendering.output_files import replacing
+from sb3_affect.study.report.sections import joy_trace
 
 WINDOWS = ((1, 10), (21, 40), (181, 200))
 
@@ -33,7 +34,7 @@ def agent_profile(ctx: ReportContext, agent: str, last: int) -> pd.DataFrame:
 
 def mechanism_section(ctx: ReportContext) -> None:
     """Bimodal episodes, the meaning of equivalent epsilon, and Fig. 5 under both weightings."""
-    from sb3_affect.study.report.scan import paper_scan
+    from sb3_affect.study.report.reading.episode_scan import paper_scan
 
     ctx.doc.h("Why the affective agent behaves as it does")
     found = paper_scan(ctx)  # the report's one pass over the episode rows

@@ -18,10 +18,10 @@ import pandas as pd
 from rliable import metrics as rmetrics
 
 from sb3_affect.core.emotions import EMOTION_NAMES
-from sb3_affect.study.report.context import ReportContext
-from sb3_affect.study.report.document import fmt
-from sb3_affect.study.report.metrics import load_results
-from sb3_affect.study.report.stats import bootstrap_improvement, bootstrap_iqm_cis
+from sb3_affect.study.report.estimation.bootstrap import bootstrap_improvement, bootstrap_iqm_cis
+from sb3_affect.study.report.reading.context import ReportContext
+from sb3_affect.study.report.reading.run_tables import load_results
+from sb3_affect.study.report.rendering.document import fmt
 
 #: The results folders of the sections: (folder, title, what it holds).
 FOLDERS = (

@@ -7,10 +7,11 @@ from __future__ import annotations
 
 import pandas as pd
 
-from sb3_affect.study.report import figures, paper
-from sb3_affect.study.report.context import AFFECTIVE, STANDARD, ReportContext
-from sb3_affect.study.report.document import fmt
-from sb3_affect.study.report.stats import paired_ttest_table
+from sb3_affect.study.report.estimation.bootstrap import paired_ttest_table
+from sb3_affect.study.report.reading.context import AFFECTIVE, STANDARD, ReportContext
+from sb3_affect.study.report.rendering import figures
+from sb3_affect.study.report.rendering.document import fmt
+from sb3_affect.study.report.verdicts import paper_numbers as paper
 
 #: The two definitions of "optimal path found" (per-run metric, label).
 DEFINITIONS = (

@@ -14,12 +14,12 @@ import pandas as pd
 from rliable import metrics as rmetrics
 from scipy import stats as sps
 
-from sb3_affect.study.report.context import AFFECTIVE, STANDARD, ReportContext
-from sb3_affect.study.report.document import fmt, pval
-from sb3_affect.study.report.engine_studies import SPEED_AGENT
-from sb3_affect.study.report.figures import save
-from sb3_affect.study.report.metrics import load_results, run_metrics
-from sb3_affect.study.report.stats import bootstrap_improvement, bootstrap_iqm_cis, bootstrap_profile
+from sb3_affect.study.report.estimation.bootstrap import bootstrap_improvement, bootstrap_iqm_cis, bootstrap_profile
+from sb3_affect.study.report.reading.context import AFFECTIVE, STANDARD, ReportContext
+from sb3_affect.study.report.reading.run_tables import load_results, run_metrics
+from sb3_affect.study.report.reading.study_tables import SPEED_AGENT
+from sb3_affect.study.report.rendering.document import fmt, pval
+from sb3_affect.study.report.rendering.figures import save
 
 METRICS = (
     ("decisions_per_episode", "steps per episode"),

@@ -15,9 +15,9 @@ from pathlib import Path
 
 import pandas as pd
 
-from sb3_affect.study.report.context import ReportContext
-from sb3_affect.study.report.document import fmt
-from sb3_affect.study.report.output_files import write_text
+from sb3_affect.study.report.reading.context import ReportContext
+from sb3_affect.study.report.rendering.document import fmt
+from sb3_affect.study.report.rendering.output_files import write_text
 
 PACKAGES = (
     "sb3-affect",

@@ -8,11 +8,11 @@ from __future__ import annotations
 
 import pandas as pd
 
-from sb3_affect.study.report.context import AFFECTIVE, STANDARD, ReportContext
-from sb3_affect.study.report.document import sig
-from sb3_affect.study.report.engine_studies import SPEED_ONE_AGENT
-from sb3_affect.study.report.inference import holm, significant
-from sb3_affect.study.report.judgement import cell_means, diff_over_eps, eps_list, over_eps, p_text, per_epsilon
+from sb3_affect.study.report.reading.context import AFFECTIVE, STANDARD, ReportContext
+from sb3_affect.study.report.reading.study_tables import SPEED_ONE_AGENT
+from sb3_affect.study.report.rendering.document import sig
+from sb3_affect.study.report.verdicts.inference import holm, significant
+from sb3_affect.study.report.verdicts.judgement import cell_means, diff_over_eps, eps_list, over_eps, p_text, per_epsilon
 
 METRICS = (
     ("decisions_per_episode", "decisions per episode"),

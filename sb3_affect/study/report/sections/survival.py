@@ -18,9 +18,9 @@ from lifelines import KaplanMeierFitter
 from lifelines.statistics import logrank_test
 from lifelines.utils import median_survival_times, restricted_mean_survival_time
 
-from sb3_affect.study.report.context import AFFECTIVE, STANDARD, ReportContext
-from sb3_affect.study.report.document import fmt, pval
-from sb3_affect.study.report.figures import COLOURS, STYLES, distinct, save
+from sb3_affect.study.report.reading.context import AFFECTIVE, STANDARD, ReportContext
+from sb3_affect.study.report.rendering.document import fmt, pval
+from sb3_affect.study.report.rendering.figures import COLOURS, STYLES, distinct, save
 
 
 def km(durations: np.ndarray, observed: np.ndarray, horizon: float) -> dict[str, float]:

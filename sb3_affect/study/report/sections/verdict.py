@@ -2,19 +2,19 @@
 The verdict: each of the paper's claims quoted with its source and judged on direction and size (against the
 predictive interval of the paper's 20-seed protocol, with the ratio paper / ours), time (decisions) beside distance
 (cells), the paper's test beside robust ones with one Holm family per claim; then what is not reproduced and why; a
-report built from too few runs gives no verdict. The rows come from ``report.claims``' logic, not from text.
+report built from too few runs gives no verdict. The rows come from ``report.verdicts.claims``' logic, not from text.
 """
 
 from __future__ import annotations
 
 import pandas as pd
 
-from sb3_affect.study.report import claims
-from sb3_affect.study.report.claims import Judgement
-from sb3_affect.study.report.context import AFFECTIVE, STANDARD, ReportContext
-from sb3_affect.study.report.document import CardSpec, sig
-from sb3_affect.study.report.judgement import per_epsilon
-from sb3_affect.study.report.windows import window_qualifiers, window_table
+from sb3_affect.study.report.reading.context import AFFECTIVE, STANDARD, ReportContext
+from sb3_affect.study.report.rendering.document import CardSpec, sig
+from sb3_affect.study.report.sections.window_verdicts import window_qualifiers, window_table
+from sb3_affect.study.report.verdicts import claims
+from sb3_affect.study.report.verdicts.claims import Judgement
+from sb3_affect.study.report.verdicts.judgement import per_epsilon
 
 WHY_SADNESS_FEAR = (
     "Sadness and fear can not occur under Table II as printed. exp1 is \"initially equal to the average value, and "
@@ -150,7 +150,7 @@ def units_table(m: pd.DataFrame) -> pd.DataFrame:
 
 def speed_matched_sentences(ctx: ReportContext) -> list[str]:
     """The affective agent against the speed-matched ε-greedy (large-N study, else the baselines folder)."""
-    from sb3_affect.study.report.checks import speed_matched, with_speed_matched
+    from sb3_affect.study.report.sections.project_checks import speed_matched, with_speed_matched
 
     return speed_matched(with_speed_matched(ctx))
 

@@ -2,8 +2,8 @@
 The paper's claims judged on per-run metrics: direction, size against the paper's 20-seed protocol (predictive
 interval, ratio), the paper's own test beside robust ones, one Holm family per claim, one verdict per claim.
 
-``judge_all(m)`` takes one row per run (``report.metrics.run_metrics`` columns plus ``agent`` and ``epsilon``) and
-returns the ``Judgement`` list; it is analytic (``report.inference``), so it is cheap enough to repeat on hundreds of
+``judge_all(m)`` takes one row per run (``report.reading.run_tables.run_metrics`` columns plus ``agent`` and ``epsilon``) and
+returns the ``Judgement`` list; it is analytic (``report.verdicts.inference``), so it is cheap enough to repeat on hundreds of
 subsamples (the seed-count study). Rules every verdict follows:
 
 - a "no difference" claim is judged by an equivalence test (TOST) with a stated margin, never by a non-significant
@@ -23,8 +23,9 @@ import numpy as np
 import pandas as pd
 from scipy import stats as sps
 
-from sb3_affect.study.report import paper
-from sb3_affect.study.report.claims_emotions import (
+from sb3_affect.study.report.rendering.document import fmt, pval, sig
+from sb3_affect.study.report.verdicts import paper_numbers as paper
+from sb3_affect.study.report.verdicts.course_claims import (
     ABOUT,
     judge_episodes_to_optimal,
     judge_fig5,
@@ -32,9 +33,8 @@ from sb3_affect.study.report.claims_emotions import (
     judge_four_emotions,
     judge_long_run,
 )
-from sb3_affect.study.report.document import fmt, pval, sig
-from sb3_affect.study.report.inference import ALPHA, Test, holm, significant, tost, two_sided_p
-from sb3_affect.study.report.judgement import (
+from sb3_affect.study.report.verdicts.inference import ALPHA, Test, holm, significant, tost, two_sided_p
+from sb3_affect.study.report.verdicts.judgement import (
     AFFECTIVE,
     STANDARD,
     Judgement,

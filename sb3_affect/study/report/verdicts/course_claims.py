@@ -12,10 +12,11 @@ import numpy as np
 import pandas as pd
 from scipy import stats as sps
 
-from sb3_affect.study.report import paper
-from sb3_affect.study.report.document import sig
-from sb3_affect.study.report.inference import Test, mean_ci, significant, z_estimate
-from sb3_affect.study.report.judgement import (
+from sb3_affect.study.report.reading.run_tables import EMOTIONS
+from sb3_affect.study.report.rendering.document import sig
+from sb3_affect.study.report.verdicts import paper_numbers as paper
+from sb3_affect.study.report.verdicts.inference import Test, mean_ci, significant, z_estimate
+from sb3_affect.study.report.verdicts.judgement import (
     AFFECTIVE,
     Judgement,
     eps_list,
@@ -23,7 +24,6 @@ from sb3_affect.study.report.judgement import (
     seeds_per_cell,
     size_against_paper,
 )
-from sb3_affect.study.report.metrics import EMOTIONS
 
 #: "about 0.3" / "to 0.1" (Fig. 6) read as within this absolute distance.
 ABOUT = 0.05

@@ -30,7 +30,7 @@ class Estimate:
     se: float = math.nan
 
     def text(self, digits: int = 3) -> str:
-        from sb3_affect.study.report.document import sig
+        from sb3_affect.study.report.rendering.document import sig
 
         return f"{sig(self.value, digits)} [{sig(self.low, digits)}, {sig(self.high, digits)}]"
 

@@ -12,9 +12,9 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from sb3_affect.study.report import paper
-from sb3_affect.study.report.document import fmt, pval, sig
-from sb3_affect.study.report.inference import Estimate, Test, predictive, welch, z_estimate
+from sb3_affect.study.report.rendering.document import fmt, pval, sig
+from sb3_affect.study.report.verdicts import paper_numbers as paper
+from sb3_affect.study.report.verdicts.inference import Estimate, Test, predictive, welch, z_estimate
 
 STANDARD, AFFECTIVE = "epsilon-greedy", "affective"
 

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 
-from sb3_affect.study.report.stats import TTEST_ROWS
+from sb3_affect.study.report.estimation.bootstrap import TTEST_ROWS
 
 nan = math.nan
 

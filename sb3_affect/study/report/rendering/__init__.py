@@ -1,0 +1,1 @@
+"""How the report is written: the document (markdown and html), its figures, its files (each written whole)."""
