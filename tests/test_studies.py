@@ -5,9 +5,14 @@ tests/test_cli.py checks against them) and names the report's sections that read
 
 from __future__ import annotations
 
+import inspect
+
+import pytest
+
 from sb3_affect.study import replicate
-from sb3_affect.study.report.build import APPENDIX, SECTIONS
-from sb3_affect.study.studies import STUDIES
+from sb3_affect.study.report import build
+from sb3_affect.study.report.build import APPENDIX, SECTIONS, study_section, with_studies
+from sb3_affect.study.studies import STUDIES, Study
 
 
 def test_replicate_runs_the_studies_in_their_order() -> None:
@@ -22,10 +27,24 @@ def test_every_study_has_its_sweep_file() -> None:
     assert not missing, f"studies without a sweep file in {folder}: {missing}"
 
 
-def test_the_report_holds_each_studys_sections_where_the_list_says() -> None:
-    main = {section.__name__ for section in SECTIONS}
-    appendix = {section.__name__ for section in APPENDIX}
+def test_the_report_places_each_studys_sections_where_the_list_says() -> None:
+    main, appendix = with_studies(SECTIONS, "sections"), with_studies(APPENDIX, "appendix")
     for study in STUDIES:
-        assert set(study.sections) <= main, f"{study.name}: {set(study.sections) - main} not in the report's main text"
-        assert set(study.appendix) <= appendix, f"{study.name}: {set(study.appendix) - appendix} not in its appendix"
+        for name in study.sections:
+            assert study_section(name) in main or name in {f"build:{s.__name__}" for s in main}, (study.name, name)
+        for name in study.appendix:
+            assert study_section(name) in appendix, (study.name, name)
+    assert main == SECTIONS and appendix == APPENDIX  # every study's section is already in the report's own lists
+
+
+def test_a_new_studys_section_joins_the_report_without_an_entry_there(monkeypatch: pytest.MonkeyPatch) -> None:
+    new = Study("new_study", "a study the report's lists do not know", sections=("sections.mechanism:joy_section",))
+    monkeypatch.setattr(build, "STUDIES", (*STUDIES, new))
+    main = build.with_studies(SECTIONS, "sections")
+    assert main[: len(SECTIONS)] == SECTIONS and main[len(SECTIONS) :] == [study_section(new.sections[0])]
+
+
+def test_every_section_takes_the_report_context_only() -> None:
+    for section in [*SECTIONS, *APPENDIX]:
+        assert list(inspect.signature(section).parameters) == ["ctx"], section.__name__
 

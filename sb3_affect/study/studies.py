@@ -22,42 +22,39 @@ class Study(NamedTuple):
     size: str | None = None  # the quick-check size that cuts it down (``replicate.main``'s large_seeds and
     # engine_episodes: "large"; "long": 10 x the episodes; ablation_seeds: "ablation"; beyond_seeds: "beyond")
     extra: tuple[str, str] | None = None  # (package, extra) it needs: without it the study is skipped with one line
-    sections: tuple[str, ...] = ()  # the report's main-text sections that read its folder (their function names)
-    appendix: tuple[str, ...] = ()  # and its appendix sections
+    sections: tuple[str, ...] = ()  # the report's main-text sections that read its folder: "module:function" under
+    appendix: tuple[str, ...] = ()  # sb3_affect.study.report (and its appendix sections)
     tuned: bool = False  # run after the others, with ε tuned per task (the tuning's rounds, then the tasks beyond)
 
 
 #: The studies of the main job, in order (``tuned`` ones last: the tuning, then the tasks beyond the paper).
 STUDIES: tuple[Study, ...] = (
-    Study("paper", "the paper's protocol ({runs} runs)",
-          sections=("abstract_section", "overview_section", "agents_section", "verdict_section", "windows_section",
-                    "mechanism_section", "table_iv_section", "table_v_section", "figures_3_4_section", "survival_section",
-                    "checks_section"),
-          appendix=("tests_section", "record_section", "definitions_section")),
+    # (every section of the report's own lists reads it: ``report.build.SECTIONS`` and ``APPENDIX``)
+    Study("paper", "the paper's protocol ({runs} runs)"),
     Study("dqn", "SB3 DQN beside the tabular agents, equal seeds and budget ({runs} runs)",
-          sections=("learning_curves_section",), appendix=("dqn_section",)),
-    Study("baselines", "fair baselines beside both paper agents", sections=("beyond_section",)),
-    Study("hunters", "two hunters on Kuremoto's pursuit problem", sections=("hunters_sections",),
-          appendix=("emotion_models_sections",)),
-    Study("hunters_moving", "two hunters, moving prey", sections=("hunters_sections",),
-          appendix=("emotion_models_sections",)),
+          sections=("sections.dqn:learning_curves_section",), appendix=("sections.dqn:dqn_section",)),
+    Study("baselines", "fair baselines beside both paper agents", sections=("sections.beyond:beyond_section",)),
+    Study("hunters", "two hunters on Kuremoto's pursuit problem", sections=("sections.hunters:hunters_sections",),
+          appendix=("sections.emotion_models:emotion_models_sections",)),
+    Study("hunters_moving", "two hunters, moving prey", sections=("sections.hunters:hunters_sections",),
+          appendix=("sections.emotion_models:emotion_models_sections",)),
     Study("large", "large-N study: the paper's 18 cells and the speed-matched ε-greedy ({runs} runs)", size="large",
-          sections=("abstract_section",), appendix=("evidence_section",)),
+          sections=("sections.abstract:abstract_section",), appendix=("sections.evidence:evidence_section",)),
     Study("ablation", "reading ablation: the 8 readings of the appraisal x 9 ε ({runs} runs)", size="ablation",
-          sections=("readings_section", "ablation_section")),
+          sections=("sections.readings:readings_section", "sections.ablation:ablation_section")),
     Study("speed_one", "speed ablation: the affective agent with speed fixed at 1 cell ({runs} runs)", size="large",
-          sections=("speed_one_section",)),
+          sections=("sections.speed_ablation:speed_one_section",)),
     Study("long", "long runs: both paper agents, runs of 2,000 episodes ({runs} runs)", size="long",
-          sections=("verdict_section",)),
+          sections=("sections.verdict:verdict_section",)),
     Study("joy_trace", "joy trace: the paper's affective agent, each decision's emotion and act recorded ({runs} runs)",
-          sections=("mechanism_section",)),
+          sections=("sections.mechanism:mechanism_section",)),
     Study("minigrid", "the tabular agents on MiniGrid ({runs} runs)", extra=("minigrid", "minigrid"),
-          sections=("minigrid_sections",)),
+          sections=("sections.minigrid:minigrid_sections",)),
     # (its section is the forensics' own, which replicate hands the report: ``build_report(extra_sections=...)``)
     Study("forensics", "replication forensics: {screen_reps} screen, {leaders} leaders x {reps} replications"),
     Study("tuning", "ε of ε-greedy and speed-matched ε-greedy tuned on each task beyond the paper: the grid ({runs} runs) "
           "in round0/, then one value further out where the best sits at an edge (round1/, ...)", size="large",
-          sections=("beyond_section",), tuned=True),
+          sections=("sections.beyond:beyond_section",), tuned=True),
     Study("beyond", "static grid, moving and evading prey, mazes, with the tuned ε ({runs} runs)", size="beyond",
-          sections=("beyond_section",), tuned=True),
+          sections=("sections.beyond:beyond_section",), tuned=True),
 )  # fmt: skip

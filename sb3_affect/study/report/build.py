@@ -10,9 +10,14 @@ in its own module and append it to ``SECTIONS`` (or pass ``sections=`` to ``buil
 
 from __future__ import annotations
 
+import functools
+import importlib
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+from sb3_affect.core.settings import TabularSettings
+from sb3_affect.study.launcher.one_run import package_env
+from sb3_affect.study.launcher.store import ResultsStore
 from sb3_affect.study.report.reading import study_tables as engine_studies
 from sb3_affect.study.report.reading.context import ReportContext
 from sb3_affect.study.report.reading.episode_scan import scan
@@ -37,6 +42,7 @@ from sb3_affect.study.report.sections.speed_ablation import speed_one_section
 from sb3_affect.study.report.sections.survival import survival_section
 from sb3_affect.study.report.sections.verdict import tests_section, verdict_section
 from sb3_affect.study.report.sections.window_verdicts import windows_section
+from sb3_affect.study.studies import STUDIES
 
 Section = Callable[[ReportContext], None]
 #: Sub-folders of a replicate folder the sections may read (``ctx.folders[name]``).
@@ -67,9 +73,6 @@ def overview_section(ctx: ReportContext) -> None:
 
 def task_facts(folder: Path) -> tuple[int | None, int | None]:
     """The safety cap on an episode's decisions and the task's shortest path in cells, from the sweep's own file."""
-    from sb3_affect.core.settings import TabularSettings
-    from sb3_affect.study.launcher.one_run import package_env
-    from sb3_affect.study.launcher.store import ResultsStore
 
     saved = ResultsStore(folder).saved_sweep()
     if saved is None:
@@ -95,11 +98,11 @@ def task_facts(folder: Path) -> tuple[int | None, int | None]:
 
 
 def _if_paper_agents(section: Section) -> Section:
+    @functools.wraps(section)
     def wrapped(ctx: ReportContext) -> None:
         if ctx.has_paper_agents:
             section(ctx)
 
-    wrapped.__name__ = section.__name__
     return wrapped
 
 
@@ -180,6 +183,28 @@ APPENDIX: list[Section] = [
 ]
 
 
+def study_section(name: str) -> Section:
+    """A section a study names (``studies.Study.sections``): ``module:function`` under ``sb3_affect.study.report``."""
+    module, _, function = name.partition(":")
+    section: Section = getattr(importlib.import_module(f"sb3_affect.study.report.{module}"), function)
+    return section
+
+
+def with_studies(sections: Sequence[Section], place: str) -> list[Section]:
+    """
+    ``sections``, then each section the studies name for ``place`` (``"sections"``: the main text, ``"appendix"``) that
+    ``sections`` does not hold, in the order of ``studies.STUDIES``: a new study's section needs no entry here.
+    """
+    held = {(section.__module__, section.__name__) for section in sections}
+    added = []
+    for study in STUDIES:
+        for section in map(study_section, getattr(study, place)):
+            if (section.__module__, section.__name__) not in held:
+                held.add((section.__module__, section.__name__))
+                added.append(section)
+    return [*sections, *added]
+
+
 def _layout(run_dir: Path) -> tuple[Path, dict[str, Path]]:
     """The paper sweep's folder and the other results folders of a replicate folder (or a single results folder)."""
     if not (run_dir / "runs").is_dir() and (run_dir / "paper" / "runs").is_dir():
@@ -195,7 +220,6 @@ def folder_notes(folders: Sequence[Path]) -> list[str]:
     One line per results folder whose sweep is not complete (the report covers the runs it holds); ``ValueError``
     when a launcher is still writing one (its runs would change under the report).
     """
-    from sb3_affect.study.launcher.store import ResultsStore
 
     notes = []
     for folder in folders:
@@ -268,7 +292,8 @@ def build_report(
     del found
     for note in notes:
         ctx.doc.p(note)
-    for section in sections if sections is not None else [*SECTIONS, *extra_sections, *APPENDIX]:
+    default = [*with_studies(SECTIONS, "sections"), *extra_sections, *with_studies(APPENDIX, "appendix")]
+    for section in sections if sections is not None else default:
         section(ctx)
     ctx.place_later()
     md = out / "report.md"
