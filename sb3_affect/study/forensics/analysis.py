@@ -42,6 +42,7 @@ from sb3_affect.study.forensics.scoring import (
     reach_findings,
     transform,
 )
+from sb3_affect.study.forensics.section import write_standalone
 from sb3_affect.study.forensics.statistics import STATISTICS, candidate_statistics, printed_numbers
 from sb3_affect.study.forensics.unit_files import SummaryStore
 
@@ -253,7 +254,6 @@ def run_forensics(
             }
         ).to_json(indent=1)
     )
-    from sb3_affect.study.forensics.section import write_standalone
 
     write_standalone(out)
     return result

@@ -10,9 +10,13 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from sb3_affect.engine.simulation import simulate
 from sb3_affect.study.forensics.candidates import STEP_UNITS, Protocol, Simulation
 from sb3_affect.study.forensics.statistics import cell_summary
 from sb3_affect.study.forensics.unit_files import SummaryStore
+from sb3_affect.study.launcher.launcher import run_ray
+from sb3_affect.study.launcher.local_pool import run_local
+from sb3_affect.study.launcher.one_run import package_versions
 
 Unit = tuple[Simulation, int]
 
@@ -29,7 +33,6 @@ def simulate_unit(
         exceeds this in both step units (steps are never negative, so the mean over all cells will exceed it divided by
         the number of cells whatever the other cells give); None: never stop early
     """
-    from sb3_affect.engine.simulation import simulate
 
     simulation, replication = unit
     cells = {}
@@ -65,7 +68,6 @@ class UnitJob:
 
     def execute(self) -> dict[str, Any]:
         """``simulate_unit`` of the unit: its cells and whether it is complete (with the versions and host it ran on)."""
-        from sb3_affect.study.launcher.one_run import package_versions
 
         _, cells, complete = simulate_unit(self.unit, self.protocol, self.stop_above)
         host = {"host": socket.gethostname()}
@@ -74,7 +76,6 @@ class UnitJob:
 
 def _warm_up(units: list[Unit], protocol: Protocol) -> None:
     """One one-episode run of each agent in the driver: compiled code is loaded once, and the forked workers share it."""
-    from sb3_affect.engine.simulation import simulate
 
     for simulation in dict.fromkeys(sim for sim, _ in units):
         if simulation.algo not in {s.algo for s in _warmed}:
@@ -132,14 +133,12 @@ def run_units(
 
     try:
         if backend == "ray":
-            from sb3_affect.study.launcher.launcher import run_ray
 
             run_ray(jobs, workers, on_result, on_failure, ray_address, timeout=ray_timeout)
         elif workers <= 1:
             for job in jobs:
                 on_result(job, job.execute())
         else:
-            from sb3_affect.study.launcher.local_pool import run_local
 
             _warm_up(todo, store.protocol)
             run_local(jobs, workers, on_result, on_failure)

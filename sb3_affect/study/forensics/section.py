@@ -10,8 +10,10 @@ from typing import Any, NamedTuple
 import numpy as np
 import pandas as pd
 
+from sb3_affect.core.settings import AffectQSettings
 from sb3_affect.study.forensics.scoring import MIN_REACH_REPS, NOT_REACHED, NOT_RULED_OUT, REACHED, transform
 from sb3_affect.study.forensics.statistics import LOG_SCALE, STATISTICS
+from sb3_affect.study.report.reading.study_tables import AFFECT_DEFAULT, COMMON
 from sb3_affect.study.report.rendering.document import fmt, md_table
 
 FACTORS = ("comparison", "act", "units", "tie_break", "multi_cell", "alpha", "gamma", "optimal", "step", "table_v")
@@ -66,8 +68,6 @@ def _differences(table: pd.DataFrame, column: str, error: str) -> list[str]:
 
 def verdict_setting() -> dict[str, Any]:
     """The verdict's own implementation (the report's agents and their settings' defaults) in the screen's terms."""
-    from sb3_affect.core.settings import AffectQSettings
-    from sb3_affect.study.report.reading.study_tables import AFFECT_DEFAULT, COMMON
 
     defaults = AffectQSettings()
     return {

@@ -11,6 +11,9 @@ import os
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from sb3_affect.study.forensics.analysis import run_forensics
+from sb3_affect.study.forensics.candidates import CandidateSpace, Protocol
+
 if TYPE_CHECKING:
     from sb3_affect.study.forensics.analysis import ForensicsResult
     from sb3_affect.study.forensics.candidates import CandidateSpace, Protocol
@@ -19,14 +22,12 @@ if TYPE_CHECKING:
 
 def study_space(study: ForensicsStudy) -> CandidateSpace:
     """The candidate space of the file: the default space with the file's alphas and gammas."""
-    from sb3_affect.study.forensics.candidates import CandidateSpace
 
     return dataclasses.replace(CandidateSpace.default(), alphas=tuple(study.alphas), gammas=tuple(study.gammas))
 
 
 def study_protocol(study: ForensicsStudy) -> Protocol:
     """The protocol of the file: the paper's, with the keys its ``protocol`` section gives."""
-    from sb3_affect.study.forensics.candidates import Protocol
 
     given = study.protocol.model_dump(exclude_none=True)
     if "epsilons" in given:
@@ -53,7 +54,6 @@ def run_study(
     :param ray_timeout: seconds to wait for the Ray cluster to answer
     :param progress: show progress bars
     """
-    from sb3_affect.study.forensics.analysis import run_forensics
 
     workers = workers or (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
     return run_forensics(

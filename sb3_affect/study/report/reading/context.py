@@ -17,6 +17,7 @@ from typing import Any
 import pandas as pd
 
 from sb3_affect.study.report.reading.run_tables import Results
+from sb3_affect.study.report.reading.study_tables import study
 from sb3_affect.study.report.rendering.document import CardSpec, Document
 from sb3_affect.study.report.rendering.output_files import replacing
 
@@ -95,7 +96,6 @@ class ReportContext:
 
     def study(self, name: str) -> pd.DataFrame | None:
         """The per-run table of the engine study ``root/<name>`` (``report.reading.study_tables``), or None."""
-        from sb3_affect.study.report.reading.study_tables import study
 
         found = study(self.root, name)
         return found[0] if found else None

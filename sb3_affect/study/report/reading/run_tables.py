@@ -9,6 +9,7 @@ and ``run_metrics`` reduces the episode rows run by run with numpy segment reduc
 
 from __future__ import annotations
 
+import json
 import math
 import warnings
 from collections.abc import Iterator, Sequence
@@ -20,6 +21,8 @@ import numpy as np
 import pandas as pd
 
 from sb3_affect.core.emotions import EMOTION_NAMES
+from sb3_affect.study.launcher.folder_reading import read_folder
+from sb3_affect.study.launcher.store import ResultsStore
 from sb3_affect.study.report.estimation.grouped_sums import segment_means, window_bounds
 
 EMOTIONS = EMOTION_NAMES
@@ -79,7 +82,6 @@ class Results:
         at least the runs with these label values; their chunks only; ``ordered``: the parts one after the other in
         run id order, ``ResultsStore.results_parts``).
         """
-        from sb3_affect.study.launcher.store import ResultsStore
 
         store = ResultsStore(self.folder)
         if self.files is None:
@@ -200,11 +202,9 @@ def load_run_records(run_dir: str | Path) -> list[dict[str, Any]]:
     """
     root = Path(run_dir)
     if (root / "runs").is_dir() or (root / "chunks").is_dir():
-        from sb3_affect.study.launcher.store import ResultsStore
 
         records = ResultsStore(root).load_runs()
     else:
-        import json
 
         records = [json.loads(f.read_text()) for f in sorted(root.glob("*.json"))]
     return [r for r in records if r.get("status", "ok") == "ok"]
@@ -219,8 +219,6 @@ def load_results(run_dir: Path, columns: Sequence[str] = REPORT_COLUMNS) -> Resu
     column-wise by ``ResultsStore.results_parts``, each allocated once at its final size) when a section asks: all of
     them (``Results.episodes``: about 40 bytes an episode, 1.5 GB for 36 M episodes), or a part at a time.
     """
-    from sb3_affect.study.launcher.folder_reading import read_folder
-    from sb3_affect.study.launcher.store import ResultsStore
 
     store = ResultsStore(run_dir)
     files = store.checked_files()

@@ -12,6 +12,11 @@ from typing import Any
 
 import pandas as pd
 
+from sb3_affect.study.launcher.schema import Sweep
+from sb3_affect.study.launcher.store import ResultsStore
+from sb3_affect.study.report.reading.baseline_ranks import capture_distance
+from sb3_affect.study.report.reading.run_tables import EARLY, LATE, join_parts, load_results, run_metrics
+
 PAPER_ENV = ("sb3_affect/GridPursuit-v0", {"size": 15, "start": [0, 0], "goal": [6, 6], "goal_reward": 100.0})
 COMMON = {"learning_rate": 1.0, "gamma": 0.8, "q_init": 0.0}
 AFFECT_DEFAULT = {"comparison": "literal", "act": "episode", "units": "cells"}
@@ -29,7 +34,6 @@ RUNS_PER_PART = 10_000
 def _capture_distance(env_id: str, env_kwargs: dict[str, Any]) -> int | None:
     if "MovingPursuit" not in env_id:
         return None
-    from sb3_affect.study.report.reading.baseline_ranks import capture_distance
 
     return capture_distance({"env_id": env_id, "env_kwargs": env_kwargs})
 
@@ -59,8 +63,6 @@ def folder_study(folder: Path) -> tuple[pd.DataFrame, dict[str, Any]] | None:
     in the order of the sweep's cells (``CHUNK``). Meta data: ``seeds`` (replicates per cell), ``episodes``, ``runs``,
     ``wall_seconds`` (the runs' own seconds, summed over the workers) and ``sweep`` (the sweep file as saved).
     """
-    from sb3_affect.study.launcher.store import ResultsStore
-    from sb3_affect.study.report.reading.run_tables import EARLY, LATE, join_parts, load_results, run_metrics
 
     saved = ResultsStore(folder).saved_sweep()
     results = load_results(folder)
@@ -101,7 +103,6 @@ def _cell_labels(sweep: dict[str, Any], task_order: Any = None) -> list[tuple[st
 
     :param task_order: the tasks in the file's order (the launcher saves it beside the sweep, whose keys are sorted)
     """
-    from sb3_affect.study.launcher.schema import Sweep
 
     tasks = sweep.get("tasks") or {}
     if isinstance(task_order, list) and sorted(map(str, task_order)) == sorted(tasks):

@@ -12,7 +12,9 @@ import math
 import pandas as pd
 
 from sb3_affect.study.report.reading.context import AFFECTIVE, ReportContext
+from sb3_affect.study.report.reading.study_tables import SPEED_AGENT
 from sb3_affect.study.report.rendering.document import fmt, pval
+from sb3_affect.study.report.sections.project_checks import with_speed_matched
 from sb3_affect.study.report.sections.verdict import judged, shown_word
 from sb3_affect.study.report.verdicts import claims
 from sb3_affect.study.report.verdicts.inference import welch
@@ -74,7 +76,6 @@ def test_outcome_sentence(judged_main: list[claims.Judgement]) -> str:
 
 def main_finding(m: pd.DataFrame, ranks: dict[str, tuple[int, int]]) -> str:
     """The speed-matched ε-greedy against the affective agent, and the affective agent's rank among the baselines."""
-    from sb3_affect.study.report.reading.study_tables import SPEED_AGENT
 
     aff, speed = m[m.agent == AFFECTIVE], m[m.agent == SPEED_AGENT]
     if len(aff) < 2 or len(speed) < 2:
@@ -155,7 +156,6 @@ def abstract_section(ctx: ReportContext) -> None:
 
 
 def _write_abstract(ctx: ReportContext) -> None:
-    from sb3_affect.study.report.sections.project_checks import with_speed_matched
 
     judged_main, n, other, n_other = judged(ctx)
     runs = len(ctx.large) if ctx.large is not None else len(ctx.metrics)

@@ -9,6 +9,7 @@ import pandas as pd
 
 from sb3_affect.study.report.estimation.bootstrap import bootstrap_ci
 from sb3_affect.study.report.reading.context import AFFECTIVE, STANDARD, ReportContext
+from sb3_affect.study.report.reading.episode_scan import curve_quantiles, merge_curves, paper_scan
 from sb3_affect.study.report.reading.run_tables import load_results, plain_labels, run_metrics
 from sb3_affect.study.report.rendering import figures
 from sb3_affect.study.report.rendering.document import fmt
@@ -17,7 +18,6 @@ from sb3_affect.study.report.rendering.document import fmt
 def learning_curves_section(ctx: ReportContext) -> None:
     if not ctx.has_paper_agents:
         return
-    from sb3_affect.study.report.reading.episode_scan import curve_quantiles, merge_curves, paper_scan
 
     ctx.doc.h("Learning curves")
     m = ctx.metrics

@@ -17,7 +17,9 @@ import pandas as pd
 
 from sb3_affect.core.emotions import EMOTION_NAMES
 from sb3_affect.core.registry import EMOTION_MODELS
+from sb3_affect.envs.hunter_pursuit import HunterPursuitEnv
 from sb3_affect.study.report.reading.context import ReportContext
+from sb3_affect.study.report.rendering.figures import COLOURS
 from sb3_affect.study.report.rendering.output_files import output_folder, replacing
 from sb3_affect.study.report.sections.hunters import add_markdown, hunter_folders, markdown_table, team_runs
 
@@ -87,7 +89,6 @@ def side_by_side_figure(frames: pd.DataFrame, path: Path) -> Path:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from sb3_affect.study.report.rendering.figures import COLOURS
 
     colours = {**COLOURS, "distress": "tab:gray", "hope": "tab:green"}
     tasks = list(dict.fromkeys(frames.task))
@@ -187,7 +188,6 @@ def _far_hunter_lines(runs: list[dict[str, Any]]) -> list[str]:
     Why an affective hunter that rarely captures ends in joy: over the last ``LATE`` episodes, its norm (fitted on
     its own episode lengths, which the other hunter's captures cut short) against its shortest distance to the prey.
     """
-    from sb3_affect.envs.hunter_pursuit import HunterPursuitEnv
 
     rows = []
     for record in runs:

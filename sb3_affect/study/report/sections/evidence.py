@@ -15,6 +15,7 @@ from sb3_affect.study.report.estimation.bootstrap import paired_ttest_table
 from sb3_affect.study.report.reading.context import AFFECTIVE, STANDARD, ReportContext
 from sb3_affect.study.report.rendering.document import fmt
 from sb3_affect.study.report.sections.paper_tables import DEFINITIONS, per_epsilon
+from sb3_affect.study.report.sections.verdict import judged
 from sb3_affect.study.report.verdicts import claims
 from sb3_affect.study.report.verdicts import paper_numbers as paper
 
@@ -219,7 +220,6 @@ def evidence_section(ctx: ReportContext) -> None:
         "Each verdict (its first words; the full verdicts are in the verdict table) at 5 to 1,000 seeds per cell "
         "(the first n replicates of each cell)",
     )
-    from sb3_affect.study.report.sections.verdict import judged
 
     _main, _n, protocol, _n_protocol = judged(ctx)
     needed = seeds_needed(large, full=ctx.judgements or None, protocol=protocol)

@@ -13,6 +13,9 @@ import numpy as np
 import pandas as pd
 
 from sb3_affect.core.episode_log import TRACE_COLUMNS
+from sb3_affect.study.launcher.store import ResultsStore
+from sb3_affect.study.report.reading.run_tables import load_results
+from sb3_affect.study.report.rendering.figures import plt, save
 
 #: The late episodes whose crossings of the norm the section reads.
 LATE = (151, 200)
@@ -23,8 +26,6 @@ def traced(folder: Path) -> pd.DataFrame | None:
     The traced runs of the results folder ``folder``, one row per episode (``seed``, ``episode``, ``norm``,
     ``decisions``, ``joy`` and ``TRACE_COLUMNS``) in seed and episode order; None when it holds no finished run.
     """
-    from sb3_affect.study.launcher.store import ResultsStore
-    from sb3_affect.study.report.reading.run_tables import load_results
 
     if ResultsStore(folder).saved_sweep() is None:
         return None
@@ -63,7 +64,6 @@ def norm_figure(frame: pd.DataFrame, path: Path, shortest: int | None) -> Path:
     The norm per episode (median over runs) and, for episodes that cross it, ``act`` at the first joy decision: both
     in cells, the appraisal's units (Table II compares them).
     """
-    from sb3_affect.study.report.rendering.figures import plt, save
 
     fig, ax = plt.subplots(figsize=(7.0, 4.0))
     norm = frame.groupby("episode").norm.median()

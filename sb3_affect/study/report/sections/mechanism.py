@@ -8,6 +8,7 @@ from __future__ import annotations
 import pandas as pd
 
 from sb3_affect.study.report.reading.context import AFFECTIVE, ReportContext
+from sb3_affect.study.report.reading.episode_scan import paper_scan
 from sb3_affect.study.report.reading.run_tables import EMOTIONS, profile, window_mean
 from sb3_affect.study.report.reading.settled_window import LONG, SETTLED, settled_numbers, settled_part
 from sb3_affect.study.report.rendering import figures
@@ -34,7 +35,6 @@ def agent_profile(ctx: ReportContext, agent: str, last: int) -> pd.DataFrame:
 
 def mechanism_section(ctx: ReportContext) -> None:
     """Bimodal episodes, the meaning of equivalent epsilon, and Fig. 5 under both weightings."""
-    from sb3_affect.study.report.reading.episode_scan import paper_scan
 
     ctx.doc.h("Why the affective agent behaves as it does")
     found = paper_scan(ctx)  # the report's one pass over the episode rows

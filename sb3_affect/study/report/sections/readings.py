@@ -14,6 +14,7 @@ import pandas as pd
 
 from sb3_affect.study.report.reading.context import AFFECTIVE, STANDARD, ReportContext
 from sb3_affect.study.report.reading.run_tables import EMOTIONS
+from sb3_affect.study.report.sections.verdict import judged
 from sb3_affect.study.report.verdicts import claims
 from sb3_affect.study.report.verdicts.course_claims import EMOTION_SHARE, EMOTION_WINDOWS, first_optimal_summary
 
@@ -130,7 +131,6 @@ def readings_section(ctx: ReportContext) -> None:
 
 def default_column_sentence(ctx: ReportContext, table: pd.DataFrame) -> str:
     """Where the default reading's column and the verdict at the paper's protocol differ, and why they may."""
-    from sb3_affect.study.report.sections.verdict import judged
 
     _main, _n, protocol, n_protocol = judged(ctx)
     if protocol is None or DEFAULT not in table.columns:

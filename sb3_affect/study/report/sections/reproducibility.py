@@ -7,6 +7,7 @@ tables, the wall time of each part, seeds.
 from __future__ import annotations
 
 import hashlib
+import json
 import os
 import platform
 import subprocess
@@ -15,6 +16,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from sb3_affect.study.launcher.store import ResultsStore, StoreError
 from sb3_affect.study.report.reading.context import ReportContext
 from sb3_affect.study.report.rendering.document import fmt
 from sb3_affect.study.report.rendering.output_files import write_text
@@ -79,7 +81,6 @@ def run_tables(root: Path) -> list[Path]:
     The files holding the runs of a replicate (or results) folder: the chunks and run files that count (those a
     report reads: ``ResultsStore.checked_files``; the tuning's rounds included), the other studies' CSV tables.
     """
-    from sb3_affect.study.launcher.store import ResultsStore, StoreError
 
     files = {path for path in root.glob("*/*.csv") if "tables" not in path.parts}
     launched = (path.parent for pattern in ("*/sweep.json", "tuning/round*/sweep.json") for path in root.glob(pattern))
@@ -182,7 +183,6 @@ def record_section(ctx: ReportContext) -> None:
 
 def replicate_runs(root: Path) -> list[dict]:
     """The runs of ``replicate`` recorded in ``root/replicate.json`` (none for a folder it did not write)."""
-    import json
 
     try:
         saved = json.loads((Path(root) / "replicate.json").read_text())

@@ -12,6 +12,8 @@ from typing import Any
 import pandas as pd
 
 from sb3_affect.study.launcher.epsilon_tuning import MAX_EXTENSIONS, Tuning, eps_text, round_values, tune, tuning_grid
+from sb3_affect.study.report.reading.study_tables import episode_cap, study
+from sb3_affect.study.report.rendering.document import fmt
 
 
 def load_tuning(folder: Path) -> tuple[dict[tuple[str, str], Tuning], dict[str, Any]] | None:
@@ -23,7 +25,6 @@ def load_tuning(folder: Path) -> tuple[dict[tuple[str, str], Tuning], dict[str, 
         (its name, from which the seeds derive), ``cap`` (decisions an episode counts at most), ``seeds by key`` (the
         seeds of each (task, agent))
     """
-    from sb3_affect.study.report.reading.study_tables import episode_cap, study
 
     first = study(Path(folder), "round0")
     if first is None:
@@ -78,7 +79,6 @@ def tuning_section(ctx: Any, evaluation: pd.DataFrame) -> dict[tuple[str, str], 
     :param evaluation: the per-run table of the evaluation (the tasks beyond the paper), whose seeds the tuning's must
         not be
     """
-    from sb3_affect.study.report.rendering.document import fmt
 
     found = load_tuning(Path(ctx.root) / "tuning")
     if found is None:

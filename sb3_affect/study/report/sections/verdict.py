@@ -11,6 +11,7 @@ import pandas as pd
 
 from sb3_affect.study.report.reading.context import AFFECTIVE, STANDARD, ReportContext
 from sb3_affect.study.report.rendering.document import CardSpec, sig
+from sb3_affect.study.report.sections.project_checks import speed_matched, with_speed_matched
 from sb3_affect.study.report.sections.window_verdicts import window_qualifiers, window_table
 from sb3_affect.study.report.verdicts import claims
 from sb3_affect.study.report.verdicts.claims import Judgement
@@ -150,7 +151,6 @@ def units_table(m: pd.DataFrame) -> pd.DataFrame:
 
 def speed_matched_sentences(ctx: ReportContext) -> list[str]:
     """The affective agent against the speed-matched ε-greedy (large-N study, else the baselines folder)."""
-    from sb3_affect.study.report.sections.project_checks import speed_matched, with_speed_matched
 
     return speed_matched(with_speed_matched(ctx))
 

@@ -12,6 +12,7 @@ from __future__ import annotations
 import pandas as pd
 
 from sb3_affect.study.report.reading.context import AFFECTIVE, ReportContext
+from sb3_affect.study.report.reading.episode_scan import paper_scan
 from sb3_affect.study.report.reading.run_tables import EARLY_WINDOWS, LATE_WINDOWS
 from sb3_affect.study.report.verdicts import claims
 from sb3_affect.study.report.verdicts.course_claims import judge_fig5, judge_fig6
@@ -48,7 +49,6 @@ WINDOW_CLAIMS = {"fig5:mean": "Fig. 5 (per-episode)", "fig5:weighted": "Fig. 5 (
 def window_table(ctx: ReportContext) -> pd.DataFrame | None:
     """``window_verdicts`` of the paper sweep's affective runs (computed once per report), or None when runs are short."""
     if "window verdicts" not in ctx.cache:
-        from sb3_affect.study.report.reading.episode_scan import paper_scan
 
         found = paper_scan(ctx)  # the affective runs' window features, from the report's one pass over the episodes
         enough = found.last_episode.get(AFFECTIVE, 0) >= max(w[1] for w in LATE_WINDOWS)
@@ -75,7 +75,6 @@ def window_qualifiers(table: pd.DataFrame | None) -> dict[str, str]:
 def windows_section(ctx: ReportContext) -> None:
     if ctx.verdict_refusal():
         return
-    from sb3_affect.study.report.reading.episode_scan import paper_scan
 
     table = window_table(ctx)
     if table is None:

@@ -16,6 +16,8 @@ import numpy as np
 from scipy import stats as sps
 from statsmodels.stats.multitest import multipletests
 
+from sb3_affect.study.report.rendering.document import sig
+
 ALPHA = 0.05
 Z = float(sps.norm.ppf(0.975))
 
@@ -30,7 +32,6 @@ class Estimate:
     se: float = math.nan
 
     def text(self, digits: int = 3) -> str:
-        from sb3_affect.study.report.rendering.document import sig
 
         return f"{sig(self.value, digits)} [{sig(self.low, digits)}, {sig(self.high, digits)}]"
 
