@@ -41,7 +41,7 @@ LOG_SCALE: tuple[bool, ...] = tuple(not name.endswith(("Pearson r", "t Stat")) f
 
 
 def printed_numbers() -> np.ndarray:
-    """The paper's printed values of ``STATISTICS`` (Tables IV and V, Sec. V's 27.35 episodes; see report/paper.py)."""
+    """The paper's printed values of ``STATISTICS`` (Tables IV and V, Sec. V: report.verdicts.paper_numbers)."""
     iv, v = paper.TABLE_IV, paper.TABLE_V
     return np.array(
         [
