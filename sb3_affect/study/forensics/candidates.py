@@ -185,7 +185,7 @@ class Candidate:
 
 def supported_options() -> dict[str, bool]:
     """Whether the installed agents accept ``tie_break`` (both agents) and ``multi_cell`` (AffectQ)."""
-    from sb3_affect import AffectQ, QLearning
+    from sb3_affect import AffectQ, QLearning  # (the agents load torch: only when this is asked)
 
     q_params = inspect.signature(QLearning.__init__).parameters
     a_params = inspect.signature(AffectQ.__init__).parameters

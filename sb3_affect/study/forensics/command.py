@@ -49,12 +49,12 @@ def add_forensics_parser(sub: Any) -> argparse.ArgumentParser:
 
 def forensics_command(args: argparse.Namespace) -> int:
     """Run the study of the shipped experiments/forensics.yaml with the command's sizes and grid."""
-    from pydantic import ValidationError
+    from pydantic import ValidationError  # (lazy for --help)
 
-    from sb3_affect.study.forensics.study_run import run_study, summary_lines
-    from sb3_affect.study.launcher.signals import stop_on_sigterm
-    from sb3_affect.study.launcher.study_schema import ForensicsStudy
-    from sb3_affect.study.launcher.sweep_file import load_sweep_file, shipped_sweeps_folder
+    from sb3_affect.study.forensics.study_run import run_study, summary_lines  # (lazy for --help)
+    from sb3_affect.study.launcher.signals import stop_on_sigterm  # (lazy for --help)
+    from sb3_affect.study.launcher.study_schema import ForensicsStudy  # (lazy for --help)
+    from sb3_affect.study.launcher.sweep_file import load_sweep_file, shipped_sweeps_folder  # (lazy for --help)
 
     if args.workers < 1:
         raise SystemExit(f"sb3-affect forensics: error: --workers={args.workers} must be >= 1")

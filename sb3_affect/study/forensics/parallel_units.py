@@ -10,6 +10,8 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
+from tqdm.auto import tqdm
+
 from sb3_affect.engine.simulation import simulate
 from sb3_affect.study.forensics.candidates import STEP_UNITS, Protocol, Simulation
 from sb3_affect.study.forensics.statistics import cell_summary
@@ -113,8 +115,6 @@ def run_units(
     :param ray_address: the Ray cluster (default: a private instance of ``workers`` CPUs)
     :param ray_timeout: seconds to wait for the Ray cluster to answer
     """
-    from tqdm.auto import tqdm
-
     partial_ok = stop_above is not None
     todo = [u for u in dict.fromkeys(units) if not store.has(*u, partial_ok=partial_ok)]
     if not todo:

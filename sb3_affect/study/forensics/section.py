@@ -15,6 +15,7 @@ from sb3_affect.study.forensics.scoring import MIN_REACH_REPS, NOT_REACHED, NOT_
 from sb3_affect.study.forensics.statistics import LOG_SCALE, STATISTICS
 from sb3_affect.study.report.reading.study_tables import AFFECT_DEFAULT, COMMON
 from sb3_affect.study.report.rendering.document import fmt, md_table
+from sb3_affect.study.report.rendering.figures import plt
 
 FACTORS = ("comparison", "act", "units", "tie_break", "multi_cell", "alpha", "gamma", "optimal", "step", "table_v")
 
@@ -273,11 +274,6 @@ def findings_lines(table: pd.DataFrame, run: dict[str, Any]) -> list[str]:
 
 
 def _figure(folder: Path, table: pd.DataFrame, path: Path) -> Path | None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
     samples = [pd.read_csv(p) for p in sorted(folder.glob("sample_top*.csv"))]
     if not samples:
         return None

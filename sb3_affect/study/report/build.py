@@ -15,6 +15,9 @@ import importlib
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
+import gymnasium as gym
+
+import sb3_affect  # noqa: F401  (registers the envs)
 from sb3_affect.core.settings import TabularSettings
 from sb3_affect.study.launcher.one_run import package_env
 from sb3_affect.study.launcher.store import ResultsStore
@@ -84,10 +87,6 @@ def task_facts(folder: Path) -> tuple[int | None, int | None]:
     if not package_env(sweep["env"].get("id")):  # only the package's own envs are built: a folder's id is never imported
         return (caps.pop() if len(caps) == 1 else None), None
     try:
-        import gymnasium as gym
-
-        import sb3_affect  # noqa: F401  (registers the envs)
-
         env = gym.make(sweep["env"]["id"], **sweep["env"].get("kwargs", {}))
         length = getattr(env.unwrapped, "shortest_path_length", None)
         shortest = None if length is None else int(length)

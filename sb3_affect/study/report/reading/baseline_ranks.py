@@ -22,9 +22,11 @@ from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
+import gymnasium as gym
 import numpy as np
 import pandas as pd
 
+import sb3_affect  # noqa: F401  (registers the envs)
 from sb3_affect.core.emotions import EMOTION_NAMES
 from sb3_affect.study.launcher.one_run import package_env
 from sb3_affect.study.report.reading.run_tables import load_run_records
@@ -40,10 +42,6 @@ def capture_distance(config: dict[str, Any]) -> int | None:
     if not package_env(config["env_id"]):  # a folder's id is never imported (``module:Env``)
         return None
     if key not in _CAPTURE:
-        import gymnasium as gym
-
-        import sb3_affect  # noqa: F401  (registers the envs)
-
         env = gym.make(config["env_id"], **config.get("env_kwargs", {}))
         value = getattr(env.unwrapped, "capture_distance", None)
         _CAPTURE[key] = None if value is None else int(value)

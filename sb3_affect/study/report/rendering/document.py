@@ -9,6 +9,7 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import markdown
 import pandas as pd
 
 
@@ -165,8 +166,6 @@ class Document:
             elif kind == "ul":
                 parts.append("<ul>" + "".join(f"<li>{_inline(item)}</li>" for item in block[1]) + "</ul>")
             elif kind == "md":
-                import markdown
-
                 parts.append(f"<div class='md'>{markdown.markdown(block[1], extensions=['tables', 'sane_lists'])}</div>")
             elif kind == "img":
                 parts.append(f"<figure>{_img(block[1], block[2])}<figcaption>{html.escape(block[2])}</figcaption></figure>")

@@ -19,7 +19,7 @@ from sb3_affect.core.emotions import EMOTION_NAMES
 from sb3_affect.core.registry import EMOTION_MODELS
 from sb3_affect.envs.hunter_pursuit import HunterPursuitEnv
 from sb3_affect.study.report.reading.context import ReportContext
-from sb3_affect.study.report.rendering.figures import COLOURS
+from sb3_affect.study.report.rendering.figures import COLOURS, plt
 from sb3_affect.study.report.rendering.output_files import output_folder, replacing
 from sb3_affect.study.report.sections.hunters import add_markdown, hunter_folders, markdown_table, team_runs
 
@@ -84,11 +84,6 @@ def profile_table(frames: pd.DataFrame) -> pd.DataFrame:
 def side_by_side_figure(frames: pd.DataFrame, path: Path) -> Path:
     """Rows: tasks; columns: the paper's profile (affective hunters), Broekens' for the same hunters, Broekens' for
     the epsilon-greedy team's hunters. Means over runs and both hunters, per episode (10-episode moving average)."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
 
     colours = {**COLOURS, "distress": "tab:gray", "hope": "tab:green"}
     tasks = list(dict.fromkeys(frames.task))

@@ -118,7 +118,7 @@ def adastop_table(large: pd.DataFrame, column: str, n: int = 5, max_interims: in
     AdaStop (adastop package): affective against ε-greedy at each ε on ``column``, feeding ``n`` new runs per agent
     per interim (in replicate order) until each comparison is decided or ``max_interims`` are spent.
     """
-    from adastop import MultipleAgentsComparator
+    from adastop import MultipleAgentsComparator  # (2.5 s to import, for this test only: not on every report import)
 
     available = int(large.groupby(["agent", "epsilon"]).size().min())
     interims = max(1, min(max_interims, available // n))

@@ -20,7 +20,7 @@ import pandas as pd
 
 from sb3_affect.study.report.estimation.bootstrap import bootstrap_ci, bootstrap_improvement
 from sb3_affect.study.report.reading.context import ReportContext
-from sb3_affect.study.report.rendering.figures import COLOURS, distinct
+from sb3_affect.study.report.rendering.figures import COLOURS, distinct, plt
 from sb3_affect.study.report.rendering.output_files import output_folder, replacing
 
 #: Two-hunter results folders (experiments/hunters*.yaml): two hunters, and the two emotion models side by side.
@@ -156,11 +156,6 @@ def claims(metrics: pd.DataFrame) -> list[tuple[str, bool, str]]:
 
 def learning_figure(runs: list[dict[str, Any]], path: Path) -> Path:
     """Decisions (rounds) per episode, mean over runs with a 95% bootstrap band per 10-episode block, per task."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
 
     tasks = sorted({r["config"]["sweep"] for r in runs})
     # one colour per team in every panel: the paper agents' own colours, the other teams by name

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import pandas as pd
 
+import sb3_affect
 from sb3_affect.study.launcher.store import ResultsStore, StoreError
 from sb3_affect.study.report.reading.context import ReportContext
 from sb3_affect.study.report.rendering.document import fmt
@@ -44,8 +45,6 @@ def commit(package_dir: Path | None = None) -> str:
     source folder sits at the top of an sb3-affect git checkout (an editable install); never the commit of another
     repository that happens to surround site-packages. Otherwise a phrase saying why there is none.
     """
-    import sb3_affect
-
     package = Path(package_dir or Path(sb3_affect.__file__).resolve().parent)
     root = package.parent
 
