@@ -48,9 +48,12 @@ from sb3_affect.study.report.sections.window_verdicts import windows_section
 from sb3_affect.study.studies import STUDIES
 
 Section = Callable[[ReportContext], None]
-#: Sub-folders of a replicate folder the sections may read (``ctx.folders[name]``).
-FOLDERS = ("dqn", "ablation", "baselines", "baselines_moving7", "baselines_moving", "beyond", "hunters", "hunters_moving",
-           *(name for name, _, _ in MINIGRID_FOLDERS))
+#: Sub-folders of a replicate folder the sections may read (``ctx.folders[name]``): every study's (``studies.STUDIES``)
+#: besides the paper's, the MiniGrid sections' and the folders of earlier baselines sweeps.
+FOLDERS = tuple(dict.fromkeys((
+    "dqn", "ablation", "baselines", "baselines_moving7", "baselines_moving", "beyond", "hunters", "hunters_moving",
+    *(name for name, _, _ in MINIGRID_FOLDERS), *(study.name for study in STUDIES if study.name != "paper"),
+)))  # fmt: skip
 
 
 def overview_section(ctx: ReportContext) -> None:
