@@ -48,3 +48,7 @@ def test_every_section_takes_the_report_context_only() -> None:
     for section in [*SECTIONS, *APPENDIX]:
         assert list(inspect.signature(section).parameters) == ["ctx"], section.__name__
 
+
+
+def test_every_studys_folder_is_one_the_sections_may_read() -> None:
+    assert {study.name for study in STUDIES if study.name != "paper"} <= set(build.FOLDERS)
