@@ -57,7 +57,7 @@ nitpick_ignore_regex = [
     (r"py:class", r"sb3_affect\.agents\.(tabular\.SelfTabular|model_files\.SelfFiles)"),
     (r"py:class", r"(sb3_affect\.agents\.affectq\.)?SelfAffectQ"),  # the TypeVar of ``AffectQ.learn`` (SB3's convention)
     # internal types named in public signatures (a report section's context, a sweep's cell): described in interfaces
-    (r"py:class", r"sb3_affect\.study\.(report\.context\.ReportContext|launcher\.schema\.Cell)"),
+    (r"py:class", r"sb3_affect\.study\.(report\.reading\.context\.ReportContext|launcher\.schema\.Cell)"),
     # the store's checked view of a folder's files, handed from ``checked_files`` to ``results_parts`` (private module)
     (r"py:class", r"(sb3_affect\.study\.launcher\.folder_files\.)?FolderFiles"),
     (r"py:.*", r"(collections\.abc|typing|pathlib|enum|types|os|argparse|io)\..*"),
