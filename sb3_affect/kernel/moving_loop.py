@@ -1,21 +1,21 @@
 """
-The compiled decision loop on MovingPursuit (``sb3_affect.envs.moving_pursuit``): one tabular agent pursues a prey
-that random-walks or evades. ``sb3_affect/agents/reference_loop.py`` with the agent's ``_decide`` and the env's ``step`` is the
-reference; this loop does the same operations in the same order, so for the same seeds both give the identical episode
-log, Q-table, the agent's ``random.Random`` state (``kernel.mt19937``) and the env's NumPy generator state
+The compiled decision loop on MovingPursuit (``sb3_affect.envs.moving_pursuit``): one tabular agent pursues a prey that
+random-walks or evades. ``sb3_affect/agents/reference_loop.py`` with the agent's ``_decide`` and the env's ``step`` is
+the reference; this loop does the same operations in the same order, so for the same seeds both give the identical
+episode log, Q-table, the agent's ``random.Random`` state (``kernel.mt19937``) and the env's NumPy generator state
 (``kernel.pcg64``: the prey's draws).
 
-The env's step, as ``MovingPursuitEnv.step``: the hunter moves one cell (``cell_trans``), a capture when it enters
-the prey's cell; otherwise, with probability ``prey_speed`` (one ``random()`` draw when the speed is above 0), the
-prey moves: ``"random"`` to one of its four moves (``integers(4)``), ``"evade"`` to the candidate (staying or a
-neighbour, never the hunter's cell) farthest from the hunter, ties sorted and drawn with ``integers``; never onto the
-hunter. The observation is ``hunter * n_cells + prey``. The appraisal's known map is over observations
-(``decision.obs_known_add``). The env has no fixed goal, so the ``optimal`` and ``greedy_optimal`` columns are NaN, as the
-Python loop gives them.
+The env's step, as ``MovingPursuitEnv.step``: the hunter moves one cell (``cell_trans``), a capture when it enters the
+prey's cell; otherwise, with probability ``prey_speed`` (one ``random()`` draw when the speed is above 0), the prey
+moves: ``"random"`` to one of its four moves (``integers(4)``), ``"evade"`` to the candidate (staying or a neighbour,
+never the hunter's cell) farthest from the hunter, ties sorted and drawn with ``integers``; never onto the hunter. The
+observation is ``hunter * n_cells + prey``. The appraisal's known map is over observations (``decision.obs_known_add``).
+The env has no fixed goal, so the ``optimal`` and ``greedy_optimal`` columns are NaN, as the Python loop gives them.
 
 State crosses the boundary as arrays grouped in named tuples, as ``kernel.grid_loop``'s: ``PreyEnv``, ``Config``,
-``agent_settings.BehaviourRows``, ``RunState`` (its ``ist`` and ``fst`` at the indices below, ``mt`` the agent's MT19937
-state, ``pcg`` the env's PCG64 state), ``decision.ObsAppraisal``, ``grid_arrays.Episodes`` and ``Work``.
+``agent_settings.BehaviourRows``, ``RunState`` (its ``ist`` and ``fst`` at ``state_layout``'s indices, ``ist`` with this
+module's tail, ``mt`` the agent's MT19937 state, ``pcg`` the env's PCG64 state), ``decision.ObsAppraisal``,
+``grid_arrays.Episodes`` and ``Work``.
 """
 
 from __future__ import annotations
@@ -79,7 +79,7 @@ class Config(NamedTuple):
 
 
 class RunState(NamedTuple):
-    """The run's state (read and written): ``grid_arrays.RunState`` (at this module's indices) and the env's generator."""
+    """The run's state (read and written): ``grid_arrays.RunState`` (``ist`` with its tail) and the env's generator."""
 
     q: np.ndarray
     mt: np.ndarray
