@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -12,6 +11,9 @@ import pandas as pd
 
 from sb3_affect.study.forensics.scoring import MIN_REACH_REPS, NOT_REACHED, NOT_RULED_OUT, REACHED, transform
 from sb3_affect.study.forensics.statistics import LOG_SCALE, STATISTICS
+from sb3_affect.study.forensics.unit_files import MAX_SUMMARY_BYTES
+from sb3_affect.study.launcher.regular_files import open_regular, read_json
+from sb3_affect.study.launcher.store import _write_atomic
 from sb3_affect.study.report.document import _md_table, fmt
 
 FACTORS = ("comparison", "act", "units", "tie_break", "multi_cell", "alpha", "gamma", "optimal", "step", "table_v")
@@ -27,6 +29,12 @@ class ForensicsSection(NamedTuple):
 
     markdown: str
     figures: list[tuple[Path, str]]
+
+
+def _csv(path: Path, **kwargs: Any) -> pd.DataFrame:
+    """A CSV table the analysis wrote (a regular file only: ``regular_files``)."""
+    with open_regular(path) as handle:
+        return pd.read_csv(handle, **kwargs)
 
 
 def has_results(folder: str | Path) -> bool:
@@ -88,7 +96,7 @@ def leader_sensitivity_lines(folder: Path, leaders: pd.DataFrame, intervals: pd.
     path = Path(folder) / "sample_top1.csv"
     if not path.exists() or leaders.empty:
         return []
-    sample = pd.read_csv(path)
+    sample = _csv(path)
     leader = leaders.iloc[0]
     setting = ", ".join(f"{c} {leader[c]}" for c in ("alpha", "gamma") if c in leaders.columns)
     rows = pd.DataFrame(index=pd.Index(STATISTICS, name="statistic"))
@@ -152,10 +160,10 @@ def forensics_section(folder: str | Path, figures_dir: str | Path | None = None)
         raise FileNotFoundError(f"{folder} holds no forensics results (run `sb3-affect forensics --out {folder}`)")
     figures_dir = Path(figures_dir or folder / "figures")
     figures_dir.mkdir(parents=True, exist_ok=True)
-    run = json.loads((folder / "run.json").read_text())
-    leaders = pd.read_csv(folder / "leaders.csv")
-    screen = pd.read_csv(folder / "screen.csv")
-    table = pd.read_csv(folder / "intervals.csv", index_col=0)
+    run = read_json(folder / "run.json", MAX_SUMMARY_BYTES)
+    leaders = _csv(folder / "leaders.csv")
+    screen = _csv(folder / "screen.csv")
+    table = _csv(folder / "intervals.csv", index_col=0)
     lines = [
         "## Replication forensics: which implementation could have printed the paper's numbers?",
         "",
@@ -278,7 +286,7 @@ def _figure(folder: Path, table: pd.DataFrame, path: Path) -> Path | None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    samples = [pd.read_csv(p) for p in sorted(folder.glob("sample_top*.csv"))]
+    samples = [_csv(p) for p in sorted(folder.glob("sample_top*.csv"))]
     if not samples:
         return None
     printed = transform(table["printed"].to_numpy(dtype=float))
@@ -312,7 +320,7 @@ def report_section(folder: str | Path) -> Any:
     folder = Path(folder)
 
     def forensics_report_section(ctx: Any) -> None:
-        run = json.loads((folder / "run.json").read_text())
+        run = read_json(folder / "run.json", MAX_SUMMARY_BYTES)
         section = forensics_section(folder, ctx.out / "figures")
         ctx.doc.md(section.markdown)
         for figure_path, caption in section.figures:
@@ -333,5 +341,5 @@ def write_standalone(folder: str | Path) -> Path:
     for path, caption in section.figures:
         parts += [f"![{caption}]({path.relative_to(folder).as_posix()})", "", f"*{caption}*", ""]
     md = folder / "forensics.md"
-    md.write_text("\n".join(parts))
+    _write_atomic(md, "\n".join(parts).encode())
     return md
