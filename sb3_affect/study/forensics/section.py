@@ -295,8 +295,9 @@ def _figure(folder: Path, table: pd.DataFrame, path: Path) -> Path | None:
         for rank, sample in enumerate(samples):
             values = transform(sample.to_numpy(dtype=float))[:, index]
             values = values[np.isfinite(values)]
-            if len(values):
-                ax.hist(values, bins=20, alpha=0.45, label=f"#{rank + 1}", color=f"C{rank}")
+            if len(values):  # values equal to float precision can not be cut into 20 bins: one
+                bins = 20 if np.all(np.diff(np.linspace(values.min(), values.max(), 21)) > 0) else 1
+                ax.hist(values, bins=bins, alpha=0.45, label=f"#{rank + 1}", color=f"C{rank}")
         if np.isfinite(printed[index]):
             ax.axvline(printed[index], color="black", lw=2, label="paper")
         ax.set_title(name + (" (log)" if LOG_SCALE[index] else ""), fontsize=9)

@@ -199,14 +199,15 @@ def _bound_kwargs(data: dict[str, Any]) -> dict[tuple[str, str], Any]:
     return found
 
 
-def _check_still_bound(before: dict[tuple[str, str], Any], after: dict[tuple[str, str], Any], assignment: str,
-                       path: Path) -> None:
+def _check_still_bound(before: dict[tuple[str, str], Any], data: dict[str, Any], assignment: str, path: Path) -> None:
     """
     Refuse an override that replaces (or drops) a kwarg bound to a grid label (``$label``) of an agent it leaves in
     the file, whatever key path it set (``agents.0.kwargs={...}``, ``agents.0={...}``): the runs would be labelled
     with grid values they did not run with.
     """
-    names = {name for name, _ in after}
+    after = _bound_kwargs(data)
+    agents = data.get("agents") if isinstance(data.get("agents"), list) else []
+    names = {agent.get("name") for agent in agents if isinstance(agent, dict)}
     for (name, key), value in before.items():
         match = KWARG_REFERENCE.match(value) if isinstance(value, str) else None
         if match is None or name not in names:
@@ -321,7 +322,7 @@ def load_sweep_file(
             raise SweepError(f"{error} [sweep file: {path}]") from None
         except (KeyError, IndexError, ValueError, TypeError, AttributeError) as error:
             raise SweepError(f"--set {assignment!r} does not apply to {path} ({error})") from None
-        _check_still_bound(bound, _bound_kwargs(data), assignment, path)
+        _check_still_bound(bound, data, assignment, path)
     _check_size(data, str(path))
     model = _model_of(data)
     try:
