@@ -3,9 +3,9 @@ Reading a results folder column-wise (the read side of ``ResultsStore``): one ro
 and the run files, and the episode columns as numpy arrays, without a Python object per episode.
 
 A results folder of 180,000 runs of 200 episodes is 36 M episode rows: ``read_folder`` allocates each wanted column
-once at its final size (int64 counts, bool flags, float64 otherwise) and fills it chunk by chunk, so its peak memory is
-the columns themselves plus one chunk. Rows come in one canonical order whatever the layout and the batching: runs by
-run id, each run's episodes in the order stored (episode order).
+once at its final size (int32 counts, bool flags, float64 otherwise; wider where a value needs it) and fills it
+chunk by chunk, so its peak memory is the columns themselves plus one chunk. Rows come in one canonical order
+whatever the layout and the batching: runs by run id, each run's episodes in the order stored (episode order).
 """
 
 from __future__ import annotations
@@ -27,11 +27,12 @@ from sb3_affect.study.launcher.run_ids import RUN_COLUMNS, run_id
 
 def column_dtype(column: str) -> type:
     """
-    The dtype of an episode column once read: int64 counts, bool flags (float64 with NaN where a run can not tell, in
-    a read that holds such a flag: ``read_folder``), float64 otherwise (NaN: not defined).
+    The dtype of an episode column once read: int32 counts, bool flags, float64 otherwise (NaN: not defined). A read
+    that holds a count beyond int32's range reads that column as int64, one that holds a flag a run could not tell
+    reads that flag as float64 with NaN there (``read_folder``): every value reads back as the engine gave it.
     """
     if column in INT_COLUMNS:
-        return np.int64
+        return np.int32
     if column in BOOL_COLUMNS:
         return np.bool_
     return np.float64
@@ -49,9 +50,20 @@ def typed(column: str, values: list[Any]) -> np.ndarray:
     return np.asarray([np.nan if v is None else v for v in values], dtype=np.float64)
 
 
+_INT32 = np.iinfo(np.int32)
+
+
 def _room_for(target: np.ndarray, values: np.ndarray) -> np.ndarray:
-    """``target``, or a float64 copy of it when ``values`` are flags with NaN (a run that can not tell) and it is bool."""
-    return target.astype(np.float64) if target.dtype == np.bool_ and values.dtype.kind == "f" else target
+    """
+    ``target``, or a copy of it wide enough for ``values``: int64 for counts beyond int32's range, float64 for flags
+    with NaN (a run that can not tell).
+    """
+    if target.dtype == np.bool_ and values.dtype.kind == "f":
+        return target.astype(np.float64)
+    wide = target.dtype == np.int32 and values.dtype.itemsize > 4 and len(values)
+    if wide and (values.min() < _INT32.min or values.max() > _INT32.max):
+        return target.astype(np.int64)
+    return target
 
 
 def run_row(rid: str, config: dict[str, Any], decisions: int | None, episodes: int, wall: float | None) -> dict[str, Any]:

@@ -373,8 +373,9 @@ class ResultsStore:
         :param columns: the episode columns wanted (default every ``EPISODE_COLUMNS`` column)
         :param seed: repeat each run's seed on its episode rows (int64; the run table has it anyway)
         :return: ``(runs_frame(), episodes)``; ``episodes`` has one row per episode: ``run_id``, ``agent``, ``seed``
-            and one column per label (categoricals but ``seed``), then the episode columns (integers as int32, flags
-            as bool, the rest float64); runs in run id order, each run's rows together in episode order
+            and one column per label (categoricals but ``seed``), then the episode columns (integers as int32, or int64
+            when a count needs it; flags as bool, or float64 with NaN when a run could not tell; the rest float64); runs
+            in run id order, each run's rows together in episode order
         """
         from sb3_affect.study.launcher.folder_reading import RUN_COLUMNS, episode_table, read_folder
 

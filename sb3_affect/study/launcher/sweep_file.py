@@ -186,12 +186,12 @@ def _bound_kwargs(data: dict[str, Any]) -> dict[tuple[str, str], Any]:
     is the ``$label`` reference or whatever stands there instead (``None``: not given).
     """
     found: dict[tuple[str, str], Any] = {}
-    agents = data.get("agents") if isinstance(data.get("agents"), list) else []
+    agents: list[Any] = data["agents"] if isinstance(data.get("agents"), list) else []
     for agent in agents:
         if not isinstance(agent, dict) or not isinstance(agent.get("name"), str):
             continue
         places = [("kwargs", agent.get("kwargs"))]
-        team = agent.get("team") if isinstance(agent.get("team"), list) else []
+        team: list[Any] = agent["team"] if isinstance(agent.get("team"), list) else []
         places += [(f"team.{i}.kwargs", m.get("kwargs")) for i, m in enumerate(team) if isinstance(m, dict)]
         for where, kwargs in places:
             for key, value in (kwargs if isinstance(kwargs, dict) else {}).items():
@@ -206,7 +206,7 @@ def _check_still_bound(before: dict[tuple[str, str], Any], data: dict[str, Any],
     with grid values they did not run with.
     """
     after = _bound_kwargs(data)
-    agents = data.get("agents") if isinstance(data.get("agents"), list) else []
+    agents: list[Any] = data["agents"] if isinstance(data.get("agents"), list) else []
     names = {agent.get("name") for agent in agents if isinstance(agent, dict)}
     for (name, key), value in before.items():
         match = KWARG_REFERENCE.match(value) if isinstance(value, str) else None
