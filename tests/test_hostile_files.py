@@ -268,3 +268,17 @@ def test_markdown_tables_escape_what_would_break_them(tmp_path: Path) -> None:
     rows = [line for line in doc.markdown(tmp_path).splitlines() if line.startswith("|")]
     assert len(rows) == 4 and len({len(re.split(r"(?<!\\)\|", row)) for row in rows}) == 1, rows
     assert "<b>" not in "\n".join(rows) and "x\\|y &lt;b&gt;" in rows[2]
+
+
+def test_the_forensics_figure_draws_samples_equal_to_float_precision(tmp_path: Path) -> None:
+    import numpy as np
+
+    from sb3_affect.study.forensics.section import _figure
+    from sb3_affect.study.forensics.statistics import STATISTICS
+
+    values = np.full((3, len(STATISTICS)), 27.35)
+    values[1] = np.nextafter(27.35, 30.0)  # a tiny sample's replications can agree to the last bit but one
+    pd.DataFrame(values, columns=list(STATISTICS)).to_csv(tmp_path / "sample_top1.csv", index=False)
+    table = pd.DataFrame({"printed": np.full(len(STATISTICS), 27.35)}, index=pd.Index(STATISTICS))
+    figure = _figure(tmp_path, table, tmp_path / "figure.png")
+    assert figure is not None and figure.stat().st_size > 0
