@@ -160,6 +160,7 @@ def test_chunk_columns_are_the_arrow_arrays_of_pa_array(n: int) -> None:
     rng = np.random.default_rng(n)
     cases = [
         (pa.int32(), rng.integers(-5, 10**6, n), np.int32),
+        (pa.int64(), rng.integers(-(2**62), 2**62, n), np.int64),
         (pa.float64(), np.r_[rng.normal(size=n)[: max(0, n - 2)], [np.nan, -0.0][: min(n, 2)]], np.float64),
         (pa.bool_(), rng.random(n) < 0.3, bool),
     ]
@@ -169,3 +170,7 @@ def test_chunk_columns_are_the_arrow_arrays_of_pa_array(n: int) -> None:
         expected = pa.array(values.astype(dtype))
         assert made.type == kind and made.null_count == 0 and len(made) == n, kind
         assert made.to_numpy(zero_copy_only=False).tobytes() == expected.to_numpy(zero_copy_only=False).tobytes(), kind
+    flags, missing = rng.random(n) < 0.5, rng.random(n) < 0.3  # flags a run can not tell: nulls where pa.array has them
+    made = arrow_array(flags, pa.bool_(), missing)
+    made.validate(full=True)
+    assert made.to_pylist() == pa.array([None if m else bool(f) for f, m in zip(flags, missing)], pa.bool_()).to_pylist()

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import sys
 import time
@@ -315,6 +316,10 @@ def main(argv: list[str] | None = None) -> int:
     except MissingExtraError as error:  # a study tool whose extra is not installed: one line saying which
         print(f"sb3-affect: error: {error}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # `sb3-affect status DIR | head -1`: the reader has gone; say nothing more
+        with contextlib.suppress(OSError):  # (the interpreter's last flush of stdout would raise it again)
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 141  # as a shell reports a command that SIGPIPE ended
 
 
 #: The extra each command needs (``run`` and ``status``: the launcher's).

@@ -374,8 +374,13 @@ def _heartbeat(what: str, every: float | None = None) -> Iterator[None]:
 
 def _refuse_a_sweep_folder(out_dir: Path) -> None:
     """A replication's folder holds its sweeps in sub-folders: one that holds a sweep itself is refused (a mix)."""
-    from sb3_affect.study.launcher.store import ResultsStore, StoreError
+    from sb3_affect.study.launcher.store import FORENSICS_FILE, ResultsStore, StoreError
 
+    if (out_dir / FORENSICS_FILE).exists() or (out_dir / FORENSICS_FILE).is_symlink():
+        raise StoreError(
+            f"{out_dir} holds the replication forensics ({FORENSICS_FILE}), which a replication would mix with; give "
+            f"the replication a folder of its own, e.g. --out {out_dir / 'replication'}"
+        )
     store = ResultsStore(out_dir)
     saved = store.saved_sweep()
     if saved is not None or any(store.chunks.glob("[!.]*.parquet")) or any(store.runs.glob("[!.]*.json")):
@@ -396,11 +401,17 @@ class _Record:
     """
 
     def __init__(self, out_dir: Path) -> None:
+        from sb3_affect.study.launcher.folder_files import MAX_SWEEP_FILE_BYTES
+        from sb3_affect.study.launcher.regular_files import UnreadableFile, read_json
+        from sb3_affect.study.launcher.store import StoreError
+
         out_dir.mkdir(parents=True, exist_ok=True)
         self.path = out_dir / "replicate.json"
         try:
-            saved = json.loads(self.path.read_text())
-        except (OSError, ValueError):
+            saved = read_json(self.path, MAX_SWEEP_FILE_BYTES)
+        except UnreadableFile as error:
+            if error.reason != "does not exist":
+                raise StoreError(f"{error}; {self.path.name} is the record replicate writes: move it away") from None
             saved = {}
         saved = saved if isinstance(saved, dict) else {}
         timings, runs = saved.get("timings"), saved.get("runs")

@@ -42,9 +42,9 @@ from sb3_affect.study.forensics.scoring import (
     reach_findings,
     transform,
 )
-from sb3_affect.study.forensics.section import write_standalone
 from sb3_affect.study.forensics.statistics import STATISTICS, candidate_statistics, printed_numbers
 from sb3_affect.study.forensics.unit_files import SummaryStore
+from sb3_affect.study.launcher.store import store_error, write_atomic
 
 #: Pre-screen: a simulation whose mean steps per episode (one replication) is more than this factor from its agent's
 #: printed Table IV mean, in both step units, is not screened further (its candidates score -inf).
@@ -169,94 +169,104 @@ def run_forensics(
         raise ValueError(f"printed must hold {len(STATISTICS)} values ({', '.join(STATISTICS)}), got shape {observed.shape}")
     out = Path(out)
     store = SummaryStore(out, protocol)
-    affective = space.affective_simulations()
-    standard = space.standard_simulations()
-    screen_range = range(screen_reps)
-    samples = _Samples(store)
-    cells = len(protocol.epsilons)
-    requested: dict[tuple[Simulation, int], None] = {}
-    simulated = 0
+    with store.lock():  # one run at a time in a folder, as a sweep's launcher
+        affective = space.affective_simulations()
+        standard = space.standard_simulations()
+        screen_range = range(screen_reps)
+        samples = _Samples(store)
+        cells = len(protocol.epsilons)
+        requested: dict[tuple[Simulation, int], None] = {}
+        simulated = 0
 
-    def phase(units: list[tuple[Simulation, int]], desc: str, stop_above: dict[Simulation, float] | None) -> None:
-        nonlocal simulated
-        requested.update(dict.fromkeys(units))
-        simulated += run_units(store, units, workers, progress, desc, stop_above, backend, ray_address, ray_timeout)
+        def phase(units: list[tuple[Simulation, int]], desc: str, stop_above: dict[Simulation, float] | None) -> None:
+            nonlocal simulated
+            requested.update(dict.fromkeys(units))
+            simulated += run_units(store, units, workers, progress, desc, stop_above, backend, ray_address, ray_timeout)
 
-    stop = {sim: REJECT_FACTOR * cells * _printed_steps(observed, sim.agent == STANDARD) for sim in standard + affective}
-    phase(_units(standard + affective, range(1)), "pre-screen", stop)
-    ratios = {
-        sim: _steps_ratio(store.read(sim, 0, partial_ok=True), observed, sim.agent == STANDARD, cells)
-        for sim in standard + affective
-    }
-    kept = [sim for sim in affective if max(ratios[sim], ratios[sim.standard]) <= REJECT_FACTOR]
-    partners = list(dict.fromkeys(sim.standard for sim in kept))
-    phase(_units(partners + kept, screen_range), "screen", None)
+        stop = {sim: REJECT_FACTOR * cells * _printed_steps(observed, sim.agent == STANDARD) for sim in standard + affective}
+        phase(_units(standard + affective, range(1)), "pre-screen", stop)
+        ratios = {
+            sim: _steps_ratio(store.read(sim, 0, partial_ok=True), observed, sim.agent == STANDARD, cells)
+            for sim in standard + affective
+        }
+        kept = [sim for sim in affective if max(ratios[sim], ratios[sim.standard]) <= REJECT_FACTOR]
+        partners = list(dict.fromkeys(sim.standard for sim in kept))
+        phase(_units(partners + kept, screen_range), "screen", None)
 
-    rows = []
-    screened = {}
-    for candidate in space.candidates():
-        sim = candidate.affective
-        ratio = max(ratios[sim], ratios[sim.standard])
-        screened[candidate.name] = samples.sample(candidate, screen_range if sim in kept else range(0))
-        ll = log_likelihood(screened[candidate.name], observed, diagonal=True) if sim in kept else -math.inf
-        rows.append({"candidate": candidate.name, **candidate.describe(), "screen_loglik": ll, "steps_ratio": ratio})
-    screen = pd.DataFrame(rows).sort_values(["screen_loglik", "steps_ratio"], ascending=[False, True], kind="stable")
-    screen = screen.reset_index(drop=True)
-    by_sim = {c.name: c for c in space.candidates()}
-    leading: list[Simulation] = []
-    for name in screen.candidate:
-        sim = by_sim[name].affective
-        if sim not in leading:
-            leading.append(sim)
-        if len(leading) == leaders:
-            break
-    full_range = range(reps)
-    leader_units = _units(list(dict.fromkeys([s.standard for s in leading])) + leading, full_range)
-    phase(leader_units, "leaders", None)
+        rows = []
+        screened = {}
+        for candidate in space.candidates():
+            sim = candidate.affective
+            ratio = max(ratios[sim], ratios[sim.standard])
+            screened[candidate.name] = samples.sample(candidate, screen_range if sim in kept else range(0))
+            ll = log_likelihood(screened[candidate.name], observed, diagonal=True) if sim in kept else -math.inf
+            rows.append({"candidate": candidate.name, **candidate.describe(), "screen_loglik": ll, "steps_ratio": ratio})
+        screen = pd.DataFrame(rows).sort_values(["screen_loglik", "steps_ratio"], ascending=[False, True], kind="stable")
+        screen = screen.reset_index(drop=True)
+        by_sim = {c.name: c for c in space.candidates()}
+        leading: list[Simulation] = []
+        for name in screen.candidate:
+            sim = by_sim[name].affective
+            if sim not in leading:
+                leading.append(sim)
+            if len(leading) == leaders:
+                break
+        full_range = range(reps)
+        leader_units = _units(list(dict.fromkeys([s.standard for s in leading])) + leading, full_range)
+        phase(leader_units, "leaders", None)
 
-    finalists = [c for c in space.candidates() if c.affective in leading]
-    full = {c.name: samples.sample(c, full_range) for c in finalists}
-    leaders_table = pd.DataFrame(
-        [{"candidate": c.name, **c.describe(), "loglik": log_likelihood(full[c.name], observed)} for c in finalists]
-    )
-    leaders_table["posterior"] = posterior(leaders_table.loglik)
-    leaders_table = leaders_table.sort_values("loglik", ascending=False, kind="stable").reset_index(drop=True)
-    table, unreached = _interval_table(leaders_table, full, screened, observed)
-    # the same ranking with the unreachable statistics left out: which candidate explains the rest best
-    reachable = np.where(np.isin(np.array(STATISTICS), unreached), np.nan, observed)
-    leaders_table["loglik_reachable"] = [log_likelihood(full[name], reachable) for name in leaders_table.candidate]
-    leaders_table["posterior_reachable"] = posterior(leaders_table.loglik_reachable)
-    # the Monte Carlo error of each log-likelihood (bootstrap over its replications), for the section's differences
-    leaders_table["loglik_mc_error"] = [monte_carlo_error(full[name], observed) for name in leaders_table.candidate]
-    leaders_table["loglik_reachable_mc_error"] = [
-        monte_carlo_error(full[name], reachable) for name in leaders_table.candidate
-    ]
-    seconds = time.perf_counter() - start
-    result = ForensicsResult(screen, leaders_table, table, unreached, seconds, simulated, len(requested) - simulated)
-    screen.to_csv(out / "screen.csv", index=False)
-    leaders_table.to_csv(out / "leaders.csv", index=False)
-    table.to_csv(out / "intervals.csv")
-    for rank, name in enumerate(leaders_table.candidate[:3]):
-        pd.DataFrame(full[name], columns=list(STATISTICS)).to_csv(out / f"sample_top{rank + 1}.csv", index=False)
-    (out / "run.json").write_text(
-        pd.Series(
-            {
-                "screen_reps": screen_reps,
-                "leaders": leaders,
-                "reps": reps,
-                "candidates": len(screen),
-                "affective_simulations": len(affective),
-                "standard_simulations": len(standard),
-                "seconds": round(result.seconds, 1),
-                "unreached": unreached,
-                "findings": dict(zip(STATISTICS, table["finding"])),
-                "printed": observed.tolist(),
-            }
-        ).to_json(indent=1)
-    )
+        finalists = [c for c in space.candidates() if c.affective in leading]
+        full = {c.name: samples.sample(c, full_range) for c in finalists}
+        leaders_table = pd.DataFrame(
+            [{"candidate": c.name, **c.describe(), "loglik": log_likelihood(full[c.name], observed)} for c in finalists]
+        )
+        leaders_table["posterior"] = posterior(leaders_table.loglik)
+        leaders_table = leaders_table.sort_values("loglik", ascending=False, kind="stable").reset_index(drop=True)
+        table, unreached = _interval_table(leaders_table, full, screened, observed)
+        # the same ranking with the unreachable statistics left out: which candidate explains the rest best
+        reachable = np.where(np.isin(np.array(STATISTICS), unreached), np.nan, observed)
+        leaders_table["loglik_reachable"] = [log_likelihood(full[name], reachable) for name in leaders_table.candidate]
+        leaders_table["posterior_reachable"] = posterior(leaders_table.loglik_reachable)
+        # the Monte Carlo error of each log-likelihood (bootstrap over its replications), for the section's differences
+        leaders_table["loglik_mc_error"] = [monte_carlo_error(full[name], observed) for name in leaders_table.candidate]
+        leaders_table["loglik_reachable_mc_error"] = [
+            monte_carlo_error(full[name], reachable) for name in leaders_table.candidate
+        ]
+        seconds = time.perf_counter() - start
+        result = ForensicsResult(screen, leaders_table, table, unreached, seconds, simulated, len(requested) - simulated)
+        files = {
+            "screen.csv": screen.to_csv(index=False),
+            "leaders.csv": leaders_table.to_csv(index=False),
+            "intervals.csv": table.to_csv(),
+            **{
+                f"sample_top{rank + 1}.csv": pd.DataFrame(full[name], columns=list(STATISTICS)).to_csv(index=False)
+                for rank, name in enumerate(leaders_table.candidate[:3])
+            },
+        }
+        files["run.json"] = (
+            pd.Series(
+                {
+                    "screen_reps": screen_reps,
+                    "leaders": leaders,
+                    "reps": reps,
+                    "candidates": len(screen),
+                    "affective_simulations": len(affective),
+                    "standard_simulations": len(standard),
+                    "seconds": round(result.seconds, 1),
+                    "unreached": unreached,
+                    "findings": dict(zip(STATISTICS, table["finding"])),
+                    "printed": observed.tolist(),
+                }
+            ).to_json(indent=1)
+        )
 
-    write_standalone(out)
-    return result
+        for name, text in files.items():  # each whole or not at all (a full disk, a kill): a rerun rewrites them
+            write_atomic(out / name, text.encode())
+        try:
+            write_standalone(out)
+        except OSError as error:
+            raise store_error(out, error) from None
+        return result
 
 
 def _interval_table(

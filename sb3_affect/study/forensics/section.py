@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -13,9 +12,11 @@ import pandas as pd
 from sb3_affect.core.settings import AffectQSettings
 from sb3_affect.study.forensics.scoring import MIN_REACH_REPS, NOT_REACHED, NOT_RULED_OUT, REACHED, transform
 from sb3_affect.study.forensics.statistics import LOG_SCALE, STATISTICS
+from sb3_affect.study.forensics.unit_files import MAX_SUMMARY_BYTES
+from sb3_affect.study.launcher.regular_files import open_regular, read_json
+from sb3_affect.study.launcher.store import write_atomic
 from sb3_affect.study.report.reading.study_tables import AFFECT_DEFAULT, COMMON
 from sb3_affect.study.report.rendering.document import fmt, md_table
-from sb3_affect.study.report.rendering.figures import plt
 
 FACTORS = ("comparison", "act", "units", "tie_break", "multi_cell", "alpha", "gamma", "optimal", "step", "table_v")
 
@@ -30,6 +31,12 @@ class ForensicsSection(NamedTuple):
 
     markdown: str
     figures: list[tuple[Path, str]]
+
+
+def _csv(path: Path, **kwargs: Any) -> pd.DataFrame:
+    """A CSV table the analysis wrote (a regular file only: ``regular_files``)."""
+    with open_regular(path) as handle:
+        return pd.read_csv(handle, **kwargs)
 
 
 def has_results(folder: str | Path) -> bool:
@@ -89,7 +96,7 @@ def leader_sensitivity_lines(folder: Path, leaders: pd.DataFrame, intervals: pd.
     path = Path(folder) / "sample_top1.csv"
     if not path.exists() or leaders.empty:
         return []
-    sample = pd.read_csv(path)
+    sample = _csv(path)
     leader = leaders.iloc[0]
     setting = ", ".join(f"{c} {leader[c]}" for c in ("alpha", "gamma") if c in leaders.columns)
     rows = pd.DataFrame(index=pd.Index(STATISTICS, name="statistic"))
@@ -153,10 +160,10 @@ def forensics_section(folder: str | Path, figures_dir: str | Path | None = None)
         raise FileNotFoundError(f"{folder} holds no forensics results (run `sb3-affect forensics --out {folder}`)")
     figures_dir = Path(figures_dir or folder / "figures")
     figures_dir.mkdir(parents=True, exist_ok=True)
-    run = json.loads((folder / "run.json").read_text())
-    leaders = pd.read_csv(folder / "leaders.csv")
-    screen = pd.read_csv(folder / "screen.csv")
-    table = pd.read_csv(folder / "intervals.csv", index_col=0)
+    run = read_json(folder / "run.json", MAX_SUMMARY_BYTES)
+    leaders = _csv(folder / "leaders.csv")
+    screen = _csv(folder / "screen.csv")
+    table = _csv(folder / "intervals.csv", index_col=0)
     lines = [
         "## Replication forensics: which implementation could have printed the paper's numbers?",
         "",
@@ -274,7 +281,12 @@ def findings_lines(table: pd.DataFrame, run: dict[str, Any]) -> list[str]:
 
 
 def _figure(folder: Path, table: pd.DataFrame, path: Path) -> Path | None:
-    samples = [pd.read_csv(p) for p in sorted(folder.glob("sample_top*.csv"))]
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    samples = [_csv(p) for p in sorted(folder.glob("sample_top*.csv"))]
     if not samples:
         return None
     printed = transform(table["printed"].to_numpy(dtype=float))
@@ -283,8 +295,9 @@ def _figure(folder: Path, table: pd.DataFrame, path: Path) -> Path | None:
         for rank, sample in enumerate(samples):
             values = transform(sample.to_numpy(dtype=float))[:, index]
             values = values[np.isfinite(values)]
-            if len(values):
-                ax.hist(values, bins=20, alpha=0.45, label=f"#{rank + 1}", color=f"C{rank}")
+            if len(values):  # values equal to float precision can not be cut into 20 bins: one
+                bins = 20 if np.all(np.diff(np.linspace(values.min(), values.max(), 21)) > 0) else 1
+                ax.hist(values, bins=bins, alpha=0.45, label=f"#{rank + 1}", color=f"C{rank}")
         if np.isfinite(printed[index]):
             ax.axvline(printed[index], color="black", lw=2, label="paper")
         ax.set_title(name + (" (log)" if LOG_SCALE[index] else ""), fontsize=9)
@@ -308,7 +321,7 @@ def report_section(folder: str | Path) -> Any:
     folder = Path(folder)
 
     def forensics_report_section(ctx: Any) -> None:
-        run = json.loads((folder / "run.json").read_text())
+        run = read_json(folder / "run.json", MAX_SUMMARY_BYTES)
         section = forensics_section(folder, ctx.out / "figures")
         ctx.doc.md(section.markdown)
         for figure_path, caption in section.figures:
@@ -329,5 +342,5 @@ def write_standalone(folder: str | Path) -> Path:
     for path, caption in section.figures:
         parts += [f"![{caption}]({path.relative_to(folder).as_posix()})", "", f"*{caption}*", ""]
     md = folder / "forensics.md"
-    md.write_text("\n".join(parts))
+    write_atomic(md, "\n".join(parts).encode())
     return md

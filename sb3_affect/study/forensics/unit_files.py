@@ -13,17 +13,30 @@ A rerun skips every replication already on disk: an interrupted run resumes wher
 
 from __future__ import annotations
 
-import json
+import contextlib
+import math
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import pandas as pd
 
 from sb3_affect.study.forensics.candidates import Protocol, Simulation
-from sb3_affect.study.launcher.store import StoreError, replication_parts, write_atomic
+from sb3_affect.study.launcher.regular_files import UnreadableFile, read_json
+from sb3_affect.study.launcher.store import (
+    FORENSICS_FILE,
+    ResultsStore,
+    StoreError,
+    replication_parts,
+    store_error,
+    write_atomic,
+)
 
 #: The file that marks a forensics folder and holds its protocol.
-PROTOCOL_FILE = "forensics.json"
+PROTOCOL_FILE = FORENSICS_FILE
+#: The largest summary or protocol file read (a replication's summary is a few kB).
+MAX_SUMMARY_BYTES = 2**20
+_REDO = "move it out of the folder and rerun the same command to simulate it again"
 
 
 class SummaryStore:
@@ -43,18 +56,31 @@ class SummaryStore:
                 f"{self.root} holds a replication or a sweep ({', '.join(held)}), which the forensics would mix with; "
                 f"give the forensics a folder of its own, e.g. --out {self.root / 'forensics'}"
             )
-        self.root.mkdir(parents=True, exist_ok=True)
+        try:
+            self.root.mkdir(parents=True, exist_ok=True)
+        except OSError as error:
+            raise store_error(self.root, error) from None
         saved = self.root / PROTOCOL_FILE
         wanted = {"protocol": protocol.as_dict()}
-        if saved.exists():
-            found = json.loads(saved.read_text())
-            if found.get("protocol") != wanted["protocol"]:
+        if saved.exists() or saved.is_symlink():
+            try:
+                found = read_json(saved, MAX_SUMMARY_BYTES)
+            except UnreadableFile as error:
+                raise StoreError(f"{error}; a forensics folder's protocol record must be the JSON it wrote") from None
+            if not isinstance(found, dict) or found.get("protocol") != wanted["protocol"]:
+                found = found.get("protocol") if isinstance(found, dict) else found
                 raise StoreError(
-                    f"{self.root} holds forensics of another protocol ({found.get('protocol')}); "
+                    f"{self.root} holds forensics of another protocol ({found}); "
                     f"use another --out folder for {wanted['protocol']}"
                 )
         else:
             write_atomic(saved, wanted)
+
+    @contextlib.contextmanager
+    def lock(self) -> Iterator[None]:
+        """Hold the folder's lock while running, as a sweep's launcher does (StoreError at once when it is taken)."""
+        with ResultsStore(self.root).lock():
+            yield
 
     def path(self, simulation: Simulation, replication: int, complete: bool = True) -> Path:
         name = f"r{replication:04d}.json" if complete else f"r{replication:04d}.partial.json"
@@ -70,7 +96,10 @@ class SummaryStore:
         self, simulation: Simulation, replication: int, cells: dict[float, dict[str, float]], complete: bool = True
     ) -> None:
         path = self.path(simulation, replication, complete)
-        path.parent.mkdir(parents=True, exist_ok=True)
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+        except OSError as error:
+            raise store_error(path.parent, error) from None
         payload: dict[str, Any] = {
             "simulation": simulation.key,
             "replication": replication,
@@ -84,8 +113,20 @@ class SummaryStore:
         path = self.path(simulation, replication)
         if partial_ok and not path.exists():
             path = self.path(simulation, replication, complete=False)
-        payload = json.loads(path.read_text())
-        frame = pd.DataFrame.from_dict({float(k): v for k, v in payload["cells"].items()}, orient="index")
+        try:
+            payload = read_json(path, MAX_SUMMARY_BYTES)
+        except UnreadableFile as error:
+            raise StoreError(f"{error}; {_REDO}") from None
+        cells = payload.get("cells") if isinstance(payload, dict) else None
+        try:
+            if not isinstance(cells, dict) or not cells:
+                raise ValueError("no cells")
+            rows = {float(k): v for k, v in cells.items()}
+            if not all(isinstance(v, dict) and math.isfinite(k) for k, v in rows.items()):
+                raise ValueError("a cell is not a row")
+            frame = pd.DataFrame.from_dict(rows, orient="index")
+        except (ValueError, TypeError):
+            raise StoreError(f"{path}: is not a replication's summary (no per-epsilon cells); {_REDO}") from None
         return frame.sort_index()
 
     def replications(self, simulation: Simulation) -> list[int]:
@@ -109,7 +150,7 @@ def folder_status(root: str | Path) -> str:
         f"of {len(folders)} simulations"
     )
     try:
-        run = json.loads((root / "run.json").read_text())
+        run = read_json(root / "run.json", MAX_SUMMARY_BYTES)
         sizes = f"{run['screen_reps']} screen, {run['leaders']} leaders x {run['reps']} replications"
     except (OSError, ValueError, KeyError, TypeError):
         return f"{line}; no analysis written yet (rerun the same command to resume)"

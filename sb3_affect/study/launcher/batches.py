@@ -3,12 +3,12 @@ Units of work of the launcher: batches of tabular runs (one ``engine.simulate`` 
 single runs (``execute_run``, stored as one JSON file).
 
 A run goes into a batch when ``simulate`` computes exactly what ``execute_run`` would: a tabular agent class of this
-package on one of its envs, stopped by the episode count alone (no ``max_timesteps``), without per-run SB3 logs or a
-trace (``launcher.emotion_trace``: the Python loop). The runs of a batch share one cell (agent and grid point: the
-same config but for seed and replicate). Team runs of the package's agents go into team batches (``TeamBatch``: one
-worker runs them one after the other on the team kernel, each stored as its own run file), traced runs into traced
-batches (``TracedBatch``: the same on the Python loop). Anything else (DQN, a user's class, ``--logs``) runs on its
-own, as before.
+package on one of its envs without wrappers, stopped by the episode count alone (no ``max_timesteps``), without
+per-run SB3 logs or a trace (``launcher.emotion_trace``: the Python loop). The runs of a batch share one cell (agent
+and grid point: the same config but for seed and replicate). Team runs of the package's agents go into team batches
+(``TeamBatch``: one worker runs them one after the other on the team kernel, each stored as its own run file), traced
+runs into traced batches (``TracedBatch``: the same on the Python loop). Anything else (DQN, a user's class, ``--logs``,
+wrappers) runs on its own, as before.
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ from typing import Any, Protocol
 
 from sb3_affect.study.launcher.chunks import encode_chunk
 from sb3_affect.study.launcher.one_run import execute_run, package_env, package_versions
-from sb3_affect.study.launcher.run_ids import run_config
+from sb3_affect.study.launcher.run_ids import readable, run_config
 
 #: The most runs one batch holds (bounds a worker's memory and the work a crash or Ctrl-C throws away).
 MAX_BATCH = 2000
@@ -152,6 +152,8 @@ def batchable(base: dict[str, Any], logs: bool) -> bool:
     """Whether the runs of a cell can run as batches (see the module docstring)."""
     if logs or base.get("trace") or base.get("max_timesteps") is not None or not package_env(base["env_id"]):
         return False
+    if base.get("env_wrappers"):  # ``simulate`` builds the bare env: a wrapped env's runs run on their own
+        return False
     from sb3_affect.core.registry import known_settings, resolve_class
 
     if known_settings(base["algo"]) is not None:  # the package's agents, known by name (not imported: no torch)
@@ -208,5 +210,5 @@ def split_cell(
         digest = hashlib.sha256("\n".join(rid for rid, _, _ in part).encode()).hexdigest()[:12]
         labels = "-".join(f"{k}{v}" for k, v in base["labels"].items())
         prefix = re.sub(r"[^A-Za-z0-9_.+-]+", "_", f"{base['agent']}-{labels}".strip("-").replace("--", "-"))
-        batches.append(kind(f"{prefix}-n{len(part)}-{digest}", base, part))
+        batches.append(kind(f"{readable(prefix)}-n{len(part)}-{digest}", base, part))
     return batches

@@ -1,8 +1,9 @@
 """
 Chunks: the finished runs of one batch in one Parquet file (``DIR/chunks/<batch>.parquet``).
 
-A chunk holds one row per episode: ``run`` (the run's index in the chunk) and every ``EPISODE_COLUMNS`` column. Its
-Parquet key-value metadata (``sb3_affect``, JSON) holds what is per run or per batch::
+A chunk holds one row per episode: ``run`` (the run's index in the chunk) and every ``EPISODE_COLUMNS`` column (counts
+as int64, flags as booleans, null where a run can not tell, the rest float64; written before counts were int64:
+int32). Its Parquet key-value metadata (``sb3_affect``, JSON) holds what is per run or per batch::
 
     {"schema": 2, "batch": "<name>", "base": {run config, seed None, labels without replicate},
      "runs": [[run_id, seed, replicate, decisions], ...],
@@ -31,18 +32,56 @@ META_KEY = b"sb3_affect"
 BOOL_COLUMNS = FLAG_COLUMNS
 
 
-def arrow_array(values: np.ndarray, kind: Any) -> Any:
+def arrow_array(values: np.ndarray, kind: Any, missing: np.ndarray | None = None) -> Any:
     """
-    ``values`` as an Arrow array of type ``kind`` (``pa.int32()``, ``pa.float64()`` or ``pa.bool_()``; no nulls) from
-    its bytes: what ``pa.array(values.astype(...))`` gives, without importing pandas (``pa.array`` does on first use).
+    ``values`` as an Arrow array of type ``kind`` (``pa.int64()``, ``pa.int32()``, ``pa.float64()`` or ``pa.bool_()``)
+    from its bytes: what ``pa.array(values.astype(...))`` gives, without importing pandas (``pa.array`` does on first
+    use). ``missing``: where the values are null (flags a run can not tell); None: no nulls.
     """
     import pyarrow as pa
 
     if kind == pa.bool_():
         data = np.packbits(np.asarray(values, dtype=bool), bitorder="little")  # Arrow's booleans: one bit each, LSB first
     else:
-        data = np.ascontiguousarray(values, dtype=np.int32 if kind == pa.int32() else np.float64)
-    return pa.Array.from_buffers(kind, len(values), [None, pa.py_buffer(data)])
+        dtype = {pa.int64(): np.int64, pa.int32(): np.int32}.get(kind, np.float64)
+        data = np.ascontiguousarray(values, dtype=dtype)
+    validity = None
+    if missing is not None and missing.any():
+        validity = pa.py_buffer(np.packbits(~np.asarray(missing, dtype=bool), bitorder="little"))
+    return pa.Array.from_buffers(kind, len(values), [validity, pa.py_buffer(data)])
+
+
+def checked_column(column: str, values: Any) -> tuple[np.ndarray, np.ndarray | None]:
+    """
+    An episode column as it is stored, or a one-line ValueError when a value would not read back as it is: counts
+    (``INT_COLUMNS``) are integers (never NaN, infinite or fractional; int64), flags (``FLAG_COLUMNS``) true, false or
+    NaN (a run that can not tell: stored as null, read back as NaN), the other columns numbers.
+
+    :return: ``(values, missing)``: the values in their stored dtype and, for flags, where they are NaN (None: nowhere)
+    """
+    array = np.asarray(values)
+    if column in INT_COLUMNS:
+        if array.dtype.kind in "iub":
+            return array.astype(np.int64, copy=False), None
+        numbers = np.asarray(values, dtype=np.float64)
+        bad = ~np.isfinite(numbers) | (numbers != np.round(numbers)) | (np.abs(numbers) >= 2.0**63)
+        if bad.any():
+            row = int(np.flatnonzero(bad)[0])
+            raise ValueError(
+                f"episode column {column!r}: row {row} holds {numbers[row]!r}, not a count; counts are integers"
+            )
+        return numbers.astype(np.int64), None
+    if column in FLAG_COLUMNS:
+        if array.dtype.kind == "b":
+            return array, None
+        numbers = np.asarray(values, dtype=np.float64)
+        missing = np.isnan(numbers)
+        bad = ~missing & (numbers != 0) & (numbers != 1)
+        if bad.any():
+            row = int(np.flatnonzero(bad)[0])
+            raise ValueError(f"episode column {column!r}: row {row} holds {numbers[row]!r}, not a flag (true, false or NaN)")
+        return numbers == 1, (missing if missing.any() else None)
+    return np.asarray(values, dtype=np.float64), None
 
 
 def encode_chunk(
@@ -81,10 +120,14 @@ def encode_chunk(
     totals = [int(decisions[starts[block[seed]] : ends[block[seed]]].sum()) for _, seed, _ in runs]
     arrays: dict[str, Any] = {"run": arrow_array(np.repeat(np.arange(len(runs), dtype=np.int32), lengths), pa.int32())}
     for column in EPISODE_COLUMNS:
-        values = np.asarray(episodes[column])
+        try:
+            values, missing = checked_column(column, episodes[column])
+        except ValueError as error:
+            raise ValueError(f"batch {name}: {error}") from None
         values = values if take is None else values[take]
-        kind = pa.int32() if column in INT_COLUMNS else pa.bool_() if column in BOOL_COLUMNS else pa.float64()
-        arrays[column] = arrow_array(values, kind)
+        missing = missing if take is None or missing is None else missing[take]
+        kind = pa.int64() if column in INT_COLUMNS else pa.bool_() if column in BOOL_COLUMNS else pa.float64()
+        arrays[column] = arrow_array(values, kind, missing)
     meta = {
         "schema": CHUNK_SCHEMA,
         "batch": name,
@@ -109,11 +152,20 @@ def chunk_meta(path: Path) -> dict[str, Any]:
 
 def chunk_table(path: Path, columns: Sequence[str] | None = None) -> dict[str, np.ndarray]:
     """``run`` and the episode columns of a chunk as numpy arrays (``columns``: a subset of ``EPISODE_COLUMNS``)."""
+    import pyarrow as pa
     import pyarrow.parquet as pq
 
     wanted = ["run", *(EPISODE_COLUMNS if columns is None else columns)]
     table = pq.ParquetFile(path).read(columns=wanted)  # not ``read_table``: its dataset set-up costs ms a file
-    return {name: table.column(name).to_numpy() for name in wanted}
+    out = {}
+    for name in wanted:
+        column = table.column(name)
+        if column.null_count and name in BOOL_COLUMNS:  # flags a run could not tell: NaN, as the engine gave them
+            column = column.cast(pa.float64())
+        elif column.null_count:
+            raise ValueError(f"column {name!r} holds {column.null_count} nulls; only flags may")
+        out[name] = column.to_numpy()
+    return out
 
 
 def _plain(value: Any) -> Any:
@@ -135,6 +187,8 @@ def chunk_records(path: Path, meta: dict[str, Any] | None = None) -> list[dict[s
     for index, (rid, seed, replicate, decisions) in enumerate(meta["runs"]):
         rows = slice(bounds[index], bounds[index + 1])
         episodes = {column: [_plain(v) for v in table[column][rows].tolist()] for column in sorted(EPISODE_COLUMNS)}
+        for column in BOOL_COLUMNS:  # (a chunk holding NaN flags gives them as floats)
+            episodes[column] = [None if v is None else bool(v) for v in episodes[column]]
         records.append(
             {
                 "schema": CHUNK_SCHEMA,

@@ -14,8 +14,6 @@ to read a folder that holds one until a rerun has set it aside.
 from __future__ import annotations
 
 import json
-import os
-import stat
 from collections.abc import Callable, Collection
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -23,6 +21,7 @@ from typing import Any, TypeVar
 
 from sb3_affect.core.episode_log import EPISODE_COLUMNS
 from sb3_affect.study.launcher.chunks import chunk_meta
+from sb3_affect.study.launcher.regular_files import UnreadableFile, check_regular, read_bytes
 from sb3_affect.study.launcher.run_ids import base_run_ids, run_id, stored_matches
 
 
@@ -38,17 +37,13 @@ MAX_SWEEP_FILE_BYTES = 64 * 2**20
 
 def regular_file(path: Path, limit: int | None) -> None:
     """
-    ``DamagedFile`` unless ``path`` is a regular file (not a FIFO, device, folder or link, which would block a
-    reader or lead elsewhere) of at most ``limit`` bytes (None: any size).
+    ``DamagedFile`` unless ``path`` is a regular file (``regular_files.check_regular``: not a FIFO, device, folder or
+    link, which would block a reader or lead elsewhere) of at most ``limit`` bytes (None: any size).
     """
     try:
-        info = os.lstat(path)
-    except OSError as error:
-        raise DamagedFile(f"can not be read ({error.strerror or error})") from None
-    if not stat.S_ISREG(info.st_mode):
-        raise DamagedFile("is not a regular file (a link, a folder, a FIFO or a device); only regular files are read")
-    if limit is not None and info.st_size > limit:
-        raise DamagedFile(f"is {info.st_size:,} bytes, more than the {limit:,} a file of this kind can be")
+        check_regular(path, limit)
+    except UnreadableFile as error:
+        raise DamagedFile(error.reason) from None
 
 
 _T = TypeVar("_T")
@@ -102,9 +97,11 @@ def check_run_file(path: Path) -> dict[str, Any]:
     """A run file's record, or ``DamagedFile`` saying what is wrong with it."""
     regular_file(path, MAX_RUN_FILE_BYTES)
     try:
-        record = json.loads(path.read_bytes())
+        record = json.loads(read_bytes(path, MAX_RUN_FILE_BYTES))
     except OSError as error:
         raise DamagedFile(f"can not be read ({error.strerror or error})") from None
+    except UnreadableFile as error:
+        raise DamagedFile(error.reason) from None
     except (ValueError, UnicodeDecodeError) as error:
         raise DamagedFile(f"is not valid JSON ({error})") from None
     if not isinstance(record, dict):

@@ -17,6 +17,8 @@ from pathlib import Path
 
 from filelock import FileLock, Timeout
 
+from sb3_affect.study.launcher.regular_files import read_text
+
 LOCK_NAME = ".lock"
 OWNER_NAME = ".lock.owner"
 
@@ -46,9 +48,9 @@ def _alive(pid: int) -> bool:
 def recorded_owner(root: Path) -> int | None:
     """The pid ``DIR/.lock.owner`` names, if it is a live process that started when the record says."""
     try:
-        fields = (root / OWNER_NAME).read_text().split()
+        fields = read_text(root / OWNER_NAME, 100).split()
         pid = int(fields[0])
-    except (OSError, IndexError, ValueError):
+    except (OSError, IndexError, ValueError):  # (UnreadableFile: a ValueError)
         return None
     if pid <= 0 or not _alive(pid):
         return None
@@ -97,7 +99,7 @@ def hold(root: Path) -> Iterator[None]:
     try:
         yield
     finally:
-        with contextlib.suppress(OSError):
-            if owner.read_text().strip() == mine:
+        with contextlib.suppress(OSError, ValueError):
+            if read_text(owner, 100).strip() == mine:
                 owner.unlink()
         lock.release()

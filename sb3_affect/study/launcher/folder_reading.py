@@ -3,9 +3,9 @@ Reading a results folder column-wise (the read side of ``ResultsStore``): one ro
 and the run files, and the episode columns as numpy arrays, without a Python object per episode.
 
 A results folder of 180,000 runs of 200 episodes is 36 M episode rows: ``read_folder`` allocates each wanted column
-once at its final size (int32 counts, bool flags, float64 otherwise) and fills it chunk by chunk, so its peak memory is
-the columns themselves plus one chunk. Rows come in one canonical order whatever the layout and the batching: runs by
-run id, each run's episodes in the order stored (episode order).
+once at its final size (int32 counts, bool flags, float64 otherwise; wider where a value needs it) and fills it
+chunk by chunk, so its peak memory is the columns themselves plus one chunk. Rows come in one canonical order
+whatever the layout and the batching: runs by run id, each run's episodes in the order stored (episode order).
 """
 
 from __future__ import annotations
@@ -19,13 +19,18 @@ import numpy as np
 import pandas as pd
 from numba import njit
 
-from sb3_affect.study.launcher.chunks import BOOL_COLUMNS, INT_COLUMNS, META_KEY, chunk_table
+from sb3_affect.study.launcher.chunks import BOOL_COLUMNS, INT_COLUMNS, META_KEY, checked_column, chunk_table
 from sb3_affect.study.launcher.folder_files import DamagedFile, check_episode_count, guarded
+from sb3_affect.study.launcher.regular_files import read_json
 from sb3_affect.study.launcher.run_ids import RUN_COLUMNS, run_id
 
 
 def column_dtype(column: str) -> type:
-    """The dtype of an episode column once read: int32 counts, bool flags, float64 otherwise (NaN: not defined)."""
+    """
+    The dtype of an episode column once read: int32 counts, bool flags, float64 otherwise (NaN: not defined). A read
+    that holds a count beyond int32's range reads that column as int64, one that holds a flag a run could not tell
+    reads that flag as float64 with NaN there (``read_folder``): every value reads back as the engine gave it.
+    """
     if column in INT_COLUMNS:
         return np.int32
     if column in BOOL_COLUMNS:
@@ -34,13 +39,31 @@ def column_dtype(column: str) -> type:
 
 
 def typed(column: str, values: list[Any]) -> np.ndarray:
-    """A JSON episode column as the chunks' dtype (None: NaN, or False for flags)."""
-    dtype = column_dtype(column)
-    if dtype is np.int32:
-        return np.asarray(values, dtype=np.int32)
-    if dtype is np.bool_:
-        return np.asarray([bool(v) for v in values], dtype=bool)
+    """
+    A JSON episode column as the chunks' dtype (``chunks.checked_column``: counts int64, flags bool, or float64 with
+    NaN when one is null: a run that can not tell, the rest float64 with NaN for null); a value that is none of these
+    is a ValueError naming it.
+    """
+    if column in BOOL_COLUMNS or column in INT_COLUMNS:
+        array, missing = checked_column(column, [np.nan if v is None else v for v in values])
+        return array if missing is None else np.where(missing, np.nan, array)
     return np.asarray([np.nan if v is None else v for v in values], dtype=np.float64)
+
+
+_INT32 = np.iinfo(np.int32)
+
+
+def _room_for(target: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """
+    ``target``, or a copy of it wide enough for ``values``: int64 for counts beyond int32's range, float64 for flags
+    with NaN (a run that can not tell).
+    """
+    if target.dtype == np.bool_ and values.dtype.kind == "f":
+        return target.astype(np.float64)
+    wide = target.dtype == np.int32 and values.dtype.itemsize > 4 and len(values)
+    if wide and (values.min() < _INT32.min or values.max() > _INT32.max):
+        return target.astype(np.int64)
+    return target
 
 
 def run_row(rid: str, config: dict[str, Any], decisions: int | None, episodes: int, wall: float | None) -> dict[str, Any]:
@@ -149,7 +172,7 @@ def read_folder(
     json_parts: list[dict[str, np.ndarray]] = []
     json_counts: list[int] = []
     for path in json_files:
-        record = guarded(path, lambda p: json.loads(p.read_text()))
+        record = guarded(path, read_json)
         if record.get("status", "ok") != "ok":
             continue
         config, episodes, timings = record["config"], record["episodes"], record.get("timings", {})
@@ -157,7 +180,7 @@ def read_folder(
         rows.append(run_row(run_id(config), config, timings.get("decisions"), count, timings.get("wall_seconds")))
         json_counts.append(count)
         if columns is not None:
-            json_parts.append({column: typed(column, episodes[column]) for column in columns})
+            json_parts.append(guarded(path, lambda p, e=episodes: {c: typed(c, e[c]) for c in columns}))  # type: ignore[misc]
     frames = [pd.DataFrame(rows)] if rows else []
     lengths = [np.array(json_counts, dtype=np.int64)]
     chunks: list[tuple[Path, int, np.ndarray]] = []  # (file, its first run's row in the read order, run starts)
@@ -228,6 +251,7 @@ def read_folder(
     for index, part in enumerate(json_parts):
         rows_of_run = slice(start[index], start[index] + counts[index])
         for column in columns:
+            data[column] = _room_for(data[column], part[column])
             data[column][rows_of_run] = part[column]
     for path, first, run_starts in chunks:
         table = guarded(path, lambda p: chunk_table(p, columns))
@@ -236,7 +260,9 @@ def read_folder(
         if not _fits(run, run_starts, counts[first : first + n_runs]):
             raise ValueError(f"{root}: the rows of {path.name} are not those its runs were counted with")
         for column in columns:
-            _place(data[column], table.pop(column), run, start[first : first + n_runs], run_starts)
+            values = table.pop(column)
+            data[column] = _room_for(data[column], values)
+            _place(data[column], values, run, start[first : first + n_runs], run_starts)
     return runs, data
 
 

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from sb3_affect.core.episode_log import EPISODE_COLUMNS
+from sb3_affect.study.launcher.chunks import checked_column
 
 
 def _version(name: str) -> str:
@@ -93,6 +94,33 @@ def make_single_env(config: dict[str, Any]) -> Any:
     return env
 
 
+#: The seeds the env of a sweep is reset with when the sweep is checked: an env that draws its layout at random
+#: (MiniGrid's Fetch: keys or balls) shows what its runs will meet, whatever a first reset happens to draw.
+CHECK_RESETS = 16
+
+
+def _check_single_env(env: Any, position: str | None) -> None:
+    """
+    Reset a run's env (its wrappers and all) with each of ``CHECK_RESETS`` seeds and take one step after each, and
+    read its ``position`` preset once: a wrapper, an env or a preset that can not work on it fails here, before
+    anything runs, rather than in every run.
+    """
+    for seed in range(CHECK_RESETS):
+        env.reset(seed=seed)
+        env.action_space.seed(seed)
+        env.step(env.action_space.sample())
+    if position is not None:
+        from stable_baselines3.common.vec_env import DummyVecEnv
+
+        from sb3_affect.core.positions import make_position
+
+        venv = DummyVecEnv([lambda: env])
+        hook = make_position(position, venv.observation_space)
+        if hook is not None:
+            hook.bind(venv, venv.observation_space)
+            hook.cells(venv, venv.reset(), [{}])
+
+
 def build_model(config: dict[str, Any]) -> tuple[Any, bool]:
     """The env and the algorithm of a run config: ``(model, tabular)`` (``tabular``: keeps its own ``episode_log``)."""
     from sb3_affect.agents.tabular import TabularQAlgorithm
@@ -135,8 +163,8 @@ def settings_checkable(config: dict[str, Any]) -> bool:
     """
     from sb3_affect.core.registry import known_settings
 
-    if "team" in config or not package_env(config["env_id"]):
-        return False
+    if "team" in config or config.get("env_position") is not None or not package_env(config["env_id"]):
+        return False  # (a position preset is read through SB3's VecEnv: checked in the child)
     settings = known_settings(config["algo"])
     return settings is not None and set(config["algo_kwargs"]) <= set(settings.names())
 
@@ -150,6 +178,8 @@ def check_configs(configs: list[dict[str, Any]]) -> list[tuple[str, str]]:
     :return: ``(agent name, problem)`` for each config that can not be built (an unknown or impossible kwarg); the
         agent name is empty when the env itself can not be built
     """
+    from sb3_affect.envs import PARALLEL_ENVS
+
     problems: list[tuple[str, str]] = []
     env_checked: set[str] = set()
     seen: set[str] = set()
@@ -157,13 +187,20 @@ def check_configs(configs: list[dict[str, Any]]) -> list[tuple[str, str]]:
     for config in configs:
         if config["agent"] in failed_agents:
             continue
-        env_key = json.dumps([config["env_id"], config["env_kwargs"]], sort_keys=True)
+        env_key = json.dumps(
+            [config["env_id"], config["env_kwargs"], config.get("env_wrappers"), config.get("env_position")], sort_keys=True
+        )
         if env_key not in env_checked:
             env_checked.add(env_key)
             try:
-                _make_env(config).close()
+                env = _make_env(config)
+                try:
+                    if config["env_id"] not in PARALLEL_ENVS:
+                        _check_single_env(env, config.get("env_position"))
+                finally:
+                    env.close()
             except Exception as error:
-                problems.append(("", f"the env can not be built: {type(error).__name__}: {error}"))
+                problems.append(("", f"the env can not be built and stepped: {type(error).__name__}: {error}"))
                 return problems
         key = json.dumps([config["agent"], config["algo"], config["algo_kwargs"], config.get("team")], sort_keys=True)
         if key in seen:
@@ -297,6 +334,8 @@ def execute_run(config: dict[str, Any], log_dir: str | None = None, log_formats:
     model.learn(int(budget), callback=callback)
     log = model.episode_log if tabular else emotions.episode_log
     columns = {name: [_plain(v) for v in log[name].tolist()] for name in EPISODE_COLUMNS}
+    for name in EPISODE_COLUMNS:  # a value that would not read back as it is: the run fails naming it
+        checked_column(name, [math.nan if v is None else v for v in columns[name]])
     if config.get("trace"):  # the TraceCallback AffectQ drove (``build_model``)
         columns.update({name: [_plain(v) for v in values] for name, values in model.emotion_callback.trace_columns().items()})
     return {

@@ -37,7 +37,17 @@ def run_id(config: dict[str, Any]) -> str:
     digest = hashlib.sha256(json.dumps(config, sort_keys=True).encode()).hexdigest()[:12]
     labels = "-".join(f"{k}{v}" for k, v in sorted(config["labels"].items()) if k != "replicate")
     prefix = re.sub(r"[^A-Za-z0-9_.+-]+", "_", f"{config['agent']}-{labels}-s{config['seed']}".replace("--", "-"))
-    return f"{prefix}-{digest}"
+    return f"{readable(prefix)}-{digest}"
+
+
+#: The most characters of a file name's readable part (run ids, chunks): with the hash and the suffixes the store adds
+#: (``.json``, ``.parquet``, ``damaged/chunks-...``) a name stays far below the 255 bytes file systems allow.
+MAX_READABLE = 160
+
+
+def readable(prefix: str) -> str:
+    """A readable prefix of a file name cut to ``MAX_READABLE`` characters (the hash after it keeps names distinct)."""
+    return prefix[:MAX_READABLE]
 
 
 def base_run_ids(base: dict[str, Any], runs: Sequence[tuple[Any, Any]]) -> list[str]:
@@ -72,4 +82,4 @@ def stored_matches(stored: str, canonical: str) -> bool:
         return True
     head, _, digest = stored.rpartition("-")
     own_head, _, own_digest = canonical.rpartition("-")
-    return digest == own_digest and sorted(head) == sorted(own_head)
+    return digest == own_digest and (sorted(head) == sorted(own_head) or readable(head) == own_head)

@@ -67,9 +67,10 @@ __all__ = ["AgentSpec", "Cell", "EnvSpec", "MemberSpec", "Sweep", "SweepError"]
 KWARG_REFERENCE = re.compile(r"^\$([A-Za-z_][A-Za-z0-9_]*)$")
 #: Names of sweeps: they name files, so no leading dot (hidden files) and at most 64 characters.
 NAME_PATTERN = r"^[A-Za-z0-9_+-][A-Za-z0-9_.+-]{0,63}$"
-#: Names of agents and tasks: text of at most 64 characters, not starting with a dot or a space, without a slash, a
-#: backslash or a control character (they name runs through run ids, which keep only ``[A-Za-z0-9_.+-]``).
-LABEL_PATTERN = r"^[^\s./\\\x00-\x1f\x7f][^/\\\x00-\x1f\x7f]{0,63}$"
+#: Names of agents and tasks: text of at most 64 characters, not starting with a dot or a space nor ending with a space
+#: (``"a b"`` and ``"a b "`` would read alike), without a slash, a backslash or a control character (they name runs
+#: through run ids, which keep only ``[A-Za-z0-9_.+-]``).
+LABEL_PATTERN = r"^[^\s./\\\x00-\x1f\x7f](?:[^/\\\x00-\x1f\x7f]{0,62}[^\s/\\\x00-\x1f\x7f])?$"
 #: Limits checked from the numbers before anything is allocated.
 MAX_SEEDS = 1_000_000  # seeds per grid point (a count, or the length of a list)
 MAX_SEED = 2**32 - 1  # seeds are NumPy seeds: integers in [0, 2**32 - 1]
@@ -77,6 +78,7 @@ MAX_GRID_POINTS = 100_000  # grid points per agent (the product of its grid's le
 MAX_RUNS = 2_000_000  # runs per sweep (grid points x seeds, summed over the agents)
 MAX_EPISODES = 1_000_000  # episodes per run
 MAX_TIMESTEPS = 10**10  # decisions per run
+_NONE = object()
 #: The validation context of a saved sweep: nothing is imported (``Sweep.validate_saved``).
 SAVED = {"imports": False}
 
@@ -175,8 +177,26 @@ class EnvSpec(BaseModel):
         return value
 
 
+#: What a label's value may be: it is a column of the results (one value a run), compared and grouped as it is.
+LABEL_TYPES = (str, int, float, bool, type(None))
+
+
+def check_label_value(where: str, value: Any) -> None:
+    """A label's value is a string, a number, true/false or null (a list or mapping is not one column value)."""
+    if not isinstance(value, LABEL_TYPES):
+        kind = "a list" if isinstance(value, list) else "a mapping" if isinstance(value, dict) else type(value).__name__
+        raise ValueError(
+            f"{where}: {value!r} is {kind}; a label's value is one column value of the results: a string, a number, "
+            "true/false or null (name the choice, e.g. 'wide', and map it to kwargs with one grid label per kwarg)"
+        )
+
+
 def _checked_grid(value: dict[str, list[Any]]) -> dict[str, list[Any]]:
-    """A grid's labels are not result columns, its value lists not empty, its points at most ``MAX_GRID_POINTS``."""
+    """
+    A grid's labels are not result columns, its value lists not empty, of label values (``check_label_value``), each
+    given once (two equal values, ``0.1`` twice or ``1`` and ``1.0`` and ``true``, would label the same results), its
+    points at most ``MAX_GRID_POINTS``.
+    """
     points = 1
     for key, values in value.items():
         if key in RESERVED_LABELS:
@@ -186,6 +206,12 @@ def _checked_grid(value: dict[str, list[Any]]) -> dict[str, list[Any]]:
             )
         if not values:
             raise ValueError(f"grid.{key} is empty: give at least one value")
+        for index, item in enumerate(values):
+            check_label_value(f"grid.{key}[{index}]", item)
+            earlier = next((other for other in values[:index] if other == item), _NONE)
+            if earlier is not _NONE:
+                same = "repeats" if type(earlier) is type(item) else f"equals {earlier!r} (an equal value of another type)"
+                raise ValueError(f"grid.{key}[{index}]: {item!r} {same}; give each value of a grid label once")
         points *= len(values)
         if points > MAX_GRID_POINTS:
             sizes = " x ".join(str(len(v)) for v in value.values())
@@ -217,7 +243,8 @@ class AgentSpec(BaseModel):
     name: str = Field(
         pattern=LABEL_PATTERN,
         description="unique within the file; names the runs and groups them in the report, and enters the derived seeds "
-        "(at most 64 characters, not starting with a dot or a space, no slash, backslash or control character)",
+        "(at most 64 characters, not starting with a dot or a space nor ending with a space, no slash, backslash or control "
+        "character)",
     )
     algo: str | None = Field(
         default=None,
@@ -332,6 +359,7 @@ class AgentSpec(BaseModel):
             raise ValueError("give either grid or grid_by_task (a grid per task), not both")
         grid_labels = {key for grid in self.grids() for key in grid}
         for key in self.labels:
+            check_label_value(f"labels.{key}", self.labels[key])
             if key in RESERVED_LABELS or key in grid_labels:
                 taken = "a grid label" if key in grid_labels else "a column of the results"
                 raise ValueError(f"labels.{key}: {key!r} is {taken}; a fixed label needs a name of its own")
@@ -468,11 +496,31 @@ class Sweep(BaseModel):
                 raise ValueError(f"agents[{i}] ({agent.name}): a team needs a multi-agent env id, not {self.env.id!r}")
         if multi and self.max_timesteps is not None:
             raise ValueError("max_timesteps is not supported for teams: their runs are counted in episodes")
+        self._check_label_types()
         replicates = self.seeds if isinstance(self.seeds, int) else len(self.seeds)
         runs = sum(agent.point_count(len(self.tasks or [None])) for agent in self.agents) * replicates
         if runs > MAX_RUNS:
             raise ValueError(f"the sweep has {runs:,} runs (grid points x seeds), more than the {MAX_RUNS:,} allowed")
         return self
+
+    def _check_label_types(self) -> None:
+        """
+        One label's values over the agents are never equal values of different types (``1``, ``1.0`` and ``true``):
+        the results' column of the label would hold them as one value.
+        """
+        seen: dict[str, dict[Any, tuple[Any, str]]] = {}
+        for agent in self.agents:
+            given = [(key, value) for grid in agent.grids() for key, values in grid.items() for value in values]
+            for key, value in [*given, *agent.labels.items()]:
+                values = seen.setdefault(key, {})
+                if isinstance(value, float) and math.isnan(value):
+                    continue
+                earlier = values.setdefault(value, (value, agent.name))
+                if type(earlier[0]) is not type(value):
+                    raise ValueError(
+                        f"label {key!r}: {value!r} (agent {agent.name!r}) equals {earlier[0]!r} (agent {earlier[1]!r}), "
+                        "a value of another type; write one label's values alike"
+                    )
 
     @model_serializer(mode="wrap")
     def _dump(self, handler: SerializerFunctionWrapHandler) -> dict[str, Any]:
@@ -488,8 +536,8 @@ class Sweep(BaseModel):
         for task, env in self.tasks.items():
             if not re.fullmatch(LABEL_PATTERN, task):
                 raise ValueError(
-                    f"tasks: {task!r} is not a task name (at most 64 characters, not starting with a dot or a space, no "
-                    "slash, backslash or control character)"
+                    f"tasks: {task!r} is not a task name (at most 64 characters, not starting with a dot or a space nor "
+                    "ending with a space, no slash, backslash or control character)"
                 )
             if is_multi_agent(env.id):
                 raise ValueError(f"tasks.{task}: {env.id!r} is multi-agent; tasks are single-agent envs")

@@ -30,7 +30,8 @@ from typing import TYPE_CHECKING, Any
 from sb3_affect.core.episode_log import EPISODE_COLUMNS
 from sb3_affect.study.launcher import folder_lock
 from sb3_affect.study.launcher.chunks import chunk_records
-from sb3_affect.study.launcher.folder_files import MAX_SWEEP_FILE_BYTES, FolderFiles, guarded, regular_file, sort_files
+from sb3_affect.study.launcher.folder_files import MAX_SWEEP_FILE_BYTES, FolderFiles, guarded, sort_files
+from sb3_affect.study.launcher.regular_files import read_json
 from sb3_affect.study.launcher.run_ids import base_run_ids
 
 if TYPE_CHECKING:
@@ -90,6 +91,8 @@ def store_error(folder: Path, error: OSError) -> StoreError:
 
 
 IDENTITY_COPIES = ("chunks/.sweep", "runs/.sweep")
+#: The file that marks a forensics folder (``sb3_affect.study.forensics.unit_files``): no sweep is run into one.
+FORENSICS_FILE = "forensics.json"
 
 
 class ResultsStore:
@@ -116,8 +119,7 @@ class ResultsStore:
         """The resolved sweep run here: ``sweep.json``, or a copy of it when it was deleted; None when none is left."""
         for path in (self.root / "sweep.json", *(self.root / copy for copy in IDENTITY_COPIES)):
             try:
-                regular_file(path, MAX_SWEEP_FILE_BYTES)
-                saved = json.loads(path.read_text())
+                saved = read_json(path, MAX_SWEEP_FILE_BYTES)
             except (OSError, ValueError):  # (DamagedFile: a ValueError)
                 continue
             if isinstance(saved, dict) and isinstance(saved.get("sweep"), dict):
@@ -140,6 +142,11 @@ class ResultsStore:
             raise StoreError(
                 f"{self.root} holds a replication (sweeps in {', '.join(replication)}), which a sweep run into it "
                 f"would mix with; give the sweep a folder of its own, e.g. --out {self.root / resolved_sweep['name']}"
+            )
+        if (self.root / FORENSICS_FILE).exists() or (self.root / FORENSICS_FILE).is_symlink():
+            raise StoreError(
+                f"{self.root} holds the replication forensics ({FORENSICS_FILE}), which a sweep run into it would mix "
+                f"with; give the sweep a folder of its own, e.g. --out {self.root / resolved_sweep['name']}"
             )
         try:
             for folder in (self.root, self.runs, self.chunks, self.failed):
@@ -342,7 +349,7 @@ class ResultsStore:
         """Every finished run as a record of the JSON layout (``run_id``, ``config``, ``episodes`` lists, ...): for
         small folders; large ones read ``runs_frame`` and ``episodes_frame``."""
         files = self._checked()
-        records = [{**json.loads(p.read_text()), "run_id": files.run_ids[p]} for p in files.run_files]
+        records = [{**guarded(p, read_json), "run_id": files.run_ids[p]} for p in files.run_files]
         for path, meta in files.chunk_files.items():
             records.extend(guarded(path, lambda p, meta=meta: chunk_records(p, meta)))  # type: ignore[misc]
         return sorted((r for r in records if r.get("status", "ok") == "ok"), key=lambda r: r["run_id"])
@@ -366,8 +373,9 @@ class ResultsStore:
         :param columns: the episode columns wanted (default every ``EPISODE_COLUMNS`` column)
         :param seed: repeat each run's seed on its episode rows (int64; the run table has it anyway)
         :return: ``(runs_frame(), episodes)``; ``episodes`` has one row per episode: ``run_id``, ``agent``, ``seed``
-            and one column per label (categoricals but ``seed``), then the episode columns (integers as int32, flags
-            as bool, the rest float64); runs in run id order, each run's rows together in episode order
+            and one column per label (categoricals but ``seed``), then the episode columns (integers as int32, or int64
+            when a count needs it; flags as bool, or float64 with NaN when a run could not tell; the rest float64); runs
+            in run id order, each run's rows together in episode order
         """
         from sb3_affect.study.launcher.folder_reading import RUN_COLUMNS, episode_table, read_folder
 

@@ -26,10 +26,15 @@ MAX_REPS = 10_000
 
 
 def _check_range(values: list[float] | None, what: str, low_open: bool) -> None:
-    """Each value in [0, 1] (``low_open``: in (0, 1]), or a one-line error naming the first that is not."""
-    for value in values or []:
+    """
+    Each value in [0, 1] (``low_open``: in (0, 1]) and given once (a value twice would be one simulation counted as
+    two), or a one-line error naming the first that is not.
+    """
+    for index, value in enumerate(values or []):
         if not (0 < value <= 1 if low_open else 0 <= value <= 1):
             raise ValueError(f"{value!r} is not {what}; each is in {'(0, 1]' if low_open else '[0, 1]'}")
+        if value in (values or [])[:index]:
+            raise ValueError(f"{value!r} is given twice; give each {what.removeprefix('an ').removeprefix('a ')} once")
 
 
 class ProtocolSpec(BaseModel):

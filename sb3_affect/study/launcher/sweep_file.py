@@ -13,6 +13,7 @@ billions) or nests deeper than ``MAX_DEPTH`` is refused before anything walks it
 from __future__ import annotations
 
 import difflib
+import math
 from collections.abc import Hashable
 from pathlib import Path
 from typing import Any
@@ -97,6 +98,11 @@ def _check_size(data: Any, where: str) -> None:
                 f"{where}: {key or '(top level)'}: the file expands to {what} (YAML aliases repeat what they name); "
                 "a sweep file needs far fewer"
             )
+        if isinstance(value, float) and not math.isfinite(value):
+            raise SweepError(
+                f"{where}: {key or '(top level)'}: {value} is not a finite number; a sweep's numbers are finite (NaN "
+                "and infinity can not be saved with its results and compared when it resumes)"
+            )
         if isinstance(value, dict):
             stack.extend((v, f"{key}.{k}" if key else str(k), depth + 1) for k, v in value.items())
         elif isinstance(value, list):
@@ -172,6 +178,48 @@ def _override_path(assignment: str, data: dict[str, Any]) -> tuple[list[Any], An
                     f"--set agents.{names[keys[1]]}.grid.{label}=[{raw.strip()}]"
                 )
     return keys, value
+
+
+def _bound_kwargs(data: dict[str, Any]) -> dict[tuple[str, str], Any]:
+    """
+    ``(agent name, kwargs key path) -> value`` of every kwarg of every agent (its team members' too), where the value
+    is the ``$label`` reference or whatever stands there instead (``None``: not given).
+    """
+    found: dict[tuple[str, str], Any] = {}
+    agents: list[Any] = data["agents"] if isinstance(data.get("agents"), list) else []
+    for agent in agents:
+        if not isinstance(agent, dict) or not isinstance(agent.get("name"), str):
+            continue
+        places = [("kwargs", agent.get("kwargs"))]
+        team: list[Any] = agent["team"] if isinstance(agent.get("team"), list) else []
+        places += [(f"team.{i}.kwargs", m.get("kwargs")) for i, m in enumerate(team) if isinstance(m, dict)]
+        for where, kwargs in places:
+            for key, value in (kwargs if isinstance(kwargs, dict) else {}).items():
+                found[(agent["name"], f"{where}.{key}")] = value
+    return found
+
+
+def _check_still_bound(before: dict[tuple[str, str], Any], data: dict[str, Any], assignment: str, path: Path) -> None:
+    """
+    Refuse an override that replaces (or drops) a kwarg bound to a grid label (``$label``) of an agent it leaves in
+    the file, whatever key path it set (``agents.0.kwargs={...}``, ``agents.0={...}``): the runs would be labelled
+    with grid values they did not run with.
+    """
+    after = _bound_kwargs(data)
+    agents: list[Any] = data["agents"] if isinstance(data.get("agents"), list) else []
+    names = {agent.get("name") for agent in agents if isinstance(agent, dict)}
+    for (name, key), value in before.items():
+        match = KWARG_REFERENCE.match(value) if isinstance(value, str) else None
+        if match is None or name not in names:
+            continue
+        now = after.get((name, key))
+        if not (isinstance(now, str) and KWARG_REFERENCE.match(now)):
+            label = match.group(1)
+            raise SweepError(
+                f"--set {assignment!r}: {key} of agent {name!r} takes its value from the grid label {label!r}, which "
+                f"names its runs and labels its results; keep it {value} and set the grid instead, e.g. "
+                f"--set agents.{name}.grid.{label}=[...] [sweep file: {path}]"
+            )
 
 
 def _apply_override(data: dict[str, Any], assignment: str) -> list[Any]:
@@ -267,12 +315,14 @@ def load_sweep_file(
     _check_size(data, str(path))
     overridden: list[tuple[str, list[Any]]] = []
     for assignment in overrides:
+        bound = _bound_kwargs(data)
         try:
             overridden.append((assignment, _apply_override(data, assignment)))
         except SweepError as error:
             raise SweepError(f"{error} [sweep file: {path}]") from None
         except (KeyError, IndexError, ValueError, TypeError, AttributeError) as error:
             raise SweepError(f"--set {assignment!r} does not apply to {path} ({error})") from None
+        _check_still_bound(bound, data, assignment, path)
     _check_size(data, str(path))
     model = _model_of(data)
     try:

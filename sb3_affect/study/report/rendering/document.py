@@ -340,8 +340,14 @@ def _numeric(cell: str) -> bool:
     return True
 
 
+def _md_cell(text: str) -> str:
+    """A table cell's text for Markdown: a ``|`` does not end the cell, ``<`` and ``>`` are not HTML, one line."""
+    return text.replace("<", "&lt;").replace(">", "&gt;").replace("|", "\\|").replace("\r", " ").replace("\n", " ")
+
+
 def md_table(frame: pd.DataFrame, digits: int) -> str:
     header, rows = _cells(frame, digits)
+    header, rows = [_md_cell(h) for h in header], [[_md_cell(c) for c in row] for row in rows]
     lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
     lines += ["| " + " | ".join(row) + " |" for row in rows]
     return "\n".join(lines)

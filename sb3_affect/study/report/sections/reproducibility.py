@@ -7,7 +7,6 @@ tables, the wall time of each part, seeds.
 from __future__ import annotations
 
 import hashlib
-import json
 import os
 import platform
 import subprocess
@@ -17,6 +16,8 @@ from pathlib import Path
 import pandas as pd
 
 import sb3_affect
+from sb3_affect.study.launcher.folder_files import MAX_SWEEP_FILE_BYTES
+from sb3_affect.study.launcher.regular_files import UnreadableFile, check_regular, open_regular, read_json
 from sb3_affect.study.launcher.store import ResultsStore, StoreError
 from sb3_affect.study.report.reading.context import ReportContext
 from sb3_affect.study.report.rendering.document import fmt
@@ -82,6 +83,8 @@ def run_tables(root: Path) -> list[Path]:
     """
 
     files = {path for path in root.glob("*/*.csv") if "tables" not in path.parts}
+    for path in files:  # a FIFO, a device or a link among them: one line naming it (``regular_files``)
+        check_regular(path, root=root)
     launched = (path.parent for pattern in ("*/sweep.json", "tuning/round*/sweep.json") for path in root.glob(pattern))
     for folder in (root, *launched):
         if (folder / "runs").is_dir():
@@ -94,9 +97,10 @@ def run_tables(root: Path) -> list[Path]:
     return sorted(files)
 
 
-def sha256(path: Path) -> str:
+def sha256(path: Path, root: Path | None = None) -> str:
+    """The sha256 of a regular file (inside ``root`` when given: ``regular_files``)."""
     digest = hashlib.sha256()
-    with open(path, "rb") as handle:
+    with open_regular(path, root=root) as handle:
         for block in iter(lambda: handle.read(1 << 20), b""):
             digest.update(block)
     return digest.hexdigest()
@@ -129,7 +133,7 @@ def record_section(ctx: ReportContext) -> None:
     write_text(lock, "\n".join(lock_lines()) + "\n")
     tables = run_tables(ctx.root)
     checksums = ctx.out / "checksums.sha256"
-    write_text(checksums, "".join(f"{sha256(path)}  {path.relative_to(ctx.root).as_posix()}\n" for path in tables))
+    write_text(checksums, "".join(f"{sha256(path, ctx.root)}  {path.relative_to(ctx.root).as_posix()}\n" for path in tables))
     try:
         version = metadata.version("sb3-affect")
     except metadata.PackageNotFoundError:
@@ -182,11 +186,12 @@ def record_section(ctx: ReportContext) -> None:
 
 def replicate_runs(root: Path) -> list[dict]:
     """The runs of ``replicate`` recorded in ``root/replicate.json`` (none for a folder it did not write)."""
-
     try:
-        saved = json.loads((Path(root) / "replicate.json").read_text())
-    except (OSError, ValueError):
-        return []
+        saved = read_json(Path(root) / "replicate.json", MAX_SWEEP_FILE_BYTES)
+    except UnreadableFile as error:  # missing, or cut short by a kill: no runs recorded; anything else: one line
+        if error.reason == "does not exist" or error.reason.startswith("is not valid JSON"):
+            return []
+        raise
     runs = saved.get("runs") if isinstance(saved, dict) else None
     return [r for r in runs if isinstance(r, dict) and isinstance(r.get("parts"), dict)] if isinstance(runs, list) else []
 
