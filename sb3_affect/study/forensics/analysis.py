@@ -42,6 +42,7 @@ from sb3_affect.study.forensics.scoring import (
     reach_findings,
     transform,
 )
+from sb3_affect.study.forensics.section import write_standalone
 from sb3_affect.study.forensics.statistics import STATISTICS, candidate_statistics, printed_numbers
 from sb3_affect.study.forensics.unit_files import SummaryStore
 from sb3_affect.study.launcher.store import store_error, write_atomic
