@@ -37,7 +37,7 @@ TABLE_III_REVERSED: dict[Emotion, Behaviour] = {
 BEHAVIOUR_TABLES: dict[str, dict[Emotion, Behaviour]] = {"table-iii": TABLE_III, "table-iii-reversed": TABLE_III_REVERSED}
 
 
-def stored_behaviour_table(table: Mapping[Emotion, Behaviour] | str | None) -> dict[str, list]:
+def stored_behaviour_table(table: Mapping[Any, Any] | str | None) -> dict[str, list]:
     """
     A user's table (None: Table III; a name of ``BEHAVIOUR_TABLES``), checked, as the plain data a model saves:
     ``{"joy": [random, speeds], ...}``.
