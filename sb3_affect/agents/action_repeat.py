@@ -20,10 +20,16 @@ SB3's warm-up (``learning_starts``) keeps SB3's uniformly random actions, one st
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
+import torch as th
 from gymnasium import spaces
+from stable_baselines3.common.type_aliases import GymEnv
+
+from sb3_affect.agents.deep_model_files import add_deep_description, load_deep_safe
+
+SelfRepeat = TypeVar("SelfRepeat", bound="ActionRepeat")
 
 
 def check_wait_action(wait_action: Any) -> int | None:
@@ -81,6 +87,42 @@ class ActionRepeat:
     def _excluded_save_params(self) -> list[str]:
         excluded: list[str] = super()._excluded_save_params()  # type: ignore[misc]
         return [*excluded, "_decision_rng", "_remaining", "_repeated", "_began_random", "_began_wait"]
+
+    # -- model files: safe loading --------------------------------------------------------------------------------
+    def save(self, path: Any, exclude: Any = None, include: Any = None) -> None:
+        """Save as SB3 does, with a plain-data description of what SB3 pickles (``deep_model_files``)."""
+        super().save(path, exclude=exclude, include=include)  # type: ignore[misc]
+        add_deep_description(path, self)
+
+    @classmethod
+    def load(
+        cls: type[SelfRepeat],
+        path: Any,
+        env: GymEnv | None = None,
+        device: th.device | str = "auto",
+        custom_objects: dict[str, Any] | None = None,
+        print_system_info: bool = False,
+        force_reset: bool = True,
+        safe: bool = True,
+        **kwargs: Any,
+    ) -> SelfRepeat:
+        """
+        Load a model saved with ``save``. By default (``safe=True``) nothing in the file is unpickled: it is rebuilt
+        from the file's plain-JSON description and its weights are read with ``torch.load(weights_only=True)``; a file
+        that needs unpickling (saved by other code, with a custom policy, emotion rule, goal test or ``position``
+        callable) is refused with a ``ModelFileError``. ``safe=False`` is SB3's own loader, which runs pickled code:
+        only for files you trust.
+
+        :param safe: load without unpickling (default); False for SB3's loader
+        :param kwargs: attributes to change on the loaded model (as SB3's ``load``)
+        """
+        if not safe:
+            return super().load(  # type: ignore[misc]
+                path, env=env, device=device, custom_objects=custom_objects, print_system_info=print_system_info,
+                force_reset=force_reset, **kwargs,
+            )
+        return load_deep_safe(cls, path, env=env, device=device, force_reset=force_reset, custom_objects=custom_objects,
+                              **kwargs)
 
     def set_random_seed(self, seed: int | None = None) -> None:
         super().set_random_seed(seed)  # type: ignore[misc]

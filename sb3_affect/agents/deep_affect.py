@@ -122,7 +122,7 @@ class AffectiveExploration(ActionRepeat):
         if objects:
             self._affect_objects = objects
         try:
-            super().save(path, exclude=exclude, include=include)  # type: ignore[misc]
+            super().save(path, exclude=exclude, include=include)
         finally:
             self.__dict__.pop("_affect_state", None)
             self.__dict__.pop("_affect_objects", None)
