@@ -34,7 +34,7 @@ def callback_state(callback: EmotionCallback) -> tuple[dict[str, Any], dict[str,
     """``(plain, objects)``: the callback's state as plain data, and the custom objects that have none (may be empty)."""
     objects: dict[str, Any] = {}
     rule = callback.emotion_rule
-    if getattr(rule, "table_ii_comparison", None) != callback.comparison:
+    if getattr(rule, "table_ii_reading", None) != (callback.comparison, callback.order):
         objects["emotion_rule"] = rule
     goal = next((name for name, test in GOALS.items() if test is callback.goal), None)
     if goal is None:
@@ -49,6 +49,7 @@ def callback_state(callback: EmotionCallback) -> tuple[dict[str, Any], dict[str,
         "comparison": callback.comparison,
         "act": callback.act,
         "units": callback.units,
+        "order": callback.order,
         "warn_after": callback.warn_after,
         "verbose": int(callback.verbose),
         "episode_log_path": None if path is None else str(path),
@@ -82,6 +83,7 @@ def restore_callback(plain: Any, objects: Any) -> EmotionCallback:
             comparison=plain.get("comparison", "literal"),
             act=plain.get("act", "episode"),
             units=plain.get("units", "cells"),
+            order=plain.get("order", "table"),
             emotion_rule=objects.get("emotion_rule"),
             goal=objects.get("goal", GOALS.get(goal_name or "", positive_terminal_reward)),
             episode_log_path=path,
