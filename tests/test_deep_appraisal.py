@@ -110,7 +110,7 @@ def test_the_emotions_felt_on_minigrid_under_each_reading(kwargs: dict[str, str]
     th.set_num_threads(1)
     model = AffectDQN("MlpPolicy", env, learning_starts=500, seed=0, position="minigrid", wait_action=6,
                       emotion_callback=EmotionCallback(**kwargs), policy_kwargs={"net_arch": [64, 64]})
-    counts = model.learn(6000).episode_log[EMOTIONS].sum()
+    counts = model.learn(3000).episode_log[EMOTIONS].sum()
     assert {name for name in EMOTIONS if counts[name] > 0} == felt, counts.to_dict()
 
 
