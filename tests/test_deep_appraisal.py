@@ -199,3 +199,24 @@ def test_the_appraisal_and_the_callbacks_settings_are_saved_and_loaded(tmp_path:
         assert len(loaded.episode_log) > len(model.episode_log)
         history = loaded.emotion_callback._lanes[0].appraiser.fit.values
         assert history[: len(callback._lanes[0].appraiser.fit.values)] == callback._lanes[0].appraiser.fit.values
+
+
+class MyCallback(EmotionCallback):
+    """A user's subclass."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self.mine = 7
+
+
+def test_a_subclassed_callback_and_the_callbacks_own_position_survive_save_and_load(tmp_path: Path) -> None:
+    env = make_vec_env("FrozenLake-v1", n_envs=2, seed=0)
+    small(env, emotion_callback=EmotionCallback(position="discrete")).learn(100).save(tmp_path / "own.zip")
+    assert AffectDQN.load(tmp_path / "own.zip").emotion_callback.position == "discrete"
+    small(env, emotion_callback=MyCallback()).learn(100).save(tmp_path / "sub.zip")
+    loaded = AffectDQN.load(tmp_path / "sub.zip", safe=False)  # a class of the user's: unpickled, when trusted
+    assert type(loaded.emotion_callback) is MyCallback and loaded.emotion_callback.mine == 7
+    assert (tmp_path / "sub.zip").stat().st_size < 2 * (tmp_path / "own.zip").stat().st_size  # not the model within
+    loaded.set_env(env)
+    loaded.learn(100, reset_num_timesteps=False)
+    assert loaded.emotion_callback.model is loaded
