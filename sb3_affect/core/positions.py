@@ -34,6 +34,7 @@ POSITION_PRESETS = ("discrete", "multidiscrete", "minigrid", "minigrid-dir")
 
 #: MiniGrid's ``forward`` action and its direction vectors (``minigrid.core.constants.DIR_TO_VEC``: right, down, left, up).
 _MINIGRID_FORWARD = 2
+_MINIGRID_TURNS = (0, 1)
 _MINIGRID_DIRECTIONS = ((1, 0), (0, 1), (-1, 0), (0, -1))
 
 
@@ -61,6 +62,10 @@ class Position:
     def cell_of(self, observation: Any, info: dict[str, Any] | None = None) -> int:
         """The cell of one env's observation (for the hooks that read it from the observation)."""
         raise NotImplementedError
+
+    def is_move(self, action: Any) -> bool:
+        """Whether an env step taking ``action`` is a move, an attempt to reach a neighbouring cell (every step here)."""
+        return True
 
 
 class ObservationCells(Position):
@@ -144,6 +149,11 @@ class MiniGridPosition(Position):
         self._before, self._last = self._last, last
         return [self._cell(*last) for last in self._last]
 
+    def is_move(self, action: Any) -> bool:
+        """``forward``, and under ``"minigrid-dir"`` the turns too; not pickup, drop, toggle or done."""
+        value = int(np.asarray(action).reshape(-1)[0])
+        return value == _MINIGRID_FORWARD or (self.direction and value in _MINIGRID_TURNS)
+
     def terminal_cell(self, index: int, info: dict[str, Any], cell: int, action: Any, terminated: bool) -> int:
         if not terminated or int(np.asarray(action).reshape(-1)[0]) != _MINIGRID_FORWARD or index >= len(self._before):
             return cell
@@ -165,7 +175,15 @@ class CallablePosition(Position):
         cell = self.function(observation, {} if info is None else info)
         if isinstance(cell, np.ndarray):
             cell = tuple(cell.reshape(-1).tolist())
-        number = self.numbers.get(cell)
+        try:
+            number = self.numbers.get(cell) if _finite(cell) else -1
+        except TypeError:  # unhashable
+            number = -1
+        if number == -1:
+            raise ValueError(
+                f"position={self.name}: the callable returned {repr(cell)[:80]}, which is not a cell; a cell is a hashable "
+                "value without NaN or infinity in it (e.g. an int, or a tuple of ints)"
+            )
         if number is None:
             if len(self.numbers) >= MAX_MAPPED_CELLS:
                 raise ValueError(f"position={self.name}: more than {MAX_MAPPED_CELLS:,} distinct cells; a map allows no more")
@@ -179,6 +197,15 @@ class CallablePosition(Position):
         else:
             rows = list(np.asarray(observations))
         return [self.cell_of(row, infos[index] if index < len(infos) else {}) for index, row in enumerate(rows)]
+
+
+def _finite(cell: Any) -> bool:
+    """Whether a cell holds no NaN or infinity (each NaN is a new dict key: every step would be a new cell)."""
+    if isinstance(cell, (float, np.floating, complex)):
+        return bool(np.isfinite(cell))
+    if isinstance(cell, (tuple, frozenset)):
+        return all(_finite(part) for part in cell)
+    return True
 
 
 PositionSpec = str | Callable[[Any, dict[str, Any]], Hashable] | Position | None
