@@ -153,8 +153,12 @@ def judge_fig3(m: pd.DataFrame, column: str = "decisions_per_episode") -> Judgem
         f"ε-greedy minus affective {'steps' if column.startswith('decisions') else 'cells'} per episode: "
         + "; ".join(f"ε {fmt(e, 1)}: {d.text()}" for e, d in diffs.items())
         + f". Point estimates change sign between ε {', '.join(cross) or 'none'}",
-        cells="ε-greedy minus affective cells per episode: " + "; ".join(f"ε {fmt(e, 1)}: {d.text()}" for e, d in cell_diffs.items())
-        if cell_diffs else "",
+        cells=(
+            "ε-greedy minus affective cells per episode: "
+            + "; ".join(f"ε {fmt(e, 1)}: {d.text()}" for e, d in cell_diffs.items())
+        )
+        if cell_diffs
+        else "",
         direction=bool(all(x < 0 for x in low) and all(x > 0 for x in high)) if low and high else None,
         tests=list(tests.values()),
     )

@@ -158,7 +158,10 @@ class Document:
         """
         pages = self.pages()
         links = [(f"{n}.html", t) for n, t, _ in pages]
-        return {f"{name}.html": _html_page(title, blocks, name != MAIN_PAGE, links, f"{name}.html") for name, title, blocks in pages}
+        return {
+            f"{name}.html": _html_page(title, blocks, name != MAIN_PAGE, links, f"{name}.html")
+            for name, title, blocks in pages
+        }
 
 
 #: The file stem of the main page (``report.md``, ``report.html``).
@@ -190,7 +193,7 @@ def _markdown_blocks(blocks: list[tuple], base: Path) -> list[str]:
 
 
 def first_words(text: str) -> str:
-    """A verdict's first words (``reproduced``, ``partly reproduced``, ``not reproduced`` ...): up to ``:``, ``;`` or `` (``."""
+    """A verdict's first words (``reproduced``, ``partly reproduced``, ``not reproduced`` ...): up to ``:``, ``;``, `` (``."""
     return text.split(":")[0].split(";")[0].split(" (")[0]
 
 
@@ -219,7 +222,9 @@ def _html_page(title: str, blocks: list[tuple], appendix: bool, links: list[tupl
         if block[0] == "h" and block[1] <= 3
     )
     others = "".join(
-        f"<li class='page'>{'<b>' + html.escape(t) + '</b>' if f == own else f'<a href={chr(39)}{f}{chr(39)}>{html.escape(t)}</a>'}</li>"
+        f"<li class='page'><b>{html.escape(t)}</b></li>"
+        if f == own
+        else f"<li class='page'><a href='{f}'>{html.escape(t)}</a></li>"
         for f, t in links
     ) if len(links) > 1 else ""
     pages = f"<b>Pages</b><ul>{others}</ul>" if others else ""

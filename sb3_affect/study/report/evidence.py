@@ -41,7 +41,7 @@ def sensitivity(large: pd.DataFrame, counts: tuple[int, ...] = SEED_COUNTS) -> p
             continue
         judged = claims.judge_all(subset(large, n), cells=False)
         labels = [j.label for j in judged]
-        columns[f"{n} seeds"] = [claims.verdict_word(j.verdict) for j in judged]
+        columns[f"{n:,} seeds"] = [claims.verdict_word(j.verdict) for j in judged]
     table = pd.DataFrame(columns, index=pd.Index(labels, name="claim"))
     return table
 
@@ -102,7 +102,7 @@ def seeds_needed(
             ),
         }
         if protocol is not None:
-            rows[j.label][f"verdict of the paper protocol's {n} seeds"] = own.get(j.key, "")
+            rows[j.label][f"verdict of the paper protocol's {n:,} seeds"] = own.get(j.key, "")
             rows[j.label][f"share of the {n}-seed subsamples with the protocol's verdict"] = (
                 shares[1] if len(shares) > 1 else math.nan
             )
@@ -162,7 +162,7 @@ def headline_tables(large: pd.DataFrame, m: pd.DataFrame) -> pd.DataFrame:
         for data, n in ((m, n_paper), (large, n_large)):
             per_eps = per_epsilon(data, column) * scale
             t = paired_ttest_table(per_eps[STANDARD], per_eps[AFFECTIVE])
-            rows[(name, f"ours, {n} seeds")] = {
+            rows[(name, f"ours, {n:,} seeds")] = {
                 "ε-greedy mean": t.at["Mean", "Variable 1"],
                 "affective mean": t.at["Mean", "Variable 2"],
                 "ε-greedy variance": t.at["Variance", "Variable 1"],

@@ -23,14 +23,31 @@ def _prose(line: str) -> str:
     return _CODE.sub(" ", line)
 
 
+def with_separators(text: str) -> str:
+    """``text`` with its whole numbers of 1,000 and more written with thousands separators (labels made elsewhere)."""
+    return _BARE.sub(lambda m: m.group(1) if _year(text, m) else f"{int(m.group(1)):,}", text)
+
+
+def _year(text: str, match: re.Match[str]) -> bool:
+    """A year after an author's name (``Jonker 2015``), not a count."""
+    before = text[: match.start()].rstrip().split(" ")[-1] if text[: match.start()].strip() else ""
+    return 1900 <= int(match.group(1)) <= 2099 and before[:1].isupper()
+
+
+def bare_numbers(text: str, table: bool = False) -> list[str]:
+    """The whole numbers of 1,000 and more in ``text`` without separators (a table line: skipped here, see below)."""
+    if table:
+        return []
+    return [m.group(1) for m in _BARE.finditer(text) if not _year(text, m)]
+
+
 def mixed_formats(markdown: str) -> list[str]:
     """Every number of ``markdown`` printed against the report's formats, one line per finding (empty: none)."""
     found = []
     lines = markdown.splitlines()
     for number, line in enumerate(lines, 1):
         text = _prose(line)
-        for match in _BARE.finditer(text):
-            found.append(f"line {number}: {match.group(1)} without thousands separators")
+        found += [f"line {number}: {n} without thousands separators" for n in bare_numbers(text, line.startswith("|"))]
         for match in _FIXED_P.finditer(text):
             found.append(f"line {number}: p {match.group(1)} in fixed decimals (small p: 3 significant digits)")
     found += _table_columns(lines)
@@ -39,6 +56,8 @@ def mixed_formats(markdown: str) -> list[str]:
 
 #: Tables whose rows, not columns, are quantities (the paper's spreadsheet layout): their columns mix formats by row.
 ROW_TABLES = ("t-Test: Paired Two Sample for Means",)
+#: Columns of settings (exact values as given, not measured quantities) and of the paper's cells as printed.
+SETTING_COLUMNS = ("chosen ε", "alpha", "gamma", "values run", "printed")
 
 
 def _significant(cell: str) -> int:
@@ -77,8 +96,14 @@ def _table_columns(lines: list[str]) -> list[str]:
             continue
         if len(table) > 2 and table[0][0] not in ROW_TABLES:
             header, rows = table[0], table[2:]
+            kept = [row for row in rows if "as printed" not in row[0]]  # the paper's cells are quoted, not formatted
+            for row in kept:
+                found += [f"table at line {start}: {n} without thousands separators" for cell in row
+                          for n in bare_numbers(_prose(cell))]  # fmt: skip
             for column in range(1, len(header)):
-                problem = column_problem([row[column] for row in rows if column < len(row)])
+                if header[column] in SETTING_COLUMNS or "as printed" in header[column]:
+                    continue
+                problem = column_problem([row[column] for row in kept if column < len(row)])
                 if problem:
                     found.append(f"table at line {start}, column {header[column]!r}: {problem}")
         table = []

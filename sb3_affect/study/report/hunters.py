@@ -110,7 +110,7 @@ def summary_table(metrics: pd.DataFrame) -> pd.DataFrame:
                 "task": task,
                 "team": team,
                 "hunter_0 + hunter_1": group.members.iloc[0],
-                "runs": len(group),
+                "runs": f"{len(group):,}",
                 "decisions per episode": _ci(group.decisions_per_episode),
                 f"last {LATE} episodes": _ci(group.late_decisions),
                 "steps before the first optimal capture": _ci(group.steps_before_optimal, 0),
@@ -192,7 +192,7 @@ def learning_figure(runs: list[dict[str, Any]], path: Path) -> Path:
 def _seed_text(metrics: pd.DataFrame) -> str:
     counts = metrics.groupby(["task", "team"]).size()
     low, high = int(counts.min()), int(counts.max())
-    return f"{low} runs" if low == high else f"{low} to {high} runs"
+    return f"{low:,} runs" if low == high else f"{low:,} to {high:,} runs"
 
 
 def hunters_section(run_dirs: Sequence[str | Path], out: str | Path) -> tuple[str, list[tuple[Path, str]]]:

@@ -60,7 +60,7 @@ def mechanism_sentence(table: pd.DataFrame, per_eps: str = "") -> str:
     """The abstract's sentence on where the lead comes from, per metric, then per ε (``per_eps``: the speed ablation's)."""
     if not len(table):
         return ""
-    clauses = [metric_clause(name, row) for name, row in table.iterrows()]
+    clauses = [metric_clause(str(name), row) for name, row in table.iterrows()]
     text = "Where the affective agent's lead comes from (averaged over ε; the speed ablation fixes its speed at 1): " + (
         "; ".join(clauses)
     )

@@ -26,7 +26,7 @@ def limitations_section(ctx: ReportContext) -> None:
         "Censoring: a run that never walks an optimal path within its 200 episodes enters Table V's means with all its "
         "decisions, so those means are lower bounds"
         + (
-            f" ({found['censored'][0]} affective and {found['censored'][1]} speed-matched runs in the main finding);"
+            f" ({found.censored[0]:,} affective and {found.censored[1]:,} speed-matched runs in the main finding);"
             if found
             else ";"
         )

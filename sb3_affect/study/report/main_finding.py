@@ -8,6 +8,7 @@ probability of improvement.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
@@ -15,7 +16,7 @@ import pandas as pd
 from sb3_affect.study.report.context import AFFECTIVE, ReportContext
 from sb3_affect.study.report.document import fmt, pval
 from sb3_affect.study.report.engine_studies import SPEED_AGENT
-from sb3_affect.study.report.inference import Z, welch
+from sb3_affect.study.report.inference import Estimate, Z, welch
 
 COLUMN = "decisions_before_optimal"
 #: Bootstrap resamples of the probability of improvement (the project's checks use the same count).
@@ -61,8 +62,36 @@ def restricted_means(groups: dict[str, tuple[np.ndarray, np.ndarray]]) -> tuple[
     return horizon, {name: restricted_mean(values, censored, horizon) for name, (values, censored) in groups.items()}
 
 
-def comparison(aff: pd.DataFrame, speed: pd.DataFrame) -> dict[str, object]:
-    """The numbers of the main finding (affective against the speed-matched ε-greedy), one dict."""
+@dataclass(frozen=True)
+class Comparison:
+    """
+    The main finding's numbers, affective first in each pair, the speed-matched ε-greedy second.
+
+    :param runs: runs of each
+    :param censored: runs that never found the optimal path
+    :param mean: the plain mean of decisions before it, ``>=`` where a censored run enters it
+    :param difference: affective minus speed-matched on the plain means (Welch CI) and its ``welch_p``
+    :param horizon: the restricted means' horizon (decisions)
+    :param restricted: the Kaplan-Meier restricted means to it
+    :param restricted_difference: affective minus speed-matched restricted mean, with its normal 95% CI
+    :param improvement: P(affective better) with its bootstrap 95% CI
+    :param per_episode: decisions per episode
+    """
+
+    runs: tuple[int, int]
+    censored: tuple[int, int]
+    mean: tuple[str, str]
+    difference: Estimate
+    welch_p: float
+    horizon: float
+    restricted: tuple[float, float]
+    restricted_difference: tuple[float, float, float]
+    improvement: tuple[float, float, float]
+    per_episode: tuple[float, float]
+
+
+def comparison(aff: pd.DataFrame, speed: pd.DataFrame) -> Comparison:
+    """The numbers of the main finding (affective against the speed-matched ε-greedy)."""
     from sb3_affect.study.report.stats import bootstrap_improvement
 
     a, s = aff[COLUMN].to_numpy(float), speed[COLUMN].to_numpy(float)
@@ -71,52 +100,49 @@ def comparison(aff: pd.DataFrame, speed: pd.DataFrame) -> dict[str, object]:
     horizon, rm = restricted_means({"a": (a, ca), "s": (s, cs)})
     rdiff = rm["a"][0] - rm["s"][0]
     rse = math.sqrt(rm["a"][1] + rm["s"][1])
-    better = bootstrap_improvement(a, s, REPS, seed=0)
-    return {
-        "runs": (len(a), len(s)),
-        "censored": (int(ca.sum()), int(cs.sum())),
-        "mean": (censored_mean(a, ca), censored_mean(s, cs)),
-        "difference": diff,
-        "welch p": p,
-        "horizon": horizon,
-        "restricted": (rm["a"][0], rm["s"][0]),
-        "restricted difference": (rdiff, rdiff - Z * rse, rdiff + Z * rse),
-        "improvement": better,
-        "per episode": (float(aff.decisions_per_episode.mean()), float(speed.decisions_per_episode.mean())),
-    }
+    return Comparison(
+        runs=(len(a), len(s)),
+        censored=(int(ca.sum()), int(cs.sum())),
+        mean=(censored_mean(a, ca), censored_mean(s, cs)),
+        difference=diff,
+        welch_p=p,
+        horizon=horizon,
+        restricted=(rm["a"][0], rm["s"][0]),
+        restricted_difference=(rdiff, rdiff - Z * rse, rdiff + Z * rse),
+        improvement=bootstrap_improvement(a, s, REPS, seed=0),
+        per_episode=(float(aff.decisions_per_episode.mean()), float(speed.decisions_per_episode.mean())),
+    )
 
 
-def finding_table(c: dict[str, object]) -> pd.DataFrame:
+def finding_table(c: Comparison) -> pd.DataFrame:
     """The two agents side by side: runs, censored runs, the plain mean (a lower bound), the restricted mean."""
-    runs, censored, mean, restricted = c["runs"], c["censored"], c["mean"], c["restricted"]
     rows = {}
     for i, name in enumerate((AFFECTIVE, f"{SPEED_AGENT} (ε 0.01)")):
         rows[name] = {
-            "runs": runs[i],  # type: ignore[index]
-            "never found the optimal path (censored)": censored[i],  # type: ignore[index]
-            "mean decisions before it (censored runs counted at their total: a lower bound)": mean[i],  # type: ignore[index]
-            f"Kaplan-Meier restricted mean to {fmt(c['horizon'], 0)} decisions": fmt(restricted[i], 0),  # type: ignore[index]
-            "decisions per episode": fmt(c["per episode"][i], 1),  # type: ignore[index]
+            "runs": c.runs[i],
+            "never found the optimal path (censored)": c.censored[i],
+            "mean decisions before it (censored runs counted at their total: a lower bound)": c.mean[i],
+            f"Kaplan-Meier restricted mean to {fmt(c.horizon, 0)} decisions": fmt(c.restricted[i], 0),
+            "decisions per episode": fmt(c.per_episode[i], 1),
         }
     table = pd.DataFrame.from_dict(rows, orient="index")
     table.index.name = "agent"
     return table
 
 
-def finding_sentence(c: dict[str, object]) -> str:
+def finding_sentence(c: Comparison) -> str:
     """The main finding in one sentence (the abstract's), every number from ``comparison``."""
-    mean, censored, restricted = c["mean"], c["censored"], c["restricted"]
-    rdiff, low, high = c["restricted difference"]  # type: ignore[misc]
-    point, plow, phigh = c["improvement"]  # type: ignore[misc]
+    rdiff, low, high = c.restricted_difference
+    point, plow, phigh = c.improvement
     outcome = "needs fewer" if low > 0 else "needs more" if high < 0 else "does not need significantly fewer"
     return (
         "Main finding: an ε-greedy agent that moves 1 or 2 cells per decision like the affective agent (ε 0.01, the "
         f"project's speed-matched baseline) {outcome} decisions before the first optimal path than the affective "
-        f"agent: Kaplan-Meier restricted means to {fmt(c['horizon'], 0)} decisions {fmt(restricted[1], 0)} against "  # type: ignore[index]
-        f"{fmt(restricted[0], 0)} (affective minus speed-matched {fmt(rdiff, 0)} [95% CI {fmt(low, 0)}, "  # type: ignore[index]
-        f"{fmt(high, 0)}]); plain means {mean[1]} against {mean[0]} ({censored[1]:,} of the speed-matched and "  # type: ignore[index]
-        f"{censored[0]:,} of the affective runs never found it: a lower bound where any did; Welch p "  # type: ignore[index]
-        f"{pval(c['welch p'])}); P(affective better) {fmt(point, 3)} [{fmt(plow, 3)}, {fmt(phigh, 3)}]"
+        f"agent: Kaplan-Meier restricted means to {fmt(c.horizon, 0)} decisions {fmt(c.restricted[1], 0)} against "
+        f"{fmt(c.restricted[0], 0)} (affective minus speed-matched {fmt(rdiff, 0)} [95% CI {fmt(low, 0)}, "
+        f"{fmt(high, 0)}]); plain means {c.mean[1]} against {c.mean[0]} ({c.censored[1]:,} of the speed-matched and "
+        f"{c.censored[0]:,} of the affective runs never found it: a lower bound where any did; Welch p "
+        f"{pval(c.welch_p)}); P(affective better) {fmt(point, 3)} [{fmt(plow, 3)}, {fmt(phigh, 3)}]"
     )
 
 
@@ -140,5 +166,6 @@ def main_finding_section(ctx: ReportContext) -> None:
         "Kaplan-Meier restricted mean treats it as censored, up to the horizon both agents' runs reach; the probability "
         "of improvement counts pairs (a censored run's total stands for its unknown value)."
     )
-    ctx.table("main_finding", finding_table(c), "Before the first optimal path: the affective agent and the speed-matched ε-greedy")
+    caption = "Before the first optimal path: the affective agent and the speed-matched ε-greedy"
+    ctx.table("main_finding", finding_table(c), caption)
     ctx.doc.p(finding_sentence(c) + ".")

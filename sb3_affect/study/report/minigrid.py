@@ -121,7 +121,9 @@ def verdict(scores: pd.DataFrame, reference: str | None = REFERENCE) -> list[str
         if not len(mine):
             out.append(f"{where} ({seeds} seeds per agent), IQM success rates: {listing}; no reference agent to compare.")
             continue
-        better, worse, same = [], [], []
+        better: list[str] = []
+        worse: list[str] = []
+        same: list[str] = []
         for agent, g in t[t.agent != reference].groupby("agent", sort=True):
             _, low, high = bootstrap_improvement(mine, g.success.to_numpy(float), REPS // 5, seed=0, lower_is_better=False)
             (better if low > 0.5 else worse if high < 0.5 else same).append(str(agent))
@@ -182,7 +184,7 @@ def minigrid_section(ctx: ReportContext, name: str, title: str, holds: str) -> N
         + (f", {fmt(int(budget.max()))} steps each" if len(budget) else "")
         + f". Success rate and return: over each run's last {LAST_EPISODES} episodes (a success ends at the goal; "
         "MiniGrid's return is 1 - 0.9 x steps / max steps there, 0 otherwise). IQM: rliable's interquartile mean over "
-        f"runs, with a 95% bootstrap CI ({REPS} resamples of runs within each task)"
+        f"runs, with a 95% bootstrap CI ({REPS:,} resamples of runs within each task)"
         + (
             f"; P({reference} better): the probability that a run of {reference} scores better than a run of the agent "
             "(ties count half), with its bootstrap CI."

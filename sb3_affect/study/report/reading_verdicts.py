@@ -121,7 +121,8 @@ def readings_section(ctx: ReportContext) -> None:
     ctx.table(
         "emotion_shares_by_reading",
         shares,
-        f"Emotion shares per reading (decision-weighted per run, averaged over runs; episodes 1-10 and 181-200; the reading ablation's runs, {n} seeds "
+        "Emotion shares per reading (decision-weighted per run, averaged over runs; episodes 1-10 and 181-200; the "
+        f"reading ablation's runs, {n} seeds "
         "per cell; the verdict's four-emotions row reads the verdict's own runs)",
         3,
     )

@@ -17,6 +17,7 @@ import pandas as pd
 
 from sb3_affect.study.report.context import ReportContext
 from sb3_affect.study.report.document import fmt
+from sb3_affect.study.report.formats import with_separators
 from sb3_affect.study.report.output_files import write_text
 
 PACKAGES = (
@@ -154,7 +155,8 @@ def record_section(ctx: ReportContext) -> None:
     )
     runs = replicate_runs(ctx.root)
     rows = {
-        name: {"wall seconds": seconds, "computed in": computed_in(runs, name, seconds)} for name, seconds in ctx.timings.items()
+        with_separators(name): {"wall seconds": seconds, "computed in": computed_in(runs, name, seconds)}
+        for name, seconds in ctx.timings.items()
     }
     if rows:
         ctx.table(
@@ -166,7 +168,7 @@ def record_section(ctx: ReportContext) -> None:
         )
         ctx.doc.p(
             "Wall times on a machine shared with other jobs vary between runs (the parts above sum to "
-            f"{fmt(sum(r['wall seconds'] for r in rows.values()), 1)} s"
+            f"{fmt(sum(ctx.timings.values()), 1)} s"
             + (f", over {len(runs)} runs of `replicate` into this folder: each run's own times below" if len(runs) > 1
                else "")
             + ")."
@@ -234,4 +236,6 @@ def runs_table(runs: list[dict]) -> pd.DataFrame:
     table = pd.DataFrame(columns)
     order = [k for k in table.index if k not in ("report", "total")]
     order += [k for k in ("report", "total") if table.loc[k].notna().any()]
-    return table.loc[order].rename_axis("part")
+    table = table.loc[order]
+    table.index = [with_separators(str(k)) for k in table.index]
+    return table.rename_axis("part")
