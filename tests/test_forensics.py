@@ -247,9 +247,9 @@ def test_self_check_recovers_the_candidate_that_printed_the_numbers(tmp_path: Pa
     smoke = tmp_path / "smoke"
     run_sweep(ROOT / "experiments" / "smoke.yaml", smoke, workers=1, progress=False)
     shutil.copytree(tmp_path / "f", smoke / "forensics")
-    text = build_report(smoke).read_text()  # the report alone never imports the forensics: no section
+    text = _pages(build_report(smoke))  # the report alone never imports the forensics: no section
     assert "## Replication forensics" not in text and "Replication forensics: not run" in text
-    text = build_report(smoke, extra_sections=[report_section(smoke / "forensics")]).read_text()  # passed in from above
+    text = _pages(build_report(smoke, extra_sections=[report_section(smoke / "forensics")]))  # passed in from above
     assert "## Replication forensics" in text and "figures/forensics_statistics.png" in text
     assert "Replication forensics: included" in text
     assert (smoke / "figures" / "forensics_statistics.png").exists()
@@ -329,3 +329,10 @@ def test_units_on_the_launchers_executor_store_what_one_process_stores(
     assert main(["status", str(out)]) == 0
     status = capsys.readouterr().out
     assert status.startswith(f"forensics in {out}: ") and "analysis of 2 screen, 1 leaders x 2 replications" in status
+
+
+def _pages(report: Path) -> str:
+    """report.md and every appendix page it links to, in order (a link to a missing page fails here)."""
+    main = report.read_text()
+    linked = re.findall(r"^- \[[^\]]+\]\(([\w-]+\.md)\)$", main, re.M)
+    return "\n".join([main, *((report.parent / name).read_text() for name in linked)])

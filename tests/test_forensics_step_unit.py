@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import pandas as pd
 import pytest
@@ -35,3 +36,26 @@ def test_the_largest_separation_is_in_monte_carlo_errors_of_the_difference() -> 
     """The best is -10 ± 3; -16 ± 4 is 6 / 5 = 1.2 errors away, the largest of the three."""
     assert largest_separation(_leaders()) == pytest.approx(6.0 / 5.0)
     assert math.isnan(largest_separation(_leaders().assign(loglik=-math.inf)))
+
+
+def test_the_verdict_settings_column_is_the_reports_own_spreadsheet(tmp_path: Path) -> None:
+    """The sensitivity table's column for the verdict's setting equals the report's Tables IV and V on the same runs."""
+    from sb3_affect.study.forensics.section import protocol_statistics
+    from sb3_affect.study.forensics.statistics import STATISTICS
+    from sb3_affect.study.launcher import run_sweep
+    from sb3_affect.study.report.metrics import load_results, run_metrics
+    from sb3_affect.study.report.stats import paired_ttest_table
+    from sb3_affect.study.report.tables import per_epsilon
+
+    run_sweep(Path(__file__).resolve().parents[1] / "experiments" / "smoke.yaml", tmp_path / "paper", workers=1,
+              progress=False)  # fmt: skip
+    own = dict(zip(STATISTICS, protocol_statistics(tmp_path / "paper")))  # type: ignore[arg-type]
+    results = load_results(tmp_path / "paper")
+    m = run_metrics(results.episodes, results.runs)
+    iv = paired_ttest_table(*per_epsilon(m, "decisions_per_episode").to_numpy().T)
+    v = paired_ttest_table(*per_epsilon(m, "decisions_before_optimal", "sum").to_numpy().T)
+    assert own["IV mean ε-greedy"] == pytest.approx(iv.at["Mean", "Variable 1"])
+    assert own["IV t Stat"] == pytest.approx(iv.at["t Stat", "Variable 1"])
+    assert own["V mean affective"] == pytest.approx(v.at["Mean", "Variable 2"])
+    assert own["V variance ε-greedy"] == pytest.approx(v.at["Variance", "Variable 1"])
+    assert protocol_statistics(tmp_path / "nothing") is None

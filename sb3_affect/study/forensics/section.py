@@ -159,14 +159,44 @@ def leader_sensitivity_lines(folder: Path, leaders: pd.DataFrame, intervals: pd.
         for s in STATISTICS
     ]
     rows["leader / printed"] = rows.iloc[:, 1] / rows["printed"]
+    own = protocol_statistics(Path(folder).parent / "paper")
+    if own is not None:
+        rows["the verdict's setting, the protocol's runs (walked, sum)"] = own
+        rows["verdict's / printed"] = own / rows["printed"].to_numpy(float)
     return [
         f"*Sensitivity of the sizes to the setting: each printed statistic beside its mean under the leading candidate "
-        f"({setting}; {len(sample)} replications of the paper's protocol), where the verdict uses its own setting "
-        "(alpha 1.0, gamma 0.8)*",
+        f"({setting}; {len(sample)} replications of the paper's protocol), and under the verdict's own setting (alpha "
+        "1.0, gamma 0.8) on the paper protocol's own runs, one replication*",
         "",
         _md_table(rows, 2),
         "",
     ]
+
+
+def protocol_statistics(paper: Path) -> np.ndarray | None:
+    """
+    The printed statistics (``STATISTICS``) of the paper protocol's own runs (the results folder ``paper``: the
+    verdict's setting), read as the verdict reads them (steps as decisions, the walked optimal path, Table V as the
+    sum over the runs); None when the folder holds no such runs.
+    """
+    from sb3_affect.study.forensics.candidates import Reading
+    from sb3_affect.study.forensics.statistics import candidate_statistics, cell_summary
+    from sb3_affect.study.report.metrics import load_results
+
+    if not (paper / "runs").is_dir():
+        return None
+    columns = ("episode", "decisions", "cells", "optimal", "greedy_optimal")
+    episodes = load_results(paper, columns).episodes
+    if episodes.empty or "epsilon" not in episodes.columns:
+        return None
+    summaries = {}
+    for agent in ("epsilon-greedy", "affective"):
+        rows = episodes[episodes.agent == agent].rename(columns={"run_id": "seed"})
+        if rows.empty:
+            return None
+        cells = {eps: cell_summary(rows[rows.epsilon == eps]) for eps in sorted(rows.epsilon.astype(float).unique())}
+        summaries[agent] = pd.DataFrame(cells).T
+    return candidate_statistics(summaries["epsilon-greedy"], summaries["affective"], Reading("walked", "decisions", "sum"))
 
 
 def verdict_setting_lines(screen: pd.DataFrame) -> list[str]:

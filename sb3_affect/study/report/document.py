@@ -63,7 +63,7 @@ def pval(p: float) -> str:
         return "< 1e-300"
     if p < 1e-4:
         return f"{p:.2e}"
-    return f"{p:#.3g}" if p < 1 else "1"
+    return f"{p:#.3g}" if p < 1 else "1.00"
 
 
 #: Table columns holding p-values (formatted by ``pval``).
@@ -439,6 +439,8 @@ def _numeric(cell: str) -> bool:
 
 def _md_table(frame: pd.DataFrame, digits: int) -> str:
     header, rows = _cells(frame, digits)
+    header = [cell.replace("|", "\\|") for cell in header]  # a cell's own bars (|a - b|) never split the row
+    rows = [[cell.replace("|", "\\|") for cell in row] for row in rows]
     lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
     lines += ["| " + " | ".join(row) + " |" for row in rows]
     return "\n".join(lines)

@@ -69,7 +69,8 @@ def column_problem(cells: list[str]) -> str:
     """
     Why a column's plain numbers are in mixed formats ("" when they are not): numbers below 1,000 with decimals must
     share one number of decimals (fixed decimals) or all have 3 significant digits (``sig``), and a whole number
-    below 1,000 (other than 0) may not stand among numbers with decimals of one fixed format ("35" beside "45.0").
+    below 1,000 (other than 0) may not stand among numbers with fixed decimals, nor one below 100 among numbers with
+    decimals ("35" beside "45.0": 3 significant digits print it "35.0").
     """
     numbers = [c for c in cells if _NUMBER.match(c)]
     small = [c for c in numbers if abs(float(c.replace(",", ""))) < 1000]
@@ -78,8 +79,11 @@ def column_problem(cells: list[str]) -> str:
     if len(counts) > 1 and not all(_significant(c) == 3 for c in decimals):
         return f"decimals {sorted(counts)}"
     whole = [c for c in small if "." not in c and c.lstrip("+-") != "0"]
-    if whole and len(decimals) >= 2 and len(counts) == 1 and not all(_significant(c) == 3 for c in decimals):
-        return f"{whole[0]} beside {decimals[0]}"
+    if whole and decimals:
+        fixed = len(counts) == 1 and not all(_significant(c) == 3 for c in decimals)
+        short = [c for c in whole if _significant(c) < 3]  # 3 significant digits print 35 as 35.0
+        if fixed or short:
+            return f"{(short or whole)[0]} beside {decimals[0]}"
     return ""
 
 
@@ -92,17 +96,16 @@ def _table_columns(lines: list[str]) -> list[str]:
         if line.startswith("|"):
             if not table:
                 start = number
-            table.append([cell.strip() for cell in line.strip().strip("|").split("|")])
+            table.append([cell.strip() for cell in re.split(r"(?<!\\)\|", line.strip().strip("|"))])
             continue
         if len(table) > 2 and table[0][0] not in ROW_TABLES:
             header, rows = table[0], table[2:]
             kept = [row for row in rows if "as printed" not in row[0]]  # the paper's cells are quoted, not formatted
-            for row in kept:
-                found += [f"table at line {start}: {n} without thousands separators" for cell in row
-                          for n in bare_numbers(_prose(cell))]  # fmt: skip
             for column in range(1, len(header)):
                 if header[column] in SETTING_COLUMNS or "as printed" in header[column]:
                     continue
+                found += [f"table at line {start}: {n} without thousands separators" for row in kept
+                          if column < len(row) for n in bare_numbers(_prose(row[column]))]  # fmt: skip
                 problem = column_problem([row[column] for row in kept if column < len(row)])
                 if problem:
                     found.append(f"table at line {start}, column {header[column]!r}: {problem}")
