@@ -271,7 +271,7 @@ def test_the_sensitivity_row_gives_each_printed_number_beside_the_leaders_mean(t
     lines = leader_sensitivity_lines(tmp_path, leaders, intervals)
     assert "alpha 0.5, gamma 0.9; 2 replications" in lines[0]
     body = "\n".join(lines)
-    assert f"| {STATISTICS[0]} | 4 | 2 | 0.50 |" in body and f"| {STATISTICS[-1]} | 28 | 14 | 0.50 |" in body
+    assert f"| {STATISTICS[0]} | 4.00 | 2.00 | 0.50 |" in body and f"| {STATISTICS[-1]} | 28.00 | 14.00 | 0.50 |" in body
     assert leader_sensitivity_lines(tmp_path / "none", leaders, intervals) == []
 
 

@@ -117,7 +117,10 @@ def cells_sentence(judged_main: list[claims.Judgement]) -> str:
 def abstract_sentences(
     judged_main: list[claims.Judgement], n: int, runs: int, finding: str = "", mechanism: str = "", ranks: str = ""
 ) -> list[str]:
-    """What was done, the main finding, how many claims hold, the paper's test apart, why, and what it is worth."""
+    """
+    The abstract's paragraphs: what was done, the main finding and the ranks; how many claims hold, in cells, the
+    paper's test apart; where the lead comes from, the emotions, and what the verdicts are worth.
+    """
     by_key = {j.key: j for j in judged_main}
     first = (
         f"We reran Badoy and Teknomo's grid-pursuit experiment (ε-greedy Q-learning against the affective agent, 9 ε "
@@ -131,18 +134,12 @@ def abstract_sentences(
         "comes with its tests and Holm-corrected p-values, and the reading of the paper's appraisal changes several "
         "verdicts (claims x readings table)."
     )
-    parts = (
-        first,
-        finding + "." if finding else "",
-        ranks,
-        count_sentence(judged_main),
-        cells_sentence(judged_main),
-        test_outcome_sentence(judged_main),
-        mechanism,
-        emotions,
-        worth,
+    paragraphs = (
+        (first, finding + "." if finding else "", ranks),
+        (count_sentence(judged_main), cells_sentence(judged_main), test_outcome_sentence(judged_main)),
+        (mechanism, emotions, worth),
     )
-    return [s for s in parts if s]
+    return [" ".join(s for s in paragraph if s) for paragraph in paragraphs if any(paragraph)]
 
 
 def headline_table(
@@ -195,7 +192,8 @@ def _write_abstract(ctx: ReportContext) -> None:
     leads = ctx.cache.get("lead sources")
     mechanism = mechanism_sentence(leads, ctx.cache.get("speed one conclusion", "")) if leads is not None else ""
     ctx.doc.h("Abstract")
-    ctx.doc.p(" ".join(abstract_sentences(judged_main, n, runs, finding, mechanism, ranks)))
+    for paragraph in abstract_sentences(judged_main, n, runs, finding, mechanism, ranks):
+        ctx.doc.p(paragraph)
     ctx.doc.h("Headline")
     needed = ctx.cache.get("seeds needed")
     ctx.table(

@@ -108,7 +108,7 @@ def profile_figure(m: pd.DataFrame, path: str, column: str = "decisions_before_o
     ax.set_ylim(-0.02, 1.02)
     ax.set_xlabel(f"τ: {column.replace('_', ' ')}")
     ax.set_ylabel("fraction of runs that found it within τ")
-    ax.set_title("Performance profiles (bootstrap 95% bands over runs; censored runs never count)")
+    ax.set_title("Performance profiles (95% bootstrap bands; a censored run never counts)", fontsize=10)
     ax.legend(fontsize=8)
     return str(save(fig, path))
 

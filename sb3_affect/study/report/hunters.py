@@ -56,9 +56,11 @@ def team_runs(run_dirs: Sequence[str | Path]) -> list[dict[str, Any]]:
 
 
 def markdown_table(frame: pd.DataFrame) -> str:
-    """A plain Markdown table (cells as given; floats with 2 decimals)."""
+    """A plain Markdown table (cells as given; floats with 2 decimals, whole numbers with thousands separators)."""
 
     def cell(value: Any) -> str:
+        if isinstance(value, (int, np.integer)) and not isinstance(value, bool):
+            return f"{value:,}"
         return f"{value:,.2f}" if isinstance(value, float) else str(value)
 
     lines = ["| " + " | ".join(map(str, frame.columns)) + " |", "|" + "---|" * len(frame.columns)]
@@ -110,7 +112,7 @@ def summary_table(metrics: pd.DataFrame) -> pd.DataFrame:
                 "task": task,
                 "team": team,
                 "hunter_0 + hunter_1": group.members.iloc[0],
-                "runs": f"{len(group):,}",
+                "runs": len(group),
                 "decisions per episode": _ci(group.decisions_per_episode),
                 f"last {LATE} episodes": _ci(group.late_decisions),
                 "steps before the first optimal capture": _ci(group.steps_before_optimal, 0),
