@@ -161,5 +161,6 @@ def protocol_draw_section(ctx: ReportContext) -> None:
     ctx.table("protocol_draw", table, "Each printed mean's statistic: the protocol's runs among the disjoint 20-seed blocks")
     ctx.doc.p(
         finding(table) + f" The protocol's affective runs lie above the other replicates' mean at {above} of {cells} ε "
-        f"values; pooled, they take {ratio - 1:+.1%} decisions before the optimal path."
+        f"values; pooled over ε, they take {abs(ratio - 1):.1%} {'more' if ratio >= 1 else 'fewer'} decisions before the "
+        "optimal path than the other replicates."
     )
