@@ -137,7 +137,7 @@ def test_log_likelihood_differences_come_with_their_monte_carlo_error() -> None:
     never[:, 0] = np.nan  # a printed statistic this candidate never produces: log-likelihood -inf, no error
     assert math.isnan(monte_carlo_error(never, observed))
     table = pd.DataFrame({"loglik": [-10.0, -14.0, -math.inf], "loglik_mc_error": [3.0, 4.0, math.nan]})
-    assert _differences(table, "loglik", "loglik_mc_error") == ["0 (the best) ± 3.0", "-4.0 ± 5.0", "-inf"]
+    assert _differences(table, "loglik", "loglik_mc_error") == ["— (the best)", "-4.0 ± 5.0", "-inf"]
 
 
 def _normal(mean: float, sd: float, reps: int, seed: int) -> np.ndarray:
@@ -248,9 +248,9 @@ def test_self_check_recovers_the_candidate_that_printed_the_numbers(tmp_path: Pa
     smoke = tmp_path / "smoke"
     run_sweep(ROOT / "experiments" / "smoke.yaml", smoke, workers=1, progress=False)
     shutil.copytree(tmp_path / "f", smoke / "forensics")
-    text = build_report(smoke).read_text()  # the report alone never imports the forensics: no section
+    text = _pages(build_report(smoke))  # the report alone never imports the forensics: no section
     assert "## Replication forensics" not in text and "Replication forensics: not run" in text
-    text = build_report(smoke, extra_sections=[report_section(smoke / "forensics")]).read_text()  # passed in from above
+    text = _pages(build_report(smoke, extra_sections=[report_section(smoke / "forensics")]))  # passed in from above
     assert "## Replication forensics" in text and "figures/forensics_statistics.png" in text
     assert "Replication forensics: included" in text
     assert (smoke / "figures" / "forensics_statistics.png").exists()
@@ -272,7 +272,7 @@ def test_the_sensitivity_row_gives_each_printed_number_beside_the_leaders_mean(t
     lines = leader_sensitivity_lines(tmp_path, leaders, intervals)
     assert "alpha 0.5, gamma 0.9; 2 replications" in lines[0]
     body = "\n".join(lines)
-    assert f"| {STATISTICS[0]} | 4 | 2 | 0.50 |" in body and f"| {STATISTICS[-1]} | 28 | 14 | 0.50 |" in body
+    assert f"| {STATISTICS[0]} | 4.00 | 2.00 | 0.50 |" in body and f"| {STATISTICS[-1]} | 28.00 | 14.00 | 0.50 |" in body
     assert leader_sensitivity_lines(tmp_path / "none", leaders, intervals) == []
 
 
@@ -330,3 +330,10 @@ def test_units_on_the_launchers_executor_store_what_one_process_stores(
     assert main(["status", str(out)]) == 0
     status = capsys.readouterr().out
     assert status.startswith(f"forensics in {out}: ") and "analysis of 2 screen, 1 leaders x 2 replications" in status
+
+
+def _pages(report: Path) -> str:
+    """report.md and every appendix page it links to, in order (a link to a missing page fails here)."""
+    main = report.read_text()
+    linked = re.findall(r"^- \[[^\]]+\]\(([\w-]+\.md)\)$", main, re.M)
+    return "\n".join([main, *((report.parent / name).read_text() for name in linked)])

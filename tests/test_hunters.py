@@ -242,7 +242,8 @@ def test_two_hunter_sweep_runs_from_yaml_and_the_report_gets_both_sections(tmp_p
 
     # the report: a results folder holding hunters/ gets the two sections (tables, verdict lines, figures)
     run_sweep(EXPERIMENTS / "smoke.yaml", tmp_path, workers=2, overrides=["episodes=3"], progress=False)
-    report = build_report(tmp_path).read_text()
+    main = build_report(tmp_path)
+    report = "\n".join(page.read_text() for page in [main, *sorted(tmp_path.glob("appendix-*.md"))])
     assert "## Beyond the paper: two hunters" in report and "## Two emotion models on the same runs" in report
     teams = pd.read_csv(tmp_path / "tables" / "hunters.csv")
     assert list(teams.team) == ["affective", "epsilon-greedy", "mixed-affective-far", "mixed-affective-near"]

@@ -26,6 +26,7 @@ from sb3_affect.study.report import (
 )
 from sb3_affect.study.report.estimation.bootstrap import TTEST_ROWS
 from sb3_affect.study.report.reading.run_tables import run_metrics
+from sb3_affect.study.report.rendering.formats import mixed_formats
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -138,7 +139,9 @@ def test_report_end_to_end_from_the_smoke_sweep(tmp_path: Path) -> None:
     out = tmp_path / "smoke"
     run_sweep(ROOT / "experiments" / "smoke.yaml", out, workers=2, progress=False)
     report = build_report(out)
-    text = report.read_text()
+    text = _pages(report)
+    assert len(report.read_bytes()) <= 30 * 1024 and len(re.findall(r"\(appendix-[\w-]+\.md\)", report.read_text())) == 3
+    assert mixed_formats(text) == []  # one format per quantity, on every page
     for section in (
         "Verdict",
         "No verdict: too few runs",
@@ -169,7 +172,7 @@ def test_report_end_to_end_from_the_smoke_sweep(tmp_path: Path) -> None:
         image = mpimg.imread(png)
         assert image.ndim == 3 and image.shape[0] > 100 and image.shape[1] > 100
         assert f"figures/{png.name}" in text
-    html = (out / "report.html").read_text()
+    html = "".join(page.read_text() for page in sorted(out.glob("*.html")))
     assert html.count("data:image/png;base64,") == len(figures) and "<table>" in html
     assert "<ul><li>" in html and "<p>- " not in html  # lists render as lists
     for table in ("table_iv", "table_v_walked", "table_v_greedy", "kaplan_meier_paper", "rliable", "profile_windows"):
@@ -233,3 +236,10 @@ def test_html_inline_markup_renders_emphasis_bold_and_code_but_not_arithmetic() 
 
     rendered = _inline("A *step* is one decision; **bold** and `code`; 2 * 3 * 4; a*b*c <x>")
     assert rendered == "A <i>step</i> is one decision; <b>bold</b> and <code>code</code>; 2 * 3 * 4; a*b*c &lt;x&gt;"
+
+
+def _pages(report: Path) -> str:
+    """report.md and every appendix page it links to, in order (a link to a missing page fails here)."""
+    main = report.read_text()
+    linked = re.findall(r"^- \[[^\]]+\]\(([\w-]+\.md)\)$", main, re.M)
+    return "\n".join([main, *((report.parent / name).read_text() for name in linked)])

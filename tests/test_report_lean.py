@@ -97,7 +97,10 @@ def test_the_report_read_in_parts_equals_the_report_read_whole(
     assert len(tables) >= 10 and tables == sorted(p.name for p in (tmp_path / "parts" / "tables").glob("*.csv"))
     for name in tables:
         assert (tmp_path / "parts" / "tables" / name).read_bytes() == (tmp_path / "whole" / "tables" / name).read_bytes(), name
-    assert (tmp_path / "parts" / "report.md").read_text() == (tmp_path / "whole" / "report.md").read_text()
+    pages = sorted(p.name for p in (tmp_path / "whole").glob("*.md"))
+    assert "report.md" in pages and len(pages) > 1 and pages == sorted(p.name for p in (tmp_path / "parts").glob("*.md"))
+    for name in pages:  # the main text and every appendix page
+        assert (tmp_path / "parts" / name).read_text() == (tmp_path / "whole" / name).read_text(), name
 
 
 # -- the one pass (episode_scan), the compiled grouped arithmetic (grouped_sums) and the kept resamples ------------------

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -302,7 +303,7 @@ def test_replicate_writes_every_part_and_the_record(tmp_path: Path, monkeypatch:
         (experiments / f"{name}.yaml").write_text((ROOT / "experiments" / f"{name}.yaml").read_text())
     report = main(tmp_path / "out", workers=1, experiments=experiments, large_seeds=1, ablation_seeds=1, beyond_seeds=1,
                   engine_episodes=5, forensics=False)
-    text = report.read_text()
+    text = _pages(report)
     assert "No verdict: too few runs" in text
     for part in replicate.SIZED:  # launcher folders
         assert json.loads((tmp_path / "out" / part / "sweep.json").read_text())["sweep"]["episodes"] in (5, 50), part
@@ -608,3 +609,10 @@ def test_the_wall_time_record_keeps_each_runs_own_times(tmp_path: Path) -> None:
     table = runs_table(runs)
     assert list(table.index) == ["paper", "forensics", "report", "total"] and table.shape[1] == 2
     assert table.iloc[:, 0]["forensics"] == 65.5 and table.iloc[:, 1]["forensics"] == 17.0
+
+
+def _pages(report: Path) -> str:
+    """report.md and every appendix page it links to, in order (a link to a missing page fails here)."""
+    main = report.read_text()
+    linked = re.findall(r"^- \[[^\]]+\]\(([\w-]+\.md)\)$", main, re.M)
+    return "\n".join([main, *((report.parent / name).read_text() for name in linked)])

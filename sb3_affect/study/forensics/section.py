@@ -68,10 +68,71 @@ def _differences(table: pd.DataFrame, column: str, error: str) -> list[str]:
         if not math.isfinite(value):
             out.append("-inf")
             continue
-        spread = math.sqrt(errors[i] ** 2 + errors[best] ** 2) if i != best else errors[i]
-        text = "0 (the best)" if i == best else f"{value - values[best]:,.1f}"
-        out.append(text + (f" ± {spread:,.1f}" if math.isfinite(spread) else ""))
+        if i == best:
+            out.append("— (the best)")
+            continue
+        spread = math.sqrt(errors[i] ** 2 + errors[best] ** 2)
+        out.append(f"{value - values[best]:,.1f}" + (f" ± {spread:,.1f}" if math.isfinite(spread) else ""))
     return out
+
+
+def largest_separation(table: pd.DataFrame, column: str = "loglik", error: str = "loglik_mc_error") -> float:
+    """The largest |difference from the best| over its Monte Carlo error among ``table``'s rows (NaN: no errors)."""
+    values = table[column].to_numpy(float)
+    errors = table[error].to_numpy(float) if error in table.columns else np.full(len(values), np.nan)
+    if not np.isfinite(values).any():
+        return math.nan
+    best = int(np.nanargmax(np.where(np.isfinite(values), values, -np.inf)))
+    ratios = [abs(v - values[best]) / math.hypot(e, errors[best]) for i, (v, e) in enumerate(zip(values, errors))
+              if i != best and math.isfinite(v) and math.hypot(e, errors[best]) > 0]  # fmt: skip
+    return max(ratios, default=math.nan)
+
+
+def step_unit_lines(top: pd.DataFrame) -> list[str]:
+    """
+    The leading candidates that differ only in the step unit, pair by pair: decisions minus cells on the full
+    likelihood and on the reachable statistics, each with the Monte Carlo error of the difference (the two
+    candidates' errors combined), and how many pairs each unit wins and by two errors.
+    """
+    if "step" not in top.columns:
+        return []
+    others = [c for c in FACTORS if c in top.columns and c != "step"]
+    ranked = top.reset_index(drop=True)
+    scores = [("full likelihood", "loglik", "loglik_mc_error"),
+              ("reachable statistics", "loglik_reachable", "loglik_reachable_mc_error")]  # fmt: skip
+    scores = [score for score in scores if score[1] in ranked.columns]
+    pairs: list[tuple[int, int]] = []
+    for _, group in ranked.groupby(others, sort=False, dropna=False):
+        units = {str(step): int(i) for i, step in zip(group.index.to_numpy(), group.step.to_numpy())}
+        if {"decisions", "cells"} <= set(units):
+            pairs.append((units["decisions"], units["cells"]))
+    if not pairs:
+        return []
+
+    def diff(a: int, b: int, value: str, error: str) -> tuple[float, float]:
+        errors = ranked[error] if error in ranked.columns else pd.Series(math.nan, index=ranked.index)
+        return float(ranked[value].iloc[a] - ranked[value].iloc[b]), math.hypot(float(errors.iloc[a]), float(errors.iloc[b]))
+
+    pairs.sort(key=min)
+    texts = []
+    for a, b in pairs:
+        found = [diff(a, b, value, error) for _, value, error in scores]
+        texts.append(f"ranks {a + 1} (decisions) and {b + 1} (cells): "
+                     + ", ".join(f"{name} {d:+,.1f} ± {e:,.1f}" for (name, _, _), (d, e) in zip(scores, found)))  # fmt: skip
+    tallies = []
+    for name, value, error in scores:
+        found = [diff(a, b, value, error) for a, b in pairs]
+        wins = sum(d > 0 for d, _ in found)
+        clear = sum(abs(d) > 2 * e for d, e in found)
+        tallies.append(f"on the {name} decisions score higher in {wins} of {len(pairs)} pairs ({clear} of the "
+                       f"{len(pairs)} differences reach two Monte Carlo errors)")  # fmt: skip
+    return [
+        f"The forensics does not decide the step unit: {len(pairs)} pairs of leading candidates differ only in it "
+        "(decisions minus cells, log-likelihood ± the Monte Carlo error of the difference): " + "; ".join(texts)
+        + ". " + "; ".join(tallies)[0].upper() + "; ".join(tallies)[1:] + ". The verdict counts steps as decisions "
+        "(the paper's unit of time) and gives each claim's verdict in cells beside it.",
+        "",
+    ]
 
 
 def verdict_setting() -> dict[str, Any]:
@@ -106,14 +167,44 @@ def leader_sensitivity_lines(folder: Path, leaders: pd.DataFrame, intervals: pd.
         for s in STATISTICS
     ]
     rows["leader / printed"] = rows.iloc[:, 1] / rows["printed"]
+    own = protocol_statistics(Path(folder).parent / "paper")
+    if own is not None:
+        rows["the verdict's setting, the protocol's runs (walked, sum)"] = own
+        rows["verdict's / printed"] = own / rows["printed"].to_numpy(float)
     return [
         f"*Sensitivity of the sizes to the setting: each printed statistic beside its mean under the leading candidate "
-        f"({setting}; {len(sample)} replications of the paper's protocol), where the verdict uses its own setting "
-        "(alpha 1.0, gamma 0.8)*",
+        f"({setting}; {len(sample)} replications of the paper's protocol), and under the verdict's own setting (alpha "
+        "1.0, gamma 0.8) on the paper protocol's own runs, one replication*",
         "",
         md_table(rows, 2),
         "",
     ]
+
+
+def protocol_statistics(paper: Path) -> np.ndarray | None:
+    """
+    The printed statistics (``STATISTICS``) of the paper protocol's own runs (the results folder ``paper``: the
+    verdict's setting), read as the verdict reads them (steps as decisions, the walked optimal path, Table V as the
+    sum over the runs); None when the folder holds no such runs.
+    """
+    from sb3_affect.study.forensics.candidates import Reading
+    from sb3_affect.study.forensics.statistics import candidate_statistics, cell_summary
+    from sb3_affect.study.report.reading.run_tables import load_results
+
+    if not (paper / "runs").is_dir():
+        return None
+    columns = ("episode", "decisions", "cells", "optimal", "greedy_optimal")
+    episodes = load_results(paper, columns).episodes
+    if episodes.empty or "epsilon" not in episodes.columns:
+        return None
+    summaries = {}
+    for agent in ("epsilon-greedy", "affective"):
+        rows = episodes[episodes.agent == agent].rename(columns={"run_id": "seed"})
+        if rows.empty:
+            return None
+        cells = {eps: cell_summary(rows[rows.epsilon == eps]) for eps in sorted(rows.epsilon.astype(float).unique())}
+        summaries[agent] = pd.DataFrame(cells).T
+    return candidate_statistics(summaries["epsilon-greedy"], summaries["affective"], Reading("walked", "decisions", "sum"))
 
 
 def verdict_setting_lines(screen: pd.DataFrame) -> list[str]:
@@ -193,6 +284,14 @@ def forensics_section(folder: str | Path, figures_dir: str | Path | None = None)
         md_table(ranking, 2),
         "",
     ]
+    largest = largest_separation(top)
+    if math.isfinite(largest):
+        lines += [
+            f"Among these {len(top)} leaders the largest difference from the best is {largest:.1f} Monte Carlo errors: "
+            + ("none reaches two, so the data do not separate them." if largest < 2 else "some reach two."),
+            "",
+        ]
+    lines += step_unit_lines(top)
     lines += verdict_setting_lines(screen)
     lines += leader_sensitivity_lines(folder, leaders, table)
     best_screen = screen.head(8)

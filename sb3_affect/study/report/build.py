@@ -25,7 +25,7 @@ from sb3_affect.study.report.reading import study_tables as engine_studies
 from sb3_affect.study.report.reading.context import ReportContext
 from sb3_affect.study.report.reading.episode_scan import scan
 from sb3_affect.study.report.reading.run_tables import EARLY_WINDOWS, LATE_WINDOWS, load_results
-from sb3_affect.study.report.rendering.document import APPENDIX_HEADING, Document, fmt
+from sb3_affect.study.report.rendering.document import MAIN_PAGE, Document, fmt
 from sb3_affect.study.report.rendering.output_files import output_folder, write_text
 from sb3_affect.study.report.sections.ablation import ablation_section
 from sb3_affect.study.report.sections.abstract import abstract_section
@@ -34,14 +34,18 @@ from sb3_affect.study.report.sections.dqn import dqn_section, learning_curves_se
 from sb3_affect.study.report.sections.emotion_models import emotion_models_sections
 from sb3_affect.study.report.sections.evidence import evidence_section
 from sb3_affect.study.report.sections.hunters import hunters_sections
-from sb3_affect.study.report.sections.mechanism import mechanism_section
+from sb3_affect.study.report.sections.lead_sources import lead_section
+from sb3_affect.study.report.sections.limitations import limitations_section
+from sb3_affect.study.report.sections.main_finding import main_finding_section
+from sb3_affect.study.report.sections.mechanism import fig5_section, mechanism_section
 from sb3_affect.study.report.sections.minigrid import FOLDERS as MINIGRID_FOLDERS
 from sb3_affect.study.report.sections.minigrid import minigrid_sections
 from sb3_affect.study.report.sections.paper_tables import figures_3_4_section, table_iv_section, table_v_section
 from sb3_affect.study.report.sections.project_checks import checks_section
+from sb3_affect.study.report.sections.protocol_draw import protocol_draw_section
 from sb3_affect.study.report.sections.readings import readings_section
 from sb3_affect.study.report.sections.reproducibility import record_section
-from sb3_affect.study.report.sections.speed_ablation import speed_one_section
+from sb3_affect.study.report.sections.speed_ablation import speed_one_section, speed_table_section
 from sb3_affect.study.report.sections.survival import survival_section
 from sb3_affect.study.report.sections.verdict import tests_section, verdict_section
 from sb3_affect.study.report.sections.window_verdicts import windows_section
@@ -125,12 +129,6 @@ def agents_section(ctx: ReportContext) -> None:
     ctx.table("agents", summary, "Per-agent summary (means over runs)")
 
 
-def appendix_heading(ctx: ReportContext) -> None:
-    ctx.doc.h(APPENDIX_HEADING, 1)
-    ctx.doc.p(
-        "The long tables behind the verdict: every test with raw and Holm-adjusted p-values, the seed-count study, "
-        "AdaStop, DQN, the second emotion model, the reproducibility record and the definitions."
-    )
 
 
 def definitions_section(ctx: ReportContext) -> None:
@@ -146,36 +144,75 @@ def definitions_section(ctx: ReportContext) -> None:
             "Greedy stays optimal from: the first episode after which every greedy choice from the start walks a shortest "
             "path until the end of the run; steps until then: decisions of episodes 1 to that one.",
             "Equivalent ε: fraction of decisions whose direction was random (joy), per episode.",
-            "Emotion profile: fraction of decisions in each emotion; averaged over runs per episode (each episode "
-            "counts once) or pooled over decisions (decision-weighted).",
+            "Emotion shares (the joy share, for example), three estimators, each number tagged with its name: *mean of "
+            "per-episode fractions* (each episode counts once); *decision-weighted per run* (each run's decisions "
+            "pooled in the window, then averaged over runs: the verdict's Fig. 5 and four-emotions rows and the "
+            "readings table); *decision-weighted, pooled per episode* (each episode number's decisions pooled over "
+            "runs, then averaged over the window's episodes: Fig. 5's right panel and the profile windows table); "
+            "*fully pooled* (every decision of every run in the window: the mechanism section).",
         ]
     )
 
 
-#: The main text, in order (``extra_sections`` of ``build_report`` follow it, then ``APPENDIX``).
+def part(name: str, title: str, heading: str = "") -> Section:
+    """A section that starts the page ``name`` (an appendix of its own, linked from the main text; ``Document.part``)."""
+
+    def start(ctx: ReportContext) -> None:
+        ctx.doc.part(name, title)
+        if heading:
+            ctx.doc.p(heading)
+
+    start.__name__ = f"part_{name}"
+    return start
+
+
+#: The main text, in order: what a referee reads in one sitting (``report.md``); the appendix pages follow.
 SECTIONS: list[Section] = [
     abstract_section,
     overview_section,
     agents_section,
     verdict_section,
-    readings_section,
+    main_finding_section,
+    lead_section,
     speed_one_section,
-    windows_section,
     mechanism_section,
+    limitations_section,
+    part(
+        "appendix-paper",
+        "Appendix A: the paper's tables and figures, the readings, time to the optimal path",
+        "The paper's Tables IV and V and Figs. 3-6 beside ours, the verdict under every reading of the appraisal, the "
+        "windows of Figs. 5 and 6, the first optimal episode as time-to-event data and the learning curves.",
+    ),
+    readings_section,
+    windows_section,
+    fig5_section,
     _if_paper_agents(table_iv_section),
     _if_paper_agents(table_v_section),
     _if_paper_agents(figures_3_4_section),
     survival_section,
-    checks_section,
     learning_curves_section,
+    part(
+        "appendix-checks",
+        "Appendix B: the project's checks and the studies beyond the paper",
+        "The speed ablation in full, the protocol's draw against the large-N blocks, rliable's measures and the "
+        "performance profiles, tasks beyond the paper and fair baselines, two hunters, MiniGrid and the reading ablation.",
+    ),
+    speed_table_section,
+    protocol_draw_section,
+    checks_section,
     beyond_section,
     hunters_sections,
     minigrid_sections,
     ablation_section,
 ]
-#: The appendix, in order.
+#: The appendix, in order (after ``extra_sections``, which start a page of their own).
 APPENDIX: list[Section] = [
-    appendix_heading,
+    part(
+        "appendix-record",
+        "Appendix D: the verdict's tests, seed counts, DQN, the second emotion model, the record and the definitions",
+        "The long tables behind the verdict: every test with raw and Holm-adjusted p-values, the seed-count study, "
+        "AdaStop, DQN, the second emotion model, the reproducibility record and the definitions.",
+    ),
     tests_section,
     evidence_section,
     dqn_section,
@@ -183,6 +220,8 @@ APPENDIX: list[Section] = [
     record_section,
     definitions_section,
 ]
+#: The page the sections of layers above the report start (``build_report(extra_sections=...)``: the forensics).
+EXTRA_PART = part("appendix-forensics", "Appendix C: replication forensics")
 
 
 def study_section(name: str) -> Section:
@@ -294,12 +333,14 @@ def build_report(
     del found
     for note in notes:
         ctx.doc.p(note)
-    default = [*with_studies(SECTIONS, "sections"), *extra_sections, *with_studies(APPENDIX, "appendix")]
+    extra = [EXTRA_PART, *extra_sections] if extra_sections else []
+    default = [*with_studies(SECTIONS, "sections"), *extra, *with_studies(APPENDIX, "appendix")]
     for section in sections if sections is not None else default:
         section(ctx)
     ctx.place_later()
-    md = out / "report.md"
-    write_text(md, ctx.doc.markdown(out))
-    write_text(out / "report.html", ctx.doc.html())
-    return md
+    for name, text in ctx.doc.markdown_pages(out).items():
+        write_text(out / name, text)
+    for name, text in ctx.doc.html_pages().items():
+        write_text(out / name, text)
+    return out / f"{MAIN_PAGE}.md"
 

@@ -174,15 +174,25 @@ def bootstrap_improvement(
 
 
 def bootstrap_profile(
-    values: npt.ArrayLike, taus: npt.ArrayLike, n_boot: int = 200, confidence: float = 0.95, seed: int = 0
+    values: npt.ArrayLike,
+    taus: npt.ArrayLike,
+    n_boot: int = 200,
+    confidence: float = 0.95,
+    seed: int = 0,
+    censored: npt.ArrayLike | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """
-    Performance profile: the fraction of values <= each tau, with percentile bootstrap bands (runs resampled,
-    seeded; each resample counted through ``bincount`` and one sort of the values).
+    Performance profile: the fraction of runs whose value is <= each tau, with percentile bootstrap bands (runs
+    resampled, seeded; each resample counted through ``bincount`` and one sort of the values). A censored run (its
+    event never happened: ``censored`` True) is never counted, whatever tau: the profile plateaus at the share of runs
+    whose event happened.
 
     :return: ``(fraction, low, high)``, one entry per tau
     """
-    data = np.sort(np.asarray(values, dtype=float))
+    data = np.asarray(values, dtype=float)
+    if censored is not None:
+        data = np.where(np.asarray(censored, dtype=bool), np.inf, data)
+    data = np.sort(data)
     at = np.searchsorted(data, np.asarray(taus, dtype=float), side="right")  # values <= tau
     rng = np.random.default_rng(seed)
     boots = np.empty((n_boot, len(at)))

@@ -122,13 +122,25 @@ def _ci(row: pd.Series, metric: str, digits: int = 1) -> str:
     return f"{fmt(row[metric], digits)} [{fmt(row[f'{metric}_low'], digits)}, {fmt(row[f'{metric}_high'], digits)}]"
 
 
-def focus_ranks(summary: pd.DataFrame, focus: str = "affective") -> dict[str, tuple[int, int]]:
-    """Per task: where ``focus`` ranks on decisions per episode (1 = fewest) and among how many agents."""
+def focus_ranks(
+    summary: pd.DataFrame, focus: str = "affective", metric: str = "decisions_per_episode"
+) -> dict[str, tuple[int, int]]:
+    """Per task: where ``focus`` ranks on ``metric`` (1 = fewest) and among how many agents."""
     out = {}
     for task, table in summary.groupby("task", sort=False):
-        order = list(table.sort_values("decisions_per_episode")["agent"])
+        order = list(table.sort_values(metric, kind="stable")["agent"])
         if focus in order:
             out[str(task)] = (order.index(focus) + 1, len(order))
+    return out
+
+
+def clearly_better(summary: pd.DataFrame, focus: str = "affective", metric: str = "decisions_per_episode") -> dict[str, int]:
+    """Per task: how many agents have a lower ``metric`` than ``focus`` with non-overlapping 95% CIs."""
+    out = {}
+    for task, table in summary.groupby("task", sort=False):
+        me = table[table["agent"] == focus]
+        if len(me):
+            out[str(task)] = int((table[f"{metric}_high"] < float(me[f"{metric}_low"].iloc[0])).sum())
     return out
 
 

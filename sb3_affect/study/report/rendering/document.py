@@ -9,14 +9,14 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import markdown
 import pandas as pd
 
 
 def fmt(value: object, digits: int = 2) -> str:
     """
-    A table cell: blank for missing values; ``digits`` decimals below 1,000, whole numbers with thousands separators
-    from 1,000 on (a count of decisions has no meaningful decimals there), scientific notation for tiny values.
+    A table cell: blank for missing values; ``digits`` decimals below 1,000 (a float keeps them when it is whole, so one
+    column has one format: "35.0" beside "45.5"; an int is a count), whole numbers with thousands separators from
+    1,000 on (a count of decisions has no meaningful decimals there), scientific notation for tiny values.
     """
     if value is None:
         return ""
@@ -29,8 +29,8 @@ def fmt(value: object, digits: int = 2) -> str:
             return "inf"
         if abs(value) >= 1e3:
             return f"{value:,.0f}"
-        if isinstance(value, int) or float(value).is_integer():
-            return f"{value:,.0f}"
+        if isinstance(value, int):
+            return f"{value:,d}"
         if value != 0 and abs(value) < 10 ** (-digits):
             return f"{value:.2e}"
         return f"{value:,.{digits}f}"
@@ -55,14 +55,15 @@ def sig(value: float, digits: int = 3) -> str:
 
 
 def pval(p: float) -> str:
-    """A p-value: 3 significant digits, ``< 1e-300`` where it underflows (never "0")."""
+    """A p-value: 3 significant digits (``0.672``, ``0.0288``, ``0.000215``; ``2.15e-05`` below 1e-4), ``< 1e-300``
+    where it underflows (never "0")."""
     if p is None or (isinstance(p, float) and math.isnan(p)):
         return ""
     if p < 1e-300:
         return "< 1e-300"
     if p < 1e-4:
         return f"{p:.2e}"
-    return f"{p:.3g}" if p < 0.001 else f"{p:.4f}".rstrip("0").rstrip(".") if p < 1 else "1"
+    return f"{p:#.3g}" if p < 1 else "1.00"
 
 
 #: Table columns holding p-values (formatted by ``pval``).
@@ -73,7 +74,8 @@ _P_COLUMN = re.compile(r"^(p|p \(.*\)|P\(T<=t\).*|P (one|two)-tail|p, .*)$")
 class Document:
     """
     Blocks in order: ("h", level, text), ("p", text), ("ul", items), ("table", frame, caption, digits),
-    ("cards", frame, caption, digits, spec), ("md", markdown), ("img", path, caption).
+    ("cards", frame, caption, digits, spec), ("md", markdown), ("img", path, caption), and ("part", name, title):
+    the start of a page of its own (``part``).
     """
 
     title: str
@@ -103,74 +105,163 @@ class Document:
     def img(self, path: Path, caption: str) -> None:
         self.blocks.append(("img", Path(path), caption))
 
+    def part(self, name: str, title: str) -> None:
+        """
+        Start a page of its own: the blocks after it (up to the next ``part``) go to ``<name>.md`` and ``<name>.html``,
+        an appendix linked from the main page (the blocks before the first ``part``).
+        """
+        if not re.fullmatch(r"[a-z0-9_-]+", name) or name == MAIN_PAGE:
+            raise ValueError(f"part name {name!r}: lowercase letters, digits, '-' and '_' only, and not {MAIN_PAGE!r}")
+        self.blocks.append(("part", name, title))
+
+    def pages(self) -> list[tuple[str, str, list[tuple]]]:
+        """``(file stem, title, blocks)`` of each page: the main page first, then each ``part`` (parts of one name join)."""
+        pages: dict[str, tuple[str, list[tuple]]] = {MAIN_PAGE: (self.title, [])}
+        current = MAIN_PAGE
+        for block in self.blocks:
+            if block[0] == "part":
+                current = block[1]
+                pages.setdefault(current, (block[2], []))
+            else:
+                pages[current][1].append(block)
+        return [(name, title, blocks) for name, (title, blocks) in pages.items()]
+
     # -- rendering ----------------------------------------------------------------------------------------------
     def markdown(self, base: Path) -> str:
-        out = [f"# {self.title}", ""]
-        for block in self.blocks:
-            kind = block[0]
-            if kind == "h":
-                out += [f"{'#' * block[1]} {block[2]}", ""]
-            elif kind == "p":
-                out += [block[1], ""]
-            elif kind in ("table", "cards"):
-                frame, caption, digits = block[1], block[2], block[3]
-                if caption:
-                    out += [f"*{caption}*", ""]
-                out += [md_table(frame, digits), ""]
-            elif kind == "ul":
-                out += [f"- {item}" for item in block[1]] + [""]
-            elif kind == "md":
-                out += [block[1], ""]
-            elif kind == "img":
-                rel = block[1].relative_to(base) if block[1].is_relative_to(base) else block[1]
-                out += [f"![{block[2]}]({rel.as_posix()})", "", f"*{block[2]}*", ""]
-        return "\n".join(out)
+        """The main page in Markdown (``markdown_pages`` gives every page)."""
+        return self.markdown_pages(base)[f"{MAIN_PAGE}.md"]
 
     def html(self) -> str:
+        """The main page in HTML (``html_pages`` gives every page)."""
+        return self.html_pages()[f"{MAIN_PAGE}.html"]
+
+    def markdown_pages(self, base: Path) -> dict[str, str]:
+        """Every page in Markdown by file name; the main page ends with the links to the others."""
+        pages = self.pages()
+        out = {}
+        for name, title, blocks in pages:
+            lines = [f"# {title}", ""]
+            if name != MAIN_PAGE:
+                lines += [f"Part of [{self.title}]({MAIN_PAGE}.md).", ""]
+            lines += _markdown_blocks(blocks, base)
+            if name == MAIN_PAGE and len(pages) > 1:
+                lines += ["## Appendices", ""] + [f"- [{t}]({n}.md)" for n, t, _ in pages[1:]] + [""]
+            out[f"{name}.md"] = "\n".join(lines)
+        return out
+
+    def html_pages(self) -> dict[str, str]:
         """
-        The page: a contents column that stays in view (a bar across the top on narrow windows), text at a readable
-        width, wide tables scrolling inside their own box, cards in place of a card table's wide rows, and the
-        appendix's long tables folded until opened.
+        Every page in HTML by file name: a contents column that stays in view (a bar across the top on narrow
+        windows; it scrolls when longer than the window) listing the page's headings and the other pages, text at a
+        readable width, wide tables scrolling inside their own box, cards in place of a card table's wide rows, and
+        long tables folded on the appendix pages and after the appendix heading.
         """
-        blocks = _split_md_headings(self.blocks)
-        ids = _heading_ids(blocks)
-        toc = "".join(
-            f"<li class='toc{block[1]}'><a href='#{ids[i]}'>{html.escape(block[2])}</a></li>"
-            for i, block in enumerate(blocks)
-            if block[0] == "h" and block[1] <= 3
-        )
-        parts = [
-            "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>",
-            "<meta name='viewport' content='width=device-width, initial-scale=1'>",
-            f"<title>{html.escape(self.title)}</title>",
-            f"<style>{_CSS}</style></head><body><div class='layout'>",
-            f"<nav class='toc'><b>Contents</b><ul>{toc}</ul></nav><main>",
-            f"<h1>{html.escape(self.title)}</h1>",
+        pages = self.pages()
+        links = [(f"{n}.html", t) for n, t, _ in pages]
+        return {
+            f"{name}.html": _html_page(title, blocks, name != MAIN_PAGE, links, f"{name}.html")
+            for name, title, blocks in pages
+        }
+
+
+#: The file stem of the main page (``report.md``, ``report.html``).
+MAIN_PAGE = "report"
+
+
+def _markdown_blocks(blocks: list[tuple], base: Path) -> list[str]:
+    out: list[str] = []
+    for block in blocks:
+        kind = block[0]
+        if kind == "h":
+            out += [f"{'#' * block[1]} {block[2]}", ""]
+        elif kind == "p":
+            out += [block[1], ""]
+        elif kind in ("table", "cards"):
+            frame, caption, digits = block[1], block[2], block[3]
+            if caption:
+                out += [f"*{caption}*", ""]
+            spec = block[4] if kind == "cards" else None
+            out += [_md_cards(frame, digits, spec) if spec is not None and spec.markdown else md_table(frame, digits), ""]
+        elif kind == "ul":
+            out += [f"- {item}" for item in block[1]] + [""]
+        elif kind == "md":
+            out += [block[1], ""]
+        elif kind == "img":
+            rel = block[1].relative_to(base) if block[1].is_relative_to(base) else block[1]
+            out += [f"![{block[2]}]({rel.as_posix()})", "", f"*{block[2]}*", ""]
+    return out
+
+
+def first_words(text: str) -> str:
+    """A verdict's first words (``reproduced``, ``partly reproduced``, ``not reproduced`` ...): up to ``:``, ``;``, `` (``."""
+    return text.split(":")[0].split(";")[0].split(" (")[0]
+
+
+def _md_cards(frame: pd.DataFrame, digits: int, spec: CardSpec) -> str:
+    """One list item per row: its title in bold, then the spec's Markdown columns (those with a value), labelled."""
+    header, rows = _cells(frame, digits)
+    lines = []
+    for row in rows:
+        cells = dict(zip(header[1:], row[1:]))
+        shown = [
+            f"{label}: {first_words(cells[name]) if name in spec.words else cells[name]}"
+            for name, label in spec.markdown.items()
+            if cells.get(name, "") not in ("", "n/a")
         ]
-        fold = False
-        for i, block in enumerate(blocks):
-            kind = block[0]
-            if kind == "h":
-                fold = fold or (block[1] == 1 and block[2] == APPENDIX_HEADING)
-                parts.append(f"<h{block[1]} id='{ids[i]}'>{html.escape(block[2])}</h{block[1]}>")
-            elif kind == "p":
-                parts.append(f"<p>{_inline(block[1])}</p>")
-            elif kind == "table":
-                frame, caption, digits = block[1], block[2], block[3]
-                table = _html_table(frame, caption, digits)
-                if fold and len(frame) > FOLD_ROWS:
-                    table = f"<details><summary>{html.escape(caption)} ({len(frame)} rows)</summary>{table}</details>"
-                parts.append(table)
-            elif kind == "cards":
-                parts.append(_html_cards(*block[1:]))
-            elif kind == "ul":
-                parts.append("<ul>" + "".join(f"<li>{_inline(item)}</li>" for item in block[1]) + "</ul>")
-            elif kind == "md":
-                parts.append(f"<div class='md'>{markdown.markdown(block[1], extensions=['tables', 'sane_lists'])}</div>")
-            elif kind == "img":
-                parts.append(f"<figure>{_img(block[1], block[2])}<figcaption>{html.escape(block[2])}</figcaption></figure>")
-        parts.append("</main></div></body></html>")
-        return "\n".join(parts)
+        lines.append(f"- **{row[0]}**. " + ". ".join(shown) + ("." if shown else ""))
+    return "\n".join(lines)
+
+
+def _html_page(title: str, blocks: list[tuple], appendix: bool, links: list[tuple[str, str]], own: str) -> str:
+    """One page: its contents column (its own headings, then every page), its title and its blocks."""
+    blocks = _split_md_headings(blocks)
+    ids = _heading_ids(blocks)
+    toc = "".join(
+        f"<li class='toc{block[1]}'><a href='#{ids[i]}'>{html.escape(block[2])}</a></li>"
+        for i, block in enumerate(blocks)
+        if block[0] == "h" and block[1] <= 3
+    )
+    others = "".join(
+        f"<li class='page'><b>{html.escape(t)}</b></li>"
+        if f == own
+        else f"<li class='page'><a href='{f}'>{html.escape(t)}</a></li>"
+        for f, t in links
+    ) if len(links) > 1 else ""
+    pages = f"<b>Pages</b><ul>{others}</ul>" if others else ""
+    parts = [
+        "<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>",
+        "<meta name='viewport' content='width=device-width, initial-scale=1'>",
+        f"<title>{html.escape(title)}</title>",
+        f"<style>{_CSS}</style></head><body><div class='layout'>",
+        f"<nav class='toc'><b>Contents</b><ul>{toc}</ul>{pages}</nav><main>",
+        f"<h1>{html.escape(title)}</h1>",
+    ]
+    fold = appendix
+    for i, block in enumerate(blocks):
+        kind = block[0]
+        if kind == "h":
+            fold = fold or (block[1] == 1 and block[2] == APPENDIX_HEADING)
+            parts.append(f"<h{block[1]} id='{ids[i]}'>{html.escape(block[2])}</h{block[1]}>")
+        elif kind == "p":
+            parts.append(f"<p>{_inline(block[1])}</p>")
+        elif kind == "table":
+            frame, caption, digits = block[1], block[2], block[3]
+            table = _html_table(frame, caption, digits)
+            if fold and len(frame) > FOLD_ROWS:
+                table = f"<details><summary>{_inline(caption)} ({len(frame)} rows)</summary>{table}</details>"
+            parts.append(table)
+        elif kind == "cards":
+            parts.append(_html_cards(*block[1:]))
+        elif kind == "ul":
+            parts.append("<ul>" + "".join(f"<li>{_inline(item)}</li>" for item in block[1]) + "</ul>")
+        elif kind == "md":
+            import markdown
+
+            parts.append(f"<div class='md'>{markdown.markdown(block[1], extensions=['tables', 'sane_lists'])}</div>")
+        elif kind == "img":
+            parts.append(f"<figure>{_img(block[1], block[2])}<figcaption>{_inline(block[2])}</figcaption></figure>")
+    parts.append("</main></div></body></html>")
+    return "\n".join(parts)
 
 
 #: The level-1 heading that starts the appendix: its tables longer than ``FOLD_ROWS`` rows are folded in the HTML page.
@@ -180,8 +271,8 @@ _CSS = (
     "body{margin:0;font-family:system-ui,-apple-system,'Segoe UI',sans-serif;line-height:1.5;color:#1d1d1d}"
     ".layout{display:grid;grid-template-columns:15rem minmax(0,1fr);gap:2.5rem;max-width:82rem;margin:0 auto;"
     "padding:0 1.2rem}"
-    "nav.toc{position:sticky;top:0;align-self:start;max-height:100vh;overflow-y:auto;font-size:.82rem;"
-    "padding:1.2rem 0;border-right:1px solid #e3e3e3}"
+    "nav.toc{position:sticky;top:0;align-self:start;box-sizing:border-box;max-height:100vh;overflow-y:auto;"
+    "font-size:.82rem;padding:1.2rem .3rem 1.2rem 0;border-right:1px solid #e3e3e3}"
     "nav.toc ul{list-style:none;margin:.4rem 0;padding:0}nav.toc li{margin:.15rem 0}"
     "nav.toc .toc3{padding-left:1rem;font-size:.78rem}nav.toc a{color:#234;text-decoration:none}"
     "nav.toc a:hover{text-decoration:underline}"
@@ -193,7 +284,8 @@ _CSS = (
     "td,th{border:1px solid #d0d0d0;padding:3px 8px;text-align:right;vertical-align:top}"
     "td.text{text-align:left;min-width:8rem;max-width:34rem}th{background:#f3f3f3;max-width:16rem}"
     "td:first-child,th:first-child{text-align:left}"
-    "caption,figcaption{font-style:italic;color:#444;text-align:left;font-size:.85rem}"
+    "caption,figcaption,p.tcap{font-style:italic;color:#444;text-align:left;font-size:.85rem}"
+    "p.tcap{max-width:46rem;margin:.8rem 0 .2rem}nav.toc .page{margin:.3rem 0}"
     "img{max-width:100%;height:auto}figure{margin:1rem 0 1.6rem}"
     "details{margin:.4rem 0 1.2rem}summary{cursor:pointer;color:#234;font-style:italic;font-size:.9rem}"
     ".cards{display:flex;flex-direction:column;gap:1rem;margin:.6rem 0 1.6rem}"
@@ -269,7 +361,7 @@ def _verdict_class(text: str) -> str:
 def _html_cards(frame: pd.DataFrame, caption: str, digits: int, spec: CardSpec) -> str:
     """One card per row of ``frame``: its title, the quote, the lead column as the verdict, the rest as a list."""
     header, rows = _cells(frame, digits)
-    out = [f"<div class='cards'><p class='caption'><i>{html.escape(caption)}</i></p>"]
+    out = [f"<div class='cards'><p class='caption'><i>{_inline(caption)}</i></p>"]
     for row in rows:
         cells = dict(zip(header[1:], row[1:]))
         title = row[0]
@@ -300,11 +392,16 @@ class CardSpec:
     :param quote: the column shown as a quotation
     :param leads: the columns shown as verdicts, first (coloured by their first word)
     :param figures: a figure to show beside a row's card, by the row's index label
+    :param markdown: the columns the Markdown shows, with their labels there, one list item per row (empty: the
+        Markdown shows the whole table)
+    :param words: the columns of ``markdown`` shown there by their first words only (``first_words``)
     """
 
     quote: str = ""
     leads: tuple[str, ...] = ()
     figures: dict[str, Path] = field(default_factory=dict)
+    markdown: dict[str, str] = field(default_factory=dict)
+    words: tuple[str, ...] = ()
 
 
 _EMPHASIS = re.compile(r"(?<![\w*])\*(?=\S)([^*]+?)(?<=\S)\*(?![\w*])")
@@ -347,7 +444,8 @@ def _md_cell(text: str) -> str:
 
 def md_table(frame: pd.DataFrame, digits: int) -> str:
     header, rows = _cells(frame, digits)
-    header, rows = [_md_cell(h) for h in header], [[_md_cell(c) for c in row] for row in rows]
+    header = [cell.replace("|", "\\|") for cell in header]  # a cell's own bars (|a - b|) never split the row
+    rows = [[cell.replace("|", "\\|") for cell in row] for row in rows]
     lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
     lines += ["| " + " | ".join(row) + " |" for row in rows]
     return "\n".join(lines)
@@ -355,9 +453,9 @@ def md_table(frame: pd.DataFrame, digits: int) -> str:
 
 def _html_table(frame: pd.DataFrame, caption: str, digits: int) -> str:
     header, rows = _cells(frame, digits)
-    out = ["<div class='tablebox'><table>"]
-    if caption:
-        out.append(f"<caption>{html.escape(caption)}</caption>")
+    # the caption stands above the table's scrolling box at the text's width, not inside a table wider than the page
+    out = [f"<p class='tcap'>{_inline(caption)}</p>"] if caption else []
+    out.append("<div class='tablebox'><table>")
     out.append("<tr>" + "".join(f"<th>{html.escape(h)}</th>" for h in header) + "</tr>")
     for row in rows:
         out.append("<tr>" + "".join(f"<td{'' if _numeric(c) else ' class=text'}>{html.escape(c)}</td>" for c in row) + "</tr>")

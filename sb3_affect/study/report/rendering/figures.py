@@ -39,9 +39,9 @@ def distinct(n: int) -> list[tuple[float, float, float, float]]:
     return [cmap(0.8 * i / max(n - 1, 1)) for i in range(n)]
 
 
-def save(fig: plt.Figure, path: Path | str) -> Path:
-    """Write the figure as a PNG (tight layout, 110 dpi) and close it."""
-    fig.tight_layout()
+def save(fig: plt.Figure, path: Path | str, rect: tuple[float, float, float, float] | None = None) -> Path:
+    """Write the figure as a PNG (tight layout within ``rect`` of the figure, all of it by default; 110 dpi), close it."""
+    fig.tight_layout(rect=rect)
     with replacing(Path(path)) as tmp:
         fig.savefig(tmp, dpi=110)
     plt.close(fig)
@@ -136,14 +136,16 @@ def emotion_profile(prof: pd.DataFrame, path: Path, title: str = "Fig. 5: emotio
                 arrowprops={"arrowstyle": "->", "lw": 0.8},
             )
     axes[0].set_title("mean of per-episode fractions (each episode counts once)", fontsize=9)
-    axes[1].set_title("decision-weighted (each decision counts once; 95% band over runs)", fontsize=9)
+    axes[1].set_title("decision-weighted, pooled per episode (95% band over runs)", fontsize=9)
     axes[0].set_ylabel("fraction of decisions")
     for ax in axes:
         ax.set_xlabel("episode")
         ax.set_ylim(-0.02, 1.02)
-        ax.legend(fontsize=8)
+    handles, labels = axes[0].get_legend_handles_labels()
+    # one legend below the panels: never over the curves or the episode-1 annotation
+    fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=8, frameon=False)
     fig.suptitle(title)
-    return save(fig, path)
+    return save(fig, path, rect=(0, 0.07, 1, 1))
 
 
 def equivalent_epsilon(prof: pd.DataFrame, path: Path) -> Path:
@@ -228,7 +230,8 @@ def learning_curves(
         style = "-" if own else STYLES[others.index(label) % len(STYLES)]
         ax.plot(numbers, median, color=colour, label=label, lw=2.2 if own else 1.2, ls=style)
         ax.fill_between(numbers, q25, q75, color=colour, alpha=0.12 if own else 0.05)
-    ax.axhline(12, color="black", lw=0.8, ls=":", label="12 (shortest path in cells)")
+    ax.axhline(12, color="black", lw=0.8, ls=":", label="12 decisions: the 12-cell shortest path at 1 cell a decision")
+    ax.axhline(6, color="grey", lw=0.8, ls=":", label="6 decisions: the same path at 2 cells a decision")
     ax.set_yscale("log")
     ax.set_xlabel("episode")
     ax.set_ylabel("decisions per episode (median; band: quartiles)")

@@ -12,12 +12,10 @@ import math
 import pandas as pd
 
 from sb3_affect.study.report.reading.context import AFFECTIVE, ReportContext
-from sb3_affect.study.report.reading.study_tables import SPEED_AGENT
-from sb3_affect.study.report.rendering.document import fmt, pval
+from sb3_affect.study.report.sections.lead_sources import mechanism_sentence
 from sb3_affect.study.report.sections.project_checks import with_speed_matched
 from sb3_affect.study.report.sections.verdict import judged, shown_word
 from sb3_affect.study.report.verdicts import claims
-from sb3_affect.study.report.verdicts.inference import welch
 
 #: The row of the paper's own test outcome: given on its own, not counted as a claim.
 TEST_OUTCOME = "table_iv:test"
@@ -74,32 +72,56 @@ def test_outcome_sentence(judged_main: list[claims.Judgement]) -> str:
     )
 
 
-def main_finding(m: pd.DataFrame, ranks: dict[str, tuple[int, int]]) -> str:
-    """The speed-matched ε-greedy against the affective agent, and the affective agent's rank among the baselines."""
+def ordinal(n: int) -> str:
+    """1st, 2nd, 3rd, 4th, ... 11th, 12th, 13th, 21st."""
+    suffix = "th" if 10 <= n % 100 <= 20 else {1: "st", 2: "nd", 3: "rd"}.get(n % 10, "th")
+    return f"{n}{suffix}"
 
-    aff, speed = m[m.agent == AFFECTIVE], m[m.agent == SPEED_AGENT]
-    if len(aff) < 2 or len(speed) < 2:
+
+def ranks_sentence(ranks: dict[str, tuple[int, ...]], before: dict[str, tuple[int, ...]]) -> str:
+    """The affective agent's ranks among the fair baselines (20 seeds), on both metrics, with how many are clearly ahead."""
+    if not ranks:
         return ""
-    before = {name: g.decisions_before_optimal.to_numpy(float) for name, g in (("a", aff), ("s", speed))}
-    per_episode = {name: g.decisions_per_episode.to_numpy(float) for name, g in (("a", aff), ("s", speed))}
-    _diff, p = welch(before["a"], before["s"])
-    faster = before["s"].mean() < before["a"].mean()
+    task, (position, total, *ahead) = next(iter(ranks.items()))
+
+    def clear(found: list[int]) -> str:
+        if not found:
+            return ""
+        if found[0]:
+            return f", {found[0]} of them ahead with non-overlapping 95% CIs"
+        return ", its 95% CI overlapping every one ahead"
+
     text = (
-        f"Main finding: an ε-greedy agent that moves 1 or 2 cells per decision like the affective agent (ε 0.01, the "
-        f"project's speed-matched baseline) {'beats' if faster else 'does not beat'} the affective agent: "
-        f"{fmt(float(before['s'].mean()), 0)} against {fmt(float(before['a'].mean()), 0)} decisions before the first "
-        f"optimal path (Welch p {pval(p)}) and {fmt(float(per_episode['s'].mean()), 1)} against "
-        f"{fmt(float(per_episode['a'].mean()), 1)} decisions per episode, so the affective agent's lead over the "
-        "paper's ε-greedy comes from its 2-cell moves"
+        f"Among the {total} fair baselines ({task}, 20 seeds each) the affective agent ranks {ordinal(position)} on "
+        "decisions per episode"
     )
-    if ranks:
-        task, (position, total) = next(iter(ranks.items()))
-        text += f"; among the fair baselines ({task}) it ranks {position} of {total} on decisions per episode"
+    text += clear(ahead)
+    if task in before:
+        place, _, *clearly = before[task]
+        text += f", and {ordinal(place)} on steps before the optimal path (Table V's metric){clear(clearly)}"
     return text + "."
 
 
-def abstract_sentences(judged_main: list[claims.Judgement], n: int, runs: int, finding: str = "") -> list[str]:
-    """What was done, the main finding, how many claims hold, the paper's test apart, why, and what it is worth."""
+def cells_sentence(judged_main: list[claims.Judgement]) -> str:
+    """The claims whose verdict changes when steps are counted as cells (the forensics does not decide the unit)."""
+    changed = [
+        f"{claim_name([j])} is \"{claims.verdict_word(j.cells_verdict)}\" in cells "
+        f"(\"{claims.verdict_word(j.verdict)}\" in decisions)"
+        for j in judged_main
+        if j.cells_verdict and claims.verdict_word(j.cells_verdict) != claims.verdict_word(j.verdict)
+    ]
+    if not changed:
+        return ""
+    return "Counting the paper's steps as cells instead of decisions, " + "; ".join(changed) + "."
+
+
+def abstract_sentences(
+    judged_main: list[claims.Judgement], n: int, runs: int, finding: str = "", mechanism: str = "", ranks: str = ""
+) -> list[str]:
+    """
+    The abstract's paragraphs: what was done, the main finding and the ranks; how many claims hold, in cells, the
+    paper's test apart; where the lead comes from, the emotions, and what the verdicts are worth.
+    """
     by_key = {j.key: j for j in judged_main}
     first = (
         f"We reran Badoy and Teknomo's grid-pursuit experiment (ε-greedy Q-learning against the affective agent, 9 ε "
@@ -107,18 +129,18 @@ def abstract_sentences(judged_main: list[claims.Judgement], n: int, runs: int, f
         "verdict), and judged each of the paper's claims with a rule written down before the numbers."
     )
     four = by_key.get("four_emotions")
-    why = (
-        "The affective agent moves up to 2 cells per decision, so its lead counted in decisions (time) is much larger "
-        "than in cells (distance)"
-        + (f"; four emotions: {four.verdict}" if four is not None else "")
-        + "."
-    )
+    emotions = f"Four emotions: {four.verdict}." if four is not None else ""
     worth = (
         "Sizes are judged against what 20 seeds could have printed (predictive intervals and ratios), every verdict "
         "comes with its tests and Holm-corrected p-values, and the reading of the paper's appraisal changes several "
         "verdicts (claims x readings table)."
     )
-    return [s for s in (first, finding, count_sentence(judged_main), test_outcome_sentence(judged_main), why, worth) if s]
+    paragraphs = (
+        (first, finding + "." if finding else "", ranks),
+        (count_sentence(judged_main), cells_sentence(judged_main), test_outcome_sentence(judged_main)),
+        (mechanism, emotions, worth),
+    )
+    return [" ".join(s for s in paragraph if s) for paragraph in paragraphs if any(paragraph)]
 
 
 def headline_table(
@@ -156,12 +178,22 @@ def abstract_section(ctx: ReportContext) -> None:
 
 
 def _write_abstract(ctx: ReportContext) -> None:
+    from sb3_affect.study.report.sections.main_finding import SPEED_AGENT, comparison, finding_sentence
 
     judged_main, n, other, n_other = judged(ctx)
     runs = len(ctx.large) if ctx.large is not None else len(ctx.metrics)
-    finding = main_finding(with_speed_matched(ctx), ctx.cache.get("baseline ranks", {}))
+    found = ctx.cache.get("main finding")
+    if found is None:
+        m = with_speed_matched(ctx)
+        aff, speed = m[m.agent == AFFECTIVE], m[m.agent == SPEED_AGENT]
+        found = comparison(aff, speed) if len(aff) > 1 and len(speed) > 1 else None
+    finding = finding_sentence(found) if found is not None else ""
+    ranks = ranks_sentence(ctx.cache.get("baseline ranks", {}), ctx.cache.get("baseline ranks before optimal", {}))
+    leads = ctx.cache.get("lead sources")
+    mechanism = mechanism_sentence(leads, ctx.cache.get("speed one conclusion", "")) if leads is not None else ""
     ctx.doc.h("Abstract")
-    ctx.doc.p(" ".join(abstract_sentences(judged_main, n, runs, finding)))
+    for paragraph in abstract_sentences(judged_main, n, runs, finding, mechanism, ranks):
+        ctx.doc.p(paragraph)
     ctx.doc.h("Headline")
     needed = ctx.cache.get("seeds needed")
     ctx.table(

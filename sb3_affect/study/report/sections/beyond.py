@@ -19,11 +19,19 @@ import numpy as np
 import pandas as pd
 
 from sb3_affect.study.report.estimation.bootstrap import bootstrap_ci
-from sb3_affect.study.report.reading.baseline_ranks import emotion_profile, focus_ranks, markdown, profile_markdown, summarise
+from sb3_affect.study.report.reading.baseline_ranks import (
+    clearly_better,
+    emotion_profile,
+    focus_ranks,
+    markdown,
+    profile_markdown,
+    summarise,
+)
 from sb3_affect.study.report.reading.context import ReportContext
 from sb3_affect.study.report.reading.run_tables import load_run_records
 from sb3_affect.study.report.reading.study_tables import episode_cap, study
 from sb3_affect.study.report.rendering.document import fmt
+from sb3_affect.study.report.sections.reproducibility import part_time
 from sb3_affect.study.report.sections.tuning import tuning_section
 
 __all__ = ["baselines_section", "beyond_section"]
@@ -43,19 +51,24 @@ INTRO = (
 def baselines_section(
     run_dirs: Sequence[str | Path],
     title: str = "Beyond the paper: fair baselines and moving prey",
-    ranks: dict[str, tuple[int, int]] | None = None,
+    ranks: dict[str, tuple[int, int, int]] | None = None,
+    ranks_before: dict[str, tuple[int, int, int]] | None = None,
 ) -> str:
     """
     The section as markdown (empty string when none of ``run_dirs`` holds runs).
 
-    :param ranks: filled with the affective agent's rank per task and the number of agents (``focus_ranks``)
+    :param ranks: filled with the affective agent's rank on decisions per episode per task, the number of agents
+        and how many of them are ahead with non-overlapping 95% CIs (``focus_ranks``, ``clearly_better``)
+    :param ranks_before: the same on steps before the optimal path (Table V's metric)
     """
     records = [record for folder in run_dirs if Path(folder).exists() for record in load_run_records(folder)]
     if not records:
         return ""
     summary = summarise(records)
-    if ranks is not None:
-        ranks.update(focus_ranks(summary))
+    for found, metric in ((ranks, "decisions_per_episode"), (ranks_before, "steps_before_optimal")):
+        if found is not None:
+            ahead = clearly_better(summary, metric=metric)
+            found.update({task: (*rank, ahead.get(task, 0)) for task, rank in focus_ranks(summary, metric=metric).items()})
     text = f"## {title}\n\n{INTRO}\n\n{markdown(summary)}"
     profile = emotion_profile(records)
     if len(profile):
@@ -111,7 +124,7 @@ def beyond_section(ctx: ReportContext) -> None:
         cap = episode_cap(meta["sweep"])
         ctx.doc.p(
             f"Each task, {meta['seeds']:,} seeds per agent, {meta['episodes']} episodes (launcher runs in "
-            f"{ctx.root / 'beyond'}, {fmt(meta['wall_seconds'], 1)} s of the runs' own time). Static grid: the paper's "
+            f"{ctx.root / 'beyond'}; {part_time(ctx, 'beyond', meta)}). Static grid: the paper's "
             "task (15 x 15, goal at (6, 6)). Moving prey: the hunter "
             "starts at (0, 0), the prey at (3, 3) and moves after every cell the hunter moves, with probability 0.5, at "
             "random or away from the hunter (evading): once per cell, so a 2-cell decision gives the prey two chances to "
@@ -154,6 +167,8 @@ def beyond_section(ctx: ReportContext) -> None:
     dirs = [ctx.root / name for name in BASELINE_FOLDERS if (ctx.root / name / "runs").is_dir()]
     if dirs:
         title = "Fair baselines: tuned, decaying, optimistic and speed-matched agents"
-        places: dict[str, tuple[int, int]] = {}
-        ctx.doc.md(baselines_section(dirs, title=title, ranks=places).replace("## ", "### ", 1))
+        places: dict[str, tuple[int, int, int]] = {}
+        before: dict[str, tuple[int, int, int]] = {}
+        ctx.doc.md(baselines_section(dirs, title=title, ranks=places, ranks_before=before).replace("## ", "### ", 1))
         ctx.cache["baseline ranks"] = places
+        ctx.cache["baseline ranks before optimal"] = before

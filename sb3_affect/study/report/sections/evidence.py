@@ -13,8 +13,8 @@ import pandas as pd
 
 from sb3_affect.study.report.estimation.bootstrap import paired_ttest_table
 from sb3_affect.study.report.reading.context import AFFECTIVE, STANDARD, ReportContext
-from sb3_affect.study.report.rendering.document import fmt
 from sb3_affect.study.report.sections.paper_tables import DEFINITIONS, per_epsilon
+from sb3_affect.study.report.sections.reproducibility import part_time
 from sb3_affect.study.report.sections.verdict import judged
 from sb3_affect.study.report.verdicts import claims
 from sb3_affect.study.report.verdicts import paper_numbers as paper
@@ -43,7 +43,7 @@ def sensitivity(large: pd.DataFrame, counts: tuple[int, ...] = SEED_COUNTS) -> p
             continue
         judged = claims.judge_all(subset(large, n), cells=False)
         labels = [j.label for j in judged]
-        columns[f"{n} seeds"] = [claims.verdict_word(j.verdict) for j in judged]
+        columns[f"{n:,} seeds"] = [claims.verdict_word(j.verdict) for j in judged]
     table = pd.DataFrame(columns, index=pd.Index(labels, name="claim"))
     return table
 
@@ -104,7 +104,7 @@ def seeds_needed(
             ),
         }
         if protocol is not None:
-            rows[j.label][f"verdict of the paper protocol's {n} seeds"] = own.get(j.key, "")
+            rows[j.label][f"verdict of the paper protocol's {n:,} seeds"] = own.get(j.key, "")
             rows[j.label][f"share of the {n}-seed subsamples with the protocol's verdict"] = (
                 shares[1] if len(shares) > 1 else math.nan
             )
@@ -164,7 +164,7 @@ def headline_tables(large: pd.DataFrame, m: pd.DataFrame) -> pd.DataFrame:
         for data, n in ((m, n_paper), (large, n_large)):
             per_eps = per_epsilon(data, column) * scale
             t = paired_ttest_table(per_eps[STANDARD], per_eps[AFFECTIVE])
-            rows[(name, f"ours, {n} seeds")] = {
+            rows[(name, f"ours, {n:,} seeds")] = {
                 "ε-greedy mean": t.at["Mean", "Variable 1"],
                 "affective mean": t.at["Mean", "Variable 2"],
                 "ε-greedy variance": t.at["Variance", "Variable 1"],
@@ -202,15 +202,15 @@ def evidence_section(ctx: ReportContext) -> None:
     n_large = int(large.groupby(["agent", "epsilon"]).size().min())
     meta = ctx.large_meta or {}
     ctx.doc.p(
-        f"The large-N study runs the paper's 18 cells and the speed-matched ε-greedy at {n_large} seeds per cell "
-        f"({len(large)} runs of {meta.get('episodes', 200)} episodes: experiments/large.yaml through the launcher, "
-        f"{fmt(meta.get('wall_seconds', math.nan), 1)} s of the workers' time). The paper's agents take the paper "
+        f"The large-N study runs the paper's 18 cells and the speed-matched ε-greedy at {n_large:,} seeds per cell "
+        f"({len(large):,} runs of {meta.get('episodes', 200):,} episodes: experiments/large.yaml through the launcher; "
+        f"{part_time(ctx, 'large', meta)}). The paper's agents take the paper "
         "sweep's seeds, so their first 20 replicates per cell are the runs of the paper protocol above."
     )
     ctx.table(
         "headline_tables",
         headline_tables(large, ctx.metrics),
-        f"Tables IV and V at {n_large} seeds per cell beside the paper's protocol and the paper's printed numbers",
+        f"Tables IV and V at {n_large:,} seeds per cell beside the paper's protocol and the paper's printed numbers",
         2,
     )
     sens = sensitivity(large)
@@ -228,13 +228,14 @@ def evidence_section(ctx: ReportContext) -> None:
         "seeds_needed",
         needed,
         f"Power of the paper's protocol: share of {REPETITIONS} random {paper.SEEDS_PER_CELL}-seed subsamples (seeded) "
-        f"whose verdict matches the {n_large}-seed verdict",
+        f"whose verdict matches the {n_large:,}-seed verdict (the long run: episodes 181-200 of these 200-episode "
+        "runs, not the long runs the verdict uses)",
         2,
     )
     ctx.doc.p(
         f"The power study replaces a formula by simulation: {REPETITIONS} times, draw {paper.SEEDS_PER_CELL} of the "
-        f"{n_large} runs of every cell, rerun the whole verdict (Holm correction included) and count how often it "
-        f"agrees with the verdict at {n_large} seeds; its first {paper.SEEDS_PER_CELL} replicates are the paper "
+        f"{n_large:,} runs of every cell, rerun the whole verdict (Holm correction included) and count how often it "
+        f"agrees with the verdict at {n_large:,} seeds; its first {paper.SEEDS_PER_CELL} replicates are the paper "
         "protocol's own runs (the verdict table's last column). A claim whose outcome is fixed by the 9 ε values "
         "(the paper's paired t-test over them) has no seed count. AdaStop (below, the adastop package: an adaptive, "
         "sequential permutation test with early stopping, alpha = 0.05) answers the same question for single "

@@ -60,9 +60,11 @@ def team_runs(run_dirs: Sequence[str | Path]) -> list[dict[str, Any]]:
 
 
 def markdown_table(frame: pd.DataFrame) -> str:
-    """A plain Markdown table (cells as given; floats with 2 decimals)."""
+    """A plain Markdown table (cells as given; floats with 2 decimals, whole numbers with thousands separators)."""
 
     def cell(value: Any) -> str:
+        if isinstance(value, (int, np.integer)) and not isinstance(value, bool):
+            return f"{value:,}"
         return f"{value:,.2f}" if isinstance(value, float) else str(value)
 
     lines = ["| " + " | ".join(map(str, frame.columns)) + " |", "|" + "---|" * len(frame.columns)]
@@ -190,7 +192,7 @@ def learning_figure(runs: list[dict[str, Any]], path: Path) -> Path:
 def _seed_text(metrics: pd.DataFrame) -> str:
     counts = metrics.groupby(["task", "team"]).size()
     low, high = int(counts.min()), int(counts.max())
-    return f"{low} runs" if low == high else f"{low} to {high} runs"
+    return f"{low:,} runs" if low == high else f"{low:,} to {high:,} runs"
 
 
 def hunters_section(run_dirs: Sequence[str | Path], out: str | Path) -> tuple[str, list[tuple[Path, str]]]:

@@ -61,21 +61,27 @@ def summary(frame: pd.DataFrame) -> dict[str, float]:
 
 def norm_figure(frame: pd.DataFrame, path: Path, shortest: int | None) -> Path:
     """
-    The norm per episode (median over runs) and, for episodes that cross it, ``act`` at the first joy decision: both
-    in cells, the appraisal's units (Table II compares them).
+    Left: the norm per episode (median over runs), in cells. Right: for the episodes that cross it, ``act`` at the
+    first joy decision minus that run's own norm in that episode (how far past its own norm an episode turns to joy).
     """
 
-    fig, ax = plt.subplots(figsize=(7.0, 4.0))
+    fig, (left, right) = plt.subplots(1, 2, figsize=(10.0, 4.0))
     norm = frame.groupby("episode").norm.median()
-    ax.plot(norm.index, norm.to_numpy(), color="black", lw=1.8, label="norm (median over runs)")
-    crossing = frame[frame.joy > 0]
-    label = "act at the first joy decision (crossing episodes)"
-    ax.scatter(crossing.episode, crossing.act_at_first_joy, s=8, color="tab:red", alpha=0.5, label=label)
+    left.plot(norm.index, norm.to_numpy(), color="black", lw=1.8, label="norm (median over runs)")
     if shortest:
-        ax.axhline(shortest, color="grey", ls=":", lw=1, label=f"shortest path ({shortest} cells)")
-    ax.set_yscale("log")
-    ax.set_xlabel("episode")
-    ax.set_ylabel("cells (log scale)")
-    ax.set_title("Where episodes cross the norm: act against the norm, in cells")
-    ax.legend(fontsize=7)
+        left.axhline(shortest, color="grey", ls=":", lw=1, label=f"shortest path ({shortest} cells)")
+    left.set_yscale("log")
+    left.set_xlabel("episode")
+    left.set_ylabel("cells (log scale)")
+    left.set_title("The norm per episode", fontsize=9)
+    left.legend(fontsize=7)
+    crossing = frame[frame.joy > 0]
+    right.scatter(crossing.episode, crossing.act_at_first_joy - crossing.norm, s=8, color="tab:red", alpha=0.5,
+                  label="act at the first joy decision minus the run's own norm")
+    right.axhline(0, color="black", lw=0.8)
+    right.set_xlabel("episode")
+    right.set_ylabel("act - own norm (cells)")
+    right.set_title("Where episodes cross their own norm", fontsize=9)
+    right.legend(fontsize=7)
+    fig.suptitle("Where episodes cross the norm (cells, the appraisal's units)")
     return save(fig, path)

@@ -19,6 +19,10 @@ from sb3_affect.study.report.sections import joy_trace
 WINDOWS = ((1, 10), (21, 40), (181, 200))
 
 
+#: The profile's decision-weighted estimator: each episode number's decisions pooled over runs, then averaged over
+#: the episodes of a window (the definitions name it beside the per-run and the fully pooled ones).
+POOLED_PER_EPISODE = "decision-weighted, pooled per episode"
+
 #: Episode numbers per part of ``agent_profile`` (the profile is per episode number: parts give the same numbers).
 PROFILE_EPISODES = 50
 
@@ -79,15 +83,15 @@ def mechanism_section(ctx: ReportContext) -> None:
     ctx.doc.ul(
         [
             f"Episodes {first}-{last}: median {fmt(b['median decisions'], 1)} decisions, mean "
-            f"{fmt(b['mean decisions'], 1)} ({int(b['episodes'])} episodes of {int(b['runs'])} runs).",
+            f"{fmt(b['mean decisions'], 1)} ({int(b['episodes']):,} episodes of {int(b['runs']):,} runs).",
             f"Episodes longer than {LONG} decisions: {ci('share of long episodes')} of the episodes, holding "
             f"{ci('share of decisions in long episodes')} of all decisions.",
             f"Joy's share of the decisions in those long episodes: {ci('joy share of decisions in long episodes')}; "
             f"in the short ones: {fmt(b['joy share of decisions in short episodes'], 3)}.",
             f"Share of episodes with any joy: {ci('share of episodes with any joy')}; mean per-episode joy fraction "
-            f"(the paper's equivalent ε): {fmt(b['mean per-episode joy fraction (equivalent ε)'], 3)}; decision-weighted "
-            f"joy fraction: {ci('decision-weighted joy fraction')} (all three over episodes 51-200 of the paper sweep's "
-            "runs).",
+            f"(the paper's equivalent ε): {fmt(b['mean per-episode joy fraction (equivalent ε)'], 3)}; joy fraction of all "
+            f"decisions pooled (fully pooled): {ci('decision-weighted joy fraction')} (all three over episodes "
+            f"{first}-{last} of the paper sweep's runs).",
         ]
     )
     ctx.doc.p(
@@ -96,15 +100,26 @@ def mechanism_section(ctx: ReportContext) -> None:
         "fraction is close to the share of episodes with any joy). Per decision, the agent is random most of the time "
         "even late in training, which is why its steps per episode stay far above the 12-cell optimum."
     )
+    ctx.cache["mechanism window"] = (first, last)
+
+
+def fig5_section(ctx: ReportContext) -> None:
+    """Joy near-absorbing (the traced runs), Fig. 5 under both weightings and Fig. 6 (appendix)."""
+    from sb3_affect.study.report.reading.episode_scan import paper_scan
+
+    found = paper_scan(ctx)
+    last = found.last_episode.get(AFFECTIVE, 0)
+    if not last:
+        return
+    ctx.doc.h("Joy and the weightings of Figs. 5 and 6")
     joy_section(ctx)
     ctx.doc.h("Fig. 5 under both weightings", 3)
-    del decisions
     prof = found.profile if found.profile is not None else agent_profile(ctx, AFFECTIVE, last)
     with replacing(ctx.out / "tables" / "profile_per_episode.csv") as path:
         prof.to_csv(path)
     rows = {}
     for lo, hi in (w for w in WINDOWS if w[1] <= last):  # a short folder shows only the windows its runs reach
-        for kind, label in (("mean", "mean of per-episode fractions"), ("weighted", "decision-weighted")):
+        for kind, label in (("mean", "mean of per-episode fractions"), ("weighted", POOLED_PER_EPISODE)):
             rows[(f"episodes {lo}-{hi}", label)] = {
                 name: window_mean(prof, name, lo, hi, kind) for name in (*EMOTIONS, "equivalent_epsilon")
             }
@@ -120,14 +135,15 @@ def mechanism_section(ctx: ReportContext) -> None:
     ctx.doc.img(f5, f"Fig. 5: fraction of decisions in each emotion per episode, both weightings{note}")
     late = next(w for w in reversed(WINDOWS) if w[1] <= last)
     late_mean = rows[(f"episodes {late[0]}-{late[1]}", "mean of per-episode fractions")]
-    late_weighted = rows[(f"episodes {late[0]}-{late[1]}", "decision-weighted")]
+    late_weighted = rows[(f"episodes {late[0]}-{late[1]}", POOLED_PER_EPISODE)]
     ctx.doc.p(
         "Reconciling with the paper's \"joy early, anger later\": averaging per-episode fractions (each episode counts "
         f"once, as the paper's figure does), late episodes are mostly anger (joy {fmt(late_mean['joy'], 3)}, anger "
         f"{fmt(late_mean['anger'], 3)} in episodes {late[0]}-{late[1]} of the paper sweep's runs), because most late "
         "episodes are "
-        "short greedy ones. Weighting by decisions (each decision counts once), joy stays the dominant emotion "
-        f"(joy {fmt(late_weighted['joy'], 3)}, anger {fmt(late_weighted['anger'], 3)}), because the few random-walk "
+        "short greedy ones. Weighting by decisions (each decision counts once; pooled per episode), joy stays the "
+        f"dominant emotion (joy {fmt(late_weighted['joy'], 3)}, anger {fmt(late_weighted['anger'], 3)}), because the "
+        "few random-walk "
         "episodes hold most of the decisions. Both are true: the agent exploits in most episodes and explores in most "
         "decisions. The paper's reading (\"will exploit more in the latter episodes\") holds per episode, not per step."
     )
@@ -167,5 +183,9 @@ def joy_section(ctx: ReportContext) -> None:
         "leaves a greedy walk little room. From there joy turns the end of the episode into a random walk "
         f"({sig(b['decisions of crossing late episodes, median'])} decisions, median)."
     )
-    ctx.doc.img(path, "The norm per episode and, for the episodes that cross it, act at the decision where joy starts (cells)")
+    ctx.doc.img(
+        path,
+        "The norm per episode (left) and, for the episodes that cross it, act at the decision where joy starts minus "
+        "that run's own norm in that episode (right; cells)",
+    )
 

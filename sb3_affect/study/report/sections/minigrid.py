@@ -99,43 +99,73 @@ def score_table(scores: pd.DataFrame, reference: str | None) -> pd.DataFrame:
     return table.reset_index().set_index("agent")
 
 
-def verdict(scores: pd.DataFrame) -> list[str]:
+#: The decision rule of the exploratory sections (MiniGrid, two hunters): a difference is read only where the 95% CI
+#: of the probability of improvement lies wholly above or below 0.5.
+RULE = "P(affective better) with its 95% bootstrap CI wholly above 0.5 (better) or below 0.5 (worse)"
+
+
+def verdict(scores: pd.DataFrame, reference: str | None = REFERENCE) -> list[str]:
     """
-    One sentence per task: the agent with the highest IQM success rate (then return), and whether its bootstrap CI
-    of the success rate clears the next best's (a win) or overlaps it (no clear winner).
+    One sentence per task: what the success rate's CIs allow (``RULE``: the reference agent better than, worse than,
+    or not told apart from each other agent), then the IQMs; and why two agents' first successes coincide run by run
+    where they do.
     """
     out = []
     for key, t in scores.groupby("task", sort=True):
         task = str(key)
-        rows = []
-        for agent, g in t.groupby("agent", sort=True):
-            success, ret = g.success.to_numpy(float), g["return"].to_numpy(float)
-            (_, low, high), _ = bootstrap_iqm_cis([success, ret], n_boot=REPS, seed=0)
-            rows.append((float(rmetrics.aggregate_iqm(success[:, None])), float(rmetrics.aggregate_iqm(ret[:, None])),
-                         str(agent), low, high))  # fmt: skip
-        rows.sort(key=lambda row: (-row[0], -row[1], row[2]))
-        best, *others = rows
         where = f"On {task}" if task else "Here"
-        if not others:
-            out.append(f"{where} only {best[2]} ran (IQM success rate {fmt(best[0], 2)}).")
+        seeds = int(t.groupby("agent").size().min())
+        iqm = {str(a): float(rmetrics.aggregate_iqm(g.success.to_numpy(float)[:, None])) for a, g in t.groupby("agent")}
+        listing = "; ".join(f"{a} {fmt(v, 2)}" for a, v in sorted(iqm.items(), key=lambda kv: -kv[1]))
+        mine = t[t.agent == reference].success.to_numpy(float) if reference else np.array([])
+        if not len(mine):
+            out.append(f"{where} ({seeds} seeds per agent), IQM success rates: {listing}; no reference agent to compare.")
             continue
-        second = others[0]
-        lead = (f"{where}, {best[2]} has the highest IQM success rate over the last {LAST_EPISODES} episodes "
-                f"({fmt(best[0], 2)} [{fmt(best[3], 2)}, {fmt(best[4], 2)}], return {fmt(best[1], 2)}); the next is "
-                f"{second[2]} ({fmt(second[0], 2)} [{fmt(second[3], 2)}, {fmt(second[4], 2)}]).")  # fmt: skip
-        if all(best[3] > row[4] for row in others):
-            out.append(f"{lead} {best[2]} wins there: its CI lies above every other agent's IQM interval.")
-        else:
-            tied = [row[2] for row in others if row[4] >= best[3]]
-            out.append(f"{lead} No clear winner: the CIs of {best[2]} and {', '.join(tied)} overlap.")
+        better: list[str] = []
+        worse: list[str] = []
+        same: list[str] = []
+        for agent, g in t[t.agent != reference].groupby("agent", sort=True):
+            _, low, high = bootstrap_improvement(mine, g.success.to_numpy(float), REPS // 5, seed=0, lower_is_better=False)
+            (better if low > 0.5 else worse if high < 0.5 else same).append(str(agent))
+        parts = [f"{reference} better than {', '.join(better)}" if better else "",
+                 f"worse than {', '.join(worse)}" if worse else "",
+                 f"not told apart from {', '.join(same)}" if same else ""]  # fmt: skip
+        out.append(
+            f"{where}, {seeds} seeds per agent allow this on the success rate: {'; '.join(p for p in parts if p)} "
+            f"(the rule: {RULE}). IQM success rates over the last {LAST_EPISODES} episodes: {listing}."
+        )
+        out += twin_sentences(t)
+    return out
+
+
+def twin_sentences(t: pd.DataFrame) -> list[str]:
+    """Agents whose env steps to the first success are equal run by run, and why (same seeds, all-zero Q-values)."""
+    out = []
+    agents = sorted(t.agent.unique())
+    for i, a in enumerate(agents):
+        for b in agents[i + 1 :]:
+            left = t[t.agent == a].sort_values("run_id").steps_to_success.to_numpy(float)
+            right = t[t.agent == b].sort_values("run_id").steps_to_success.to_numpy(float)
+            if len(left) == len(right) and len(left) and np.array_equal(left, right, equal_nan=True):
+                out.append(
+                    f"{a} and {b} take the same env steps to their first success in every run: until the goal is first "
+                    "reached every Q-value is 0, so a greedy move is a tie broken at random and draws the same move as "
+                    "a random one; with the same seeds both behaviour tables walk the same path up to that success."
+                )
     return out
 
 
 def minigrid_sections(ctx: ReportContext) -> None:
-    """A section for each MiniGrid results folder present (``FOLDERS``)."""
+    """A section for each MiniGrid results folder present (``FOLDERS``), and where the missing ones would come from."""
     for name, title, holds in FOLDERS:
         if name in ctx.folders:
             minigrid_section(ctx, name, title, holds)
+    if "minigrid" in ctx.folders and "minigrid_dqn" not in ctx.folders:
+        ctx.doc.p(
+            "The deep agents (DQN, AffectDQN and their controls on MiniGrid) are not part of this folder: "
+            "`make replicate` leaves them out (hours of training). `sb3-affect run experiments/minigrid_dqn.yaml --out "
+            "DIR/minigrid_dqn`, then `sb3-affect report DIR`, adds their section here."
+        )
 
 
 def minigrid_section(ctx: ReportContext, name: str, title: str, holds: str) -> None:
@@ -154,7 +184,7 @@ def minigrid_section(ctx: ReportContext, name: str, title: str, holds: str) -> N
         + (f", {fmt(int(budget.max()))} steps each" if len(budget) else "")
         + f". Success rate and return: over each run's last {LAST_EPISODES} episodes (a success ends at the goal; "
         "MiniGrid's return is 1 - 0.9 x steps / max steps there, 0 otherwise). IQM: rliable's interquartile mean over "
-        f"runs, with a 95% bootstrap CI ({REPS} resamples of runs within each task)"
+        f"runs, with a 95% bootstrap CI ({REPS:,} resamples of runs within each task)"
         + (
             f"; P({reference} better): the probability that a run of {reference} scores better than a run of the agent "
             "(ties count half), with its bootstrap CI."
@@ -163,7 +193,7 @@ def minigrid_section(ctx: ReportContext, name: str, title: str, holds: str) -> N
         )
     )
     ctx.table(f"{name}_scores", score_table(scores, reference), f"{title}: scores per task and agent")
-    for sentence in verdict(scores):
+    for sentence in verdict(scores, reference):
         ctx.doc.p(sentence)
     profile = emotion_profile(episodes)
     if len(profile):

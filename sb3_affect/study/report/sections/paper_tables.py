@@ -5,12 +5,14 @@ both definitions of "optimal path found", and Figs. 3 and 4.
 
 from __future__ import annotations
 
+import math
+
 import pandas as pd
 
 from sb3_affect.study.report.estimation.bootstrap import paired_ttest_table
 from sb3_affect.study.report.reading.context import AFFECTIVE, STANDARD, ReportContext
 from sb3_affect.study.report.rendering import figures
-from sb3_affect.study.report.rendering.document import fmt
+from sb3_affect.study.report.rendering.document import fmt, pval
 from sb3_affect.study.report.verdicts import paper_numbers as paper
 
 #: The two definitions of "optimal path found" (per-run metric, label).
@@ -27,14 +29,30 @@ def per_epsilon(m: pd.DataFrame, column: str, how: str = "mean") -> pd.DataFrame
     return table[[STANDARD, AFFECTIVE]]
 
 
+#: Rows of the spreadsheet layout that hold counts (whole numbers) and p-values (``pval``); the others: 2 decimals.
+COUNT_ROWS, P_ROWS = ("Observations", "Hypothesized Mean Difference", "df"), ("P(T<=t) one-tail", "P(T<=t) two-tail")
+
+
+def spreadsheet_cell(row: str, value: object) -> str:
+    """One of our spreadsheet cells in its row's format: counts whole, p-values as everywhere, the rest 2 decimals."""
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return ""
+    number = float(value)  # type: ignore[arg-type]
+    if row in COUNT_ROWS:
+        return f"{number:,.0f}"
+    if row in P_ROWS:
+        return pval(number)
+    return f"{number:,.2f}"
+
+
 def beside_paper(ours: pd.DataFrame, printed: dict[str, tuple[str, str]]) -> pd.DataFrame:
-    """Our spreadsheet table with the paper's printed cells (verbatim strings) beside it."""
+    """Our spreadsheet table (each row in its quantity's format) with the paper's printed cells (verbatim) beside it."""
     table = pd.DataFrame(
         {
             "ε-greedy (paper, as printed)": [printed.get(r, ("", ""))[0] for r in ours.index],
             "proposed (paper, as printed)": [printed.get(r, ("", ""))[1] for r in ours.index],
-            "ε-greedy (ours)": [fmt(v, 4) for v in ours["Variable 1"]],
-            "affective (ours)": [fmt(v, 4) for v in ours["Variable 2"]],
+            "ε-greedy (ours)": [spreadsheet_cell(str(r), v) for r, v in ours["Variable 1"].items()],
+            "affective (ours)": [spreadsheet_cell(str(r), v) for r, v in ours["Variable 2"].items()],
         },
         index=ours.index,
     )
@@ -62,7 +80,7 @@ def table_v_section(ctx: ReportContext) -> None:
     ctx.doc.p(
         f"The paper's Table V values (~1e5) are read as sums over the {paper.SEEDS_PER_CELL} simulations of each ε, "
         "so the spreadsheet layout is computed on sums over runs (here "
-        f"{runs} runs per cell). \"Optimal path found\" has two readings, and both are shown:"
+        f"{runs:,} runs per cell). \"Optimal path found\" has two readings, and both are shown:"
     )
     ctx.doc.ul([label for _, label in DEFINITIONS])
     ctx.doc.p(
@@ -85,7 +103,7 @@ def table_v_section(ctx: ReportContext) -> None:
     ratio = {name: s[STANDARD].max() / s[STANDARD].min() for name, s in sums.items()}
     ctx.table("table_v_inputs", both.rename_axis("epsilon"), "Steps before the optimal path, sums over runs per ε")
     ctx.doc.p(
-        "The paper's ε-greedy sums are nearly flat across ε (variance 76689863 over the 9 values, a standard deviation "
+        "The paper's ε-greedy sums are nearly flat across ε (variance 76,689,863 over the 9 values, a standard deviation "
         "of about 8,760 around 110,190: within ±8%). Ours, largest over smallest ε-greedy sum: "
         + ", ".join(f"{name} {fmt(r, 1)}x" for name, r in ratio.items())
         + ". The definition whose ε-greedy sums stay flattest is the one that reproduces the paper's pattern: "

@@ -122,7 +122,8 @@ def readings_section(ctx: ReportContext) -> None:
     ctx.table(
         "emotion_shares_by_reading",
         shares,
-        f"Emotion shares per reading (decision-weighted, episodes 1-10 and 181-200; the reading ablation's runs, {n} seeds "
+        "Emotion shares per reading (decision-weighted per run, averaged over runs; episodes 1-10 and 181-200; the "
+        f"reading ablation's runs, {n} seeds "
         "per cell; the verdict's four-emotions row reads the verdict's own runs)",
         3,
     )
@@ -160,8 +161,18 @@ def rare_emotions_sentence(shares: pd.DataFrame) -> str:
         largest = {e: max((v for c, v in row.items() if str(c).startswith(f"{e} ")), default=0.0) for e in EMOTIONS}
         below = [e for e in EMOTIONS if not largest[e] >= EMOTION_SHARE]
         rare.setdefault(", ".join(below) or "none", []).append(str(reading))
+    valence_sadness = any("sadness" in emotions and any(r.startswith("valence") for r in readings)
+                          for emotions, readings in rare.items())  # fmt: skip
     return (
         f"Emotions below {EMOTION_SHARE:.0%} of the decisions in both windows, by reading (the four-emotions rule): "
         + "; ".join(f"{emotions} under {', '.join(f'`{r}`' for r in readings)}" for emotions, readings in rare.items())
         + "."
+        + (f" {WHY_SADNESS_VALENCE}" if valence_sadness else "")
     )
+
+
+#: Why Table II never gives sadness under the valence comparison (the literal one: ``verdict.WHY_SADNESS_FEAR``).
+WHY_SADNESS_VALENCE = (
+    "Under the valence readings Table II compares the negated step counts, so sadness needs act > norm and exp1 >= act, "
+    "hence exp1 > norm; but then -exp1 < -norm and the table's first row, fear, matches first: sadness never occurs."
+)

@@ -21,6 +21,7 @@ from sb3_affect.study.launcher.regular_files import UnreadableFile, check_regula
 from sb3_affect.study.launcher.store import ResultsStore, StoreError
 from sb3_affect.study.report.reading.context import ReportContext
 from sb3_affect.study.report.rendering.document import fmt
+from sb3_affect.study.report.rendering.formats import with_separators
 from sb3_affect.study.report.rendering.output_files import write_text
 
 PACKAGES = (
@@ -148,7 +149,7 @@ def record_section(ctx: ReportContext) -> None:
             + f"; every installed package's version: `{lock.name}` ({len(lock_lines())} packages)",
             "Replication forensics: " + str(ctx.cache.get("forensics", "not run (`sb3-affect forensics` was not part of "
                                                              "this run; `make replicate` runs it)")),
-            f"Checksums: sha256 of the {len(tables)} run tables (run files, Parquet chunks, study tables) in "
+            f"Checksums: sha256 of the {len(tables):,} run tables (run files, Parquet chunks, study tables) in "
             f"`{checksums.name}` (check with `sha256sum -c {checksums.name}` from {ctx.root})",
             "Seeds: the launcher derives each run's seed from (sweep, agent, grid point, replicate) with sha256 "
             "(`sb3_affect.study.launcher.schema.derive_seed`); every run file records its seed, and the engine studies use "
@@ -156,19 +157,22 @@ def record_section(ctx: ReportContext) -> None:
             "DQN: explicit seeds 0-4 for every agent. Same seed, same numbers.",
         ]
     )
-    rows = {name: {"wall seconds": seconds} for name, seconds in ctx.timings.items()}
     runs = replicate_runs(ctx.root)
+    rows = {
+        with_separators(name): {"wall seconds": seconds, "computed in": computed_in(runs, name, seconds)}
+        for name, seconds in ctx.timings.items()
+    }
     if rows:
         ctx.table(
             "wall_times",
             pd.DataFrame.from_dict(rows, orient="index").rename_axis("part"),
-            "The results' time: each part's wall time summed over the runs that did its work (a part a later run read "
-            "back keeps the time of the run that computed it)",
+            "The results' time: each part's wall time in the run of `replicate` that computed it (a part a later run "
+            "read back keeps the time of the run that computed it); the text quotes these times",
             1,
         )
         ctx.doc.p(
             "Wall times on a machine shared with other jobs vary between runs (the parts above sum to "
-            f"{fmt(sum(r['wall seconds'] for r in rows.values()), 1)} s"
+            f"{fmt(sum(ctx.timings.values()), 1)} s"
             + (f", over {len(runs)} runs of `replicate` into this folder: each run's own times below" if len(runs) > 1
                else "")
             + ")."
@@ -178,10 +182,36 @@ def record_section(ctx: ReportContext) -> None:
             "wall_times_by_run",
             runs_table(runs),
             "Each run of `replicate` into this folder with its own times (seconds; a part read back from an earlier run "
-            "takes little; the report step and total of the run writing this report are recorded in replicate.json "
-            "once it ends)",
+            "takes little; the report step and the total of a run are recorded once it ends, so the run writing this "
+            "report has none yet)",
             1,
         )
+
+
+def computed_in(runs: list[dict], part: str, seconds: float) -> str:
+    """The run of ``replicate`` (its number and start) whose time of ``part`` is the results' time."""
+    for number, run in enumerate(runs, 1):
+        if run["parts"].get(part) == seconds:
+            return f"run {number} ({run.get('started', '?')})"
+    return "not recorded"
+
+
+def part_time(ctx: ReportContext, name: str, meta: dict | None = None) -> str:
+    """
+    A part's time as the record tabulates it: its wall seconds in the run of ``replicate`` that computed it (the
+    record's table), else the runs' own seconds summed over the workers (``meta``), labelled as such.
+    """
+    for part, seconds in ctx.timings.items():
+        if part.split(" (")[0] == name:
+            return f"{fmt(seconds, 1)} s of wall time, the record's time of the part"
+    runs = replicate_runs(ctx.root)
+    for number, run in reversed(list(enumerate(runs, 1))):
+        for part, seconds in run["parts"].items():
+            if str(part).split(" (")[0] == name and isinstance(seconds, (int, float)):
+                return f"{fmt(float(seconds), 1)} s of wall time in run {number} of `replicate` (the record)"
+    if meta and "wall_seconds" in meta:
+        return f"{fmt(float(meta['wall_seconds']), 1)} s of the runs' own time summed over the workers"
+    return "time not recorded"
 
 
 def replicate_runs(root: Path) -> list[dict]:
@@ -197,7 +227,10 @@ def replicate_runs(root: Path) -> list[dict]:
 
 
 def runs_table(runs: list[dict]) -> pd.DataFrame:
-    """One column per run (its number and start), one row per part, then its report step and its total."""
+    """
+    One column per run (its number and start), one row per part, then its report step and its total (rows no run
+    has recorded yet are left out).
+    """
     columns = {}
     for number, run in enumerate(runs, 1):
         column = {str(k): float(v) for k, v in run["parts"].items()}
@@ -205,5 +238,8 @@ def runs_table(runs: list[dict]) -> pd.DataFrame:
             column[key] = float(run[key]) if isinstance(run.get(key), (int, float)) else float("nan")
         columns[f"run {number} ({run.get('started', '?')})"] = column
     table = pd.DataFrame(columns)
-    order = [k for k in table.index if k not in ("report", "total")] + ["report", "total"]
-    return table.loc[order].rename_axis("part")
+    order = [k for k in table.index if k not in ("report", "total")]
+    order += [k for k in ("report", "total") if table.loc[k].notna().any()]
+    table = table.loc[order]
+    table.index = [with_separators(str(k)) for k in table.index]
+    return table.rename_axis("part")

@@ -111,7 +111,7 @@ def survival_section(ctx: ReportContext) -> None:
         sources.append(("large", ctx.large[ctx.large.agent.isin([STANDARD, AFFECTIVE])], "the large-N study"))
     for name, data, label in sources:
         seeds = int(data.groupby(["agent", "epsilon"]).size().min())
-        ctx.table(f"kaplan_meier_{name}", km_table(data), f"Kaplan-Meier, {label} ({seeds} runs per cell)", 1)
+        ctx.table(f"kaplan_meier_{name}", km_table(data), f"Kaplan-Meier, {label} ({seeds:,} runs per cell)", 1)
         aff = data[data.agent == AFFECTIVE]
         std = data[data.agent == STANDARD]
         test = logrank_test(
@@ -123,8 +123,8 @@ def survival_section(ctx: ReportContext) -> None:
         ctx.doc.p(
             f"Log-rank test, affective (all ε pooled) against ε-greedy (all ε pooled), {label}: "
             f"statistic {fmt(float(test.test_statistic))}, p {pval(float(test.p_value))}. "
-            f"Censored runs: affective {int(aff.censored.sum())} of {len(aff)}, ε-greedy {int(std.censored.sum())} of "
-            f"{len(std)}."
+            f"Censored runs: affective {int(aff.censored.sum()):,} of {len(aff):,}, ε-greedy {int(std.censored.sum()):,} of "
+            f"{len(std):,}."
         )
     path = km_figure(m, str(ctx.figure("kaplan_meier")), "Runs still without an optimal path (paper protocol)")
     ctx.doc.img(

@@ -31,7 +31,7 @@ def window_verdicts(aff: pd.DataFrame) -> pd.DataFrame:
             }
             for name, judgement in (
                 ("Fig. 5 (per-episode)", judge_fig5(aff, weighted=False, early=first, late=last)),
-                ("Fig. 5 (decision-weighted)", judge_fig5(aff, weighted=True, early=first, late=last)),
+                ("Fig. 5 (decision-weighted per run)", judge_fig5(aff, weighted=True, early=first, late=last)),
                 ("Fig. 6", judge_fig6(aff, first, last)),
             ):
                 holm(judgement.tests)
@@ -43,7 +43,7 @@ def window_verdicts(aff: pd.DataFrame) -> pd.DataFrame:
 
 
 #: The verdict rows whose claims read an early and a late window, by their column of ``window_verdicts``.
-WINDOW_CLAIMS = {"fig5:mean": "Fig. 5 (per-episode)", "fig5:weighted": "Fig. 5 (decision-weighted)", "fig6": "Fig. 6"}
+WINDOW_CLAIMS = {"fig5:mean": "Fig. 5 (per-episode)", "fig5:weighted": "Fig. 5 (decision-weighted per run)", "fig6": "Fig. 6"}
 
 
 def window_table(ctx: ReportContext) -> pd.DataFrame | None:

@@ -82,7 +82,7 @@ def judge_episodes_to_optimal(m: pd.DataFrame) -> Judgement:
         "episodes_to_optimal",
         "27.35 episodes until the optimal path (affective)",
         "27.35",
-        f"{est.text()} (Kaplan-Meier restricted mean to episode {horizon}; {censored} of {runs} runs never find it: "
+        f"{est.text()} (Kaplan-Meier restricted mean to episode {horizon}; {censored:,} of {runs:,} runs never find it: "
         f"censored; {where}); mean of the runs that found it {sig(summary['found-only mean'])}, KM median "
         f"{sig(summary['median'])}",
         direction=None,
@@ -120,7 +120,7 @@ def judge_fig5(m: pd.DataFrame, weighted: bool, early: str = "1_10", late: str =
     joy_early = (aff[f"joy_{early}{suffix}"] - aff[f"anger_{early}{suffix}"]).to_numpy(float)
     anger_late = (aff[f"anger_{late}{suffix}"] - aff[f"joy_{late}{suffix}"]).to_numpy(float)
     e_est, l_est = mean_ci(joy_early), mean_ci(anger_late)
-    name = "decision-weighted" if weighted else "mean of per-episode fractions"
+    name = "decision-weighted per run" if weighted else "mean of per-episode fractions"
     span = (early.replace("_", "-"), late.replace("_", "-"))
     j = Judgement(
         f"fig5:{'weighted' if weighted else 'mean'}",
@@ -215,7 +215,10 @@ def judge_long_run(m: pd.DataFrame, long: pd.DataFrame | None = None) -> Judgeme
     def decide(j: Judgement) -> str:
         lower = [e for e, d in diffs.items() if significant(tests[e]) and d.value > 0]
         higher = [e for e, d in diffs.items() if significant(tests[e]) and d.value < 0]
-        text = f"affective significantly lower against ε {eps_list(lower)}, higher against {eps_list(higher)}"
+        text = (
+            f"affective significantly lower against ε {eps_list(lower)}, higher against {eps_list(higher)} (judged on "
+            f"{n:,} runs per cell of {int(data.episodes.max()):,} episodes, episodes {span})"
+        )
         if lower and len(lower) == len(diffs):
             return "reproduced: " + text
         if lower and lower == sorted(diffs)[-len(lower):]:
@@ -255,7 +258,7 @@ def judge_four_emotions(m: pd.DataFrame) -> Judgement:
         "four_emotions",
         "Four emotions shape behaviour (sadness and fear included)",
         "all four emotions in Fig. 5",
-        f"share of the decisions in episodes {windows} (decision-weighted, mean over runs): "
+        f"share of the decisions in episodes {windows} (decision-weighted per run, averaged over runs): "
         + "; ".join(f"{e} " + " / ".join(sig(v) for v in shares[e].values()) for e in EMOTIONS),
         direction=not rare,
     )
