@@ -117,11 +117,10 @@ def sample_affectdqn_params(trial: Any, n_actions: int, n_envs: int, additional_
 
 
 def sample_affectqrdqn_params(trial: Any, n_actions: int, n_envs: int, additional_args: dict[str, Any]) -> dict[str, Any]:
-    """Optuna sampler of AffectQRDQN: AffectDQN's and QR-DQN's number of quantiles."""
-    return {
-        **sample_affectdqn_params(trial, n_actions, n_envs, additional_args),
-        "n_quantiles": trial.suggest_int("n_quantiles", 5, 200),
-    }
+    """Optuna sampler of AffectQRDQN: AffectDQN's and QR-DQN's number of quantiles (a keyword of its policy)."""
+    params = sample_affectdqn_params(trial, n_actions, n_envs, additional_args)
+    params["policy_kwargs"]["n_quantiles"] = trial.suggest_int("n_quantiles", 5, 200)
+    return params
 
 
 def sample_ezgreedydqn_params(trial: Any, n_actions: int, n_envs: int, additional_args: dict[str, Any]) -> dict[str, Any]:
