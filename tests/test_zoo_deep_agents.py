@@ -101,3 +101,16 @@ def test_the_package_files_are_read_for_its_agents_and_for_dqn_on_the_envs_they_
     assert _conf_file("dqn", ["--env", "MiniGrid-Empty-5x5-v0"]) == HYPERPARAMS_FOLDER / "dqn.yml"
     assert _conf_file("dqn", ["--env", "CartPole-v1"]) is None  # the zoo's own dqn.yml
     assert _conf_file("affectdqn", ["--env", "MiniGrid-Empty-8x8-v0", "--conf-file", "mine.yml"]) is None
+
+
+def test_the_deep_agents_page_trains_with_the_shipped_settings() -> None:
+    page = (Path(__file__).resolve().parents[1] / "docs" / "deep_agents.md").read_text()
+    code = page[page.index("settings = dict(") : page.index("env = make_vec_env(")]
+    namespace: dict[str, object] = {}
+    exec(code, namespace)
+    shipped = dict(_file("affectdqn")["MiniGrid-Empty-5x5-v0"])
+    for key in ("env_wrapper", "n_timesteps", "policy", "position", "wait_action"):
+        shipped.pop(key)
+    assert namespace["settings"] == {key: value for key, value in shipped.items() if key != "gradient_steps"}
+    assert shipped["gradient_steps"] == 1  # DQN's default
+    assert "learn(10_000)" in page and _file("affectdqn")["MiniGrid-Empty-5x5-v0"]["n_timesteps"] == 10_000
