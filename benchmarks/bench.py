@@ -17,9 +17,12 @@ batch call (``simulate``'s, ``kernel.grid_batch.run_batch``) for the same seed a
 finished; only the call is timed (its inputs, seed key and output rows are made before it): compiled ``learn`` /
 kernel alone is what ``learn`` adds to the decisions themselves.
 
-The observers' cost (in the full run, or alone with ``--observers``): ``learn`` of SB3's DQN on FrozenLake-v1 with no
-callback, with ``EmotionCallback`` and with ``BroekensCallback``, and of PPO on CartPole-v1 without and with
-``BroekensCallback``, torch on one thread, in rounds that alternate the runs (their order rotating), each run's
+The observers' cost (in the full run, or alone with ``--observers``; ``--observer-setup TEXT``: only the setups whose
+name holds TEXT): ``learn`` of SB3's DQN on FrozenLake-v1 (16 states) and on the 15 x 15 grid (225 states, the README's
+example) with no callback, with ``EmotionCallback``, with ``BroekensCallback`` (and with both, on the grid), of PPO on
+CartPole-v1 without and with ``BroekensCallback``, and of PPO on MiniGrid-Empty-8x8 (4 envs, ``FlatObsWrapper``,
+``position="minigrid"``) without, with ``EmotionCallback`` and with both callbacks, torch on one thread, in rounds
+that alternate the runs (their order rotating), each run's
 steps per second of wall time and of the process's CPU time (a shared machine's other processes slow the first, not
 the second); a figure is the median over rounds of its rate relative to the bare algorithm's in the same round
 (target: at least 0.95). Each run with a callback also gives the share of its CPU time spent in the callback's hooks,
@@ -38,6 +41,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import importlib.util
 import os
 import platform
 import random
@@ -48,6 +52,7 @@ import tempfile
 import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import NamedTuple
 
 import gymnasium as gym
 import numpy as np
@@ -196,12 +201,32 @@ def dqn_rate(steps: int) -> Callable[[], int]:
     return run
 
 
-#: The observers' setups: the algorithm, its env and keywords, its steps per run (full run, smoke run; the smoke run
-#: also shortens PPO's rollouts) and the callbacks timed.
-OBSERVER_SETUPS: dict[str, tuple[str, str, dict[str, object], tuple[int, int], tuple[str, ...]]] = {
-    "DQN on FrozenLake-v1": ("DQN", "FrozenLake-v1", {"learning_starts": 100}, (4000, 300),
-                             ("EmotionCallback", "BroekensCallback")),
-    "PPO on CartPole-v1": ("PPO", "CartPole-v1", {}, (4096, 256), ("BroekensCallback",)),
+class ObserverSetup(NamedTuple):
+    """One observers' setup: the algorithm, its env and keywords, its steps per run (full run, smoke run; the smoke run
+    also shortens PPO's rollouts), the observers timed (``+`` joins callbacks attached together), the envs of its
+    VecEnv, a MiniGrid observation wrapper and the callbacks' keywords (``position``)."""
+
+    algo: str
+    env_id: str
+    kwargs: dict[str, object]
+    sizes: tuple[int, int]
+    observers: tuple[str, ...]
+    n_envs: int = 1
+    wrapper: str | None = None
+    callback_kwargs: dict[str, object] = {}
+
+
+#: The observers' setups: FrozenLake's 16 states, the README's own example (the 15 x 15 grid, 225 states), PPO on
+#: CartPole and PPO on MiniGrid with the cell read from the env (``position="minigrid"``).
+OBSERVER_SETUPS: dict[str, ObserverSetup] = {
+    "DQN on FrozenLake-v1": ObserverSetup("DQN", "FrozenLake-v1", {"learning_starts": 100}, (4000, 300),
+                                          ("EmotionCallback", "BroekensCallback")),
+    "DQN on sb3_affect/GridPursuit-v0 (225 states)": ObserverSetup(
+        "DQN", ENV_ID, {}, (8000, 300), ("EmotionCallback", "BroekensCallback", "EmotionCallback+BroekensCallback")),
+    "PPO on CartPole-v1": ObserverSetup("PPO", "CartPole-v1", {}, (4096, 256), ("BroekensCallback",)),
+    "PPO on MiniGrid-Empty-8x8-v0, 4 envs, position=minigrid": ObserverSetup(
+        "PPO", "MiniGrid-Empty-8x8-v0", {}, (8192, 512), ("EmotionCallback", "EmotionCallback+BroekensCallback"),
+        n_envs=4, wrapper="FlatObsWrapper", callback_kwargs={"position": "minigrid"}),
 }
 
 
@@ -225,42 +250,58 @@ def timed_hooks(callback: object, spent: list[float]) -> None:
         setattr(callback, name, hook)
 
 
-def observer_run(algo: str, env_id: str, kwargs: dict[str, object], steps: int,
+def observer_run(setup: ObserverSetup, kwargs: dict[str, object], steps: int,
                  observer: str | None) -> Callable[[], tuple[float, float, float]]:
     """
-    ``learn(steps)`` of SB3's ``algo`` on ``env_id`` with the package's callback ``observer`` (None: no callback):
-    steps per second of wall and CPU time, and the share of ``learn``'s CPU time spent in the callback's hooks (both
-    taken in the same run, so the machine's other processes hardly move it).
+    ``learn(steps)`` of SB3's ``setup.algo`` on its env with the package's callbacks ``observer`` (None: no callback;
+    ``A+B``: both): steps per second of wall and CPU time, and the share of ``learn``'s CPU time spent in the callbacks'
+    hooks (both taken in the same run, so the machine's other processes hardly move it).
     """
     import stable_baselines3
     import torch as th
+    from stable_baselines3.common.env_util import make_vec_env
 
     th.set_num_threads(1)
+    wrapper_class = None
+    if setup.wrapper is not None:
+        import minigrid.wrappers
+
+        wrapper_class = getattr(minigrid.wrappers, setup.wrapper)
 
     def run() -> tuple[float, float, float]:
-        model = getattr(stable_baselines3, algo)("MlpPolicy", gym.make(env_id), seed=0, **kwargs)
-        callback = None if observer is None else getattr(sb3_affect, observer)()
+        env = make_vec_env(setup.env_id, n_envs=setup.n_envs, seed=0, wrapper_class=wrapper_class)
+        model = getattr(stable_baselines3, setup.algo)("MlpPolicy", env, seed=0, **kwargs)
+        names = [] if observer is None else observer.split("+")
+        callbacks = [getattr(sb3_affect, name)(**setup.callback_kwargs) for name in names]
         spent = [0.0]
-        if callback is not None:
+        for callback in callbacks:
             timed_hooks(callback, spent)
         wall, cpu = time.perf_counter(), time.process_time()
-        model.learn(steps, callback=callback)
+        model.learn(steps, callback=callbacks or None)
         wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
         return model.num_timesteps / wall, model.num_timesteps / cpu, spent[0] / cpu
 
     return run
 
 
-def observer_rows(repeats: int, smoke: bool) -> list[tuple[str, float, str]]:
-    """Each observer's steps per second relative to its algorithm's alone (wall and CPU time), in alternating rounds."""
+def observer_rows(repeats: int, smoke: bool, only: str | None = None) -> list[tuple[str, float, str]]:
+    """
+    Each observer's steps per second relative to its algorithm's alone (wall and CPU time), in alternating rounds
+    (``only``: the setups whose name contains it).
+    """
     import warnings
 
     rows: list[tuple[str, float, str]] = []
-    for setup, (algo, env_id, kwargs, sizes, observers) in OBSERVER_SETUPS.items():
-        steps = sizes[1] if smoke else sizes[0]
+    for name, setup in OBSERVER_SETUPS.items():
+        if only is not None and only not in name:
+            continue
+        if setup.wrapper is not None and importlib.util.find_spec("minigrid") is None:
+            print(f"{name}: skipped (needs the [minigrid] extra)", flush=True)
+            continue
+        algo, steps, kwargs = setup.algo, setup.sizes[1] if smoke else setup.sizes[0], setup.kwargs
         if smoke and algo == "PPO":
-            kwargs = {**kwargs, "n_steps": 128, "batch_size": 64}
-        runs = {name: observer_run(algo, env_id, kwargs, steps, name) for name in (None, *observers)}
+            kwargs = {**kwargs, "n_steps": 128 // setup.n_envs, "batch_size": 64}
+        runs = {observer: observer_run(setup, kwargs, steps, observer) for observer in (None, *setup.observers)}
         rounds: list[dict[str | None, tuple[float, float, float]]] = []
         loads: list[float] = []
         for i in range(repeats):
@@ -268,22 +309,23 @@ def observer_rows(repeats: int, smoke: bool) -> list[tuple[str, float, str]]:
             order = order[i % len(order) :] + order[: i % len(order)]  # rotate: no run always goes first
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")  # e.g. FrozenLake's "no goal reached yet" in a short run
-                measured = {name: runs[name]() for name in order}
+                measured = {observer: runs[observer]() for observer in order}
             rounds.append(measured)
             loads.append(load())
-            cells = " | ".join(f"{name or algo} {w:,.0f}/s wall, {c:,.0f}/s CPU" + (f", {f:.1%} in it" if name else "")
-                               for name, (w, c, f) in measured.items())
-            print(f"{setup}, round {i}: {cells} | load {loads[-1]:.2f}", flush=True)
+            cells = " | ".join(f"{obs or algo} {w:,.0f}/s wall, {c:,.0f}/s CPU" + (f", {f:.1%} in it" if obs else "")
+                               for obs, (w, c, f) in measured.items())
+            print(f"{name}, round {i}: {cells} | load {loads[-1]:.2f}", flush=True)
         alone = [r[None] for r in rounds]
-        rows.append((f"{setup}, {algo} alone (steps/s, wall)", statistics.median(r[0] for r in alone), f"{steps} steps"))
-        rows.append((f"{setup}, {algo} alone (steps/s, CPU)", statistics.median(r[1] for r in alone), f"{steps} steps"))
+        rows.append((f"{name}, {algo} alone (steps/s, wall)", statistics.median(r[0] for r in alone), f"{steps} steps"))
+        rows.append((f"{name}, {algo} alone (steps/s, CPU)", statistics.median(r[1] for r in alone), f"{steps} steps"))
         span = f"median of {repeats} rounds, load {min(loads):.1f}-{max(loads):.1f}"
-        for name in observers:
+        for observer in setup.observers:
+            shown = observer.replace("+", " with ")
             for column, what in ((0, "wall"), (1, "CPU")):
-                ratio = statistics.median(r[name][column] / r[None][column] for r in rounds)
-                rows.append((f"{setup}, with {name} / alone ({what} time)", ratio, f"{span} (target >= 0.95)"))
-            share = statistics.median(r[name][2] for r in rounds)
-            rows.append((f"{setup}, share of learn's CPU time in {name}", share, f"{span} (target <= 0.05)"))
+                ratio = statistics.median(r[observer][column] / r[None][column] for r in rounds)
+                rows.append((f"{name}, with {shown} / alone ({what} time)", ratio, f"{span} (target >= 0.95)"))
+            share = statistics.median(r[observer][2] for r in rounds)
+            rows.append((f"{name}, share of learn's CPU time in {shown}", share, f"{span} (target <= 0.05)"))
     return rows
 
 
@@ -355,6 +397,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--report-folder", action="append", default=[], help="time report and status of this folder")
     parser.add_argument("--report-seeds", type=int, default=0, help="run the paper sweep at N seeds, then time its report")
     parser.add_argument("--observers", action="store_true", help="only the emotion callbacks' cost beside DQN and PPO")
+    parser.add_argument("--observer-setup", metavar="TEXT", help="--observers: only the setups whose name holds TEXT")
     args = parser.parse_args(argv)
     if args.all:
         args.studies = args.minigrid = True
@@ -364,7 +407,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"load average at start: {load():.2f} on {os.cpu_count()} CPUs", flush=True)
     if args.observers:
         csv_path = args.csv or Path(__file__).with_name("results_observers.csv")
-        return write_rows(observer_rows(repeats, args.smoke), csv_path, repeats, f"{repeats} alternating round(s)")
+        observed = observer_rows(repeats, args.smoke, args.observer_setup)
+        return write_rows(observed, csv_path, repeats, f"{repeats} alternating round(s)")
 
     rows: list[tuple[str, float, str]] = []
     learn_rate(QLearning, 10)()  # load (or compile) the kernel before timing it

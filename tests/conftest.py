@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import warnings
+from collections.abc import Callable
+from pathlib import Path
+
 import gymnasium as gym
 import pytest
 
@@ -41,3 +45,26 @@ def _gymnasium_time_limit() -> object:
     yield
     for module in TIME_LIMIT_MODULES:
         module.TimeLimit = TIME_LIMIT  # type: ignore[attr-defined]
+
+
+@pytest.fixture
+def zoo(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> Callable[[list[str], Path], str]:
+    """``python -m sb3_affect.integrations.zoo ARGS`` in ``cwd``, in this process (the zoo's modules run as ``__main__``)."""
+    import matplotlib
+    import rl_zoo3.gym_patches
+
+    from sb3_affect.integrations.zoo import main as zoo_main
+
+    matplotlib.use("Agg")
+    for module in TIME_LIMIT_MODULES:  # rl_zoo3's time limit, as its users have it (conftest puts Gymnasium's back)
+        module.TimeLimit = rl_zoo3.gym_patches.PatchedTimeLimit
+
+    def run(args: list[str], cwd: Path) -> str:
+        monkeypatch.chdir(cwd)
+        capsys.readouterr()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            zoo_main(args)
+        return capsys.readouterr().out
+
+    return run

@@ -7,8 +7,6 @@ offline, and the envs' registered time limit.
 from __future__ import annotations
 
 import json
-import warnings
-from collections.abc import Callable
 from pathlib import Path
 
 import gymnasium as gym
@@ -20,29 +18,6 @@ from sb3_affect import AffectQ, QLearning
 from sb3_affect.core.settings import TabularSettings
 from sb3_affect.envs import GRID_PURSUIT_ID, MAX_EPISODE_STEPS
 from sb3_affect.integrations.zoo import HYPERPARAMS_FOLDER, sample_affectq_params, sample_qlearning_params
-from sb3_affect.integrations.zoo import main as zoo_main
-
-
-@pytest.fixture
-def zoo(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> Callable[[list[str], Path], str]:
-    """``python -m sb3_affect.integrations.zoo ARGS`` in ``cwd``, in this process (the zoo's modules run as ``__main__``)."""
-    import matplotlib
-    import rl_zoo3.gym_patches
-    from conftest import TIME_LIMIT_MODULES
-
-    matplotlib.use("Agg")
-    for module in TIME_LIMIT_MODULES:  # rl_zoo3's time limit, as its users have it (conftest puts Gymnasium's back)
-        module.TimeLimit = rl_zoo3.gym_patches.PatchedTimeLimit
-
-    def run(args: list[str], cwd: Path) -> str:
-        monkeypatch.chdir(cwd)
-        capsys.readouterr()
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            zoo_main(args)
-        return capsys.readouterr().out
-
-    return run
 
 
 @pytest.mark.parametrize(

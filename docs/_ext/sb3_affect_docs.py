@@ -1,16 +1,14 @@
 """
-Directives that generate documentation from the code, so the pages can not drift from it:
+A directive that generates documentation from the code, so the pages can not drift from it:
 
 * ``.. sweep-schema:: [forensics]`` (reStructuredText: in a Markdown page, inside an ``{eval-rst}`` block): the
   experiment-file reference, one table per section, from the pydantic models of ``sb3_affect.study.launcher.schema``
   (with ``forensics``: of ``sb3_affect.study.launcher.study_schema``, a forensics study file) (field names, types,
   defaults, constraints and descriptions);
-* ``.. cli-help:: [COMMAND]`` the ``--help`` text of the ``sb3-affect`` command (or one sub-command), from its parser.
 """
 
 from __future__ import annotations
 
-import os
 from typing import Any
 
 from docutils import nodes
@@ -93,34 +91,6 @@ class SweepSchema(Directive):
         return list(container.children)
 
 
-class CliHelp(Directive):
-    """The help text of ``sb3-affect`` (no argument) or of one sub-command, as the terminal prints it."""
-
-    optional_arguments = 1
-    has_content = False
-
-    def run(self) -> list[nodes.Node]:
-        from sb3_affect.study.cli import build_parser
-
-        previous = os.environ.get("COLUMNS")
-        os.environ["COLUMNS"] = "92"  # the width of the theme's code blocks
-        try:
-            parser = build_parser()
-            if self.arguments:
-                subparsers = next(a for a in parser._actions if a.__class__.__name__ == "_SubParsersAction")
-                parser = subparsers.choices[self.arguments[0]]  # type: ignore[attr-defined]
-            text = parser.format_help()
-        finally:
-            if previous is None:
-                os.environ.pop("COLUMNS", None)
-            else:
-                os.environ["COLUMNS"] = previous
-        block = nodes.literal_block(text, text)
-        block["language"] = "text"
-        return [block]
-
-
 def setup(app: Any) -> dict[str, Any]:
     app.add_directive("sweep-schema", SweepSchema)
-    app.add_directive("cli-help", CliHelp)
     return {"version": "1", "parallel_read_safe": True}

@@ -27,8 +27,9 @@ What a step costs: no forward pass where the algorithm already has the values, o
 on-policy algorithm (PPO, A2C, TRPO, MaskablePPO, RecurrentPPO) values each observation before it acts on it and the
 last one of a rollout before it learns: the callback settles a step when the algorithm has valued the state it
 reached, one step later (the episode log is complete at the end of ``learn``). On a ``Discrete`` observation space of at
-most ``VALUE_TABLE_STATES`` states, SB3's and sb3-contrib's other algorithms are valued in all states at once, and again
-only after their next update (their ``train`` counts the updates). Otherwise every step is one batched pass over the
+most ``VALUE_TABLE_STATES`` states, SB3's and sb3-contrib's other algorithms value each state once per update (their
+``train`` counts the updates): the states met, one at a time, where the pass is made in numpy; all states at once by
+torch. Otherwise every step is one batched pass over the
 VecEnv's observations; a ``value_fn`` is called once per env and step. The pass of a DQN with SB3's default MLP
 Q-network is made in numpy on the network's own parameters (``sb3_affect.agents.numpy_values``): on a small network a
 torch pass costs more than the step it values.
@@ -226,7 +227,7 @@ class BroekensCallback(BaseCallback):
         self._pending: _Step | None = None
         self._seen_values: Any = None
         self._table_states = self._table_start = 0
-        self._table: list[float] | None = None
+        self._table: dict[int, float] | None = None  # state -> V, since the update ``_table_version``
         self._table_version: int | None = None
         self._mirror: NumpyQValues | None = None
 
@@ -251,8 +252,7 @@ class BroekensCallback(BaseCallback):
             n = len(next(iter(obs.values()))) if isinstance(obs, dict) else len(np.asarray(obs))
             return np.array([float(self.value_fn(self.model, _row(obs, i))) for i in range(n)])
         if self._table_states:
-            table, start = self._value_table(), self._table_start
-            return [table[int(state) - start] for state in flat_array(obs).tolist()]
+            return self._table_values(flat_array(obs).tolist())
         lstm = starts = None
         if self._kind == "recurrent":
             lstm, starts = self._recurrent_inputs(dones)
@@ -265,18 +265,34 @@ class BroekensCallback(BaseCallback):
             return mirror(obs).max(axis=1).astype(float)
         return _model_values(self.model, self._kind, obs, lstm, starts)
 
-    def _value_table(self) -> list[float]:
-        """``V`` of every state of a small Discrete space, valued again after each update of the algorithm."""
+    def _table_values(self, states: list[int]) -> list[float]:
+        """
+        ``V`` of ``states`` of a small Discrete space, each valued once per update of the algorithm: in numpy (the
+        mirror of the network) only the states asked for, whose one-row passes cost little; by torch every state at
+        once, whose one pass costs about what a pass of one state does.
+        """
         version = int(self.model._n_updates)
         if self._table is None or version != self._table_version:
+            self._table, self._table_version = {}, version
             mirror = self._mirror
-            if mirror is not None and not self._table_start and not mirror.stale():
-                self._table = mirror.every_state().max(axis=1).tolist()
-            else:
+            if mirror is None or mirror.stale():
                 start = self._table_start
-                self._table = self._net_values(np.arange(start, start + self._table_states)).tolist()
-            self._table_version = version
-        return self._table
+                self._table = dict(enumerate(self._net_values(np.arange(start, start + self._table_states)).tolist(), start))
+        table = self._table
+        if len(states) == 1:  # one env: the common case, without building lists
+            value = table.get(states[0])
+            if value is None:
+                mirror = self._mirror
+                if mirror is not None and not mirror.stale():
+                    value = mirror.state_value(states[0])
+                else:
+                    value = float(self._net_values(np.asarray(states))[0])
+                table[states[0]] = value
+            return [value]
+        missing = [state for state in dict.fromkeys(states) if state not in table]
+        if missing:
+            table.update(zip(missing, self._net_values(np.asarray(missing)).tolist()))
+        return [table[state] for state in states]
 
     def _recurrent_inputs(self, dones: np.ndarray | None, index: int | None = None) -> tuple[Any, th.Tensor]:
         """RecurrentPPO's value-LSTM states for the next observation (``index``: one env's, for its last observation)."""
@@ -306,6 +322,10 @@ class BroekensCallback(BaseCallback):
         return float(self._net_values(batch, lstm, starts)[0])
 
     # -- SB3 hooks ---------------------------------------------------------------------------------------------
+    def update_locals(self, locals_: dict[str, Any]) -> None:
+        """The algorithm's variables of this step, read where they are (SB3's copies them into ``locals`` each step)."""
+        self.locals = locals_
+
     def _on_training_start(self) -> None:
         last_obs = getattr(self.model, "_last_obs", None)
         if last_obs is None:

@@ -226,6 +226,10 @@ class EmotionCallback(BaseCallback):
         return math.nan if self.appraiser is None else self.appraiser.norm
 
     # -- observer mode -------------------------------------------------------------------------------------------
+    def update_locals(self, locals_: dict[str, Any]) -> None:
+        """The algorithm's variables of this step, read where they are (SB3's copies them into ``locals`` each step)."""
+        self.locals = locals_
+
     def _on_training_start(self) -> None:
         last_obs = getattr(self.model, "_last_obs", None)
         if last_obs is None:

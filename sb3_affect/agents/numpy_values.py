@@ -57,16 +57,18 @@ class NumpyQValues:
             return self._rest(weight[np.asarray(obs, dtype=np.int64).reshape(-1)] + bias)
         return self._rest(np.asarray(obs, dtype=np.float32).reshape(-1, self.width), first=0)
 
-    def every_state(self) -> np.ndarray:
-        """``Q(s, .)`` of every state of a ``Discrete`` space in order (its first layer's rows are the one-hots')."""
-        if not self.discrete:
-            raise ValueError("every_state: only a Discrete observation space has a table of states")
+    def state_value(self, state: int) -> float:
+        """``max_a Q(state, a)`` of one state of a ``Discrete`` space (one row, without a batch's reshapes)."""
         weight, bias = self.layers[0]  # type: ignore[misc]
-        return self._rest(weight + bias)
+        return float(self._rest(weight[state] + bias).max())
 
     def _rest(self, x: np.ndarray, first: int = 1) -> np.ndarray:
-        for layer in self.layers[first:]:
-            x = x @ layer[0] + layer[1] if isinstance(layer, tuple) else layer(x)
+        for layer in self.layers[first:] if first else self.layers:
+            if type(layer) is tuple:
+                x = x @ layer[0]
+                x += layer[1]
+            else:
+                x = layer(x)  # type: ignore[operator]
         return x
 
 

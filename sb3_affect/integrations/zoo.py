@@ -1,13 +1,19 @@
 """
-The package's tabular agents in rl-zoo3 (the ``zoo`` extra: ``pip install "sb3-affect[zoo]"``).
+The package's agents in rl-zoo3 (the ``zoo`` extra: ``pip install "sb3-affect[zoo]"``).
 
-``register_with_zoo()`` adds ``qlearning`` and ``affectq`` to the zoo's algorithms (the zoo's ``ALGOS`` dict, as SBX
-does it) and their Optuna samplers to its hyperparameter search.
-``python -m sb3_affect.integrations.zoo COMMAND ARGS`` runs a zoo
-command with them registered; ``train`` reads the package's hyperparameter files (``sb3_affect/zoo_hyperparams``:
-the package's envs, FrozenLake, CliffWalking and Taxi) unless ``--conf-file`` is given::
+``register_with_zoo()`` adds the package's agents to the zoo's algorithms (the zoo's ``ALGOS`` dict, as SBX does it)
+under their lower-case names (``ZOO_ALGOS``): the tabular ``qlearning`` and ``affectq``, the deep ``affectdqn`` and
+``affectqrdqn`` and the deep controls ``ezgreedydqn`` and ``speedepsilongreedydqn``; and their Optuna samplers, which
+sample each agent's own arguments besides DQN's, to its hyperparameter search.
+``python -m sb3_affect.integrations.zoo COMMAND ARGS`` runs a zoo command with them registered; ``train`` reads the
+package's hyperparameter files (``sb3_affect/integrations/zoo_hyperparams/<algo>.yml``: for the tabular agents the
+package's envs, FrozenLake, CliffWalking and Taxi; for the deep agents and for ``dqn`` MiniGrid's Empty rooms, with
+settings measured to solve them, see docs/deep_agents.md) unless ``--conf-file`` is given; for ``dqn``, whose file
+the zoo has, only on the envs the package's file lists::
 
     python -m sb3_affect.integrations.zoo train --algo affectq --env sb3_affect/GridPursuit-v0 -f logs
+    python -m sb3_affect.integrations.zoo train --algo affectdqn --env MiniGrid-Empty-8x8-v0 -f logs
+    python -m sb3_affect.integrations.zoo enjoy --algo affectdqn --env MiniGrid-Empty-8x8-v0 -f logs --no-render -n 300
     python -m sb3_affect.integrations.zoo enjoy --algo affectq --env sb3_affect/GridPursuit-v0 -f logs --no-render -n 500
     python -m sb3_affect.integrations.zoo record_video --algo affectq --env sb3_affect/GridPursuit-v0 -f logs -n 200
     python -m sb3_affect.integrations.zoo plot_train --algo affectq --env sb3_affect/GridPursuit-v0 -f logs -w 10 \
@@ -29,15 +35,24 @@ Commands: ``train``, ``enjoy``, ``record_video``, ``plot_train``, ``all_plots`` 
 
 from __future__ import annotations
 
+import importlib
 import runpy
 import sys
 from pathlib import Path
 from typing import Any
 
 from sb3_affect.core.extras import MissingExtraError, require_extra
+from sb3_affect.core.registry import split_algo
 
-#: The hyperparameter files of the package's agents, one per algorithm (``<algo>.yml``).
+#: The hyperparameter files of the package's agents, one per algorithm (``<algo>.yml``), and DQN's MiniGrid settings.
 HYPERPARAMS_FOLDER = Path(__file__).with_name("zoo_hyperparams")
+#: The package's agents in the zoo: the zoo's name (``--algo``) -> the agent's name in the registry of agent names.
+ZOO_ALGOS = {
+    name.lower(): name
+    for name in ("QLearning", "AffectQ", "AffectDQN", "AffectQRDQN", "EzGreedyDQN", "SpeedEpsilonGreedyDQN")
+}
+#: The zoo's size names of an MLP (its own samplers' ``net_arch`` choices).
+NET_ARCHS = {"small": [64, 64], "medium": [128, 128], "big": [256, 256]}
 #: ``python -m sb3_affect.integrations.zoo COMMAND``: the zoo module each command runs.
 COMMANDS = {
     "train": "rl_zoo3.train",
@@ -68,17 +83,105 @@ def sample_affectq_params(trial: Any, n_actions: int, n_envs: int, additional_ar
     }
 
 
+def _sample_off_policy(trial: Any) -> dict[str, Any]:
+    """DQN's arguments a deep agent shares with it, without its epsilon (the affective agents have none)."""
+    train_freq = trial.suggest_categorical("train_freq", [1, 4, 8])
+    return {
+        "learning_rate": trial.suggest_float("learning_rate", 1e-5, 2e-3, log=True),
+        "gamma": trial.suggest_categorical("gamma", [0.9, 0.95, 0.99]),
+        "batch_size": trial.suggest_categorical("batch_size", [32, 64, 128]),
+        "buffer_size": trial.suggest_categorical("buffer_size", [10_000, 50_000, 100_000]),
+        "train_freq": train_freq,
+        "gradient_steps": max(1, train_freq // trial.suggest_categorical("subsample_steps", [1, 2, 4])),
+        "target_update_interval": trial.suggest_categorical("target_update_interval", [100, 500, 1000, 5000]),
+        "policy_kwargs": {"net_arch": NET_ARCHS[trial.suggest_categorical("net_arch", list(NET_ARCHS))]},
+    }
+
+
+def _sample_epsilon(trial: Any) -> dict[str, Any]:
+    """SB3's linear epsilon schedule (the deep controls explore with it)."""
+    return {
+        "exploration_fraction": trial.suggest_float("exploration_fraction", 0.05, 0.7),
+        "exploration_final_eps": trial.suggest_float("exploration_final_eps", 0.0, 0.2),
+    }
+
+
+def sample_affectdqn_params(trial: Any, n_actions: int, n_envs: int, additional_args: dict[str, Any]) -> dict[str, Any]:
+    """Optuna sampler of AffectDQN: DQN's arguments without epsilon, and the behaviour table the emotions follow."""
+    from sb3_affect.core.behaviour import BEHAVIOUR_TABLES
+
+    return {
+        **_sample_off_policy(trial),
+        "behaviour_table": trial.suggest_categorical("behaviour_table", sorted(BEHAVIOUR_TABLES)),
+    }
+
+
+def sample_affectqrdqn_params(trial: Any, n_actions: int, n_envs: int, additional_args: dict[str, Any]) -> dict[str, Any]:
+    """Optuna sampler of AffectQRDQN: AffectDQN's and QR-DQN's number of quantiles (a keyword of its policy)."""
+    params = sample_affectdqn_params(trial, n_actions, n_envs, additional_args)
+    params["policy_kwargs"]["n_quantiles"] = trial.suggest_int("n_quantiles", 5, 200)
+    return params
+
+
+def sample_ezgreedydqn_params(trial: Any, n_actions: int, n_envs: int, additional_args: dict[str, Any]) -> dict[str, Any]:
+    """Optuna sampler of EzGreedyDQN: DQN's arguments with its epsilon, and the durations' power law."""
+    from sb3_affect.core.behaviour import MAX_SPEED
+
+    return {
+        **_sample_off_policy(trial),
+        **_sample_epsilon(trial),
+        "mu": trial.suggest_float("mu", 1.1, 3.0),
+        "max_duration": trial.suggest_int("max_duration", 2, min(20, MAX_SPEED)),
+    }
+
+
+def sample_speedepsilongreedydqn_params(
+    trial: Any, n_actions: int, n_envs: int, additional_args: dict[str, Any]
+) -> dict[str, Any]:
+    """Optuna sampler of SpeedEpsilonGreedyDQN: DQN's arguments with its epsilon, and the speeds a decision lasts."""
+    speeds = {"1": [1], "1-2": [1, 2], "0-2": [0, 1, 2], "1-3": [1, 2, 3]}
+    choice = trial.suggest_categorical("speeds", list(speeds))
+    return {**_sample_off_policy(trial), **_sample_epsilon(trial), "speeds": speeds[choice]}
+
+
+#: Each zoo name's Optuna sampler.
+SAMPLERS = {
+    "qlearning": sample_qlearning_params,
+    "affectq": sample_affectq_params,
+    "affectdqn": sample_affectdqn_params,
+    "affectqrdqn": sample_affectqrdqn_params,
+    "ezgreedydqn": sample_ezgreedydqn_params,
+    "speedepsilongreedydqn": sample_speedepsilongreedydqn_params,
+}
+
+
 def register_with_zoo() -> None:
-    """Add ``qlearning`` and ``affectq`` to rl-zoo3's algorithms and hyperparameter samplers (idempotent)."""
+    """Add the package's agents (``ZOO_ALGOS``) to rl-zoo3's algorithms and hyperparameter samplers (idempotent)."""
     require_extra("zoo", "the rl-zoo3 recipe")
     import rl_zoo3
     from rl_zoo3 import hyperparams_opt
 
-    from sb3_affect.agents.affectq import AffectQ
-    from sb3_affect.agents.qlearning import QLearning
+    for zoo_name, name in ZOO_ALGOS.items():
+        module_name, attr = split_algo(name)
+        rl_zoo3.ALGOS[zoo_name] = getattr(importlib.import_module(module_name), attr)  # one dict, shared by the zoo
+    hyperparams_opt.HYPERPARAMS_SAMPLER.update(SAMPLERS)
 
-    rl_zoo3.ALGOS.update({"qlearning": QLearning, "affectq": AffectQ})  # one dict, shared by every zoo module
-    hyperparams_opt.HYPERPARAMS_SAMPLER.update({"qlearning": sample_qlearning_params, "affectq": sample_affectq_params})
+
+def _conf_file(algo: str | None, argv: list[str]) -> Path | None:
+    """
+    The package's hyperparameter file ``train`` reads for ``algo``: always for the package's agents; for another
+    algorithm (``dqn``) only when the file lists the env, so the zoo's own settings stay in force for any other.
+    """
+    if algo is None or "--conf-file" in argv or "-conf" in argv:
+        return None
+    conf = HYPERPARAMS_FOLDER / f"{algo}.yml"
+    if algo in ZOO_ALGOS:
+        return conf
+    if not conf.is_file() or "--env" not in argv or argv.index("--env") + 1 >= len(argv):
+        return None
+    import yaml
+
+    return conf if argv[argv.index("--env") + 1] in (yaml.safe_load(conf.read_text()) or {}) else None
 
 
 def _algo(argv: list[str]) -> str | None:
@@ -165,9 +268,8 @@ def main(argv: list[str] | None = None) -> None:
     except MissingExtraError as error:  # one line naming the extra, as the sb3-affect command says it
         print(f"python -m sb3_affect.integrations.zoo: error: {error}", file=sys.stderr)
         raise SystemExit(2) from None
-    algo = _algo(rest)
-    if command == "train" and algo in ("qlearning", "affectq") and "--conf-file" not in rest and "-conf" not in rest:
-        conf = HYPERPARAMS_FOLDER / f"{algo}.yml"
+    conf = _conf_file(_algo(rest), rest) if command == "train" else None
+    if conf is not None:
         rest += ["--conf-file", str(conf), *_eval_env_kwargs(conf, rest)]
     output = None
     if command in ("plot_train", "all_plots"):

@@ -1,0 +1,116 @@
+"""
+rl-zoo3 with the deep agents and the deep controls: the zoo's own train and enjoy of AffectDQN on MiniGrid with the
+shipped hyperparameter file (a small budget on the command line), the files of every deep agent, their agreement with
+DQN's settings, the Optuna samplers and the zoo's hyperparameter search with AffectDQN's sampler.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import optuna
+import pytest
+import yaml
+
+minigrid = pytest.importorskip("minigrid")
+from minigrid.wrappers import FlatObsWrapper  # noqa: E402
+from stable_baselines3.common.env_util import make_vec_env  # noqa: E402
+
+from sb3_affect.integrations.zoo import HYPERPARAMS_FOLDER, SAMPLERS, ZOO_ALGOS, _conf_file, register_with_zoo  # noqa: E402
+
+DEEP = ("affectdqn", "affectqrdqn", "ezgreedydqn", "speedepsilongreedydqn")
+TASKS = ("MiniGrid-Empty-5x5-v0", "MiniGrid-Empty-8x8-v0")
+#: DQN's epsilon, which the affective agents do not take.
+EPSILON = ("exploration_fraction", "exploration_final_eps")
+
+
+def _file(algo: str) -> dict[str, dict[str, object]]:
+    return yaml.safe_load((HYPERPARAMS_FOLDER / f"{algo}.yml").read_text())
+
+
+def _agent(algo: str) -> type:
+    import rl_zoo3
+
+    register_with_zoo()
+    return rl_zoo3.ALGOS[algo]
+
+
+def test_zoo_trains_affect_dqn_on_minigrid_with_the_shipped_file_and_enjoy_replays_it(tmp_path: Path, zoo) -> None:
+    common = ["--algo", "affectdqn", "--env", "MiniGrid-Empty-8x8-v0", "-f", "logs"]
+    out = zoo(["train", *common, "-n", "600", "--eval-freq", "300", "--eval-episodes", "1", "--seed", "0"], tmp_path)
+    run = tmp_path / "logs" / "affectdqn" / "MiniGrid-Empty-8x8-v0_1"
+    assert "Eval num_timesteps=600" in out and (run / "MiniGrid-Empty-8x8-v0.zip").exists()
+    config = yaml.load((run / "MiniGrid-Empty-8x8-v0" / "config.yml").read_text(), Loader=yaml.UnsafeLoader)
+    assert dict(config)["env_wrapper"] == "minigrid.wrappers.FlatObsWrapper" and dict(config)["position"] == "minigrid"
+    model = _agent("affectdqn").load(run / "MiniGrid-Empty-8x8-v0.zip")
+    shipped = _file("affectdqn")["MiniGrid-Empty-8x8-v0"]
+    assert model.num_timesteps == 600 and model.learning_starts == shipped["learning_starts"]
+    out = zoo(["enjoy", *common, "--no-render", "-n", "300", "--seed", "0"], tmp_path)  # > one episode's 256 steps
+    assert "Episode Reward" in out and "Episode Length" in out, out[-500:]
+
+
+def test_every_deep_agent_has_the_minigrid_tasks_and_dqns_settings() -> None:
+    dqn = _file("dqn")
+    assert set(dqn) == set(TASKS)
+    for algo in DEEP:
+        table = _file(algo)
+        assert set(table) == set(TASKS), algo
+        for task in TASKS:
+            own = {key: value for key, value in table[task].items() if key not in dqn[task]}
+            shared = {key: value for key, value in table[task].items() if key in dqn[task]}
+            expected = {k: v for k, v in dqn[task].items() if not (algo.startswith("affect") and k in EPSILON)}
+            assert shared == expected, (algo, task)  # DQN's settings, one source: only the agent's own are added
+            assert set(own) <= {"position", "wait_action", "mu", "max_duration", "speeds"}, own
+
+
+@pytest.mark.parametrize("algo", DEEP)
+def test_the_deep_agents_files_build_the_agent_on_every_task(algo: str) -> None:
+    for task, params in _file(algo).items():
+        params = dict(params)
+        params.pop("n_timesteps"), params.pop("env_wrapper")
+        env = make_vec_env(task, n_envs=1, seed=0, wrapper_class=FlatObsWrapper)
+        model = _agent(algo)(env=env, seed=0, **{**params, "learning_starts": 20, "buffer_size": 100})
+        assert model.learn(40).num_timesteps >= 40  # (a repeat may end past the budget)
+
+
+@pytest.mark.parametrize("algo", DEEP)
+def test_the_deep_samplers_give_valid_agents_with_their_own_arguments(algo: str) -> None:
+    study = optuna.create_study(sampler=optuna.samplers.RandomSampler(seed=0))
+    own = {"affectdqn": "behaviour_table", "affectqrdqn": "n_quantiles", "ezgreedydqn": "mu",
+           "speedepsilongreedydqn": "speeds"}[algo]
+    position = {"position": "minigrid"} if algo.startswith("affect") else {}
+    for _ in range(2):
+        params = SAMPLERS[algo](study.ask(), 7, 1, {})
+        assert own in {**params, **params["policy_kwargs"]} and not (algo.startswith("affect") and set(EPSILON) & set(params))
+        env = make_vec_env("MiniGrid-Empty-5x5-v0", n_envs=1, seed=0, wrapper_class=FlatObsWrapper)
+        params = {**params, "buffer_size": 100, "learning_starts": 20}
+        assert _agent(algo)("MlpPolicy", env, seed=0, **position, **params).learn(30).num_timesteps >= 30  # (repeats)
+
+
+def test_the_zoo_optimizes_affect_dqn_with_its_sampler(tmp_path: Path, zoo) -> None:
+    out = zoo(["train", "--algo", "affectdqn", "--env", "MiniGrid-Empty-5x5-v0", "-f", "logs", "-n", "100",
+               "--optimize-hyperparameters", "--n-trials", "1", "--n-jobs", "1", "--sampler", "random", "--pruner",
+               "none", "--n-evaluations", "1", "--eval-episodes", "1", "--seed", "0",
+               "--hyperparams", "learning_starts:50", "buffer_size:500"], tmp_path)
+    assert "Number of finished trials:  1" in out and "behaviour_table: " in out and "net_arch: " in out
+
+
+def test_the_package_files_are_read_for_its_agents_and_for_dqn_on_the_envs_they_list() -> None:
+    assert set(ZOO_ALGOS) == {"qlearning", "affectq", *DEEP}
+    assert _conf_file("affectdqn", ["--env", "MiniGrid-Empty-8x8-v0"]) == HYPERPARAMS_FOLDER / "affectdqn.yml"
+    assert _conf_file("dqn", ["--env", "MiniGrid-Empty-5x5-v0"]) == HYPERPARAMS_FOLDER / "dqn.yml"
+    assert _conf_file("dqn", ["--env", "CartPole-v1"]) is None  # the zoo's own dqn.yml
+    assert _conf_file("affectdqn", ["--env", "MiniGrid-Empty-8x8-v0", "--conf-file", "mine.yml"]) is None
+
+
+def test_the_deep_agents_page_trains_with_the_shipped_settings() -> None:
+    page = (Path(__file__).resolve().parents[1] / "docs" / "deep_agents.md").read_text()
+    code = page[page.index("settings = dict(") : page.index("env = make_vec_env(")]
+    namespace: dict[str, object] = {}
+    exec(code, namespace)
+    shipped = dict(_file("affectdqn")["MiniGrid-Empty-5x5-v0"])
+    for key in ("env_wrapper", "n_timesteps", "policy", "position", "wait_action"):
+        shipped.pop(key)
+    assert namespace["settings"] == {key: value for key, value in shipped.items() if key != "gradient_steps"}
+    assert shipped["gradient_steps"] == 1  # DQN's default
+    assert "learn(10_000)" in page and _file("affectdqn")["MiniGrid-Empty-5x5-v0"]["n_timesteps"] == 10_000
