@@ -229,10 +229,10 @@ def test_attributes_and_wrappers_as_make_vec_env() -> None:
     assert image.env_is_wrapped(FlatObsWrapper) == [False] * 3
 
 
-def dqn_run(cls: type, venv: VecEnv, **kwargs: Any) -> Any:
+def dqn_run(cls: type, venv: VecEnv, steps: int = 400, **kwargs: Any) -> Any:
     th.set_num_threads(1)
-    return cls("MlpPolicy", venv, learning_starts=100, train_freq=4, batch_size=16, seed=0,
-               policy_kwargs={"net_arch": [16]}, **kwargs).learn(400)
+    return cls("MlpPolicy", venv, learning_starts=steps - 300, train_freq=4, batch_size=16, seed=0,
+               policy_kwargs={"net_arch": [16]}, **kwargs).learn(steps)
 
 
 def assert_same_weights(first: Any, second: Any) -> None:
@@ -260,7 +260,7 @@ def test_sb3_ppo_trains_on_it_as_on_farama() -> None:
 
 def test_affect_dqn_reads_the_agent_cell_from_it() -> None:
     callbacks = [EmotionCallback(), EmotionCallback()]
-    runs = [dqn_run(AffectDQN, venv, position="minigrid", emotion_callback=callback, wait_action=DONE)
+    runs = [dqn_run(AffectDQN, venv, 900, position="minigrid", emotion_callback=callback, wait_action=DONE)
             for venv, callback in zip(both("MiniGrid-Empty-5x5-v0", 2, 0), callbacks)]
     known = [callback.appraiser.known for callback in callbacks]  # type: ignore[union-attr]
     assert known[1].n_states == 25 and len(known[1].goals) > 0
