@@ -14,15 +14,15 @@ import pytest
 import torch as th
 
 pytest.importorskip("minigrid")  # the [minigrid] extra: the reference
-from minigrid.wrappers import FlatObsWrapper  # noqa: E402
-from stable_baselines3 import DQN, PPO  # noqa: E402
-from stable_baselines3.common.env_util import make_vec_env  # noqa: E402
-from stable_baselines3.common.evaluation import evaluate_policy  # noqa: E402
-from stable_baselines3.common.monitor import Monitor  # noqa: E402
-from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv  # noqa: E402
+from minigrid.wrappers import FlatObsWrapper
+from stable_baselines3 import DQN, PPO
+from stable_baselines3.common.env_util import make_vec_env
+from stable_baselines3.common.evaluation import evaluate_policy
+from stable_baselines3.common.monitor import Monitor
+from stable_baselines3.common.vec_env import DummyVecEnv, VecEnv
 
-from sb3_affect import AffectDQN, EmotionCallback, minigrid_vec_env  # noqa: E402
-from sb3_affect.kernel.minigrid_world import MINIGRID_TASKS  # noqa: E402
+from sb3_affect import AffectDQN, EmotionCallback, minigrid_vec_env
+from sb3_affect.kernel.minigrid_world import MINIGRID_TASKS
 
 TASKS = ["MiniGrid-Empty-8x8-v0", "MiniGrid-FourRooms-v0", "MiniGrid-DoorKey-5x5-v0"]
 LEFT, RIGHT, FORWARD, PICKUP, DROP, TOGGLE, DONE = range(7)

@@ -173,7 +173,8 @@ class MiniGridVecEnv(VecEnv):
         ints = flat.astype(np.int64)
         bad = np.flatnonzero((ints != flat) | (ints < 0) | (ints >= N_ACTIONS))
         if bad.size:
-            raise ValueError(f"minigrid_vec_env: action {flat[bad[0]].item()!r} of env {bad[0]} is not a MiniGrid action (0..6)")
+            value = flat[bad[0]].item()
+            raise ValueError(f"minigrid_vec_env: action {value!r} of env {bad[0]} is not a MiniGrid action (0..6)")
         return ints
 
     def close(self) -> None:
