@@ -103,6 +103,7 @@ class MiniGridVecEnv(VecEnv):
         self._task_args = (task.layout, task.see_through_walls, task.max_steps)
         self._buffers = (*self.worlds, self._obs, self._rewards, self._terminated, self._truncated, self._dones,
                          self._lengths, self.terminal_observations)
+        self._getters = self._attributes()
         observation_space = spaces.Box(low=0, high=255, shape=(size,), dtype=np.uint8)
         super().__init__(n, observation_space, spaces.Discrete(N_ACTIONS))
         if seed is not None:
@@ -201,14 +202,11 @@ class MiniGridVecEnv(VecEnv):
         }
 
     def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
-        if attr_name == "render_mode":  # asked by VecEnv.__init__, before the worlds exist
-            return [None for _ in self._get_indices(indices)]
-        attributes = self._attributes()
-        if attr_name not in attributes:
+        getter = self._getters.get(attr_name)
+        if getter is None:
             raise AttributeError(
-                f"minigrid_vec_env: its envs have no attribute {attr_name!r}; it gives {', '.join(sorted(attributes))}"
+                f"minigrid_vec_env: its envs have no attribute {attr_name!r}; it gives {', '.join(sorted(self._getters))}"
             )
-        getter = attributes[attr_name]
         return [getter(index) for index in self._get_indices(indices)]
 
     def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
