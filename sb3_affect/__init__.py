@@ -37,6 +37,7 @@ if TYPE_CHECKING:
         SpeedEpsilonGreedyExploration,
     )
     from sb3_affect.agents.minigrid_tabular import TabularMiniGrid
+    from sb3_affect.agents.minigrid_vec_env import minigrid_vec_env
     from sb3_affect.agents.policies import TabularQPolicy
     from sb3_affect.agents.qlearning import QLearning
     from sb3_affect.agents.tabular import TabularQAlgorithm
@@ -62,6 +63,7 @@ _LAZY: dict[str, str] = {
     "TabularQPolicy": "sb3_affect.agents.policies",
     "QLearning": "sb3_affect.agents.qlearning",
     "TabularMiniGrid": "sb3_affect.agents.minigrid_tabular",
+    "minigrid_vec_env": "sb3_affect.agents.minigrid_vec_env",
     "TabularQAlgorithm": "sb3_affect.agents.tabular",
 }
 
@@ -113,5 +115,6 @@ __all__ = [
     "TabularQPolicy",
     "__version__",
     "make_table_ii",
+    "minigrid_vec_env",
     "table_ii",
 ]

@@ -19,6 +19,8 @@ the identical episode log, Q-table, random-generator state and appraisal. Module
 - moving prey (MovingPursuit): ``moving_loop`` (its loop and arguments) and ``moving_batch`` (its inputs and batches);
 - hunter teams (HunterPursuit): ``team_loop`` (its loop and arguments), ``team_env`` (the env's own pieces) and
   ``team_batch`` (its inputs and record columns); ``td_emotions``: the emotion model observing each hunter.
+- ``minigrid_world`` (the view: ``minigrid_view``): MiniGrid's Empty, FourRooms and DoorKey worlds, many stepped in one
+  call (``sb3_affect.minigrid_vec_env``).
 
 The kernel imports the core modules only (settings, registry, envs), never an agent class. ``learn`` on the kernel,
 which needs SB3's objects (a model's state in and out, callbacks, the Monitor, the logger), is on the agents' side:
@@ -67,14 +69,15 @@ refresh_cache(Path(__file__).parent, Path(__file__).parent / "__pycache__")
 
 def warm_up() -> None:
     """
-    Load every kernel now (the grid, moving-prey and team kernels; compiling them, the first time on a machine),
+    Load every kernel now (the grid, moving-prey, team and MiniGrid kernels; compiling them, the first time on a machine),
     without building a model (no torch): for example in a launcher before it forks workers, so that each worker does
     not compile (on a cold cache) or load them again. Cheap once the cache is warm. ``make venv`` runs it once, so a
     first ``make replicate`` finds the kernels compiled (``python -m sb3_affect.kernel``).
     """
     from sb3_affect.kernel.grid_batch import warm_up as grid
+    from sb3_affect.kernel.minigrid_world import warm_up as minigrid
     from sb3_affect.kernel.moving_batch import warm_up as moving
     from sb3_affect.kernel.team_batch import warm_up as team
 
-    for load in (grid, moving, team):
+    for load in (grid, moving, team, minigrid):
         load()
