@@ -35,6 +35,7 @@ if TYPE_CHECKING:
     from sb3_affect.agents.qlearning import QLearning
     from sb3_affect.agents.tabular import TabularQAlgorithm
     from sb3_affect.core.episode_log import EPISODE_COLUMNS
+    from sb3_affect.engine.many_seeds import train_many
 
 register_envs()
 
@@ -53,6 +54,7 @@ _LAZY: dict[str, str] = {
     "QLearning": "sb3_affect.agents.qlearning",
     "TabularMiniGrid": "sb3_affect.agents.minigrid_tabular",
     "TabularQAlgorithm": "sb3_affect.agents.tabular",
+    "train_many": "sb3_affect.engine.many_seeds",
 }
 
 
@@ -100,4 +102,5 @@ __all__ = [
     "__version__",
     "make_table_ii",
     "table_ii",
+    "train_many",
 ]

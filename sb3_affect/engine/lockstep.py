@@ -138,7 +138,7 @@ class Lockstep:
             buffer.pos += 1
             if buffer.pos == buffer.buffer_size:
                 buffer.full, buffer.pos = True, 0
-            model._last_obs = new_obs[index]  # type: ignore[assignment]
+            model._last_obs = new_obs[index]
 
     def _sample_batches(self, batch_size: int) -> tuple[th.Tensor, ...]:
         """Each seed's ``ReplayBuffer.sample(batch_size)`` from its own stream, stacked ``(S, batch_size, ...)``."""
@@ -199,7 +199,8 @@ class Lockstep:
             callback.on_training_start({"self": model, "total_timesteps": total, "callback": callback,
                                         "log_interval": log_interval}, globals())
             callbacks.append(callback)
-        active = [(i, c) for i, c in enumerate(callbacks) if not (isinstance(c, CallbackList) and not c.callbacks)]
+        active: list[tuple[int, BaseCallback]] = [
+            (i, c) for i, c in enumerate(callbacks) if not (isinstance(c, CallbackList) and not c.callbacks)]
         self.obs = np.stack([m._last_obs for m in models])  # type: ignore[misc]
         self.stack = StackedQ(models)
         if self.own_actions:
@@ -219,15 +220,15 @@ class Lockstep:
                         model.num_timesteps += n_envs
                     collected += 1
                     for index, callback in active:
-                        model = models[index]
+                        model = models[int(index)]
                         callback.update_locals({"self": model, "actions": actions[index], "new_obs": new_obs[index],
                                                 "rewards": rewards[index], "dones": dones[index],
                                                 "infos": infos[index], "env": model.env})
                         if not callback.on_step():
                             raise RuntimeError(f"a callback of seed {index} stopped training: train_many runs every "
                                                "seed for total_timesteps")
-                    for index in np.flatnonzero(dones.any(axis=1)):
-                        models[index]._update_info_buffer(infos[index], dones[index])
+                    for ended in np.flatnonzero(dones.any(axis=1)).tolist():
+                        models[ended]._update_info_buffer(infos[ended], dones[ended])
                     self._store(buffer_actions, new_obs, rewards, dones, infos)
                     self.obs = new_obs
                     self._after_step(dones, log_interval)

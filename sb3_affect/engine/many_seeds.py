@@ -42,7 +42,7 @@ def _algorithm(algo: str | type) -> type[DQN]:
     if isinstance(cls, type) and issubclass(cls, OnPolicyAlgorithm):
         raise ValueError(f"algo={name} is on-policy: train_many trains SB3's off-policy DQN family (DQN and its subclasses)")
     if not (isinstance(cls, type) and issubclass(cls, DQN)):
-        raise ValueError(f"algo={name} is not a DQN: train_many trains SB3's DQN and its subclasses (AffectDQN, EzGreedyDQN, ...)")
+        raise ValueError(f"algo={name} is not a DQN: train_many trains SB3's DQN and its subclasses (AffectDQN, ...)")
     for method in ("train", "_on_step"):
         if getattr(cls, method) is not getattr(DQN, method):
             raise ValueError(f"algo={name} has its own {method}: train_many runs DQN's, which would not be {name}'s")
