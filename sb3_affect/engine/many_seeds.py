@@ -121,6 +121,10 @@ def train_many(
     import gymnasium as gym
 
     try:
+        import minigrid  # noqa: F401  (registers MiniGrid's envs)
+    except ImportError:
+        raise ValueError("train_many needs MiniGrid: pip install 'sb3-affect[minigrid]'") from None
+    try:
         gym.spec(env_id)
     except gym.error.Error as error:
         raise ValueError(f"env_id={env_id!r} is not a registered env ({error})") from None
