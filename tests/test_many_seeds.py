@@ -10,6 +10,7 @@ from __future__ import annotations
 import re
 
 import numpy as np
+import pandas as pd
 import pytest
 import torch as th
 from stable_baselines3 import DQN, PPO
@@ -18,6 +19,7 @@ from stable_baselines3.common.logger import configure
 from stable_baselines3.common.type_aliases import ReplayBufferSamples
 
 from sb3_affect import train_many
+from sb3_affect.core.registry import resolve_class
 from sb3_affect.engine.seed_envs import seed_vec_env
 from sb3_affect.engine.stacked_q import StackedQ
 
@@ -25,8 +27,9 @@ pytest.importorskip("minigrid")
 
 ENV_ID = "MiniGrid-Empty-5x5-v0"
 #: a DQN that learns within a few thousand steps: every part of the loop (warm-up, epsilon, training, target copies)
-SETTINGS = dict(learning_starts=200, buffer_size=10_000, exploration_fraction=0.5, target_update_interval=100,
-                learning_rate=1e-3, batch_size=16)
+SETTINGS = dict(learning_starts=200, buffer_size=10_000, target_update_interval=100, learning_rate=1e-3, batch_size=16)
+#: epsilon over the first half of training (AffectDQN has none)
+EPSILON = dict(exploration_fraction=0.5)
 
 
 @pytest.fixture(autouse=True)
@@ -106,8 +109,8 @@ def test_one_seed_one_env_takes_sb3s_actions() -> None:
     steps, epsilon over the first 30% of 20,000 steps): the first different transition at env step 4,592, 6,754 and
     9,048 for seeds 0, 1 and 2 (after 900 to 2,000 gradient steps).
     """
-    theirs = _sb3(3, 1, 1_500)
-    (ours,) = train_many(DQN, ENV_ID, [3], 1, total_timesteps=1_500, obs="image", **SETTINGS)
+    theirs = _sb3(3, 1, 1_500, **EPSILON)
+    (ours,) = train_many(DQN, ENV_ID, [3], 1, total_timesteps=1_500, obs="image", **SETTINGS, **EPSILON)
     _assert_same_buffer(ours, theirs)
     assert _max_weight_difference(ours, theirs) < 1e-6
     assert (ours.num_timesteps, ours._n_updates, ours._episode_num) == (theirs.num_timesteps, theirs._n_updates,
@@ -121,7 +124,7 @@ def test_one_seed_one_env_takes_sb3s_actions() -> None:
 def test_seeds_and_envs_counted_as_sb3_counts_them() -> None:
     """Three seeds x three envs, training every 2 VecEnv steps with 2 gradient steps and a target copy every
     ``30 // 3`` VecEnv steps: each seed's buffer is the buffer of its own ``learn``."""
-    settings = dict(train_freq=2, gradient_steps=2, target_update_interval=30)
+    settings = dict(train_freq=2, gradient_steps=2, target_update_interval=30, **EPSILON)
     ours = train_many("DQN", ENV_ID, [5, 0, 9], 3, total_timesteps=900, obs="image", **{**SETTINGS, **settings})
     for seed, model in zip([5, 0, 9], ours):
         theirs = _sb3(seed, 3, 900, **settings)
@@ -130,9 +133,36 @@ def test_seeds_and_envs_counted_as_sb3_counts_them() -> None:
         assert model._n_updates == theirs._n_updates and model.num_timesteps == theirs.num_timesteps
 
 
+@pytest.mark.parametrize(("algo", "kwargs"), [
+    ("EzGreedyDQN", EPSILON),
+    ("SpeedEpsilonGreedyDQN", {**EPSILON, "wait_action": 6, "speeds": [0, 1, 2]}),
+    ("AffectDQN", {"position": "minigrid", "wait_action": 6}),
+])
+def test_deep_controls_and_affect_dqn_as_their_own_learn(algo, kwargs, tmp_path) -> None:
+    """The classes that decide their own actions (repeats, waits, emotions) run their own ``_sample_action`` and
+    ``_store_transition`` per seed: each seed's buffer, logged keys and episode log are those of its ``learn``; the
+    model saves and loads as its class does."""
+    cls = resolve_class(algo)
+    ours = train_many(algo, ENV_ID, [4, 2], 2, total_timesteps=800, obs="image", **{**SETTINGS, **kwargs})
+    for seed, model in zip([4, 2], ours):
+        assert type(model) is cls
+        theirs = _sb3(seed, 2, 800, cls=cls, **kwargs)
+        _assert_same_buffer(model, theirs)
+        assert _max_weight_difference(model, theirs) < 1e-6
+        assert sorted(model.logger.name_to_value) == sorted(theirs.logger.name_to_value)
+        if algo == "AffectDQN":
+            assert len(model.emotion_callback.episode_log) > 0
+            pd.testing.assert_frame_equal(model.emotion_callback.episode_log, theirs.emotion_callback.episode_log)
+    ours[0].save(tmp_path / "model.zip")
+    loaded = cls.load(tmp_path / "model.zip", env=seed_vec_env(ENV_ID, 2, 4, "image"), device="cpu")
+    observations = ours[0].replay_buffer.observations[:50, 0]
+    np.testing.assert_array_equal(loaded.predict(observations, deterministic=True)[0],
+                                  ours[0].predict(observations, deterministic=True)[0])
+
+
 def test_returned_models_are_sb3_models(tmp_path) -> None:
     """A returned model saves, loads, predicts and evaluates as one trained by ``learn``; the load predicts alike."""
-    models = train_many("DQN", ENV_ID, [0, 1], 2, total_timesteps=400, obs="flat", **SETTINGS)
+    models = train_many("DQN", ENV_ID, [0, 1], 2, total_timesteps=400, obs="flat", **SETTINGS, **EPSILON)
     assert [type(m) for m in models] == [DQN, DQN] and [m.seed for m in models] == [0, 1]
     env = seed_vec_env(ENV_ID, 1, 123, "flat")
     path = tmp_path / "model.zip"
