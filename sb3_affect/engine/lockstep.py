@@ -26,7 +26,7 @@ stacked networks; plain DQN runs both batched.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
@@ -164,8 +164,13 @@ class Lockstep:
                 model.dump_logs()
 
     # -- the loop --------------------------------------------------------------------------------------------------
-    def learn(self, total_timesteps: int, log_interval: int = 4) -> list[DQN]:
-        """``model.learn(total_timesteps, log_interval=log_interval)`` of every model, in lockstep."""
+    def learn(self, total_timesteps: int, log_interval: int = 4, every: int = 0,
+              on_models: Callable[[list[DQN]], object] | None = None) -> list[DQN]:
+        """
+        ``model.learn(total_timesteps, log_interval=log_interval)`` of every model, in lockstep; ``on_models(models)``
+        each time ``num_timesteps`` passes a multiple of ``every``, where SB3 calls a callback's ``on_step``, with the
+        weights so far written into the models.
+        """
         models, first = self.models, self.models[0]
         callbacks: list[BaseCallback] = []
         for model in models:
@@ -203,6 +208,9 @@ class Lockstep:
                         if not callback.on_step():
                             raise RuntimeError(f"a callback of seed {index} stopped training: train_many runs every "
                                                "seed for total_timesteps")
+                    if on_models is not None and first.num_timesteps // every > (first.num_timesteps - n_envs) // every:
+                        self.stack.write_back(models)
+                        on_models(models)
                     for ended in np.flatnonzero(dones.any(axis=1)).tolist():
                         models[ended]._update_info_buffer(infos[ended], dones[ended])
                     self._store(buffer_actions, new_obs, rewards, dones, infos)
