@@ -42,6 +42,7 @@ if TYPE_CHECKING:
     from sb3_affect.agents.qlearning import QLearning
     from sb3_affect.agents.tabular import TabularQAlgorithm
     from sb3_affect.core.episode_log import EPISODE_COLUMNS
+    from sb3_affect.engine.many_seeds import train_many
 
 register_envs()
 
@@ -65,6 +66,7 @@ _LAZY: dict[str, str] = {
     "TabularMiniGrid": "sb3_affect.agents.minigrid_tabular",
     "minigrid_vec_env": "sb3_affect.agents.minigrid_vec_env",
     "TabularQAlgorithm": "sb3_affect.agents.tabular",
+    "train_many": "sb3_affect.engine.many_seeds",
 }
 
 
@@ -117,4 +119,5 @@ __all__ = [
     "make_table_ii",
     "minigrid_vec_env",
     "table_ii",
+    "train_many",
 ]

@@ -1,0 +1,65 @@
+"""
+The envs of many seeds stepped together: ``SeedEnvs`` holds one SB3 ``VecEnv`` of E envs per seed and steps them as
+one ``(S, E)`` batch, and ``seed_vec_env`` builds a seed's VecEnv as SB3 users build it for MiniGrid:
+``make_vec_env(env_id, n_envs, seed=seed, wrapper_class=FlatObsWrapper)`` (``obs="flat"``), or its first 147 entries,
+the agent's 7x7x3 view (``obs="image"``, ``ImageVector``); ``compiled=True`` gives its compiled twin,
+``minigrid_vec_env`` (the same layouts, observations, rewards and infos step for step), for the tasks it implements.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from stable_baselines3.common.env_util import make_vec_env
+from stable_baselines3.common.vec_env import VecEnv
+
+from sb3_affect.agents.minigrid_vec_env import minigrid_vec_env
+from sb3_affect.kernel.minigrid_view import VIEW_SIZE
+from sb3_affect.kernel.minigrid_world import MINIGRID_TASKS
+
+
+class ImageVector(gym.ObservationWrapper):
+    """MiniGrid's ``FlatObsWrapper`` vector cut to its first 147 entries: the agent's 7x7x3 view, flattened."""
+
+    def __init__(self, env: gym.Env) -> None:
+        from minigrid.wrappers import FlatObsWrapper
+
+        super().__init__(FlatObsWrapper(env))
+        self.observation_space = spaces.Box(low=0, high=255, shape=(VIEW_SIZE,), dtype=np.uint8)
+
+    def observation(self, observation: np.ndarray) -> np.ndarray:
+        return observation[:VIEW_SIZE]
+
+
+def seed_vec_env(env_id: str, n_envs: int, seed: int, obs: str, compiled: bool = False) -> VecEnv:
+    """
+    ``make_vec_env(env_id, n_envs, seed=seed, wrapper_class=FlatObsWrapper)``, or ``ImageVector`` for ``"image"``;
+    ``compiled``: ``minigrid_vec_env`` where it implements ``env_id``.
+    """
+    if compiled and env_id in MINIGRID_TASKS:
+        return minigrid_vec_env(env_id, n_envs, seed=seed, obs=obs)
+    from minigrid.wrappers import FlatObsWrapper
+
+    wrapper: Any = FlatObsWrapper if obs == "flat" else ImageVector
+    return make_vec_env(env_id, n_envs, seed=seed, wrapper_class=wrapper)
+
+
+class SeedEnvs:
+    """
+    S VecEnvs of E envs each, stepped as one batch: observations ``(S, E, ...)``, rewards and dones ``(S, E)`` and the
+    infos as one list of E dicts per seed.
+    """
+
+    def __init__(self, envs: Sequence[VecEnv]) -> None:
+        self.envs = list(envs)
+
+    def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[list[dict[str, Any]]]]:
+        results = [env.step(a) for env, a in zip(self.envs, actions)]
+        obs = np.stack([r[0] for r in results])  # type: ignore[misc]
+        rewards = np.stack([r[1] for r in results])
+        dones = np.stack([r[2] for r in results])
+        return obs, rewards, dones, [r[3] for r in results]
