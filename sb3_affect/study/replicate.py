@@ -34,10 +34,11 @@ PARTS = (
     ("long", "long runs: both paper agents, runs of 2,000 episodes ({runs} runs)"),
     ("joy_trace", "joy trace: the paper's affective agent, each decision's emotion and act recorded ({runs} runs)"),
     ("minigrid", "the tabular agents on MiniGrid ({runs} runs)"),
+    ("deep_smoke", "the deep study at smoke size: {name}, greedy policies evaluated every {eval_every} env steps"),
     ("forensics", "replication forensics: {screen_reps} screen, {leaders} leaders x {reps} replications"),
 )
 #: Parts that need a package of an extra: (part, package, extra); without it the part is skipped with one line.
-PART_PACKAGES = (("minigrid", "minigrid", "minigrid"),)
+PART_PACKAGES = (("minigrid", "minigrid", "minigrid"), ("deep_smoke", "minigrid", "minigrid"))
 #: The parts sized by ``main``'s ``large_seeds`` (a cap on their seeds per cell) and ``engine_episodes`` (their
 #: episodes per run; ``long``: 10 x as many); ``ablation`` by ``ablation_seeds``.
 SIZED = ("large", "ablation", "speed_one", "long")
@@ -250,10 +251,15 @@ def _run_part(
     """
     from sb3_affect.study.forensics.study_run import run_study
     from sb3_affect.study.launcher import run_sweep
+    from sb3_affect.study.launcher.deep_schema import DeepStudy
+    from sb3_affect.study.launcher.deep_study import run_deep_study
     from sb3_affect.study.launcher.study_schema import ForensicsStudy
     from sb3_affect.study.launcher.sweep_file import load_sweep_file
 
     study = load_sweep_file(path, overrides, build=False)
+    if isinstance(study, DeepStudy):
+        done = run_deep_study(study, folder, workers=executor["workers"])
+        return record.part(key, done.seconds, done_before=done.reused, todo=done.trained), None
     if isinstance(study, ForensicsStudy):  # no progress bars of its own in the log: a heartbeat instead
         with _heartbeat(key):
             result = run_study(study, folder, progress=False, **executor)

@@ -19,6 +19,7 @@ from sb3_affect.study.report.abstract import abstract_section
 from sb3_affect.study.report.baselines_section import beyond_section
 from sb3_affect.study.report.checks import checks_section
 from sb3_affect.study.report.context import ReportContext
+from sb3_affect.study.report.deep_minigrid import deep_minigrid_section
 from sb3_affect.study.report.document import APPENDIX_HEADING, Document, fmt
 from sb3_affect.study.report.dqn import dqn_section, learning_curves_section
 from sb3_affect.study.report.evidence import evidence_section
@@ -197,6 +198,7 @@ SECTIONS: list[Section] = [
     beyond_section,
     hunters_sections,
     minigrid_sections,
+    deep_minigrid_section,
     ablation_section,
 ]
 #: The appendix, in order.
