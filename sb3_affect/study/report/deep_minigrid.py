@@ -186,8 +186,9 @@ def comparison(table: pd.DataFrame, task: str, agent: str, other: str, label: st
     """'higher' / 'lower' when ``agent``'s CI of ``label`` lies above / below ``other``'s on ``task``, else 'overlap'."""
     if (task, agent) not in table.index or (task, other) not in table.index:
         return None
-    a_low, a_high = (float(table.at[(task, agent), f"{label} {end}"]) for end in ("low", "high"))
-    b_low, b_high = (float(table.at[(task, other), f"{label} {end}"]) for end in ("low", "high"))
+    bounds = table[[f"{label} low", f"{label} high"]].to_numpy(dtype=float)
+    rows = list(table.index)
+    (a_low, a_high), (b_low, b_high) = bounds[rows.index((task, agent))], bounds[rows.index((task, other))]
     return "higher" if a_low > b_high else "lower" if a_high < b_low else "overlap"
 
 
