@@ -129,7 +129,8 @@ def test_controls_keep_their_options_through_save_and_load(tmp_path: Any) -> Non
 @pytest.mark.parametrize(
     ("cls", "kwargs", "message"),
     [
-        (EzGreedyDQN, {"mu": 0}, r"^mu=0 must be a number > 0"),
+        (EzGreedyDQN, {"mu": 0}, r"^mu=0 must be a finite number > 0"),
+        (EzGreedyDQN, {"mu": float("inf")}, r"^mu=inf must be a finite number > 0"),
         (EzGreedyDQN, {"max_duration": 0}, r"^max_duration=0 must be an integer in \[1, "),
         (SpeedEpsilonGreedyDQN, {"speeds": []}, r"^speeds=\[\] must be a non-empty list of integers"),
         (SpeedEpsilonGreedyDQN, {"speeds": "12"}, r"^speeds='12' must be a non-empty list of integers"),

@@ -48,6 +48,7 @@ from sb3_affect.core.appraisal import Appraiser
 from sb3_affect.core.emotions import EMOTION_NAMES, Emotion, EmotionRule, make_table_ii
 from sb3_affect.core.episode_log import EPISODE_COLUMNS, Geometry, deterministic_walk_is_shortest, env_geometry, make_frame
 from sb3_affect.core.goals import GoalTest, positive_terminal_reward
+from sb3_affect.core.lane_appraisal import LaneAppraisal
 from sb3_affect.core.positions import MAX_MAPPED_CELLS, ObservationCells, Position, PositionSpec, check_position, make_position
 
 if TYPE_CHECKING:
@@ -117,9 +118,14 @@ class EmotionCallback(BaseCallback):
         self.warn_after = warn_after
         # observer-mode state
         self._position: Position | None = None
+        self._position_spec: PositionSpec = None
         #: set by an agent that repeats actions before each step: which envs' decisions end with it (None: all)
         self.decision_ends: np.ndarray | None = None
-        self._lanes: list[_Lane] = []
+        #: set by an agent with the step's actions: which envs began a decision with a random direction / a wait
+        #: (None: the algorithm does not say; ``random_moves`` is then NaN in the episode log)
+        self.decision_random: np.ndarray | None = None
+        self.decision_wait: np.ndarray | None = None
+        self._lanes: list[LaneAppraisal] = []
         self._window = WindowMeans(len(WINDOW_KEYS))
         self._csv_path: Path | None = None
         self._episodes = self._goals = 0
@@ -135,13 +141,23 @@ class EmotionCallback(BaseCallback):
             raise ValueError(f"the appraiser was built for {self.appraiser.known.n_states} cells but the env has {n_states}")
 
     def _init_callback(self) -> None:
-        space = self.model.observation_space
-        self._position = make_position(self.position, space)
-        if self._position is not None:
-            env = self.model.get_env()
-            if env is not None:
-                self._position.bind(env, space)
-            self.bind(self._position.n_cells)
+        self.prepare(self.model.observation_space, self.model.get_env())
+
+    def prepare(self, space: Any, venv: Any = None) -> None:
+        """
+        Find the cells of ``space``'s observations (``position``), check them on ``venv`` when given, and create the
+        appraiser; a one-line error when the position does not fit the env or Table II would have no map. Called when
+        training starts, and by the deep affective agents at construction. A callable's cell numbers are kept from one
+        call to the next (the appraiser's map is numbered with them).
+        """
+        position = self._position
+        if position is None or self._position_spec is not self.position:
+            position = self._position = make_position(self.position, space)
+            self._position_spec = self.position
+        if position is not None:
+            if venv is not None:
+                position.bind(venv, space)
+            self.bind(position.n_cells)
             return
         if getattr(self.emotion_rule, "table_ii_comparison", None) is not None:
             raise TypeError(
@@ -215,12 +231,14 @@ class EmotionCallback(BaseCallback):
         self._csv_path = self._episode_csv()
         # one lane per env: its own appraisal (env 0 keeps the callback's appraiser), counts and episode in progress
         assert self.appraiser is not None
-        self._lanes = [self._lanes[i] if i < len(self._lanes) else _Lane(self._new_appraiser()) for i in range(n_envs)]
-        self._lanes[0].appraiser = self.appraiser
+        lanes = [self._lanes[i] if i < len(self._lanes) else LaneAppraisal(self._new_appraiser()) for i in range(n_envs)]
+        self._lanes = lanes
+        lanes[0].appraiser = self.appraiser
         cells = self._cells(last_obs, getattr(self.training_env, "reset_infos", None))
-        for lane, cell in zip(self._lanes, cells):
+        counted = self._counted()
+        for lane, cell in zip(lanes, cells):
             lane.begin(cell)
-            self._feel_lane(lane)
+            self.emotion = lane.feel(self.emotion_rule, counted)
 
     def _new_appraiser(self) -> Appraiser:
         assert self.appraiser is not None
@@ -244,12 +262,13 @@ class EmotionCallback(BaseCallback):
             return [0] * n
         return self._position.cells(self.training_env, obs, infos or [{} for _ in range(n)])
 
-    def _feel_lane(self, lane: _Lane) -> None:
-        emotion = self.emotion_rule(lane.appraiser.appraise(lane.state))
-        lane.appraiser.elapsed_decisions += 1
-        lane.counts[emotion] += 1
-        lane.emotion = self.emotion = emotion
-        lane.deciding = True
+    def _counted(self) -> bool:
+        """Whether the next decisions enter the emotion profile: not in the warm-up of the agent this callback drives
+        (``learning_starts``: SB3's uniformly random actions, not the emotions'); always for an observer."""
+        model = self.model
+        if getattr(model, "emotion_callback", None) is not self:
+            return True
+        return bool(model.num_timesteps >= getattr(model, "learning_starts", 0))
 
     def lane_emotions(self) -> list[Emotion]:
         """Observer mode: the emotion each env of the VecEnv feels for its next decision."""
@@ -262,34 +281,46 @@ class EmotionCallback(BaseCallback):
         rewards = flat_array(locals_["rewards"]).tolist()
         infos = locals_["infos"]
         position = self._position
-        new_cells = self._cells(locals_["new_obs"], infos)
+        new_cells = self._cells(locals_["new_obs"], self._start_infos(dones, infos))
         actions = locals_.get("actions")
-        ends = self.decision_ends
+        if actions is not None:
+            actions = np.asarray(actions).reshape(len(self._lanes), -1)
+        ends, randoms, waits = self.decision_ends, self.decision_random, self.decision_wait
+        counted = self._counted()
+        rule = self.emotion_rule
         for index, lane in enumerate(self._lanes):
+            if randoms is not None and lane.deciding:
+                lane.note_decision(bool(randoms[index]), waits is not None and bool(waits[index]))
             done = bool(dones[index])
             info = infos[index]
             reward = rewards[index]
             truncated = done and bool(info.get("TimeLimit.truncated", False))
             terminated = done and not truncated
             reached_goal = terminated and bool(self.goal(reward, info))
-            new_state = new_cells[index]
-            s2 = new_state
+            s2 = new_cells[index]
+            action = None if actions is None else actions[index]
             if done and position is not None:  # the VecEnv has reset: the cell reached is the episode's last
-                action = None if actions is None else np.asarray(actions).reshape(len(self._lanes), -1)[index]
                 s2 = position.terminal_cell(index, info, lane.state, action, terminated)
-            lane.appraiser.observe(lane.state, s2, reached_goal and position is not None)
-            lane.decisions += lane.deciding
-            lane.deciding = False
-            lane.cells += 1
-            lane.reward += reward
+            move = position is None or action is None or position.is_move(action)
+            lane.step(s2, reward, reached_goal, position is not None, move)
             if done:
                 self._close_lane(index, lane, terminated, truncated, reached_goal)
-                lane.begin(new_state)
-            else:
-                lane.state = new_state
+                lane.begin(new_cells[index])
             if done or ends is None or ends[index]:
-                self._feel_lane(lane)
+                self.emotion = lane.feel(rule, counted)
         return True
+
+    def _start_infos(self, dones: list[bool], infos: Sequence[dict[str, Any]]) -> Sequence[dict[str, Any]]:
+        """
+        The infos that go with each env's new observation: for an env that has just reset, its reset's info (SB3's
+        VecEnvs keep it in ``reset_infos``; the step's ``infos`` hold the ended episode's last info), else the step's.
+        """
+        if not any(dones):
+            return infos
+        reset_infos = getattr(self.training_env, "reset_infos", None)
+        if reset_infos is None or len(reset_infos) != len(infos):
+            return infos
+        return [reset_infos[index] if done else info for index, (done, info) in enumerate(zip(dones, infos))]
 
     def _on_rollout_end(self) -> None:
         self._window.record(self.logger, WINDOW_KEYS, again=False)
@@ -297,15 +328,13 @@ class EmotionCallback(BaseCallback):
     def _on_training_end(self) -> None:
         self._window.record(self.logger, WINDOW_KEYS)
 
-    def _close_lane(self, index: int, lane: _Lane, terminated: bool, truncated: bool, reached_goal: bool) -> None:
-        appraiser = lane.appraiser
-        norm = appraiser.norm
-        appraiser.end_episode(reached_goal)
-        counts = list(lane.counts)
+    def _close_lane(self, index: int, lane: LaneAppraisal, terminated: bool, truncated: bool, reached_goal: bool) -> None:
+        counts, norm = lane.close(reached_goal)
         self.counts = counts
-        total = sum(counts)
-        self._window.append([*(c / total for c in counts), norm])
-        self._window.record(self.logger, WINDOW_KEYS)
+        shares = lane.shares()
+        if shares is not None:  # an episode wholly in the warm-up has no counted decision
+            self._window.append([*shares, norm])
+            self._window.record(self.logger, WINDOW_KEYS)
         self._episodes += 1
         self._goals += int(reached_goal)
         self._warn_if_degenerate()
@@ -313,11 +342,12 @@ class EmotionCallback(BaseCallback):
         optimal: Any = math.nan
         greedy: Any = math.nan
         if geometry is not None:
-            optimal = terminated and lane.cells == geometry.shortest_path_length
+            optimal = terminated and lane.steps == geometry.shortest_path_length
             actions, _ = self.model.predict(np.arange(len(geometry.transitions)), deterministic=True)
             greedy = deterministic_walk_is_shortest(np.asarray(actions).reshape(-1).tolist(), geometry)
-        row = [len(self.rows) + 1, lane.decisions, lane.cells, lane.reward, optimal, truncated, math.nan, 0, *counts,
-               greedy, norm, index]
+        told = self.decision_random is not None
+        row = [len(self.rows) + 1, lane.decisions, lane.steps, lane.reward, optimal, truncated,
+               lane.random_moves if told else math.nan, lane.waits, *counts, greedy, norm, index]
         self.rows.append(row)
         if self._csv_path is not None:
             self._append_csv(row)
@@ -334,8 +364,8 @@ class EmotionCallback(BaseCallback):
         where = f"{driver}(..., emotion_callback={option})" if driver else option
         warnings.warn(
             f"{driver or 'EmotionCallback'}: none of the first {self._episodes} episodes reached the goal, so the "
-            "appraisal knows no distance to it (act) and Table II can only give joy (or fear under "
-            "comparison='valence'). If this env's success is not 'terminated with a reward > 0' (or "
+            "appraisal knows no distance to it (act) and Table II can only give joy (fear or anger "
+            "under comparison='valence'). If this env's success is not 'terminated with a reward > 0' (or "
             f"info['is_success']), pass {where} (see sb3_affect.core.goals, e.g. every_termination)",
             RuntimeWarning,
             stacklevel=3,
@@ -371,26 +401,6 @@ def _knows_a_goal(appraiser: Appraiser) -> bool:
     kept = appraiser.deferred("known")
     goal = getattr(kept, "goal", None)
     return bool(np.any(goal)) if goal is not None else bool(appraiser.known.goals)
-
-
-class _Lane:
-    """The observer's state for one env of the VecEnv: its appraisal, emotion counts and episode in progress."""
-
-    def __init__(self, appraiser: Appraiser) -> None:
-        self.appraiser = appraiser
-        self.emotion = Emotion.JOY
-        self.deciding = False  # the env's current decision has not been counted in ``decisions`` yet
-        self.counts = [0, 0, 0, 0]
-        self.state = 0
-        self.decisions = self.cells = 0
-        self.reward = 0.0
-
-    def begin(self, state: int) -> None:
-        self.appraiser.start_episode()
-        self.counts = [0, 0, 0, 0]
-        self.state = state
-        self.decisions = self.cells = 0
-        self.reward = 0.0
 
 
 class WindowMeans:

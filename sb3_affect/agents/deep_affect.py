@@ -28,7 +28,7 @@ from __future__ import annotations
 
 import inspect
 from collections.abc import Mapping
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from stable_baselines3 import DQN
@@ -36,10 +36,14 @@ from stable_baselines3.common.callbacks import BaseCallback, ConvertCallback
 from stable_baselines3.common.type_aliases import MaybeCallback
 
 from sb3_affect.agents.action_repeat import ActionRepeat
+from sb3_affect.agents.affect_state import callback_state, restore_callback
 from sb3_affect.agents.callbacks import EmotionCallback
 from sb3_affect.core.behaviour import Behaviour, behaviour_by_emotion, stored_behaviour_table
 from sb3_affect.core.emotions import Emotion
 from sb3_affect.core.positions import PositionSpec, check_position
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 #: The base algorithm's epsilon arguments, fixed at 0 by the mixin (the emotions explore).
 _EPSILON_ARGUMENTS = ("exploration_initial_eps", "exploration_final_eps")
@@ -91,15 +95,44 @@ class AffectiveExploration(ActionRepeat):
     # -- set-up ----------------------------------------------------------------------------------------------------
     def _setup_model(self) -> None:
         super()._setup_model()
+        # a loaded model's values come from its file: checked as the constructor checks them
+        self.behaviour_table = stored_behaviour_table(self.behaviour_table)
+        self.position = check_position(self.position)
+        saved, objects = self.__dict__.pop("_affect_state", None), self.__dict__.pop("_affect_objects", None)
         if self.emotion_callback is None:
-            self.emotion_callback = EmotionCallback()
+            self.emotion_callback = EmotionCallback() if saved is None else restore_callback(saved, objects)
+        callback = self.emotion_callback
         if self.position is not None:
-            self.emotion_callback.position = self.position
+            callback.position = self.position
+        callback.prepare(self.observation_space, self.env)  # a position that does not fit the env: refused now
         self._behaviour = behaviour_by_emotion(self.behaviour_table)
         self._emotions: list[Emotion] = []
 
     def _excluded_save_params(self) -> list[str]:
         return [*super()._excluded_save_params(), "emotion_callback", "_behaviour", "_emotions"]
+
+    def save(self, path: Any, exclude: Any = None, include: Any = None) -> None:
+        """
+        Save as SB3 does, with the emotion callback: its settings, each env's appraisal (known map, the norm's history)
+        and the episode log, as plain data. A custom emotion rule, goal test or appraiser class is pickled by SB3, so
+        only ``load(path, safe=False)`` restores such a file.
+        """
+        assert self.emotion_callback is not None
+        self._affect_state, objects = callback_state(self.emotion_callback)
+        if objects:
+            self._affect_objects = objects
+        try:
+            super().save(path, exclude=exclude, include=include)
+        finally:
+            self.__dict__.pop("_affect_state", None)
+            self.__dict__.pop("_affect_objects", None)
+
+    @property
+    def episode_log(self) -> pd.DataFrame:
+        """One row per episode of training (``EMOTION_CALLBACK_COLUMNS``: the agents' columns and the env index), as
+        ``AffectQ.episode_log``; the emotion callback's."""
+        assert self.emotion_callback is not None
+        return self.emotion_callback.episode_log
 
     def _init_callback(self, callback: MaybeCallback, progress_bar: bool = False) -> BaseCallback:
         """The emotion callback first, then the user's (SB3 makes them one ``CallbackList``)."""
@@ -123,9 +156,10 @@ class AffectiveExploration(ActionRepeat):
         speed = speeds[0] if len(speeds) == 1 else speeds[int(self._decision_rng.integers(len(speeds)))]
         return random_direction, speed
 
-    def _decision_ends(self, ends: np.ndarray | None) -> None:
-        assert self.emotion_callback is not None
-        self.emotion_callback.decision_ends = ends
+    def _decisions_taken(self, ends: np.ndarray | None, random_direction: np.ndarray, wait: np.ndarray) -> None:
+        callback = self.emotion_callback
+        assert callback is not None
+        callback.decision_ends, callback.decision_random, callback.decision_wait = ends, random_direction, wait
 
     # -- logging ---------------------------------------------------------------------------------------------------
     def dump_logs(self) -> None:

@@ -14,6 +14,7 @@ a constant when initial equals final):
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import Any
 
@@ -30,6 +31,25 @@ def zeta_probabilities(mu: float, max_duration: int) -> np.ndarray:
     return weights / weights.sum()
 
 
+def check_mu(mu: Any) -> float:
+    if isinstance(mu, bool) or not isinstance(mu, (int, float)) or not 0 < mu < math.inf:
+        raise ValueError(f"mu={mu!r} must be a finite number > 0 (the power law's exponent; Dabney et al. use 2)")
+    return float(mu)
+
+
+def check_max_duration(max_duration: Any) -> int:
+    if isinstance(max_duration, bool) or not isinstance(max_duration, int) or not 1 <= max_duration <= MAX_SPEED:
+        raise ValueError(f"max_duration={max_duration!r} must be an integer in [1, {MAX_SPEED:,}] (env steps)")
+    return max_duration
+
+
+def check_speeds(speeds: Any) -> list[int]:
+    values = tuple(speeds) if isinstance(speeds, Sequence) and not isinstance(speeds, str) else ()
+    if not values or not all(isinstance(k, int) and not isinstance(k, bool) and 0 <= k <= MAX_SPEED for k in values):
+        raise ValueError(f"speeds={speeds!r} must be a non-empty list of integers in [0, {MAX_SPEED:,}] (env steps)")
+    return list(values)
+
+
 class EzGreedyExploration(ActionRepeat):
     """
     The ez-greedy decision rule as a mixin on an ``OffPolicyAlgorithm`` with an epsilon (``exploration_rate``), e.g.
@@ -40,11 +60,7 @@ class EzGreedyExploration(ActionRepeat):
     """
 
     def __init__(self, *args: Any, mu: float = 2.0, max_duration: int = 10, **kwargs: Any) -> None:
-        if isinstance(mu, bool) or not isinstance(mu, (int, float)) or not mu > 0:
-            raise ValueError(f"mu={mu!r} must be a number > 0 (the power law's exponent; Dabney et al. use 2)")
-        if isinstance(max_duration, bool) or not isinstance(max_duration, int) or not 1 <= max_duration <= MAX_SPEED:
-            raise ValueError(f"max_duration={max_duration!r} must be an integer in [1, {MAX_SPEED:,}] (env steps)")
-        self.mu, self.max_duration = float(mu), max_duration
+        self.mu, self.max_duration = check_mu(mu), check_max_duration(max_duration)
         super().__init__(*args, **kwargs)
 
     def _excluded_save_params(self) -> list[str]:
@@ -52,6 +68,7 @@ class EzGreedyExploration(ActionRepeat):
 
     def _setup_model(self) -> None:
         super()._setup_model()
+        self.mu, self.max_duration = check_mu(self.mu), check_max_duration(self.max_duration)  # a loaded file's values
         self._durations = zeta_probabilities(self.mu, self.max_duration)
 
     def _decide(self, index: int) -> tuple[bool, int]:
@@ -69,11 +86,12 @@ class SpeedEpsilonGreedyExploration(ActionRepeat):
     """
 
     def __init__(self, *args: Any, speeds: Sequence[int] = (1, 2), **kwargs: Any) -> None:
-        values = tuple(speeds) if isinstance(speeds, Sequence) and not isinstance(speeds, str) else ()
-        if not values or not all(isinstance(k, int) and not isinstance(k, bool) and 0 <= k <= MAX_SPEED for k in values):
-            raise ValueError(f"speeds={speeds!r} must be a non-empty list of integers in [0, {MAX_SPEED:,}] (env steps)")
-        self.speeds = list(values)  # plain data, saved with the model
+        self.speeds = check_speeds(speeds)  # plain data, saved with the model
         super().__init__(*args, **kwargs)
+
+    def _setup_model(self) -> None:
+        super()._setup_model()
+        self.speeds = check_speeds(self.speeds)  # a loaded file's value
 
     def _decide(self, index: int) -> tuple[bool, int]:
         rng = self._decision_rng

@@ -159,8 +159,11 @@ def _same_algorithm(saved: str, cls: type) -> bool:
     return qualname == cls.__qualname__ and FORMER_MODULES.get(module, module) == cls.__module__
 
 
-def add_plain_description(path: Any, model: Any) -> None:
-    """Append ``sb3_affect.json`` to a zip SB3 has just written at ``path`` (a path or a seekable file object)."""
+def add_plain_description(path: Any, model: Any, describe: Any = None) -> None:
+    """
+    Append ``sb3_affect.json`` to a zip SB3 has just written at ``path`` (a path or a seekable file object):
+    ``describe(model, data)`` (default ``plain_description``, the tabular models') of the ``data`` member's JSON.
+    """
     if isinstance(path, (str, pathlib.Path)):
         target: Any = pathlib.Path(path)
         if target.suffix == "":
@@ -175,7 +178,7 @@ def add_plain_description(path: Any, model: Any) -> None:
     if not isinstance(target, pathlib.Path):
         target.seek(0)
     with zipfile.ZipFile(target, "a") as archive:
-        archive.writestr(PLAIN_MEMBER, json.dumps(plain_description(model, data), indent=1))
+        archive.writestr(PLAIN_MEMBER, json.dumps((describe or plain_description)(model, data), indent=1))
 
 
 # -- load ---------------------------------------------------------------------------------------------------------------

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any, NamedTuple
 
 from sb3_affect.core.emotions import Emotion
@@ -37,7 +37,7 @@ TABLE_III_REVERSED: dict[Emotion, Behaviour] = {
 BEHAVIOUR_TABLES: dict[str, dict[Emotion, Behaviour]] = {"table-iii": TABLE_III, "table-iii-reversed": TABLE_III_REVERSED}
 
 
-def stored_behaviour_table(table: Mapping[Emotion, Behaviour] | str | None) -> dict[str, list]:
+def stored_behaviour_table(table: Mapping[Any, Any] | str | None) -> dict[str, list]:
     """
     A user's table (None: Table III; a name of ``BEHAVIOUR_TABLES``), checked, as the plain data a model saves:
     ``{"joy": [random, speeds], ...}``.
@@ -79,6 +79,12 @@ def validate_behaviour_table(table: Mapping[Any, Any]) -> dict[Emotion, Behaviou
                 f"behaviour_table has no entry for {emotion.name.lower()}; it needs all of joy, sadness, fear, anger"
             )
         entry = table[key]
+        if isinstance(entry, (str, bytes)) or not isinstance(entry, Sequence) or len(entry) != 2 or isinstance(
+                entry[1], (str, bytes)) or not isinstance(entry[1], Sequence):
+            raise ValueError(
+                f"behaviour_table[{emotion.name.lower()}]={repr(entry)[:80]} is invalid: use Behaviour(random_direction, "
+                "speeds) or [random_direction, speeds] (a bool and a list of ints)"
+            )
         random_direction, speeds = Behaviour(*entry)
         speeds = tuple(speeds)
         if not speeds or not all(isinstance(k, int) and not isinstance(k, bool) and 0 <= k <= MAX_SPEED for k in speeds):

@@ -34,6 +34,7 @@ POSITION_PRESETS = ("discrete", "multidiscrete", "minigrid", "minigrid-dir")
 
 #: MiniGrid's ``forward`` action and its direction vectors (``minigrid.core.constants.DIR_TO_VEC``: right, down, left, up).
 _MINIGRID_FORWARD = 2
+_MINIGRID_TURNS = (0, 1)
 _MINIGRID_DIRECTIONS = ((1, 0), (0, 1), (-1, 0), (0, -1))
 
 
@@ -61,6 +62,10 @@ class Position:
     def cell_of(self, observation: Any, info: dict[str, Any] | None = None) -> int:
         """The cell of one env's observation (for the hooks that read it from the observation)."""
         raise NotImplementedError
+
+    def is_move(self, action: Any) -> bool:
+        """Whether an env step taking ``action`` is a move, an attempt to reach a neighbouring cell (every step here)."""
+        return True
 
 
 class ObservationCells(Position):
@@ -143,6 +148,11 @@ class MiniGridPosition(Position):
             last = [(int(p[0]), int(p[1]), int(d)) for p, d in zip(positions, directions)]
         self._before, self._last = self._last, last
         return [self._cell(*last) for last in self._last]
+
+    def is_move(self, action: Any) -> bool:
+        """``forward``, and under ``"minigrid-dir"`` the turns too; not pickup, drop, toggle or done."""
+        value = int(np.asarray(action).reshape(-1)[0])
+        return value == _MINIGRID_FORWARD or (self.direction and value in _MINIGRID_TURNS)
 
     def terminal_cell(self, index: int, info: dict[str, Any], cell: int, action: Any, terminated: bool) -> int:
         if not terminated or int(np.asarray(action).reshape(-1)[0]) != _MINIGRID_FORWARD or index >= len(self._before):
