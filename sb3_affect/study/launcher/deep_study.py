@@ -13,7 +13,8 @@ the env step of its first training episode that reached the goal (None: never, a
 
 A cell whose agent ``replays`` another waits for that agent's cell on the same task and takes its random share, averaged
 over seeds, part by part as its ε (``ReplayedEpsilonDQN``). Cells run in ``workers`` processes (one torch thread
-each), or in this process when ``workers`` is 1.
+each), or in this process when ``workers`` is 1 (one torch thread while they run: the stacked networks are small
+and more threads only wait on each other, most of all on a busy machine).
 """
 
 from __future__ import annotations
@@ -192,12 +193,11 @@ def _trainer_class() -> type:
     return Evaluating
 
 
-def run_cell(study: DeepStudy, task: str, agent: DeepAgent, epsilons: Sequence[float] | None = None) -> dict[str, Any]:
-    """Train and evaluate every seed of ``agent`` on ``task`` together; the cell's record (see the module docstring)."""
+def build_cell(study: DeepStudy, task: str, agent: DeepAgent, epsilons: Sequence[float] | None = None) -> Any:
+    """The lockstep trainer of one cell, ready to ``learn(budget)``: a model per seed, its evaluation envs set up."""
     from sb3_affect.core.registry import resolve_class
     from sb3_affect.study.launcher.count_bonus import CountBonus
 
-    start = time.perf_counter()
     spec = study.tasks[task]
     cls = resolve_class(agent.algo)
     kwargs = agent_kwargs(study, task, agent, epsilons)
@@ -210,7 +210,16 @@ def run_cell(study: DeepStudy, task: str, agent: DeepAgent, epsilons: Sequence[f
     eval_seeds = [EVAL_SEED_OFFSET + seed * n_eval for seed in study.seeds]
     trainer = _trainer_class()(models, study.seeds)
     trainer.setup_study([vec_env(study, spec.id, n_eval, seed) for seed in eval_seeds], eval_seeds, study.eval_every)
+    return trainer
+
+
+def run_cell(study: DeepStudy, task: str, agent: DeepAgent, epsilons: Sequence[float] | None = None) -> dict[str, Any]:
+    """Train and evaluate every seed of ``agent`` on ``task`` together; the cell's record (see the module docstring)."""
+    start = time.perf_counter()
+    spec = study.tasks[task]
+    trainer = build_cell(study, task, agent, epsilons)
     trainer.learn(spec.budget)
+    models, n_eval, scale = trainer.models, study.eval_episodes, bonus_scale(study, task, agent)
 
     def by_seed(rows: list[list[float]]) -> list[list[float | None]]:
         return [[None if math.isnan(v) else v for v in column] for column in np.asarray(rows, dtype=float).T.tolist()]
@@ -294,10 +303,17 @@ def run_deep_study(
             f"{np.mean(final) if final else math.nan:.2f}, {result['seconds']:.1f} s")
 
     if workers == 1:
-        while todo:
-            task, index = next(cell for cell in todo if ready(*cell))
-            todo.remove((task, index))
-            finish(run_cell(study, task, study.agents[index], epsilons(task, index)))
+        import torch
+
+        threads = torch.get_num_threads()
+        torch.set_num_threads(1)  # the stacked networks are small: more threads only wait on each other
+        try:
+            while todo:
+                task, index = next(cell for cell in todo if ready(*cell))
+                todo.remove((task, index))
+                finish(run_cell(study, task, study.agents[index], epsilons(task, index)))
+        finally:
+            torch.set_num_threads(threads)
     else:
         import multiprocessing
         from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
