@@ -11,14 +11,14 @@ import yaml
 
 pytest.importorskip("minigrid")
 
-from sb3_affect.study.launcher.deep_schema import DeepStudy  # noqa: E402
-from sb3_affect.study.launcher.deep_study import (  # noqa: E402
+from sb3_affect.study.launcher.deep_schema import DeepStudy
+from sb3_affect.study.launcher.deep_study import (
     build_cell,
     cell_path,
     replayed_epsilons,
     run_deep_study,
 )
-from sb3_affect.study.launcher.sweep_file import load_sweep_file  # noqa: E402
+from sb3_affect.study.launcher.sweep_file import load_sweep_file
 
 TOY = {
     "name": "toy", "study": "deep", "env": "farama", "seeds": [0, 1], "n_envs": 2, "eval_every": 200, "eval_episodes": 2,
