@@ -31,10 +31,12 @@ if TYPE_CHECKING:
     from sb3_affect.agents.deep_affect import AffectDQN, AffectiveExploration
     from sb3_affect.agents.deep_affect_qrdqn import AffectQRDQN
     from sb3_affect.agents.minigrid_tabular import TabularMiniGrid
+    from sb3_affect.agents.minigrid_vec_env import minigrid_vec_env
     from sb3_affect.agents.policies import TabularQPolicy
     from sb3_affect.agents.qlearning import QLearning
     from sb3_affect.agents.tabular import TabularQAlgorithm
     from sb3_affect.core.episode_log import EPISODE_COLUMNS
+    from sb3_affect.engine.many_seeds import train_many
 
 register_envs()
 
@@ -52,7 +54,9 @@ _LAZY: dict[str, str] = {
     "TabularQPolicy": "sb3_affect.agents.policies",
     "QLearning": "sb3_affect.agents.qlearning",
     "TabularMiniGrid": "sb3_affect.agents.minigrid_tabular",
+    "minigrid_vec_env": "sb3_affect.agents.minigrid_vec_env",
     "TabularQAlgorithm": "sb3_affect.agents.tabular",
+    "train_many": "sb3_affect.engine.many_seeds",
 }
 
 
@@ -99,5 +103,7 @@ __all__ = [
     "TabularQPolicy",
     "__version__",
     "make_table_ii",
+    "minigrid_vec_env",
     "table_ii",
+    "train_many",
 ]

@@ -26,7 +26,7 @@ stacked networks; plain DQN runs both batched.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
@@ -37,6 +37,7 @@ from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 
 from sb3_affect.engine.seed_envs import SeedEnvs
 from sb3_affect.engine.stacked_q import StackedQ
+from sb3_affect.engine.stacked_replay import StackedReplay
 
 
 class _StackedPredict:
@@ -114,54 +115,27 @@ class Lockstep:
 
     def _store(self, buffer_actions: np.ndarray, new_obs: np.ndarray, rewards: np.ndarray, dones: np.ndarray,
                infos: list[list[dict[str, Any]]]) -> None:
-        """Each seed's ``_store_transition`` into its own replay buffer (SB3's ``ReplayBuffer.add``, written out)."""
+        """Each seed's ``_store_transition`` into its replay buffer (SB3's ``ReplayBuffer.add``, for all seeds at once)."""
         if self.own_storage:
             for index, model in enumerate(self.models):
                 model._store_transition(model.replay_buffer, buffer_actions[index], new_obs[index],  # type: ignore[arg-type]
                                         rewards[index], dones[index], infos[index])
+            self.replay.follow()
             return
         next_obs = new_obs.copy()
         for s, e in zip(*np.nonzero(dones)):
             terminal = infos[s][e].get("terminal_observation")
             if terminal is not None:
                 next_obs[s, e] = terminal
-        for index, model in enumerate(self.models):
-            buffer: Any = model.replay_buffer
-            pos = buffer.pos
-            buffer.observations[pos] = self.obs[index]
-            buffer.next_observations[pos] = next_obs[index]
-            buffer.actions[pos] = buffer_actions[index].reshape(self.n_envs, buffer.action_dim)
-            buffer.rewards[pos] = rewards[index]
-            buffer.dones[pos] = dones[index]
-            if buffer.handle_timeout_termination:
-                buffer.timeouts[pos] = [info.get("TimeLimit.truncated", False) for info in infos[index]]
-            buffer.pos += 1
-            if buffer.pos == buffer.buffer_size:
-                buffer.full, buffer.pos = True, 0
-            model._last_obs = new_obs[index]  # type: ignore[assignment]
-
-    def _sample_batches(self, batch_size: int) -> tuple[th.Tensor, ...]:
-        """Each seed's ``ReplayBuffer.sample(batch_size)`` from its own stream, stacked ``(S, batch_size, ...)``."""
-        parts: list[list[np.ndarray]] = [[], [], [], [], []]
-        for model, rng in zip(self.models, self.rngs):
-            buffer: Any = model.replay_buffer
-            upper_bound = buffer.buffer_size if buffer.full else buffer.pos
-            batch_inds = rng.randint(0, upper_bound, size=batch_size)
-            env_indices = rng.randint(0, high=buffer.n_envs, size=(len(batch_inds),))
-            parts[0].append(buffer.observations[batch_inds, env_indices, :])
-            parts[1].append(buffer.actions[batch_inds, env_indices, :])
-            parts[2].append(buffer.next_observations[batch_inds, env_indices, :])
-            parts[3].append((buffer.dones[batch_inds, env_indices] * (1 - buffer.timeouts[batch_inds, env_indices]))
-                            .reshape(-1, 1))
-            parts[4].append(buffer.rewards[batch_inds, env_indices].reshape(-1, 1))
-        return tuple(th.as_tensor(np.stack(part)) for part in parts)
+        timeouts = [[info.get("TimeLimit.truncated", False) for info in seed_infos] for seed_infos in infos]
+        self.replay.add(self.obs, next_obs, buffer_actions, rewards, dones, np.array(timeouts))
 
     def _train(self, gradient_steps: int, batch_size: int) -> None:
         """``DQN.train`` of every seed: ``gradient_steps`` batched steps, then SB3's bookkeeping and logs."""
         models = self.models
         learning_rate = models[0].lr_schedule(models[0]._current_progress_remaining)
         self.stack.set_learning_rate(learning_rate)
-        losses = th.stack([self.stack.train_step(*self._sample_batches(batch_size)) for _ in range(gradient_steps)])
+        losses = th.stack([self.stack.train_step(*self.replay.sample(self.rngs, batch_size)) for _ in range(gradient_steps)])
         mean_losses = losses.double().mean(dim=0).tolist()
         for model, loss in zip(models, mean_losses):
             model.logger.record("train/learning_rate", learning_rate)
@@ -190,22 +164,30 @@ class Lockstep:
                 model.dump_logs()
 
     # -- the loop --------------------------------------------------------------------------------------------------
-    def learn(self, total_timesteps: int, log_interval: int = 4) -> list[DQN]:
-        """``model.learn(total_timesteps, log_interval=log_interval)`` of every model, in lockstep."""
-        models = self.models
+    def learn(self, total_timesteps: int, log_interval: int = 4, every: int = 0,
+              on_models: Callable[[list[DQN]], object] | None = None) -> list[DQN]:
+        """
+        ``model.learn(total_timesteps, log_interval=log_interval)`` of every model, in lockstep; ``on_models(models)``
+        each time ``num_timesteps`` passes a multiple of ``every``, where SB3 calls a callback's ``on_step``, with the
+        weights so far written into the models.
+        """
+        models, first = self.models, self.models[0]
         callbacks: list[BaseCallback] = []
         for model in models:
             total, callback = model._setup_learn(total_timesteps, None, True, "run", False)
             callback.on_training_start({"self": model, "total_timesteps": total, "callback": callback,
                                         "log_interval": log_interval}, globals())
             callbacks.append(callback)
-        active = [(i, c) for i, c in enumerate(callbacks) if not (isinstance(c, CallbackList) and not c.callbacks)]
+        active: list[tuple[int, BaseCallback]] = [
+            (i, c) for i, c in enumerate(callbacks) if not (isinstance(c, CallbackList) and not c.callbacks)]
         self.obs = np.stack([m._last_obs for m in models])  # type: ignore[misc]
         self.stack = StackedQ(models)
+        frequency = first.train_freq.frequency  # type: ignore[union-attr]
+        vec_steps = -(-total // (self.n_envs * frequency)) * frequency
+        self.replay = StackedReplay(models, vec_steps + 1)
         if self.own_actions:
             for index, model in enumerate(models):
                 model.predict = _StackedPredict(self, index)  # type: ignore[method-assign]
-        first = models[0]
         train_freq, n_envs = first.train_freq, self.n_envs
         try:
             while first.num_timesteps < total:
@@ -219,15 +201,18 @@ class Lockstep:
                         model.num_timesteps += n_envs
                     collected += 1
                     for index, callback in active:
-                        model = models[index]
+                        model = models[int(index)]
                         callback.update_locals({"self": model, "actions": actions[index], "new_obs": new_obs[index],
                                                 "rewards": rewards[index], "dones": dones[index],
                                                 "infos": infos[index], "env": model.env})
                         if not callback.on_step():
                             raise RuntimeError(f"a callback of seed {index} stopped training: train_many runs every "
                                                "seed for total_timesteps")
-                    for index in np.flatnonzero(dones.any(axis=1)):
-                        models[index]._update_info_buffer(infos[index], dones[index])
+                    if on_models is not None and first.num_timesteps // every > (first.num_timesteps - n_envs) // every:
+                        self.stack.write_back(models)
+                        on_models(models)
+                    for ended in np.flatnonzero(dones.any(axis=1)).tolist():
+                        models[ended]._update_info_buffer(infos[ended], dones[ended])
                     self._store(buffer_actions, new_obs, rewards, dones, infos)
                     self.obs = new_obs
                     self._after_step(dones, log_interval)
@@ -243,4 +228,8 @@ class Lockstep:
             for model in models:
                 model.__dict__.pop("predict", None)
             self.stack.write_back(models)
+            self.replay.release()
+            if not self.own_storage:
+                for model, obs in zip(models, self.obs):
+                    model._last_obs = obs
         return models

@@ -11,7 +11,7 @@ the arithmetic: every seed's Q-network forward pass and gradient step is one bat
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from typing import Any
 
 import numpy as np
@@ -42,7 +42,7 @@ def _algorithm(algo: str | type) -> type[DQN]:
     if isinstance(cls, type) and issubclass(cls, OnPolicyAlgorithm):
         raise ValueError(f"algo={name} is on-policy: train_many trains SB3's off-policy DQN family (DQN and its subclasses)")
     if not (isinstance(cls, type) and issubclass(cls, DQN)):
-        raise ValueError(f"algo={name} is not a DQN: train_many trains SB3's DQN and its subclasses (AffectDQN, EzGreedyDQN, ...)")
+        raise ValueError(f"algo={name} is not a DQN: train_many trains SB3's DQN and its subclasses (AffectDQN, ...)")
     for method in ("train", "_on_step"):
         if getattr(cls, method) is not getattr(DQN, method):
             raise ValueError(f"algo={name} has its own {method}: train_many runs DQN's, which would not be {name}'s")
@@ -86,6 +86,8 @@ def train_many(
     total_timesteps: int,
     obs: str = "flat",
     log_interval: int = 4,
+    every: int = 0,
+    on_models: Callable[[list[Any]], object] | None = None,
     **algo_kwargs: Any,
 ) -> list[Any]:
     """
@@ -99,6 +101,9 @@ def train_many(
     :param total_timesteps: env steps per seed, as ``learn(total_timesteps)``
     :param obs: ``"flat"`` (``FlatObsWrapper``'s vector) or ``"image"`` (its first 147 entries, the 7x7x3 view)
     :param log_interval: ``learn``'s: ``dump_logs`` every this many episodes
+    :param every: with ``on_models``: call it each time the env steps per seed pass a multiple of ``every``
+    :param on_models: ``on_models(models)``, the models holding the weights so far (e.g. to evaluate the greedy
+        policy during training); called where SB3 calls a callback's ``on_step``
     :param algo_kwargs: the class's arguments (``policy`` included, ``"MlpPolicy"`` by default), the same for every seed
     :return: the trained models, in the order of ``seeds``
     """
@@ -107,6 +112,10 @@ def train_many(
     n_envs = _count("n_envs", n_envs, 1)
     total_timesteps = _count("total_timesteps", total_timesteps, 1)
     log_interval = _count("log_interval", log_interval, 1)
+    if on_models is not None:
+        every = _count("every", every, 1)
+        if not callable(on_models):
+            raise ValueError(f"on_models={on_models!r} must be a function of the list of models")
     if obs not in OBSERVATIONS:
         raise ValueError(f"obs={obs!r} is not one of {', '.join(OBSERVATIONS)}")
     own = [key for key in _OWN_ARGUMENTS if key in algo_kwargs]
@@ -121,10 +130,14 @@ def train_many(
     import gymnasium as gym
 
     try:
+        import minigrid  # noqa: F401  (registers MiniGrid's envs)
+    except ImportError:
+        raise ValueError("train_many needs MiniGrid: pip install 'sb3-affect[minigrid]'") from None
+    try:
         gym.spec(env_id)
     except gym.error.Error as error:
         raise ValueError(f"env_id={env_id!r} is not a registered env ({error})") from None
     models = [cls(policy, seed_vec_env(env_id, n_envs, seed, obs), seed=seed, device="cpu", **algo_kwargs)
               for seed in seed_list]
     _check_model(models[0])
-    return Lockstep(models, seed_list).learn(total_timesteps, log_interval=log_interval)
+    return Lockstep(models, seed_list).learn(total_timesteps, log_interval=log_interval, every=every, on_models=on_models)

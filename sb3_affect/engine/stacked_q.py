@@ -20,6 +20,7 @@ one network's ``addmm``).
 from __future__ import annotations
 
 from collections.abc import Sequence
+
 import numpy as np
 import torch as th
 import torch.nn.functional as F
@@ -34,13 +35,13 @@ def network_layers(q_net: nn.Module) -> tuple[list[nn.Linear], list[nn.Module]]:
     """The ``Linear`` layers of an SB3 ``QNetwork``'s MLP and the parameter-free activations after each but the last."""
     linears: list[nn.Linear] = []
     activations: list[nn.Module] = []
-    for module in q_net.q_net:  # type: ignore[attr-defined, union-attr]
+    for module in q_net.q_net:  # type: ignore[union-attr]
         if isinstance(module, nn.Linear):
             linears.append(module)
-        elif not list(module.parameters()) and len(activations) < len(linears):
+        elif type(module).__module__ == nn.modules.activation.__name__ and not list(module.parameters()):
             activations.append(module)
         else:
-            raise ValueError(f"train_many stacks MLP Q-networks (Linear layers and activations), got a {type(module).__name__}")
+            raise ValueError(f"train_many stacks MLP Q-networks (Linear layers, activations): got {type(module).__name__}")
     if len(activations) != len(linears) - 1:
         raise ValueError("train_many stacks MLP Q-networks with one activation between Linear layers")
     return linears, activations

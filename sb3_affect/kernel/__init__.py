@@ -15,7 +15,9 @@ the identical episode log, Q-table, random-generator state and appraisal. Module
   point of the kernel takes its arguments grouped so (``moving`` and ``team`` define their own beside these);
 - ``agents``: what the kernel needs to know about an agent, read from its settings object (``sb3_affect.core.settings``);
 - ``inputs``: an env's transition table as arrays (``sb3_affect.envs.transition_table``), a batch's inputs;
-- ``batch``: many fresh runs in one call (``simulate``).
+- ``batch``: many fresh runs in one call (``simulate``);
+- ``minigrid_world`` (the view: ``minigrid_view``): MiniGrid's Empty, FourRooms and DoorKey worlds, many stepped in one
+  call (``sb3_affect.minigrid_vec_env``).
 
 The kernel imports the core modules only (settings, registry, envs), never an agent class. ``learn`` on the kernel,
 which needs SB3's objects (a model's state in and out, callbacks, the Monitor, the logger), is on the agents' side:
@@ -64,14 +66,15 @@ refresh_cache(Path(__file__).parent, Path(__file__).parent / "__pycache__")
 
 def warm_up() -> None:
     """
-    Load every kernel now (the grid, moving-prey and team kernels; compiling them, the first time on a machine),
+    Load every kernel now (the grid, moving-prey, team and MiniGrid kernels; compiling them, the first time on a machine),
     without building a model (no torch): for example in a launcher before it forks workers, so that each worker does
     not compile (on a cold cache) or load them again. Cheap once the cache is warm. ``make venv`` runs it once, so a
     first ``make replicate`` finds the kernels compiled (``python -m sb3_affect.kernel``).
     """
     from sb3_affect.kernel.batch import warm_up as grid
+    from sb3_affect.kernel.minigrid_world import warm_up as minigrid
     from sb3_affect.kernel.prey_batch import warm_up as moving
     from sb3_affect.kernel.team_inputs import warm_up as team
 
-    for load in (grid, moving, team):
+    for load in (grid, moving, team, minigrid):
         load()

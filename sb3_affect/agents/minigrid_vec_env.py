@@ -1,0 +1,257 @@
+"""
+``minigrid_vec_env``: MiniGrid's Empty, FourRooms and DoorKey tasks as an SB3 ``VecEnv`` on the compiled worlds
+(``sb3_affect.kernel.minigrid_world``), a drop-in for
+``make_vec_env(env_id, n_envs, seed=seed, wrapper_class=FlatObsWrapper)``.
+
+For the same seed and the same actions it gives what that DummyVecEnv gives, step for step: the layouts (env ``i``
+seeded with ``seed + i`` at the first reset, later resets unseeded, as ``VecEnv.seed`` and ``DummyVecEnv.reset`` do),
+the observations (``FlatObsWrapper``'s uint8 vector of 2,835: the 7 x 7 x 3 view, then the mission's one-hot
+encoding), the rewards (float32), the dones, the auto-reset and the infos: ``TimeLimit.truncated`` at every step,
+``terminal_observation`` and the ``Monitor``'s ``episode`` (``r``, ``l``, ``t``) where an episode ended. The action
+space (env 0's) is seeded with ``seed`` as ``make_vec_env`` seeds it. Farama's ``minigrid`` is not needed to run it.
+
+``obs="image"`` gives the first 147 entries of that vector, the view without the mission's one-hot encoding (2,688
+entries constant on these tasks, 19 times the view's size: a network's first layer on them costs 19 times more for
+nothing).
+
+``get_attr`` gives each env's ``agent_pos``, ``agent_dir``, ``width``, ``height``, ``max_steps``, ``step_count``,
+``mission``, ``see_through_walls``, ``agent_view_size`` and ``render_mode`` (None), so ``position="minigrid"`` finds
+the agent's cell; ``env_method`` runs the ``Monitor``'s ``get_episode_rewards``, ``get_episode_lengths``,
+``get_episode_times`` and ``get_total_steps``; ``env_is_wrapped`` is True for the wrappers that ``make_vec_env`` puts
+around each env (``Monitor``, ``FlatObsWrapper`` with ``obs="flat"``, Gymnasium's ``OrderEnforcing`` and
+``PassiveEnvChecker``). Setting attributes and rendering are refused with a one-line error.
+
+``step_arrays(actions)`` is the step without the info dicts, for a trainer that steps many envs itself.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from stable_baselines3.common.monitor import Monitor
+from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvObs, VecEnvStepReturn
+
+from sb3_affect.kernel.minigrid_view import VIEW, VIEW_SIZE
+from sb3_affect.kernel.minigrid_world import (
+    AGENT_DIR,
+    AGENT_X,
+    AGENT_Y,
+    MINIGRID_TASKS,
+    N_ACTIONS,
+    STEP_COUNT,
+    new_worlds,
+    reset_worlds,
+    step_worlds,
+)
+from sb3_affect.kernel.pcg64 import seeded_state
+
+#: The observations ``obs=`` chooses: ``FlatObsWrapper``'s vector, or its first 147 entries (the 7 x 7 x 3 view).
+OBSERVATIONS = ("flat", "image")
+#: ``FlatObsWrapper``'s mission encoding: 96 characters of 28 codes (a-z, space, comma).
+_MISSION_CHARS, _CHAR_CODES = 96, 28
+
+
+def mission_one_hot(mission: str) -> np.ndarray:
+    """``FlatObsWrapper``'s encoding of a mission string (96 x 28 uint8, flattened)."""
+    array = np.zeros((_MISSION_CHARS, _CHAR_CODES), dtype=np.uint8)
+    for index, char in enumerate(mission.lower()):
+        array[index, 26 if char == " " else 27 if char == "," else ord(char) - ord("a")] = 1
+    return array.reshape(-1)
+
+
+class MiniGridVecEnv(VecEnv):
+    """The compiled MiniGrid VecEnv (see the module's docstring); build it with ``minigrid_vec_env``."""
+
+    def __init__(self, env_id: str, n_envs: int = 1, seed: int | None = None, obs: str = "flat") -> None:
+        task = MINIGRID_TASKS.get(env_id) if isinstance(env_id, str) else None
+        if task is None:
+            raise ValueError(f"minigrid_vec_env: env_id={env_id!r} is not implemented; supported: {', '.join(MINIGRID_TASKS)}")
+        if obs not in OBSERVATIONS:
+            choices = ", ".join(map(repr, OBSERVATIONS))
+            raise ValueError(f"minigrid_vec_env: obs={obs!r} is not supported; choose one of {choices}")
+        if isinstance(n_envs, bool) or not isinstance(n_envs, (int, np.integer)) or n_envs < 1:
+            raise ValueError(f"minigrid_vec_env: n_envs={n_envs!r} must be a positive integer")
+        if seed is not None and (isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0):
+            raise ValueError(f"minigrid_vec_env: seed={seed!r} must be None or a non-negative integer")
+        n = int(n_envs)
+        self.env_id, self.task, self.obs = env_id, task, obs
+        self.worlds = new_worlds(task, n)
+        size = VIEW_SIZE + (_MISSION_CHARS * _CHAR_CODES if obs == "flat" else 0)
+        self._obs = np.zeros((n, size), dtype=np.uint8)
+        if obs == "flat":
+            self._obs[:, VIEW_SIZE:] = mission_one_hot(task.mission)
+        #: Each env's last observation of the episode that ended at the last step (rows where ``dones``).
+        self.terminal_observations = self._obs.copy()
+        self._rewards = np.zeros(n, dtype=np.float32)
+        self._terminated = np.zeros(n, dtype=bool)
+        self._truncated = np.zeros(n, dtype=bool)
+        self._actions = np.zeros(n, dtype=np.int64)
+        self._started = False
+        # the Monitor's records, per env
+        self._t_start = time.time()
+        self._episode_rewards: list[list[float]] = [[] for _ in range(n)]
+        self._episode_lengths: list[list[int]] = [[] for _ in range(n)]
+        self._episode_times: list[list[float]] = [[] for _ in range(n)]
+        self._total_steps = np.zeros(n, dtype=np.int64)
+        self._lengths = np.zeros(n, dtype=np.int64)
+        observation_space = spaces.Box(low=0, high=255, shape=(size,), dtype=np.uint8)
+        super().__init__(n, observation_space, spaces.Discrete(N_ACTIONS))
+        if seed is not None:
+            self.action_space.seed(int(seed))
+        self.seed(None if seed is None else int(seed))
+
+    # ---- stepping --------------------------------------------------------------------------------------------------
+
+    def reset(self) -> VecEnvObs:
+        for index, seed in enumerate(self._seeds):  # set at the first reset (__init__ calls seed), then None
+            if seed is not None:
+                self.worlds.rng[index] = seeded_state(seed)
+        task = self.task
+        reset_worlds(task.layout, task.see_through_walls, np.ones(self.num_envs, dtype=bool), *self.worlds, self._obs)
+        self._started = True
+        self._lengths[:] = 0
+        self._reset_seeds()
+        self._reset_options()
+        self.reset_infos = [{} for _ in range(self.num_envs)]
+        return self._obs.copy()
+
+    def step_async(self, actions: np.ndarray) -> None:
+        self._actions = self._check_actions(actions)
+
+    def step_wait(self) -> VecEnvStepReturn:
+        obs, rewards, terminated, truncated = self.step_arrays(self._actions)
+        dones = terminated | truncated
+        infos: list[dict[str, Any]] = [{"TimeLimit.truncated": False} for _ in range(self.num_envs)]
+        for index in np.flatnonzero(dones).tolist():
+            infos[index] = {
+                "episode": {"r": round(self._episode_rewards[index][-1], 6), "l": self._episode_lengths[index][-1],
+                            "t": round(self._episode_times[index][-1], 6)},
+                "TimeLimit.truncated": bool(truncated[index] and not terminated[index]),
+                "terminal_observation": self.terminal_observations[index].copy(),
+            }
+        return obs.copy(), rewards.copy(), dones, infos
+
+    def step_arrays(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """
+        One step of every env with ``actions`` (one integer per env), without building info dicts: returns
+        ``(observations, rewards, terminated, truncated)``, arrays of ``num_envs`` rows (uint8, float32, bool, bool).
+        An env whose episode ended has already been reset: its row of ``observations`` is the next episode's first
+        observation and its last one is in ``self.terminal_observations``. The arrays are this env's own buffers,
+        overwritten by the next step: copy what you keep. The ``Monitor``'s records (``env_method``) are kept.
+        """
+        if not self._started:
+            raise RuntimeError("minigrid_vec_env: call reset() before step()")
+        actions = self._check_actions(actions)
+        task = self.task
+        step_worlds(task.layout, task.see_through_walls, task.max_steps, actions, *self.worlds, self._obs, self._rewards,
+                    self._terminated, self._truncated, self.terminal_observations)
+        self._total_steps += 1
+        self._lengths += 1
+        ended = np.flatnonzero(self._terminated | self._truncated)
+        if ended.size:
+            now = time.time() - self._t_start
+            for index in ended.tolist():
+                length = int(self._lengths[index])
+                self._lengths[index] = 0
+                # the Monitor's sum of the episode's rewards: 0 until the goal's 1 - 0.9 * step_count / max_steps
+                reward = 1 - 0.9 * (length / task.max_steps) if self._terminated[index] else 0.0
+                self._episode_rewards[index].append(reward)
+                self._episode_lengths[index].append(length)
+                self._episode_times[index].append(now)
+        return self._obs, self._rewards, self._terminated, self._truncated
+
+    def _check_actions(self, actions: Any) -> np.ndarray:
+        array = np.asarray(actions)
+        if array.size != self.num_envs:
+            raise ValueError(f"minigrid_vec_env: {array.size} actions for {self.num_envs} envs")
+        flat = array.reshape(self.num_envs)
+        ints = flat.astype(np.int64)
+        bad = np.flatnonzero((ints != flat) | (ints < 0) | (ints >= N_ACTIONS))
+        if bad.size:
+            value = flat[bad[0]].item()
+            raise ValueError(f"minigrid_vec_env: action {value!r} of env {bad[0]} is not a MiniGrid action (0..6)")
+        return ints
+
+    def close(self) -> None:
+        """Nothing to release (the worlds are arrays)."""
+
+    # ---- the envs' attributes and methods --------------------------------------------------------------------------
+
+    def _attributes(self) -> dict[str, Callable[[int], Any]]:
+        agent, task = self.worlds.agent, self.task
+        return {
+            "agent_pos": lambda i: (int(agent[i, AGENT_X]), int(agent[i, AGENT_Y])),
+            "agent_dir": lambda i: int(agent[i, AGENT_DIR]),
+            "step_count": lambda i: int(agent[i, STEP_COUNT]),
+            "width": lambda i: task.size,
+            "height": lambda i: task.size,
+            "max_steps": lambda i: task.max_steps,
+            "mission": lambda i: task.mission,
+            "see_through_walls": lambda i: task.see_through_walls,
+            "agent_view_size": lambda i: VIEW,
+            "render_mode": lambda i: None,
+        }
+
+    def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
+        if attr_name == "render_mode":  # asked by VecEnv.__init__, before the worlds exist
+            return [None for _ in self._get_indices(indices)]
+        attributes = self._attributes()
+        if attr_name not in attributes:
+            raise AttributeError(
+                f"minigrid_vec_env: its envs have no attribute {attr_name!r}; it gives {', '.join(sorted(attributes))}"
+            )
+        getter = attributes[attr_name]
+        return [getter(index) for index in self._get_indices(indices)]
+
+    def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
+        raise AttributeError(f"minigrid_vec_env: its envs' attributes can not be set (set_attr({attr_name!r}))")
+
+    def env_method(
+        self, method_name: str, *method_args: Any, indices: VecEnvIndices = None, **method_kwargs: Any
+    ) -> list[Any]:
+        methods: dict[str, Callable[[int], Any]] = {
+            "get_episode_rewards": lambda i: list(self._episode_rewards[i]),
+            "get_episode_lengths": lambda i: list(self._episode_lengths[i]),
+            "get_episode_times": lambda i: list(self._episode_times[i]),
+            "get_total_steps": lambda i: int(self._total_steps[i]),
+        }
+        if method_name not in methods or method_args or method_kwargs:
+            raise AttributeError(
+                f"minigrid_vec_env: env_method({method_name!r}) is not supported; it runs {', '.join(methods)} "
+                "without arguments"
+            )
+        return [methods[method_name](index) for index in self._get_indices(indices)]
+
+    def env_is_wrapped(self, wrapper_class: type[gym.Wrapper], indices: VecEnvIndices = None) -> list[bool]:
+        wrapped = issubclass(Monitor, wrapper_class) or wrapper_class in _gymnasium_wrappers()
+        if self.obs == "flat":
+            wrapped = wrapped or (wrapper_class.__module__, wrapper_class.__name__) == ("minigrid.wrappers", "FlatObsWrapper")
+        return [bool(wrapped) for _ in self._get_indices(indices)]
+
+    def get_images(self) -> Sequence[np.ndarray | None]:
+        raise NotImplementedError("minigrid_vec_env renders no images; make_vec_env(env_id, ...) on Farama's env does")
+
+    def render(self, mode: str | None = None) -> np.ndarray | None:
+        raise NotImplementedError("minigrid_vec_env renders no images; make_vec_env(env_id, ...) on Farama's env does")
+
+
+def _gymnasium_wrappers() -> tuple[type, ...]:
+    """The wrappers ``gym.make`` puts around a MiniGrid env."""
+    from gymnasium.wrappers import OrderEnforcing, PassiveEnvChecker
+
+    return (OrderEnforcing, PassiveEnvChecker)
+
+
+def minigrid_vec_env(env_id: str, n_envs: int = 1, seed: int | None = None, obs: str = "flat") -> MiniGridVecEnv:
+    """
+    MiniGrid ``env_id`` (Empty-NxN and Empty-Random-NxN, FourRooms, DoorKey-NxN: ``MINIGRID_TASKS``) compiled, as an SB3
+    ``VecEnv`` of ``n_envs`` envs that gives, for the same seed and actions, what
+    ``make_vec_env(env_id, n_envs, seed=seed, wrapper_class=FlatObsWrapper)`` gives; ``obs="image"``: only the first
+    147 entries of each observation (the 7 x 7 x 3 view). See ``sb3_affect.agents.minigrid_vec_env``.
+    """
+    return MiniGridVecEnv(env_id, n_envs, seed=seed, obs=obs)
