@@ -21,7 +21,7 @@ from sb3_affect.study.launcher.deep_study import (
 from sb3_affect.study.launcher.sweep_file import load_sweep_file
 
 TOY = {
-    "name": "toy", "study": "deep", "env": "farama", "seeds": [0, 1], "n_envs": 2, "eval_every": 200, "eval_episodes": 2,
+    "name": "toy", "study": "deep", "env": "compiled", "seeds": [0, 1], "n_envs": 2, "eval_every": 200, "eval_episodes": 2,
     "network": {"buffer_size": 2000, "learning_starts": 100, "batch_size": 16, "target_update_interval": 100,
                 "policy_kwargs": {"net_arch": [16]}},
     "tasks": {"Empty-5x5": {"id": "MiniGrid-Empty-5x5-v0", "budget": 400, "learning_rate": 0.001,
