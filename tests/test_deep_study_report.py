@@ -123,7 +123,11 @@ def test_the_section_reads_the_folder_labels_a_smoke_size_and_follows_no_symlink
     full = write_folder(tmp_path / "full", {a["name"]: curves(0.5, seeds=20) for a in AGENTS},
                         {a["name"]: [1000] * 20 for a in AGENTS})
     text, _ = section(full, tmp_path / "out3")
-    assert "smoke" not in text.lower()
+    assert "smoke" not in text.lower() and "fewer than the study's" not in text
+    pilot = write_folder(tmp_path / "pilot", {a["name"]: curves(0.5, seeds=5) for a in AGENTS},
+                         {a["name"]: [1000] * 5 for a in AGENTS})
+    text, _ = section(pilot, tmp_path / "out4")
+    assert "smoke" not in text.lower() and "5 seeds per cell, fewer than the study's 20: a tuning pass" in text
     # a cell that is a symlink is not read: the section counts only the regular files
     target = small / "cells" / "Empty-8x8__matched.json"
     moved = target.rename(tmp_path / "elsewhere.json")

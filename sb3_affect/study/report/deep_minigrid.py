@@ -36,8 +36,8 @@ from sb3_affect.study.report.figures import COLOURS, STYLES, distinct, save
 from sb3_affect.study.report.stats import bootstrap_iqm_cis
 from sb3_affect.study.report.survival import km
 
-#: Deep-study folders of a replicate folder, in the order their sections appear: the study, then its smoke size.
-FOLDERS = ("minigrid_dqn", "deep_smoke")
+#: Deep-study folders of a replicate folder, in the order their sections appear: the study, its tuning, its smoke size.
+FOLDERS = ("minigrid_dqn", "minigrid_dqn_tuning", "deep_smoke")
 #: The agent the others are compared with, when the study has it.
 REFERENCE = "dqn-linear"
 #: Seeds per cell the study's design asks for.
@@ -61,7 +61,13 @@ class DeepResults:
 
     @property
     def smoke(self) -> bool:
-        return len(self.study["seeds"]) < STUDY_SEEDS or self.study["eval_episodes"] < STUDY_EVAL_EPISODES
+        """Fewer evaluation episodes than the study's: a check of the pipeline (the main job's version)."""
+        return self.study["eval_episodes"] < STUDY_EVAL_EPISODES
+
+    @property
+    def few_seeds(self) -> bool:
+        """Fewer seeds per cell than the study's: a tuning pass or a pilot."""
+        return len(self.study["seeds"]) < STUDY_SEEDS
 
 
 def _regular_json(path: Path) -> Any:
@@ -297,6 +303,8 @@ def deep_section(ctx: ReportContext, results: DeepResults) -> None:
             f"({STUDY_SEEDS} seeds, {STUDY_EVAL_EPISODES} episodes): these numbers show the pipeline works end to end, "
             "they do not answer whether the emotions help. The study itself: experiments/minigrid_dqn.yaml."
         )
+    elif results.few_seeds:
+        ctx.doc.p(f"{n} seeds per cell, fewer than the study's {STUDY_SEEDS}: a tuning pass or a pilot, whose CIs are wide.")
     if not results.cells:
         ctx.doc.p(f"Skipped: {results.folder} holds no finished cells.")
         return
