@@ -123,11 +123,7 @@ def test_a_sweep_of_one_env_saves_as_before_tasks_and_wrappers_existed() -> None
 
 def test_shipped_minigrid_sweeps_validate_with_the_agents_and_tasks_they_name() -> None:
     tabular = load_sweep("experiments/minigrid.yaml", build=False)
-    deep = load_sweep("experiments/minigrid_dqn.yaml", build=False)
     assert all(c["env_wrappers"] == ["TabularMiniGrid"] for c in tabular.run_configs())
-    algos = {c["algo"] for c in deep.run_configs()}
-    assert {"DQN", "AffectDQN", "EzGreedyDQN", "SpeedEpsilonGreedyDQN"} <= algos
-    assert {c["labels"]["task"] for c in deep.run_configs()} >= {"Empty-8x8", "DoorKey-5x5"}
 
 
 def test_replicate_skips_a_part_whose_package_is_missing_with_one_line(monkeypatch: pytest.MonkeyPatch) -> None:

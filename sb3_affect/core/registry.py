@@ -30,6 +30,7 @@ AGENTS: dict[str, str] = {
     "AffectQRDQN": "sb3_affect.agents.deep_affect_qrdqn:AffectQRDQN",
     "EzGreedyDQN": "sb3_affect.agents.deep_controls:EzGreedyDQN",
     "SpeedEpsilonGreedyDQN": "sb3_affect.agents.deep_controls:SpeedEpsilonGreedyDQN",
+    "ReplayedEpsilonDQN": "sb3_affect.agents.replayed_epsilon:ReplayedEpsilonDQN",
 }
 
 #: Env wrappers a sweep file may name (``env.wrappers``), applied in the order given: only these, by name.

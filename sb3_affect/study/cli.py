@@ -53,6 +53,8 @@ def _existing_folder(directory: str, command: str) -> Path:
 
 def _cmd_run(args: argparse.Namespace) -> int:
     from sb3_affect.study.launcher import run_sweep
+    from sb3_affect.study.launcher.deep_schema import DeepStudy
+    from sb3_affect.study.launcher.deep_study import run_deep_study
     from sb3_affect.study.launcher.signals import stop_on_sigterm
     from sb3_affect.study.launcher.study_schema import ForensicsStudy
     from sb3_affect.study.launcher.sweep_file import load_sweep_file
@@ -62,6 +64,10 @@ def _cmd_run(args: argparse.Namespace) -> int:
     stop_on_sigterm()
     if isinstance(study, ForensicsStudy):
         return _run_forensics(study, args)
+    if isinstance(study, DeepStudy):  # tasks x agents, each cell all its seeds together (study/launcher/deep_study.py)
+        done = run_deep_study(study, Path(args.out), workers=args.workers)
+        print(f"{done.name}: {done.total} cells, {done.reused} already done, {done.seconds:.1f} s -> {done.out_dir}")
+        return 0
     summary = run_sweep(
         args.file,
         args.out,

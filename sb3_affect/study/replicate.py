@@ -236,10 +236,15 @@ def _run_part(
     """
     from sb3_affect.study.forensics.study_run import run_study
     from sb3_affect.study.launcher import run_sweep
+    from sb3_affect.study.launcher.deep_schema import DeepStudy
+    from sb3_affect.study.launcher.deep_study import run_deep_study
     from sb3_affect.study.launcher.study_schema import ForensicsStudy
     from sb3_affect.study.launcher.sweep_file import load_sweep_file
 
     study = load_sweep_file(path, overrides, build=False)
+    if isinstance(study, DeepStudy):
+        done = run_deep_study(study, folder, workers=executor["workers"])
+        return record.part(key, done.seconds, done_before=done.reused, todo=done.trained), None
     if isinstance(study, ForensicsStudy):  # no progress bars of its own in the log: a heartbeat instead
         with _heartbeat(key):
             result = run_study(study, folder, progress=False, **executor)

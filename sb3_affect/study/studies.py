@@ -50,6 +50,8 @@ STUDIES: tuple[Study, ...] = (
           sections=("sections.mechanism:mechanism_section",)),
     Study("minigrid", "the tabular agents on MiniGrid ({runs} runs)", extra=("minigrid", "minigrid"),
           sections=("sections.minigrid:minigrid_sections",)),
+    Study("deep_smoke", "the deep study at smoke size: {name}, greedy policies evaluated every {eval_every} env steps",
+          extra=("minigrid", "minigrid"), sections=("sections.deep_minigrid:deep_minigrid_section",)),
     # (its section is the forensics' own, which replicate hands the report: ``build_report(extra_sections=...)``)
     Study("forensics", "replication forensics: {screen_reps} screen, {leaders} leaders x {reps} replications"),
     Study("tuning", "ε of ε-greedy and speed-matched ε-greedy tuned on each task beyond the paper: the grid ({runs} runs) "

@@ -21,6 +21,7 @@ from typing import Any
 import yaml
 from pydantic import ValidationError
 
+from sb3_affect.study.launcher.deep_schema import DeepStudy
 from sb3_affect.study.launcher.schema import KWARG_REFERENCE, AgentSpec, EnvSpec, Sweep, SweepError
 from sb3_affect.study.launcher.study_schema import ForensicsStudy, ProtocolSpec
 
@@ -109,8 +110,10 @@ def _check_size(data: Any, where: str) -> None:
             stack.extend((v, f"{key}[{i}]", depth + 1) for i, v in enumerate(value))
 
 
-def _model_of(data: dict[str, Any]) -> type[Sweep] | type[ForensicsStudy]:
+def _model_of(data: dict[str, Any]) -> type[Sweep] | type[ForensicsStudy] | type[DeepStudy]:
     """The model a file's data is validated with: a study's (``study:``) or a sweep of runs'."""
+    if data.get("study") == "deep":
+        return DeepStudy
     return ForensicsStudy if "study" in data else Sweep
 
 
@@ -279,7 +282,7 @@ def load_sweep(path: str | Path, overrides: tuple[str, ...] | list[str] = (), *,
 
 def load_sweep_file(
     path: str | Path, overrides: tuple[str, ...] | list[str] = (), *, build: bool = True
-) -> Sweep | ForensicsStudy:
+) -> Sweep | ForensicsStudy | DeepStudy:
     """
     Read, override and validate a sweep file: a sweep of runs (``Sweep``) or a study (``study: forensics``, a
     ``ForensicsStudy``); every problem is a ``SweepError`` naming the file and the key.

@@ -30,6 +30,7 @@ from sb3_affect.study.report.rendering.output_files import output_folder, write_
 from sb3_affect.study.report.sections.ablation import ablation_section
 from sb3_affect.study.report.sections.abstract import abstract_section
 from sb3_affect.study.report.sections.beyond import beyond_section
+from sb3_affect.study.report.sections.deep_minigrid import deep_minigrid_section
 from sb3_affect.study.report.sections.dqn import dqn_section, learning_curves_section
 from sb3_affect.study.report.sections.emotion_models import emotion_models_sections
 from sb3_affect.study.report.sections.evidence import evidence_section
@@ -203,6 +204,7 @@ SECTIONS: list[Section] = [
     beyond_section,
     hunters_sections,
     minigrid_sections,
+    deep_minigrid_section,
     ablation_section,
 ]
 #: The appendix, in order (after ``extra_sections``, which start a page of their own).

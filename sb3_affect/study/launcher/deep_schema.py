@@ -1,0 +1,146 @@
+"""
+Sweep files of the deep study (``study: deep``): DQN-family agents on MiniGrid tasks, many seeds of one agent on one
+task trained together (``sb3_affect.engine``'s lockstep trainer), each seed's greedy policy evaluated on its own
+evaluation envs every ``eval_every`` env steps. ``sweep_file.load_sweep_file`` validates a file with ``DeepStudy``;
+``sb3_affect.study.launcher.deep_study`` runs it::
+
+    name: minigrid-dqn
+    study: deep
+    seeds: [0, 1, 2]            # one run per seed, in every cell
+    eval_every: 10000           # env steps between evaluations of the greedy policy
+    eval_episodes: 20           # evaluation episodes per seed and evaluation
+    network: {buffer_size: 50000, learning_starts: 1000, policy_kwargs: {net_arch: [64, 64]}}  # every agent's
+    tasks:
+      Empty-8x8: {id: MiniGrid-Empty-8x8-v0, budget: 50000, learning_rate: 0.001, exploration_fraction: 0.2}
+    agents:
+      - {name: dqn-linear, algo: DQN, epsilon: tuned}
+      - {name: affective, algo: AffectDQN, kwargs: {position: minigrid}}
+      - {name: matched-randomness, algo: ReplayedEpsilonDQN, replays: affective}
+      - {name: count-bonus, algo: DQN, epsilon: tuned, count_bonus: tuned}
+"""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+from sb3_affect.study.launcher.schema import NAME_PATTERN
+
+#: Fewest evaluation episodes the study's primary metric is read from (a smaller file is labelled a smoke size).
+STUDY_EVAL_EPISODES = 20
+#: The settings a task holds for every agent that asks for them (``epsilon: tuned``, ``count_bonus: tuned``).
+TUNED = "tuned"
+
+
+class DeepTask(BaseModel):
+    """One MiniGrid task: its env id, its budget and the settings tuned for it."""
+
+    model_config = ConfigDict(extra="forbid")
+    id: str = Field(pattern=r"^MiniGrid-[A-Za-z0-9-]+-v\d+$", description="the MiniGrid env id, e.g. MiniGrid-Empty-8x8-v0")
+    budget: int = Field(gt=0, le=100_000_000, description="env steps per run (a multiple of eval_every)")
+    learning_rate: float | None = Field(default=None, gt=0, le=1, description="the tuned learning rate (every agent's)")
+    exploration_fraction: float | None = Field(
+        default=None, gt=0, le=1, description="the tuned share of training over which ε falls (agents with epsilon: tuned)"
+    )
+    count_bonus: float | None = Field(
+        default=None, gt=0, le=10, description="the tuned scale β of the count bonus β / sqrt(visits of the cell)"
+    )
+
+
+class DeepAgent(BaseModel):
+    """One agent: an algorithm of the registry and its own arguments on top of the study's ``network``."""
+
+    model_config = ConfigDict(extra="forbid")
+    name: str = Field(pattern=NAME_PATTERN, description="the agent's name (letters, digits, _ . + -)")
+    algo: str = Field(description="DQN or a DQN subclass of the registry: AffectDQN, EzGreedyDQN, SpeedEpsilonGreedyDQN, "
+                      "ReplayedEpsilonDQN")  # fmt: skip
+    kwargs: dict[str, Any] = Field(default_factory=dict, description="the algorithm's arguments beyond network")
+    epsilon: Literal["tuned"] | None = Field(
+        default=None, description="tuned: the task's exploration_fraction for SB3's linear ε schedule"
+    )
+    count_bonus: float | Literal["tuned"] | None = Field(
+        default=None, description="a count bonus β / sqrt(visits) added to the training reward: β, or tuned (the task's)"
+    )
+    replays: str | None = Field(
+        default=None,
+        description="an earlier agent whose logged share of random decisions, averaged over its seeds, becomes this "
+        "agent's ε, part by part (algo ReplayedEpsilonDQN)",
+    )
+
+    @field_validator("algo")
+    @classmethod
+    def _algo(cls, value: str) -> str:
+        from sb3_affect.core.registry import AGENTS
+
+        deep = [name for name in AGENTS if name.endswith("DQN")]
+        if value not in deep:
+            raise ValueError(f"algo={value!r} is not one of {', '.join(deep)}")
+        return value
+
+    @field_validator("kwargs")
+    @classmethod
+    def _kwargs(cls, value: dict[str, Any]) -> dict[str, Any]:
+        for key in ("env", "seed", "device", "policy"):
+            if key in value:
+                raise ValueError(f"kwargs.{key} is the study's own: it sets the env, the seed, the CPU and MlpPolicy")
+        return value
+
+
+class DeepStudy(BaseModel):
+    """A sweep file of the deep study (top-level keys)."""
+
+    model_config = ConfigDict(extra="forbid")
+    name: str = Field(pattern=NAME_PATTERN, description="the study's name")
+    study: Literal["deep"] = Field(description="marks the file as the deep study: many seeds per agent and task together")
+    env: Literal["compiled", "farama"] = Field(
+        default="compiled", description="compiled: sb3_affect.minigrid_vec_env; farama: make_vec_env with FlatObsWrapper"
+    )
+    obs: Literal["flat", "image"] = Field(
+        default="image", description="FlatObsWrapper's vector, or its first 147 entries (the 7x7x3 view), for every agent"
+    )
+    n_envs: int = Field(default=4, ge=1, le=256, description="training envs per seed")
+    seeds: list[int] = Field(min_length=1, max_length=10_000, description="one run per seed in every cell (distinct, >= 0)")
+    eval_every: int = Field(gt=0, description="env steps between two evaluations of each seed's greedy policy")
+    eval_episodes: int = Field(gt=0, le=1000, description="evaluation episodes per seed and evaluation, one per env")
+    network: dict[str, Any] = Field(default_factory=dict, description="DQN's arguments shared by every agent")
+    tasks: dict[str, DeepTask] = Field(min_length=1, description="task name -> task")
+    agents: list[DeepAgent] = Field(min_length=1, description="the agents, run on every task in this order")
+
+    @field_validator("seeds")
+    @classmethod
+    def _seeds(cls, value: list[int]) -> list[int]:
+        twice = sorted({seed for seed in value if value.count(seed) > 1})
+        if twice or min(value) < 0:
+            raise ValueError(f"seeds must be distinct integers >= 0 (got {twice[0] if twice else min(value)!r})")
+        return value
+
+    @field_validator("tasks")
+    @classmethod
+    def _task_names(cls, value: dict[str, DeepTask]) -> dict[str, DeepTask]:
+        import re
+
+        for name in value:
+            if not re.match(NAME_PATTERN, name):
+                raise ValueError(f"task name {name!r} must be letters, digits, _ . + - (at most 64 characters)")
+        return value
+
+    @model_validator(mode="after")
+    def _consistent(self) -> DeepStudy:
+        for name, task in self.tasks.items():
+            if task.budget % self.eval_every:
+                raise ValueError(f"tasks.{name}.budget={task.budget} is not a multiple of eval_every={self.eval_every}")
+        names = [agent.name for agent in self.agents]
+        for index, agent in enumerate(self.agents):
+            if agent.name in names[:index]:
+                raise ValueError(f"agents[{index}].name={agent.name!r} is given twice")
+            if (agent.replays is None) != (agent.algo != "ReplayedEpsilonDQN"):
+                raise ValueError(f"agents[{index}] ({agent.name}): replays=<earlier agent> goes with algo ReplayedEpsilonDQN")
+            if agent.replays is not None and agent.replays not in names[:index]:
+                earlier = ", ".join(names[:index])
+                raise ValueError(f"agents[{index}].replays={agent.replays!r} is not an earlier agent ({earlier})")
+            for field, wanted in (("exploration_fraction", agent.epsilon), ("count_bonus", agent.count_bonus)):
+                missing = [task for task, spec in self.tasks.items() if wanted == TUNED and getattr(spec, field) is None]
+                if missing:
+                    raise ValueError(f"agents[{index}] ({agent.name}) takes the tuned {field}: tasks.{missing[0]} has none")
+        return self

@@ -1,0 +1,135 @@
+"""The deep study's report section (study/report/deep_minigrid.py) on synthetic folders whose answers are known."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+import pytest
+from scipy import stats as sps
+
+from sb3_affect.study.report import deep_minigrid as deep
+from sb3_affect.study.report.reading.context import ReportContext
+from sb3_affect.study.report.rendering.document import Document
+
+AGENTS = [{"name": "dqn-linear", "algo": "DQN"}, {"name": "affective", "algo": "AffectDQN"},
+          {"name": "matched", "algo": "ReplayedEpsilonDQN", "replays": "affective"}]  # fmt: skip
+BUDGET, EVERY = 40_000, 10_000
+
+
+def write_folder(folder: Path, curves: dict[str, np.ndarray], first: dict[str, list[int | None]],
+                 eval_episodes: int = 20) -> Path:
+    """A deep-study folder of one task: each agent's success curves ``(seeds, evaluations)`` and first successes."""
+    seeds = list(range(next(iter(curves.values())).shape[0]))
+    study = {"name": "synthetic", "study": "deep", "env": "compiled", "obs": "image", "n_envs": 4, "seeds": seeds,
+             "eval_every": EVERY, "eval_episodes": eval_episodes, "network": {},
+             "tasks": {"Empty-8x8": {"id": "MiniGrid-Empty-8x8-v0", "budget": BUDGET}}, "agents": AGENTS}  # fmt: skip
+    (folder / "cells").mkdir(parents=True)
+    (folder / "deep_study.json").write_text(json.dumps(study))
+    for agent, success in curves.items():
+        cell: dict[str, Any] = {
+            "task": "Empty-8x8", "agent": agent, "seeds": seeds, "budget": BUDGET, "eval_every": EVERY,
+            "eval_steps": [EVERY * (k + 1) for k in range(success.shape[1])], "success": success.tolist(),
+            "return": (success * 0.9).tolist(), "random_share": np.full(success.shape, 0.3).tolist(),
+            "emotions": {name: np.full(success.shape, 0.25).tolist() for name in ("joy", "sadness", "fear", "anger")}
+            if agent == "affective" else None,
+            "first_success": first[agent],
+        }  # fmt: skip
+        (folder / "cells" / f"Empty-8x8__{agent}.json").write_text(json.dumps(cell))
+    return folder
+
+
+def section(folder: Path, out: Path) -> tuple[str, ReportContext]:
+    for sub in ("tables", "figures"):
+        (out / sub).mkdir(parents=True, exist_ok=True)
+    ctx = ReportContext(Document("test"), out, folder, None, pd.DataFrame())  # type: ignore[arg-type]
+    deep.deep_minigrid_section(ctx)
+    return ctx.doc.markdown(out), ctx
+
+
+def curves(level: float, seeds: int = 8) -> np.ndarray:
+    return np.full((seeds, BUDGET // EVERY), level)
+
+
+def test_the_iqm_table_holds_the_interquartile_mean_of_each_runs_auc_and_final_value(tmp_path: Path) -> None:
+    finals = np.array([0.0, 0.2, 0.4, 0.6, 0.8, 1.0, 1.0, 1.0])
+    ramp = np.linspace(0, 1, BUDGET // EVERY)
+    success = np.outer(finals, ramp)  # run i: 0 -> finals[i]
+    folder = write_folder(tmp_path / "f", {"dqn-linear": success, "affective": curves(0.5), "matched": curves(0.5)},
+                          {agent: [1000] * 8 for agent in ("dqn-linear", "affective", "matched")})
+    table = deep.iqm_table(deep.run_scores(deep.load_deep(folder)), [a["name"] for a in AGENTS])
+    row = table.loc[("Empty-8x8", "dqn-linear")]
+    assert row["final success"] == pytest.approx(sps.trim_mean(finals, 0.25))
+    assert row["success AUC"] == pytest.approx(sps.trim_mean(success.mean(axis=1), 0.25))
+    assert row["final success low"] <= row["final success"] <= row["final success high"]
+    assert table.loc[("Empty-8x8", "affective"), "final success"] == pytest.approx(0.5)
+
+
+def test_runs_that_never_succeed_are_censored_at_the_budget_not_dropped(tmp_path: Path) -> None:
+    reached = [1000, 2000, 3000, 4000]
+    folder = write_folder(tmp_path / "f", {a["name"]: curves(0.5, seeds=7) for a in AGENTS},
+                          {"dqn-linear": reached + [None] * 3, "affective": reached + reached[:3], "matched": [None] * 7})
+    table = deep.first_success_table(deep.run_scores(deep.load_deep(folder)))
+    assert table.loc[("Empty-8x8", "dqn-linear"), ["runs", "reached", "censored"]].tolist() == [7, 4, 3]
+    assert table.loc[("Empty-8x8", "matched"), ["reached", "censored"]].tolist() == [0, 7]
+    # 3 of 7 runs censored at the budget: the Kaplan-Meier curve falls below one half at the 4th event, 4,000 steps;
+    # seven runs that all succeed at those times (affective) have their median at 2,000
+    assert table.loc[("Empty-8x8", "dqn-linear"), "KM median"] == "4,000"
+    assert table.loc[("Empty-8x8", "affective"), "KM median"] == "2,000"
+    assert table.loc[("Empty-8x8", "matched"), "KM median"] == f"> {BUDGET:,}"
+    # the restricted mean counts a censored run at the budget
+    assert table.loc[("Empty-8x8", "matched"), "RMST"] == pytest.approx(BUDGET)
+
+
+@pytest.mark.parametrize(("affective", "matched", "word", "versus"), [(1.0, 0.0, "above", "below"),
+                                                                     (0.0, 1.0, "below", "above")])  # fmt: skip
+def test_the_sentence_is_computed_from_the_cis_and_flips_with_the_numbers(
+    tmp_path: Path, affective: float, matched: float, word: str, versus: str
+) -> None:
+    rng = np.random.default_rng(0)
+    noisy = {"dqn-linear": curves(0.5) + rng.uniform(-0.01, 0.01, (8, 4)), "affective": curves(affective),
+             "matched": curves(matched)}  # fmt: skip
+    folder = write_folder(tmp_path / "f", noisy, {a["name"]: [1000] * 8 for a in AGENTS})
+    text, _ = section(folder, tmp_path / "out")
+    sentence = next(line for line in text.splitlines() if line.startswith("On Empty-8x8"))
+    assert f"affective {word}" in sentence and f"matched {versus}" in sentence
+    assert f"matched (the same amount of randomness, uniform in time) {versus} affective" in sentence
+    equal = write_folder(tmp_path / "g", {a["name"]: curves(0.5) for a in AGENTS}, {a["name"]: [1000] * 8 for a in AGENTS})
+    text, _ = section(equal, tmp_path / "out2")
+    assert "affective, matched not separated from it" in text and "not separated from affective" in text
+
+
+def test_the_power_calculation_gives_the_fewest_seeds_that_detect_its_effect() -> None:
+    needed = deep.seeds_needed()
+    assert deep.detectable(needed) <= deep.TARGET < deep.detectable(needed - 1)
+    assert needed <= deep.STUDY_SEEDS  # the study's 20 seeds per cell are enough
+    assert deep.seeds_needed(target=0.9) < needed < deep.seeds_needed(target=0.7)
+    assert "this study has 20" in deep.power_sentence(20) and "fewer runs" not in deep.power_sentence(20)
+    assert "fewer runs than that calculation asks for" in deep.power_sentence(needed - 1)
+
+
+def test_the_section_reads_the_folder_labels_a_smoke_size_and_follows_no_symlink(tmp_path: Path) -> None:
+    small = write_folder(tmp_path / "deep_smoke", {a["name"]: curves(0.5, seeds=3) for a in AGENTS},
+                         {a["name"]: [1000] * 3 for a in AGENTS}, eval_episodes=5)
+    text, ctx = section(tmp_path, tmp_path / "out")
+    assert "(smoke size): deep_smoke/" in text and "Smoke size: 3 seeds per cell and 5 evaluation episodes" in text
+    for name in ("deep_smoke_iqm", "deep_smoke_first_success"):
+        assert (ctx.out / "tables" / f"{name}.csv").is_file()
+    for name in ("deep_smoke_success", "deep_smoke_random", "deep_smoke_emotions"):
+        assert (ctx.out / "figures" / f"{name}.png").is_file()
+    full = write_folder(tmp_path / "full", {a["name"]: curves(0.5, seeds=20) for a in AGENTS},
+                        {a["name"]: [1000] * 20 for a in AGENTS})
+    text, _ = section(full, tmp_path / "out3")
+    assert "smoke" not in text.lower() and "fewer than the study's" not in text
+    pilot = write_folder(tmp_path / "pilot", {a["name"]: curves(0.5, seeds=5) for a in AGENTS},
+                         {a["name"]: [1000] * 5 for a in AGENTS})
+    text, _ = section(pilot, tmp_path / "out4")
+    assert "smoke" not in text.lower() and "5 seeds per cell, fewer than the study's 20: a tuning pass" in text
+    # a cell that is a symlink is not read: the section counts only the regular files
+    target = small / "cells" / "Empty-8x8__matched.json"
+    moved = target.rename(tmp_path / "elsewhere.json")
+    target.symlink_to(moved)
+    assert [cell["agent"] for cell in deep.load_deep(small).cells] == ["dqn-linear", "affective"]
