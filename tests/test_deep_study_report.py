@@ -11,9 +11,9 @@ import pandas as pd
 import pytest
 from scipy import stats as sps
 
-from sb3_affect.study.report import deep_minigrid as deep
 from sb3_affect.study.report.reading.context import ReportContext
 from sb3_affect.study.report.rendering.document import Document
+from sb3_affect.study.report.sections import deep_minigrid as deep
 
 AGENTS = [{"name": "dqn-linear", "algo": "DQN"}, {"name": "affective", "algo": "AffectDQN"},
           {"name": "matched", "algo": "ReplayedEpsilonDQN", "replays": "affective"}]  # fmt: skip
