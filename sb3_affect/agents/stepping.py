@@ -8,7 +8,7 @@ set-up (``_start_learn``), the agent's ``_decide`` (epsilon-greedy, the emotion'
 (``sb3_affect.agents.reference_loop.q_update``), the transition hook (the appraisal's ``observe``), ``_begin_episode`` and
 ``loop.close_episode`` (schedules, emotions, the episode log, the logger) and the SB3 callbacks with the locals ``learn``
 gives them (``sb3_affect.agents.reference_loop.step_locals``). Driving a single env with it gives the same episode log,
-Q-table and random draws as ``learn`` (tests/test_hunters.py checks this)::
+Q-table and random draws as ``learn`` (tests/agents/test_hunters.py checks this)::
 
     stepper = DecisionStepper(model, total_timesteps=10**6)          # starts a run, as learn() does
     action, cells, explored = stepper.decide()                     # one decision in the current state

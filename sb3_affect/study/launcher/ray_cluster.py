@@ -234,7 +234,7 @@ def connect(address: str | None, workers: int, timeout: float = 60.0) -> Iterato
     if not address:
         # A private single-machine instance: Ray rewrites 127.0.0.1 to the machine's address (and its gRPC servers then
         # listen on every interface) unless "clusters" are disabled, which Ray reads when it is first imported; with
-        # this every Ray process listens on 127.0.0.1 only (checked with ``ss -ltnp`` in tests/test_experiments_ray.py).
+        # this every Ray process listens on 127.0.0.1 only (checked with ``ss -ltnp`` in test_experiments_ray.py).
         os.environ.setdefault("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "0")
     else:
         where = host_port(address)

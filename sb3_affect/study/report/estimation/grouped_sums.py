@@ -4,7 +4,7 @@ Grouped means, sums and variances with pandas' own arithmetic, compiled (numba),
 pandas' ``groupby(...).mean()`` / ``.sum()`` of floats add each group's values in row order with Kahan's compensated
 summation, and ``.var()`` / ``.std()`` / ``.sem()`` use Welford's online update (``pandas/_libs/groupby.pyx``). The
 functions here do the same floating-point operations in the same order, so they give the same numbers to the last
-bit (tests/test_report_lean.py compares them with pandas), without a hash of the group keys per call and with their
+bit (test_report_lean.py compares them with pandas), without a hash of the group keys per call and with their
 state kept between calls: rows fed part by part, in the order a whole-frame groupby would see them, give the numbers
 of that groupby. Missing values (NaN) are skipped, as pandas skips them.
 

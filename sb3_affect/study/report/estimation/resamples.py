@@ -3,7 +3,7 @@ The bootstraps' resamples (in the narrowest integer type) and their statistics c
 
 Every bootstrap of ``bootstrap`` seeds its own generator, so its draws are those of the generator, in its order.
 The compiled statistics do the floating-point operations of the numpy code they replace in the same order (integer
-sums are exact in any order), so the numbers are the same to the last bit (tests/test_report_lean.py compares them
+sums are exact in any order), so the numbers are the same to the last bit (tests/study/report/test_report_lean.py compares them
 with that code).
 """
 

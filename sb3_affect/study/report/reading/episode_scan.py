@@ -13,7 +13,7 @@ per-run metrics) is reduced here, part by part, while the rows are read once.
   a second pass over its rows for the delta-method bands, which need the pooled ratios of the first).
 
 Every reduction either sums integers (exact in any order) or adds floats in the order a whole-frame pandas groupby
-would (``estimation.grouped_sums``), so the numbers are those of the whole-frame computations (tests/test_report_lean.py).
+would (``estimation.grouped_sums``), so the numbers are those of the whole-frame computations (test_report_lean.py).
 Memory: one part's rows, the per-run table, the settled window's decisions and joy (8 bytes an episode of it).
 """
 

@@ -40,7 +40,7 @@ from sb3_affect.study.report.reading.settled_window import bimodality, settled_n
 from sb3_affect.study.report.rendering.figures import episode_quantiles
 from sb3_affect.study.report.sections import mechanism
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[3]
 PAPER = ROOT / "experiments" / "paper.yaml"
 
 

@@ -28,7 +28,7 @@ from sb3_affect.study.report.estimation.bootstrap import TTEST_ROWS
 from sb3_affect.study.report.reading.run_tables import run_metrics
 from sb3_affect.study.report.rendering.formats import mixed_formats
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[3]
 
 
 def test_paired_ttest_matches_scipy_and_a_hand_calculation() -> None:

@@ -1,6 +1,6 @@
 """
 The list of studies of the main job is the one source of replicate's parts (and so of its --help, which
-tests/test_cli.py checks against them) and names the report's sections that read each study.
+tests/study/test_cli.py checks against them) and names the report's sections that read each study.
 """
 
 from __future__ import annotations

@@ -31,7 +31,7 @@ pytestmark = [
     pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc and ss"),
 ]
 
-SMOKE = Path(__file__).resolve().parents[1] / "experiments" / "smoke.yaml"
+SMOKE = Path(__file__).resolve().parents[3] / "experiments" / "smoke.yaml"
 TESTS = Path(__file__).resolve().parent
 OVERRIDES = ["episodes=12"]
 

@@ -24,7 +24,7 @@ from sb3_affect.study.report.reading.run_tables import (
 )
 from sb3_affect.study.report.reading.settled_window import bimodality
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[3]
 SMOKE = ROOT / "experiments" / "smoke.yaml"
 
 

@@ -12,7 +12,7 @@ from sb3_affect.study.launcher.schema import derive_seed
 from sb3_affect.study.launcher.study_schema import ForensicsStudy
 from sb3_affect.study.launcher.sweep_file import load_sweep_file
 
-EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
+EXPERIMENTS = Path(__file__).resolve().parents[3] / "experiments"
 
 GOOD = """\
 name: tiny

@@ -25,7 +25,7 @@ from sb3_affect.study.cli import main
 from sb3_affect.study.launcher import ResultsStore, StoreError, run_sweep
 from sb3_affect.study.launcher.chunks import chunk_records
 
-EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
+EXPERIMENTS = Path(__file__).resolve().parents[3] / "experiments"
 TESTS = Path(__file__).resolve().parent
 FAULTS = "SB3_AFFECT_TEST_FAULTS"
 linux_only = pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")

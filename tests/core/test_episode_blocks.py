@@ -16,7 +16,7 @@ from sb3_affect import AffectQ, QLearning
 from sb3_affect.core.episode_blocks import EpisodeBlocks
 from sb3_affect.core.episode_log import EPISODE_COLUMNS, make_frame
 
-DATA = Path(__file__).with_name("data")
+DATA = Path(__file__).resolve().parents[1] / "data"
 
 
 def _row(episode: int, optimal: object = True, greedy: object = False, norm: float = math.nan) -> list[object]:

@@ -45,7 +45,7 @@ pytestmark = [
     pytest.mark.skipif(not sys.platform.startswith("linux"), reason="network namespaces are Linux only"),
 ]
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[3]
 SMOKE = ROOT / "experiments" / "smoke.yaml"
 PAPER = ROOT / "experiments" / "paper.yaml"
 PORT = 6379

@@ -1,4 +1,4 @@
-"""Port of Stable-Baselines3's tests/test_callbacks.py (algorithm-generic cases) to the tabular agents."""
+"""Port of Stable-Baselines3's tests/agents/test_callbacks.py (algorithm-generic cases) to the tabular agents."""
 
 from __future__ import annotations
 

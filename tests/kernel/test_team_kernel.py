@@ -26,7 +26,7 @@ from sb3_affect.kernel.team_batch import hunter_columns, run_team, team_columns,
 from sb3_affect.study.launcher import run_sweep
 from sb3_affect.study.launcher.one_run import execute_run
 
-EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
+EXPERIMENTS = Path(__file__).resolve().parents[2] / "experiments"
 SEEDS = list(range(15))
 SMALL = {"size": 7, "starts": [(0, 0), (6, 6)], "prey_start": (3, 3)}
 THREE = {"size": 6, "starts": [(0, 0), (5, 5), (0, 5)], "prey_start": (2, 3)}

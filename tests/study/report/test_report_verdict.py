@@ -17,7 +17,7 @@ from sb3_affect.study.report.reading.study_tables import study
 from sb3_affect.study.report.sections.evidence import sensitivity
 from sb3_affect.study.report.verdicts import claims
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[3]
 EPS = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9)
 
 

@@ -15,9 +15,9 @@ from sb3_affect.study.forensics import Protocol
 from sb3_affect.study.forensics.unit_files import SummaryStore
 from sb3_affect.study.launcher import SweepError, load_sweep, run_sweep
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
-EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
+EXPERIMENTS = Path(__file__).resolve().parents[2] / "experiments"
 
 TINY = """\
 name: {name}

@@ -23,7 +23,7 @@ from sb3_affect.study.launcher.schema import SweepError
 from sb3_affect.study.launcher.sweep_file import load_sweep
 from sb3_affect.study.report import build_report
 
-EXPERIMENTS = Path(__file__).resolve().parents[1] / "experiments"
+EXPERIMENTS = Path(__file__).resolve().parents[2] / "experiments"
 UP, DOWN, LEFT, RIGHT = 0, 1, 2, 3
 
 

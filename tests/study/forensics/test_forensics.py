@@ -48,7 +48,7 @@ from sb3_affect.study.report import build_report
 from sb3_affect.study.report.reading.run_tables import run_metrics
 from sb3_affect.study.report.verdicts import paper_numbers as paper
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[3]
 ENV = "sb3_affect/GridPursuit-v0"
 AFFECTIVE = Simulation("affective", 1.0, 0.8, None, "literal", "episode", "cells")
 TINY = Protocol(epsilons=(0.2, 0.6), seeds=4, episodes=25)

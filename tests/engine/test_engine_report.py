@@ -9,7 +9,7 @@ import pandas as pd
 from sb3_affect.study.launcher import ResultsStore, run_sweep
 from sb3_affect.study.report.reading.run_tables import load_results, run_metrics
 
-PAPER = Path(__file__).resolve().parents[1] / "experiments" / "paper.yaml"
+PAPER = Path(__file__).resolve().parents[2] / "experiments" / "paper.yaml"
 
 
 def summary_numbers(run_dir: Path) -> dict[str, float]:

@@ -189,7 +189,7 @@ def test_baseline_sweep_runs_and_summary_ranks(tmp_path: Any) -> None:
         summarise,
     )
 
-    experiments = Path(__file__).resolve().parents[1] / "experiments"
+    experiments = Path(__file__).resolve().parents[2] / "experiments"
     for name in ("baselines", "baselines_moving7"):
         spec = yaml.safe_load((experiments / f"{name}.yaml").read_text())
         spec["agents"] = [a for a in spec["agents"] if a["name"] in ("affective", "ucb")]
@@ -222,7 +222,7 @@ def test_experiment_files_validate(name: str) -> None:
     from sb3_affect.core.registry import resolve_class
     from sb3_affect.study.launcher.sweep_file import load_sweep
 
-    sweep = load_sweep(Path(__file__).resolve().parents[1] / "experiments" / f"{name}.yaml")
+    sweep = load_sweep(Path(__file__).resolve().parents[2] / "experiments" / f"{name}.yaml")
     for agent in sweep.agents:
         resolve_class(agent.algo)
     if name != "baselines_tuning":
