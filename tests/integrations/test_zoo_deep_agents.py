@@ -104,7 +104,7 @@ def test_the_package_files_are_read_for_its_agents_and_for_dqn_on_the_envs_they_
 
 
 def test_the_deep_agents_page_trains_with_the_shipped_settings() -> None:
-    page = (Path(__file__).resolve().parents[1] / "docs" / "deep_agents.md").read_text()
+    page = (Path(__file__).resolve().parents[2] / "docs" / "deep_agents.md").read_text()
     code = page[page.index("settings = dict(") : page.index("env = make_vec_env(")]
     namespace: dict[str, object] = {}
     exec(code, namespace)

@@ -33,7 +33,7 @@ from sb3_affect.study.replicate import _Record, _refuse_a_sweep_folder
 from sb3_affect.study.report.rendering.document import Document
 from sb3_affect.study.report.sections.reproducibility import replicate_runs, run_tables, sha256
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[3]
 SMOKE = ROOT / "experiments" / "smoke.yaml"
 TINY = Protocol(epsilons=(0.2, 0.6), seeds=2, episodes=10)
 SPACE = CandidateSpace(

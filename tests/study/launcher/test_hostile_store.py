@@ -23,7 +23,7 @@ from sb3_affect.study.launcher.folder_reading import read_folder
 from sb3_affect.study.launcher.run_ids import run_config, run_id
 from sb3_affect.study.launcher.store import run_file
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[3]
 ENV = "sb3_affect/GridPursuit-v0"
 I64 = np.iinfo(np.int64)
 

@@ -12,7 +12,7 @@ from sb3_affect.study.launcher.schema import SweepError
 from sb3_affect.study.launcher.sweep_file import load_sweep_file
 from sb3_affect.study.report.sections.deep_minigrid import STUDY_SEEDS, seeds_needed
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[3]
 
 
 def load(name: str) -> DeepStudy:

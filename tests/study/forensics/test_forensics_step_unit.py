@@ -47,7 +47,7 @@ def test_the_verdict_settings_column_is_the_reports_own_spreadsheet(tmp_path: Pa
     from sb3_affect.study.report.reading.run_tables import load_results, run_metrics
     from sb3_affect.study.report.sections.paper_tables import per_epsilon
 
-    run_sweep(Path(__file__).resolve().parents[1] / "experiments" / "smoke.yaml", tmp_path / "paper", workers=1,
+    run_sweep(Path(__file__).resolve().parents[3] / "experiments" / "smoke.yaml", tmp_path / "paper", workers=1,
               progress=False)  # fmt: skip
     own = dict(zip(STATISTICS, protocol_statistics(tmp_path / "paper")))  # type: ignore[arg-type]
     results = load_results(tmp_path / "paper")
