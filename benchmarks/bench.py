@@ -222,7 +222,7 @@ OBSERVER_SETUPS: dict[str, ObserverSetup] = {
     "DQN on FrozenLake-v1": ObserverSetup("DQN", "FrozenLake-v1", {"learning_starts": 100}, (4000, 300),
                                           ("EmotionCallback", "BroekensCallback")),
     "DQN on sb3_affect/GridPursuit-v0 (225 states)": ObserverSetup(
-        "DQN", ENV_ID, {}, (8000, 300), ("EmotionCallback", "BroekensCallback", "EmotionCallback+BroekensCallback")),
+        "DQN", ENV_ID, {}, (4000, 300), ("EmotionCallback", "BroekensCallback", "EmotionCallback+BroekensCallback")),
     "PPO on CartPole-v1": ObserverSetup("PPO", "CartPole-v1", {}, (4096, 256), ("BroekensCallback",)),
     "PPO on MiniGrid-Empty-8x8-v0, 4 envs, position=minigrid": ObserverSetup(
         "PPO", "MiniGrid-Empty-8x8-v0", {}, (8192, 512), ("EmotionCallback", "EmotionCallback+BroekensCallback"),
