@@ -88,7 +88,7 @@ def speed(steps: int, sizes: list[int], out: Path) -> None:
         print(f"  {name:<32} {rate:>10,.0f} env steps per CPU second  {ratio:>7.1f}x SB3's DQN")
     with out.open("w", newline="") as handle:
         writer = csv.writer(handle)
-        writer.writerow(["measure", "env_steps_per_s", "ratio_to_sb3_dqn"])
+        writer.writerow(["measure", "env_steps_per_cpu_s", "ratio_to_sb3_dqn"])
         writer.writerows((name, f"{rate:.1f}", f"{ratio:.2f}") for name, rate, ratio in rows)
 
 
