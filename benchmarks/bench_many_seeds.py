@@ -2,9 +2,12 @@
 ``train_many`` (many seeds of DQN in lockstep, stacked Q-networks) beside SB3's own ``learn`` on MiniGrid-Empty-8x8,
 the 7x7x3 view (``obs="image"``), 4 envs per seed, 1 torch thread per process (needs the ``[minigrid]`` extra).
 
-* speed (default): env steps per second of SB3's ``DQN`` and ``AffectDQN`` ``learn`` on Farama's env, and of
-  ``train_many`` at S = 1, 8 and 32 seeds (all seeds' env steps), and each figure's ratio to SB3's DQN;
-* ``--equivalence``: 20 seeds of SB3's ``DQN.learn`` and of ``train_many`` with the same seeds and settings, the greedy
+* speed (default): env steps per CPU second (the process's CPU time, so that other work on a shared machine does not
+  count; one thread, so it is the wall time on an idle core) of SB3's ``DQN`` and ``AffectDQN`` ``learn`` on Farama's
+  env, and of ``train_many`` at S = 1, 8 and 32 seeds (all seeds' env steps, on the compiled MiniGrid), and each
+  figure's ratio to SB3's DQN;
+* ``--equivalence``: 20 seeds of SB3's ``DQN.learn`` and of ``train_many`` with the same seeds and settings (both on
+  the compiled MiniGrid, equal to Farama's step for step, and training at every VecEnv step), the greedy
   policy evaluated on its own env (seed + 1000) every ``--every`` env steps over ``--episodes`` episodes, each run's
   curve summarised by its mean return (the area under the curve over its length); the two are equivalent within
   ``--margin`` (in return, on [0, 1]) by a paired TOST (two one-sided t-tests, scipy.stats, alpha 0.05): the 90%
@@ -32,6 +35,8 @@ N_ENVS = 4
 SETTINGS: dict[str, Any] = dict(learning_starts=1000, buffer_size=50_000, learning_rate=1e-3, target_update_interval=1000,
                                 batch_size=32, train_freq=4)
 EPSILON: dict[str, Any] = dict(exploration_fraction=0.3)
+#: the equivalence runs train once per VecEnv step (4 env steps), so 20,000 steps are 4,750 gradient steps
+LEARNING: dict[str, Any] = {**SETTINGS, "train_freq": 1, "exploration_fraction": 0.5}
 AFFECT: dict[str, Any] = dict(position="minigrid", wait_action=6)
 
 
@@ -42,7 +47,7 @@ def _threads() -> None:
 
 
 def sb3_rate(agent: str, steps: int) -> float:
-    """Env steps per second of ``agent.learn(steps)`` (SB3's loop, Farama's env; the model built outside the timing)."""
+    """Env steps per CPU second of ``agent.learn(steps)`` (SB3's loop, Farama's env; the model built outside)."""
     from sb3_affect.core.registry import resolve_class
     from sb3_affect.engine.seed_envs import seed_vec_env
 
@@ -50,21 +55,21 @@ def sb3_rate(agent: str, steps: int) -> float:
     cls = resolve_class(agent)
     extra = AFFECT if agent == "AffectDQN" else EPSILON
     model = cls("MlpPolicy", seed_vec_env(ENV_ID, N_ENVS, 0, "image"), seed=0, device="cpu", **SETTINGS, **extra)
-    start = time.perf_counter()
+    start = time.process_time()
     model.learn(steps)
-    return model.num_timesteps / (time.perf_counter() - start)
+    return model.num_timesteps / (time.process_time() - start)
 
 
 def trainer_rate(agent: str, n_seeds: int, steps: int) -> float:
-    """Env steps per second, all seeds together, of ``train_many(agent, ..., seeds=range(n_seeds))`` (set-up included)."""
+    """Env steps per CPU second, all seeds together, of ``train_many(agent, ..., seeds=range(n_seeds))`` (set-up included)."""
     from sb3_affect import train_many
 
     _threads()
     extra = AFFECT if agent == "AffectDQN" else EPSILON
-    start = time.perf_counter()
+    start = time.process_time()
     models = train_many(agent, ENV_ID, list(range(n_seeds)), N_ENVS, total_timesteps=steps, obs="image",
                         **SETTINGS, **extra)
-    return sum(m.num_timesteps for m in models) / (time.perf_counter() - start)
+    return sum(m.num_timesteps for m in models) / (time.process_time() - start)
 
 
 def speed(steps: int, sizes: list[int], out: Path) -> None:
@@ -80,10 +85,10 @@ def speed(steps: int, sizes: list[int], out: Path) -> None:
     print(f"{ENV_ID}, obs=image, {N_ENVS} envs per seed, {steps:,} env steps per seed, 1 torch thread, "
           f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}")
     for name, rate, ratio in rows:
-        print(f"  {name:<32} {rate:>10,.0f} env steps/s  {ratio:>7.1f}x SB3's DQN")
+        print(f"  {name:<32} {rate:>10,.0f} env steps per CPU second  {ratio:>7.1f}x SB3's DQN")
     with out.open("w", newline="") as handle:
         writer = csv.writer(handle)
-        writer.writerow(["measure", "env_steps_per_s", "ratio_to_sb3_dqn"])
+        writer.writerow(["measure", "env_steps_per_cpu_s", "ratio_to_sb3_dqn"])
         writer.writerows((name, f"{rate:.1f}", f"{ratio:.2f}") for name, rate, ratio in rows)
 
 
@@ -92,7 +97,7 @@ def _evaluate(model: Any, seed: int, episodes: int) -> float:
 
     from sb3_affect.engine.seed_envs import seed_vec_env
 
-    mean, _ = evaluate_policy(model, seed_vec_env(ENV_ID, 1, seed + 1000, "image"), n_eval_episodes=episodes)
+    mean, _ = evaluate_policy(model, seed_vec_env(ENV_ID, 1, seed + 1000, "image", compiled=True), n_eval_episodes=episodes)
     return float(mean)
 
 
@@ -112,7 +117,7 @@ def sb3_curve(seed: int, steps: int, every: int, episodes: int) -> list[float]:
                 curve.append(_evaluate(self.model, seed, episodes))
             return True
 
-    model = DQN("MlpPolicy", seed_vec_env(ENV_ID, N_ENVS, seed, "image"), seed=seed, device="cpu", **SETTINGS, **EPSILON)
+    model = DQN("MlpPolicy", seed_vec_env(ENV_ID, N_ENVS, seed, "image", compiled=True), seed=seed, device="cpu", **LEARNING)
     model.learn(steps, callback=Evaluate())
     return curve
 
@@ -134,7 +139,7 @@ def equivalence(n_seeds: int, steps: int, every: int, episodes: int, margin: flo
     start = time.perf_counter()
     train_many("DQN", ENV_ID, seeds, N_ENVS, total_timesteps=steps, obs="image", every=every,
                on_models=lambda models: curves.append([_evaluate(m, s, episodes) for m, s in zip(models, seeds)]),
-               **SETTINGS, **EPSILON)
+               **LEARNING)
     trainer_time = time.perf_counter() - start
     ours = np.array(curves).T
     differences = ours.mean(axis=1) - theirs.mean(axis=1)

@@ -20,9 +20,11 @@ from stable_baselines3.common.buffers import ReplayBuffer
 from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
 from stable_baselines3.common.type_aliases import TrainFrequencyUnit
 
+from sb3_affect.agents.minigrid_vec_env import OBSERVATIONS
 from sb3_affect.engine.lockstep import Lockstep
-from sb3_affect.engine.seed_envs import OBSERVATIONS, seed_vec_env
+from sb3_affect.engine.seed_envs import seed_vec_env
 from sb3_affect.engine.stacked_q import ELEMENTWISE_OPTIMIZERS
+from sb3_affect.kernel.minigrid_world import MINIGRID_TASKS
 
 #: arguments ``train_many`` sets itself
 _OWN_ARGUMENTS = ("env", "seed")
@@ -59,6 +61,21 @@ def _seeds(seeds: Any) -> list[int]:
     return values
 
 
+def _check_farama_env(env_id: str) -> None:
+    """That Farama's MiniGrid is installed and names ``env_id`` (one line if not)."""
+    import gymnasium as gym
+
+    try:
+        import minigrid  # noqa: F401  (registers MiniGrid's envs)
+    except ImportError:
+        raise ValueError(f"env_id={env_id!r} is not compiled ({', '.join(MINIGRID_TASKS)}): Farama's env needs "
+                         "MiniGrid: pip install 'sb3-affect[minigrid]'") from None
+    try:
+        gym.spec(env_id)
+    except gym.error.Error as error:
+        raise ValueError(f"env_id={env_id!r} is not a registered env ({error})") from None
+
+
 def _check_model(model: DQN) -> None:
     """What the lockstep loop needs of a constructed model (one line each)."""
     name = type(model).__name__
@@ -85,6 +102,7 @@ def train_many(
     *,
     total_timesteps: int,
     obs: str = "flat",
+    compiled: bool = True,
     log_interval: int = 4,
     every: int = 0,
     on_models: Callable[[list[Any]], object] | None = None,
@@ -95,11 +113,14 @@ def train_many(
 
     :param algo: SB3's ``DQN`` or a subclass that keeps its ``train`` (``AffectDQN``, ``EzGreedyDQN``,
         ``SpeedEpsilonGreedyDQN``), a class or its name
-    :param env_id: a MiniGrid env id (``"MiniGrid-Empty-8x8-v0"``)
+    :param env_id: a MiniGrid env id (``"MiniGrid-Empty-8x8-v0"``; ``sb3_affect.kernel.minigrid_world.MINIGRID_TASKS``
+        are compiled)
     :param seeds: one run per seed
     :param n_envs: envs per seed (SB3's ``n_envs``: each VecEnv step is ``n_envs`` env steps)
     :param total_timesteps: env steps per seed, as ``learn(total_timesteps)``
     :param obs: ``"flat"`` (``FlatObsWrapper``'s vector) or ``"image"`` (its first 147 entries, the 7x7x3 view)
+    :param compiled: step the compiled MiniGrid (``minigrid_vec_env``, equal to Farama's step for step) where it
+        implements ``env_id``; False: Farama's env through ``make_vec_env``
     :param log_interval: ``learn``'s: ``dump_logs`` every this many episodes
     :param every: with ``on_models``: call it each time the env steps per seed pass a multiple of ``every``
     :param on_models: ``on_models(models)``, the models holding the weights so far (e.g. to evaluate the greedy
@@ -127,17 +148,11 @@ def train_many(
     device = algo_kwargs.pop("device", "cpu")
     if str(device) != "cpu":
         raise ValueError(f"device={device!r}: train_many runs on the CPU")
-    import gymnasium as gym
-
-    try:
-        import minigrid  # noqa: F401  (registers MiniGrid's envs)
-    except ImportError:
-        raise ValueError("train_many needs MiniGrid: pip install 'sb3-affect[minigrid]'") from None
-    try:
-        gym.spec(env_id)
-    except gym.error.Error as error:
-        raise ValueError(f"env_id={env_id!r} is not a registered env ({error})") from None
-    models = [cls(policy, seed_vec_env(env_id, n_envs, seed, obs), seed=seed, device="cpu", **algo_kwargs)
+    if not isinstance(compiled, bool):
+        raise ValueError(f"compiled={compiled!r} must be True or False")
+    if not (compiled and env_id in MINIGRID_TASKS):
+        _check_farama_env(env_id)
+    models = [cls(policy, seed_vec_env(env_id, n_envs, seed, obs, compiled), seed=seed, device="cpu", **algo_kwargs)
               for seed in seed_list]
     _check_model(models[0])
     return Lockstep(models, seed_list).learn(total_timesteps, log_interval=log_interval, every=every, on_models=on_models)

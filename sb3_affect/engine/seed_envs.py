@@ -2,7 +2,8 @@
 The envs of many seeds stepped together: ``SeedEnvs`` holds one SB3 ``VecEnv`` of E envs per seed and steps them as
 one ``(S, E)`` batch, and ``seed_vec_env`` builds a seed's VecEnv as SB3 users build it for MiniGrid:
 ``make_vec_env(env_id, n_envs, seed=seed, wrapper_class=FlatObsWrapper)`` (``obs="flat"``), or its first 147 entries,
-the agent's 7x7x3 view (``obs="image"``, ``ImageVector``).
+the agent's 7x7x3 view (``obs="image"``, ``ImageVector``); ``compiled=True`` gives its compiled twin,
+``minigrid_vec_env`` (the same layouts, observations, rewards and infos step for step), for the tasks it implements.
 """
 
 from __future__ import annotations
@@ -16,11 +17,9 @@ from gymnasium import spaces
 from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.vec_env import VecEnv
 
-#: the observations ``train_many`` knows: FlatObsWrapper's vector, or its first 147 entries (the 7x7x3 view)
-OBSERVATIONS = ("flat", "image")
-
-#: the length of MiniGrid's encoded 7x7x3 view
-VIEW_SIZE = 7 * 7 * 3
+from sb3_affect.agents.minigrid_vec_env import minigrid_vec_env
+from sb3_affect.kernel.minigrid_view import VIEW_SIZE
+from sb3_affect.kernel.minigrid_world import MINIGRID_TASKS
 
 
 class ImageVector(gym.ObservationWrapper):
@@ -36,8 +35,13 @@ class ImageVector(gym.ObservationWrapper):
         return observation[:VIEW_SIZE]
 
 
-def seed_vec_env(env_id: str, n_envs: int, seed: int, obs: str) -> VecEnv:
-    """``make_vec_env(env_id, n_envs, seed=seed, wrapper_class=FlatObsWrapper)``, or ``ImageVector`` for ``"image"``."""
+def seed_vec_env(env_id: str, n_envs: int, seed: int, obs: str, compiled: bool = False) -> VecEnv:
+    """
+    ``make_vec_env(env_id, n_envs, seed=seed, wrapper_class=FlatObsWrapper)``, or ``ImageVector`` for ``"image"``;
+    ``compiled``: ``minigrid_vec_env`` where it implements ``env_id``.
+    """
+    if compiled and env_id in MINIGRID_TASKS:
+        return minigrid_vec_env(env_id, n_envs, seed=seed, obs=obs)
     from minigrid.wrappers import FlatObsWrapper
 
     wrapper: Any = FlatObsWrapper if obs == "flat" else ImageVector

@@ -39,8 +39,10 @@ class StackedReplay:
         self.n_envs = first.n_envs
         self.arrays = {name: np.zeros((len(self.models), self.rows, *getattr(first, name).shape[1:]),
                                       dtype=getattr(first, name).dtype) for name in ARRAYS}
+        self.own: list[dict[str, np.ndarray]] = []  # each buffer's own arrays, given back by ``release``
         for index, model in enumerate(self.models):
             buffer: Any = model.replay_buffer
+            self.own.append({name: getattr(buffer, name) for name in ARRAYS})
             for name, array in self.arrays.items():
                 setattr(buffer, name, array[index])
             buffer.buffer_size = self.rows
@@ -89,12 +91,11 @@ class StackedReplay:
         return tuple(th.as_tensor(part) for part in parts)
 
     def release(self) -> None:
-        """Give each model a buffer of its own size (``buffer_size // n_envs`` rows) holding its transitions."""
-        for index, model in enumerate(self.models):
+        """Give each model its buffer's own arrays back (``buffer_size // n_envs`` rows), holding its transitions."""
+        for index, (model, own) in enumerate(zip(self.models, self.own)):
             buffer: Any = model.replay_buffer
             for name, array in self.arrays.items():
-                own = np.zeros((self.size, *array.shape[2:]), dtype=array.dtype)
-                own[: self.rows] = array[index]
-                setattr(buffer, name, own)
+                own[name][: self.rows] = array[index]
+                setattr(buffer, name, own[name])
             buffer.buffer_size = self.size
             buffer.pos, buffer.full = self.pos, self.full
