@@ -54,7 +54,7 @@ _EXTERNAL = (
 nitpick_ignore_regex = [
     (r"py:.*", _EXTERNAL + r"(\..*)?"),
     # the TypeVar of ``load`` (SB3's convention)
-    (r"py:class", r"sb3_affect\.agents\.(tabular\.SelfTabular|model_files\.SelfFiles)"),
+    (r"py:class", r"sb3_affect\.agents\.(tabular\.SelfTabular|model_files\.SelfFiles|action_repeat\.SelfRepeat)"),
     (r"py:class", r"(sb3_affect\.agents\.affectq\.)?SelfAffectQ"),  # the TypeVar of ``AffectQ.learn`` (SB3's convention)
     # internal types named in public signatures (a report section's context, a sweep's cell): described in interfaces
     (r"py:class", r"sb3_affect\.study\.(report\.context\.ReportContext|launcher\.schema\.Cell)"),
@@ -63,7 +63,7 @@ nitpick_ignore_regex = [
     (r"py:.*", r"(collections\.abc|typing|pathlib|enum|types|os|argparse|io)\..*"),
     (r"py:.*", r"(GymEnv|Schedule|MaybeCallback|BaseCallback|BaseAlgorithm|BasePolicy|VecEnv|Env|Logger|Path|Figure|"
      r"Axes|DataFrame|Series|ndarray|NDArray|Tensor|Callable|Mapping|Sequence|Iterable|Iterator|Any|Self|TypeAlias|"
-     r"EmotionRule|Geometry|SelfTabular|SelfFiles|Module|Task|OnResult|OnFailure|ObsType|ActType|SupportsFloat|RenderFrame|MazeSpec|_Context)"),
+     r"EmotionRule|Geometry|SelfTabular|SelfFiles|SelfRepeat|Module|Task|OnResult|OnFailure|ObsType|ActType|SupportsFloat|RenderFrame|MazeSpec|_Context)"),
 ]
 
 # Examples gallery: examples/plot_*.py run at build time; their figures appear on the pages.

@@ -30,6 +30,12 @@ if TYPE_CHECKING:
     from sb3_affect.agents.callbacks import EmotionCallback
     from sb3_affect.agents.deep_affect import AffectDQN, AffectiveExploration
     from sb3_affect.agents.deep_affect_qrdqn import AffectQRDQN
+    from sb3_affect.agents.deep_controls import (
+        EzGreedyDQN,
+        EzGreedyExploration,
+        SpeedEpsilonGreedyDQN,
+        SpeedEpsilonGreedyExploration,
+    )
     from sb3_affect.agents.minigrid_tabular import TabularMiniGrid
     from sb3_affect.agents.minigrid_vec_env import minigrid_vec_env
     from sb3_affect.agents.policies import TabularQPolicy
@@ -50,6 +56,10 @@ _LAZY: dict[str, str] = {
     "AffectiveExploration": "sb3_affect.agents.deep_affect",
     "BroekensCallback": "sb3_affect.agents.broekens",
     "EmotionCallback": "sb3_affect.agents.callbacks",
+    "EzGreedyDQN": "sb3_affect.agents.deep_controls",
+    "EzGreedyExploration": "sb3_affect.agents.deep_controls",
+    "SpeedEpsilonGreedyDQN": "sb3_affect.agents.deep_controls",
+    "SpeedEpsilonGreedyExploration": "sb3_affect.agents.deep_controls",
     "EPISODE_COLUMNS": "sb3_affect.core.episode_log",
     "TabularQPolicy": "sb3_affect.agents.policies",
     "QLearning": "sb3_affect.agents.qlearning",
@@ -91,6 +101,8 @@ __all__ = [
     "BroekensCallback",
     "Emotion",
     "EmotionCallback",
+    "EzGreedyDQN",
+    "EzGreedyExploration",
     "GridPursuitEnv",
     "KnownMap",
     "MazePursuitEnv",
@@ -98,6 +110,8 @@ __all__ = [
     "PersonalityAppraiser",
     "PowerFit",
     "QLearning",
+    "SpeedEpsilonGreedyDQN",
+    "SpeedEpsilonGreedyExploration",
     "TabularMiniGrid",
     "TabularQAlgorithm",
     "TabularQPolicy",

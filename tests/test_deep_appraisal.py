@@ -7,6 +7,7 @@ appraisal saved and loaded with the model. Real SB3 DQN, real envs.
 
 from __future__ import annotations
 
+import itertools
 import math
 from pathlib import Path
 from typing import Any
@@ -18,8 +19,8 @@ import torch as th
 from stable_baselines3.common.env_util import make_vec_env
 
 from sb3_affect import AffectDQN, Behaviour, Emotion, EmotionCallback
-from sb3_affect.core.appraisal import INF, Appraiser
-from sb3_affect.core.emotions import table_ii
+from sb3_affect.core.appraisal import INF, Appraisal, Appraiser
+from sb3_affect.core.emotions import table_ii, table_ii_act_first
 from sb3_affect.core.lane_appraisal import LaneAppraisal
 from sb3_affect.core.positions import MiniGridPosition
 
@@ -75,7 +76,42 @@ def test_minigrid_moves_are_forward_and_turns_only_with_direction() -> None:
     assert [MiniGridPosition(direction=True).is_move(a) for a in range(7)] == [True, True, True, False, False, False, False]
 
 
+def test_sadness_is_unreachable_as_printed_and_every_emotion_is_reached_act_first() -> None:
+    """Over appraisals as the appraiser makes them (exp1 = max(norm, elapsed); act = elapsed + remaining, or remaining)."""
+    reached: dict[tuple[str, str, str], set[Emotion]] = {}
+    for norm, elapsed, remaining in itertools.product(range(1, 12), range(12), range(12)):
+        exp1 = max(norm, elapsed)
+        for act_mode, act in (("episode", elapsed + remaining), ("remaining", remaining)):
+            appraisal = Appraisal(float(norm), float(exp1), float(act))
+            for comparison in ("literal", "valence"):
+                reached.setdefault(("table", comparison, act_mode), set()).add(table_ii(appraisal, comparison))
+                reached.setdefault(("act-first", comparison, act_mode), set()).add(table_ii_act_first(appraisal, comparison))
+    for (order, comparison, act_mode), emotions in reached.items():
+        if order == "table":
+            assert Emotion.SADNESS not in emotions
+        if comparison == "literal":
+            assert emotions == {Emotion.JOY, Emotion.ANGER}, (order, act_mode)
+    assert reached[("table", "valence", "episode")] == {Emotion.JOY, Emotion.FEAR, Emotion.ANGER}
+    assert reached[("act-first", "valence", "remaining")] == set(Emotion)
+
+
 minigrid = pytest.importorskip("minigrid")
+
+
+@pytest.mark.parametrize(("kwargs", "felt"), [
+    ({}, {"joy", "anger"}),
+    ({"comparison": "valence"}, {"joy", "fear", "anger"}),
+    ({"comparison": "valence", "act": "remaining", "order": "act-first"}, set(EMOTIONS)),
+])
+def test_the_emotions_felt_on_minigrid_under_each_reading(kwargs: dict[str, str], felt: set[str]) -> None:
+    from minigrid.wrappers import FlatObsWrapper
+
+    env = make_vec_env("MiniGrid-Empty-5x5-v0", n_envs=4, seed=0, wrapper_class=FlatObsWrapper)
+    th.set_num_threads(1)
+    model = AffectDQN("MlpPolicy", env, learning_starts=500, seed=0, position="minigrid", wait_action=6,
+                      emotion_callback=EmotionCallback(**kwargs), policy_kwargs={"net_arch": [64, 64]})
+    counts = model.learn(3000).episode_log[EMOTIONS].sum()
+    assert {name for name in EMOTIONS if counts[name] > 0} == felt, counts.to_dict()
 
 
 @pytest.mark.parametrize("position", ["minigrid", "minigrid-dir"])
@@ -163,3 +199,24 @@ def test_the_appraisal_and_the_callbacks_settings_are_saved_and_loaded(tmp_path:
         assert len(loaded.episode_log) > len(model.episode_log)
         history = loaded.emotion_callback._lanes[0].appraiser.fit.values
         assert history[: len(callback._lanes[0].appraiser.fit.values)] == callback._lanes[0].appraiser.fit.values
+
+
+class MyCallback(EmotionCallback):
+    """A user's subclass."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(**kwargs)
+        self.mine = 7
+
+
+def test_a_subclassed_callback_and_the_callbacks_own_position_survive_save_and_load(tmp_path: Path) -> None:
+    env = make_vec_env("FrozenLake-v1", n_envs=2, seed=0)
+    small(env, emotion_callback=EmotionCallback(position="discrete")).learn(100).save(tmp_path / "own.zip")
+    assert AffectDQN.load(tmp_path / "own.zip").emotion_callback.position == "discrete"
+    small(env, emotion_callback=MyCallback()).learn(100).save(tmp_path / "sub.zip")
+    loaded = AffectDQN.load(tmp_path / "sub.zip", safe=False)  # a class of the user's: unpickled, when trusted
+    assert type(loaded.emotion_callback) is MyCallback and loaded.emotion_callback.mine == 7
+    assert (tmp_path / "sub.zip").stat().st_size < 2 * (tmp_path / "own.zip").stat().st_size  # not the model within
+    loaded.set_env(env)
+    loaded.learn(100, reset_num_timesteps=False)
+    assert loaded.emotion_callback.model is loaded

@@ -7,6 +7,7 @@ class has no plain form: ``callback_state`` hands it back apart, for SB3 to pick
 
 from __future__ import annotations
 
+import copy
 import math
 from typing import Any
 
@@ -33,8 +34,13 @@ class AffectStateError(ValueError):
 def callback_state(callback: EmotionCallback) -> tuple[dict[str, Any], dict[str, Any]]:
     """``(plain, objects)``: the callback's state as plain data, and the custom objects that have none (may be empty)."""
     objects: dict[str, Any] = {}
+    if type(callback) is not EmotionCallback:  # a subclass: only itself restores itself
+        objects["callback"] = detached(callback)
+    position = callback.position
+    if position is not None and not isinstance(position, str):
+        objects["position"] = position
     rule = callback.emotion_rule
-    if getattr(rule, "table_ii_comparison", None) != callback.comparison:
+    if getattr(rule, "table_ii_reading", None) != (callback.comparison, callback.order):
         objects["emotion_rule"] = rule
     goal = next((name for name, test in GOALS.items() if test is callback.goal), None)
     if goal is None:
@@ -49,6 +55,8 @@ def callback_state(callback: EmotionCallback) -> tuple[dict[str, Any], dict[str,
         "comparison": callback.comparison,
         "act": callback.act,
         "units": callback.units,
+        "order": callback.order,
+        "position": position if isinstance(position, str) else None,
         "warn_after": callback.warn_after,
         "verbose": int(callback.verbose),
         "episode_log_path": None if path is None else str(path),
@@ -63,11 +71,23 @@ def callback_state(callback: EmotionCallback) -> tuple[dict[str, Any], dict[str,
     return plain, objects
 
 
+def detached(callback: EmotionCallback) -> EmotionCallback:
+    """A shallow copy of the callback without what ties it to a run (the model, its env and the step's locals)."""
+    copied = copy.copy(callback)
+    for name in ("model", "parent", "_position", "_position_spec", "_geometry", "decision_ends", "decision_random",
+                 "decision_wait"):
+        setattr(copied, name, None)
+    copied.locals, copied.globals = {}, {}
+    return copied
+
+
 def restore_callback(plain: Any, objects: Any) -> EmotionCallback:
     """The callback ``callback_state`` saved, every value checked; an ``AffectStateError`` (one line) otherwise."""
     if not isinstance(plain, dict):
         raise AffectStateError(f"the saved emotion callback is not a mapping, got {type(plain).__name__}")
     objects = objects if isinstance(objects, dict) else {}
+    if isinstance(objects.get("callback"), EmotionCallback):
+        return objects["callback"]
     goal_name = plain.get("goal")
     if goal_name is not None and goal_name not in GOALS:
         raise AffectStateError(f"goal={goal_name!r} is not one of {', '.join(GOALS)}")
@@ -82,11 +102,13 @@ def restore_callback(plain: Any, objects: Any) -> EmotionCallback:
             comparison=plain.get("comparison", "literal"),
             act=plain.get("act", "episode"),
             units=plain.get("units", "cells"),
+            order=plain.get("order", "table"),
             emotion_rule=objects.get("emotion_rule"),
             goal=objects.get("goal", GOALS.get(goal_name or "", positive_terminal_reward)),
             episode_log_path=path,
             warn_after=plain.get("warn_after", 20),
             verbose=verbose,
+            position=objects.get("position", plain.get("position")),
         )
     except (TypeError, ValueError) as error:
         raise AffectStateError(str(error)) from None

@@ -65,6 +65,9 @@ class EmotionCallback(BaseCallback):
     Appraise each decision, feel one of joy, sadness, fear or anger, count and log it.
 
     :param comparison: Table II reading, ``"literal"`` or ``"valence"`` (docs/definitions.md)
+    :param order: the order Table II's rows are tried in: ``"table"`` (as printed) or ``"act-first"``
+        (``sb3_affect.core.emotions.table_ii_act_first``: with ``comparison="valence"`` and ``act="remaining"`` all
+        four emotions occur; as printed, sadness never can)
     :param act: ``"episode"`` (elapsed + known remaining) or ``"remaining"`` (known remaining only)
     :param units: ``"cells"`` or ``"decisions"``: what norm, exp1 and act count
     :param appraiser: a ready appraiser to use instead of building one from ``act`` and ``units``
@@ -94,6 +97,7 @@ class EmotionCallback(BaseCallback):
         warn_after: int | None = 20,
         position: PositionSpec = None,
         verbose: int = 0,
+        order: str = "table",
     ) -> None:
         super().__init__(verbose)
         self.position = check_position(position)
@@ -103,9 +107,10 @@ class EmotionCallback(BaseCallback):
             raise TypeError(f"goal must be a callable goal(reward, info) -> bool, got {goal!r}")
         self.goal: GoalTest = positive_terminal_reward if goal is None else goal
         self.comparison = comparison
+        self.order = order
         self.act = act
         self.units = units
-        self.emotion_rule: EmotionRule = emotion_rule if emotion_rule is not None else make_table_ii(comparison)
+        self.emotion_rule: EmotionRule = emotion_rule if emotion_rule is not None else make_table_ii(comparison, order)
         self.appraiser: Appraiser | None = appraiser
         if appraiser is None:
             Appraiser(1, act=act, units=units)  # validate the options now, with a clear error
@@ -159,7 +164,7 @@ class EmotionCallback(BaseCallback):
                 position.bind(venv, space)
             self.bind(position.n_cells)
             return
-        if getattr(self.emotion_rule, "table_ii_comparison", None) is not None:
+        if getattr(self.emotion_rule, "table_ii_reading", None) is not None:
             raise TypeError(
                 f"EmotionCallback: {type(space).__name__} observations have no cells and no position= hook was given, so "
                 "the appraisal has no map and act (the known distance to the goal) is never known; Table II "

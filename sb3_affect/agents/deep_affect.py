@@ -17,11 +17,14 @@ action; there is no epsilon) and its speed k:
 
 The repeats, the waits and their logging are ``sb3_affect.agents.action_repeat.ActionRepeat``'s, which the exploration
 controls of ``sb3_affect.agents.deep_controls`` share: the emotions are one decision rule among them. Everything else
-is SB3's loop: ``learning_starts`` warms the buffer up with SB3's uniformly random actions (the appraisal watches
-them), the buffer stores the executed action, and training, target updates, saving and loading are the base
-algorithm's. Logged besides ``affect/*`` (the emotion profile, from the callback): ``affect/random_share``
-(the share of decisions after ``learning_starts`` that took a random action, the equivalent epsilon, also logged as
-``rollout/exploration_rate``) and ``affect/mean_repeat`` (their mean speed k), over the decisions since the last log.
+is SB3's loop: ``learning_starts`` warms the buffer up with SB3's uniformly random actions (the appraisal learns from
+them; the emotions felt then stay out of the emotion profile), the buffer stores the executed action, and training and
+target updates are the base algorithm's. ``save`` adds the emotion callback (its settings, each env's appraisal, the
+episode log: ``sb3_affect.agents.affect_state``) and ``load`` unpickles nothing unless asked
+(``sb3_affect.agents.deep_model_files``). The episode log is ``model.episode_log``. Logged besides ``affect/*``
+(the emotion profile, from the callback): ``affect/random_share`` (the share of decisions after ``learning_starts``
+that took a random action, the equivalent epsilon, also logged as ``rollout/exploration_rate``) and
+``affect/mean_repeat`` (their mean speed k), over the decisions since the last log.
 """
 
 from __future__ import annotations

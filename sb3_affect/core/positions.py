@@ -175,7 +175,15 @@ class CallablePosition(Position):
         cell = self.function(observation, {} if info is None else info)
         if isinstance(cell, np.ndarray):
             cell = tuple(cell.reshape(-1).tolist())
-        number = self.numbers.get(cell)
+        try:
+            number = self.numbers.get(cell) if _finite(cell) else -1
+        except TypeError:  # unhashable
+            number = -1
+        if number == -1:
+            raise ValueError(
+                f"position={self.name}: the callable returned {repr(cell)[:80]}, which is not a cell; a cell is a hashable "
+                "value without NaN or infinity in it (e.g. an int, or a tuple of ints)"
+            )
         if number is None:
             if len(self.numbers) >= MAX_MAPPED_CELLS:
                 raise ValueError(f"position={self.name}: more than {MAX_MAPPED_CELLS:,} distinct cells; a map allows no more")
@@ -189,6 +197,15 @@ class CallablePosition(Position):
         else:
             rows = list(np.asarray(observations))
         return [self.cell_of(row, infos[index] if index < len(infos) else {}) for index, row in enumerate(rows)]
+
+
+def _finite(cell: Any) -> bool:
+    """Whether a cell holds no NaN or infinity (each NaN is a new dict key: every step would be a new cell)."""
+    if isinstance(cell, (float, np.floating, complex)):
+        return bool(np.isfinite(cell))
+    if isinstance(cell, (tuple, frozenset)):
+        return all(_finite(part) for part in cell)
+    return True
 
 
 PositionSpec = str | Callable[[Any, dict[str, Any]], Hashable] | Position | None
