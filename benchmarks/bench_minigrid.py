@@ -6,7 +6,8 @@ The MiniGrid figures of ``benchmarks/bench.py --minigrid`` (needs the ``[minigri
   the emotions is ``1 - AffectDQN / DQN`` (target: at most 10%);
 * ``QLearning`` and ``AffectQ`` (Python engine: the compiled engine runs the package's grids only) on
   ``TabularMiniGrid(MiniGrid-Empty-8x8)``: decisions per second of ``learn`` against a bare loop over the same env
-  (epsilon-greedy Q-learning in plain Python), in paired rounds.
+  (epsilon-greedy Q-learning in plain Python), in paired rounds;
+* the compiled MiniGrid's step (``sb3_affect.minigrid_vec_env``) beside minigrid's (``benchmarks/bench_minigrid_step.py``).
 
     python benchmarks/bench_minigrid.py [--smoke] [--repeats N]
 """
@@ -105,12 +106,15 @@ def minigrid_rows(repeats: int, smoke: bool = False) -> list[tuple[str, float, s
     q_ratio = statistics.median(r["q"] / r["bare"] for r in rounds)
     a_ratio = statistics.median(r["a"] / r["bare"] for r in rounds)
     what = f"{ENV_ID}, FlatObsWrapper, 4 envs, {deep_steps:,} steps"
+    from bench_minigrid_step import step_rows  # type: ignore[import-not-found]
+
     return [
         (f"DQN.learn, {what} (env steps/s)", rate["dqn"], "reference"),
         (f"AffectDQN.learn, {what} (env steps/s)", rate["affect"], f"cost of the emotions {cost:.1%} (target <= 10%)"),
         (f"bare loop on TabularMiniGrid({ENV_ID}) (decisions/s)", rate["bare"], "floor"),
         ("QLearning.learn on TabularMiniGrid, Python engine (decisions/s)", rate["q"], f"{q_ratio:.2f} x bare"),
         ("AffectQ.learn on TabularMiniGrid, Python engine (decisions/s)", rate["a"], f"{a_ratio:.2f} x bare"),
+        *step_rows(repeats, smoke),
     ]
 
 

@@ -40,3 +40,4 @@ def test_benchmark_minigrid_smoke_run_writes_its_rows(tmp_path: Path) -> None:
     names = [row["measure"] for row in csv.DictReader(out.open())]
     assert any(n.startswith("AffectDQN.learn, MiniGrid") for n in names)
     assert any(n.startswith("AffectQ.learn on TabularMiniGrid") for n in names)
+    assert any(n.startswith("minigrid_vec_env step, MiniGrid-DoorKey-8x8-v0") for n in names)

@@ -134,6 +134,15 @@ def test_equals_farama_on_1000_seeds(env_id: str) -> None:
         run_both(farama, compiled, random_actions(first_seed), 12)
 
 
+@pytest.mark.parametrize("env_id", sorted(set(MINIGRID_TASKS) - set(TASKS)))
+def test_every_other_task_equals_farama(env_id: str) -> None:
+    farama, compiled = both(env_id, 20, 5000)
+    assert np.array_equal(compiled.reset(), farama.reset())
+    assert_same_layouts(farama, compiled)
+    run_both(farama, compiled, random_actions(3), 20)
+    run_both(farama, compiled, mostly_scripted(4), 20)
+
+
 @pytest.mark.parametrize("env_id", TASKS)
 def test_equals_farama_to_the_goal_and_the_time_limit(env_id: str) -> None:
     farama, compiled = both(env_id, 6, 2024)

@@ -88,17 +88,22 @@ class MiniGridVecEnv(VecEnv):
         #: Each env's last observation of the episode that ended at the last step (rows where ``dones``).
         self.terminal_observations = self._obs.copy()
         self._rewards = np.zeros(n, dtype=np.float32)
-        self._terminated = np.zeros(n, dtype=bool)
-        self._truncated = np.zeros(n, dtype=bool)
-        self._actions = np.zeros(n, dtype=np.int64)
+        self._terminated, self._truncated, self._dones = (np.zeros(n, dtype=bool) for _ in range(3))
+        self._lengths = np.zeros(n, dtype=np.int64)  # the length of each episode that ended at the last step
+        self._actions: Any = None
+        self._ended = 0  # how many episodes ended at the last step
         self._started = False
         # the Monitor's records, per env
         self._t_start = time.time()
         self._episode_rewards: list[list[float]] = [[] for _ in range(n)]
         self._episode_lengths: list[list[int]] = [[] for _ in range(n)]
         self._episode_times: list[list[float]] = [[] for _ in range(n)]
-        self._total_steps = np.zeros(n, dtype=np.int64)
-        self._lengths = np.zeros(n, dtype=np.int64)
+        self._abandoned = np.zeros(n, dtype=np.int64)  # the steps of episodes cut short by reset()
+        # step_worlds's arguments before and after the actions
+        self._task_args = (task.layout, task.see_through_walls, task.max_steps)
+        self._buffers = (*self.worlds, self._obs, self._rewards, self._terminated, self._truncated, self._dones,
+                         self._lengths, self.terminal_observations)
+        self._getters = self._attributes()
         observation_space = spaces.Box(low=0, high=255, shape=(size,), dtype=np.uint8)
         super().__init__(n, observation_space, spaces.Discrete(N_ACTIONS))
         if seed is not None:
@@ -111,55 +116,55 @@ class MiniGridVecEnv(VecEnv):
         for index, seed in enumerate(self._seeds):  # set at the first reset (__init__ calls seed), then None
             if seed is not None:
                 self.worlds.rng[index] = seeded_state(seed)
+        if self._started:
+            self._abandoned += self.worlds.agent[:, STEP_COUNT]
         task = self.task
         reset_worlds(task.layout, task.see_through_walls, np.ones(self.num_envs, dtype=bool), *self.worlds, self._obs)
         self._started = True
-        self._lengths[:] = 0
         self._reset_seeds()
         self._reset_options()
         self.reset_infos = [{} for _ in range(self.num_envs)]
         return self._obs.copy()
 
     def step_async(self, actions: np.ndarray) -> None:
-        self._actions = self._check_actions(actions)
+        self._actions = actions
 
     def step_wait(self) -> VecEnvStepReturn:
         obs, rewards, terminated, truncated = self.step_arrays(self._actions)
-        dones = terminated | truncated
         infos: list[dict[str, Any]] = [{"TimeLimit.truncated": False} for _ in range(self.num_envs)]
-        for index in np.flatnonzero(dones).tolist():
-            infos[index] = {
-                "episode": {"r": round(self._episode_rewards[index][-1], 6), "l": self._episode_lengths[index][-1],
-                            "t": round(self._episode_times[index][-1], 6)},
-                "TimeLimit.truncated": bool(truncated[index] and not terminated[index]),
-                "terminal_observation": self.terminal_observations[index].copy(),
-            }
-        return obs.copy(), rewards.copy(), dones, infos
+        if self._ended:
+            for index in np.flatnonzero(self._dones).tolist():
+                infos[index] = {
+                    "episode": {"r": round(self._episode_rewards[index][-1], 6), "l": self._episode_lengths[index][-1],
+                                "t": round(self._episode_times[index][-1], 6)},
+                    "TimeLimit.truncated": bool(truncated[index] and not terminated[index]),
+                    "terminal_observation": self.terminal_observations[index].copy(),
+                }
+        return obs.copy(), rewards.copy(), self._dones.copy(), infos
 
     def step_arrays(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """
-        One step of every env with ``actions`` (one integer per env), without building info dicts: returns
-        ``(observations, rewards, terminated, truncated)``, arrays of ``num_envs`` rows (uint8, float32, bool, bool).
-        An env whose episode ended has already been reset: its row of ``observations`` is the next episode's first
-        observation and its last one is in ``self.terminal_observations``. The arrays are this env's own buffers,
-        overwritten by the next step: copy what you keep. The ``Monitor``'s records (``env_method``) are kept.
+        One step of every env with ``actions`` (one integer per env; an int64 array of ``num_envs`` is taken as it
+        is), without building info dicts: returns ``(observations, rewards, terminated, truncated)``, arrays of
+        ``num_envs`` rows (uint8, float32, bool, bool). An env whose episode ended has already been reset: its row of
+        ``observations`` is the next episode's first observation and its last one is in ``self.terminal_observations``.
+        The arrays are this env's own buffers, overwritten by the next step: copy what you keep. The ``Monitor``'s
+        records (``env_method``) are kept.
         """
         if not self._started:
             raise RuntimeError("minigrid_vec_env: call reset() before step()")
-        actions = self._check_actions(actions)
-        task = self.task
-        step_worlds(task.layout, task.see_through_walls, task.max_steps, actions, *self.worlds, self._obs, self._rewards,
-                    self._terminated, self._truncated, self.terminal_observations)
-        self._total_steps += 1
-        self._lengths += 1
-        ended = np.flatnonzero(self._terminated | self._truncated)
-        if ended.size:
+        if not (type(actions) is np.ndarray and actions.dtype == np.int64 and actions.shape == self._dones.shape):
+            actions = self._check_actions(actions)
+        ended = step_worlds(*self._task_args, actions, *self._buffers)
+        if ended < 0:
+            raise _bad_action(actions[-1 - ended].item(), -1 - ended)
+        self._ended = ended
+        if ended:
             now = time.time() - self._t_start
-            for index in ended.tolist():
+            for index in np.flatnonzero(self._dones).tolist():
                 length = int(self._lengths[index])
-                self._lengths[index] = 0
                 # the Monitor's sum of the episode's rewards: 0 until the goal's 1 - 0.9 * step_count / max_steps
-                reward = 1 - 0.9 * (length / task.max_steps) if self._terminated[index] else 0.0
+                reward = 1 - 0.9 * (length / self.task.max_steps) if self._terminated[index] else 0.0
                 self._episode_rewards[index].append(reward)
                 self._episode_lengths[index].append(length)
                 self._episode_times[index].append(now)
@@ -171,10 +176,9 @@ class MiniGridVecEnv(VecEnv):
             raise ValueError(f"minigrid_vec_env: {array.size} actions for {self.num_envs} envs")
         flat = array.reshape(self.num_envs)
         ints = flat.astype(np.int64)
-        bad = np.flatnonzero((ints != flat) | (ints < 0) | (ints >= N_ACTIONS))
+        bad = np.flatnonzero(ints != flat)
         if bad.size:
-            value = flat[bad[0]].item()
-            raise ValueError(f"minigrid_vec_env: action {value!r} of env {bad[0]} is not a MiniGrid action (0..6)")
+            raise _bad_action(flat[bad[0]].item(), int(bad[0]))
         return ints
 
     def close(self) -> None:
@@ -198,14 +202,11 @@ class MiniGridVecEnv(VecEnv):
         }
 
     def get_attr(self, attr_name: str, indices: VecEnvIndices = None) -> list[Any]:
-        if attr_name == "render_mode":  # asked by VecEnv.__init__, before the worlds exist
-            return [None for _ in self._get_indices(indices)]
-        attributes = self._attributes()
-        if attr_name not in attributes:
+        getter = self._getters.get(attr_name)
+        if getter is None:
             raise AttributeError(
-                f"minigrid_vec_env: its envs have no attribute {attr_name!r}; it gives {', '.join(sorted(attributes))}"
+                f"minigrid_vec_env: its envs have no attribute {attr_name!r}; it gives {', '.join(sorted(self._getters))}"
             )
-        getter = attributes[attr_name]
         return [getter(index) for index in self._get_indices(indices)]
 
     def set_attr(self, attr_name: str, value: Any, indices: VecEnvIndices = None) -> None:
@@ -218,7 +219,7 @@ class MiniGridVecEnv(VecEnv):
             "get_episode_rewards": lambda i: list(self._episode_rewards[i]),
             "get_episode_lengths": lambda i: list(self._episode_lengths[i]),
             "get_episode_times": lambda i: list(self._episode_times[i]),
-            "get_total_steps": lambda i: int(self._total_steps[i]),
+            "get_total_steps": self._total_steps,
         }
         if method_name not in methods or method_args or method_kwargs:
             raise AttributeError(
@@ -226,6 +227,10 @@ class MiniGridVecEnv(VecEnv):
                 "without arguments"
             )
         return [methods[method_name](index) for index in self._get_indices(indices)]
+
+    def _total_steps(self, index: int) -> int:
+        """The ``Monitor``'s ``total_steps``: every step of the env, of episodes ended, cut short and under way."""
+        return int(self._abandoned[index] + sum(self._episode_lengths[index]) + self.worlds.agent[index, STEP_COUNT])
 
     def env_is_wrapped(self, wrapper_class: type[gym.Wrapper], indices: VecEnvIndices = None) -> list[bool]:
         wrapped = issubclass(Monitor, wrapper_class) or wrapper_class in _gymnasium_wrappers()
@@ -238,6 +243,10 @@ class MiniGridVecEnv(VecEnv):
 
     def render(self, mode: str | None = None) -> np.ndarray | None:
         raise NotImplementedError("minigrid_vec_env renders no images; make_vec_env(env_id, ...) on Farama's env does")
+
+
+def _bad_action(value: Any, index: int) -> ValueError:
+    return ValueError(f"minigrid_vec_env: action {value!r} of env {index} is not a MiniGrid action (0..6)")
 
 
 def _gymnasium_wrappers() -> tuple[type, ...]:

@@ -1,16 +1,16 @@
 """
 The agent's 7 x 7 view of a MiniGrid world, as ``MiniGridEnv.gen_obs`` encodes it (Farama's ``minigrid``), in numba.
 
-A world is a ``(width, height, 3)`` uint8 array of cell encodings, indexed ``[x, y]`` like ``Grid.encode()``: an empty
-cell is ``(1, 0, 0)`` (``OBJECT_TO_IDX["empty"]``), a wall ``(2, 5, 0)``, a door ``(4, color, state)`` (state 0 open,
-1 closed, 2 locked), a key ``(5, color, 0)``, a goal ``(8, 1, 0)``. ``write_view`` gives, for the agent at ``(x, y)``
-facing ``direction``, what ``gen_obs_grid`` and ``Grid.encode(vis_mask)`` give: the view's cell ``(i, j)`` (``i``
-across, ``j`` from the far row 0 to the agent's row 6, the agent at ``(3, 6)`` facing up) is the world's cell
-``agent + forward * (6 - j) + right * (i - 3)`` (``get_view_coords`` inverted, which is the slice and the
-``agent_dir + 1`` left rotations), a wall outside the world; with ``see_through_walls`` False, ``Grid.process_vis``
-hides what walls and closed doors occlude (the cells it does not reach are ``(0, 0, 0)``, "unseen"); the agent's own
-cell shows what it carries, else empty. The 147 values are written in ``image.flatten()`` order, ``(i * 7 + j) * 3 + c``:
-the first 147 entries of ``FlatObsWrapper``'s vector.
+A world is a ``(width, height, 3)`` uint8 array of cell encodings (row ``n`` of a batch's ``grid``), indexed ``[x, y]``
+like ``Grid.encode()``: an empty cell is ``(1, 0, 0)`` (``OBJECT_TO_IDX["empty"]``), a wall ``(2, 5, 0)``, a door
+``(4, color, state)`` (state 0 open, 1 closed, 2 locked), a key ``(5, color, 0)``, a goal ``(8, 1, 0)``.
+``write_view`` gives, for the agent at ``(x, y)`` facing ``direction``, what ``gen_obs_grid`` and
+``Grid.encode(vis_mask)`` give: the view's cell ``(i, j)`` (``i`` across, ``j`` from the far row 0 to the agent's row
+6, the agent at ``(3, 6)`` facing up) is the world's cell ``agent + forward * (6 - j) + right * (i - 3)``
+(``get_view_coords`` inverted, which is the slice and the ``agent_dir + 1`` left rotations), a wall outside the world;
+with ``see_through_walls`` False, ``Grid.process_vis`` hides what walls and closed doors occlude (the cells it does not
+reach are ``(0, 0, 0)``, "unseen"); the agent's own cell shows what it carries, else empty. The 147 values are written
+in ``image.flatten()`` order, ``(i * 7 + j) * 3 + c``: the first 147 entries of ``FlatObsWrapper``'s vector.
 """
 
 from __future__ import annotations

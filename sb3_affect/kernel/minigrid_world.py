@@ -218,18 +218,21 @@ def reset_worlds(layout: int, see_through: bool, which: np.ndarray, grid: np.nda
 @kernel_jit
 def step_worlds(layout: int, see_through: bool, max_steps: int, actions: np.ndarray, grid: np.ndarray, agent: np.ndarray,
                 carry: np.ndarray, rng: np.ndarray, obs: np.ndarray, rewards: np.ndarray, terminated: np.ndarray,
-                truncated: np.ndarray, terminal_obs: np.ndarray) -> int:
+                truncated: np.ndarray, dones: np.ndarray, lengths: np.ndarray, terminal_obs: np.ndarray) -> int:
     """
     One ``step`` of every world with ``actions[n]``, then, as SB3's VecEnvs do, a ``reset`` of each world whose
-    episode ended: ``rewards`` (float64), ``terminated``, ``truncated`` and ``obs[n, :147]`` (the first observation of
-    the next episode where one ended, whose last observation is then in ``terminal_obs[n, :147]``).
+    episode ended: ``rewards`` (float32), ``terminated``, ``truncated``, ``dones`` (either) and ``obs[n, :147]`` (the
+    first observation of the next episode where one ended, whose last observation is then in ``terminal_obs[n, :147]``
+    and its length in ``lengths[n]``).
 
-    Returns -1, or the index of the first action outside ``0..6`` (then no world has moved).
+    Returns the number of episodes that ended, or ``-1 - n`` for the first action ``n`` outside ``0..6`` (then no world
+    has moved).
     """
     count = actions.shape[0]
     for n in range(count):
         if actions[n] < 0 or actions[n] >= N_ACTIONS:
-            return n
+            return -1 - n
+    ended = 0
     for n in range(count):
         action = actions[n]
         agent[n, STEP_COUNT] += 1
@@ -271,13 +274,16 @@ def step_worlds(layout: int, see_through: bool, max_steps: int, actions: np.ndar
         rewards[n] = reward
         terminated[n] = done
         truncated[n] = agent[n, STEP_COUNT] >= max_steps
-        if done or truncated[n]:
+        dones[n] = done or truncated[n]
+        if dones[n]:
+            ended += 1
+            lengths[n] = agent[n, STEP_COUNT]
             write_view(grid, n, agent[n, AGENT_X], agent[n, AGENT_Y], agent[n, AGENT_DIR], carry, see_through,
                        terminal_obs)
             _reset_one(layout, see_through, n, grid, agent, carry, rng, obs)
         else:
             write_view(grid, n, agent[n, AGENT_X], agent[n, AGENT_Y], agent[n, AGENT_DIR], carry, see_through, obs)
-    return -1
+    return ended
 
 
 def warm_up() -> None:
@@ -290,5 +296,6 @@ def warm_up() -> None:
         worlds.rng[0] = seeded_state(0)
         obs, terminal = np.zeros((1, VIEW_SIZE), dtype=np.uint8), np.zeros((1, VIEW_SIZE), dtype=np.uint8)
         reset_worlds(task.layout, task.see_through_walls, np.ones(1, dtype=np.bool_), *worlds, obs)
+        flags = [np.zeros(1, dtype=np.bool_) for _ in range(3)]
         step_worlds(task.layout, task.see_through_walls, task.max_steps, np.zeros(1, dtype=np.int64), *worlds, obs,
-                    np.zeros(1), np.zeros(1, dtype=np.bool_), np.zeros(1, dtype=np.bool_), terminal)
+                    np.zeros(1, dtype=np.float32), *flags, np.zeros(1, dtype=np.int64), terminal)
