@@ -72,7 +72,7 @@ def test_runs_that_never_succeed_are_censored_at_the_budget_not_dropped(tmp_path
     reached = [1000, 2000, 3000, 4000]
     folder = write_folder(tmp_path / "f", {a["name"]: curves(0.5, seeds=7) for a in AGENTS},
                           {"dqn-linear": reached + [None] * 3, "affective": reached + reached[:3], "matched": [None] * 7})
-    table = deep.first_success_table(deep.run_scores(deep.load_deep(folder)))
+    table = deep.first_success_table(deep.run_scores(deep.load_deep(folder))).loc[deep.CLOCKS[0][2]]
     assert table.loc[("Empty-8x8", "dqn-linear"), ["runs", "reached", "censored"]].tolist() == [7, 4, 3]
     assert table.loc[("Empty-8x8", "matched"), ["reached", "censored"]].tolist() == [0, 7]
     # 3 of 7 runs censored at the budget: the Kaplan-Meier curve falls below one half at the 4th event, 4,000 steps;
@@ -82,6 +82,19 @@ def test_runs_that_never_succeed_are_censored_at_the_budget_not_dropped(tmp_path
     assert table.loc[("Empty-8x8", "matched"), "KM median"] == f"> {BUDGET:,}"
     # the restricted mean counts a censored run at the budget
     assert table.loc[("Empty-8x8", "matched"), "RMST"] == pytest.approx(BUDGET)
+
+
+def test_the_first_greedy_success_is_the_first_evaluation_with_a_success_and_never_is_censored(tmp_path: Path) -> None:
+    success = curves(0.0, seeds=7)
+    for seed, evaluation in enumerate([0, 0, 1, 1, 2, None, None]):  # the evaluation at which each run first succeeds
+        if evaluation is not None:
+            success[seed, evaluation:] = 0.05
+    folder = write_folder(tmp_path / "f", {"dqn-linear": success, "affective": curves(1.0, seeds=7),
+                                           "matched": curves(0.0, seeds=7)}, {a["name"]: [500] * 7 for a in AGENTS})
+    table = deep.first_success_table(deep.run_scores(deep.load_deep(folder))).loc[deep.CLOCKS[1][2]]
+    assert table.loc[("Empty-8x8", "dqn-linear"), ["reached", "censored", "KM median"]].tolist() == [5, 2, "20,000"]
+    assert table.loc[("Empty-8x8", "affective"), "KM median"] == f"{EVERY:,}"
+    assert table.loc[("Empty-8x8", "matched"), ["reached", "censored", "KM median"]].tolist() == [0, 7, f"> {BUDGET:,}"]
 
 
 @pytest.mark.parametrize(("affective", "matched", "word", "versus"), [(1.0, 0.0, "above", "below"),
