@@ -41,8 +41,8 @@ from sb3_affect.kernel.minigrid_world import (
     AGENT_DIR,
     AGENT_X,
     AGENT_Y,
+    MINIGRID_ACTIONS,
     MINIGRID_TASKS,
-    N_ACTIONS,
     STEP_COUNT,
     new_worlds,
     reset_worlds,
@@ -105,7 +105,7 @@ class MiniGridVecEnv(VecEnv):
                          self._lengths, self.terminal_observations)
         self._getters = self._attributes()
         observation_space = spaces.Box(low=0, high=255, shape=(size,), dtype=np.uint8)
-        super().__init__(n, observation_space, spaces.Discrete(N_ACTIONS))
+        super().__init__(n, observation_space, spaces.Discrete(MINIGRID_ACTIONS))
         if seed is not None:
             self.action_space.seed(int(seed))
         self.seed(None if seed is None else int(seed))

@@ -48,7 +48,7 @@ from sb3_affect.kernel.pcg64 import STATE_SIZE, integers
 EMPTY_FIXED, EMPTY_RANDOM, FOUR_ROOMS, DOOR_KEY = range(4)
 #: ``minigrid.core.actions.Actions``.
 LEFT, RIGHT, FORWARD, PICKUP, DROP, TOGGLE, DONE = range(7)
-N_ACTIONS = 7
+MINIGRID_ACTIONS = 7
 #: The columns of ``Worlds.agent``.
 AGENT_X, AGENT_Y, AGENT_DIR, STEP_COUNT = range(4)
 
@@ -230,7 +230,7 @@ def step_worlds(layout: int, see_through: bool, max_steps: int, actions: np.ndar
     """
     count = actions.shape[0]
     for n in range(count):
-        if actions[n] < 0 or actions[n] >= N_ACTIONS:
+        if actions[n] < 0 or actions[n] >= MINIGRID_ACTIONS:
             return -1 - n
     ended = 0
     for n in range(count):
