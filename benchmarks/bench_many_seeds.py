@@ -162,6 +162,7 @@ def equivalence(n_seeds: int, steps: int, every: int, episodes: int, margin: flo
 
 
 def main(argv: list[str] | None = None) -> int:
+    global ENV_ID
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--smoke", action="store_true", help="tiny sizes: checks the script runs")
     parser.add_argument("--steps", type=int, default=None, help="env steps per seed (speed 8,000; equivalence 20,000)")
@@ -171,7 +172,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--every", type=int, default=5000)
     parser.add_argument("--episodes", type=int, default=10)
     parser.add_argument("--margin", type=float, default=0.1)
+    parser.add_argument("--env", default=ENV_ID, help=f"the MiniGrid task (default {ENV_ID})")
     args = parser.parse_args(argv)
+    ENV_ID = args.env
     if args.equivalence:
         steps = args.steps or (2000 if args.smoke else 20_000)
         equivalence(3 if args.smoke else args.seeds, steps, 1000 if args.smoke else args.every,
