@@ -162,7 +162,8 @@ class EmotionCallback(BaseCallback):
         if position is not None:
             if venv is not None:
                 position.bind(venv, space)
-            self.bind(position.n_cells)
+            if venv is not None or position.n_cells:  # a position sized by its env (minigrid) waits for one: a model
+                self.bind(position.n_cells)  # loaded without an env keeps its saved appraiser until it gets one
             return
         if getattr(self.emotion_rule, "table_ii_reading", None) is not None:
             raise TypeError(

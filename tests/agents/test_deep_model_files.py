@@ -172,3 +172,24 @@ def test_a_custom_emotion_rule_loads_only_through_sb3s_loader(tmp_path: Path) ->
     loaded = AffectDQN.load(tmp_path / "model.zip", safe=False)  # the user trusts the file
     assert loaded.emotion_callback.emotion_rule(None) == Emotion.FEAR
     assert loaded.episode_log.equals(model.episode_log)
+
+
+def test_a_minigrid_model_loads_without_an_env_and_keeps_its_appraisal(tmp_path: Path) -> None:
+    """position="minigrid" takes its map's size from the env: a file loaded with no env keeps the saved appraiser."""
+    pytest.importorskip("minigrid")
+    from sb3_affect import minigrid_vec_env
+
+    env = minigrid_vec_env("MiniGrid-Empty-5x5-v0", 2, seed=0, obs="image")
+    model = AffectDQN("MlpPolicy", env, position="minigrid", learning_starts=50, seed=0)
+    model.learn(300)
+    model.save(tmp_path / "m.zip")
+    loaded = AffectDQN.load(tmp_path / "m.zip")
+    saved_cells = model.emotion_callback.appraiser.known.n_states
+    assert loaded.emotion_callback.appraiser.known.n_states == saved_cells == 25
+    assert len(loaded.episode_log) == len(model.episode_log) > 0
+    observation = env.reset()
+    np.testing.assert_array_equal(loaded.predict(observation, deterministic=True)[0],
+                                  model.predict(observation, deterministic=True)[0])
+    loaded.set_env(env)
+    loaded.learn(100, reset_num_timesteps=False)  # the env given later fits the saved map
+    assert loaded.emotion_callback.appraiser.known.n_states == 25
