@@ -444,8 +444,8 @@ def _md_cell(text: str) -> str:
 
 def md_table(frame: pd.DataFrame, digits: int) -> str:
     header, rows = _cells(frame, digits)
-    header = [cell.replace("|", "\\|") for cell in header]  # a cell's own bars (|a - b|) never split the row
-    rows = [[cell.replace("|", "\\|") for cell in row] for row in rows]
+    header = [_md_cell(cell) for cell in header]  # a cell's own bars (|a - b|) never split the row
+    rows = [[_md_cell(cell) for cell in row] for row in rows]
     lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" for _ in header) + "|"]
     lines += ["| " + " | ".join(row) + " |" for row in rows]
     return "\n".join(lines)
