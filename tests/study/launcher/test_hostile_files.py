@@ -265,10 +265,11 @@ def test_status_into_a_closed_pipe_ends_quietly(tmp_path: Path, monkeypatch: pyt
 
 def test_markdown_tables_escape_what_would_break_them(tmp_path: Path) -> None:
     doc = Document("t")
-    doc.table(pd.DataFrame({"agent": ["x|y <b>", "plain"], "runs": [3, 4]}))
+    doc.table(pd.DataFrame({"agent": ["x|y <b>", "P(T<=t) < 1e-300"], "runs": [3, 4]}))
     rows = [line for line in doc.markdown(tmp_path).splitlines() if line.startswith("|")]
     assert len(rows) == 4 and len({len(re.split(r"(?<!\\)\|", row)) for row in rows}) == 1, rows
-    assert "<b>" not in "\n".join(rows) and "x\\|y &lt;b&gt;" in rows[2]
+    assert "<b" not in "\n".join(rows) and "x\\|y &lt;b>" in rows[2]  # a tag's opening < is escaped
+    assert "P(T<=t) < 1e-300" in rows[3]  # a comparison stays as printed
 
 
 def test_the_forensics_figure_draws_samples_equal_to_float_precision(tmp_path: Path) -> None:

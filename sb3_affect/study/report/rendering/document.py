@@ -438,8 +438,12 @@ def _numeric(cell: str) -> bool:
 
 
 def _md_cell(text: str) -> str:
-    """A table cell's text for Markdown: a ``|`` does not end the cell, ``<`` and ``>`` are not HTML, one line."""
-    return text.replace("<", "&lt;").replace(">", "&gt;").replace("|", "\\|").replace("\r", " ").replace("\n", " ")
+    """
+    A table cell's text for Markdown: a ``|`` does not end the cell, a ``<`` that would open an HTML tag is written as
+    ``&lt;`` (a comparison such as ``P(T<=t)`` or ``< 1e-300`` stays as printed), one line.
+    """
+    text = re.sub(r"<(?=[A-Za-z/!?])", "&lt;", text)
+    return text.replace("|", "\\|").replace("\r", " ").replace("\n", " ")
 
 
 def md_table(frame: pd.DataFrame, digits: int) -> str:
