@@ -41,7 +41,7 @@ ENGINE_EPISODES: int | None = None
 #: Further ``--set`` overrides of a part by name, for quick checks (e.g. ``{"forensics": ["reps=2"]}``).
 OVERRIDES: dict[str, list[str]] = {}
 #: The main job's wall time on 2 idle cores, as the help and the docs quote it (measured: see the README).
-MINUTES = "about 6-9 minutes"
+MINUTES = "about 5-9 minutes"
 #: The sweeps after ``PARTS``, in order: the tuning (its rounds in ``OUT/tuning/round<k>``), then the tasks beyond the
 #: paper with the tuned ε: (name of experiments/<name>.yaml and of the results folder, description).
 TUNED_PARTS = tuple((study.name, study.description) for study in STUDIES if study.tuned)
