@@ -21,7 +21,8 @@ the agent's cell; ``env_method`` runs the ``Monitor``'s ``get_episode_rewards``,
 around each env (``Monitor``, ``FlatObsWrapper`` with ``obs="flat"``, Gymnasium's ``OrderEnforcing`` and
 ``PassiveEnvChecker``). Setting attributes and rendering are refused with a one-line error.
 
-``step_arrays(actions)`` is the step without the info dicts, for a trainer that steps many envs itself.
+``step_arrays(actions)`` is the step without the info dicts, for a trainer that steps many envs itself;
+``MiniGridBatch`` steps several such VecEnvs (e.g. one per seed) by one kernel call.
 """
 
 from __future__ import annotations
@@ -44,6 +45,8 @@ from sb3_affect.kernel.minigrid_world import (
     MINIGRID_ACTIONS,
     MINIGRID_TASKS,
     STEP_COUNT,
+    MiniGridTask,
+    Worlds,
     new_worlds,
     reset_worlds,
     step_worlds,
@@ -64,6 +67,22 @@ def mission_one_hot(mission: str) -> np.ndarray:
     return array.reshape(-1)
 
 
+#: ``step_worlds``'s arrays after the actions: the worlds (grid, agent, carry, rng), then the step's buffers
+#: (observations, rewards, terminated, truncated, dones, episode lengths, terminal observations)
+StateArrays = tuple[np.ndarray, ...]
+
+
+def _state_arrays(task: MiniGridTask, obs: str, n: int) -> StateArrays:
+    """Zeroed ``StateArrays`` of ``n`` worlds (the mission's encoding written where ``obs="flat"``)."""
+    size = VIEW_SIZE + (_MISSION_CHARS * _CHAR_CODES if obs == "flat" else 0)
+    observations = np.zeros((n, size), dtype=np.uint8)
+    if obs == "flat":
+        observations[:, VIEW_SIZE:] = mission_one_hot(task.mission)
+    flags = tuple(np.zeros(n, dtype=bool) for _ in range(3))
+    return (*new_worlds(task, n), observations, np.zeros(n, dtype=np.float32), *flags, np.zeros(n, dtype=np.int64),
+            observations.copy())
+
+
 class MiniGridVecEnv(VecEnv):
     """The compiled MiniGrid VecEnv (see the module's docstring); build it with ``minigrid_vec_env``."""
 
@@ -80,18 +99,8 @@ class MiniGridVecEnv(VecEnv):
             raise ValueError(f"minigrid_vec_env: seed={seed!r} must be None or a non-negative integer")
         n = int(n_envs)
         self.env_id, self.task, self.obs = env_id, task, obs
-        self.worlds = new_worlds(task, n)
-        size = VIEW_SIZE + (_MISSION_CHARS * _CHAR_CODES if obs == "flat" else 0)
-        self._obs = np.zeros((n, size), dtype=np.uint8)
-        if obs == "flat":
-            self._obs[:, VIEW_SIZE:] = mission_one_hot(task.mission)
-        #: Each env's last observation of the episode that ended at the last step (rows where ``dones``).
-        self.terminal_observations = self._obs.copy()
-        self._rewards = np.zeros(n, dtype=np.float32)
-        self._terminated, self._truncated, self._dones = (np.zeros(n, dtype=bool) for _ in range(3))
-        self._lengths = np.zeros(n, dtype=np.int64)  # the length of each episode that ended at the last step
+        self._bind(_state_arrays(task, obs, n))
         self._actions: Any = None
-        self._ended = 0  # how many episodes ended at the last step
         self._started = False
         # the Monitor's records, per env
         self._t_start = time.time()
@@ -99,16 +108,21 @@ class MiniGridVecEnv(VecEnv):
         self._episode_lengths: list[list[int]] = [[] for _ in range(n)]
         self._episode_times: list[list[float]] = [[] for _ in range(n)]
         self._abandoned = np.zeros(n, dtype=np.int64)  # the steps of episodes cut short by reset()
-        # step_worlds's arguments before and after the actions
-        self._task_args = (task.layout, task.see_through_walls, task.max_steps)
-        self._buffers = (*self.worlds, self._obs, self._rewards, self._terminated, self._truncated, self._dones,
-                         self._lengths, self.terminal_observations)
-        self._getters = self._attributes()
-        observation_space = spaces.Box(low=0, high=255, shape=(size,), dtype=np.uint8)
+        self._task_args = (task.layout, task.see_through_walls, task.max_steps)  # step_worlds's before the actions
+        observation_space = spaces.Box(low=0, high=255, shape=self._obs.shape[1:], dtype=np.uint8)
         super().__init__(n, observation_space, spaces.Discrete(MINIGRID_ACTIONS))
         if seed is not None:
             self.action_space.seed(int(seed))
         self.seed(None if seed is None else int(seed))
+
+    def _bind(self, arrays: StateArrays) -> None:
+        """Hold ``arrays`` as the worlds' state and the step's buffers (its own, or its rows of a ``MiniGridBatch``'s)."""
+        self._arrays = arrays
+        self.worlds = Worlds(*arrays[:4])
+        self._obs, self._rewards, self._terminated, self._truncated, self._dones, self._lengths = arrays[4:10]
+        #: Each env's last observation of the episode that ended at the last step (rows where ``dones``).
+        self.terminal_observations = arrays[10]
+        self._getters = self._attributes()
 
     # ---- stepping --------------------------------------------------------------------------------------------------
 
@@ -130,17 +144,25 @@ class MiniGridVecEnv(VecEnv):
         self._actions = actions
 
     def step_wait(self) -> VecEnvStepReturn:
-        obs, rewards, terminated, truncated = self.step_arrays(self._actions)
+        obs, rewards, _, _ = self.step_arrays(self._actions)
+        return obs.copy(), rewards.copy(), self._dones.copy(), self.step_infos()
+
+    def step_infos(self) -> list[dict[str, Any]]:
+        """The infos of the last step, as ``step`` gives them."""
         infos: list[dict[str, Any]] = [{"TimeLimit.truncated": False} for _ in range(self.num_envs)]
-        if self._ended:
+        if self._dones.any():
             for index in np.flatnonzero(self._dones).tolist():
-                infos[index] = {
-                    "episode": {"r": round(self._episode_rewards[index][-1], 6), "l": self._episode_lengths[index][-1],
-                                "t": round(self._episode_times[index][-1], 6)},
-                    "TimeLimit.truncated": bool(truncated[index] and not terminated[index]),
-                    "terminal_observation": self.terminal_observations[index].copy(),
-                }
-        return obs.copy(), rewards.copy(), self._dones.copy(), infos
+                infos[index] = self._ended_info(index)
+        return infos
+
+    def _ended_info(self, index: int) -> dict[str, Any]:
+        """The info of env ``index``, whose episode ended at the last step."""
+        return {
+            "episode": {"r": round(self._episode_rewards[index][-1], 6), "l": self._episode_lengths[index][-1],
+                        "t": round(self._episode_times[index][-1], 6)},
+            "TimeLimit.truncated": bool(self._truncated[index] and not self._terminated[index]),
+            "terminal_observation": self.terminal_observations[index].copy(),
+        }
 
     def step_arrays(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """
@@ -155,20 +177,23 @@ class MiniGridVecEnv(VecEnv):
             raise RuntimeError("minigrid_vec_env: call reset() before step()")
         if not (type(actions) is np.ndarray and actions.dtype == np.int64 and actions.shape == self._dones.shape):
             actions = self._check_actions(actions)
-        ended = step_worlds(*self._task_args, actions, *self._buffers)
+        ended = step_worlds(*self._task_args, actions, *self._arrays)
         if ended < 0:
             raise _bad_action(actions[-1 - ended].item(), -1 - ended)
-        self._ended = ended
         if ended:
-            now = time.time() - self._t_start
-            for index in np.flatnonzero(self._dones).tolist():
-                length = int(self._lengths[index])
-                # the Monitor's sum of the episode's rewards: 0 until the goal's 1 - 0.9 * step_count / max_steps
-                reward = 1 - 0.9 * (length / self.task.max_steps) if self._terminated[index] else 0.0
-                self._episode_rewards[index].append(reward)
-                self._episode_lengths[index].append(length)
-                self._episode_times[index].append(now)
+            self._record_episodes(np.flatnonzero(self._dones).tolist())
         return self._obs, self._rewards, self._terminated, self._truncated
+
+    def _record_episodes(self, indices: list[int]) -> None:
+        """The ``Monitor``'s records of the episodes of envs ``indices``, which ended at the last step."""
+        now = time.time() - self._t_start
+        for index in indices:
+            length = int(self._lengths[index])
+            # the Monitor's sum of the episode's rewards: 0 until the goal's 1 - 0.9 * step_count / max_steps
+            reward = 1 - 0.9 * (length / self.task.max_steps) if self._terminated[index] else 0.0
+            self._episode_rewards[index].append(reward)
+            self._episode_lengths[index].append(length)
+            self._episode_times[index].append(now)
 
     def _check_actions(self, actions: Any) -> np.ndarray:
         array = np.asarray(actions)
@@ -243,6 +268,56 @@ class MiniGridVecEnv(VecEnv):
 
     def render(self, mode: str | None = None) -> np.ndarray | None:
         raise NotImplementedError("minigrid_vec_env renders no images; make_vec_env(env_id, ...) on Farama's env does")
+
+
+class MiniGridBatch:
+    """
+    ``MiniGridVecEnv``s of one task and observation stepped by one kernel call, for a trainer of many seeds: their
+    worlds and step buffers become consecutive rows of shared arrays, each env keeping views of its own rows, so each
+    stays a VecEnv of its own (its ``get_attr``, ``env_method`` and ``Monitor`` records see every batched step).
+
+    :param envs: the VecEnvs, each reset before the first ``step``
+    """
+
+    def __init__(self, envs: Sequence[MiniGridVecEnv]) -> None:
+        self.envs = list(envs)
+        first = self.envs[0]
+        for env in self.envs:
+            if not isinstance(env, MiniGridVecEnv) or (env.env_id, env.obs) != (first.env_id, first.obs):
+                raise ValueError(f"MiniGridBatch: every env must be a minigrid_vec_env of {first.env_id} with "
+                                 f"obs={first.obs!r}, got {env!r}")
+        counts = [env.num_envs for env in self.envs]
+        self.offsets = np.cumsum([0, *counts]).tolist()
+        self._owner = np.repeat(np.arange(len(counts)), counts)
+        self.arrays = _state_arrays(first.task, first.obs, self.offsets[-1])
+        for env, start, stop in zip(self.envs, self.offsets, self.offsets[1:]):
+            for joined, own in zip(self.arrays, env._arrays):
+                joined[start:stop] = own
+            env._bind(tuple(array[start:stop] for array in self.arrays))  # type: ignore[arg-type]
+        self._task_args = first._task_args
+
+    def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """
+        One step of every env, as each env's ``step_arrays``: ``actions`` has one int64 per env (the envs' rows in
+        order); returns the observations, rewards and dones of all envs (this batch's buffers: copy what you keep).
+        """
+        ended = step_worlds(*self._task_args, actions, *self.arrays)
+        if ended < 0:
+            raise _bad_action(actions[-1 - ended].item(), -1 - ended)
+        dones = self.arrays[8]
+        if ended:
+            for row in np.flatnonzero(dones).tolist():
+                owner = int(self._owner[row])
+                self.envs[owner]._record_episodes([row - self.offsets[owner]])
+        return self.arrays[4], self.arrays[5], dones
+
+    def infos(self) -> list[list[dict[str, Any]]]:
+        """Each env's infos of the last step, as its ``step`` gives them."""
+        infos: list[dict[str, Any]] = [{"TimeLimit.truncated": False} for _ in range(self.offsets[-1])]
+        for row in np.flatnonzero(self.arrays[8]).tolist():
+            owner = int(self._owner[row])
+            infos[row] = self.envs[owner]._ended_info(row - self.offsets[owner])
+        return [infos[start:stop] for start, stop in zip(self.offsets, self.offsets[1:])]
 
 
 def _bad_action(value: Any, index: int) -> ValueError:

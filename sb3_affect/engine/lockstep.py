@@ -31,8 +31,9 @@ from typing import Any
 
 import numpy as np
 import torch as th
+from gymnasium import spaces
 from stable_baselines3 import DQN
-from stable_baselines3.common.callbacks import BaseCallback, CallbackList
+from stable_baselines3.common.callbacks import BaseCallback, CallbackList, ConvertCallback
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 
 from sb3_affect.engine.seed_envs import SeedEnvs
@@ -55,7 +56,7 @@ class _StackedPredict:
         model = trainer.models[index]
         if not deterministic and trainer.rngs[index].rand() < model.exploration_rate:
             batch = np.asarray(observation).reshape(-1, *trainer.obs_shape)
-            return np.array([model.action_space.sample() for _ in range(len(batch))]), state
+            return random_actions(model.action_space, len(batch)), state
         if observation is model._last_obs:
             return trainer.greedy()[index].copy(), state
         batch = np.asarray(observation).reshape(1, -1, *trainer.obs_shape)
@@ -64,6 +65,22 @@ class _StackedPredict:
         with th.no_grad():
             q_values = trainer.stack._forward(trainer.stack.features(batch), weights, biases)
         return q_values.argmax(dim=2).numpy()[0], state
+
+
+def random_actions(space: spaces.Space, n: int) -> np.ndarray:
+    """
+    ``np.array([space.sample() for _ in range(n)])``, SB3's random actions, drawn at once from the same generator: a
+    ``Discrete`` space's ``start + np_random.integers(n)`` called n times gives what ``integers(n, size=n)`` gives.
+    """
+    if type(space) is spaces.Discrete:
+        return space.start + space.np_random.integers(space.n, size=n)
+    return np.array([space.sample() for _ in range(n)])
+
+
+def _idle(callback: BaseCallback) -> bool:
+    """Whether SB3's callback is its stand-in for none (an empty list, or ``ConvertCallback(None)``)."""
+    return (isinstance(callback, CallbackList) and not callback.callbacks) or (
+        isinstance(callback, ConvertCallback) and callback.callback is None)
 
 
 def _own(model: DQN, name: str) -> bool:
@@ -104,13 +121,12 @@ class Lockstep:
             pairs = [m._sample_action(learning_starts, None, n_envs) for m in models]
             return np.stack([np.asarray(p[0]).reshape(n_envs) for p in pairs]), np.stack([p[1] for p in pairs])
         if models[0].num_timesteps < learning_starts:
-            actions = np.array([[m.action_space.sample() for _ in range(n_envs)] for m in models])
+            actions = np.stack([random_actions(m.action_space, n_envs) for m in models])
             return actions, actions
         explore = [rng.rand() < m.exploration_rate for rng, m in zip(self.rngs, models)]
         actions = self.greedy().copy() if not all(explore) else np.zeros((self.n_seeds, n_envs), dtype=np.int64)
         for index in np.flatnonzero(explore):
-            model = models[index]
-            actions[index] = [model.action_space.sample() for _ in range(n_envs)]
+            actions[index] = random_actions(models[index].action_space, n_envs)
         return actions, actions
 
     def _store(self, buffer_actions: np.ndarray, new_obs: np.ndarray, rewards: np.ndarray, dones: np.ndarray,
@@ -178,8 +194,7 @@ class Lockstep:
             callback.on_training_start({"self": model, "total_timesteps": total, "callback": callback,
                                         "log_interval": log_interval}, globals())
             callbacks.append(callback)
-        active: list[tuple[int, BaseCallback]] = [
-            (i, c) for i, c in enumerate(callbacks) if not (isinstance(c, CallbackList) and not c.callbacks)]
+        active = [(i, c) for i, c in enumerate(callbacks) if not _idle(c)]
         self.obs = np.stack([m._last_obs for m in models])  # type: ignore[misc]
         self.stack = StackedQ(models)
         frequency = first.train_freq.frequency  # type: ignore[union-attr]

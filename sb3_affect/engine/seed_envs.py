@@ -17,7 +17,7 @@ from gymnasium import spaces
 from stable_baselines3.common.env_util import make_vec_env
 from stable_baselines3.common.vec_env import VecEnv
 
-from sb3_affect.agents.minigrid_vec_env import minigrid_vec_env
+from sb3_affect.agents.minigrid_vec_env import MiniGridBatch, MiniGridVecEnv, minigrid_vec_env
 from sb3_affect.kernel.minigrid_view import VIEW_SIZE
 from sb3_affect.kernel.minigrid_world import MINIGRID_TASKS
 
@@ -51,13 +51,24 @@ def seed_vec_env(env_id: str, n_envs: int, seed: int, obs: str, compiled: bool =
 class SeedEnvs:
     """
     S VecEnvs of E envs each, stepped as one batch: observations ``(S, E, ...)``, rewards and dones ``(S, E)`` and the
-    infos as one list of E dicts per seed.
+    infos as one list of E dicts per seed. Compiled MiniGrid VecEnvs of one task are stepped by one kernel call
+    (``MiniGridBatch``); others one VecEnv after the other.
     """
 
     def __init__(self, envs: Sequence[VecEnv]) -> None:
         self.envs = list(envs)
+        first = self.envs[0]
+        joined = all(isinstance(env, MiniGridVecEnv) and (env.env_id, env.obs) == (first.env_id, first.obs)  # type: ignore[attr-defined]
+                     for env in self.envs)
+        self.batch = MiniGridBatch(self.envs) if joined else None  # type: ignore[arg-type]
 
     def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[list[dict[str, Any]]]]:
+        """Every seed's ``VecEnv.step`` with its row of ``actions`` ``(S, E)``."""
+        if self.batch is not None:
+            obs, rewards, dones = self.batch.step(np.ascontiguousarray(actions, dtype=np.int64).reshape(-1))
+            shape = actions.shape
+            return (obs.reshape(*shape, -1).copy(), rewards.reshape(shape).copy(), dones.reshape(shape).copy(),
+                    self.batch.infos())
         results = [env.step(a) for env, a in zip(self.envs, actions)]
         obs = np.stack([r[0] for r in results])  # type: ignore[misc]
         rewards = np.stack([r[1] for r in results])

@@ -131,19 +131,19 @@ class StackedQ:
 
     def _clip_gradients(self) -> None:
         """``clip_grad_norm_`` per seed: the 2-norm of the per-parameter 2-norms, each seed's own."""
-        grads = [p.grad for p in self.parameters() if p.grad is not None]
-        norms = th.stack([th.linalg.vector_norm(g.reshape(self.n_seeds, -1), 2, dim=1) for g in grads])
+        grads = [p.grad for p in self.parameters() if p.grad is not None]  # each (S, rows, columns)
+        norms = th.stack([th.linalg.vector_norm(g, 2, dim=(1, 2)) for g in grads])
         total = th.linalg.vector_norm(norms, 2, dim=0)
-        coefficient = th.clamp(self.max_grad_norm / (total + 1e-6), max=1.0)
+        coefficient = th.clamp(self.max_grad_norm / (total + 1e-6), max=1.0).reshape(-1, 1, 1)
         for g in grads:
-            g.mul_(coefficient.reshape(-1, *([1] * (g.dim() - 1))))
+            g.mul_(coefficient)
 
     def update_target(self) -> None:
         """SB3's ``polyak_update`` of the target networks with ``tau``."""
         with th.no_grad():
-            for target, param in zip(self._targets(), self.parameters()):
-                target.mul_(1 - self.tau)
-                th.add(target, param, alpha=self.tau, out=target)
+            targets = self._targets()
+            th._foreach_mul_(targets, 1 - self.tau)
+            th._foreach_add_(targets, self.parameters(), alpha=self.tau)
 
     def write_back(self, models: Sequence[DQN]) -> None:
         """Copy each seed's online and target weights and its optimizer state into its model."""
