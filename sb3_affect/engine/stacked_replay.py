@@ -80,11 +80,13 @@ class StackedReplay:
         for index, rng in enumerate(rngs):
             batch_inds[index] = rng.randint(0, upper_bound, size=batch_size)
             env_indices[index] = rng.randint(0, high=self.n_envs, size=(batch_size,))
-        seeds = np.arange(len(rngs))[:, None]
+        # each array's rows (seed, row, env) flattened: one ``take`` per array
+        flat = (np.arange(len(rngs))[:, None] * self.rows + batch_inds) * self.n_envs + env_indices
         arrays = self.arrays
 
         def gather(name: str) -> np.ndarray:
-            return arrays[name][seeds, batch_inds, env_indices]
+            array = arrays[name]
+            return array.reshape(-1, *array.shape[3:]).take(flat, axis=0)
 
         dones = (gather("dones") * (1 - gather("timeouts")))[..., None]
         parts = (gather("observations"), gather("actions"), gather("next_observations"), dones, gather("rewards")[..., None])
