@@ -24,8 +24,9 @@ import csv
 import os
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -40,56 +41,80 @@ LEARNING: dict[str, Any] = {**SETTINGS, "train_freq": 1, "exploration_fraction":
 AFFECT: dict[str, Any] = dict(position="minigrid", wait_action=6)
 
 
-def _threads() -> None:
+def _threads(n: int = 1) -> None:
     import torch as th
 
-    th.set_num_threads(1)
+    th.set_num_threads(n)
 
 
-def sb3_rate(agent: str, steps: int) -> float:
-    """Env steps per CPU second of ``agent.learn(steps)`` (SB3's loop, Farama's env; the model built outside)."""
+class Rate(NamedTuple):
+    """A run's env steps (all seeds') per CPU second of the process and per wall second."""
+
+    cpu: float
+    wall: float
+
+
+def _timed(run: Callable[[], int]) -> Rate:
+    cpu, wall = time.process_time(), time.perf_counter()
+    steps = run()
+    return Rate(steps / (time.process_time() - cpu), steps / (time.perf_counter() - wall))
+
+
+def sb3_rate(agent: str, steps: int, n_envs: int = N_ENVS, threads: int = 1) -> Rate:
+    """Env steps per second of ``agent.learn(steps)`` (SB3's loop, Farama's env; the model built outside)."""
     from sb3_affect.core.registry import resolve_class
     from sb3_affect.engine.seed_envs import seed_vec_env
 
-    _threads()
+    _threads(threads)
     cls = resolve_class(agent)
     extra = AFFECT if agent == "AffectDQN" else EPSILON
-    model = cls("MlpPolicy", seed_vec_env(ENV_ID, N_ENVS, 0, "image"), seed=0, device="cpu", **SETTINGS, **extra)
-    start = time.process_time()
-    model.learn(steps)
-    return model.num_timesteps / (time.process_time() - start)
+    model = cls("MlpPolicy", seed_vec_env(ENV_ID, n_envs, 0, "image"), seed=0, device="cpu", **SETTINGS, **extra)
+    return _timed(lambda: model.learn(steps).num_timesteps)
 
 
-def trainer_rate(agent: str, n_seeds: int, steps: int) -> float:
-    """Env steps per CPU second, all seeds together, of ``train_many(agent, ..., seeds=range(n_seeds))`` (set-up included)."""
+def trainer_rate(agent: str, n_seeds: int, steps: int, threads: int = 1) -> Rate:
+    """Env steps per second, all seeds together, of ``train_many(agent, ..., seeds=range(n_seeds))`` (set-up included)."""
     from sb3_affect import train_many
 
-    _threads()
+    _threads(threads)
     extra = AFFECT if agent == "AffectDQN" else EPSILON
-    start = time.process_time()
-    models = train_many(agent, ENV_ID, list(range(n_seeds)), N_ENVS, total_timesteps=steps, obs="image",
-                        **SETTINGS, **extra)
-    return sum(m.num_timesteps for m in models) / (time.process_time() - start)
+
+    def run() -> int:
+        models = train_many(agent, ENV_ID, list(range(n_seeds)), N_ENVS, total_timesteps=steps, obs="image",
+                            **SETTINGS, **extra)
+        return sum(m.num_timesteps for m in models)
+
+    return _timed(run)
 
 
 def speed(steps: int, sizes: list[int], out: Path) -> None:
-    rows: list[tuple[str, float, float]] = []
-    base = sb3_rate("DQN", steps)
-    rows.append(("SB3 DQN.learn", base, 1.0))
-    affect = sb3_rate("AffectDQN", steps)
-    rows.append(("SB3 AffectDQN.learn", affect, affect / base))
+    """Every row's rates, and their ratios to SB3's DQN with 1 env (as a user runs it) and with 4 envs, in one run."""
+    rows: list[tuple[str, int, Rate]] = [  # (run, torch threads, rates)
+        ("SB3 DQN.learn, n_envs=1", 1, sb3_rate("DQN", steps, 1, 1)),
+        ("SB3 DQN.learn, n_envs=1", 2, sb3_rate("DQN", steps, 1, 2)),
+        (f"SB3 DQN.learn, n_envs={N_ENVS}", 1, sb3_rate("DQN", steps)),
+        (f"SB3 DQN.learn, n_envs={N_ENVS}", 2, sb3_rate("DQN", steps, threads=2)),
+        (f"SB3 AffectDQN.learn, n_envs={N_ENVS}", 1, sb3_rate("AffectDQN", steps)),
+    ]
     for agent in ("DQN", "AffectDQN"):
         for n_seeds in sizes:
-            rate = trainer_rate(agent, n_seeds, steps)
-            rows.append((f"train_many {agent} S={n_seeds}", rate, rate / base))
-    print(f"{ENV_ID}, obs=image, {N_ENVS} envs per seed, {steps:,} env steps per seed, 1 torch thread, "
-          f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f}")
-    for name, rate, ratio in rows:
-        print(f"  {name:<32} {rate:>10,.0f} env steps per CPU second  {ratio:>7.1f}x SB3's DQN")
+            rows.append((f"train_many {agent}, S={n_seeds}", 1, trainer_rate(agent, n_seeds, steps)))
+        rows.append((f"train_many {agent}, S={sizes[-1]}", 2, trainer_rate(agent, sizes[-1], steps, threads=2)))
+    one = max((rate for name, _, rate in rows if name == "SB3 DQN.learn, n_envs=1"), key=lambda r: r.wall)
+    four = max((rate for name, _, rate in rows if name == f"SB3 DQN.learn, n_envs={N_ENVS}"), key=lambda r: r.wall)
+    print(f"{ENV_ID}, obs=image, {N_ENVS} envs per seed, {steps:,} env steps per seed, {os.cpu_count()} cores, "
+          f"load average {os.getloadavg()[0]:.1f}; ratios to SB3's DQN at its best thread count (the faster wall time)")
+    header = ["run", "torch_threads", "env_steps_per_cpu_s", "env_steps_per_wall_s", "cpu_x_sb3_dqn_1_env",
+              "cpu_x_sb3_dqn_4_envs", "wall_x_sb3_dqn_1_env", "wall_x_sb3_dqn_4_envs"]
+    table = [[name, threads, f"{rate.cpu:.0f}", f"{rate.wall:.0f}", f"{rate.cpu / one.cpu:.1f}", f"{rate.cpu / four.cpu:.1f}",
+              f"{rate.wall / one.wall:.1f}", f"{rate.wall / four.wall:.1f}"] for name, threads, rate in rows]
+    print("  " + " | ".join(header))
+    for row in table:
+        print("  " + " | ".join(map(str, row)))
     with out.open("w", newline="") as handle:
         writer = csv.writer(handle)
-        writer.writerow(["measure", "env_steps_per_cpu_s", "ratio_to_sb3_dqn"])
-        writer.writerows((name, f"{rate:.1f}", f"{ratio:.2f}") for name, rate, ratio in rows)
+        writer.writerow(header)
+        writer.writerows(table)
 
 
 def _evaluate(model: Any, seed: int, episodes: int) -> float:

@@ -19,9 +19,11 @@ Per seed, everything is SB3's, in SB3's order:
   (``rollout/exploration_rate``, ``train/*``, and ``dump_logs`` every ``log_interval`` episodes), the callbacks the
   model adds itself (the emotion callback of ``AffectDQN``).
 
-A model whose class decides its actions or stores its transitions itself (the ``ActionRepeat`` agents: ``AffectDQN``,
-the controls) runs its own ``_sample_action`` and ``_store_transition`` per seed, its ``predict`` answered from the
-stacked networks; plain DQN runs both batched.
+A model whose class decides its actions itself (the ``ActionRepeat`` agents: ``AffectDQN``, the controls) runs its own
+``_sample_action`` per seed, its ``predict`` answered from the stacked networks; plain DQN draws them batched. The
+transitions of all seeds are stored by one write per array, then an ``ActionRepeat`` agent ends the repeats of the
+envs whose episode ended, as its ``_store_transition`` does; a class with another ``_store_transition`` runs its own
+per seed.
 """
 
 from __future__ import annotations
@@ -36,6 +38,7 @@ from stable_baselines3 import DQN
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList, ConvertCallback
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 
+from sb3_affect.agents.action_repeat import ActionRepeat
 from sb3_affect.engine.seed_envs import SeedEnvs
 from sb3_affect.engine.stacked_q import StackedQ
 from sb3_affect.engine.stacked_replay import StackedReplay
@@ -88,6 +91,13 @@ def _own(model: DQN, name: str) -> bool:
     return getattr(type(model), name) is not getattr(OffPolicyAlgorithm, name)
 
 
+def _ends_repeats(model: DQN) -> bool:
+    """Whether the model stores as SB3 does, then ends the repeats of the envs whose episode ended (``ActionRepeat``)."""
+    stores = type(model)._store_transition
+    return stores is ActionRepeat._store_transition and (
+        super(ActionRepeat, model)._store_transition.__func__ is OffPolicyAlgorithm._store_transition)  # type: ignore[misc]
+
+
 class Lockstep:
     """
     SB3's ``learn`` of S DQN models in lockstep (see the module docstring).
@@ -103,7 +113,8 @@ class Lockstep:
         self.obs_shape = self.models[0].observation_space.shape or ()
         self.envs = SeedEnvs([m.get_env() for m in self.models])  # type: ignore[misc]
         self.own_actions = _own(self.models[0], "_sample_action")
-        self.own_storage = _own(self.models[0], "_store_transition")
+        self.ends_repeats = _ends_repeats(self.models[0])
+        self.own_storage = _own(self.models[0], "_store_transition") and not self.ends_repeats
         self._greedy: np.ndarray | None = None
 
     # -- the parts of SB3's loop ---------------------------------------------------------------------------------------
@@ -145,6 +156,9 @@ class Lockstep:
                 next_obs[s, e] = terminal
         timeouts = [[info.get("TimeLimit.truncated", False) for info in seed_infos] for seed_infos in infos]
         self.replay.add(self.obs, next_obs, buffer_actions, rewards, dones, np.array(timeouts))
+        if self.ends_repeats:
+            for model, seed_dones in zip(self.models, dones):
+                model._end_repeats(seed_dones)  # type: ignore[attr-defined]
 
     def _train(self, gradient_steps: int, batch_size: int) -> None:
         """``DQN.train`` of every seed: ``gradient_steps`` batched steps, then SB3's bookkeeping and logs."""
@@ -230,6 +244,9 @@ class Lockstep:
                         models[ended]._update_info_buffer(infos[ended], dones[ended])
                     self._store(buffer_actions, new_obs, rewards, dones, infos)
                     self.obs = new_obs
+                    if self.own_actions and not self.own_storage:  # SB3's _sample_action predicts from _last_obs
+                        for model, obs in zip(models, new_obs):
+                            model._last_obs = obs
                     self._after_step(dones, log_interval)
                 for _, callback in active:
                     callback.on_rollout_end()
