@@ -89,6 +89,7 @@ def trainer_rate(agent: str, n_seeds: int, steps: int, threads: int = 1) -> Rate
 
 def speed(steps: int, sizes: list[int], out: Path) -> None:
     """Every row's rates, and their ratios to SB3's DQN with 1 env (as a user runs it) and with 4 envs, in one run."""
+    trainer_rate("DQN", 2, 400)  # loads the compiled kernels and torch's first calls: no row pays for them
     rows: list[tuple[str, int, Rate]] = [  # (run, torch threads, rates)
         ("SB3 DQN.learn, n_envs=1", 1, sb3_rate("DQN", steps, 1, 1)),
         ("SB3 DQN.learn, n_envs=1", 2, sb3_rate("DQN", steps, 1, 2)),

@@ -11,7 +11,8 @@ product per layer (``torch.baddbmm``) for all S seeds. The gradient step is SB3'
 * each seed's gradient clipped to ``max_grad_norm`` over all its parameters, as ``clip_grad_norm_`` does over
   ``policy.parameters()`` (the norm of the per-parameter norms, ``max_norm / (norm + 1e-6)`` clamped at 1);
 * the policy's optimizer (Adam by default) over the stacked tensors: its update is element-wise and its state is per
-  element, so each seed's slice gets exactly its own optimizer's update.
+  element, so each seed's slice gets exactly its own optimizer's update (run ``foreach``, which computes what the
+  per-tensor loop computes, bit for bit, unless the policy's ``optimizer_kwargs`` choose ``foreach`` or ``fused``).
 
 The results differ from SB3's only by floating-point summation order (a batched product sums in another order than
 one network's ``addmm``).
@@ -70,8 +71,11 @@ class StackedQ:
         for tensor in self.parameters():
             tensor.requires_grad_(True)
         policy = first.policy
+        kwargs = dict(policy.optimizer_kwargs)
+        if not {"foreach", "fused"} & kwargs.keys():
+            kwargs["foreach"] = True  # the same arithmetic as SB3's per-tensor loop, bit for bit, in fewer calls
         self.optimizer: th.optim.Optimizer = policy.optimizer_class(  # type: ignore[call-arg]
-            self.parameters(), lr=first.lr_schedule(1), **policy.optimizer_kwargs)
+            self.parameters(), lr=first.lr_schedule(1), **kwargs)
         self.gamma, self.max_grad_norm, self.tau = float(first.gamma), float(first.max_grad_norm), float(first.tau)
 
     def parameters(self) -> list[th.Tensor]:
