@@ -1,11 +1,12 @@
 """
 ``train_many`` (many seeds of DQN in lockstep, stacked Q-networks) beside SB3's own ``learn`` on MiniGrid-Empty-8x8,
-the 7x7x3 view (``obs="image"``), 4 envs per seed, 1 torch thread per process (needs the ``[minigrid]`` extra).
+the 7x7x3 view (``obs="image"``), 4 envs per seed (needs the ``[minigrid]`` extra).
 
-* speed (default): env steps per CPU second (the process's CPU time, so that other work on a shared machine does not
-  count; one thread, so it is the wall time on an idle core) of SB3's ``DQN`` and ``AffectDQN`` ``learn`` on Farama's
-  env, and of ``train_many`` at S = 1, 8 and 32 seeds (all seeds' env steps, on the compiled MiniGrid), and each
-  figure's ratio to SB3's DQN;
+* speed (default): env steps per CPU second of the process (so that other work on a shared machine counts less) and
+  per wall second, with 1 and with 2 torch threads, of SB3's ``DQN.learn`` on Farama's env with 1 env (as a user runs
+  it) and with 4, SB3's ``AffectDQN.learn`` with 4, and ``train_many`` at S = 1, 8 and 32 seeds (all seeds' env
+  steps, on the compiled MiniGrid, set-up included), each with its ratios to SB3's DQN with 1 env and with 4 (each at
+  the thread count of its faster wall time), all in one run;
 * ``--equivalence``: 20 seeds of SB3's ``DQN.learn`` and of ``train_many`` with the same seeds and settings (both on
   the compiled MiniGrid, equal to Farama's step for step, and training at every VecEnv step), the greedy
   policy evaluated on its own env (seed + 1000) every ``--every`` env steps over ``--episodes`` episodes, each run's
@@ -87,20 +88,57 @@ def trainer_rate(agent: str, n_seeds: int, steps: int, threads: int = 1) -> Rate
     return _timed(run)
 
 
+def gradient_floor(n_seeds: int, repeats: int = 200) -> tuple[float, float]:
+    """
+    CPU milliseconds of one batched gradient step of ``n_seeds`` stacked networks (batch 32, random uint8 views; the
+    forward passes, the loss, backward, clipping and Adam) and of one greedy pass on a VecEnv step's observations
+    (``n_seeds`` x 4): the arithmetic every trainer of these networks pays, whatever its loop.
+    """
+    import torch as th
+    from stable_baselines3 import DQN
+
+    from sb3_affect.engine.seed_envs import seed_vec_env
+    from sb3_affect.engine.stacked_q import StackedQ
+
+    _threads()
+    models = [DQN("MlpPolicy", seed_vec_env(ENV_ID, 1, seed, "image", compiled=True), seed=seed, device="cpu",
+                  learning_rate=SETTINGS["learning_rate"]) for seed in range(n_seeds)]
+    stack = StackedQ(models)
+    rng = np.random.default_rng(0)
+    size, n_obs = SETTINGS["batch_size"], models[0].observation_space.shape[0]  # type: ignore[index]
+    views = [rng.integers(0, 11, size=(n_seeds, size, n_obs), dtype=np.uint8) for _ in range(2)]
+    batch = (th.as_tensor(views[0]), th.as_tensor(rng.integers(7, size=(n_seeds, size, 1))), th.as_tensor(views[1]),
+             th.zeros(n_seeds, size, 1), th.as_tensor(rng.random((n_seeds, size, 1), dtype=np.float32)))
+    observations = views[0][:, :N_ENVS]
+
+    def cpu_ms(run: Callable[[], object]) -> float:
+        for _ in range(10):
+            run()
+        start = time.process_time()
+        for _ in range(repeats):
+            run()
+        return (time.process_time() - start) / repeats * 1e3
+
+    return cpu_ms(lambda: stack.train_step(*batch)), cpu_ms(lambda: stack.greedy(observations))
+
+
 def speed(steps: int, sizes: list[int], out: Path) -> None:
     """Every row's rates, and their ratios to SB3's DQN with 1 env (as a user runs it) and with 4 envs, in one run."""
     trainer_rate("DQN", 2, 400)  # loads the compiled kernels and torch's first calls: no row pays for them
-    rows: list[tuple[str, int, Rate]] = [  # (run, torch threads, rates)
-        ("SB3 DQN.learn, n_envs=1", 1, sb3_rate("DQN", steps, 1, 1)),
-        ("SB3 DQN.learn, n_envs=1", 2, sb3_rate("DQN", steps, 1, 2)),
-        (f"SB3 DQN.learn, n_envs={N_ENVS}", 1, sb3_rate("DQN", steps)),
-        (f"SB3 DQN.learn, n_envs={N_ENVS}", 2, sb3_rate("DQN", steps, threads=2)),
-        (f"SB3 AffectDQN.learn, n_envs={N_ENVS}", 1, sb3_rate("AffectDQN", steps)),
-    ]
+    rows: list[tuple[str, int, Rate]] = []  # (run, torch threads, rates)
+
+    def row(name: str, threads: int, rate: Rate) -> None:
+        rows.append((name, threads, rate))
+        print(f"  ({name}, {threads} torch threads: {rate.cpu:,.0f} per CPU s, {rate.wall:,.0f} per wall s)", flush=True)
+
+    for threads in (1, 2):
+        row("SB3 DQN.learn, n_envs=1", threads, sb3_rate("DQN", steps, 1, threads))
+        row(f"SB3 DQN.learn, n_envs={N_ENVS}", threads, sb3_rate("DQN", steps, threads=threads))
+    row(f"SB3 AffectDQN.learn, n_envs={N_ENVS}", 1, sb3_rate("AffectDQN", steps))
     for agent in ("DQN", "AffectDQN"):
         for n_seeds in sizes:
-            rows.append((f"train_many {agent}, S={n_seeds}", 1, trainer_rate(agent, n_seeds, steps)))
-        rows.append((f"train_many {agent}, S={sizes[-1]}", 2, trainer_rate(agent, sizes[-1], steps, threads=2)))
+            row(f"train_many {agent}, S={n_seeds}", 1, trainer_rate(agent, n_seeds, steps))
+        row(f"train_many {agent}, S={sizes[-1]}", 2, trainer_rate(agent, sizes[-1], steps, threads=2))
     one = max((rate for name, _, rate in rows if name == "SB3 DQN.learn, n_envs=1"), key=lambda r: r.wall)
     four = max((rate for name, _, rate in rows if name == f"SB3 DQN.learn, n_envs={N_ENVS}"), key=lambda r: r.wall)
     print(f"{ENV_ID}, obs=image, {N_ENVS} envs per seed, {steps:,} env steps per seed, {os.cpu_count()} cores, "
@@ -116,6 +154,13 @@ def speed(steps: int, sizes: list[int], out: Path) -> None:
         writer = csv.writer(handle)
         writer.writerow(header)
         writer.writerows(table)
+    step_ms, greedy_ms = gradient_floor(sizes[-1])
+    per_step = N_ENVS * SETTINGS["train_freq"]  # env steps per seed between two gradient steps
+    cap = sizes[-1] * per_step / ((step_ms + SETTINGS["train_freq"] * greedy_ms) / 1e3)
+    print(f"the arithmetic alone, S={sizes[-1]}, 1 torch thread: a batched gradient step {step_ms:.2f} ms of CPU, a "
+          f"greedy pass {greedy_ms:.2f} ms; one gradient step and {SETTINGS['train_freq']} greedy passes per "
+          f"{per_step} env steps of each seed cap any trainer at {cap:,.0f} env steps per CPU second "
+          f"({cap / one.cpu:.0f}x SB3's DQN with 1 env, {cap / four.cpu:.0f}x with {N_ENVS})")
 
 
 def _evaluate(model: Any, seed: int, episodes: int) -> float:

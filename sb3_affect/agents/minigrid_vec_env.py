@@ -293,7 +293,7 @@ class MiniGridBatch:
         for env, start, stop in zip(self.envs, self.offsets, self.offsets[1:]):
             for joined, own in zip(self.arrays, env._arrays):
                 joined[start:stop] = own
-            env._bind(tuple(array[start:stop] for array in self.arrays))  # type: ignore[arg-type]
+            env._bind(tuple(array[start:stop] for array in self.arrays))
         self._task_args = first._task_args
 
     def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -57,10 +57,9 @@ class SeedEnvs:
 
     def __init__(self, envs: Sequence[VecEnv]) -> None:
         self.envs = list(envs)
-        first = self.envs[0]
-        joined = all(isinstance(env, MiniGridVecEnv) and (env.env_id, env.obs) == (first.env_id, first.obs)  # type: ignore[attr-defined]
-                     for env in self.envs)
-        self.batch = MiniGridBatch(self.envs) if joined else None  # type: ignore[arg-type]
+        compiled = [env for env in self.envs if isinstance(env, MiniGridVecEnv)]
+        one_task = len(compiled) == len(self.envs) and len({(env.env_id, env.obs) for env in compiled}) == 1
+        self.batch = MiniGridBatch(compiled) if one_task else None
 
     def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[list[dict[str, Any]]]]:
         """Every seed's ``VecEnv.step`` with its row of ``actions`` ``(S, E)``."""
