@@ -116,6 +116,10 @@ def _finished_batch(out: Path, task: str, agent: str, index: int, seeds: tuple[i
     return record if isinstance(record, dict) and record.get("seeds") == list(seeds) else None
 
 
+def _print(line: str) -> None:
+    print(line, flush=True)
+
+
 def run_deep_study(
     study: DeepStudy,
     out: Path,
@@ -123,7 +127,7 @@ def run_deep_study(
     backend: str = "local",
     ray_address: str | None = None,
     ray_timeout: float = 60.0,
-    log: Callable[[str], None] = print,
+    log: Callable[[str], None] | None = None,
 ) -> DeepSummary:
     """
     Run every batch of ``study`` not yet in ``out`` (tasks x agents, each cell's seeds in batches) on the executor.
@@ -132,11 +136,13 @@ def run_deep_study(
     :param backend: ``"local"`` or ``"ray"`` (one Ray task per batch)
     :param ray_address: the Ray cluster (default: a private instance of ``workers`` CPUs)
     :param ray_timeout: seconds to wait for the Ray cluster to answer
-    :param log: where one line per finished batch and per finished cell goes
+    :param log: where one line per finished batch and per finished cell goes (default: printed at once)
     """
     from sb3_affect.study.launcher.launcher import run_ray
     from sb3_affect.study.launcher.local_pool import run_local
 
+    if log is None:
+        log = _print
     if backend not in BACKENDS:
         raise ValueError(f"backend={backend!r} is not supported; choose {' or '.join(map(repr, BACKENDS))}")
     out = Path(out)
@@ -224,4 +230,4 @@ def deep_status(out: Path) -> list[str]:
             lines.append(f"  {task:16s} {agent.name:24s} {state}")
     planned = len(study.tasks) * len(study.agents)
     return [f"deep study {study.name!r} in {out}: {done_cells}/{planned} cells done (task x agent, "
-            f"{len(study.seeds)} seeds each, {len(batches)} batches per cell)", *lines]
+            f"{len(study.seeds)} seeds each in {len(batches)} batch{'es' if len(batches) > 1 else ''})", *lines]
