@@ -6,6 +6,7 @@ and AffectDQN trained by train_many on the compiled MiniGrid, in batches of seed
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -14,6 +15,7 @@ import yaml
 
 pytest.importorskip("minigrid")
 
+from sb3_affect.study.cli import main
 from sb3_affect.study.launcher.deep_batches import EVAL_SEED_OFFSET
 from sb3_affect.study.launcher.deep_recording import GreedyEvaluation
 from sb3_affect.study.launcher.deep_schema import DeepStudy
@@ -75,7 +77,9 @@ class Interrupt(KeyboardInterrupt):
     pass
 
 
-def test_an_interrupted_study_keeps_its_finished_batches_and_gives_the_cells_of_one_batch(tmp_path: Path) -> None:
+def test_an_interrupted_study_keeps_its_finished_batches_and_gives_the_cells_of_one_batch(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     """Batches of one seed: a Ctrl-C after the first batch loses nothing, and the merged cells equal one batch of both."""
     whole = toy(tmp_path, agents=TOY["agents"][:1])  # type: ignore[index]
     run_deep_study(whole, tmp_path / "whole", workers=1, log=lambda line: None)
@@ -89,6 +93,10 @@ def test_an_interrupted_study_keeps_its_finished_batches_and_gives_the_cells_of_
         run_deep_study(study, tmp_path / "out", workers=1, log=stop_after_first_batch)
     assert batch_path(tmp_path / "out", "Empty-5x5", "dqn-linear", 0).is_file()
     assert deep_status(tmp_path / "out")[1].split()[2:] == ["1/2", "batches", "done"]
+    shutil.copytree(tmp_path / "out", tmp_path / "replicate" / "minigrid_dqn")
+    assert main(["status", str(tmp_path / "replicate")]) == 0  # a replicate folder lists its deep study
+    printed = capsys.readouterr().out
+    assert "0 sweeps and the deep study" in printed and "0/1 cells done (task x agent, 2 seeds each in 2 batches)" in printed
     lines: list[str] = []
     done = run_deep_study(study, tmp_path / "out", workers=1, log=lines.append)
     assert (done.trained, done.batches) == (1, 1) and "batch 2/2 (seeds 1)" in lines[0]
