@@ -37,6 +37,7 @@ from gymnasium import spaces
 from stable_baselines3 import DQN
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList, ConvertCallback
 from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
+from stable_baselines3.common.type_aliases import MaybeCallback
 
 from sb3_affect.agents.action_repeat import ActionRepeat
 from sb3_affect.engine.seed_envs import SeedEnvs
@@ -195,16 +196,17 @@ class Lockstep:
 
     # -- the loop --------------------------------------------------------------------------------------------------
     def learn(self, total_timesteps: int, log_interval: int = 4, every: int = 0,
-              on_models: Callable[[list[DQN]], object] | None = None) -> list[DQN]:
+              on_models: Callable[[list[DQN]], object] | None = None,
+              user_callbacks: Sequence[MaybeCallback] | None = None) -> list[DQN]:
         """
-        ``model.learn(total_timesteps, log_interval=log_interval)`` of every model, in lockstep; ``on_models(models)``
-        each time ``num_timesteps`` passes a multiple of ``every``, where SB3 calls a callback's ``on_step``, with the
-        weights so far written into the models.
+        ``model.learn(total_timesteps, callback=user_callbacks[i], log_interval=log_interval)`` of every model, in
+        lockstep; ``on_models(models)`` each time ``num_timesteps`` passes a multiple of ``every``, after the callbacks'
+        ``on_step``, with the weights so far written into the models.
         """
         models, first = self.models, self.models[0]
         callbacks: list[BaseCallback] = []
-        for model in models:
-            total, callback = model._setup_learn(total_timesteps, None, True, "run", False)
+        for model, given in zip(models, user_callbacks or [None] * len(models)):
+            total, callback = model._setup_learn(total_timesteps, given, True, "run", False)
             callback.on_training_start({"self": model, "total_timesteps": total, "callback": callback,
                                         "log_interval": log_interval}, globals())
             callbacks.append(callback)

@@ -18,7 +18,8 @@ import numpy as np
 from stable_baselines3 import DQN
 from stable_baselines3.common.buffers import ReplayBuffer
 from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
-from stable_baselines3.common.type_aliases import TrainFrequencyUnit
+from stable_baselines3.common.type_aliases import MaybeCallback, TrainFrequencyUnit
+from stable_baselines3.common.vec_env import VecEnv
 
 from sb3_affect.agents.minigrid_vec_env import OBSERVATIONS
 from sb3_affect.engine.lockstep import Lockstep
@@ -106,6 +107,8 @@ def train_many(
     log_interval: int = 4,
     every: int = 0,
     on_models: Callable[[list[Any]], object] | None = None,
+    callbacks: Sequence[MaybeCallback] | None = None,
+    env_wrapper: Callable[[VecEnv], VecEnv] | None = None,
     **algo_kwargs: Any,
 ) -> list[Any]:
     """
@@ -124,7 +127,13 @@ def train_many(
     :param log_interval: ``learn``'s: ``dump_logs`` every this many episodes
     :param every: with ``on_models``: call it each time the env steps per seed pass a multiple of ``every``
     :param on_models: ``on_models(models)``, the models holding the weights so far (e.g. to evaluate the greedy
-        policy during training); called where SB3 calls a callback's ``on_step``
+        policy during training); called after the callbacks' ``on_step`` of the step that passes the multiple
+    :param callbacks: one per seed, in the order of ``seeds``: what ``learn(callback=...)`` takes (a ``BaseCallback``, a
+        list of them, a function, or None), called as ``learn`` calls it (``on_step`` after each VecEnv step, its
+        ``self.locals`` holding the seed's ``actions``, ``new_obs``, ``rewards``, ``dones`` and ``infos``); a callback
+        whose ``on_step`` returns False stops training with an error: every seed runs ``total_timesteps``
+    :param env_wrapper: applied to each seed's VecEnv before its model is built (e.g. a ``VecEnvWrapper`` that shapes
+        the training reward); the wrapped VecEnv keeps the number of envs and the spaces
     :param algo_kwargs: the class's arguments (``policy`` included, ``"MlpPolicy"`` by default), the same for every seed
     :return: the trained models, in the order of ``seeds``
     """
@@ -133,6 +142,11 @@ def train_many(
     n_envs = _count("n_envs", n_envs, 1)
     total_timesteps = _count("total_timesteps", total_timesteps, 1)
     log_interval = _count("log_interval", log_interval, 1)
+    if callbacks is not None and (isinstance(callbacks, (str, bytes)) or not isinstance(callbacks, Sequence)
+                                  or len(callbacks) != len(seed_list)):
+        raise ValueError(f"callbacks must be a list of one callback per seed ({len(seed_list)}), not {callbacks!r}")
+    if env_wrapper is not None and not callable(env_wrapper):
+        raise ValueError(f"env_wrapper={env_wrapper!r} must be a function of a VecEnv returning a VecEnv")
     if on_models is not None:
         every = _count("every", every, 1)
         if not callable(on_models):
@@ -152,7 +166,9 @@ def train_many(
         raise ValueError(f"compiled={compiled!r} must be True or False")
     if not (compiled and env_id in MINIGRID_TASKS):
         _check_farama_env(env_id)
-    models = [cls(policy, seed_vec_env(env_id, n_envs, seed, obs, compiled), seed=seed, device="cpu", **algo_kwargs)
+    wrap = env_wrapper or (lambda env: env)
+    models = [cls(policy, wrap(seed_vec_env(env_id, n_envs, seed, obs, compiled)), seed=seed, device="cpu", **algo_kwargs)
               for seed in seed_list]
     _check_model(models[0])
-    return Lockstep(models, seed_list).learn(total_timesteps, log_interval=log_interval, every=every, on_models=on_models)
+    return Lockstep(models, seed_list).learn(total_timesteps, log_interval=log_interval, every=every, on_models=on_models,
+                                             user_callbacks=callbacks)

@@ -65,8 +65,12 @@ def _cmd_run(args: argparse.Namespace) -> int:
     if isinstance(study, ForensicsStudy):
         return _run_forensics(study, args)
     if isinstance(study, DeepStudy):  # tasks x agents, each cell all its seeds together (study/launcher/deep_study.py)
-        done = run_deep_study(study, Path(args.out), workers=args.workers)
-        print(f"{done.name}: {done.total} cells, {done.reused} already done, {done.seconds:.1f} s -> {done.out_dir}")
+        if args.logs:
+            raise UsageError(f"--logs {args.logs}: the deep study records its own curves and writes no SB3 logs")
+        done = run_deep_study(study, Path(args.out), workers=args.workers, backend=args.backend,
+                              ray_address=args.ray_address, ray_timeout=args.ray_timeout)
+        print(f"{done.name}: {done.total} cells, {done.reused} already done, {done.batches} batches now, "
+              f"{done.seconds:.1f} s -> {done.out_dir}")
         return 0
     summary = run_sweep(
         args.file,
@@ -110,6 +114,7 @@ def _run_forensics(study: ForensicsStudy, args: argparse.Namespace) -> int:
 def _cmd_status(args: argparse.Namespace) -> int:
     from sb3_affect.study.forensics.unit_files import PROTOCOL_FILE, folder_status
     from sb3_affect.study.launcher import ResultsStore
+    from sb3_affect.study.launcher.deep_study import STUDY_FILE
 
     root = _existing_folder(args.dir, "status")
     if ResultsStore(root).saved_sweep() is not None:  # sweep.json, or a copy of it when it was deleted
@@ -118,25 +123,43 @@ def _cmd_status(args: argparse.Namespace) -> int:
     if (root / PROTOCOL_FILE).exists():  # a forensics folder (`sb3-affect run forensics`)
         print(folder_status(root))
         return 0
-    # A `replicate` folder: one sweep folder per part (paper/, dqn/, ...), and the forensics'.
+    if (root / STUDY_FILE).exists():  # a deep study's folder
+        _print_deep_status(root)
+        return 0
+    # A `replicate` folder: one sweep folder per part (paper/, dqn/, ...), the forensics' and the deep study's.
     parts = sorted(p for p in root.iterdir() if (p / "sweep.json").exists())
     studies = sorted(p for p in root.iterdir() if (p / PROTOCOL_FILE).exists())
-    if not parts and not studies:
+    deep = sorted(p for p in root.iterdir() if (p / STUDY_FILE).exists())
+    if not parts and not studies and not deep:
         print(
             f"{root}: no sweep has been run here (no sweep.json, nor sub-folders with one); "
             "start one with `sb3-affect run FILE --out DIR`",
             file=sys.stderr,
         )
         return 2
-    print(f"{root}: {len(parts)} sweeps" + (" and the forensics" if studies else ""))
+    print(f"{root}: {len(parts)} sweeps" + (" and the forensics" if studies else "") + (" and the deep study" if deep else ""))
     for part in parts:
         _print_status(part)
     for folder in studies:
         print(folder_status(folder))
+    for folder in deep:
+        _print_deep_status(folder)
     report = root / "report.html"
     if report.exists():
         print(f"report: {report}")
     return 0
+
+
+def _print_deep_status(root: Path) -> None:
+    from pydantic import ValidationError
+
+    from sb3_affect.study.launcher.deep_study import deep_status
+
+    try:
+        print("\n".join(deep_status(root)))
+    except (ValidationError, TypeError) as error:
+        raise UsageError(f"{root}: its deep_study.json is not a valid deep study ({type(error).__name__}); "
+                         "rerun `sb3-affect run FILE --out DIR` into a new folder") from None
 
 
 def _print_status(root: Path) -> None:
@@ -266,7 +289,7 @@ def build_parser() -> argparse.ArgumentParser:
         "status",
         help="show how far a results folder is",
         description="Count finished and failed runs per agent (each sweep of a `replicate` folder), and whether a "
-        "launcher is using the folder.",
+        "launcher is using the folder; of a deep study, the cells done of planned (task x agent) and each cell's batches.",
     )
     status.add_argument("dir", metavar="DIR", help="a results folder (the --out of `run` or `replicate`)")
     status.set_defaults(func=_cmd_status)

@@ -243,7 +243,7 @@ def _run_part(
 
     study = load_sweep_file(path, overrides, build=False)
     if isinstance(study, DeepStudy):
-        done = run_deep_study(study, folder, workers=executor["workers"])
+        done = run_deep_study(study, folder, **executor)
         return record.part(key, done.seconds, done_before=done.reused, todo=done.trained), None
     if isinstance(study, ForensicsStudy):  # no progress bars of its own in the log: a heartbeat instead
         with _heartbeat(key):

@@ -7,6 +7,7 @@ evaluation envs every ``eval_every`` env steps. ``sweep_file.load_sweep_file`` v
     name: minigrid-dqn
     study: deep
     seeds: [0, 1, 2]            # one run per seed, in every cell
+    seeds_per_batch: 2          # seeds trained together per worker or Ray task (default: all of a cell's)
     eval_every: 10000           # env steps between evaluations of the greedy policy
     eval_episodes: 20           # evaluation episodes per seed and evaluation
     network: {buffer_size: 50000, learning_starts: 1000, policy_kwargs: {net_arch: [64, 64]}}  # every agent's
@@ -101,6 +102,10 @@ class DeepStudy(BaseModel):
     )
     n_envs: int = Field(default=4, ge=1, le=256, description="training envs per seed")
     seeds: list[int] = Field(min_length=1, max_length=10_000, description="one run per seed in every cell (distinct, >= 0)")
+    seeds_per_batch: int | None = Field(
+        default=None, ge=1, le=10_000, description="seeds trained together in one batch (one worker process or one Ray "
+        "task; the batches of a cell are merged in seed order); default: all the cell's seeds in one batch"
+    )
     eval_every: int = Field(gt=0, description="env steps between two evaluations of each seed's greedy policy")
     eval_episodes: int = Field(gt=0, le=1000, description="evaluation episodes per seed and evaluation, one per env")
     network: dict[str, Any] = Field(default_factory=dict, description="DQN's arguments shared by every agent")
@@ -127,7 +132,12 @@ class DeepStudy(BaseModel):
 
     @model_validator(mode="after")
     def _consistent(self) -> DeepStudy:
+        compiled: Any = ()
+        if self.env == "compiled":
+            from sb3_affect.kernel.minigrid_world import MINIGRID_TASKS as compiled
         for name, task in self.tasks.items():
+            if self.env == "compiled" and task.id not in compiled:
+                raise ValueError(f"tasks.{name}.id={task.id!r} is not compiled ({', '.join(compiled)}): give env: farama")
             if task.budget % self.eval_every:
                 raise ValueError(f"tasks.{name}.budget={task.budget} is not a multiple of eval_every={self.eval_every}")
         names = [agent.name for agent in self.agents]

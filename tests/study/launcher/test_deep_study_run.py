@@ -1,8 +1,12 @@
-"""The deep study's runs (study/launcher/deep_study.py) on a toy study: SB3's real DQN and AffectDQN on Farama's MiniGrid."""
+"""
+The deep study's runs (study/launcher/deep_study.py, deep_batches.py, deep_recording.py) on a toy study: SB3's real DQN
+and AffectDQN trained by train_many on the compiled MiniGrid, in batches of seeds.
+"""
 
 from __future__ import annotations
 
 import json
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -11,13 +15,11 @@ import yaml
 
 pytest.importorskip("minigrid")
 
+from sb3_affect.study.cli import main
+from sb3_affect.study.launcher.deep_batches import EVAL_SEED_OFFSET
+from sb3_affect.study.launcher.deep_recording import GreedyEvaluation
 from sb3_affect.study.launcher.deep_schema import DeepStudy
-from sb3_affect.study.launcher.deep_study import (
-    build_cell,
-    cell_path,
-    replayed_epsilons,
-    run_deep_study,
-)
+from sb3_affect.study.launcher.deep_study import batch_path, cell_path, deep_status, replayed_epsilons, run_deep_study
 from sb3_affect.study.launcher.sweep_file import load_sweep_file
 
 TOY = {
@@ -47,14 +49,15 @@ def test_a_toy_study_runs_each_cell_evaluates_greedy_policies_and_resumes(tmp_pa
     study = toy(tmp_path)
     lines: list[str] = []
     done = run_deep_study(study, tmp_path / "out", workers=1, log=lines.append)
-    assert (done.trained, done.reused) == (4, 0) and len(lines) == 4
+    assert (done.trained, done.reused, done.batches) == (4, 0, 4) and len(lines) == 8
     cells = {agent: json.loads(cell_path(tmp_path / "out", "Empty-5x5", agent).read_text())
              for agent in ("dqn-linear", "affective", "matched", "count-bonus")}  # fmt: skip
     for cell in cells.values():
-        assert cell["eval_steps"] == [200, 400]
+        assert cell["eval_steps"] == [200, 400] and cell["seeds"] == [0, 1]
         success = np.asarray(cell["success"], dtype=float)
         assert success.shape == (2, 2) and ((success >= 0) & (success <= 1)).all()
         assert all(first is None or 0 < first <= 400 for first in cell["first_success"])
+        assert np.asarray(cell["train_episodes"]).shape == (2, 2)
     # the matched control's ε is the affective agent's share of random decisions, averaged over seeds, part by part
     replayed = replayed_epsilons(cells["affective"])
     assert cells["matched"]["epsilons"] == replayed
@@ -64,19 +67,56 @@ def test_a_toy_study_runs_each_cell_evaluates_greedy_policies_and_resumes(tmp_pa
     np.testing.assert_allclose(shares, 1.0)  # each part's emotion shares sum to one
     assert cells["count-bonus"]["count_bonus"] == 0.05
     again = run_deep_study(study, tmp_path / "out", workers=1, log=lines.append)
-    assert (again.trained, again.reused) == (0, 4)
+    assert (again.trained, again.reused, again.batches) == (0, 4, 0)
+    assert "4/4 cells done" in deep_status(tmp_path / "out")[0]
     with pytest.raises(ValueError, match="holds the results of another deep study"):
         run_deep_study(toy(tmp_path, seeds=[0, 1, 2]), tmp_path / "out", workers=1)
 
 
-def test_the_batched_greedy_evaluation_equals_sb3_predict_on_each_seeds_evaluation_envs(tmp_path: Path) -> None:
-    study = toy(tmp_path, agents=[TOY["agents"][0]])  # type: ignore[index]
-    trainer = build_cell(study, "Empty-5x5", study.agents[0])
-    trainer.learn(400)  # the stacked weights are written back into the models; the stack keeps them too
-    success, returns = trainer.evaluate()
-    for index, model in enumerate(trainer.models):
-        env = trainer.eval_envs.envs[index]
-        env.seed(trainer.eval_seeds[index])
+class Interrupt(KeyboardInterrupt):
+    pass
+
+
+def test_an_interrupted_study_keeps_its_finished_batches_and_gives_the_cells_of_one_batch(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Batches of one seed: a Ctrl-C after the first batch loses nothing, and the merged cells equal one batch of both."""
+    whole = toy(tmp_path, agents=TOY["agents"][:1])  # type: ignore[index]
+    run_deep_study(whole, tmp_path / "whole", workers=1, log=lambda line: None)
+    study = toy(tmp_path, agents=TOY["agents"][:1], seeds_per_batch=1)  # type: ignore[index]
+
+    def stop_after_first_batch(line: str) -> None:
+        if "batch 1/2" in line:
+            raise Interrupt
+
+    with pytest.raises(Interrupt):
+        run_deep_study(study, tmp_path / "out", workers=1, log=stop_after_first_batch)
+    assert batch_path(tmp_path / "out", "Empty-5x5", "dqn-linear", 0).is_file()
+    assert deep_status(tmp_path / "out")[1].split()[2:] == ["1/2", "batches", "done"]
+    shutil.copytree(tmp_path / "out", tmp_path / "replicate" / "minigrid_dqn")
+    assert main(["status", str(tmp_path / "replicate")]) == 0  # a replicate folder lists its deep study
+    printed = capsys.readouterr().out
+    assert "0 sweeps and the deep study" in printed and "0/1 cells done (task x agent, 2 seeds each in 2 batches)" in printed
+    lines: list[str] = []
+    done = run_deep_study(study, tmp_path / "out", workers=1, log=lines.append)
+    assert (done.trained, done.batches) == (1, 1) and "batch 2/2 (seeds 1)" in lines[0]
+    assert not (tmp_path / "out" / "batches" / "Empty-5x5__dqn-linear").exists()
+    merged, one = (json.loads(cell_path(tmp_path / name, "Empty-5x5", "dqn-linear").read_text()) for name in ("out", "whole"))
+    for key in ("success", "return", "random_share", "train_episodes", "train_successes", "first_success", "seeds"):
+        assert merged[key] == one[key], key
+
+
+def test_the_batched_greedy_evaluation_equals_sb3_predict_on_each_seeds_evaluation_envs() -> None:
+    import sb3_affect
+    from sb3_affect.engine.seed_envs import seed_vec_env
+
+    models = sb3_affect.train_many("DQN", "MiniGrid-Empty-5x5-v0", [0, 1, 2], 2, total_timesteps=400, obs="image",
+                                   learning_starts=100, buffer_size=2000, batch_size=16, policy_kwargs={"net_arch": [16]})
+    seeds = [EVAL_SEED_OFFSET + 3 * s for s in range(3)]
+    evaluate = GreedyEvaluation([seed_vec_env("MiniGrid-Empty-5x5-v0", 3, s, "image", True) for s in seeds], seeds)
+    success, returns = evaluate(models)
+    for index, model in enumerate(models):
+        env = seed_vec_env("MiniGrid-Empty-5x5-v0", 3, seeds[index], "image", True)
         obs = env.reset()
         total, reached, finished = np.zeros(env.num_envs), np.zeros(env.num_envs, bool), np.zeros(env.num_envs, bool)
         while not finished.all():
@@ -85,6 +125,7 @@ def test_the_batched_greedy_evaluation_equals_sb3_predict_on_each_seeds_evaluati
             for e in np.flatnonzero(dones & ~finished):
                 finished[e], reached[e] = True, not infos[e].get("TimeLimit.truncated", False)
         assert success[index] == reached.mean() and returns[index] == pytest.approx(total.mean())
+    assert evaluate(models)[1].tolist() == returns.tolist()  # each evaluation plays the same episodes
 
 
 def test_the_count_bonus_pays_scale_over_the_root_of_visits_of_each_envs_cell() -> None:

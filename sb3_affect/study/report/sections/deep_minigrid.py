@@ -6,9 +6,11 @@ The primary metric is the greedy policy's: each seed's Q-network, every ``eval_e
 one episode on each of ``eval_episodes`` evaluation envs seeded apart from its training envs; its success rate and
 mean return. Per run they are summarised as the area under the curve (the mean of its evaluations: the area under the
 step curve divided by the budget) and the final value; per agent and task as the IQM over runs with a 95% bootstrap CI
-(rliable's IQM, ``report.stats``). Steps to the first training episode that reached the goal are time-to-event data:
-a run that never reached it is censored at its budget (Kaplan-Meier, lifelines). The number of seeds is checked by a
-power calculation for the final success rate, and one sentence per task is computed from the CIs.
+(rliable's IQM, the percentile bootstrap of ``report.estimation.bootstrap``). Steps to the first training episode that
+reached the goal are time-to-event data: a run that never reached it is censored at its budget (Kaplan-Meier,
+lifelines). The number of seeds is checked by a power calculation for the final success rate, and one sentence per task
+is computed from the CIs. Figures: the greedy success and return curves per task, the random share and the emotion
+profile over training.
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
+from rliable import metrics as rmetrics
 from scipy import stats as sps
 
 from sb3_affect.core.emotions import EMOTION_NAMES
@@ -128,8 +131,9 @@ def iqm_table(scores: pd.DataFrame, order: list[str]) -> pd.DataFrame:
     for (task, agent), runs in scores.groupby(["task", "agent"], sort=False):
         row: dict[str, Any] = {"task": task, "agent": agent, "runs": len(runs)}
         for column, label in SCORES:
-            ((value, low, high),) = bootstrap_iqm_cis([runs[column].to_numpy()], n_boot=REPS)
-            row[label], row[f"{label} low"], row[f"{label} high"] = value, low, high
+            values = runs[column].to_numpy(float)
+            ((_, low, high),) = bootstrap_iqm_cis([values], n_boot=REPS)
+            row[label], row[f"{label} low"], row[f"{label} high"] = float(rmetrics.aggregate_iqm(values[:, None])), low, high
         rows.append(row)
     table = pd.DataFrame(rows)
     if len(table):  # the study's order: its tasks, then its agents
@@ -329,8 +333,8 @@ def deep_section(ctx: ReportContext, results: DeepResults) -> None:
         f"{study['obs']} observations, {study['env']} envs; budgets in env steps: {budgets}. Every {fmt(study['eval_every'])} "
         f"env steps each seed's greedy policy plays one episode on each of {n_eval} evaluation envs of its own; success "
         "is reaching the goal, return is MiniGrid's (1 - 0.9 x steps / max steps at the goal, else 0), without any "
-        "exploration bonus. AUC: the mean of a run's evaluations; IQM over runs with a 95% bootstrap CI "
-        f"({REPS} resamples)."
+        "exploration bonus. AUC: the mean of a run's evaluations; IQM (rliable's interquartile mean) over runs with a "
+        f"95% percentile bootstrap CI ({REPS} resamples of the runs)."
     )
     ctx.doc.p(power_sentence(n))
     scores = run_scores(results)
@@ -342,6 +346,8 @@ def deep_section(ctx: ReportContext, results: DeepResults) -> None:
         ctx.doc.p(sentence)
     ctx.doc.img(curves_figure(results, "success", "greedy success (mean over seeds)", ctx.figure(f"{name}_success")),
                 "Greedy success against env steps, per task (mean over seeds)")
+    ctx.doc.img(curves_figure(results, "return", "greedy return (mean over seeds)", ctx.figure(f"{name}_return")),
+                "Greedy return against env steps, per task (mean over seeds)")
     ctx.table(
         f"{name}_first_success", first_success_table(scores).reset_index().set_index("first success of"),
         "Env steps to the first success, of a training episode and of the greedy policy: runs that never succeeded are "

@@ -1,6 +1,6 @@
 """
-The MiniGrid sections: the tabular agents (experiments/minigrid.yaml, folder ``minigrid``) and the deep agents with
-their exploration controls (experiments/minigrid_dqn.yaml, folder ``minigrid_dqn``), each when its folder is present.
+The MiniGrid section of the tabular agents (experiments/minigrid.yaml, folder ``minigrid``), when its folder is present.
+The deep agents' study (experiments/minigrid_dqn.yaml) has a section of its own: ``deep_minigrid``.
 
 Per run, from its episode log: the success rate and the mean return over its last ``LAST_EPISODES`` episodes (a
 success: an episode that ended at the goal, MiniGrid's reward > 0), and the env steps until its first success. Per
@@ -18,6 +18,7 @@ import pandas as pd
 from rliable import metrics as rmetrics
 
 from sb3_affect.core.emotions import EMOTION_NAMES
+from sb3_affect.study.launcher.deep_study import STUDY_FILE
 from sb3_affect.study.report.estimation.bootstrap import bootstrap_improvement, bootstrap_iqm_cis
 from sb3_affect.study.report.reading.context import ReportContext
 from sb3_affect.study.report.reading.run_tables import load_results
@@ -26,9 +27,7 @@ from sb3_affect.study.report.rendering.document import fmt
 #: The results folders of the sections: (folder, title, what it holds).
 FOLDERS = (
     ("minigrid", "MiniGrid: the tabular agents", "the tabular agents on TabularMiniGrid (experiments/minigrid.yaml)"),
-    ("minigrid_dqn", "MiniGrid: the deep agents and their controls", "DQN, AffectDQN and the exploration controls "
-     "(experiments/minigrid_dqn.yaml)"),
-)  # fmt: skip
+)
 #: The episodes at the end of each run its success rate and return are read over.
 LAST_EPISODES = 10
 #: Training windows of the emotion profile (equal shares of the run's env steps).
@@ -160,11 +159,11 @@ def minigrid_sections(ctx: ReportContext) -> None:
     for name, title, holds in FOLDERS:
         if name in ctx.folders:
             minigrid_section(ctx, name, title, holds)
-    if "minigrid" in ctx.folders and "minigrid_dqn" not in ctx.folders:
+    if "minigrid" in ctx.folders and not (ctx.root / "minigrid_dqn" / STUDY_FILE).is_file():
         ctx.doc.p(
-            "The deep agents (DQN, AffectDQN and their controls on MiniGrid) are not part of this folder: "
-            "`make replicate` leaves them out (hours of training). `sb3-affect run experiments/minigrid_dqn.yaml --out "
-            "DIR/minigrid_dqn`, then `sb3-affect report DIR`, adds their section here."
+            "The deep study (DQN, AffectDQN and their controls on MiniGrid) is not part of this folder: "
+            "`make replicate` runs it at smoke size only. `sb3-affect run experiments/minigrid_dqn.yaml --out "
+            "DIR/minigrid_dqn`, then `sb3-affect report DIR`, adds its section."
         )
 
 
