@@ -12,7 +12,7 @@ from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper
 
 import sb3_affect
 
-SMALL = {"learning_starts": 50, "buffer_size": 1000, "batch_size": 8, "policy_kwargs": {"net_arch": [8]}}
+SMALL: dict[str, Any] = {"learning_starts": 50, "buffer_size": 1000, "batch_size": 8, "policy_kwargs": {"net_arch": [8]}}
 
 
 class Counting(BaseCallback):

@@ -43,20 +43,28 @@ class TrainingRecorder(BaseCallback):
     def _clear(self) -> None:
         self.episodes = np.zeros(2)  # (ended, reached the goal)
         self.emotions = np.zeros(len(EMOTION_NAMES))
-        self.epsilon = np.zeros(2)  # (summed ε, steps), SB3's DQN after learning_starts
+        self.epsilon_sum, self.epsilon_steps = 0.0, 0  # SB3's DQN after learning_starts
+
+    def _on_training_start(self) -> None:
+        self._epsilon_greedy = not isinstance(self.model, ActionRepeat)
 
     def _on_step(self) -> bool:
-        model = self.model
-        dones, infos = self.locals["dones"], self.locals["infos"]
-        for index in np.flatnonzero(dones):
-            goal = reached_goal(infos[index])
-            self.episodes += (1, goal)
-            if goal and self.first_success is None:
-                self.first_success = int(model.num_timesteps)
-        for emotion in getattr(model, "_emotions", None) or ():  # each env's emotion at its decision (after warm-up)
-            self.emotions[int(emotion)] += 1
-        if not isinstance(model, ActionRepeat) and model.num_timesteps > model.learning_starts:  # type: ignore[attr-defined]
-            self.epsilon += (model.exploration_rate, 1)  # type: ignore[attr-defined]
+        model: Any = self.model
+        dones = self.locals["dones"]
+        if dones.any():
+            infos = self.locals["infos"]
+            for index in np.flatnonzero(dones):
+                goal = reached_goal(infos[index])
+                self.episodes += (1, goal)
+                if goal and self.first_success is None:
+                    self.first_success = int(model.num_timesteps)
+        if self._epsilon_greedy:
+            if model.num_timesteps > model.learning_starts:
+                self.epsilon_sum += model.exploration_rate
+                self.epsilon_steps += 1
+        else:
+            for emotion in getattr(model, "_emotions", None) or ():  # each env's emotion at its decision (after warm-up)
+                self.emotions[int(emotion)] += 1
         return True
 
     def take_interval(self) -> dict[str, Any]:
@@ -69,7 +77,7 @@ class TrainingRecorder(BaseCallback):
                 random_share = (counts[0] - self._seen[0]) / decided if decided else np.nan
                 self._seen = counts
             else:
-                random_share = self.epsilon[0] / self.epsilon[1] if self.epsilon[1] else np.nan
+                random_share = self.epsilon_sum / self.epsilon_steps if self.epsilon_steps else np.nan
             steps = self.emotions.sum()
             shares = self.emotions / steps if steps else np.full(len(EMOTION_NAMES), np.nan)
         interval = {"random_share": float(random_share), "emotions": shares.tolist(),
@@ -101,15 +109,19 @@ class GreedyEvaluation:
                 layers.append(modules[0])  # an activation (the same, element-wise, in every seed)
         return layers
 
-    def greedy(self, models: Sequence[Any], obs: np.ndarray) -> np.ndarray:
-        """The greedy actions ``(S, E)`` of each seed's model for its observations ``obs`` ``(S, E, ...)``."""
+    def greedy(self, models: Sequence[Any], obs: np.ndarray, layers: list[Any] | None = None) -> np.ndarray:
+        """
+        The greedy actions ``(S, E)`` of each seed's model for its observations ``obs`` ``(S, E, ...)``.
+
+        :param layers: the models' layers stacked (``_stacked(models)``: given, they are not stacked again)
+        """
         first = models[0]
         n_seeds, n_envs = obs.shape[:2]
         with th.no_grad():
             batch = th.as_tensor(obs.reshape(n_seeds * n_envs, *obs.shape[2:]))
-            x = first.q_net.features_extractor(preprocess_obs(batch, first.observation_space))
+            x = first.q_net.features_extractor(preprocess_obs(batch, first.observation_space, first.q_net.normalize_images))
             x = x.reshape(n_seeds, n_envs, -1)
-            for layer in self._stacked(models):
+            for layer in layers or self._stacked(models):
                 x = th.baddbmm(layer[1], x, layer[0]) if isinstance(layer, tuple) else layer(x)
         return x.argmax(dim=2).numpy()
 
@@ -118,11 +130,12 @@ class GreedyEvaluation:
         for env, seed in zip(self.envs.envs, self.seeds):
             env.seed(seed)
         obs = np.stack([np.asarray(env.reset()) for env in self.envs.envs])
+        layers = self._stacked(models)
         finished = np.zeros(obs.shape[:2], dtype=bool)
         reached = np.zeros(obs.shape[:2], dtype=bool)
         returns = np.zeros(obs.shape[:2])
         while not finished.all():
-            obs, rewards, dones, infos = self.envs.step(self.greedy(models, obs))
+            obs, rewards, dones, infos = self.envs.step(self.greedy(models, obs, layers))
             live = ~finished
             returns[live] += rewards[live]
             for s, e in zip(*np.nonzero(dones & live)):

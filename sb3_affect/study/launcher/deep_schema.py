@@ -1,6 +1,6 @@
 """
 Sweep files of the deep study (``study: deep``): DQN-family agents on MiniGrid tasks, many seeds of one agent on one
-task trained together (``sb3_affect.engine``'s lockstep trainer), each seed's greedy policy evaluated on its own
+task trained together (the public trainer ``sb3_affect.train_many``), each seed's greedy policy evaluated on its own
 evaluation envs every ``eval_every`` env steps. ``sweep_file.load_sweep_file`` validates a file with ``DeepStudy``;
 ``sb3_affect.study.launcher.deep_study`` runs it::
 

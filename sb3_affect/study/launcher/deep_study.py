@@ -18,6 +18,7 @@ of the cells whose sources are done.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import os
@@ -175,7 +176,8 @@ def run_deep_study(
         _write_json(cell_path(out, task, name), cell)
         for k in range(len(batches)):
             batch_path(out, task, name, k).unlink()
-        batch_path(out, task, name, 0).parent.rmdir()
+        with contextlib.suppress(OSError):  # (a file the folder holds besides the batches stays)
+            batch_path(out, task, name, 0).parent.rmdir()
         done.add((task, name))
         counts["cells"] += 1
         final = [row[-1] for row in cell["success"] if row and row[-1] is not None]
@@ -201,6 +203,8 @@ def run_deep_study(
         for task, index in wave:  # a cell whose batches were all done before an interruption
             if not any(job.task == task and job.agent == index for job in jobs):
                 finish_cell(task, names[index])
+        if not jobs:
+            continue  # (no Ray instance nor worker started for nothing)
         if backend == "ray":
             run_ray(jobs, workers, on_result, on_failure, ray_address, cap=cap, timeout=ray_timeout)
         elif workers == 1:

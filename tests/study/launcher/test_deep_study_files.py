@@ -54,6 +54,9 @@ def write(tmp_path: Path, **changes: object) -> Path:
     ({"agents": [{"name": "a", "algo": "QLearning"}]}, "algo='QLearning' is not one of"),
     ({"agents": [{"name": "a", "algo": "DQN", "kwargs": {"seed": 3}}]}, "kwargs.seed is the study's own"),
     ({"tasks": {"E": {"id": "MiniGrid-Empty-8x8-v0", "budget": 4000}}}, "takes the tuned exploration_fraction: tasks.E"),
+    ({"env": "compiled", "tasks": {"K": {"id": "MiniGrid-KeyCorridorS3R1-v0", "budget": 4000, "exploration_fraction": 0.5,
+                                         "count_bonus": 0.1}}}, "tasks.K.id='MiniGrid-KeyCorridorS3R1-v0' is not compiled"),
+    ({"seeds_per_batch": 0}, "seeds_per_batch"),
 ])  # fmt: skip
 def test_the_schema_refuses_a_bad_file_naming_the_key(tmp_path: Path, changes: dict, message: str) -> None:
     with pytest.raises(SweepError, match="invalid sweep file") as error:
