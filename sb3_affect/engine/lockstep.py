@@ -71,14 +71,15 @@ class _StackedPredict:
         return q_values.argmax(dim=2).numpy()[0], state
 
 
-def random_actions(space: spaces.Space, n: int) -> np.ndarray:
+def random_actions(space: spaces.Space, count: int) -> np.ndarray:
     """
-    ``np.array([space.sample() for _ in range(n)])``, SB3's random actions, drawn at once from the same generator: a
-    ``Discrete`` space's ``start + np_random.integers(n)`` called n times gives what ``integers(n, size=n)`` gives.
+    ``np.array([space.sample() for _ in range(count)])``, SB3's random actions, drawn at once from the same generator:
+    a ``Discrete`` space's ``sample()`` is ``start + np_random.integers(n)``, and ``count`` such calls draw what one
+    ``integers(n, size=count)`` draws.
     """
     if type(space) is spaces.Discrete:
-        return space.start + space.np_random.integers(space.n, size=n)
-    return np.array([space.sample() for _ in range(n)])
+        return space.start + space.np_random.integers(space.n, size=count)
+    return np.array([space.sample() for _ in range(count)])
 
 
 def _idle(callback: BaseCallback) -> bool:
