@@ -52,6 +52,19 @@ if TYPE_CHECKING:
 _EPSILON_ARGUMENTS = ("exploration_initial_eps", "exploration_final_eps")
 
 
+#: the ``EmotionCallback`` arguments a dict may give: plain settings (no code, no file paths)
+READING_ARGUMENTS = ("comparison", "act", "units", "order", "warn_after")
+
+
+def emotion_callback_from(arguments: Mapping[str, Any]) -> EmotionCallback:
+    """``EmotionCallback(**arguments)`` from plain settings; any other key refused with one line."""
+    unknown = [key for key in arguments if key not in READING_ARGUMENTS]
+    if unknown:
+        raise ValueError(f"emotion_callback.{unknown[0]} can not be given as data: a dict gives "
+                         f"{', '.join(READING_ARGUMENTS)}")
+    return EmotionCallback(**arguments)
+
+
 class AffectiveExploration(ActionRepeat):
     """
     A mixin giving an ``OffPolicyAlgorithm`` with a Discrete action space emotion-driven exploration (see the module
@@ -62,7 +75,8 @@ class AffectiveExploration(ActionRepeat):
     :param behaviour_table: emotion -> ``Behaviour(random_direction, speeds)``, or a table's name (``"table-iii"``,
         ``"table-iii-reversed"``: ``sb3_affect.core.behaviour.BEHAVIOUR_TABLES``); default Table III
     :param emotion_callback: the ``EmotionCallback`` whose appraisal and emotion rule drive the agent (default: a
-        Table II one); it is added to the callbacks of ``learn``
+        Table II one), or a dict of its arguments (``{"comparison": "valence", "act": "remaining", "order": "act-first"}``:
+        the form a hyperparameter or sweep file can hold); it is added to the callbacks of ``learn``
     :param position: how each env's cell is found for the appraisal's map (``sb3_affect.core.positions``): None (the
         observation, when it is a cell), ``"discrete"``, ``"multidiscrete"``, ``"minigrid"``, ``"minigrid-dir"``, a
         callable ``position(observation, info) -> cell`` or a ``Position``; given to the emotion callback
@@ -75,7 +89,7 @@ class AffectiveExploration(ActionRepeat):
         self,
         *args: Any,
         behaviour_table: Mapping[Emotion, Behaviour] | str | None = None,
-        emotion_callback: EmotionCallback | None = None,
+        emotion_callback: EmotionCallback | Mapping[str, Any] | None = None,
         position: PositionSpec = None,
         wait_action: int | None = None,
         **kwargs: Any,
@@ -84,8 +98,11 @@ class AffectiveExploration(ActionRepeat):
         given = [key for key in (*_EPSILON_ARGUMENTS, "exploration_fraction") if key in kwargs]
         if given:
             raise TypeError(f"{name} has no epsilon ({given[0]}={kwargs[given[0]]!r}): the emotions choose random actions")
+        if isinstance(emotion_callback, Mapping):
+            emotion_callback = emotion_callback_from(emotion_callback)
         if emotion_callback is not None and not isinstance(emotion_callback, EmotionCallback):
-            raise TypeError(f"emotion_callback must be an EmotionCallback, got {type(emotion_callback).__name__}")
+            raise TypeError(f"emotion_callback must be an EmotionCallback or a dict of its arguments, "
+                            f"got {type(emotion_callback).__name__}")
         self.behaviour_table = stored_behaviour_table(behaviour_table)  # plain data, saved with the model
         self.position = check_position(position)
         self.emotion_callback = emotion_callback

@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 from stable_baselines3 import DQN
 from stable_baselines3.common.buffers import ReplayBuffer
+from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
 from stable_baselines3.common.type_aliases import MaybeCallback, TrainFrequencyUnit
 from stable_baselines3.common.vec_env import VecEnv
@@ -159,6 +160,10 @@ def train_many(
             raise ValueError(f"on_models={on_models!r} must be a function of the list of models")
     if obs not in OBSERVATIONS:
         raise ValueError(f"obs={obs!r} is not one of {', '.join(OBSERVATIONS)}")
+    shared = [key for key, value in algo_kwargs.items() if isinstance(value, BaseCallback)]
+    if shared:
+        raise ValueError(f"{shared[0]}= is one {type(algo_kwargs[shared[0]]).__name__} for every seed: give a dict of its "
+                         "settings, from which each seed's model builds its own")
     own = [key for key in _OWN_ARGUMENTS if key in algo_kwargs]
     if own:
         raise ValueError(f"{own[0]}= is train_many's own argument: give env_id, n_envs and seeds instead")

@@ -36,6 +36,18 @@ def test_a_position_that_does_not_fit_the_env_is_refused_at_construction(agent: 
     agent("MlpPolicy", "CartPole-v1", emotion_callback=EmotionCallback(emotion_rule=lambda appraisal: 0))  # needs no map
 
 
+def test_the_emotion_callback_given_as_settings_builds_the_agents_own() -> None:
+    settings = {"comparison": "valence", "act": "remaining", "order": "act-first"}
+    first, second = (AffectDQN("MlpPolicy", "FrozenLake-v1", emotion_callback=settings) for _ in range(2))
+    assert first.emotion_callback is not second.emotion_callback
+    callback = first.emotion_callback
+    assert (callback.comparison, callback.act, callback.order) == ("valence", "remaining", "act-first")
+    one_line(lambda: AffectDQN("MlpPolicy", "FrozenLake-v1", emotion_callback={"goal": "print"}), ValueError,
+             "emotion_callback.goal can not be given as data")
+    one_line(lambda: AffectDQN("MlpPolicy", "FrozenLake-v1", emotion_callback={"order": "sideways"}), ValueError,
+             "order='sideways'")
+
+
 @pytest.mark.parametrize("bad", [math.nan, (1, math.inf), [1, 2]])
 def test_a_position_callable_returning_no_cell_is_refused_on_the_first_step(bad: Any) -> None:
     model = AffectDQN("MlpPolicy", "CartPole-v1", learning_starts=0, position=lambda obs, info: bad)

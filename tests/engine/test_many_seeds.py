@@ -18,7 +18,7 @@ from stable_baselines3.common.evaluation import evaluate_policy
 from stable_baselines3.common.logger import configure
 from stable_baselines3.common.type_aliases import ReplayBufferSamples
 
-from sb3_affect import train_many
+from sb3_affect import EmotionCallback, train_many
 from sb3_affect.core.registry import resolve_class
 from sb3_affect.engine.seed_envs import seed_vec_env
 from sb3_affect.engine.stacked_q import StackedQ
@@ -190,6 +190,7 @@ def test_returned_models_are_sb3_models(tmp_path) -> None:
     ("DQN", {"train_freq": (1, "episode"), "n_envs": 1}, "counts episodes"),
     ("DQN", {"optimize_memory_usage": True, "replay_buffer_kwargs": {"handle_timeout_termination": False}},
      "optimize_memory_usage=True"),
+    ("AffectDQN", {"emotion_callback": EmotionCallback()}, "emotion_callback= is one EmotionCallback for every seed"),
 ])
 def test_bad_arguments_refused_with_one_line(algo, kwargs, message) -> None:
     arguments = {"env_id": ENV_ID, "seeds": [0], "n_envs": 1, "total_timesteps": 10, **kwargs}
