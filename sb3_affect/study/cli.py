@@ -10,6 +10,11 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from sb3_affect import __version__
+from sb3_affect.core.extras import MissingExtraError, require_extra
+from sb3_affect.study.replicate import MINUTES, PARTS, TUNED_PARTS, forensics_extra, part_description
+from sb3_affect.study.replicate import main as replicate
+
 if TYPE_CHECKING:
     from sb3_affect.study.launcher.study_schema import ForensicsStudy
 
@@ -52,12 +57,12 @@ def _existing_folder(directory: str, command: str) -> Path:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from sb3_affect.study.launcher import run_sweep
-    from sb3_affect.study.launcher.deep_schema import DeepStudy
-    from sb3_affect.study.launcher.deep_study import run_deep_study
-    from sb3_affect.study.launcher.signals import stop_on_sigterm
-    from sb3_affect.study.launcher.study_schema import ForensicsStudy
-    from sb3_affect.study.launcher.sweep_file import load_sweep_file
+    from sb3_affect.study.launcher import run_sweep  # (the experiments extra: --help needs none)
+    from sb3_affect.study.launcher.deep_schema import DeepStudy  # (the experiments extra: --help needs none)
+    from sb3_affect.study.launcher.deep_study import run_deep_study  # (the experiments extra: --help needs none)
+    from sb3_affect.study.launcher.signals import stop_on_sigterm  # (the experiments extra: --help needs none)
+    from sb3_affect.study.launcher.study_schema import ForensicsStudy  # (the experiments extra: --help needs none)
+    from sb3_affect.study.launcher.sweep_file import load_sweep_file  # (the experiments extra: --help needs none)
 
     _check_out(args.out)
     study = load_sweep_file(args.file, args.set or (), build=False)
@@ -90,7 +95,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 def _run_forensics(study: ForensicsStudy, args: argparse.Namespace) -> int:
     """``sb3-affect run`` of a forensics study file (``study: forensics``) on the launcher's executor."""
-    from sb3_affect.study.forensics.study_run import run_study, summary_lines
+    from sb3_affect.study.forensics.study_run import run_study, summary_lines  # (the report extra: --help needs none)
 
     if args.logs:
         raise UsageError(f"--logs {args.logs}: the forensics study runs on the compiled engine and writes no SB3 logs")
@@ -108,8 +113,8 @@ def _run_forensics(study: ForensicsStudy, args: argparse.Namespace) -> int:
 
 
 def _cmd_status(args: argparse.Namespace) -> int:
-    from sb3_affect.study.forensics.unit_files import PROTOCOL_FILE, folder_status
-    from sb3_affect.study.launcher import ResultsStore
+    from sb3_affect.study.forensics.unit_files import PROTOCOL_FILE, folder_status  # (the report extra: --help needs none)
+    from sb3_affect.study.launcher import ResultsStore  # (the experiments extra: --help needs none)
 
     root = _existing_folder(args.dir, "status")
     if ResultsStore(root).saved_sweep() is not None:  # sweep.json, or a copy of it when it was deleted
@@ -140,7 +145,7 @@ def _cmd_status(args: argparse.Namespace) -> int:
 
 
 def _print_status(root: Path) -> None:
-    from sb3_affect.study.launcher import ResultsStore
+    from sb3_affect.study.launcher import ResultsStore  # (the experiments extra: --help needs none)
 
     store = ResultsStore(root)
     name, per_agent, rejected = store.progress()  # agent -> (runs, done, failed); files that do not count
@@ -156,7 +161,7 @@ def _print_status(root: Path) -> None:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
-    from sb3_affect.study.report import build_report
+    from sb3_affect.study.report import build_report  # (the report extra: --help needs none)
 
     root = _existing_folder(args.dir, "report")
     if not any(root.iterdir()):
@@ -166,7 +171,6 @@ def _cmd_report(args: argparse.Namespace) -> int:
     unwritable = f"{out}: not writable, so the report can not be written there; write it elsewhere with --out DIR"
     if out.exists() and not os.access(out, os.W_OK | os.X_OK):
         raise UsageError(unwritable)
-    from sb3_affect.study.replicate import forensics_extra
 
     extra = forensics_extra(root / "forensics")  # the forensics section, when the folder holds its results
     try:
@@ -181,8 +185,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
 
 
 def _cmd_replicate(args: argparse.Namespace) -> int:
-    from sb3_affect.study.launcher.signals import stop_on_sigterm
-    from sb3_affect.study.replicate import main as replicate
+    from sb3_affect.study.launcher.signals import stop_on_sigterm  # (the experiments extra: --help needs none)
 
     stop_on_sigterm()
 
@@ -199,8 +202,6 @@ def _cmd_replicate(args: argparse.Namespace) -> int:
 
 def _replicate_help() -> str:
     """``replicate --help``: what it runs (from ``sb3_affect.study.replicate.PARTS``, so it can not drift) and writes."""
-    from sb3_affect.study.replicate import MINUTES, PARTS, TUNED_PARTS, part_description
-
     lines = [
         "The main job (`make replicate` runs it): runs these sweep files, each into its own sub-folder of OUT (local",
         "processes, or Ray tasks with --backend ray), then writes one report from all of them.",
@@ -218,8 +219,6 @@ def _replicate_help() -> str:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from sb3_affect import __version__
-
     parser = argparse.ArgumentParser(
         prog="sb3-affect",
         description="Run experiment sweeps, show their status, build the report, run the whole replication.",
@@ -306,7 +305,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--ray-address", default=None, help="Ray cluster address, HOST:PORT or ray://HOST:PORT (default: a private instance)"
     )
     replicate.set_defaults(func=_cmd_replicate)
-    from sb3_affect.study.forensics.command import add_forensics_parser
+    from sb3_affect.study.forensics.command import add_forensics_parser  # (the report extra: --help needs none)
 
     add_forensics_parser(sub)
     return parser
@@ -314,7 +313,6 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)  # --help, --version and usage errors end here, having imported little
-    from sb3_affect.core.extras import MissingExtraError, require_extra
 
     try:
         require_extra(_EXTRA_OF.get(args.command, "experiments"), f"sb3-affect {args.command}")
@@ -333,10 +331,10 @@ _EXTRA_OF = {"report": "report", "replicate": "report", "forensics": "report"}
 
 
 def _dispatch(args: argparse.Namespace) -> int:
-    from sb3_affect.study.launcher.ray_cluster import ClusterLost, RayClusterError
-    from sb3_affect.study.launcher.schema import SweepError
-    from sb3_affect.study.launcher.signals import Terminated
-    from sb3_affect.study.launcher.store import StoreError
+    from sb3_affect.study.launcher.ray_cluster import ClusterLost, RayClusterError  # (the experiments extra: --help needs none)
+    from sb3_affect.study.launcher.schema import SweepError  # (the experiments extra: --help needs none)
+    from sb3_affect.study.launcher.signals import Terminated  # (the experiments extra: --help needs none)
+    from sb3_affect.study.launcher.store import StoreError  # (the experiments extra: --help needs none)
 
     try:
         return int(args.func(args))

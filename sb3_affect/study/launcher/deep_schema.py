@@ -21,10 +21,12 @@ evaluation envs every ``eval_every`` env steps. ``sweep_file.load_sweep_file`` v
 
 from __future__ import annotations
 
+import re
 from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
+from sb3_affect.core.registry import AGENTS
 from sb3_affect.study.launcher.schema import NAME_PATTERN
 
 #: Fewest evaluation episodes the study's primary metric is read from (a smaller file is labelled a smoke size).
@@ -71,8 +73,6 @@ class DeepAgent(BaseModel):
     @field_validator("algo")
     @classmethod
     def _algo(cls, value: str) -> str:
-        from sb3_affect.core.registry import AGENTS
-
         deep = [name for name in AGENTS if name.endswith("DQN")]
         if value not in deep:
             raise ValueError(f"algo={value!r} is not one of {', '.join(deep)}")
@@ -118,8 +118,6 @@ class DeepStudy(BaseModel):
     @field_validator("tasks")
     @classmethod
     def _task_names(cls, value: dict[str, DeepTask]) -> dict[str, DeepTask]:
-        import re
-
         for name in value:
             if not re.match(NAME_PATTERN, name):
                 raise ValueError(f"task name {name!r} must be letters, digits, _ . + - (at most 64 characters)")

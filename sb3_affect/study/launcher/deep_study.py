@@ -21,16 +21,21 @@ from __future__ import annotations
 
 import json
 import math
+import multiprocessing
 import os
 import time
 import warnings
 from collections.abc import Callable, Sequence
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+import sb3_affect
+from sb3_affect.core.emotions import EMOTION_NAMES
+from sb3_affect.core.registry import resolve_class
 from sb3_affect.study.launcher.deep_schema import TUNED, DeepAgent, DeepStudy
 
 #: The evaluation envs of seed s are seeded ``EVAL_SEED_OFFSET + s * eval_episodes + i``: apart from every training env
@@ -64,13 +69,11 @@ class DeepSummary:
 def vec_env(study: DeepStudy, env_id: str, n_envs: int, seed: int) -> Any:
     """One seed's VecEnv of ``n_envs`` envs: the compiled MiniGrid, or Farama's with ``FlatObsWrapper`` (``study.env``)."""
     if study.env == "compiled":
-        import sb3_affect
-
         make = getattr(sb3_affect, "minigrid_vec_env", None)
         if make is None:
             raise ValueError("env='compiled': this install has no sb3_affect.minigrid_vec_env; give env: farama")
         return make(env_id, n_envs, seed=seed, obs=study.obs)
-    from sb3_affect.engine.seed_envs import seed_vec_env
+    from sb3_affect.engine.seed_envs import seed_vec_env  # (torch: the deep study's engine)
 
     return seed_vec_env(env_id, n_envs, seed, study.obs)
 
@@ -105,10 +108,9 @@ def replayed_epsilons(source: dict[str, Any]) -> list[float]:
 # -- one cell ------------------------------------------------------------------------------------------------------------
 def _trainer_class() -> type:
     """The lockstep trainer with the study's recording and evaluation (imported here: torch only where cells run)."""
-    from sb3_affect.agents.action_repeat import ActionRepeat
-    from sb3_affect.core.emotions import EMOTION_NAMES
-    from sb3_affect.engine.lockstep import Lockstep
-    from sb3_affect.engine.seed_envs import SeedEnvs
+    from sb3_affect.agents.action_repeat import ActionRepeat  # (torch: off the tabular sweep path)
+    from sb3_affect.engine.lockstep import Lockstep  # (torch: the deep study's engine)
+    from sb3_affect.engine.seed_envs import SeedEnvs  # (torch: the deep study's engine)
 
     class Evaluating(Lockstep):
         """``Lockstep`` that records each seed's exploration and evaluates its greedy policy every ``eval_every`` steps."""
@@ -195,8 +197,7 @@ def _trainer_class() -> type:
 
 def build_cell(study: DeepStudy, task: str, agent: DeepAgent, epsilons: Sequence[float] | None = None) -> Any:
     """The lockstep trainer of one cell, ready to ``learn(budget)``: a model per seed, its evaluation envs set up."""
-    from sb3_affect.core.registry import resolve_class
-    from sb3_affect.study.launcher.count_bonus import CountBonus
+    from sb3_affect.study.launcher.count_bonus import CountBonus  # (torch: SB3's VecEnv wrapper)
 
     spec = study.tasks[task]
     cls = resolve_class(agent.algo)
@@ -238,7 +239,7 @@ def run_cell(study: DeepStudy, task: str, agent: DeepAgent, epsilons: Sequence[f
 
 
 def _cell_in_worker(study_data: dict[str, Any], task: str, agent_index: int, epsilons: list[float] | None) -> dict[str, Any]:
-    import torch
+    import torch  # (torch: off the tabular sweep path)
 
     torch.set_num_threads(1)
     study = DeepStudy.model_validate(study_data)
@@ -303,7 +304,7 @@ def run_deep_study(
             f"{np.mean(final) if final else math.nan:.2f}, {result['seconds']:.1f} s")
 
     if workers == 1:
-        import torch
+        import torch  # (torch: off the tabular sweep path)
 
         threads = torch.get_num_threads()
         torch.set_num_threads(1)  # the stacked networks are small: more threads only wait on each other
@@ -315,9 +316,6 @@ def run_deep_study(
         finally:
             torch.set_num_threads(threads)
     else:
-        import multiprocessing
-        from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
-
         data = study.model_dump(mode="json")
         with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
             running: set[Future[dict[str, Any]]] = set()
