@@ -57,12 +57,12 @@ def _existing_folder(directory: str, command: str) -> Path:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from sb3_affect.study.launcher import run_sweep  # (the experiments extra: --help needs none)
-    from sb3_affect.study.launcher.deep_schema import DeepStudy  # (the experiments extra: --help needs none)
-    from sb3_affect.study.launcher.deep_study import run_deep_study  # (the experiments extra: --help needs none)
-    from sb3_affect.study.launcher.signals import stop_on_sigterm  # (the experiments extra: --help needs none)
-    from sb3_affect.study.launcher.study_schema import ForensicsStudy  # (the experiments extra: --help needs none)
-    from sb3_affect.study.launcher.sweep_file import load_sweep_file  # (the experiments extra: --help needs none)
+    from sb3_affect.study.launcher import run_sweep  # (experiments extra: not on --help)
+    from sb3_affect.study.launcher.deep_schema import DeepStudy  # (experiments extra: not on --help)
+    from sb3_affect.study.launcher.deep_study import run_deep_study  # (experiments extra: not on --help)
+    from sb3_affect.study.launcher.signals import stop_on_sigterm  # (experiments extra: not on --help)
+    from sb3_affect.study.launcher.study_schema import ForensicsStudy  # (experiments extra: not on --help)
+    from sb3_affect.study.launcher.sweep_file import load_sweep_file  # (experiments extra: not on --help)
 
     _check_out(args.out)
     study = load_sweep_file(args.file, args.set or (), build=False)
@@ -95,7 +95,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 def _run_forensics(study: ForensicsStudy, args: argparse.Namespace) -> int:
     """``sb3-affect run`` of a forensics study file (``study: forensics``) on the launcher's executor."""
-    from sb3_affect.study.forensics.study_run import run_study, summary_lines  # (the report extra: --help needs none)
+    from sb3_affect.study.forensics.study_run import run_study, summary_lines  # (report extra: not on --help)
 
     if args.logs:
         raise UsageError(f"--logs {args.logs}: the forensics study runs on the compiled engine and writes no SB3 logs")
@@ -113,8 +113,8 @@ def _run_forensics(study: ForensicsStudy, args: argparse.Namespace) -> int:
 
 
 def _cmd_status(args: argparse.Namespace) -> int:
-    from sb3_affect.study.forensics.unit_files import PROTOCOL_FILE, folder_status  # (the report extra: --help needs none)
-    from sb3_affect.study.launcher import ResultsStore  # (the experiments extra: --help needs none)
+    from sb3_affect.study.forensics.unit_files import PROTOCOL_FILE, folder_status  # (report extra: not on --help)
+    from sb3_affect.study.launcher import ResultsStore  # (experiments extra: not on --help)
 
     root = _existing_folder(args.dir, "status")
     if ResultsStore(root).saved_sweep() is not None:  # sweep.json, or a copy of it when it was deleted
@@ -145,7 +145,7 @@ def _cmd_status(args: argparse.Namespace) -> int:
 
 
 def _print_status(root: Path) -> None:
-    from sb3_affect.study.launcher import ResultsStore  # (the experiments extra: --help needs none)
+    from sb3_affect.study.launcher import ResultsStore  # (experiments extra: not on --help)
 
     store = ResultsStore(root)
     name, per_agent, rejected = store.progress()  # agent -> (runs, done, failed); files that do not count
@@ -161,7 +161,7 @@ def _print_status(root: Path) -> None:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
-    from sb3_affect.study.report import build_report  # (the report extra: --help needs none)
+    from sb3_affect.study.report import build_report  # (report extra: not on --help)
 
     root = _existing_folder(args.dir, "report")
     if not any(root.iterdir()):
@@ -185,7 +185,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
 
 
 def _cmd_replicate(args: argparse.Namespace) -> int:
-    from sb3_affect.study.launcher.signals import stop_on_sigterm  # (the experiments extra: --help needs none)
+    from sb3_affect.study.launcher.signals import stop_on_sigterm  # (experiments extra: not on --help)
 
     stop_on_sigterm()
 
@@ -305,7 +305,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--ray-address", default=None, help="Ray cluster address, HOST:PORT or ray://HOST:PORT (default: a private instance)"
     )
     replicate.set_defaults(func=_cmd_replicate)
-    from sb3_affect.study.forensics.command import add_forensics_parser  # (the report extra: --help needs none)
+    from sb3_affect.study.forensics.command import add_forensics_parser  # (report extra: not on --help)
 
     add_forensics_parser(sub)
     return parser
@@ -331,10 +331,10 @@ _EXTRA_OF = {"report": "report", "replicate": "report", "forensics": "report"}
 
 
 def _dispatch(args: argparse.Namespace) -> int:
-    from sb3_affect.study.launcher.ray_cluster import ClusterLost, RayClusterError  # (the experiments extra: --help needs none)
-    from sb3_affect.study.launcher.schema import SweepError  # (the experiments extra: --help needs none)
-    from sb3_affect.study.launcher.signals import Terminated  # (the experiments extra: --help needs none)
-    from sb3_affect.study.launcher.store import StoreError  # (the experiments extra: --help needs none)
+    from sb3_affect.study.launcher.ray_cluster import ClusterLost, RayClusterError  # (experiments extra: not on --help)
+    from sb3_affect.study.launcher.schema import SweepError  # (experiments extra: not on --help)
+    from sb3_affect.study.launcher.signals import Terminated  # (experiments extra: not on --help)
+    from sb3_affect.study.launcher.store import StoreError  # (experiments extra: not on --help)
 
     try:
         return int(args.func(args))

@@ -120,7 +120,7 @@ class _Unknown(dict[str, Any]):
 
 def forensics_extra(folder: Path) -> Any:
     """The forensics section for ``build_report(extra_sections=...)`` (None when ``folder`` holds no results)."""
-    from sb3_affect.study.forensics.section import has_results, report_section  # (the report extra: --help needs none)
+    from sb3_affect.study.forensics.section import has_results, report_section  # (report extra: not on --help)
 
     return report_section(folder) if has_results(folder) else None
 
@@ -160,8 +160,8 @@ def main(
     :param ray_address: the Ray cluster of every part, HOST:PORT or ray://HOST:PORT (default: a private instance)
     :return: the path of report.md
     """
-    from sb3_affect.study.launcher import run_sweep  # (the experiments extra: --help needs none)
-    from sb3_affect.study.report import build_report  # (the report extra: --help needs none)
+    from sb3_affect.study.launcher import run_sweep  # (experiments extra: not on --help)
+    from sb3_affect.study.report import build_report  # (report extra: not on --help)
 
     experiments = sweeps_folder(experiments)
     large_seeds = large_seeds or LARGE_SEEDS
@@ -233,12 +233,12 @@ def _run_part(
 
     :return: the part's time as ``record`` keeps it under ``key``, and the report section it adds (None: none)
     """
-    from sb3_affect.study.forensics.study_run import run_study  # (the report extra: --help needs none)
-    from sb3_affect.study.launcher import run_sweep  # (the experiments extra: --help needs none)
-    from sb3_affect.study.launcher.deep_schema import DeepStudy  # (the experiments extra: --help needs none)
-    from sb3_affect.study.launcher.deep_study import run_deep_study  # (the experiments extra: --help needs none)
-    from sb3_affect.study.launcher.study_schema import ForensicsStudy  # (the experiments extra: --help needs none)
-    from sb3_affect.study.launcher.sweep_file import load_sweep_file  # (the experiments extra: --help needs none)
+    from sb3_affect.study.forensics.study_run import run_study  # (report extra: not on --help)
+    from sb3_affect.study.launcher import run_sweep  # (experiments extra: not on --help)
+    from sb3_affect.study.launcher.deep_schema import DeepStudy  # (experiments extra: not on --help)
+    from sb3_affect.study.launcher.deep_study import run_deep_study  # (experiments extra: not on --help)
+    from sb3_affect.study.launcher.study_schema import ForensicsStudy  # (experiments extra: not on --help)
+    from sb3_affect.study.launcher.sweep_file import load_sweep_file  # (experiments extra: not on --help)
 
     study = load_sweep_file(path, overrides, build=False)
     if isinstance(study, DeepStudy):
@@ -269,9 +269,9 @@ def tune_rounds(
     :param executor: ``run_sweep``'s ``backend`` and ``ray_address``
     :return: the tuning of each (task, agent), and the launcher's summary of each round
     """
-    from sb3_affect.study.launcher import run_sweep  # (the experiments extra: --help needs none)
-    from sb3_affect.study.launcher.epsilon_tuning import round_values, tune, tuning_grid  # (the experiments extra: --help needs none)
-    from sb3_affect.study.report.reading.study_tables import folder_study  # (the report extra: --help needs none)
+    from sb3_affect.study.launcher import run_sweep  # (experiments extra: not on --help)
+    from sb3_affect.study.launcher.epsilon_tuning import round_values, tune, tuning_grid  # (experiments extra: not on --help)
+    from sb3_affect.study.report.reading.study_tables import folder_study  # (report extra: not on --help)
 
     data = yaml.safe_load(Path(path).read_text())
     agents = data["agents"]
@@ -308,7 +308,7 @@ def _tuned(path: Path, tuned: dict[tuple[str, str], Any]) -> list[str]:
 
 def _check_disjoint(tuning: Path, tuning_sized: list[str], beyond: Path, beyond_sized: list[str]) -> None:
     """Refuse a tuning whose seeds for a task and agent are also evaluation seeds of that task and agent."""
-    from sb3_affect.study.launcher.sweep_file import load_sweep  # (the experiments extra: --help needs none)
+    from sb3_affect.study.launcher.sweep_file import load_sweep  # (experiments extra: not on --help)
 
     seeds: dict[tuple[Any, ...], set[int]] = {}
     for cell in load_sweep(tuning, tuning_sized, build=False).cells():
@@ -370,7 +370,7 @@ def _heartbeat(what: str, every: float | None = None) -> Iterator[None]:
 
 def _refuse_a_sweep_folder(out_dir: Path) -> None:
     """A replication's folder holds its sweeps in sub-folders: one that holds a sweep itself is refused (a mix)."""
-    from sb3_affect.study.launcher.store import FORENSICS_FILE, ResultsStore, StoreError  # (the experiments extra: --help needs none)
+    from sb3_affect.study.launcher.store import FORENSICS_FILE, ResultsStore, StoreError  # (experiments extra: not on --help)
 
     if (out_dir / FORENSICS_FILE).exists() or (out_dir / FORENSICS_FILE).is_symlink():
         raise StoreError(
@@ -397,9 +397,9 @@ class _Record:
     """
 
     def __init__(self, out_dir: Path) -> None:
-        from sb3_affect.study.launcher.folder_files import MAX_SWEEP_FILE_BYTES  # (the experiments extra: --help needs none)
-        from sb3_affect.study.launcher.regular_files import UnreadableFile, read_json  # (the experiments extra: --help needs none)
-        from sb3_affect.study.launcher.store import StoreError  # (the experiments extra: --help needs none)
+        from sb3_affect.study.launcher.folder_files import MAX_SWEEP_FILE_BYTES  # (experiments extra: not on --help)
+        from sb3_affect.study.launcher.regular_files import UnreadableFile, read_json  # (experiments extra: not on --help)
+        from sb3_affect.study.launcher.store import StoreError  # (experiments extra: not on --help)
 
         out_dir.mkdir(parents=True, exist_ok=True)
         self.path = out_dir / "replicate.json"

@@ -11,6 +11,7 @@ This module is the second model: its observer (``SurpriseCallback``, an SB3 call
 from __future__ import annotations
 
 import json
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -20,12 +21,12 @@ from numba import cfunc
 from sb3_affect.agents.broekens import BroekensCallback
 from sb3_affect.core.registry import EMOTION_MODELS, EmotionModel
 from sb3_affect.envs import HUNTER_PURSUIT_ID
-from sb3_affect.kernel.team_emotions import CLOSE_EPISODE, OBSERVE, START
 from sb3_affect.kernel.team_batch import team_settings_inputs
+from sb3_affect.kernel.team_emotions import CLOSE_EPISODE, OBSERVE, START
 from sb3_affect.study.launcher.one_run import execute_run
 
 SMALL = {"size": 7, "starts": [(0, 0), (6, 6)], "prey_start": (3, 3)}
-MEMBERS = [{"algo": "AffectQ", "kwargs": {}}, {"algo": "QLearning", "kwargs": {"exploration_rate": 0.1}}]
+MEMBERS: list[dict[str, Any]] = [{"algo": "AffectQ", "kwargs": {}}, {"algo": "QLearning", "kwargs": {"exploration_rate": 0.1}}]
 
 
 class SurpriseCallback(BroekensCallback):
@@ -61,7 +62,7 @@ def close_episode(b: np.ndarray, out: np.ndarray, decisions: float, cut: bool) -
     b[JOY] = b[DISTRESS] = 0.0
 
 
-def _config(members: list[dict[str, object]], seed: int) -> dict[str, object]:
+def _config(members: list[dict[str, Any]], seed: int) -> dict[str, Any]:
     return {
         "agent": "mixed", "algo": "team", "algo_kwargs": {}, "env_id": HUNTER_PURSUIT_ID,
         "env_kwargs": {**SMALL, "prey": "random"}, "episodes": 6, "labels": {}, "max_timesteps": None, "seed": seed,
@@ -69,8 +70,8 @@ def _config(members: list[dict[str, object]], seed: int) -> dict[str, object]:
     }  # fmt: skip
 
 
-def _python(members: list[dict[str, object]]) -> list[dict[str, object]]:
-    return [{**m, "kwargs": {**m["kwargs"], "engine": "python"}} for m in members]  # type: ignore[dict-item]
+def _python(members: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    return [{**m, "kwargs": {**m["kwargs"], "engine": "python"}} for m in members]
 
 
 @pytest.mark.parametrize("seed", [3, 11])
