@@ -26,6 +26,8 @@ from sb3_affect.kernel.team_emotions import CLOSE_EPISODE, OBSERVE, START
 from sb3_affect.study.launcher.one_run import execute_run
 
 SMALL = {"size": 7, "starts": [(0, 0), (6, 6)], "prey_start": (3, 3)}
+#: The second model's registry entry: its observer and its kernel functions, both in this module.
+SURPRISE = EmotionModel(f"{__name__}:SurpriseCallback", __name__, ("surprise",), ("surprise",))
 MEMBERS: list[dict[str, Any]] = [{"algo": "AffectQ", "kwargs": {}}, {"algo": "QLearning", "kwargs": {"exploration_rate": 0.1}}]
 
 
@@ -76,7 +78,7 @@ def _python(members: list[dict[str, Any]]) -> list[dict[str, Any]]:
 
 @pytest.mark.parametrize("seed", [3, 11])
 def test_a_second_model_with_a_kernel_module_keeps_team_runs_compiled(monkeypatch: pytest.MonkeyPatch, seed: int) -> None:
-    monkeypatch.setitem(EMOTION_MODELS, "surprise", EmotionModel(f"{__name__}:SurpriseCallback", __name__, ("surprise",), COLUMNS))
+    monkeypatch.setitem(EMOTION_MODELS, "surprise", SURPRISE)
     inputs = team_settings_inputs([(m["algo"], m["kwargs"]) for m in MEMBERS], HUNTER_PURSUIT_ID, SMALL, 6)
     assert inputs is not None  # the team kernel runs it
     assert list(inputs.emotions.columns) == ["broekens", "surprise"]
@@ -91,7 +93,7 @@ def test_a_second_model_with_a_kernel_module_keeps_team_runs_compiled(monkeypatc
 
 
 def test_a_model_without_a_kernel_module_sends_team_runs_to_the_python_team(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setitem(EMOTION_MODELS, "surprise", EmotionModel(f"{__name__}:SurpriseCallback", None, ("surprise",), COLUMNS))
+    monkeypatch.setitem(EMOTION_MODELS, "surprise", SURPRISE._replace(kernel=None))
     assert team_settings_inputs([(m["algo"], m["kwargs"]) for m in MEMBERS], HUNTER_PURSUIT_ID, SMALL, 3) is None
     columns = execute_run(_config(MEMBERS, 2))["episodes"]
     assert columns == execute_run(_config(_python(MEMBERS), 2))["episodes"]

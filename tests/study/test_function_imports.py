@@ -20,14 +20,18 @@ def function_imports() -> list[tuple[Path, int, str]]:
     for path in sorted(STUDY.rglob("*.py")):
         source = path.read_text()
         lines = source.splitlines()
+        for node in nested_imports(ast.parse(source), False):
+            found.append((path, node.lineno, "\n".join(lines[node.lineno - 1 : node.end_lineno])))
+    return found
 
-        def visit(node: ast.AST, inside: bool) -> None:
-            for child in ast.iter_child_nodes(node):
-                if inside and isinstance(child, (ast.Import, ast.ImportFrom)):
-                    found.append((path, child.lineno, "\n".join(lines[child.lineno - 1 : child.end_lineno])))
-                visit(child, inside or isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda)))
 
-        visit(ast.parse(source), False)
+def nested_imports(node: ast.AST, inside: bool) -> list[ast.Import | ast.ImportFrom]:
+    """The import statements under ``node`` that a function holds (``inside``: ``node`` is in a function)."""
+    found: list[ast.Import | ast.ImportFrom] = []
+    for child in ast.iter_child_nodes(node):
+        if inside and isinstance(child, (ast.Import, ast.ImportFrom)):
+            found.append(child)
+        found += nested_imports(child, inside or isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda)))
     return found
 
 
