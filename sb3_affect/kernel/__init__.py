@@ -18,7 +18,8 @@ the identical episode log, Q-table, random-generator state and appraisal. Module
   in one call, ``simulate``'s);
 - moving prey (MovingPursuit): ``moving_loop`` (its loop and arguments) and ``moving_batch`` (its inputs and batches);
 - hunter teams (HunterPursuit): ``team_loop`` (its loop and arguments), ``team_env`` (the env's own pieces) and
-  ``team_batch`` (its inputs and record columns); ``td_emotions``: the emotion model observing each hunter.
+  ``team_batch`` (its inputs and record columns); ``team_emotions``: the registry's emotion models observing each
+  hunter, each from its kernel module (Broekens': ``td_emotions``).
 - ``minigrid_world`` (the view: ``minigrid_view``): MiniGrid's Empty, FourRooms and DoorKey worlds, many stepped in one
   call (``sb3_affect.minigrid_vec_env``).
 

@@ -1,7 +1,7 @@
 """
 What the team kernel (``kernel.team_loop``) is fed, and what comes out: a team run of the package's own agents on
 HunterPursuit from the members' settings (or freshly built models) and the env, without building a model, and the
-run's record columns (the team's log, each hunter's log and its Broekens observer's), as the launcher stores them.
+run's record columns (the team's log, each hunter's log and its emotion models' observers'), as the launcher stores them.
 
 A run starts as a new ``HunterTeam`` does: each hunter's Q-table at its ``q_init``, ``random.Random(member_seed(seed,
 i))``, an empty appraisal; the env's NumPy generator as ``reset(seed=seed)`` leaves it.
@@ -15,20 +15,18 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from sb3_affect.core.registry import EMOTION_MODELS
 from sb3_affect.core.team_seeds import member_seed
 from sb3_affect.envs.grid_pursuit import MOVES, PREY_MODES
-from sb3_affect.kernel import state_layout, td_emotions, team_loop
+from sb3_affect.kernel import state_layout, team_loop
 from sb3_affect.kernel.agent_settings import AFFECT, BehaviourRows, kernel_agent, settings_class
 from sb3_affect.kernel.decision import ObsAppraisal
 from sb3_affect.kernel.mt19937 import STATE_SIZE, TW_SIZE, seed_key, seed_state
 from sb3_affect.kernel.pcg64 import seeded_state
+from sb3_affect.kernel.team_emotions import TeamEmotions, first_class_functions, team_emotions
 
 #: The most bytes the known maps of a team's hunters may take (larger observation spaces run on the Python team).
 MAX_KNOWN_BYTES = 1 << 30
 N_ACTIONS = len(MOVES)
-#: The emotion model the team kernel computes beside each hunter (``kernel.td_emotions``), as the registry names it.
-OBSERVER = "broekens"
 
 
 class TeamInputs(NamedTuple):
@@ -43,6 +41,7 @@ class TeamInputs(NamedTuple):
     n_states: int
     succ_width: int
     pred_width: int
+    emotions: TeamEmotions  # the registry's emotion models, each hunter observed by all
 
 
 class TeamRun(NamedTuple):
@@ -74,8 +73,9 @@ def team_inputs(agents: Sequence[Any], env: Any, episodes: int) -> TeamInputs | 
         return f"the env {type(env).__name__} is not HunterPursuit"
     if len(agents) != len(env.possible_agents):
         return f"{len(agents)} agents for {len(env.possible_agents)} hunters"
-    if set(EMOTION_MODELS) != {OBSERVER}:  # (a run records every model the registry lists)
-        return f"the team kernel computes the emotion model {OBSERVER} only, the registry lists {', '.join(EMOTION_MODELS)}"
+    emotions = team_emotions()  # (a run records every model the registry lists)
+    if isinstance(emotions, str):
+        return emotions
     specs = []
     schedules = []
     for agent in agents:
@@ -134,6 +134,7 @@ def team_inputs(agents: Sequence[Any], env: Any, episodes: int) -> TeamInputs | 
         n_states,
         width,
         width,
+        emotions,
     )
 
 
@@ -175,7 +176,7 @@ def run_team(inputs: TeamInputs, seed: int, episodes: int) -> TeamRun:
         np.zeros((n, n_states, N_ACTIONS), dtype=np.int64),
         np.zeros((n, n_states), dtype=np.int64),
         np.zeros((n, team_loop.N_TEAM_IST), dtype=np.int64),
-        np.zeros((n, team_loop.N_TEAM_FST)),
+        np.zeros((n, team_loop.S_OBSERVER + inputs.emotions.n_state)),
         seeded_state(seed),
         np.zeros(n, dtype=np.int64),
     )
@@ -192,7 +193,7 @@ def run_team(inputs: TeamInputs, seed: int, episodes: int) -> TeamRun:
         inputs.alpha,
         inputs.p,
         np.zeros((n, episodes, state_layout.N_OUT_I), dtype=np.int64),
-        np.zeros((n, episodes, team_loop.N_TEAM_OUT_F)),
+        np.zeros((n, episodes, team_loop.F_OBSERVER + inputs.emotions.n_out)),
         np.zeros((episodes, team_loop.N_TEAM_I), dtype=np.int64),
         np.zeros(episodes),
     )
@@ -203,7 +204,11 @@ def run_team(inputs: TeamInputs, seed: int, episodes: int) -> TeamRun:
         np.empty(n_states * N_ACTIONS + 1, dtype=np.int64),
         np.empty(5, dtype=np.int64),
     )
-    team_loop.team_loop(inputs.env, inputs.config, inputs.hunters, inputs.behaviour, state, appraisal, rows, work, episodes)
+    with first_class_functions():
+        team_loop.team_loop(
+            inputs.env, inputs.config, inputs.hunters, inputs.behaviour, state, appraisal, rows, work,
+            inputs.emotions.observers, episodes,
+        )  # fmt: skip
     return TeamRun(rows.rows_i, rows.rows_f, rows.team_i, rows.team_f, q, mt, state.pcg, appraisal.dist)
 
 
@@ -240,7 +245,8 @@ def hunter_columns(inputs: TeamInputs, run: TeamRun, m: int) -> dict[str, list[A
 def team_columns(inputs: TeamInputs, run: TeamRun) -> dict[str, list[Any]]:
     """
     A team run's record columns, as the Python team gives them: the team's (``team_loop.TEAM_COLUMNS``), then per hunter
-    ``hunter_<i>/<column>`` (its episode log) and ``hunter_<i>/broekens_<joy|distress|hope|fear|goal_joy>``.
+    ``hunter_<i>/<column>`` (its episode log) and ``hunter_<i>/<model>_<column>`` for each emotion model of the registry
+    (``broekens_<joy|distress|hope|fear|goal_joy>``).
     """
     n, episodes = run.out_i.shape[0], run.out_i.shape[1]
     ints = run.out_i
@@ -266,9 +272,9 @@ def team_columns(inputs: TeamInputs, run: TeamRun) -> dict[str, list[Any]]:
         agent = f"hunter_{m}"
         for name, values in hunter_columns(inputs, run, m).items():
             columns[f"{agent}/{name}"] = values
-        for name in EMOTION_MODELS[OBSERVER].columns:
-            column = team_loop.F_OBSERVER + td_emotions.COLUMNS.index(name)
-            columns[f"{agent}/{OBSERVER}_{name}"] = _plain(run.out_f[m, :, column])
+        for model, where in inputs.emotions.columns.items():
+            for name, at in where.items():
+                columns[f"{agent}/{model}_{name}"] = _plain(run.out_f[m, :, team_loop.F_OBSERVER + at])
     return columns
 
 

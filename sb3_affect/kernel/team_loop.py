@@ -2,8 +2,8 @@
 The compiled team of independent learners on HunterPursuit (``sb3_affect.agents.hunter_team.HunterTeam`` driving each hunter's
 ``DecisionStepper``, and ``envs.hunter_pursuit.HunterPursuitEnv``'s step, are the reference). For the same seeds it
 gives the identical team log, each hunter's episode log, Q-table and ``random.Random`` state, the env's NumPy
-generator state (``kernel.pcg64``: the prey's draws) and what a ``BroekensCallback`` observing each hunter records
-(``kernel.td_emotions``).
+generator state (``kernel.pcg64``: the prey's draws) and what the observers of the registry's emotion models record
+of each hunter (``kernel.team_emotions``: each model's kernel module, as ``kernel.td_emotions`` is Broekens').
 
 A round: every hunter decides in agent order (``decision.decide``); the round lasts as many env steps as the longest
 decision, a hunter whose decision is over stays (``STAY``) and only observes. The env's step moves all hunters at
@@ -23,7 +23,6 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from sb3_affect.kernel import td_emotions
 from sb3_affect.kernel.affect import fit_add, known_add_goal, start_norm
 from sb3_affect.kernel.agent_settings import AFFECT, AgentSettings, BehaviourRows
 from sb3_affect.kernel.choice import row_max
@@ -109,7 +108,7 @@ class TeamState(NamedTuple):
     ucb_n: np.ndarray  # int64[hunters, n_states, n_actions]
     ucb_tot: np.ndarray  # int64[hunters, n_states]
     ist: np.ndarray  # int64[hunters, N_TEAM_IST]
-    fst: np.ndarray  # float64[hunters, N_TEAM_FST]
+    fst: np.ndarray  # float64[hunters, S_OBSERVER + the emotion models' state]
     pcg: np.ndarray  # uint64[pcg64.STATE_SIZE]
     cells: np.ndarray  # int64[hunters]
 
@@ -120,7 +119,7 @@ class TeamEpisodes(NamedTuple):
     alpha: np.ndarray  # float64[hunters, episodes]
     p: np.ndarray  # float64[hunters, episodes]
     rows_i: np.ndarray  # int64[hunters, episodes, N_OUT_I]
-    rows_f: np.ndarray  # float64[hunters, episodes, N_TEAM_OUT_F]
+    rows_f: np.ndarray  # float64[hunters, episodes, F_OBSERVER + the emotion models' columns]
     team_i: np.ndarray  # int64[episodes, N_TEAM_I]
     team_f: np.ndarray  # float64[episodes]: the team's reward
 
@@ -156,25 +155,26 @@ def hunter(hunters: Any, m: int) -> AgentSettings:
 
 
 # out_i[m, episode]: each hunter's episode row (state_layout's ints); out_f[m, episode]: its floats, then its
-# observer's columns from F_OBSERVER (td_emotions.COLUMNS)
+# emotion models' columns from F_OBSERVER (team_emotions.Observers.out_at)
 F_OBSERVER = N_OUT_F
-N_TEAM_OUT_F = F_OBSERVER + td_emotions.N_OUT
 # team_i[episode]: the team's row (team_f[episode]: its reward)
 T_ROUNDS, T_STEPS, T_OPTIMAL, T_TRUNCATED, T_CAPTURER = range(5)
 N_TEAM_I = 5
 
 
 @kernel_jit
-def team_loop(env, config, hunters, behaviour, state, appraisal, episodes, work, n_episodes):
+def team_loop(env, config, hunters, behaviour, state, appraisal, episodes, work, observers, n_episodes):
     """
     Run ``n_episodes`` team episodes of a fresh run (the arrays as a new team has them). The arguments: ``TeamEnv``,
     ``Config``, ``Hunters``, ``agent_settings.BehaviourRows`` (one row per hunter first), ``TeamState``,
-    ``decision.ObsAppraisal`` (one row per hunter first), ``TeamEpisodes`` and ``TeamWork``.
+    ``decision.ObsAppraisal`` (one row per hunter first), ``TeamEpisodes``, ``TeamWork`` and the emotion models'
+    ``team_emotions.Observers``.
     """
     cell_trans, far, tdist, hunter_starts = env
     q, mt, tw, ucb_n, ucb_tot, ist, fst, pcg, cells_of = state
     dist, succ, succ_n, pred, pred_n, goal, fit_vals = appraisal
     alpha_e, p_e, out_i, out_f, team_i, team_f = episodes
+    state_at, out_at = observers.state_at, observers.out_at
     queue, seen, stack, ties = work.queue, work.seen, work.stack, work.ties
     n_cells = config.n_cells
     prey_kind = config.prey
@@ -191,7 +191,7 @@ def team_loop(env, config, hunters, behaviour, state, appraisal, episodes, work,
     for m in range(1, n):
         team_cap = min(team_cap, hunters.cap[m])
     shortest = np.int64(-1)
-    # the run starts: the env at its start, each hunter's first observation and Broekens' first value
+    # the run starts: the env at its start, each hunter's first observation and its observers' first value
     prey = config.prey_start
     for m in range(n):
         cells_of[m] = hunter_starts[m]
@@ -203,7 +203,7 @@ def team_loop(env, config, hunters, behaviour, state, appraisal, episodes, work,
         ist[m, I_CHANGED] = 1
         fst[m, S_NORM] = math.nan
         fst[m, S_LAST_ACT] = math.inf
-        td_emotions.start(fst[m, S_OBSERVER:], row_max(q[m], ist[m, I_STATE]))
+        observers_start(observers, fst[m, S_OBSERVER:], row_max(q[m], ist[m, I_STATE]))
     episode = 0
     rounds = 0
     steps = 0
@@ -301,7 +301,7 @@ def team_loop(env, config, hunters, behaviour, state, appraisal, episodes, work,
             prey = config.prey_start
             for m in range(n):
                 cells_of[m] = hunter_starts[m]
-        # every hunter closes its decision (DecisionStepper.end_decision), then its Broekens observer sees it
+        # every hunter closes its decision (DecisionStepper.end_decision), then its observers see it
         for m in range(n):
             h = hunter(hunters, m)
             ended = ist[m, I_ENDED] != 0
@@ -319,11 +319,12 @@ def team_loop(env, config, hunters, behaviour, state, appraisal, episodes, work,
             if ist[m, I_EXPLORED] != 0:
                 ist[m, I_RANDOM] += 1
             ist[m, I_DECISIONS] += 1
-            # the Broekens observer: the decision's reward and the value reached
+            # the observers: the decision's reward and the value reached
             observer = fst[m, S_OBSERVER:]
             cut = over and not ended
             reached = 0.0 if over and not cut else row_max(q[m], ist[m, I_LAST_S2] if over else ist[m, I_STATE])
-            joy = td_emotions.observe(observer, fst[m, S_DECISION_REWARD], h.gamma, reached)
+            for o in range(len(observers.observe)):
+                observers.observe[o](observer[state_at[o] :], fst[m, S_DECISION_REWARD], h.gamma, reached)
             if over:
                 row = out_i[m, episode]
                 cells = ist[m, I_CELLS]
@@ -350,7 +351,8 @@ def team_loop(env, config, hunters, behaviour, state, appraisal, episodes, work,
                 frow = out_f[m, episode]
                 frow[F_REWARD] = fst[m, S_REWARD]
                 frow[F_NORM] = fst[m, S_NORM] if h.kind == AFFECT else math.nan
-                td_emotions.close_episode(observer, frow[F_OBSERVER:], decisions, joy, cut)
+                for o in range(len(observers.close_episode)):
+                    observers.close_episode[o](observer[state_at[o] :], frow[F_OBSERVER + out_at[o] :], decisions, cut)
                 if h.kind == AFFECT:
                     fsum = fst[m, S_FIT0 : S_FIT0 + 4]
                     y = ist[m, I_EL_CELLS] if h.units_cells else ist[m, I_EL_DECISIONS]
@@ -362,7 +364,7 @@ def team_loop(env, config, hunters, behaviour, state, appraisal, episodes, work,
                 ist[m, I_STATE] = encode(cells_of, prey, m, n_cells, obs_all, prey_moves)
                 ist[m, I_DECISIONS] = ist[m, I_CELLS] = ist[m, I_RANDOM] = ist[m, I_WAITS] = 0
                 fst[m, S_REWARD] = 0.0
-                td_emotions.start(observer, row_max(q[m], ist[m, I_STATE]))
+                observers_start(observers, observer, row_max(q[m], ist[m, I_STATE]))
         if over:
             team_i[episode, T_ROUNDS] = rounds
             team_i[episode, T_STEPS] = steps
@@ -376,6 +378,13 @@ def team_loop(env, config, hunters, behaviour, state, appraisal, episodes, work,
             team_reward = 0.0
     for m in range(n):
         mt[m, MT_N] = ist[m, I_R]
+
+
+@kernel_inline
+def observers_start(observers: Any, observer: np.ndarray, value: float) -> None:
+    """Every emotion model's observer of a hunter (``observer``: its floats) starts an episode in a state of ``value``."""
+    for o in range(len(observers.start)):
+        observers.start[o](observer[observers.state_at[o] :], value)
 
 
 @kernel_inline
@@ -402,7 +411,6 @@ def team_optimal(out_i: np.ndarray, episode: int, config: Config) -> bool:
 # ist[m]: hunter m's run state (int), after state_layout's: its random stream's index and its decision in progress
 (I_R, I_ACTION, I_K, I_EXPLORED, I_START, I_ENDED, I_WALKS) = range(N_IST, N_IST + 7)
 N_TEAM_IST = N_IST + 7
-# fst[m]: hunter m's run state (float), after state_layout's: its decision's rewards, then its observer's state
+# fst[m]: hunter m's run state (float), after state_layout's: its decision's rewards, then its emotion models' states
 S_DECISION_REWARD, S_JUMP_REWARD = range(N_FST, N_FST + 2)
-S_OBSERVER = N_FST + 2  # S_OBSERVER..: the Broekens observer's state (kernel.td_emotions)
-N_TEAM_FST = S_OBSERVER + td_emotions.N_STATE
+S_OBSERVER = N_FST + 2  # S_OBSERVER..: the observers' states (team_emotions.Observers.state_at)

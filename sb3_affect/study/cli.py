@@ -10,6 +10,11 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from sb3_affect import __version__
+from sb3_affect.core.extras import MissingExtraError, require_extra
+from sb3_affect.study.replicate import MINUTES, PARTS, TUNED_PARTS, forensics_extra, part_description
+from sb3_affect.study.replicate import main as replicate
+
 if TYPE_CHECKING:
     from sb3_affect.study.launcher.study_schema import ForensicsStudy
 
@@ -52,12 +57,12 @@ def _existing_folder(directory: str, command: str) -> Path:
 
 
 def _cmd_run(args: argparse.Namespace) -> int:
-    from sb3_affect.study.launcher import run_sweep
-    from sb3_affect.study.launcher.deep_schema import DeepStudy
-    from sb3_affect.study.launcher.deep_study import run_deep_study
-    from sb3_affect.study.launcher.signals import stop_on_sigterm
-    from sb3_affect.study.launcher.study_schema import ForensicsStudy
-    from sb3_affect.study.launcher.sweep_file import load_sweep_file
+    from sb3_affect.study.launcher import run_sweep  # (experiments extra: not on --help)
+    from sb3_affect.study.launcher.deep_schema import DeepStudy  # (experiments extra: not on --help)
+    from sb3_affect.study.launcher.deep_study import run_deep_study  # (experiments extra: not on --help)
+    from sb3_affect.study.launcher.signals import stop_on_sigterm  # (experiments extra: not on --help)
+    from sb3_affect.study.launcher.study_schema import ForensicsStudy  # (experiments extra: not on --help)
+    from sb3_affect.study.launcher.sweep_file import load_sweep_file  # (experiments extra: not on --help)
 
     _check_out(args.out)
     study = load_sweep_file(args.file, args.set or (), build=False)
@@ -94,7 +99,7 @@ def _cmd_run(args: argparse.Namespace) -> int:
 
 def _run_forensics(study: ForensicsStudy, args: argparse.Namespace) -> int:
     """``sb3-affect run`` of a forensics study file (``study: forensics``) on the launcher's executor."""
-    from sb3_affect.study.forensics.study_run import run_study, summary_lines
+    from sb3_affect.study.forensics.study_run import run_study, summary_lines  # (report extra: not on --help)
 
     if args.logs:
         raise UsageError(f"--logs {args.logs}: the forensics study runs on the compiled engine and writes no SB3 logs")
@@ -112,9 +117,9 @@ def _run_forensics(study: ForensicsStudy, args: argparse.Namespace) -> int:
 
 
 def _cmd_status(args: argparse.Namespace) -> int:
-    from sb3_affect.study.forensics.unit_files import PROTOCOL_FILE, folder_status
-    from sb3_affect.study.launcher import ResultsStore
-    from sb3_affect.study.launcher.deep_study import STUDY_FILE
+    from sb3_affect.study.forensics.unit_files import PROTOCOL_FILE, folder_status  # (report extra: not on --help)
+    from sb3_affect.study.launcher import ResultsStore  # (experiments extra: not on --help)
+    from sb3_affect.study.launcher.deep_study import STUDY_FILE  # (experiments extra: not on --help)
 
     root = _existing_folder(args.dir, "status")
     if ResultsStore(root).saved_sweep() is not None:  # sweep.json, or a copy of it when it was deleted
@@ -151,19 +156,17 @@ def _cmd_status(args: argparse.Namespace) -> int:
 
 
 def _print_deep_status(root: Path) -> None:
-    from pydantic import ValidationError
-
-    from sb3_affect.study.launcher.deep_study import deep_status
+    from sb3_affect.study.launcher.deep_study import deep_status  # (experiments extra: not on --help)
 
     try:
         print("\n".join(deep_status(root)))
-    except (ValidationError, TypeError) as error:
+    except (ValueError, TypeError) as error:  # pydantic's ValidationError is a ValueError
         raise UsageError(f"{root}: its deep_study.json is not a valid deep study ({type(error).__name__}); "
                          "rerun `sb3-affect run FILE --out DIR` into a new folder") from None
 
 
 def _print_status(root: Path) -> None:
-    from sb3_affect.study.launcher import ResultsStore
+    from sb3_affect.study.launcher import ResultsStore  # (experiments extra: not on --help)
 
     store = ResultsStore(root)
     name, per_agent, rejected = store.progress()  # agent -> (runs, done, failed); files that do not count
@@ -179,7 +182,7 @@ def _print_status(root: Path) -> None:
 
 
 def _cmd_report(args: argparse.Namespace) -> int:
-    from sb3_affect.study.report import build_report
+    from sb3_affect.study.report import build_report  # (report extra: not on --help)
 
     root = _existing_folder(args.dir, "report")
     if not any(root.iterdir()):
@@ -189,7 +192,6 @@ def _cmd_report(args: argparse.Namespace) -> int:
     unwritable = f"{out}: not writable, so the report can not be written there; write it elsewhere with --out DIR"
     if out.exists() and not os.access(out, os.W_OK | os.X_OK):
         raise UsageError(unwritable)
-    from sb3_affect.study.replicate import forensics_extra
 
     extra = forensics_extra(root / "forensics")  # the forensics section, when the folder holds its results
     try:
@@ -204,8 +206,7 @@ def _cmd_report(args: argparse.Namespace) -> int:
 
 
 def _cmd_replicate(args: argparse.Namespace) -> int:
-    from sb3_affect.study.launcher.signals import stop_on_sigterm
-    from sb3_affect.study.replicate import main as replicate
+    from sb3_affect.study.launcher.signals import stop_on_sigterm  # (experiments extra: not on --help)
 
     stop_on_sigterm()
 
@@ -222,8 +223,6 @@ def _cmd_replicate(args: argparse.Namespace) -> int:
 
 def _replicate_help() -> str:
     """``replicate --help``: what it runs (from ``sb3_affect.study.replicate.PARTS``, so it can not drift) and writes."""
-    from sb3_affect.study.replicate import MINUTES, PARTS, TUNED_PARTS, part_description
-
     lines = [
         "The main job (`make replicate` runs it): runs these sweep files, each into its own sub-folder of OUT (local",
         "processes, or Ray tasks with --backend ray), then writes one report from all of them.",
@@ -241,8 +240,6 @@ def _replicate_help() -> str:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from sb3_affect import __version__
-
     parser = argparse.ArgumentParser(
         prog="sb3-affect",
         description="Run experiment sweeps, show their status, build the report, run the whole replication.",
@@ -329,7 +326,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--ray-address", default=None, help="Ray cluster address, HOST:PORT or ray://HOST:PORT (default: a private instance)"
     )
     replicate.set_defaults(func=_cmd_replicate)
-    from sb3_affect.study.forensics.command import add_forensics_parser
+    from sb3_affect.study.forensics.command import add_forensics_parser  # (report extra: not on --help)
 
     add_forensics_parser(sub)
     return parser
@@ -337,7 +334,6 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)  # --help, --version and usage errors end here, having imported little
-    from sb3_affect.core.extras import MissingExtraError, require_extra
 
     try:
         require_extra(_EXTRA_OF.get(args.command, "experiments"), f"sb3-affect {args.command}")
@@ -356,10 +352,10 @@ _EXTRA_OF = {"report": "report", "replicate": "report", "forensics": "report"}
 
 
 def _dispatch(args: argparse.Namespace) -> int:
-    from sb3_affect.study.launcher.ray_cluster import ClusterLost, RayClusterError
-    from sb3_affect.study.launcher.schema import SweepError
-    from sb3_affect.study.launcher.signals import Terminated
-    from sb3_affect.study.launcher.store import StoreError
+    from sb3_affect.study.launcher.ray_cluster import ClusterLost, RayClusterError  # (experiments extra: not on --help)
+    from sb3_affect.study.launcher.schema import SweepError  # (experiments extra: not on --help)
+    from sb3_affect.study.launcher.signals import Terminated  # (experiments extra: not on --help)
+    from sb3_affect.study.launcher.store import StoreError  # (experiments extra: not on --help)
 
     try:
         return int(args.func(args))

@@ -11,15 +11,23 @@ local processes or Ray.
 from __future__ import annotations
 
 import contextlib
+import importlib.util
 import json
+import math
 import sys
 import threading
 import time
 from collections.abc import Iterator
+from importlib.resources import files
 from pathlib import Path
 from typing import Any
 
 from sb3_affect.study.studies import STUDIES
+
+try:  # the experiments extra: without it the help gives no run counts or sizes (running a part says what to install)
+    import yaml
+except ImportError:  # pragma: no cover - the extra is installed in the tests
+    yaml = None  # type: ignore[assignment]
 
 #: The folder of the sweep files; None: those installed with the package (``experiments/`` of the source tree).
 EXPERIMENTS: Path | None = None
@@ -53,11 +61,7 @@ def sweep_runs(path: Path) -> int | None:
     alone, so the help stays fast; the launcher's ``Sweep.run_configs`` gives the same count). None when it can not be
     read.
     """
-    import math
-
-    try:
-        import yaml
-    except ImportError:  # without the experiments extra the help gives no count (running a part says what to install)
+    if yaml is None:
         return None
     try:
         data = yaml.safe_load(Path(path).read_text())
@@ -74,8 +78,6 @@ def sweep_runs(path: Path) -> int | None:
 
 def missing_package(part: str) -> str | None:
     """What to install when a part needs a package that is not installed (``PART_PACKAGES``), else None."""
-    import importlib.util
-
     for name, package, extra in PART_PACKAGES:
         if name == part and importlib.util.find_spec(package) is None:
             return f"{package} is not installed: pip install \"sb3-affect[{extra}]\""
@@ -86,7 +88,6 @@ def sweeps_folder(experiments: Path | None = None) -> Path:
     """The folder of the sweep files: ``experiments``, else ``EXPERIMENTS``, else those installed with the package."""
     if experiments or EXPERIMENTS:
         return Path(experiments or EXPERIMENTS)  # type: ignore[arg-type]
-    from importlib.resources import files  # (not the launcher's own helper: --help must not need the launcher's extra)
 
     return Path(str(files("sb3_affect.sweeps")))
 
@@ -101,11 +102,9 @@ def part_description(name: str, description: str, experiments: Path | None = Non
     path = sweeps_folder(experiments) / f"{name}.yaml"
     values: dict[str, Any] = {}
     try:
-        import yaml
-
-        data = yaml.safe_load(path.read_text())
+        data = None if yaml is None else yaml.safe_load(path.read_text())  # (without the experiments extra: no sizes)
         values.update(data if isinstance(data, dict) else {})
-    except (ImportError, OSError, ValueError):  # without the experiments extra the help gives no sizes
+    except (OSError, ValueError):
         pass
     if "{runs}" in description:
         values["runs"] = sweep_runs(path)
@@ -121,7 +120,7 @@ class _Unknown(dict[str, Any]):
 
 def forensics_extra(folder: Path) -> Any:
     """The forensics section for ``build_report(extra_sections=...)`` (None when ``folder`` holds no results)."""
-    from sb3_affect.study.forensics.section import has_results, report_section
+    from sb3_affect.study.forensics.section import has_results, report_section  # (report extra: not on --help)
 
     return report_section(folder) if has_results(folder) else None
 
@@ -161,8 +160,8 @@ def main(
     :param ray_address: the Ray cluster of every part, HOST:PORT or ray://HOST:PORT (default: a private instance)
     :return: the path of report.md
     """
-    from sb3_affect.study.launcher import run_sweep
-    from sb3_affect.study.report import build_report
+    from sb3_affect.study.launcher import run_sweep  # (experiments extra: not on --help)
+    from sb3_affect.study.report import build_report  # (report extra: not on --help)
 
     experiments = sweeps_folder(experiments)
     large_seeds = large_seeds or LARGE_SEEDS
@@ -234,12 +233,12 @@ def _run_part(
 
     :return: the part's time as ``record`` keeps it under ``key``, and the report section it adds (None: none)
     """
-    from sb3_affect.study.forensics.study_run import run_study
-    from sb3_affect.study.launcher import run_sweep
-    from sb3_affect.study.launcher.deep_schema import DeepStudy
-    from sb3_affect.study.launcher.deep_study import run_deep_study
-    from sb3_affect.study.launcher.study_schema import ForensicsStudy
-    from sb3_affect.study.launcher.sweep_file import load_sweep_file
+    from sb3_affect.study.forensics.study_run import run_study  # (report extra: not on --help)
+    from sb3_affect.study.launcher import run_sweep  # (experiments extra: not on --help)
+    from sb3_affect.study.launcher.deep_schema import DeepStudy  # (experiments extra: not on --help)
+    from sb3_affect.study.launcher.deep_study import run_deep_study  # (experiments extra: not on --help)
+    from sb3_affect.study.launcher.study_schema import ForensicsStudy  # (experiments extra: not on --help)
+    from sb3_affect.study.launcher.sweep_file import load_sweep_file  # (experiments extra: not on --help)
 
     study = load_sweep_file(path, overrides, build=False)
     if isinstance(study, DeepStudy):
@@ -270,11 +269,9 @@ def tune_rounds(
     :param executor: ``run_sweep``'s ``backend`` and ``ray_address``
     :return: the tuning of each (task, agent), and the launcher's summary of each round
     """
-    import yaml
-
-    from sb3_affect.study.launcher import run_sweep
-    from sb3_affect.study.launcher.epsilon_tuning import round_values, tune, tuning_grid
-    from sb3_affect.study.report.reading.study_tables import folder_study
+    from sb3_affect.study.launcher import run_sweep  # (experiments extra: not on --help)
+    from sb3_affect.study.launcher.epsilon_tuning import round_values, tune, tuning_grid  # (experiments extra: not on --help)
+    from sb3_affect.study.report.reading.study_tables import folder_study  # (report extra: not on --help)
 
     data = yaml.safe_load(Path(path).read_text())
     agents = data["agents"]
@@ -300,8 +297,6 @@ def tune_rounds(
 
 def _tuned(path: Path, tuned: dict[tuple[str, str], Any]) -> list[str]:
     """The ``--set`` overrides that give each agent of sweep file ``path`` tuned in ``tuned`` its ε on each task."""
-    import yaml
-
     agents = yaml.safe_load(Path(path).read_text())["agents"]
     overrides = []
     for i, agent in enumerate(agents):
@@ -313,7 +308,7 @@ def _tuned(path: Path, tuned: dict[tuple[str, str], Any]) -> list[str]:
 
 def _check_disjoint(tuning: Path, tuning_sized: list[str], beyond: Path, beyond_sized: list[str]) -> None:
     """Refuse a tuning whose seeds for a task and agent are also evaluation seeds of that task and agent."""
-    from sb3_affect.study.launcher.sweep_file import load_sweep
+    from sb3_affect.study.launcher.sweep_file import load_sweep  # (experiments extra: not on --help)
 
     seeds: dict[tuple[Any, ...], set[int]] = {}
     for cell in load_sweep(tuning, tuning_sized, build=False).cells():
@@ -326,8 +321,6 @@ def _check_disjoint(tuning: Path, tuning_sized: list[str], beyond: Path, beyond_
 
 def _capped(path: Path, seeds: int | None, episodes: int | None) -> list[str]:
     """The ``--set`` overrides of a sweep file for a quick check: its seeds capped at ``seeds``, its episodes ``episodes``."""
-    import yaml
-
     data = yaml.safe_load(path.read_text())
     overrides = [] if seeds is None else [f"seeds={min(int(data['seeds']), seeds)}"]
     return overrides + ([] if episodes is None else [f"episodes={episodes}"])
@@ -335,8 +328,6 @@ def _capped(path: Path, seeds: int | None, episodes: int | None) -> list[str]:
 
 def _seeds(path: Path, overrides: list[str]) -> int:
     """The seeds per cell of sweep file ``path`` under ``overrides`` (``_capped``)."""
-    import yaml
-
     given = [int(o.split("=", 1)[1]) for o in overrides if o.startswith("seeds=")]
     return given[-1] if given else int(yaml.safe_load(path.read_text())["seeds"])
 
@@ -379,7 +370,7 @@ def _heartbeat(what: str, every: float | None = None) -> Iterator[None]:
 
 def _refuse_a_sweep_folder(out_dir: Path) -> None:
     """A replication's folder holds its sweeps in sub-folders: one that holds a sweep itself is refused (a mix)."""
-    from sb3_affect.study.launcher.store import FORENSICS_FILE, ResultsStore, StoreError
+    from sb3_affect.study.launcher.store import FORENSICS_FILE, ResultsStore, StoreError  # (experiments extra: not on --help)
 
     if (out_dir / FORENSICS_FILE).exists() or (out_dir / FORENSICS_FILE).is_symlink():
         raise StoreError(
@@ -406,9 +397,9 @@ class _Record:
     """
 
     def __init__(self, out_dir: Path) -> None:
-        from sb3_affect.study.launcher.folder_files import MAX_SWEEP_FILE_BYTES
-        from sb3_affect.study.launcher.regular_files import UnreadableFile, read_json
-        from sb3_affect.study.launcher.store import StoreError
+        from sb3_affect.study.launcher.folder_files import MAX_SWEEP_FILE_BYTES  # (experiments extra: not on --help)
+        from sb3_affect.study.launcher.regular_files import UnreadableFile, read_json  # (experiments extra: not on --help)
+        from sb3_affect.study.launcher.store import StoreError  # (experiments extra: not on --help)
 
         out_dir.mkdir(parents=True, exist_ok=True)
         self.path = out_dir / "replicate.json"

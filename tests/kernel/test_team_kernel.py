@@ -142,12 +142,12 @@ def test_teams_whose_known_maps_would_not_fit_run_on_the_python_team() -> None:
 
 
 def test_a_team_run_records_every_emotion_model_of_the_registry(monkeypatch: pytest.MonkeyPatch) -> None:
-    """A model the team kernel does not compute sends the run to the Python team, which records it from the registry."""
+    """Every model of the registry is computed beside each hunter (here Broekens' twice, both on the team kernel)."""
     from sb3_affect.core.registry import EMOTION_MODELS
 
     monkeypatch.setitem(EMOTION_MODELS, "again", EMOTION_MODELS["broekens"])
     members = [AFFECT, EPS]
-    assert team_settings_inputs(members, HUNTER_PURSUIT_ID, SMALL, 3) is None
+    assert team_settings_inputs(members, HUNTER_PURSUIT_ID, SMALL, 3) is not None
     config = {
         "agent": "mixed", "algo": "team", "algo_kwargs": {}, "env_id": HUNTER_PURSUIT_ID, "env_kwargs": SMALL,
         "episodes": 3, "labels": {}, "max_timesteps": None, "seed": 2, "sweep": "t",

@@ -10,11 +10,13 @@ import numpy as np
 import pandas as pd
 
 from sb3_affect.core.settings import AffectQSettings
+from sb3_affect.study.forensics.candidates import Reading
 from sb3_affect.study.forensics.scoring import MIN_REACH_REPS, NOT_REACHED, NOT_RULED_OUT, REACHED, transform
-from sb3_affect.study.forensics.statistics import LOG_SCALE, STATISTICS
+from sb3_affect.study.forensics.statistics import LOG_SCALE, STATISTICS, candidate_statistics, cell_summary
 from sb3_affect.study.forensics.unit_files import MAX_SUMMARY_BYTES
 from sb3_affect.study.launcher.regular_files import open_regular, read_json
 from sb3_affect.study.launcher.store import write_atomic
+from sb3_affect.study.report.reading.run_tables import load_results
 from sb3_affect.study.report.reading.study_tables import AFFECT_DEFAULT, COMMON
 from sb3_affect.study.report.rendering.document import fmt, md_table
 
@@ -187,10 +189,6 @@ def protocol_statistics(paper: Path) -> np.ndarray | None:
     verdict's setting), read as the verdict reads them (steps as decisions, the walked optimal path, Table V as the
     sum over the runs); None when the folder holds no such runs.
     """
-    from sb3_affect.study.forensics.candidates import Reading
-    from sb3_affect.study.forensics.statistics import candidate_statistics, cell_summary
-    from sb3_affect.study.report.reading.run_tables import load_results
-
     if not (paper / "runs").is_dir():
         return None
     columns = ("episode", "decisions", "cells", "optimal", "greedy_optimal")
@@ -380,10 +378,10 @@ def findings_lines(table: pd.DataFrame, run: dict[str, Any]) -> list[str]:
 
 
 def _figure(folder: Path, table: pd.DataFrame, path: Path) -> Path | None:
-    import matplotlib
+    import matplotlib  # (the report extra: only when figures are drawn)
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    import matplotlib.pyplot as plt  # (the report extra: only when figures are drawn)
 
     samples = [_csv(p) for p in sorted(folder.glob("sample_top*.csv"))]
     if not samples:

@@ -23,9 +23,12 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any, Protocol
 
+from sb3_affect.core.registry import known_settings, resolve_class
+from sb3_affect.engine.simulation import simulate_columns
 from sb3_affect.study.launcher.chunks import encode_chunk
 from sb3_affect.study.launcher.one_run import execute_run, package_env, package_versions
 from sb3_affect.study.launcher.run_ids import readable, run_config
+from sb3_affect.study.launcher.store import run_file
 
 #: The most runs one batch holds (bounds a worker's memory and the work a crash or Ctrl-C throws away).
 MAX_BATCH = 2000
@@ -57,8 +60,6 @@ class Batch:
 
     def execute(self) -> dict[str, Any]:
         """Run the batch (in a worker): ``{"chunk": Parquet bytes, "run_ids": [...]}``."""
-        from sb3_affect.engine.simulation import simulate_columns
-
         start = time.perf_counter()
         seeds = list(dict.fromkeys(seed for _, seed, _ in self.runs))
         base = self.base
@@ -79,8 +80,6 @@ class TeamBatch(Batch):
 
     def execute(self) -> dict[str, Any]:
         """Run the batch (in a worker): ``{"files": [(run id, run file bytes), ...], ...}`` (``store.run_file``)."""
-        from sb3_affect.study.launcher.store import run_file
-
         start = time.perf_counter()
         files = []
         for rid, seed, replicate in self.runs:
@@ -154,11 +153,10 @@ def batchable(base: dict[str, Any], logs: bool) -> bool:
         return False
     if base.get("env_wrappers"):  # ``simulate`` builds the bare env: a wrapped env's runs run on their own
         return False
-    from sb3_affect.core.registry import known_settings, resolve_class
 
     if known_settings(base["algo"]) is not None:  # the package's agents, known by name (not imported: no torch)
         return True
-    from sb3_affect.agents.tabular import TabularQAlgorithm
+    from sb3_affect.agents.tabular import TabularQAlgorithm  # (torch: off the tabular sweep path)
 
     try:
         cls = resolve_class(base["algo"])
@@ -171,7 +169,6 @@ def team_batchable(base: dict[str, Any], logs: bool) -> bool:
     """Whether the team runs of a cell can run as team batches: every hunter one of the package's agents given settings."""
     if "team" not in base or logs or base.get("max_timesteps") is not None:
         return False
-    from sb3_affect.core.registry import known_settings
 
     for member in base["team"]:
         settings = known_settings(member["algo"])

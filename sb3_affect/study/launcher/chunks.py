@@ -23,6 +23,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pyarrow as pa
+import pyarrow.parquet as pq
 
 from sb3_affect.core.episode_log import EPISODE_COLUMNS, FLAG_COLUMNS, INT_COLUMNS
 from sb3_affect.study.launcher.run_ids import run_config
@@ -38,8 +40,6 @@ def arrow_array(values: np.ndarray, kind: Any, missing: np.ndarray | None = None
     from its bytes: what ``pa.array(values.astype(...))`` gives, without importing pandas (``pa.array`` does on first
     use). ``missing``: where the values are null (flags a run can not tell); None: no nulls.
     """
-    import pyarrow as pa
-
     if kind == pa.bool_():
         data = np.packbits(np.asarray(values, dtype=bool), bitorder="little")  # Arrow's booleans: one bit each, LSB first
     else:
@@ -103,9 +103,6 @@ def encode_chunk(
     :param timings: the batch's wall time and worker pid
     :param versions: package versions
     """
-    import pyarrow as pa
-    import pyarrow.parquet as pq
-
     seeds = np.asarray(episodes["seed"])
     starts = np.flatnonzero(np.r_[True, seeds[1:] != seeds[:-1]]) if len(seeds) else np.zeros(0, dtype=np.int64)
     ends = np.r_[starts[1:], len(seeds)].astype(np.int64)
@@ -144,17 +141,12 @@ def encode_chunk(
 
 def chunk_meta(path: Path) -> dict[str, Any]:
     """The per-run and per-batch data of a chunk (its footer only)."""
-    import pyarrow.parquet as pq
-
     metadata = pq.read_metadata(path).metadata or {}  # the file's key-value metadata, no schema conversion
     return dict(json.loads(metadata[META_KEY]))
 
 
 def chunk_table(path: Path, columns: Sequence[str] | None = None) -> dict[str, np.ndarray]:
     """``run`` and the episode columns of a chunk as numpy arrays (``columns``: a subset of ``EPISODE_COLUMNS``)."""
-    import pyarrow as pa
-    import pyarrow.parquet as pq
-
     wanted = ["run", *(EPISODE_COLUMNS if columns is None else columns)]
     table = pq.ParquetFile(path).read(columns=wanted)  # not ``read_table``: its dataset set-up costs ms a file
     out = {}

@@ -20,7 +20,10 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
+import sb3_affect
+from sb3_affect.core.emotions import EMOTION_NAMES
 from sb3_affect.study.launcher.deep_schema import TUNED, DeepAgent, DeepStudy
+from sb3_affect.study.launcher.one_run import package_versions
 
 #: The evaluation envs of seed s are seeded ``EVAL_SEED_OFFSET + s * eval_episodes + i``: apart from every training env
 #: (seeded ``s + i`` for ``i < n_envs``) for seeds below the offset.
@@ -59,11 +62,9 @@ def seed_batches(study: DeepStudy) -> list[tuple[int, ...]]:
 def run_batch(study: DeepStudy, task: str, agent: DeepAgent, seeds: Sequence[int],
               epsilons: Sequence[float] | None = None) -> dict[str, Any]:
     """Train and evaluate ``seeds`` of ``agent`` on ``task`` through ``train_many``: the batch's record."""
-    import sb3_affect
-    from sb3_affect.core.emotions import EMOTION_NAMES
-    from sb3_affect.engine.seed_envs import seed_vec_env
-    from sb3_affect.study.launcher.count_bonus import CountBonus
-    from sb3_affect.study.launcher.deep_recording import GreedyEvaluation, TrainingRecorder
+    from sb3_affect.engine.seed_envs import seed_vec_env  # (torch: the deep study's engine)
+    from sb3_affect.study.launcher.count_bonus import CountBonus  # (torch: SB3's VecEnvWrapper)
+    from sb3_affect.study.launcher.deep_recording import GreedyEvaluation, TrainingRecorder  # (torch: the engine)
 
     start = time.process_time()
     spec, compiled, n_eval = study.tasks[task], study.env == "compiled", study.eval_episodes
@@ -139,9 +140,7 @@ class DeepBatch:
 
     def execute(self) -> dict[str, Any]:
         """``run_batch``, with one torch thread (the stacked networks are small: more threads only wait on each other)."""
-        import torch
-
-        from sb3_affect.study.launcher.one_run import package_versions
+        import torch  # (torch: only where a batch runs)
 
         study = DeepStudy.model_validate(self.study)
         threads = torch.get_num_threads()

@@ -22,10 +22,12 @@ evaluation envs every ``eval_every`` env steps. ``sweep_file.load_sweep_file`` v
 
 from __future__ import annotations
 
+import re
 from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
+from sb3_affect.core.registry import AGENTS
 from sb3_affect.study.launcher.schema import NAME_PATTERN
 
 #: Fewest evaluation episodes the study's primary metric is read from (a smaller file is labelled a smoke size).
@@ -72,8 +74,6 @@ class DeepAgent(BaseModel):
     @field_validator("algo")
     @classmethod
     def _algo(cls, value: str) -> str:
-        from sb3_affect.core.registry import AGENTS
-
         deep = [name for name in AGENTS if name.endswith("DQN")]
         if value not in deep:
             raise ValueError(f"algo={value!r} is not one of {', '.join(deep)}")
@@ -123,8 +123,6 @@ class DeepStudy(BaseModel):
     @field_validator("tasks")
     @classmethod
     def _task_names(cls, value: dict[str, DeepTask]) -> dict[str, DeepTask]:
-        import re
-
         for name in value:
             if not re.match(NAME_PATTERN, name):
                 raise ValueError(f"task name {name!r} must be letters, digits, _ . + - (at most 64 characters)")
@@ -134,7 +132,7 @@ class DeepStudy(BaseModel):
     def _consistent(self) -> DeepStudy:
         compiled: Any = ()
         if self.env == "compiled":
-            from sb3_affect.kernel.minigrid_world import MINIGRID_TASKS as compiled
+            from sb3_affect.kernel.minigrid_world import MINIGRID_TASKS as compiled  # (numba: the compiled MiniGrid)
         for name, task in self.tasks.items():
             if self.env == "compiled" and task.id not in compiled:
                 raise ValueError(f"tasks.{name}.id={task.id!r} is not compiled ({', '.join(compiled)}): give env: farama")

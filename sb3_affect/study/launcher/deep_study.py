@@ -33,6 +33,8 @@ import numpy as np
 
 from sb3_affect.study.launcher.deep_batches import DeepBatch, merge_batches, seed_batches
 from sb3_affect.study.launcher.deep_schema import DeepStudy
+from sb3_affect.study.launcher.launcher import run_ray
+from sb3_affect.study.launcher.local_pool import run_local
 
 #: The file naming the study a folder holds.
 STUDY_FILE = "deep_study.json"
@@ -139,9 +141,6 @@ def run_deep_study(
     :param ray_timeout: seconds to wait for the Ray cluster to answer
     :param log: where one line per finished batch and per finished cell goes (default: printed at once)
     """
-    from sb3_affect.study.launcher.launcher import run_ray
-    from sb3_affect.study.launcher.local_pool import run_local
-
     if log is None:
         log = _print
     if backend not in BACKENDS:

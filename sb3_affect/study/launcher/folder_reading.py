@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+import pyarrow.parquet as pq
 from numba import njit
 
 from sb3_affect.study.launcher.chunks import BOOL_COLUMNS, INT_COLUMNS, META_KEY, checked_column, chunk_table
@@ -83,8 +84,6 @@ def run_row(rid: str, config: dict[str, Any], decisions: int | None, episodes: i
 
 def _chunk_footer(path: Path, with_runs: bool) -> tuple[dict[str, Any], np.ndarray | None]:
     """A chunk's footer and (``with_runs``) its ``run`` column, opening the file once."""
-    import pyarrow.parquet as pq
-
     handle = pq.ParquetFile(path)
     meta = dict(json.loads((handle.schema_arrow.metadata or {})[META_KEY]))
     run = handle.read(columns=["run"]).column("run").to_numpy() if with_runs else None

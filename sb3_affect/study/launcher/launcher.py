@@ -32,6 +32,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from tqdm.auto import tqdm
+
 from sb3_affect.study.launcher.batches import (
     Batch,
     Job,
@@ -43,8 +45,9 @@ from sb3_affect.study.launcher.batches import (
     split_cell,
 )
 from sb3_affect.study.launcher.local_pool import OnFailure, OnResult, W, run_local
+from sb3_affect.study.launcher.one_run import package_versions
 from sb3_affect.study.launcher.schema import Cell
-from sb3_affect.study.launcher.store import SWEEP_SCHEMA, ResultsStore, cell_run_ids
+from sb3_affect.study.launcher.store import SWEEP_SCHEMA, ResultsStore, cell_run_ids, store_error
 from sb3_affect.study.launcher.sweep_file import load_sweep
 
 
@@ -84,8 +87,7 @@ def run_ray(
     handled in :mod:`sb3_affect.study.launcher.ray_cluster`. A batch (or any other ``Work``) is one task (its
     ``execute``), a lone run one ``ray_cluster.execute_task``.
     """
-    import sb3_affect.study.launcher.ray_cluster as ray_cluster
-    from sb3_affect.study.launcher.one_run import package_versions
+    import sb3_affect.study.launcher.ray_cluster as ray_cluster  # (the ray extra)
 
     with ray_cluster.connect(address, workers, timeout) as session:
         ours = package_versions() if address else None
@@ -161,8 +163,6 @@ def run_sweep(
     try:
         store.root.mkdir(parents=True, exist_ok=True)
     except OSError as error:
-        from sb3_affect.study.launcher.store import store_error
-
         raise store_error(store.root, error) from None
     with store.lock():
         for line in store.prepare(resolved, [rid for ids in cell_ids for rid in ids]):
@@ -239,6 +239,5 @@ class _NoProgress:
 def _progress(total: int, initial: int, name: str, enabled: bool) -> Any:
     if not enabled:
         return _NoProgress()
-    from tqdm.auto import tqdm
 
     return tqdm(total=total, initial=initial, desc=name, unit="run", disable=not enabled, dynamic_ncols=True)

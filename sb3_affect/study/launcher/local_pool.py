@@ -29,6 +29,7 @@ from dataclasses import dataclass
 from typing import Any, Generic, TypeVar
 
 from sb3_affect.study.launcher.batches import Batch, Single, Work
+from sb3_affect.study.launcher.one_run import package_versions
 from sb3_affect.study.launcher.signals import STOP_SIGNALS, worker_signals
 
 W = TypeVar("W", bound=Work)
@@ -73,11 +74,8 @@ def preload(jobs: Sequence[Work]) -> None:
     """
     if not any(isinstance(job, Batch) for job in jobs):
         return
-    import pyarrow.parquet  # noqa: F401
 
-    import sb3_affect.engine.simulation  # noqa: F401
-    from sb3_affect.kernel import warm_up
-    from sb3_affect.study.launcher.one_run import package_versions
+    from sb3_affect.kernel import warm_up  # (numba: only where a kernel runs)
 
     warm_up()
     package_versions()

@@ -2,19 +2,39 @@
 
 from __future__ import annotations
 
+import difflib
 import functools
 import importlib
+import inspect
 import json
 import math
+import multiprocessing
 import os
 import platform
+import re
+import signal
 import socket
 import sys
 import time
+from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 from typing import Any
 
+import gymnasium as gym
+
+import sb3_affect
 from sb3_affect.core.episode_log import EPISODE_COLUMNS
+from sb3_affect.core.positions import make_position
+from sb3_affect.core.registry import (
+    EMOTION_MODELS,
+    import_env_package,
+    known_settings,
+    observer_class,
+    resolve_class,
+    resolve_wrapper,
+)
+from sb3_affect.core.settings import AffectQSettings
+from sb3_affect.envs import PARALLEL_ENVS, make_parallel
 from sb3_affect.study.launcher.chunks import checked_column
 
 
@@ -23,7 +43,6 @@ def _version(name: str) -> str:
     module = sys.modules.get(name)
     if module is not None and hasattr(module, "__version__"):
         return str(module.__version__)
-    from importlib.metadata import PackageNotFoundError, version
 
     try:
         return version(name)
@@ -33,8 +52,6 @@ def _version(name: str) -> str:
 
 @functools.cache
 def _package_versions() -> tuple[tuple[str, str], ...]:
-    import sb3_affect
-
     return (
         ("python", platform.python_version()),
         ("sb3_affect", sb3_affect.__version__),
@@ -61,17 +78,13 @@ def _plain(value: Any) -> Any:
 
 def build_team(config: dict[str, Any]) -> Any:
     """The ``HunterTeam`` of a team run config (a multi-agent env and one tabular agent per hunter)."""
-    import sb3_affect  # noqa: F401
-    from sb3_affect.agents.hunter_team import HunterTeam
-    from sb3_affect.envs import make_parallel
+    from sb3_affect.agents.hunter_team import HunterTeam  # (torch: off the tabular sweep path)
 
     env = make_parallel(config["env_id"], **config["env_kwargs"])
     return HunterTeam(env, [(m["algo"], m["kwargs"]) for m in config["team"]], seed=config["seed"])
 
 
 def _make_env(config: dict[str, Any]) -> Any:
-    from sb3_affect.envs import PARALLEL_ENVS, make_parallel
-
     if config["env_id"] in PARALLEL_ENVS:
         return make_parallel(config["env_id"], **config["env_kwargs"])
     return make_single_env(config)
@@ -82,11 +95,6 @@ def make_single_env(config: dict[str, Any]) -> Any:
     The single-agent env of a run config: ``gym.make`` of its id (after importing the package the registry says
     registers it: ``MiniGrid-*``), inside the wrappers it names (``env_wrappers``, the registry's ``ENV_WRAPPERS``).
     """
-    import gymnasium as gym
-
-    import sb3_affect  # noqa: F401  (registers the package's envs)
-    from sb3_affect.core.registry import import_env_package, resolve_wrapper
-
     import_env_package(config["env_id"])
     env = gym.make(config["env_id"], **config["env_kwargs"])
     for name in config.get("env_wrappers", ()):
@@ -110,9 +118,7 @@ def _check_single_env(env: Any, position: str | None) -> None:
         env.action_space.seed(seed)
         env.step(env.action_space.sample())
     if position is not None:
-        from stable_baselines3.common.vec_env import DummyVecEnv
-
-        from sb3_affect.core.positions import make_position
+        from stable_baselines3.common.vec_env import DummyVecEnv  # (torch: off the tabular sweep path)
 
         venv = DummyVecEnv([lambda: env])
         hook = make_position(position, venv.observation_space)
@@ -123,8 +129,7 @@ def _check_single_env(env: Any, position: str | None) -> None:
 
 def build_model(config: dict[str, Any]) -> tuple[Any, bool]:
     """The env and the algorithm of a run config: ``(model, tabular)`` (``tabular``: keeps its own ``episode_log``)."""
-    from sb3_affect.agents.tabular import TabularQAlgorithm
-    from sb3_affect.core.registry import resolve_class
+    from sb3_affect.agents.tabular import TabularQAlgorithm  # (torch: off the tabular sweep path)
 
     cls: Any = resolve_class(config["algo"])
     env = make_single_env(config)
@@ -139,8 +144,7 @@ def build_model(config: dict[str, Any]) -> tuple[Any, bool]:
 
 def _trace_callback(kwargs: dict[str, Any]) -> Any:
     """The ``TraceCallback`` a traced AffectQ run drives, reading as its kwargs say (``launcher.emotion_trace``)."""
-    from sb3_affect.core.settings import AffectQSettings
-    from sb3_affect.study.launcher.emotion_trace import TraceCallback
+    from sb3_affect.study.launcher.emotion_trace import TraceCallback  # (torch: off the tabular sweep path)
 
     settings = AffectQSettings(**kwargs)
     return TraceCallback(comparison=settings.comparison, act=settings.act, units=settings.units)
@@ -151,8 +155,6 @@ def package_env(env_id: str) -> bool:
     Whether ``env_id`` is one of the package's single-agent envs (``sb3_affect/...``, not a multi-agent one; never a
     ``module:Env`` id, which Gymnasium would import).
     """
-    from sb3_affect.envs import PARALLEL_ENVS
-
     return isinstance(env_id, str) and env_id.startswith("sb3_affect/") and ":" not in env_id and env_id not in PARALLEL_ENVS
 
 
@@ -161,8 +163,6 @@ def settings_checkable(config: dict[str, Any]) -> bool:
     Whether ``check_configs`` can check a config without building its model (so without torch): one of the package's
     agents, given settings only (``sb3_affect.core.settings``), on one of its single-agent grid envs.
     """
-    from sb3_affect.core.registry import known_settings
-
     if "team" in config or config.get("env_position") is not None or not package_env(config["env_id"]):
         return False  # (a position preset is read through SB3's VecEnv: checked in the child)
     settings = known_settings(config["algo"])
@@ -178,8 +178,6 @@ def check_configs(configs: list[dict[str, Any]]) -> list[tuple[str, str]]:
     :return: ``(agent name, problem)`` for each config that can not be built (an unknown or impossible kwarg); the
         agent name is empty when the env itself can not be built
     """
-    from sb3_affect.envs import PARALLEL_ENVS
-
     problems: list[tuple[str, str]] = []
     env_checked: set[str] = set()
     seen: set[str] = set()
@@ -210,8 +208,6 @@ def check_configs(configs: list[dict[str, Any]]) -> list[tuple[str, str]]:
             if "team" in config:
                 build_team(config).env.close()
             elif settings_checkable(config):
-                from sb3_affect.core.registry import known_settings
-
                 settings = known_settings(config["algo"])
                 assert settings is not None
                 settings(**config["algo_kwargs"])
@@ -231,14 +227,9 @@ def check_configs(configs: list[dict[str, Any]]) -> list[tuple[str, str]]:
 
 def _kwarg_hint(config: dict[str, Any], error: Exception) -> str:
     """For an unknown keyword argument: ``; did you mean 'gamma'?`` (the closest argument of the class), else ''."""
-    import difflib
-    import inspect
-    import re
-
     match = re.search(r"unexpected keyword argument '([^']+)'", str(error))
     if not isinstance(error, TypeError) or match is None or "team" in config:
         return ""
-    from sb3_affect.core.registry import resolve_class
 
     try:
         parameters = list(inspect.signature(resolve_class(config["algo"])).parameters)
@@ -254,8 +245,6 @@ def check_configs_in_child(configs: list[dict[str, Any]]) -> list[tuple[str, str
     torch operations before it forks its workers (an OpenMP pool used before ``fork`` can hang the children). When
     no config needs a model (``settings_checkable``), here: nothing imports torch.
     """
-    import multiprocessing
-
     if all(settings_checkable(config) for config in configs):
         return check_configs(configs)
     if "fork" not in multiprocessing.get_all_start_methods():  # pragma: no cover - not Linux/macOS
@@ -279,9 +268,7 @@ def check_configs_in_child(configs: list[dict[str, Any]]) -> list[tuple[str, str
 
 
 def _check_child(configs: list[dict[str, Any]], conn: Any) -> None:
-    import signal
-
-    import torch as th
+    import torch as th  # (torch: off the tabular sweep path)
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     th.set_num_threads(1)
@@ -306,13 +293,13 @@ def execute_run(config: dict[str, Any], log_dir: str | None = None, log_formats:
         record = _execute_team_compiled(config, start)
         if record is not None:
             return record
-    import torch as th
+    import torch as th  # (torch: off the tabular sweep path)
 
     th.set_num_threads(1)
-    from stable_baselines3.common.callbacks import StopTrainingOnMaxEpisodes
-    from stable_baselines3.common.logger import Logger, configure
+    from stable_baselines3.common.callbacks import StopTrainingOnMaxEpisodes  # (torch: off the tabular sweep path)
+    from stable_baselines3.common.logger import Logger, configure  # (torch: off the tabular sweep path)
 
-    from sb3_affect.agents.callbacks import EmotionCallback
+    from sb3_affect.agents.callbacks import EmotionCallback  # (torch: off the tabular sweep path)
 
     if "team" in config:
         return _execute_team(config, log_dir, log_formats, start)
@@ -356,8 +343,7 @@ def _execute_team_compiled(config: dict[str, Any], start: float) -> dict[str, An
     same record as ``_execute_team`` gives. None when the kernel can not run it (an agent or argument the kernel does
     not know, a member's ``engine="python"``, a schedule of the training progress).
     """
-    import sb3_affect  # noqa: F401
-    from sb3_affect.engine.team_simulation import simulate_team
+    from sb3_affect.engine.team_simulation import simulate_team  # (numba: only where a kernel runs)
 
     members = [(m["algo"], m["kwargs"]) for m in config["team"]]
     run = simulate_team(members, config["env_id"], config["env_kwargs"], int(config["seed"]), int(config["episodes"]))
@@ -382,11 +368,10 @@ def _execute_team(config: dict[str, Any], log_dir: str | None, log_formats: tupl
     registry (``EMOTION_MODELS``: Broekens'), ``<hunter>/<model>_<column>`` (mean intensity per decision, and
     ``broekens_goal_joy``) from its observer watching the hunter.
     """
-    from stable_baselines3.common.callbacks import CallbackList
-    from stable_baselines3.common.logger import configure
+    from stable_baselines3.common.callbacks import CallbackList  # (torch: off the tabular sweep path)
+    from stable_baselines3.common.logger import configure  # (torch: off the tabular sweep path)
 
-    from sb3_affect.agents.hunter_team import TEAM_COLUMNS
-    from sb3_affect.core.registry import EMOTION_MODELS, observer_class
+    from sb3_affect.agents.hunter_team import TEAM_COLUMNS  # (torch: off the tabular sweep path)
 
     team = build_team(config)
     if log_dir is not None:

@@ -29,6 +29,9 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
+import sb3_affect
+import sb3_affect.envs
+from sb3_affect.study.launcher.one_run import execute_run, package_versions
 from sb3_affect.study.launcher.ray_connect import (
     RayClusterError,
     handshake,
@@ -39,6 +42,7 @@ from sb3_affect.study.launcher.ray_connect import (
     shutdown_within,
     working_directory,
 )
+from sb3_affect.study.launcher.signals import sigint_ignored
 
 __all__ = ["ClusterLost", "RayClusterError", "RaySession", "connect", "execute_task", "plain_text", "write_logs"]
 
@@ -65,9 +69,6 @@ def stage_package(folder: Path) -> Path:
     CPU) goes with it, so a node with the driver's CPU loads the kernels instead of compiling them (minutes) for each
     new package; another CPU compiles its own. Python's bytecode (``*.pyc``) stays behind.
     """
-    import sb3_affect
-    import sb3_affect.envs
-
     ignore = shutil.ignore_patterns("*.pyc")
     target = folder / "sb3_affect"
     shutil.copytree(Path(sb3_affect.__file__).parent, target, ignore=ignore)
@@ -80,9 +81,7 @@ def stage_package(folder: Path) -> Path:
 
 def _probe() -> dict[str, Any]:
     """A zero-CPU task run once on every node: where it ran and the package versions there."""
-    import ray
-
-    from sb3_affect.study.launcher.one_run import package_versions
+    import ray  # (the ray extra)
 
     return {"host": socket.gethostname(), "node": ray.get_runtime_context().get_node_id(), "versions": package_versions()}
 
@@ -94,9 +93,7 @@ def version_differences(ours: Versions, theirs: Versions) -> list[str]:
 
 def check_nodes(ray: Any, address: str, timeout: float) -> list[dict[str, Any]]:
     """Run :func:`_probe` on every alive node; refuse nodes that can not run sb3-affect or have other versions."""
-    from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
-
-    from sb3_affect.study.launcher.one_run import package_versions
+    from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy  # (the ray extra)
 
     ours = package_versions()
     probe = ray.remote(num_cpus=0, max_retries=0)(_probe)
@@ -212,8 +209,6 @@ class RaySession:
 
 
 def _private_init(ray: Any, workers: int) -> None:
-    from sb3_affect.study.launcher.signals import sigint_ignored
-
     # Ctrl-C in a terminal sends SIGINT to the whole process group: the instance's processes inherit "ignore SIGINT"
     # from here, so that only this driver reacts (cancels the tasks and shuts the instance down). address="local": a
     # new instance whatever RAY_ADDRESS or an earlier `ray start` says.
@@ -249,7 +244,7 @@ def connect(address: str | None, workers: int, timeout: float = 60.0) -> Iterato
         if not address.startswith("ray://"):
             handshake(address, *where, timeout=timeout)
     try:
-        import ray
+        import ray  # (the ray extra)
     except ImportError:
         raise RuntimeError("the ray backend needs Ray: pip install 'sb3-affect[ray]'") from None
     if ray.is_initialized():  # the caller's own ray.init: use it as it is, leave it running
@@ -286,8 +281,6 @@ def execute_task(config: dict[str, Any], log_dir: str | None, formats: tuple[str
     SB3 logger output goes to a scratch folder on the worker's node and comes back as ``logs`` (relative path ->
     bytes), for the driver to write under ``log_dir``; the result's ``timings`` get the Ray node id.
     """
-    from sb3_affect.study.launcher.one_run import execute_run
-
     scratch = tempfile.mkdtemp(prefix="sb3-affect-logs-") if log_dir is not None else None
     try:
         result = execute_run(config, scratch, formats)
@@ -297,7 +290,7 @@ def execute_task(config: dict[str, Any], log_dir: str | None, formats: tuple[str
                 if path.is_file():
                     logs[str(path.relative_to(scratch))] = path.read_bytes()
         with contextlib.suppress(Exception):
-            import ray
+            import ray  # (the ray extra)
 
             result["timings"]["ray_node"] = ray.get_runtime_context().get_node_id()
         return "ok", result, logs

@@ -65,8 +65,8 @@ def handshake(address: str, host: str, port: int, timeout: float) -> None:
     missing token forever: raise :class:`RayClusterError` saying what is wrong, or return if Ray would get in.
     """
     try:
-        import grpc
-        from ray.core.generated import gcs_service_pb2, gcs_service_pb2_grpc
+        import grpc  # (the ray extra)
+        from ray.core.generated import gcs_service_pb2, gcs_service_pb2_grpc  # (the ray extra)
     except ImportError:  # another Ray layout: leave it to ray.init (and its timeout)
         return
     token_mode = os.environ.get("RAY_AUTH_MODE", "").lower() == "token"

@@ -41,6 +41,7 @@ import re
 from dataclasses import dataclass
 from typing import Annotated, Any
 
+import gymnasium as gym
 from pydantic import (
     AfterValidator,
     BaseModel,
@@ -57,6 +58,7 @@ from sb3_affect.core.episode_log import TRACE_COLUMNS
 from sb3_affect.core.positions import POSITION_PRESETS
 from sb3_affect.core.registry import ENV_WRAPPERS, check_algo, check_wrapper, import_env_package, known_settings, resolve_class
 from sb3_affect.core.settings import AffectQSettings
+from sb3_affect.envs import PARALLEL_ENVS
 from sb3_affect.study.launcher.run_ids import RESERVED_LABELS
 
 #: Wrapper names (the env section's and an agent's own), each checked against the registry's ``ENV_WRAPPERS``.
@@ -96,15 +98,13 @@ def is_tabular(algo: str) -> bool:
     """Whether ``algo`` names a tabular agent (a ``TabularQAlgorithm``); imports only classes of other packages."""
     if known_settings(algo) is not None:
         return True
-    from sb3_affect.agents.tabular import TabularQAlgorithm
+    from sb3_affect.agents.tabular import TabularQAlgorithm  # (torch: off the tabular sweep path)
 
     return issubclass(resolve_class(algo), TabularQAlgorithm)
 
 
 def is_multi_agent(env_id: str) -> bool:
     """Whether ``env_id`` names one of the package's multi-agent (PettingZoo) envs."""
-    from sb3_affect.envs import PARALLEL_ENVS
-
     return env_id in PARALLEL_ENVS
 
 
@@ -156,10 +156,6 @@ class EnvSpec(BaseModel):
     def _registered(cls, value: str, info: ValidationInfo) -> str:
         if not _imports(info):
             return value
-        import gymnasium as gym
-
-        import sb3_affect  # noqa: F401  (registers the package's envs)
-        from sb3_affect.envs import PARALLEL_ENVS
 
         module, _, env_id = value.rpartition(":")  # "my_package.envs:MyEnv-v0": import the module that registers it
         import_env_package(env_id)  # MiniGrid-*: the package of the registry's allow-list

@@ -11,6 +11,7 @@ Signals of the study's long commands, in one place: the CLI, the launcher, the R
 from __future__ import annotations
 
 import contextlib
+import ctypes
 import os
 import signal
 import threading
@@ -50,8 +51,6 @@ def sigint_ignored() -> Iterator[None]:
 def die_with_parent() -> None:
     """Ask Linux to kill this process when its parent dies (best effort; no-op elsewhere)."""
     with contextlib.suppress(Exception):
-        import ctypes
-
         ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
 
 

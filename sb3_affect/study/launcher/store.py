@@ -27,12 +27,15 @@ from collections.abc import Callable, Collection, Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from pydantic import ValidationError
+
 from sb3_affect.core.episode_log import EPISODE_COLUMNS
 from sb3_affect.study.launcher import folder_lock
 from sb3_affect.study.launcher.chunks import chunk_records
 from sb3_affect.study.launcher.folder_files import MAX_SWEEP_FILE_BYTES, FolderFiles, guarded, sort_files
 from sb3_affect.study.launcher.regular_files import read_json
 from sb3_affect.study.launcher.run_ids import base_run_ids
+from sb3_affect.study.launcher.schema import Sweep
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -286,9 +289,6 @@ class ResultsStore:
             return None
         if isinstance(resolved.get("runs"), dict):  # a folder written before chunks lists every run
             return {rid: c["agent"] for rid, c in resolved["runs"].items()}
-        from pydantic import ValidationError
-
-        from sb3_affect.study.launcher.schema import Sweep
 
         try:
             sweep = Sweep.validate_saved(resolved["sweep"])
@@ -377,7 +377,11 @@ class ResultsStore:
             when a count needs it; flags as bool, or float64 with NaN when a run could not tell; the rest float64); runs
             in run id order, each run's rows together in episode order
         """
-        from sb3_affect.study.launcher.folder_reading import RUN_COLUMNS, episode_table, read_folder
+        from sb3_affect.study.launcher.folder_reading import (  # (pandas: not on the launcher's path)
+            RUN_COLUMNS,
+            episode_table,
+            read_folder,
+        )
 
         files = self._checked()
         wanted = EPISODE_COLUMNS if columns is None else tuple(columns)
@@ -409,7 +413,7 @@ class ResultsStore:
         :param ordered: parts one after the other in run id order (``reading.ordered_file_parts``): the rows of all
             parts, in the order read, are the rows of one whole read
         """
-        from sb3_affect.study.launcher.folder_reading import (
+        from sb3_affect.study.launcher.folder_reading import (  # (pandas: not on the launcher's path)
             RUN_COLUMNS,
             episode_table,
             file_parts,

@@ -15,6 +15,7 @@ from __future__ import annotations
 import difflib
 import math
 from collections.abc import Hashable
+from importlib.resources import files
 from pathlib import Path
 from typing import Any
 
@@ -22,6 +23,7 @@ import yaml
 from pydantic import ValidationError
 
 from sb3_affect.study.launcher.deep_schema import DeepStudy
+from sb3_affect.study.launcher.one_run import check_configs_in_child
 from sb3_affect.study.launcher.schema import KWARG_REFERENCE, AgentSpec, EnvSpec, Sweep, SweepError
 from sb3_affect.study.launcher.study_schema import ForensicsStudy, ProtocolSpec
 
@@ -30,8 +32,6 @@ __all__ = ["load_sweep", "load_sweep_file", "resolve_sweep_path", "shipped_sweep
 
 def shipped_sweeps_folder() -> Path:
     """The folder of the sweep files installed with the package (``experiments/`` of the source tree)."""
-    from importlib.resources import files
-
     return Path(str(files("sb3_affect.sweeps")))
 
 
@@ -346,8 +346,6 @@ def load_sweep_file(
         what = "invalid sweep file" if from_file else "invalid --set value"
         raise SweepError(f"{path}: {what}\n" + "\n".join(lines) + f"\n  ({allowed})") from None
     if build and isinstance(sweep, Sweep):
-        from sb3_affect.study.launcher.one_run import check_configs_in_child
-
         index = {agent.name: i for i, agent in enumerate(sweep.agents)}
         problems = check_configs_in_child([cell.config(0) for cell in sweep.cells()])
         if problems:

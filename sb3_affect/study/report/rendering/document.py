@@ -255,7 +255,7 @@ def _html_page(title: str, blocks: list[tuple], appendix: bool, links: list[tupl
         elif kind == "ul":
             parts.append("<ul>" + "".join(f"<li>{_inline(item)}</li>" for item in block[1]) + "</ul>")
         elif kind == "md":
-            import markdown
+            import markdown  # (the report extra: only for the HTML document)
 
             parts.append(f"<div class='md'>{markdown.markdown(block[1], extensions=['tables', 'sane_lists'])}</div>")
         elif kind == "img":

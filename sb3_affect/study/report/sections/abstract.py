@@ -13,6 +13,7 @@ import pandas as pd
 
 from sb3_affect.study.report.reading.context import AFFECTIVE, ReportContext
 from sb3_affect.study.report.sections.lead_sources import mechanism_sentence
+from sb3_affect.study.report.sections.main_finding import SPEED_AGENT, comparison, finding_sentence
 from sb3_affect.study.report.sections.project_checks import with_speed_matched
 from sb3_affect.study.report.sections.verdict import judged, shown_word
 from sb3_affect.study.report.verdicts import claims
@@ -178,8 +179,6 @@ def abstract_section(ctx: ReportContext) -> None:
 
 
 def _write_abstract(ctx: ReportContext) -> None:
-    from sb3_affect.study.report.sections.main_finding import SPEED_AGENT, comparison, finding_sentence
-
     judged_main, n, other, n_other = judged(ctx)
     runs = len(ctx.large) if ctx.large is not None else len(ctx.metrics)
     found = ctx.cache.get("main finding")

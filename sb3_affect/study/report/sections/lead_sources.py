@@ -9,8 +9,10 @@ from __future__ import annotations
 import pandas as pd
 
 from sb3_affect.study.report.reading.context import AFFECTIVE, STANDARD, ReportContext
+from sb3_affect.study.report.reading.study_tables import SPEED_ONE_AGENT
 from sb3_affect.study.report.rendering.document import sig
 from sb3_affect.study.report.sections.speed_ablation import METRICS
+from sb3_affect.study.report.sections.verdict import units_table
 from sb3_affect.study.report.verdicts.judgement import cell_means, diff_over_eps, over_eps
 
 
@@ -69,9 +71,6 @@ def mechanism_sentence(table: pd.DataFrame, per_eps: str = "") -> str:
 
 def lead_section(ctx: ReportContext) -> None:
     """Where the lead comes from: per metric (with and without the 2-cell moves), then per ε in decisions and cells."""
-    from sb3_affect.study.report.reading.study_tables import SPEED_ONE_AGENT
-    from sb3_affect.study.report.sections.verdict import units_table
-
     if not ctx.has_paper_agents or ctx.verdict_refusal():
         return
     main = ctx.large if ctx.large is not None else ctx.metrics

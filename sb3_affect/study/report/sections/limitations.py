@@ -6,12 +6,12 @@ the step unit, the seed counts of the exploratory studies), never as fixed claim
 from __future__ import annotations
 
 from sb3_affect.study.report.reading.context import ReportContext
+from sb3_affect.study.report.sections.protocol_draw import draw_table, rare_draws
 
 
 def limitations_section(ctx: ReportContext) -> None:
     if ctx.verdict_refusal():
         return
-    from sb3_affect.study.report.sections.protocol_draw import draw_table, rare_draws
 
     found = ctx.cache.get("main finding")
     blocks = draw_table(ctx)

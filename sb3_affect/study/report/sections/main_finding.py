@@ -13,9 +13,11 @@ from dataclasses import dataclass
 import numpy as np
 import pandas as pd
 
+from sb3_affect.study.report.estimation.bootstrap import bootstrap_improvement
 from sb3_affect.study.report.reading.context import AFFECTIVE, ReportContext
 from sb3_affect.study.report.reading.study_tables import SPEED_AGENT
 from sb3_affect.study.report.rendering.document import fmt, pval
+from sb3_affect.study.report.sections.project_checks import with_speed_matched
 from sb3_affect.study.report.verdicts.inference import Estimate, Z, welch
 
 COLUMN = "decisions_before_optimal"
@@ -92,8 +94,6 @@ class Comparison:
 
 def comparison(aff: pd.DataFrame, speed: pd.DataFrame) -> Comparison:
     """The numbers of the main finding (affective against the speed-matched ε-greedy)."""
-    from sb3_affect.study.report.estimation.bootstrap import bootstrap_improvement
-
     a, s = aff[COLUMN].to_numpy(float), speed[COLUMN].to_numpy(float)
     ca, cs = aff.censored.to_numpy(bool), speed.censored.to_numpy(bool)
     diff, p = welch(a, s)
@@ -148,8 +148,6 @@ def finding_sentence(c: Comparison) -> str:
 
 def main_finding_section(ctx: ReportContext) -> None:
     """The speed-matched ε-greedy against the affective agent, censoring counted (main text)."""
-    from sb3_affect.study.report.sections.project_checks import with_speed_matched
-
     if ctx.verdict_refusal():
         return
     m = with_speed_matched(ctx)

@@ -105,8 +105,6 @@ def mechanism_section(ctx: ReportContext) -> None:
 
 def fig5_section(ctx: ReportContext) -> None:
     """Joy near-absorbing (the traced runs), Fig. 5 under both weightings and Fig. 6 (appendix)."""
-    from sb3_affect.study.report.reading.episode_scan import paper_scan
-
     found = paper_scan(ctx)
     last = found.last_episode.get(AFFECTIVE, 0)
     if not last:
