@@ -225,11 +225,13 @@ class BroekensCallback(BaseCallback):
         # where the values come from (see the module docstring): the algorithm's own (on-policy), a table of all states
         self._settle_later = False
         self._pending: _Step | None = None
+        self._queue: list[tuple[_Step, list[int]]] = []  # steps to settle before the algorithm learns, with their states
         self._seen_values: Any = None
         self._table_states = self._table_start = 0
         self._table: dict[int, float] | None = None  # state -> V, since the update ``_table_version``
         self._table_version: int | None = None
         self._mirror: NumpyQValues | None = None
+        self._row_mirror: NumpyQValues | None = None  # the mirror, when not stale at the table's update
 
     def _init_callback(self) -> None:
         model = self.model
@@ -247,12 +249,12 @@ class BroekensCallback(BaseCallback):
     # -- values ------------------------------------------------------------------------------------------------
     def _values(self, obs: Any, dones: np.ndarray | None = None) -> np.ndarray | list[float]:
         """``V`` of each env's observation in a VecEnv batch (``dones``: which envs start a new episode with it)."""
+        if self._table_states:  # first: the common case of a small Discrete space (never with a value_fn)
+            return self._table_values(flat_array(obs).tolist())
         if self._kind == "user":
             assert self.value_fn is not None
             n = len(next(iter(obs.values()))) if isinstance(obs, dict) else len(np.asarray(obs))
             return np.array([float(self.value_fn(self.model, _row(obs, i))) for i in range(n)])
-        if self._table_states:
-            return self._table_values(flat_array(obs).tolist())
         lstm = starts = None
         if self._kind == "recurrent":
             lstm, starts = self._recurrent_inputs(dones)
@@ -271,20 +273,21 @@ class BroekensCallback(BaseCallback):
         mirror of the network) only the states asked for, whose one-row passes cost little; by torch every state at
         once, whose one pass costs about what a pass of one state does.
         """
-        version = int(self.model._n_updates)
+        version = self.model._n_updates
         if self._table is None or version != self._table_version:
             self._table, self._table_version = {}, version
             mirror = self._mirror
-            if mirror is None or mirror.stale():
+            self._row_mirror = None if mirror is None or mirror.stale() else mirror  # checked once per update
+            if self._row_mirror is None:
                 start = self._table_start
                 self._table = dict(enumerate(self._net_values(np.arange(start, start + self._table_states)).tolist(), start))
         table = self._table
         if len(states) == 1:  # one env: the common case, without building lists
             value = table.get(states[0])
             if value is None:
-                mirror = self._mirror
-                if mirror is not None and not mirror.stale():
-                    value = mirror.state_value(states[0])
+                row_mirror = self._row_mirror
+                if row_mirror is not None:
+                    value = row_mirror.state_value(states[0])
                 else:
                     value = float(self._net_values(np.asarray(states))[0])
                 table[states[0]] = value
@@ -338,6 +341,7 @@ class BroekensCallback(BaseCallback):
         self._window = self._window.resized(int(getattr(self.model, "_stats_window_size", 100)))
         self._csv_path = self._episode_csv()
         self._pending = None
+        self._queue = []
         if self.position is not None:
             self._position = make_position(self.position, self.model.observation_space)
             assert self._position is not None
@@ -373,6 +377,11 @@ class BroekensCallback(BaseCallback):
         cells = None if self._position is None else self._position.cells(self.training_env, new_obs, infos)
         step = _Step(done_list, rewards, cut, new_obs, dones, cell_rewards, cells)
         if not self._settle_later:
+            if self._table_states:  # valued with the same parameters later, all at once: see _settle_queue
+                self._queue.append((step, flat_array(new_obs).tolist()))
+                if True in done_list:
+                    self._settle_queue()
+                return True
             self._settle(step, self._values(new_obs, dones))
             return True
         values = locals_.get("values")  # the algorithm's values of the states the previous step reached
@@ -385,6 +394,18 @@ class BroekensCallback(BaseCallback):
             self._settle(self._pending, _as_floats(values))
         self._pending, self._seen_values = step, values
         return True
+
+    def _settle_queue(self) -> None:
+        """
+        Settle the steps queued since the algorithm last learnt, in order. Their states are valued here, one after the
+        other as each step would have valued them (the same parameters: the algorithm has not learnt since), but in one
+        burst, where the values' code is already warm, instead of one pass between two env steps; an episode's end
+        settles at its own step, so what is logged and when is unchanged.
+        """
+        queue, self._queue = self._queue, []
+        values = [self._table_values(states) for _, states in queue]
+        for (step, _), new_values in zip(queue, values):
+            self._settle(step, new_values)
 
     def _settle_pending(self) -> None:
         """Settle the last step: with the values the algorithm gave its rollout's last observations, else its own."""
@@ -439,10 +460,12 @@ class BroekensCallback(BaseCallback):
         return discounted + gamma ** len(cell_rewards) * reached
 
     def _on_rollout_end(self) -> None:
+        self._settle_queue()  # before the algorithm learns from the rollout
         self._settle_pending()
         self._window.record(self.logger, self._keys, again=False)
 
     def _on_training_end(self) -> None:
+        self._settle_queue()
         self._settle_pending()
         self._window.record(self.logger, self._keys)
 
