@@ -164,7 +164,7 @@ class _Step(NamedTuple):
     rewards: list[float]
     cut: dict[int, float | None]  # truncated env -> V of its episode's last observation (None: no such observation)
     new_obs: Any
-    done_array: np.ndarray
+    done_array: np.ndarray | None
     cell_rewards: list[float] | None
     cells: list[int] | None  # each env's cell after the step (``position=``), None without a position
 
@@ -225,7 +225,8 @@ class BroekensCallback(BaseCallback):
         # where the values come from (see the module docstring): the algorithm's own (on-policy), a table of all states
         self._settle_later = False
         self._pending: _Step | None = None
-        self._queue: list[tuple[_Step, list[int]]] = []  # steps to settle before the algorithm learns, with their states
+        # steps to settle before the algorithm learns: (dones, rewards, states, cells) of each
+        self._queue: list[tuple[list[bool], list[float], list[int], list[int] | None]] = []
         self._seen_values: Any = None
         self._table_states = self._table_start = 0
         self._table: dict[int, float] | None = None  # state -> V, since the update ``_table_version``
@@ -355,6 +356,14 @@ class BroekensCallback(BaseCallback):
     def _on_step(self) -> bool:
         check_step_locals(self)
         locals_ = self.locals
+        if self._table_states and not self._settle_later:  # the step's lists now, the rest before the algorithm learns
+            done_list = flat_array(locals_["dones"], bool).tolist()
+            new_obs = locals_["new_obs"]
+            cells = None if self._position is None else self._position.cells(self.training_env, new_obs, locals_["infos"])
+            self._queue.append((done_list, flat_array(locals_["rewards"]).tolist(), flat_array(new_obs).tolist(), cells))
+            if True in done_list:
+                self._settle_queue(locals_["infos"])
+            return True
         dones = flat_array(locals_["dones"], bool)
         new_obs = locals_["new_obs"]
         cell_rewards = locals_.get("cell_rewards")  # the package's tabular agents: this decision's cells
@@ -364,24 +373,12 @@ class BroekensCallback(BaseCallback):
                 self._v[0] = float(self._values(new_obs, dones)[0])
             return True
         infos = locals_["infos"]
-        # truncated envs -> V of their last observation, valued now (RecurrentPPO's: with this step's LSTM states)
-        cut: dict[int, float | None] = {}
         done_list = dones.tolist()
-        if True in done_list:
-            for i, done in enumerate(done_list):
-                info = infos[i]
-                if done and info.get("TimeLimit.truncated", False):
-                    terminal = info.get("terminal_observation")
-                    cut[i] = None if terminal is None else self._terminal_value(terminal, i)
+        cut = self._cut(done_list, infos)
         rewards = flat_array(locals_["rewards"]).tolist()
         cells = None if self._position is None else self._position.cells(self.training_env, new_obs, infos)
         step = _Step(done_list, rewards, cut, new_obs, dones, cell_rewards, cells)
         if not self._settle_later:
-            if self._table_states:  # valued with the same parameters later, all at once: see _settle_queue
-                self._queue.append((step, flat_array(new_obs).tolist()))
-                if True in done_list:
-                    self._settle_queue()
-                return True
             self._settle(step, self._values(new_obs, dones))
             return True
         values = locals_.get("values")  # the algorithm's values of the states the previous step reached
@@ -395,16 +392,32 @@ class BroekensCallback(BaseCallback):
         self._pending, self._seen_values = step, values
         return True
 
-    def _settle_queue(self) -> None:
+    def _cut(self, done_list: list[bool], infos: Any) -> dict[int, float | None]:
+        """Truncated envs -> V of their last observation, valued now (RecurrentPPO's: with this step's LSTM states)."""
+        cut: dict[int, float | None] = {}
+        if True in done_list:
+            for i, done in enumerate(done_list):
+                info = infos[i]
+                if done and info.get("TimeLimit.truncated", False):
+                    terminal = info.get("terminal_observation")
+                    cut[i] = None if terminal is None else self._terminal_value(terminal, i)
+        return cut
+
+    def _settle_queue(self, infos: Any = None) -> None:
         """
-        Settle the steps queued since the algorithm last learnt, in order. Their states are valued here, one after the
-        other as each step would have valued them (the same parameters: the algorithm has not learnt since), but in one
-        burst, where the values' code is already warm, instead of one pass between two env steps; an episode's end
-        settles at its own step, so what is logged and when is unchanged.
+        Settle the steps of a small Discrete space queued since the algorithm last learnt (``_on_step`` keeps only their
+        lists), in order; ``infos``: the last step's, when it ended an episode (an episode's end settles at its own
+        step, so what is logged and when is unchanged). Their states are valued here, in the order and with the
+        parameters each step would have valued them with at its own step (the algorithm has not learnt since), but in
+        one burst, where the code is already warm, instead of a little between two env steps.
         """
         queue, self._queue = self._queue, []
-        values = [self._table_values(states) for _, states in queue]
-        for (step, _), new_values in zip(queue, values):
+        steps, values = [], []
+        for index, (done_list, rewards, states, cells) in enumerate(queue):
+            cut = self._cut(done_list, infos) if index == len(queue) - 1 and infos is not None else {}
+            steps.append(_Step(done_list, rewards, cut, states, None, None, cells))
+            values.append(self._table_values(states))
+        for step, new_values in zip(steps, values):
             self._settle(step, new_values)
 
     def _settle_pending(self) -> None:
