@@ -29,7 +29,9 @@ last one of a rollout before it learns: the callback settles a step when the alg
 reached, one step later (the episode log is complete at the end of ``learn``). On a ``Discrete`` observation space of at
 most ``VALUE_TABLE_STATES`` states, SB3's and sb3-contrib's other algorithms value each state once per update (their
 ``train`` counts the updates): the states met, one at a time, where the pass is made in numpy; all states at once by
-torch. Otherwise every step is one batched pass over the
+torch. Such a step keeps only its lists; its values and emotions are worked out with the other steps of the rollout in
+one burst before the algorithm learns, or at the end of an episode (the values, their order and what is logged when
+are those of settling each step at once). Otherwise every step is one batched pass over the
 VecEnv's observations; a ``value_fn`` is called once per env and step. The pass of a DQN with SB3's default MLP
 Q-network is made in numpy on the network's own parameters (``sb3_affect.agents.numpy_values``): on a small network a
 torch pass costs more than the step it values.
