@@ -3,12 +3,10 @@
 from __future__ import annotations
 
 import os
-import sys
 from pathlib import Path
 
 DOCS = Path(__file__).resolve().parent
 ROOT = DOCS.parent
-sys.path.insert(0, str(DOCS / "_ext"))
 os.environ.setdefault("MPLBACKEND", "Agg")
 
 import sb3_affect  # noqa: E402
@@ -22,8 +20,6 @@ extensions = [
     "sphinx.ext.autodoc",
     "myst_parser",
     "sphinx_gallery.gen_gallery",
-    "matplotlib.sphinxext.plot_directive",
-    "sb3_affect_docs",
 ]
 
 source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
@@ -77,12 +73,6 @@ sphinx_gallery_conf = {
     "show_memory": False,
     "write_computation_times": False,
 }
-
-# Concept figures (``.. plot::``): drawn at build time, no source link.
-plot_include_source = False
-plot_html_show_source_link = False
-plot_html_show_formats = False
-plot_formats = [("png", 110)]
 
 html_theme = "sphinx_rtd_theme"
 html_title = f"sb3-affect {version}"

@@ -1,4 +1,7 @@
-"""Every appraisal of one episode of a real AffectQ run (the Concepts page)."""
+"""Every appraisal of one episode of a real AffectQ run (the Concepts page: ``python docs/figures/appraised_episode.py``
+writes docs/_static/appraised_episode.png)."""
+
+from pathlib import Path
 
 import matplotlib.pyplot as plt
 from stable_baselines3.common.callbacks import StopTrainingOnMaxEpisodes
@@ -30,3 +33,6 @@ ax.set_xlabel("decision in episode 4")
 ax.set_ylabel("cells")
 ax.legend(ncols=3, fontsize=8)
 fig.tight_layout()
+out = Path(__file__).resolve().parents[1] / "_static" / "appraised_episode.png"
+fig.savefig(out, dpi=110)
+print(f"wrote {out}")

@@ -1,4 +1,7 @@
-"""How one decision of the affective agent moves (the Concepts page)."""
+"""How one decision of the affective agent moves (the Concepts page: ``python docs/figures/decision_moves.py`` writes
+docs/_static/decision_moves.png)."""
+
+from pathlib import Path
 
 import matplotlib.pyplot as plt
 from matplotlib.patches import Rectangle
@@ -33,3 +36,6 @@ for ax, (title, start, path) in zip(axes, cases):
     ax.set_title(title, fontsize=9)
 fig.suptitle("One decision of the affective agent (greedy = towards the prey here)", fontsize=10)
 fig.tight_layout()
+out = Path(__file__).resolve().parents[1] / "_static" / "decision_moves.png"
+fig.savefig(out, dpi=110)
+print(f"wrote {out}")

@@ -29,7 +29,9 @@ last one of a rollout before it learns: the callback settles a step when the alg
 reached, one step later (the episode log is complete at the end of ``learn``). On a ``Discrete`` observation space of at
 most ``VALUE_TABLE_STATES`` states, SB3's and sb3-contrib's other algorithms value each state once per update (their
 ``train`` counts the updates): the states met, one at a time, where the pass is made in numpy; all states at once by
-torch. Otherwise every step is one batched pass over the
+torch. Such a step keeps only its lists; its values and emotions are worked out with the other steps of the rollout in
+one burst before the algorithm learns, or at the end of an episode (the values, their order and what is logged when
+are those of settling each step at once). Otherwise every step is one batched pass over the
 VecEnv's observations; a ``value_fn`` is called once per env and step. The pass of a DQN with SB3's default MLP
 Q-network is made in numpy on the network's own parameters (``sb3_affect.agents.numpy_values``): on a small network a
 torch pass costs more than the step it values.
@@ -164,7 +166,7 @@ class _Step(NamedTuple):
     rewards: list[float]
     cut: dict[int, float | None]  # truncated env -> V of its episode's last observation (None: no such observation)
     new_obs: Any
-    done_array: np.ndarray
+    done_array: np.ndarray | None
     cell_rewards: list[float] | None
     cells: list[int] | None  # each env's cell after the step (``position=``), None without a position
 
@@ -225,11 +227,14 @@ class BroekensCallback(BaseCallback):
         # where the values come from (see the module docstring): the algorithm's own (on-policy), a table of all states
         self._settle_later = False
         self._pending: _Step | None = None
+        # steps to settle before the algorithm learns: (dones, rewards, states, cells) of each
+        self._queue: list[tuple[list[bool], list[float], list[int], list[int] | None]] = []
         self._seen_values: Any = None
         self._table_states = self._table_start = 0
         self._table: dict[int, float] | None = None  # state -> V, since the update ``_table_version``
         self._table_version: int | None = None
         self._mirror: NumpyQValues | None = None
+        self._row_mirror: NumpyQValues | None = None  # the mirror, when not stale at the table's update
 
     def _init_callback(self) -> None:
         model = self.model
@@ -247,12 +252,12 @@ class BroekensCallback(BaseCallback):
     # -- values ------------------------------------------------------------------------------------------------
     def _values(self, obs: Any, dones: np.ndarray | None = None) -> np.ndarray | list[float]:
         """``V`` of each env's observation in a VecEnv batch (``dones``: which envs start a new episode with it)."""
+        if self._table_states:  # first: the common case of a small Discrete space (never with a value_fn)
+            return self._table_values(flat_array(obs).tolist())
         if self._kind == "user":
             assert self.value_fn is not None
             n = len(next(iter(obs.values()))) if isinstance(obs, dict) else len(np.asarray(obs))
             return np.array([float(self.value_fn(self.model, _row(obs, i))) for i in range(n)])
-        if self._table_states:
-            return self._table_values(flat_array(obs).tolist())
         lstm = starts = None
         if self._kind == "recurrent":
             lstm, starts = self._recurrent_inputs(dones)
@@ -271,20 +276,21 @@ class BroekensCallback(BaseCallback):
         mirror of the network) only the states asked for, whose one-row passes cost little; by torch every state at
         once, whose one pass costs about what a pass of one state does.
         """
-        version = int(self.model._n_updates)
+        version = self.model._n_updates
         if self._table is None or version != self._table_version:
             self._table, self._table_version = {}, version
             mirror = self._mirror
-            if mirror is None or mirror.stale():
+            self._row_mirror = None if mirror is None or mirror.stale() else mirror  # checked once per update
+            if self._row_mirror is None:
                 start = self._table_start
                 self._table = dict(enumerate(self._net_values(np.arange(start, start + self._table_states)).tolist(), start))
         table = self._table
         if len(states) == 1:  # one env: the common case, without building lists
             value = table.get(states[0])
             if value is None:
-                mirror = self._mirror
-                if mirror is not None and not mirror.stale():
-                    value = mirror.state_value(states[0])
+                row_mirror = self._row_mirror
+                if row_mirror is not None:
+                    value = row_mirror.state_value(states[0])
                 else:
                     value = float(self._net_values(np.asarray(states))[0])
                 table[states[0]] = value
@@ -338,6 +344,7 @@ class BroekensCallback(BaseCallback):
         self._window = self._window.resized(int(getattr(self.model, "_stats_window_size", 100)))
         self._csv_path = self._episode_csv()
         self._pending = None
+        self._queue = []
         if self.position is not None:
             self._position = make_position(self.position, self.model.observation_space)
             assert self._position is not None
@@ -351,6 +358,14 @@ class BroekensCallback(BaseCallback):
     def _on_step(self) -> bool:
         check_step_locals(self)
         locals_ = self.locals
+        if self._table_states and not self._settle_later:  # the step's lists now, the rest before the algorithm learns
+            done_list = flat_array(locals_["dones"], bool).tolist()
+            new_obs = locals_["new_obs"]
+            cells = None if self._position is None else self._position.cells(self.training_env, new_obs, locals_["infos"])
+            self._queue.append((done_list, flat_array(locals_["rewards"]).tolist(), flat_array(new_obs).tolist(), cells))
+            if True in done_list:
+                self._settle_queue(locals_["infos"])
+            return True
         dones = flat_array(locals_["dones"], bool)
         new_obs = locals_["new_obs"]
         cell_rewards = locals_.get("cell_rewards")  # the package's tabular agents: this decision's cells
@@ -360,15 +375,8 @@ class BroekensCallback(BaseCallback):
                 self._v[0] = float(self._values(new_obs, dones)[0])
             return True
         infos = locals_["infos"]
-        # truncated envs -> V of their last observation, valued now (RecurrentPPO's: with this step's LSTM states)
-        cut: dict[int, float | None] = {}
         done_list = dones.tolist()
-        if True in done_list:
-            for i, done in enumerate(done_list):
-                info = infos[i]
-                if done and info.get("TimeLimit.truncated", False):
-                    terminal = info.get("terminal_observation")
-                    cut[i] = None if terminal is None else self._terminal_value(terminal, i)
+        cut = self._cut(done_list, infos)
         rewards = flat_array(locals_["rewards"]).tolist()
         cells = None if self._position is None else self._position.cells(self.training_env, new_obs, infos)
         step = _Step(done_list, rewards, cut, new_obs, dones, cell_rewards, cells)
@@ -385,6 +393,34 @@ class BroekensCallback(BaseCallback):
             self._settle(self._pending, _as_floats(values))
         self._pending, self._seen_values = step, values
         return True
+
+    def _cut(self, done_list: list[bool], infos: Any) -> dict[int, float | None]:
+        """Truncated envs -> V of their last observation, valued now (RecurrentPPO's: with this step's LSTM states)."""
+        cut: dict[int, float | None] = {}
+        if True in done_list:
+            for i, done in enumerate(done_list):
+                info = infos[i]
+                if done and info.get("TimeLimit.truncated", False):
+                    terminal = info.get("terminal_observation")
+                    cut[i] = None if terminal is None else self._terminal_value(terminal, i)
+        return cut
+
+    def _settle_queue(self, infos: Any = None) -> None:
+        """
+        Settle the steps of a small Discrete space queued since the algorithm last learnt (``_on_step`` keeps only their
+        lists), in order; ``infos``: the last step's, when it ended an episode (an episode's end settles at its own
+        step, so what is logged and when is unchanged). Their states are valued here, in the order and with the
+        parameters each step would have valued them with at its own step (the algorithm has not learnt since), but in
+        one burst, where the code is already warm, instead of a little between two env steps.
+        """
+        queue, self._queue = self._queue, []
+        steps, values = [], []
+        for index, (done_list, rewards, states, cells) in enumerate(queue):
+            cut = self._cut(done_list, infos) if index == len(queue) - 1 and infos is not None else {}
+            steps.append(_Step(done_list, rewards, cut, states, None, None, cells))
+            values.append(self._table_values(states))
+        for step, new_values in zip(steps, values):
+            self._settle(step, new_values)
 
     def _settle_pending(self) -> None:
         """Settle the last step: with the values the algorithm gave its rollout's last observations, else its own."""
@@ -439,10 +475,12 @@ class BroekensCallback(BaseCallback):
         return discounted + gamma ** len(cell_rewards) * reached
 
     def _on_rollout_end(self) -> None:
+        self._settle_queue()  # before the algorithm learns from the rollout
         self._settle_pending()
         self._window.record(self.logger, self._keys, again=False)
 
     def _on_training_end(self) -> None:
+        self._settle_queue()
         self._settle_pending()
         self._window.record(self.logger, self._keys)
 

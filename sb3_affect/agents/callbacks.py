@@ -466,8 +466,9 @@ class WindowMeans:
         row was appended since they were last recorded or the logger has written them out since (an off-policy
         rollout is a few steps: most rollouts have neither, and recording costs more than the step's own work).
         """
-        if not again and self._recorded == self._added and keys[0] in getattr(logger, "name_to_value", ()):
-            return
+        unchanged = not again and self._recorded == self._added
+        if unchanged and (not self._added or keys[0] in getattr(logger, "name_to_value", ())):
+            return  # unchanged and still in the logger, or no row yet (every mean NaN: nothing to record)
         for key, mean in zip(keys, self.means()):
             if mean == mean:
                 logger.record(key, mean)

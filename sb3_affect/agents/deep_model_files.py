@@ -38,8 +38,8 @@ from sb3_affect.agents.serialization import (
     _read,
     _same_algorithm,
     add_plain_description,
+    plain_description,
     schedule_from_plain,
-    schedule_to_plain,
 )
 
 #: Replay buffer classes a file names.
@@ -194,48 +194,24 @@ def _kwargs_from_plain(plain: Any, what: str, depth: int = 0) -> Any:
 
 
 def deep_description(model: Any, data: dict[str, Any]) -> dict[str, Any]:
-    """The plain-JSON member for a deep ``model``, given the JSON of SB3's ``data`` member it was saved with."""
-    policy_alias = next((alias for alias, cls in model.policy_aliases.items() if cls is model.policy_class), None)
-    values: dict[str, Any] = {}
-    derived: list[str] = []
-    opaque: list[str] = []
-    for key, stored in data.items():
-        if not (isinstance(stored, dict) and ":serialized:" in stored) or key in (*_SPACE_KEYS, "policy_class"):
-            continue
-        value = getattr(model, key, None)
-        buffer = next((name for name, cls in BUFFERS.items() if value is cls), None)
-        if key.endswith("_schedule"):
-            derived.append(key)  # rebuilt by _setup_model from the rate it schedules
-        elif key in _OBSERVATIONS:
-            values[key] = {"observation": _array_to_plain(value)}
-        elif isinstance(value, deque):
-            try:
-                values[key] = {"deque": _plain_json(list(value)), "maxlen": value.maxlen}
-            except TypeError:
-                opaque.append(key)
-        elif buffer is not None:
-            values[key] = {"buffer": buffer}
-        elif key == "policy_kwargs" and _kwargs_to_plain(value) is not None:
-            values[key] = {"policy_kwargs": _kwargs_to_plain(value)}
-        elif isinstance(value, TrainFreq):
-            values[key] = {"train_freq": [int(value.frequency), TrainFrequencyUnit(value.unit).value]}
-        else:
-            plain = schedule_to_plain(value)
-            if plain is None:
-                opaque.append(key)
-            else:
-                values[key] = {"schedule": plain}
-    cls = type(model)
-    return {
-        "format": FORMAT,
-        "algorithm": f"{cls.__module__}:{cls.__qualname__}",
-        "policy": policy_alias,
-        "observation_space": space_to_plain(model.observation_space),
-        "action_space": space_to_plain(model.action_space),
-        "values": values,
-        "derived": derived,
-        "opaque": opaque,
-    }
+    """The plain-JSON member for a deep ``model``, given the JSON of SB3's ``data`` member it was saved with: the tabular
+    models' (``plain_description``) with the deep agents' own values and any space ``space_to_plain`` writes."""
+    return plain_description(model, data, special=_deep_value, space_form=space_to_plain)
+
+
+def _deep_value(key: str, value: Any) -> dict[str, Any] | None:
+    """The plain form of a value only the deep agents hold, or None (then the tabular models' forms apply)."""
+    if key in _OBSERVATIONS:
+        return {"observation": _array_to_plain(value)}
+    buffer = next((name for name, cls in BUFFERS.items() if value is cls), None)
+    if buffer is not None:
+        return {"buffer": buffer}
+    kwargs = _kwargs_to_plain(value) if key == "policy_kwargs" else None
+    if kwargs is not None:
+        return {"policy_kwargs": kwargs}
+    if isinstance(value, TrainFreq):
+        return {"train_freq": [int(value.frequency), TrainFrequencyUnit(value.unit).value]}
+    return None
 
 
 def _rebuild(key: str, plain: Any, where: str) -> Any:

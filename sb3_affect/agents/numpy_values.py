@@ -43,6 +43,13 @@ class NumpyQValues:
                 self.layers.append(ACTIVATIONS[type(module)])
         self.discrete = isinstance(observation_space, spaces.Discrete)
         self.width = 0 if self.discrete else int(np.prod(observation_space.shape or ()))
+        # one state's pass (``state_value``): each Linear's output written into a row kept for it, no array made
+        linears = [layer for layer in self.layers if type(layer) is tuple]
+        self._first_row = np.empty(linears[0][1].shape, dtype=np.float32)
+        self._row_layers: list[tuple[Any, np.ndarray | None]] = [
+            (layer, np.empty(layer[1].shape, dtype=np.float32) if type(layer) is tuple else None)
+            for layer in self.layers[1:]
+        ]
 
     def stale(self) -> bool:
         """Whether a parameter was replaced (not updated in place) since the mirror was made."""
@@ -58,9 +65,17 @@ class NumpyQValues:
         return self._rest(np.asarray(obs, dtype=np.float32).reshape(-1, self.width), first=0)
 
     def state_value(self, state: int) -> float:
-        """``max_a Q(state, a)`` of one state of a ``Discrete`` space (one row, without a batch's reshapes)."""
+        """``max_a Q(state, a)`` of one state of a ``Discrete`` space: a 1-d row through the layers (``row @ weight +
+        bias``, the activation), each layer's output written into a row kept for it, so no array is made."""
         weight, bias = self.layers[0]  # type: ignore[misc]
-        return float(self._rest(weight[state] + bias).max())
+        x = np.add(weight[state], bias, out=self._first_row)
+        for layer, out in self._row_layers:
+            if out is None:
+                layer(x)  # an activation, in place
+            else:
+                x = np.matmul(x, layer[0], out=out)
+                x += layer[1]
+        return float(x.max())
 
     def _rest(self, x: np.ndarray, first: int = 1) -> np.ndarray:
         for layer in self.layers[first:] if first else self.layers:

@@ -112,8 +112,13 @@ def _numpy_default(value: Any) -> Any:
 
 
 # -- save ---------------------------------------------------------------------------------------------------------------
-def plain_description(model: Any, data: dict[str, Any]) -> dict[str, Any]:
-    """The ``sb3_affect.json`` member for ``model``, given the JSON of SB3's ``data`` member it was saved with."""
+def plain_description(model: Any, data: dict[str, Any], special: Any = None, space_form: Any = None) -> dict[str, Any]:
+    """
+    The ``sb3_affect.json`` member for ``model``, given the JSON of SB3's ``data`` member it was saved with.
+    ``special(key, value)``: the plain form of a value that only another kind of model holds (the deep agents': their
+    last observations, replay buffer class, policy keywords and train frequency), or None for the forms here;
+    ``space_form(space)``: how the spaces are written (default ``space_to_plain``, Discrete only).
+    """
     policy_alias = next((alias for alias, cls in model.policy_aliases.items() if cls is model.policy_class), None)
     values: dict[str, Any] = {}
     derived: list[str] = []
@@ -122,7 +127,10 @@ def plain_description(model: Any, data: dict[str, Any]) -> dict[str, Any]:
         if not (isinstance(stored, dict) and ":serialized:" in stored) or key in (*_SPACE_KEYS, "policy_class"):
             continue
         value = getattr(model, key, None)
-        if key.endswith("_schedule"):
+        form = None if special is None else special(key, value)
+        if form is not None:
+            values[key] = form
+        elif key.endswith("_schedule"):
             derived.append(key)  # rebuilt by _setup_model from the rate it schedules
         elif key in ("_last_obs", "_last_episode_starts"):
             values[key] = (
@@ -140,12 +148,13 @@ def plain_description(model: Any, data: dict[str, Any]) -> dict[str, Any]:
             else:
                 values[key] = {"schedule": plain}
     cls = type(model)
+    space = space_form or space_to_plain
     return {
         "format": FORMAT,
         "algorithm": f"{cls.__module__}:{cls.__qualname__}",
         "policy": policy_alias,
-        "observation_space": space_to_plain(model.observation_space),
-        "action_space": space_to_plain(model.action_space),
+        "observation_space": space(model.observation_space),
+        "action_space": space(model.action_space),
         "values": values,
         "derived": derived,
         "opaque": opaque,

@@ -27,7 +27,10 @@ rl-zoo3 reads a logs folder's ``config.yml`` and ``args.yml`` with PyYAML's unsa
 tags a file holds. Before ``enjoy`` and ``record_video``, this entry point reads those files of the ``--algo``
 folder with a safe loader that knows only the ``OrderedDict`` tag the zoo writes itself; a file with any other
 Python tag is refused. (The zoo's own ``python -m rl_zoo3.enjoy`` does not check: use this entry point for logs
-folders you did not write.) A hyperparameter the agent refuses (``--hyperparams exploration_rate:5``) is one error
+folders you did not write.) ``enjoy`` and ``record_video`` load a deep agent with a replay buffer of one transition
+(``buffer_size=1``), as the zoo loads its own off-policy algorithms: replaying stores nothing, and the trained
+model's buffer (50,000 MiniGrid observations in the shipped files, about 280 MB) would be allocated for nothing. A
+hyperparameter the agent refuses (``--hyperparams exploration_rate:5``) is one error
 line, not a traceback.
 
 Commands: ``train``, ``enjoy``, ``record_video``, ``plot_train``, ``all_plots`` (the zoo's modules of those names).
@@ -247,6 +250,17 @@ def check_logs_folder(argv: list[str]) -> None:
             raise SystemExit(f"{path}: can not be read ({error})") from None
 
 
+class ReplayLoader:
+    """What the zoo's ``ALGOS`` holds for an off-policy agent of the package while the zoo replays it: the agent's
+    ``load`` with a replay buffer of one transition (the keywords the zoo's ``enjoy`` passes for its own)."""
+
+    def __init__(self, cls: type) -> None:
+        self.cls = cls
+
+    def load(self, path: Any, **kwargs: Any) -> Any:
+        return self.cls.load(path, **{"buffer_size": 1, "optimize_memory_usage": False, **kwargs})  # type: ignore[attr-defined]
+
+
 def _agent_error(error: BaseException) -> bool:
     """Whether ``error`` was raised by this package's code (an agent's check of a value), not by the zoo's."""
     tb = error.__traceback__
@@ -254,6 +268,26 @@ def _agent_error(error: BaseException) -> bool:
         tb = tb.tb_next
     package = Path(__file__).resolve().parents[1]  # sb3_affect/
     return tb is not None and Path(tb.tb_frame.f_code.co_filename).resolve().is_relative_to(package)
+
+
+def _load_for_replay(algo: str | None) -> dict[str, Any]:
+    """Put a ``ReplayLoader`` in the zoo's ``ALGOS`` for ``algo`` if it is an off-policy agent of the package; returns
+    what it replaced (for ``_restore_algos``)."""
+    import rl_zoo3
+    from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
+
+    algos: dict[str, Any] = rl_zoo3.ALGOS
+    cls = algos.get(algo) if algo in ZOO_ALGOS else None
+    if algo is None or not (isinstance(cls, type) and issubclass(cls, OffPolicyAlgorithm)):
+        return {}
+    algos[algo] = ReplayLoader(cls)
+    return {algo: cls}
+
+
+def _restore_algos(replaced: dict[str, Any]) -> None:
+    import rl_zoo3
+
+    rl_zoo3.ALGOS.update(replaced)
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -281,8 +315,10 @@ def main(argv: list[str] | None = None) -> None:
 
         # the zoo names its run folders after the env id with "/" replaced by "-"; plot_train looks them up by id
         rest = [arg.replace("/", "-") if "/" in arg and arg in gym.registry else arg for arg in rest]
+    replaced: dict[str, Any] = {}
     if command in ("enjoy", "record_video"):
         check_logs_folder(rest)
+        replaced = _load_for_replay(_algo(rest))
     saved = sys.argv
     sys.argv = [COMMANDS[command], *rest]
     try:
@@ -293,6 +329,7 @@ def main(argv: list[str] | None = None) -> None:
         raise SystemExit(f"sb3_affect.integrations.zoo {command}: error: {' '.join(str(error).split())}") from None
     finally:
         sys.argv = saved
+        _restore_algos(replaced)
     if output is not None:
         import matplotlib.pyplot as plt
 

@@ -60,3 +60,23 @@ def test_networks_it_does_not_mirror_get_none() -> None:
     assert q_values_fn(DQN("CnnPolicy", Images(), buffer_size=10)) is None
     assert q_values_fn(DQN("MlpPolicy", gym.make("CartPole-v1"), policy_kwargs={"net_arch": []})) is not None
     assert q_values_fn(object()) is None
+
+
+def test_one_states_value_is_the_plain_row_pass_to_the_last_bit() -> None:
+    """``state_value`` writes into rows it keeps; it equals ``row @ weight + bias`` and the activation done afresh on
+    1-d rows (what it computed before), exactly, for every state, before and after learning, and on one Linear."""
+    for kwargs in ({}, {"net_arch": [16, 8], "activation_fn": th.nn.Tanh}, {"net_arch": []}):
+        model = DQN("MlpPolicy", "sb3_affect/GridPursuit-v0", learning_starts=20, train_freq=1, seed=0, policy_kwargs=kwargs)
+        mirror = q_values_fn(model)
+        assert mirror is not None
+        for steps in (0, 200):
+            model.learn(steps)
+            layers = list(model.q_net.q_net)
+            for state in range(225):
+                row = layers[0].weight.detach().numpy().T[state] + layers[0].bias.detach().numpy()
+                for layer in layers[1:]:
+                    if isinstance(layer, th.nn.Linear):
+                        row = row @ layer.weight.detach().numpy().T + layer.bias.detach().numpy()
+                    else:
+                        row = np.maximum(row, 0.0) if isinstance(layer, th.nn.ReLU) else np.tanh(row)
+                assert mirror.state_value(state) == float(row.max())
