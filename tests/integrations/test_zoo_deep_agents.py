@@ -19,7 +19,7 @@ from stable_baselines3.common.env_util import make_vec_env  # noqa: E402
 from sb3_affect.integrations.zoo import HYPERPARAMS_FOLDER, SAMPLERS, ZOO_ALGOS, _conf_file, register_with_zoo  # noqa: E402
 
 DEEP = ("affectdqn", "affectqrdqn", "ezgreedydqn", "speedepsilongreedydqn")
-TASKS = ("MiniGrid-Empty-5x5-v0", "MiniGrid-Empty-8x8-v0")
+TASKS = ("MiniGrid-Empty-8x8-v0", "MiniGrid-DoorKey-5x5-v0", "MiniGrid-Empty-6x6-v0")
 #: DQN's epsilon, which the affective agents do not take.
 EPSILON = ("exploration_fraction", "exploration_final_eps")
 
@@ -44,7 +44,7 @@ def test_zoo_trains_affect_dqn_on_minigrid_with_the_shipped_file_and_enjoy_repla
     assert dict(config)["env_wrapper"] == "minigrid.wrappers.FlatObsWrapper" and dict(config)["position"] == "minigrid"
     model = _agent("affectdqn").load(run / "MiniGrid-Empty-8x8-v0.zip")
     shipped = _file("affectdqn")["MiniGrid-Empty-8x8-v0"]
-    assert model.num_timesteps == 600 and model.learning_starts == shipped["learning_starts"]
+    assert model.num_timesteps >= 600 and model.learning_starts == shipped["learning_starts"]  # (a repeat may end past it)
     out = zoo(["enjoy", *common, "--no-render", "-n", "300", "--seed", "0"], tmp_path)  # > one episode's 256 steps
     assert "Episode Reward" in out and "Episode Length" in out, out[-500:]
 
@@ -68,7 +68,7 @@ def test_the_deep_agents_files_build_the_agent_on_every_task(algo: str) -> None:
     for task, params in _file(algo).items():
         params = dict(params)
         params.pop("n_timesteps"), params.pop("env_wrapper")
-        env = make_vec_env(task, n_envs=1, seed=0, wrapper_class=FlatObsWrapper)
+        env = make_vec_env(task, n_envs=params.pop("n_envs"), seed=0, wrapper_class=FlatObsWrapper)
         model = _agent(algo)(env=env, seed=0, **{**params, "learning_starts": 20, "buffer_size": 100})
         assert model.learn(40).num_timesteps >= 40  # (a repeat may end past the budget)
 
@@ -88,7 +88,7 @@ def test_the_deep_samplers_give_valid_agents_with_their_own_arguments(algo: str)
 
 
 def test_the_zoo_optimizes_affect_dqn_with_its_sampler(tmp_path: Path, zoo) -> None:
-    out = zoo(["train", "--algo", "affectdqn", "--env", "MiniGrid-Empty-5x5-v0", "-f", "logs", "-n", "100",
+    out = zoo(["train", "--algo", "affectdqn", "--env", "MiniGrid-Empty-6x6-v0", "-f", "logs", "-n", "100",
                "--optimize-hyperparameters", "--n-trials", "1", "--n-jobs", "1", "--sampler", "random", "--pruner",
                "none", "--n-evaluations", "1", "--eval-episodes", "1", "--seed", "0",
                "--hyperparams", "learning_starts:50", "buffer_size:500"], tmp_path)
@@ -98,7 +98,7 @@ def test_the_zoo_optimizes_affect_dqn_with_its_sampler(tmp_path: Path, zoo) -> N
 def test_the_package_files_are_read_for_its_agents_and_for_dqn_on_the_envs_they_list() -> None:
     assert set(ZOO_ALGOS) == {"qlearning", "affectq", *DEEP}
     assert _conf_file("affectdqn", ["--env", "MiniGrid-Empty-8x8-v0"]) == HYPERPARAMS_FOLDER / "affectdqn.yml"
-    assert _conf_file("dqn", ["--env", "MiniGrid-Empty-5x5-v0"]) == HYPERPARAMS_FOLDER / "dqn.yml"
+    assert _conf_file("dqn", ["--env", "MiniGrid-DoorKey-5x5-v0"]) == HYPERPARAMS_FOLDER / "dqn.yml"
     assert _conf_file("dqn", ["--env", "CartPole-v1"]) is None  # the zoo's own dqn.yml
     assert _conf_file("affectdqn", ["--env", "MiniGrid-Empty-8x8-v0", "--conf-file", "mine.yml"]) is None
 
@@ -108,9 +108,10 @@ def test_the_deep_agents_page_trains_with_the_shipped_settings() -> None:
     code = page[page.index("settings = dict(") : page.index("env = make_vec_env(")]
     namespace: dict[str, object] = {}
     exec(code, namespace)
-    shipped = dict(_file("affectdqn")["MiniGrid-Empty-5x5-v0"])
-    for key in ("env_wrapper", "n_timesteps", "policy", "position", "wait_action"):
+    shipped = dict(_file("affectdqn")["MiniGrid-Empty-8x8-v0"])
+    for key in ("env_wrapper", "n_envs", "n_timesteps", "policy", "position", "wait_action"):
         shipped.pop(key)
     assert namespace["settings"] == {key: value for key, value in shipped.items() if key != "gradient_steps"}
     assert shipped["gradient_steps"] == 1  # DQN's default
-    assert "learn(10_000)" in page and _file("affectdqn")["MiniGrid-Empty-5x5-v0"]["n_timesteps"] == 10_000
+    assert "learn(100_000)" in page and _file("affectdqn")["MiniGrid-Empty-8x8-v0"]["n_timesteps"] == 100_000
+    assert "n_envs=4" in page and _file("affectdqn")["MiniGrid-Empty-8x8-v0"]["n_envs"] == 4
