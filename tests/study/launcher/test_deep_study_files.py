@@ -32,6 +32,7 @@ def test_the_study_has_its_design_and_its_tuning_pass_runs_on_other_seeds() -> N
     assert by_name["matched-randomness"].replays == "affective"
     assert {by_name[f"ez-greedy-{cap}"].kwargs["max_duration"] for cap in (10, 100)} == {10, 100}
     assert by_name["affective-reversed"].kwargs["behaviour_table"] == "table-iii-reversed"
+    assert by_name["affective-four"].kwargs["emotion_callback"]["order"] == "act-first"  # sadness and fear can occur
     assert all(speeds == [1] for _, speeds in by_name["affective-speed-one"].kwargs["behaviour_table"].values())
     assert by_name["count-bonus"].count_bonus == "tuned" and by_name["dqn-linear"].epsilon == "tuned"
     assert {"DQN", "AffectDQN", "EzGreedyDQN", "SpeedEpsilonGreedyDQN", "ReplayedEpsilonDQN"} == {a.algo for a in study.agents}
