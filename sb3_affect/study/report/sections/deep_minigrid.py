@@ -290,8 +290,15 @@ def emotions_figure(results: DeepResults, path: Path) -> Path | None:
     cells = [cell for cell in results.cells if cell.get("emotions")]
     if not cells:
         return None
-    fig, axes = plt.subplots(1, len(cells), figsize=(3.6 * len(cells), 3.2), squeeze=False)
-    for ax, cell in zip(axes[0], cells):
+    tasks = list(dict.fromkeys(cell["task"] for cell in cells))  # a row per task, a column per affective agent
+    agents = list(dict.fromkeys(cell["agent"] for cell in cells))
+    fig, axes = plt.subplots(len(tasks), len(agents), figsize=(3.2 * len(agents), 2.6 * len(tasks)), squeeze=False)
+    for row in axes:
+        for ax in row:
+            ax.set_visible(False)
+    for cell in cells:
+        ax = axes[tasks.index(cell["task"])][agents.index(cell["agent"])]
+        ax.set_visible(True)
         steps = np.asarray(cell["eval_steps"])
         for name in EMOTION_NAMES:
             with np.errstate(invalid="ignore"):
@@ -300,6 +307,7 @@ def emotions_figure(results: DeepResults, path: Path) -> Path | None:
         ax.set_ylim(0, 1)
         ax.set_title(f"{cell['task']}: {cell['agent']}", fontsize=8)
         ax.set_xlabel("env steps")
+        ax.xaxis.set_major_formatter(lambda x, _: f"{x / 1000:g}k")
     axes[0][0].set_ylabel("share of env steps (mean over seeds)")
     axes[0][0].legend(fontsize=6)
     return save(fig, path)
