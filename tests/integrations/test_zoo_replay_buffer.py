@@ -19,9 +19,9 @@ from sb3_affect import AffectDQN
 def test_enjoy_loads_a_deep_agent_with_a_buffer_of_one_transition(tmp_path: Path, zoo, monkeypatch) -> None:
     import rl_zoo3
 
-    common = ["--algo", "affectdqn", "--env", "MiniGrid-Empty-5x5-v0", "-f", "logs"]
+    common = ["--algo", "affectdqn", "--env", "MiniGrid-Empty-6x6-v0", "-f", "logs"]
     zoo(["train", *common, "-n", "200", "--seed", "0"], tmp_path)
-    trained = AffectDQN.load(tmp_path / "logs" / "affectdqn" / "MiniGrid-Empty-5x5-v0_1" / "MiniGrid-Empty-5x5-v0.zip")
+    trained = AffectDQN.load(tmp_path / "logs" / "affectdqn" / "MiniGrid-Empty-6x6-v0_1" / "MiniGrid-Empty-6x6-v0.zip")
     assert trained.buffer_size == 50_000  # what enjoy would allocate again without the zoo's keywords
     loaded: list[Any] = []
     real_load = AffectDQN.load.__func__  # type: ignore[attr-defined]
@@ -32,7 +32,7 @@ def test_enjoy_loads_a_deep_agent_with_a_buffer_of_one_transition(tmp_path: Path
         return model
 
     monkeypatch.setattr(AffectDQN, "load", classmethod(spy))
-    out = zoo(["enjoy", *common, "--no-render", "-n", "120", "--seed", "0"], tmp_path)
-    assert "Episode Reward" in out, out[-500:]  # (Empty-5x5 ends an episode within 100 steps)
+    out = zoo(["enjoy", *common, "--no-render", "-n", "160", "--seed", "0"], tmp_path)
+    assert "Episode Reward" in out, out[-500:]  # (Empty-6x6 ends an episode within 144 steps)
     assert len(loaded) == 1 and loaded[0].buffer_size == 1 and loaded[0].replay_buffer.buffer_size == 1
     assert rl_zoo3.ALGOS["affectdqn"] is AffectDQN  # the zoo's algorithms as they were
