@@ -11,34 +11,41 @@ local processes or Ray.
 from __future__ import annotations
 
 import contextlib
-import importlib.util
 import json
-import math
 import sys
 import threading
 import time
 from collections.abc import Iterator
-from importlib.resources import files
 from pathlib import Path
 from typing import Any
 
-from sb3_affect.study.studies import STUDIES
+import yaml
 
-try:  # the experiments extra: without it the help gives no run counts or sizes (running a part says what to install)
-    import yaml
-except ImportError:  # pragma: no cover - the extra is installed in the tests
-    yaml = None  # type: ignore[assignment]
+from sb3_affect.study.forensics.section import report_section
+from sb3_affect.study.forensics.study_run import run_study
+from sb3_affect.study.launcher import run_sweep
+from sb3_affect.study.launcher.deep_schema import DeepStudy
+from sb3_affect.study.launcher.deep_study import run_deep_study
+from sb3_affect.study.launcher.epsilon_tuning import round_values, tune, tuning_grid
+from sb3_affect.study.launcher.folder_files import MAX_SWEEP_FILE_BYTES
+from sb3_affect.study.launcher.regular_files import UnreadableFile, read_json
+from sb3_affect.study.launcher.store import FORENSICS_FILE, ResultsStore, StoreError
+from sb3_affect.study.launcher.study_schema import ForensicsStudy
+from sb3_affect.study.launcher.sweep_file import load_sweep, load_sweep_file
+from sb3_affect.study.report import build_report
+from sb3_affect.study.report.reading.study_tables import folder_study
+from sb3_affect.study.studies import (
+    PARTS,
+    SIZED,
+    STUDIES,
+    TUNED_PARTS,
+    missing_package,
+    part_description,
+    shipped_sweeps_folder,
+)
 
 #: The folder of the sweep files; None: those installed with the package (``experiments/`` of the source tree).
 EXPERIMENTS: Path | None = None
-#: The sweeps of the main job, in order (``studies.STUDIES``): (name of experiments/<name>.yaml and of the results
-#: folder, description).
-PARTS = tuple((study.name, study.description) for study in STUDIES if not study.tuned)
-#: Parts that need a package of an extra: (part, package, extra); without it the part is skipped with one line.
-PART_PACKAGES = tuple((study.name, *study.extra) for study in STUDIES if study.extra)
-#: The parts sized by ``main``'s ``large_seeds`` (a cap on their seeds per cell) and ``engine_episodes`` (their
-#: episodes per run; ``long``: 10 x as many); ``ablation`` by ``ablation_seeds``.
-SIZED = tuple(study.name for study in STUDIES if study.size and not study.tuned)
 #: Sizes for quick checks, read when ``main`` runs (None: the sweep files' own sizes): a cap on the seeds per cell of
 #: the ``SIZED`` parts and of the tuning, the ablation's seeds, a cap on the seeds per agent and task beyond the paper,
 #: the episodes per run.
@@ -48,81 +55,6 @@ BEYOND_SEEDS: int | None = None
 ENGINE_EPISODES: int | None = None
 #: Further ``--set`` overrides of a part by name, for quick checks (e.g. ``{"forensics": ["reps=2"]}``).
 OVERRIDES: dict[str, list[str]] = {}
-#: The main job's wall time on 2 idle cores, as the help and the docs quote it (measured: see the README).
-MINUTES = "about 5-9 minutes"
-#: The sweeps after ``PARTS``, in order: the tuning (its rounds in ``OUT/tuning/round<k>``), then the tasks beyond the
-#: paper with the tuned ε: (name of experiments/<name>.yaml and of the results folder, description).
-TUNED_PARTS = tuple((study.name, study.description) for study in STUDIES if study.tuned)
-
-
-def sweep_runs(path: Path) -> int | None:
-    """
-    How many runs an experiment file asks for: seeds x the grid points of each agent on each task (read with yaml
-    alone, so the help stays fast; the launcher's ``Sweep.run_configs`` gives the same count). None when it can not be
-    read.
-    """
-    if yaml is None:
-        return None
-    try:
-        data = yaml.safe_load(Path(path).read_text())
-        seeds = data["seeds"]
-        agents = data["agents"].values() if isinstance(data["agents"], dict) else data["agents"]
-        tasks = len(data.get("tasks") or [None])
-        grids = [(agent["grid_by_task"].values(), 1) if "grid_by_task" in agent else ([agent.get("grid") or {}], tasks)
-                 for agent in agents]  # fmt: skip
-        per_agent = [sum(math.prod(len(v) for v in grid.values()) for grid in each) * times for each, times in grids]
-    except (OSError, yaml.YAMLError, KeyError, TypeError, AttributeError):
-        return None
-    return (len(seeds) if isinstance(seeds, list) else int(seeds)) * sum(per_agent)
-
-
-def missing_package(part: str) -> str | None:
-    """What to install when a part needs a package that is not installed (``PART_PACKAGES``), else None."""
-    for name, package, extra in PART_PACKAGES:
-        if name == part and importlib.util.find_spec(package) is None:
-            return f"{package} is not installed: pip install \"sb3-affect[{extra}]\""
-    return None
-
-
-def sweeps_folder(experiments: Path | None = None) -> Path:
-    """The folder of the sweep files: ``experiments``, else ``EXPERIMENTS``, else those installed with the package."""
-    if experiments or EXPERIMENTS:
-        return Path(experiments or EXPERIMENTS)  # type: ignore[arg-type]
-
-    return Path(str(files("sb3_affect.sweeps")))
-
-
-def part_description(name: str, description: str, experiments: Path | None = None) -> str:
-    """
-    A part's description with its sizes read from its sweep file (one source for those numbers): ``{runs}`` (a sweep's
-    run count) and any top-level key of the file (a study's ``{reps}``); "?" where the file can not be read.
-    """
-    if "{" not in description:
-        return description
-    path = sweeps_folder(experiments) / f"{name}.yaml"
-    values: dict[str, Any] = {}
-    try:
-        data = None if yaml is None else yaml.safe_load(path.read_text())  # (without the experiments extra: no sizes)
-        values.update(data if isinstance(data, dict) else {})
-    except (OSError, ValueError):
-        pass
-    if "{runs}" in description:
-        values["runs"] = sweep_runs(path)
-    return description.format_map(_Unknown({key: value for key, value in values.items() if value is not None}))
-
-
-class _Unknown(dict[str, Any]):
-    """``str.format_map`` values that give "?" for a key they do not hold."""
-
-    def __missing__(self, key: str) -> str:
-        return "?"
-
-
-def forensics_extra(folder: Path) -> Any:
-    """The forensics section for ``build_report(extra_sections=...)`` (None when ``folder`` holds no results)."""
-    from sb3_affect.study.forensics.section import has_results, report_section  # (report extra: not on --help)
-
-    return report_section(folder) if has_results(folder) else None
 
 
 def main(
@@ -160,10 +92,8 @@ def main(
     :param ray_address: the Ray cluster of every part, HOST:PORT or ray://HOST:PORT (default: a private instance)
     :return: the path of report.md
     """
-    from sb3_affect.study.launcher import run_sweep  # (experiments extra: not on --help)
-    from sb3_affect.study.report import build_report  # (report extra: not on --help)
 
-    experiments = sweeps_folder(experiments)
+    experiments = experiments or EXPERIMENTS or shipped_sweeps_folder()
     large_seeds = large_seeds or LARGE_SEEDS
     ablation_seeds = ablation_seeds or ABLATION_SEEDS
     beyond_seeds = beyond_seeds or BEYOND_SEEDS
@@ -233,12 +163,6 @@ def _run_part(
 
     :return: the part's time as ``record`` keeps it under ``key``, and the report section it adds (None: none)
     """
-    from sb3_affect.study.forensics.study_run import run_study  # (report extra: not on --help)
-    from sb3_affect.study.launcher import run_sweep  # (experiments extra: not on --help)
-    from sb3_affect.study.launcher.deep_schema import DeepStudy  # (experiments extra: not on --help)
-    from sb3_affect.study.launcher.deep_study import run_deep_study  # (experiments extra: not on --help)
-    from sb3_affect.study.launcher.study_schema import ForensicsStudy  # (experiments extra: not on --help)
-    from sb3_affect.study.launcher.sweep_file import load_sweep_file  # (experiments extra: not on --help)
 
     study = load_sweep_file(path, overrides, build=False)
     if isinstance(study, DeepStudy):
@@ -248,7 +172,7 @@ def _run_part(
         with _heartbeat(key):
             result = run_study(study, folder, progress=False, **executor)
         print(f"   {result.simulated} replications now, {result.reused} already done, {result.seconds:.1f} s", flush=True)
-        return record.part(key, result.seconds, done_before=result.reused, todo=result.simulated), forensics_extra(folder)
+        return record.part(key, result.seconds, done_before=result.reused, todo=result.simulated), report_section(folder)
     summary = run_sweep(path, folder, overrides=overrides, **executor)
     print(
         f"   {summary.finished} runs now, {summary.skipped} already done, {summary.failed} failed, {summary.seconds:.1f} s",
@@ -269,9 +193,6 @@ def tune_rounds(
     :param executor: ``run_sweep``'s ``backend`` and ``ray_address``
     :return: the tuning of each (task, agent), and the launcher's summary of each round
     """
-    from sb3_affect.study.launcher import run_sweep  # (experiments extra: not on --help)
-    from sb3_affect.study.launcher.epsilon_tuning import round_values, tune, tuning_grid  # (experiments extra: not on --help)
-    from sb3_affect.study.report.reading.study_tables import folder_study  # (report extra: not on --help)
 
     data = yaml.safe_load(Path(path).read_text())
     agents = data["agents"]
@@ -308,7 +229,6 @@ def _tuned(path: Path, tuned: dict[tuple[str, str], Any]) -> list[str]:
 
 def _check_disjoint(tuning: Path, tuning_sized: list[str], beyond: Path, beyond_sized: list[str]) -> None:
     """Refuse a tuning whose seeds for a task and agent are also evaluation seeds of that task and agent."""
-    from sb3_affect.study.launcher.sweep_file import load_sweep  # (experiments extra: not on --help)
 
     seeds: dict[tuple[Any, ...], set[int]] = {}
     for cell in load_sweep(tuning, tuning_sized, build=False).cells():
@@ -370,7 +290,6 @@ def _heartbeat(what: str, every: float | None = None) -> Iterator[None]:
 
 def _refuse_a_sweep_folder(out_dir: Path) -> None:
     """A replication's folder holds its sweeps in sub-folders: one that holds a sweep itself is refused (a mix)."""
-    from sb3_affect.study.launcher.store import FORENSICS_FILE, ResultsStore, StoreError  # (experiments extra: not on --help)
 
     if (out_dir / FORENSICS_FILE).exists() or (out_dir / FORENSICS_FILE).is_symlink():
         raise StoreError(
@@ -397,9 +316,6 @@ class _Record:
     """
 
     def __init__(self, out_dir: Path) -> None:
-        from sb3_affect.study.launcher.folder_files import MAX_SWEEP_FILE_BYTES  # (experiments extra: not on --help)
-        from sb3_affect.study.launcher.regular_files import UnreadableFile, read_json  # (experiments extra: not on --help)
-        from sb3_affect.study.launcher.store import StoreError  # (experiments extra: not on --help)
 
         out_dir.mkdir(parents=True, exist_ok=True)
         self.path = out_dir / "replicate.json"

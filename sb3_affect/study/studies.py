@@ -11,7 +11,16 @@ Nothing here imports the rest of the study: ``--help`` reads this list without t
 
 from __future__ import annotations
 
-from typing import NamedTuple
+import importlib.util
+import math
+from importlib.resources import files
+from pathlib import Path
+from typing import Any, NamedTuple
+
+try:  # the experiments extra: without it the help gives no run counts or sizes (running a part says what to install)
+    import yaml
+except ImportError:  # pragma: no cover - the extra is installed in the tests
+    yaml = None  # type: ignore[assignment]
 
 
 class Study(NamedTuple):
@@ -60,3 +69,77 @@ STUDIES: tuple[Study, ...] = (
     Study("beyond", "static grid, moving and evading prey, mazes, with the tuned ε ({runs} runs)", size="beyond",
           sections=("sections.beyond:beyond_section",), tuned=True),
 )  # fmt: skip
+
+#: The sweeps of the main job before the tuning, in order: (name of experiments/<name>.yaml and of the results folder,
+#: description).
+PARTS = tuple((study.name, study.description) for study in STUDIES if not study.tuned)
+#: The sweeps after ``PARTS``, in order: the tuning (its rounds in ``OUT/tuning/round<k>``), then the tasks beyond the
+#: paper with the tuned ε.
+TUNED_PARTS = tuple((study.name, study.description) for study in STUDIES if study.tuned)
+#: Parts that need a package of an extra: (part, package, extra); without it the part is skipped with one line.
+PART_PACKAGES = tuple((study.name, *study.extra) for study in STUDIES if study.extra)
+#: The parts that ``replicate``'s quick-check sizes cut down (``Study.size``), the tuned ones aside.
+SIZED = tuple(study.name for study in STUDIES if study.size and not study.tuned)
+#: The main job's wall time on 2 idle cores, as the help and the docs quote it (measured: see the README).
+MINUTES = "about 5-9 minutes"
+
+
+def shipped_sweeps_folder() -> Path:
+    """The folder of the sweep files installed with the package (``experiments/`` of the source tree)."""
+    return Path(str(files("sb3_affect.sweeps")))
+
+
+def missing_package(part: str) -> str | None:
+    """What to install when a part needs a package that is not installed (``PART_PACKAGES``), else None."""
+    for name, package, extra in PART_PACKAGES:
+        if name == part and importlib.util.find_spec(package) is None:
+            return f"{package} is not installed: pip install \"sb3-affect[{extra}]\""
+    return None
+
+
+def sweep_runs(path: Path) -> int | None:
+    """
+    How many runs an experiment file asks for: seeds x the grid points of each agent on each task (read with yaml
+    alone, so the help stays fast; the launcher's ``Sweep.run_configs`` gives the same count). None when it can not be
+    read.
+    """
+    if yaml is None:
+        return None
+    try:
+        data = yaml.safe_load(Path(path).read_text())
+        seeds = data["seeds"]
+        agents = data["agents"].values() if isinstance(data["agents"], dict) else data["agents"]
+        tasks = len(data.get("tasks") or [None])
+        grids = [(agent["grid_by_task"].values(), 1) if "grid_by_task" in agent else ([agent.get("grid") or {}], tasks)
+                 for agent in agents]  # fmt: skip
+        per_agent = [sum(math.prod(len(v) for v in grid.values()) for grid in each) * times for each, times in grids]
+    except (OSError, yaml.YAMLError, KeyError, TypeError, AttributeError):
+        return None
+    return (len(seeds) if isinstance(seeds, list) else int(seeds)) * sum(per_agent)
+
+
+def part_description(name: str, description: str, experiments: Path | None = None) -> str:
+    """
+    A part's description with its sizes read from its sweep file in ``experiments`` (default: the shipped ones; one
+    source for those numbers): ``{runs}`` (a sweep's run count) and any top-level key of the file (a study's
+    ``{reps}``); "?" where the file can not be read.
+    """
+    if "{" not in description:
+        return description
+    path = (experiments or shipped_sweeps_folder()) / f"{name}.yaml"
+    values: dict[str, Any] = {}
+    try:
+        data = None if yaml is None else yaml.safe_load(path.read_text())  # (without the experiments extra: no sizes)
+        values.update(data if isinstance(data, dict) else {})
+    except (OSError, ValueError):
+        pass
+    if "{runs}" in description:
+        values["runs"] = sweep_runs(path)
+    return description.format_map(_Unknown({key: value for key, value in values.items() if value is not None}))
+
+
+class _Unknown(dict[str, Any]):
+    """``str.format_map`` values that give "?" for a key they do not hold."""
+
+    def __missing__(self, key: str) -> str:
+        return "?"

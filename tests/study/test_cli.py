@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 import sb3_affect
-from sb3_affect.study import replicate
+from sb3_affect.study import replicate, studies
 from sb3_affect.study.cli import main
 from sb3_affect.study.forensics import Protocol
 from sb3_affect.study.forensics.unit_files import SummaryStore
@@ -142,17 +142,17 @@ def test_help_describes_every_argument(capsys: pytest.CaptureFixture[str]) -> No
     assert "a results folder (the --out of `run` or `replicate`)" in helps["report"]
     assert "report.html" in helps["report"]
     text = " ".join(helps["replicate"].split())
-    for name, description in (*replicate.PARTS, *replicate.TUNED_PARTS):
-        assert f"experiments/{name}.yaml: {replicate.part_description(name, description)}" in helps["replicate"]
+    for name, description in (*studies.PARTS, *studies.TUNED_PARTS):
+        assert f"experiments/{name}.yaml: {studies.part_description(name, description)}" in helps["replicate"]
     assert "open it in a browser" in helps["replicate"] and "results folder (default: runs)" in helps["replicate"]
     # one source for each fact: the run counts are read from the experiment files, the wall time from MINUTES
     files = {name: ROOT / "experiments" / f"{name}.yaml" for name in ("paper", "dqn")}
     runs = {name: len(load_sweep(path, build=False).run_configs()) for name, path in files.items()}
     assert f"the paper's protocol ({runs['paper']} runs)" in helps["replicate"]
     assert f"equal seeds and budget ({runs['dqn']} runs)" in helps["replicate"]
-    assert replicate.MINUTES[1:] in text
+    assert studies.MINUTES[1:] in text
     for page in ("README.md", "docs/getting_started.md"):
-        assert f"{replicate.MINUTES} on 2 idle cores" in (ROOT / page).read_text(), page
+        assert f"{studies.MINUTES} on 2 idle cores" in (ROOT / page).read_text(), page
     assert "min" not in (ROOT / "Makefile").read_text().split("replicate: venv")[1].split("\n\n")[0]
     assert "parallel runs, >= 1" in helps["run"]
     # the forensics is a part like the others, its sizes read from its sweep file; every part runs local or on Ray
@@ -165,7 +165,7 @@ def test_replicate_says_where_the_report_is(tmp_path: Path, capsys: pytest.Captu
                                              monkeypatch: pytest.MonkeyPatch) -> None:
     files = tmp_path / "files"
     tiny(files, "paper")
-    for name, _ in replicate.TUNED_PARTS:  # the shipped tuning and tasks beyond the paper, at toy size (below)
+    for name, _ in studies.TUNED_PARTS:  # the shipped tuning and tasks beyond the paper, at toy size (below)
         shutil.copy(ROOT / "experiments" / f"{name}.yaml", files / f"{name}.yaml")
     monkeypatch.setattr(replicate, "EXPERIMENTS", files)
     monkeypatch.setattr(replicate, "PARTS", (("paper", "a tiny paper protocol"),))
@@ -184,19 +184,19 @@ def test_resumed_replicate_keeps_the_times_of_its_runs_and_refuses_a_sweep(
 ) -> None:
     files = tmp_path / "files"
     tiny(files, "paper")
-    for name in (*replicate.SIZED, *(name for name, _ in replicate.TUNED_PARTS)):  # the shipped studies, at toy size
+    for name in (*studies.SIZED, *(name for name, _ in studies.TUNED_PARTS)):  # the shipped studies, at toy size
         shutil.copy(ROOT / "experiments" / f"{name}.yaml", files / f"{name}.yaml")
     monkeypatch.setattr(replicate, "EXPERIMENTS", files)
-    studied = tuple(part for part in replicate.PARTS if part[0] in replicate.SIZED)
+    studied = tuple(part for part in replicate.PARTS if part[0] in studies.SIZED)
     monkeypatch.setattr(replicate, "PARTS", (("paper", "a tiny paper protocol"), *studied))
     for name, value in (("LARGE_SEEDS", 1), ("ABLATION_SEEDS", 1), ("BEYOND_SEEDS", 1), ("ENGINE_EPISODES", 5)):
         monkeypatch.setattr(replicate, name, value)
     runs = tmp_path / "runs"
     assert main(["replicate", "--out", str(runs), "--workers", "2", "--no-forensics"]) == 0
     first = json.loads((runs / "replicate.json").read_text())["timings"]
-    studies = ("large (", "ablation (", "speed_one (", "long (", "ε tuned per task", "static grid, moving and")
-    assert first["paper (a tiny paper protocol)"] > 0 and len(first) == 1 + len(studies)
-    assert all(sum(key.startswith(study) for key in first) == 1 for study in studies), sorted(first)
+    parts = ("large (", "ablation (", "speed_one (", "long (", "ε tuned per task", "static grid, moving and")
+    assert first["paper (a tiny paper protocol)"] > 0 and len(first) == 1 + len(parts)
+    assert all(sum(key.startswith(part) for key in first) == 1 for part in parts), sorted(first)
     assert main(["replicate", "--out", str(runs), "--workers", "2", "--no-forensics"]) == 0  # a resume: nothing to do
     assert json.loads((runs / "replicate.json").read_text())["timings"] == first
     # A newcomer's `run experiments/smoke.yaml --out runs` (forgetting /smoke) is refused: the folder is a replication.

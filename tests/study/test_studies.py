@@ -9,20 +9,20 @@ import inspect
 
 import pytest
 
-from sb3_affect.study import replicate
+from sb3_affect.study import studies
 from sb3_affect.study.report import build
 from sb3_affect.study.report.build import APPENDIX, SECTIONS, study_section, with_studies
 from sb3_affect.study.studies import STUDIES, Study
 
 
 def test_replicate_runs_the_studies_in_their_order() -> None:
-    assert [name for name, _ in (*replicate.PARTS, *replicate.TUNED_PARTS)] == [study.name for study in STUDIES]
-    assert {name for name, _, _ in replicate.PART_PACKAGES} == {study.name for study in STUDIES if study.extra}
-    assert set(replicate.SIZED) == {study.name for study in STUDIES if study.size and not study.tuned}
+    assert [name for name, _ in (*studies.PARTS, *studies.TUNED_PARTS)] == [study.name for study in STUDIES]
+    assert {name for name, _, _ in studies.PART_PACKAGES} == {study.name for study in STUDIES if study.extra}
+    assert set(studies.SIZED) == {study.name for study in STUDIES if study.size and not study.tuned}
 
 
 def test_every_study_has_its_sweep_file() -> None:
-    folder = replicate.sweeps_folder()
+    folder = studies.shipped_sweeps_folder()
     missing = [study.name for study in STUDIES if not (folder / f"{study.name}.yaml").is_file()]
     assert not missing, f"studies without a sweep file in {folder}: {missing}"
 

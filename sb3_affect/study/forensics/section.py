@@ -413,9 +413,12 @@ def _figure(folder: Path, table: pd.DataFrame, path: Path) -> Path | None:
 def report_section(folder: str | Path) -> Any:
     """
     The forensics as a report section, for ``build_report(..., extra_sections=[report_section(folder)])``: the layer
-    above both (``sb3_affect.study.replicate``, the CLI) wires it, so the report never imports the forensics.
+    above both (``sb3_affect.study.replicate``, the CLI) wires it, so the report never imports the forensics. None when
+    ``folder`` holds no results.
     """
     folder = Path(folder)
+    if not has_results(folder):
+        return None
 
     def forensics_report_section(ctx: Any) -> None:
         run = read_json(folder / "run.json", MAX_SUMMARY_BYTES)

@@ -15,7 +15,6 @@ from __future__ import annotations
 import difflib
 import math
 from collections.abc import Hashable
-from importlib.resources import files
 from pathlib import Path
 from typing import Any
 
@@ -26,13 +25,9 @@ from sb3_affect.study.launcher.deep_schema import DeepStudy
 from sb3_affect.study.launcher.one_run import check_configs_in_child
 from sb3_affect.study.launcher.schema import KWARG_REFERENCE, AgentSpec, EnvSpec, Sweep, SweepError
 from sb3_affect.study.launcher.study_schema import ForensicsStudy, ProtocolSpec
+from sb3_affect.study.studies import shipped_sweeps_folder
 
-__all__ = ["load_sweep", "load_sweep_file", "resolve_sweep_path", "shipped_sweeps", "shipped_sweeps_folder"]
-
-
-def shipped_sweeps_folder() -> Path:
-    """The folder of the sweep files installed with the package (``experiments/`` of the source tree)."""
-    return Path(str(files("sb3_affect.sweeps")))
+__all__ = ["load_sweep", "load_sweep_file", "resolve_sweep_path", "shipped_sweeps"]
 
 
 def shipped_sweeps() -> dict[str, Path]:

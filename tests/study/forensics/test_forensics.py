@@ -184,7 +184,7 @@ def test_bad_candidate_options_are_named() -> None:
 
 def test_cli_parses_forensics() -> None:
     args = build_parser().parse_args(["forensics", "--out", "x", "--alphas", "0.5,1", "--reps", "10"])
-    assert args.alphas == (0.5, 1.0) and args.reps == 10 and args.func.__name__ == "forensics_command"
+    assert args.alphas == (0.5, 1.0) and args.reps == 10 and args.command == "forensics"
     with pytest.raises(SystemExit):
         build_parser().parse_args(["forensics", "--out", "x", "--gammas", "high"])
 

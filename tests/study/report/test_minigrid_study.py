@@ -126,12 +126,12 @@ def test_shipped_minigrid_sweeps_validate_with_the_agents_and_tasks_they_name() 
 
 
 def test_replicate_skips_a_part_whose_package_is_missing_with_one_line(monkeypatch: pytest.MonkeyPatch) -> None:
-    from sb3_affect.study import replicate
+    from sb3_affect.study import studies
 
-    assert "minigrid" in dict(replicate.PARTS) and replicate.missing_package("minigrid") is None  # installed here
-    monkeypatch.setattr(replicate, "PART_PACKAGES", (("minigrid", "no_such_package_xyz", "minigrid"),))
-    assert replicate.missing_package("minigrid") == 'no_such_package_xyz is not installed: pip install "sb3-affect[minigrid]"'
-    assert replicate.missing_package("paper") is None
+    assert "minigrid" in dict(studies.PARTS) and studies.missing_package("minigrid") is None  # installed here
+    monkeypatch.setattr(studies, "PART_PACKAGES", (("minigrid", "no_such_package_xyz", "minigrid"),))
+    assert studies.missing_package("minigrid") == 'no_such_package_xyz is not installed: pip install "sb3-affect[minigrid]"'
+    assert studies.missing_package("paper") is None
 
 
 def test_an_agents_unknown_wrapper_is_one_line_naming_the_agent_and_what_is_allowed(tmp_path: Path) -> None:

@@ -286,10 +286,10 @@ def test_seeds_needed_and_adastop_on_a_clear_difference() -> None:
 @pytest.mark.slow
 def test_replicate_writes_every_part_and_the_record(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """replicate end to end at toy size: launcher sweeps, the tuning rounds and beyond, one report with their sections."""
-    from sb3_affect.study import replicate
+    from sb3_affect.study import replicate, studies
     from sb3_affect.study.replicate import main
 
-    studied = tuple(part for part in replicate.PARTS if part[0] in replicate.SIZED)
+    studied = tuple(part for part in replicate.PARTS if part[0] in studies.SIZED)
     toys = (("paper", "toy paper"), ("dqn", "toy dqn"), ("baselines", "toy baselines"))
     monkeypatch.setattr(replicate, "PARTS", (*toys, *studied))
 
@@ -299,13 +299,13 @@ def test_replicate_writes_every_part_and_the_record(tmp_path: Path, monkeypatch:
     for name in ("paper", "dqn", "baselines"):
         text = smoke.replace("name: smoke", f"name: {name}").replace("episodes: 20", "episodes: 5")
         (experiments / f"{name}.yaml").write_text(text)
-    for name in (*replicate.SIZED, *(name for name, _ in replicate.TUNED_PARTS)):  # the shipped studies, sized down
+    for name in (*studies.SIZED, *(name for name, _ in studies.TUNED_PARTS)):  # the shipped studies, sized down
         (experiments / f"{name}.yaml").write_text((ROOT / "experiments" / f"{name}.yaml").read_text())
     report = main(tmp_path / "out", workers=1, experiments=experiments, large_seeds=1, ablation_seeds=1, beyond_seeds=1,
                   engine_episodes=5, forensics=False)
     text = _pages(report)
     assert "No verdict: too few runs" in text
-    for part in replicate.SIZED:  # launcher folders
+    for part in studies.SIZED:  # launcher folders
         assert json.loads((tmp_path / "out" / part / "sweep.json").read_text())["sweep"]["episodes"] in (5, 50), part
     assert json.loads((tmp_path / "out" / "beyond" / "sweep.json").read_text())["name"] == "beyond"  # launcher folders
     long = study(tmp_path / "out", "long")

@@ -1,0 +1,188 @@
+"""
+What ``sb3-affect run`` and ``sb3-affect status`` do (the experiments extra), and how every command's errors end: one
+line on stderr and exit 2 for bad input, 130 or 143 for an interruption (``dispatch``). The parser is
+``sb3_affect.study.cli``, which imports this module only when one of these commands runs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Callable, Mapping
+from pathlib import Path
+
+from sb3_affect.study.launcher import ResultsStore, run_sweep
+from sb3_affect.study.launcher.deep_schema import DeepStudy
+from sb3_affect.study.launcher.deep_study import STUDY_FILE, deep_status, run_deep_study
+from sb3_affect.study.launcher.ray_cluster import ClusterLost, RayClusterError
+from sb3_affect.study.launcher.schema import SweepError
+from sb3_affect.study.launcher.signals import Terminated, stop_on_sigterm
+from sb3_affect.study.launcher.store import FORENSICS_FILE, StoreError
+from sb3_affect.study.launcher.study_schema import ForensicsStudy
+from sb3_affect.study.launcher.sweep_file import load_sweep_file
+
+
+class UsageError(Exception):
+    """A command-line argument that can not be used (printed as ``sb3-affect: error: ...``, exit 2)."""
+
+
+def dispatch(args: argparse.Namespace, commands: Mapping[str, Callable[[argparse.Namespace], int]] | None = None) -> int:
+    """
+    Run the command ``args`` names, from ``commands`` (default: this module's ``COMMANDS``); its errors end in one line
+    on stderr (exit 2), an interruption in 130 or 143.
+    """
+    try:
+        return int((commands or COMMANDS)[args.command](args))
+    except (SweepError, StoreError, UsageError, RayClusterError) as error:
+        print(f"sb3-affect: error: {error}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt as interrupt:
+        how = "terminated" if isinstance(interrupt, Terminated) else "interrupted"
+        if isinstance(interrupt, ClusterLost):
+            how = interrupt.message
+        print(f"\nsb3-affect: {how}; finished runs are kept, rerun the same command to resume", file=sys.stderr)
+        return 143 if isinstance(interrupt, Terminated) else 130
+
+
+def check_out(out: str) -> None:
+    """``--out`` must be a folder (new, or one an earlier run wrote), not a file."""
+    path = Path(out)
+    if path.exists() and not path.is_dir():
+        raise UsageError(f"--out {out}: this is a file; give a results folder (a new one, or one an earlier run wrote)")
+
+
+def existing_folder(directory: str, command: str) -> Path:
+    """The results folder given to ``status`` or ``report``, or a UsageError saying what is wrong with it."""
+    path = Path(directory)
+    if not path.exists():
+        raise UsageError(f"{directory}: no such folder; give the --out folder of `sb3-affect run` or `sb3-affect replicate`")
+    if not path.is_dir():
+        hint = (
+            f"; a sweep file is run with `sb3-affect run {directory} --out DIR`, then `sb3-affect {command} DIR`"
+            if path.suffix in (".yaml", ".yml")
+            else ""
+        )
+        raise UsageError(f"{directory}: this is a file, not a results folder{hint}")
+    return path
+
+
+def run(args: argparse.Namespace) -> int:
+    """``sb3-affect run FILE --out DIR``: a sweep of runs, a deep study or a forensics study, resumed where it stopped."""
+    check_out(args.out)
+    study = load_sweep_file(args.file, args.set or (), build=False)
+    stop_on_sigterm()
+    if isinstance(study, ForensicsStudy):
+        return _run_forensics(study, args)
+    if isinstance(study, DeepStudy):  # tasks x agents, each cell all its seeds together (study/launcher/deep_study.py)
+        if args.logs:
+            raise UsageError(f"--logs {args.logs}: the deep study records its own curves and writes no SB3 logs")
+        done = run_deep_study(study, Path(args.out), workers=args.workers, backend=args.backend,
+                              ray_address=args.ray_address, ray_timeout=args.ray_timeout)
+        print(f"{done.name}: {done.total} cells, {done.reused} already done, {done.batches} batches now, "
+              f"{done.seconds:.1f} s -> {done.out_dir}")
+        return 0
+    summary = run_sweep(
+        args.file,
+        args.out,
+        workers=args.workers,
+        backend=args.backend,
+        ray_address=args.ray_address,
+        ray_timeout=args.ray_timeout,
+        overrides=[*(args.set or ()), *([f"logs=[{args.logs}]"] if args.logs else [])],
+        progress=not args.no_progress,
+    )
+    print(
+        f"{summary.name}: {summary.total} runs, {summary.skipped} already done, {summary.finished} finished now, "
+        f"{summary.failed} failed, {summary.seconds:.1f} s -> {summary.out_dir}"
+    )
+    if summary.failed:
+        print(f"failed runs and their tracebacks: {summary.out_dir / 'failed'}; rerun the same command to retry them")
+        return 1
+    return 0
+
+
+def _run_forensics(study: ForensicsStudy, args: argparse.Namespace) -> int:
+    """``sb3-affect run`` of a forensics study file (``study: forensics``) on the launcher's executor."""
+    from sb3_affect.study.forensics.study_run import run_study, summary_lines  # (report extra: a forensics study only)
+
+    if args.logs:
+        raise UsageError(f"--logs {args.logs}: the forensics study runs on the compiled engine and writes no SB3 logs")
+    result = run_study(
+        study,
+        args.out,
+        workers=args.workers,
+        backend=args.backend,
+        ray_address=args.ray_address,
+        ray_timeout=args.ray_timeout,
+        progress=not args.no_progress,
+    )
+    print("\n".join(summary_lines(study, result, args.out)))
+    return 0
+
+
+def status(args: argparse.Namespace) -> int:
+    """``sb3-affect status DIR``: how far a sweep, a forensics study, a deep study or a `replicate` folder is."""
+    root = existing_folder(args.dir, "status")
+    if ResultsStore(root).saved_sweep() is not None:  # sweep.json, or a copy of it when it was deleted
+        _print_status(root)
+        return 0
+    if (root / FORENSICS_FILE).exists():  # a forensics folder (`sb3-affect run forensics`)
+        print(_forensics_status(root))
+        return 0
+    if (root / STUDY_FILE).exists():  # a deep study's folder
+        _print_deep_status(root)
+        return 0
+    # A `replicate` folder: one sweep folder per part (paper/, dqn/, ...), the forensics' and the deep study's.
+    parts = sorted(p for p in root.iterdir() if (p / "sweep.json").exists())
+    studies = sorted(p for p in root.iterdir() if (p / FORENSICS_FILE).exists())
+    deep = sorted(p for p in root.iterdir() if (p / STUDY_FILE).exists())
+    if not parts and not studies and not deep:
+        print(
+            f"{root}: no sweep has been run here (no sweep.json, nor sub-folders with one); "
+            "start one with `sb3-affect run FILE --out DIR`",
+            file=sys.stderr,
+        )
+        return 2
+    print(f"{root}: {len(parts)} sweeps" + (" and the forensics" if studies else "") + (" and the deep study" if deep else ""))
+    for part in parts:
+        _print_status(part)
+    for folder in studies:
+        print(_forensics_status(folder))
+    for folder in deep:
+        _print_deep_status(folder)
+    report = root / "report.html"
+    if report.exists():
+        print(f"report: {report}")
+    return 0
+
+
+def _forensics_status(root: Path) -> str:
+    from sb3_affect.study.forensics.unit_files import folder_status  # (pandas: not on the sweep path)
+
+    return folder_status(root)
+
+
+def _print_deep_status(root: Path) -> None:
+    try:
+        print("\n".join(deep_status(root)))
+    except (ValueError, TypeError) as error:  # pydantic's ValidationError is a ValueError
+        raise UsageError(f"{root}: its deep_study.json is not a valid deep study ({type(error).__name__}); "
+                         "rerun `sb3-affect run FILE --out DIR` into a new folder") from None
+
+
+def _print_status(root: Path) -> None:
+    store = ResultsStore(root)
+    name, per_agent, rejected = store.progress()  # agent -> (runs, done, failed); files that do not count
+    total, done, failed = (sum(counts[i] for counts in per_agent.values()) for i in range(3))
+    print(f"sweep {name!r} in {store.root}: {done}/{total} runs done, {failed} failed")
+    for agent, (runs, done_agent, failed_agent) in per_agent.items():
+        print(f"  {agent:24s} {done_agent:5d}/{runs:<5d} done  {failed_agent} failed")
+    for path, why in rejected:
+        print(f"  not counted: {path} {why}; the next run moves it to damaged/ and runs its runs again")
+    owner = store.lock_owner()
+    if owner is not None:
+        print(f"  in use by launcher pid {owner} (running)")
+
+
+#: The commands this module runs, by name.
+COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {"run": run, "status": status}
