@@ -24,6 +24,15 @@ def _positive_int(text: str) -> int:
     return value
 
 
+def _executor_arguments(parser: argparse.ArgumentParser, workers: str, default: int | None = None) -> None:
+    """``--workers`` (its default ``default``, described as ``workers``), ``--backend`` and ``--ray-address``."""
+    parser.add_argument("--workers", type=_positive_int, default=default, help=f"parallel runs, >= 1 (default: {workers})")
+    parser.add_argument("--backend", choices=("local", "ray"), default="local", help="local processes (default) or Ray tasks")
+    parser.add_argument(
+        "--ray-address", default=None, help="Ray cluster address, HOST:PORT or ray://HOST:PORT (default: a private instance)"
+    )
+
+
 def _replicate_help() -> str:
     """``replicate --help``: what it runs (from ``sb3_affect.study.studies.PARTS``, so it can not drift) and writes."""
     lines = [
@@ -43,6 +52,7 @@ def _replicate_help() -> str:
 
 
 def _floats(text: str) -> tuple[float, ...]:
+    """argparse type of ``--alphas`` and ``--gammas``: numbers separated by commas, at least one."""
     try:
         values = tuple(float(v) for v in text.split(",") if v.strip())
     except ValueError:
@@ -52,7 +62,7 @@ def _floats(text: str) -> tuple[float, ...]:
     return values
 
 
-def _add_forensics_parser(sub: Any) -> argparse.ArgumentParser:
+def _add_forensics_parser(sub: Any) -> None:
     """Add ``forensics`` to the ``sb3-affect`` subcommands."""
     parser = sub.add_parser(
         "forensics",
@@ -64,11 +74,7 @@ def _add_forensics_parser(sub: Any) -> argparse.ArgumentParser:
         "--out DIR --set reps=100 ...`.",
     )
     parser.add_argument("--out", required=True, help="results folder, e.g. runs/forensics")
-    parser.add_argument("--workers", type=int, default=2, help="worker processes (default: 2)")
-    parser.add_argument("--backend", choices=("local", "ray"), default="local", help="local processes (default) or Ray tasks")
-    parser.add_argument(
-        "--ray-address", default=None, help="Ray cluster address, HOST:PORT or ray://HOST:PORT (default: a private instance)"
-    )
+    _executor_arguments(parser, "2", default=2)
     parser.add_argument("--screen-reps", type=int, default=3, help="replications per simulation in the screen (default: 3)")
     parser.add_argument("--leaders", type=int, default=4, help="affective simulations replicated in full (default: 4)")
     parser.add_argument("--reps", type=int, default=100, help="replications of each leader (default: 100)")
@@ -79,7 +85,6 @@ def _add_forensics_parser(sub: Any) -> argparse.ArgumentParser:
         "--gammas", type=_floats, default=None, help="discounts of the grid (default: experiments/forensics.yaml's)"
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
-    return parser
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -101,16 +106,7 @@ def build_parser() -> argparse.ArgumentParser:
         "(see the experiment-file reference)",
     )
     run.add_argument("--out", required=True, metavar="DIR", help="results folder (created; an earlier run's folder resumes)")
-    run.add_argument(
-        "--workers",
-        type=_positive_int,
-        default=None,
-        help="parallel runs, >= 1 (default: CPU count; on a Ray cluster: as many as its CPUs allow)",
-    )
-    run.add_argument("--backend", choices=("local", "ray"), default="local", help="local processes (default) or Ray tasks")
-    run.add_argument(
-        "--ray-address", default=None, help="Ray cluster address, HOST:PORT or ray://HOST:PORT (default: a private instance)"
-    )
+    _executor_arguments(run, "CPU count; on a Ray cluster: as many as its CPUs allow")
     run.add_argument(
         "--ray-timeout", type=float, default=60.0, metavar="SECONDS", help="give up on an unresponsive Ray cluster after this"
     )
@@ -148,7 +144,7 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     replicate.add_argument("--out", default="runs", metavar="OUT", help="results folder (default: runs)")
-    replicate.add_argument("--workers", type=_positive_int, default=None, help="parallel runs, >= 1 (default: CPU count)")
+    _executor_arguments(replicate, "CPU count")
     replicate.add_argument(
         "--large-seeds",
         type=_positive_int,
@@ -158,12 +154,6 @@ def build_parser() -> argparse.ArgumentParser:
     )
     replicate.add_argument(
         "--no-forensics", action="store_true", help="leave out the replication forensics (the report says so)"
-    )
-    replicate.add_argument(
-        "--backend", choices=("local", "ray"), default="local", help="every part on local processes (default) or Ray tasks"
-    )
-    replicate.add_argument(
-        "--ray-address", default=None, help="Ray cluster address, HOST:PORT or ray://HOST:PORT (default: a private instance)"
     )
     _add_forensics_parser(sub)
     return parser

@@ -64,8 +64,6 @@ def replicate_command(args: argparse.Namespace) -> int:
 
 def forensics(args: argparse.Namespace) -> int:
     """``sb3-affect forensics``: the study of the shipped experiments/forensics.yaml with the command's sizes and grid."""
-    if args.workers < 1:
-        raise SystemExit(f"sb3-affect forensics: error: --workers={args.workers} must be >= 1")
     shipped = load_sweep_file(shipped_sweeps_folder() / "forensics.yaml", build=False)
     given = {"screen_reps": args.screen_reps, "leaders": args.leaders, "reps": args.reps}
     given.update({key: list(getattr(args, key)) for key in ("alphas", "gammas") if getattr(args, key)})
