@@ -13,6 +13,7 @@ import matplotlib.image as mpimg
 import numpy as np
 import pandas as pd
 import pytest
+from number_formats import mixed_formats
 from scipy import stats
 
 from sb3_affect.study.launcher import run_sweep
@@ -26,7 +27,6 @@ from sb3_affect.study.report import (
 )
 from sb3_affect.study.report.estimation.bootstrap import TTEST_ROWS
 from sb3_affect.study.report.reading.run_tables import run_metrics
-from sb3_affect.study.report.rendering.formats import mixed_formats
 
 ROOT = Path(__file__).resolve().parents[3]
 

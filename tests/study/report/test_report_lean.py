@@ -36,7 +36,7 @@ from sb3_affect.study.report.reading.run_tables import (
     run_metrics,
     run_windows,
 )
-from sb3_affect.study.report.reading.settled_window import bimodality, settled_numbers
+from sb3_affect.study.report.reading.settled_window import settled_numbers, settled_part
 from sb3_affect.study.report.rendering.figures import episode_quantiles
 from sb3_affect.study.report.sections import mechanism
 
@@ -71,9 +71,8 @@ def test_parts_give_the_whole_frame_numbers(paper5: Path, monkeypatch: pytest.Mo
             np.testing.assert_array_equal(np.asarray(part[column]), np.asarray(expected[column]), err_msg=column)
         np.testing.assert_array_equal(part.run_id.astype(str).to_numpy(), expected.run_id.astype(str).to_numpy())
     assert results.last_episode(AFFECTIVE) == int(aff_rows.episode.max()) == 200
-    assert bimodality(results.agent_episodes(AFFECTIVE, ("episode", "decisions", "joy"), 151, 200), 151, 200) == bimodality(
-        aff_rows, 151, 200
-    )
+    window = results.agent_episodes(AFFECTIVE, ("episode", "decisions", "joy"), 151, 200)
+    assert settled_numbers(*settled_part(window, 151, 200)) == settled_numbers(*settled_part(aff_rows, 151, 200))
     monkeypatch.setattr(mechanism, "PROFILE_EPISODES", 7)  # ranges of episode numbers, the last one short
 
     class Ctx:
@@ -197,7 +196,7 @@ def test_the_scan_gives_the_whole_frame_numbers(paper5: Path, monkeypatch: pytes
     assert found.settled is not None
     window, per_run, decisions, joy = found.settled
     assert window == (51, 200) and found.last_episode == {AFFECTIVE: 200, STANDARD: 200}
-    assert settled_numbers(per_run, decisions, joy) == bimodality(aff_rows, 51, 200)
+    assert settled_numbers(per_run, decisions, joy) == settled_numbers(*settled_part(aff_rows, 51, 200))
     for (agent, eps), counts in found.curves.items():
         rows = whole[(whole.agent == agent) & (whole.epsilon == eps)]
         episodes, quartiles = episode_quantiles(rows.episode.to_numpy(), rows.decisions.to_numpy())

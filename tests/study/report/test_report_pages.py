@@ -6,9 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 import pytest
+from number_formats import column_problem, mixed_formats
 
 from sb3_affect.study.report.rendering.document import MAIN_PAGE, CardSpec, Document, fmt, pval
-from sb3_affect.study.report.rendering.formats import column_problem, mixed_formats, with_separators
+from sb3_affect.study.report.rendering.formats import with_separators
 from sb3_affect.study.report.sections.lead_sources import lead_numbers, mechanism_sentence
 from sb3_affect.study.report.sections.speed_ablation import SPEED_ONE_POOLED, speed_one_per_eps
 

@@ -227,30 +227,6 @@ def load_results(run_dir: Path, columns: Sequence[str] = REPORT_COLUMNS) -> Resu
     return Results(Path(run_dir), runs, tuple(columns), files)
 
 
-def episodes_frame(runs: list[dict[str, Any]]) -> pd.DataFrame:
-    """One row per episode of run records (``load_run_records``), with the run's agent, seed and labels as columns."""
-    frames = []
-    for run in runs:
-        config = run["config"]
-        frame = pd.DataFrame(run["episodes"])
-        frame["run_id"] = run["run_id"]
-        frame["agent"] = config["agent"]
-        frame["seed"] = config["seed"]
-        for key, value in config["labels"].items():
-            frame[key] = value
-        frames.append(frame)
-    if not frames:
-        return pd.DataFrame()
-    with warnings.catch_warnings():  # all-NaN columns (e.g. norm of an ε-greedy run) are expected
-        warnings.simplefilter("ignore", FutureWarning)
-        out = pd.concat(frames, ignore_index=True)
-    for column in ("optimal", "truncated", "greedy_optimal"):
-        out[column] = out[column].fillna(False).astype(bool)
-    for column in ("random_moves", "norm"):
-        out[column] = pd.to_numeric(out[column], errors="coerce")
-    return out
-
-
 _EPISODE_VALUE_COLUMNS = (
     "episode",
     "decisions",

@@ -62,7 +62,7 @@ def _bootstrap(
 
 def settled_part(episodes: pd.DataFrame, first: int, last: int) -> tuple[pd.DataFrame, np.ndarray, np.ndarray]:
     """
-    What ``bimodality`` reads of episodes ``first..last`` of some runs: per run (in run id order) the sums of the
+    What ``settled_numbers`` reads of episodes ``first..last`` of some runs: per run (in run id order) the sums of the
     columns of its CIs, and the window's decisions and joy (pooled, in row order). Parts of the runs, in run id order,
     give pieces that joined end to end are those of all the runs.
     """
@@ -101,17 +101,11 @@ def settled_part(episodes: pd.DataFrame, first: int, last: int) -> tuple[pd.Data
     return per_run, decisions, joy
 
 
-def bimodality(episodes: pd.DataFrame, first: int = SETTLED[0], last: int = SETTLED[1]) -> dict[str, float]:
-    """
-    The figures of the mechanism, from the affective agent's episodes ``first..last`` (pooled over runs).
-
-    Column by column with numpy (memory: a few columns of the window, whatever the number of runs).
-    """
-    return settled_numbers(*settled_part(episodes, first, last))
-
-
 def settled_numbers(per_run: pd.DataFrame, decisions: np.ndarray, joy: np.ndarray) -> dict[str, float]:
-    """``bimodality`` from ``settled_part``'s pieces (joined over the runs)."""
+    """
+    The figures of the mechanism from ``settled_part``'s pieces (joined over the runs) of the affective agent's
+    episodes in a window, pooled over runs.
+    """
     long = decisions > LONG
     long_decisions = np.where(long, decisions, 0)
     long_joy = np.where(long, joy, 0)

@@ -17,7 +17,6 @@ from sb3_affect.study.launcher.store import ResultsStore
 from sb3_affect.study.report.reading.baseline_ranks import capture_distance
 from sb3_affect.study.report.reading.run_tables import EARLY, LATE, join_parts, load_results, run_metrics
 
-PAPER_ENV = ("sb3_affect/GridPursuit-v0", {"size": 15, "start": [0, 0], "goal": [6, 6], "goal_reward": 100.0})
 COMMON = {"learning_rate": 1.0, "gamma": 0.8, "q_init": 0.0}
 AFFECT_DEFAULT = {"comparison": "literal", "act": "episode", "units": "cells"}
 #: Agents of the studies' sweep files the sections name: the speed-matched ε-greedy of experiments/large.yaml, the

@@ -1,9 +1,7 @@
 """
-A scan of the report's Markdown for numbers printed in more than one format: one format per quantity. It finds
-whole numbers of 1,000 and more without thousands separators (ranges such as episode numbers ``1801-2000``, dates
-and years of references excepted), p-values printed with fixed decimals where they are
-small (``0.0002``, not ``0.000215``), and table columns whose plain numbers carry different numbers of decimals
-("35" beside "45.0"). Code spans, links and file names are left alone.
+Numbers in the report's prose: whole numbers of 1,000 and more get thousands separators (ranges such as episode
+numbers ``1801-2000``, dates and years of references excepted). The tests scan every page with the same pattern for
+numbers printed without them.
 """
 
 from __future__ import annotations
@@ -11,103 +9,15 @@ from __future__ import annotations
 import re
 
 #: A whole number of 4 or more digits standing alone (not part of a decimal, a word, a path or a longer number).
-_BARE = re.compile(r"(?<![\w.,/\-+:])(?<!et al\. )(\d{4,})(?![\w.,/%:\-]|\.\d)")
-#: A p-value printed with fixed decimals below 0.001.
-_FIXED_P = re.compile(r"\bp (0\.000\d)\b")
-#: A plain number in a table cell: optional sign, digits with separators, optional decimals.
-_NUMBER = re.compile(r"^[-+]?\d{1,3}(,\d{3})*(\.\d+)?$|^[-+]?\d+(\.\d+)?$")
-_CODE = re.compile(r"`[^`]*`|\]\([^)]*\)|!\[[^\]]*\]")
-
-
-def _prose(line: str) -> str:
-    return _CODE.sub(" ", line)
+BARE = re.compile(r"(?<![\w.,/\-+:])(?<!et al\. )(\d{4,})(?![\w.,/%:\-]|\.\d)")
 
 
 def with_separators(text: str) -> str:
     """``text`` with its whole numbers of 1,000 and more written with thousands separators (labels made elsewhere)."""
-    return _BARE.sub(lambda m: m.group(1) if _year(text, m) else f"{int(m.group(1)):,}", text)
+    return BARE.sub(lambda m: m.group(1) if is_year(text, m) else f"{int(m.group(1)):,}", text)
 
 
-def _year(text: str, match: re.Match[str]) -> bool:
+def is_year(text: str, match: re.Match[str]) -> bool:
     """A year after an author's name (``Jonker 2015``), not a count."""
     before = text[: match.start()].rstrip().split(" ")[-1] if text[: match.start()].strip() else ""
     return 1900 <= int(match.group(1)) <= 2099 and before[:1].isupper()
-
-
-def bare_numbers(text: str, table: bool = False) -> list[str]:
-    """The whole numbers of 1,000 and more in ``text`` without separators (a table line: skipped here, see below)."""
-    if table:
-        return []
-    return [m.group(1) for m in _BARE.finditer(text) if not _year(text, m)]
-
-
-def mixed_formats(markdown: str) -> list[str]:
-    """Every number of ``markdown`` printed against the report's formats, one line per finding (empty: none)."""
-    found = []
-    lines = markdown.splitlines()
-    for number, line in enumerate(lines, 1):
-        text = _prose(line)
-        found += [f"line {number}: {n} without thousands separators" for n in bare_numbers(text, line.startswith("|"))]
-        for match in _FIXED_P.finditer(text):
-            found.append(f"line {number}: p {match.group(1)} in fixed decimals (small p: 3 significant digits)")
-    found += _table_columns(lines)
-    return found
-
-
-#: Tables whose rows, not columns, are quantities (the paper's spreadsheet layout): their columns mix formats by row.
-ROW_TABLES = ("t-Test: Paired Two Sample for Means",)
-#: Columns of settings (exact values as given, not measured quantities) and of the paper's cells as printed.
-SETTING_COLUMNS = ("chosen ε", "alpha", "gamma", "values run", "printed")
-
-
-def _significant(cell: str) -> int:
-    digits = cell.lstrip("+-").replace(",", "").replace(".", "").lstrip("0")
-    return len(digits)
-
-
-def column_problem(cells: list[str]) -> str:
-    """
-    Why a column's plain numbers are in mixed formats ("" when they are not): numbers below 1,000 with decimals must
-    share one number of decimals (fixed decimals) or all have 3 significant digits (``sig``), and a whole number
-    below 1,000 (other than 0) may not stand among numbers with fixed decimals, nor one below 100 among numbers with
-    decimals ("35" beside "45.0": 3 significant digits print it "35.0").
-    """
-    numbers = [c for c in cells if _NUMBER.match(c)]
-    small = [c for c in numbers if abs(float(c.replace(",", ""))) < 1000]
-    decimals = [c for c in small if "." in c]
-    counts = {len(c.split(".")[1]) for c in decimals}
-    if len(counts) > 1 and not all(_significant(c) == 3 for c in decimals):
-        return f"decimals {sorted(counts)}"
-    whole = [c for c in small if "." not in c and c.lstrip("+-") != "0"]
-    if whole and decimals:
-        fixed = len(counts) == 1 and not all(_significant(c) == 3 for c in decimals)
-        short = [c for c in whole if _significant(c) < 3]  # 3 significant digits print 35 as 35.0
-        if fixed or short:
-            return f"{(short or whole)[0]} beside {decimals[0]}"
-    return ""
-
-
-def _table_columns(lines: list[str]) -> list[str]:
-    """Each Markdown table's columns whose plain numbers are in mixed formats (``column_problem``)."""
-    found = []
-    table: list[list[str]] = []
-    start = 0
-    for number, line in enumerate([*lines, ""], 1):
-        if line.startswith("|"):
-            if not table:
-                start = number
-            table.append([cell.strip() for cell in re.split(r"(?<!\\)\|", line.strip().strip("|"))])
-            continue
-        if len(table) > 2 and table[0][0] not in ROW_TABLES:
-            header, rows = table[0], table[2:]
-            kept = [row for row in rows if "as printed" not in row[0]]  # the paper's cells are quoted, not formatted
-            for column in range(1, len(header)):
-                if header[column] in SETTING_COLUMNS or "as printed" in header[column]:
-                    continue
-                found += [f"table at line {start}: {n} without thousands separators" for row in kept
-                          if column < len(row) for n in bare_numbers(_prose(row[column]))]  # fmt: skip
-                problem = column_problem([row[column] for row in kept if column < len(row)])
-                if problem:
-                    found.append(f"table at line {start}, column {header[column]!r}: {problem}")
-        table = []
-    return found

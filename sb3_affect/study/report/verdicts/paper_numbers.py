@@ -10,12 +10,7 @@ from __future__ import annotations
 
 import math
 
-from sb3_affect.study.report.estimation.bootstrap import TTEST_ROWS
-
 nan = math.nan
-
-#: Row labels of the spreadsheet tables, in the paper's order (the spreadsheet's t-test layout).
-TABLE_ROWS: tuple[str, ...] = TTEST_ROWS
 
 #: Table IV ("T-test comparison for average number of steps per episode", Sec. V), as printed:
 #: (epsilon-greedy selection, proposed); "" where the paper leaves the cell empty.
@@ -63,7 +58,6 @@ EQUIVALENT_EPSILON_EARLY = 0.3  # Sec. V, Fig. 6 text: "starting high reaching a
 EQUIVALENT_EPSILON_LATE = 0.1  # "decreasing to 0.1 near the end"
 #: The paper's protocol (Sec. IV): "20 simulations with 200 episodes each, for each value of epsilon".
 SEEDS_PER_CELL = 20
-EPISODES = 200
 EPSILONS: tuple[float, ...] = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9)
 
 #: The paper's sentences the verdict judges, verbatim, with where they are printed.
