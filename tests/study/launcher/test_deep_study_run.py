@@ -1,5 +1,5 @@
 """
-The deep study's runs (study/launcher/deep_study.py, deep_batches.py, deep_recording.py) on a toy study: SB3's real DQN
+The deep study's runs (study/launcher/deep_study.py, deep_batches.py, deep_training.py, deep_recording.py) on a toy study: SB3's real DQN
 and AffectDQN trained by train_many on the compiled MiniGrid, in batches of seeds.
 """
 
@@ -16,7 +16,7 @@ import yaml
 pytest.importorskip("minigrid")
 
 from sb3_affect.study.cli import main
-from sb3_affect.study.launcher.deep_batches import EVAL_SEED_OFFSET
+from sb3_affect.study.launcher.deep_training import EVAL_SEED_OFFSET
 from sb3_affect.study.launcher.deep_recording import GreedyEvaluation
 from sb3_affect.study.launcher.deep_schema import DeepStudy
 from sb3_affect.study.launcher.deep_study import batch_path, cell_path, deep_status, replayed_epsilons, run_deep_study
