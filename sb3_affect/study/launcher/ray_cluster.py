@@ -81,7 +81,7 @@ def version_differences(ours: Versions, theirs: Versions) -> list[str]:
     return [f"{name} {theirs.get(name)} (the driver has {ours[name]})" for name in ours if theirs.get(name) != ours[name]]
 
 
-def check_nodes(ray: Any, address: str, timeout: float) -> list[dict[str, Any]]:
+def check_nodes(address: str, timeout: float) -> list[dict[str, Any]]:
     """Run :func:`_probe` on every alive node; refuse nodes that can not run sb3-affect or have other versions."""
     ours = package_versions()
     probe = ray.remote(num_cpus=0, max_retries=0)(_probe)
@@ -124,11 +124,10 @@ class RaySession:
     """
     A connected Ray job for one sweep: :meth:`run` submits tasks, at most ``cap`` at a time, and watches the cluster.
 
-    :param ray: the imported ``ray`` module
     :param address: the cluster's address, or ``None`` for the private instance
     """
 
-    def __init__(self, ray: Any, address: str | None) -> None:
+    def __init__(self, address: str | None) -> None:
         self.ray = ray
         self.address = address
         self.gcs: tuple[str, int] | None = None
@@ -196,7 +195,7 @@ class RaySession:
                 on_value(item, value)
 
 
-def _private_init(ray: Any, workers: int) -> None:
+def _private_init(workers: int) -> None:
     # Ctrl-C in a terminal sends SIGINT to the whole process group: the instance's processes inherit "ignore SIGINT"
     # from here, so that only this driver reacts (cancels the tasks and shuts the instance down). address="local": a
     # new instance whatever RAY_ADDRESS or an earlier `ray start` says.
@@ -226,7 +225,7 @@ def connect(address: str | None, workers: int, timeout: float = 60.0) -> Iterato
         if not address.startswith("ray://"):
             handshake(address, *where, timeout=timeout)
     if ray.is_initialized():  # the caller's own ray.init: use it as it is, leave it running
-        yield RaySession(ray, address)
+        yield RaySession(address)
         return
     staging = None
     try:
@@ -238,10 +237,10 @@ def connect(address: str | None, workers: int, timeout: float = 60.0) -> Iterato
             (Path(staging) / "cwd").mkdir()
             with working_directory(Path(staging) / "cwd"):
                 init_with_timeout(ray, address, timeout, {"py_modules": [str(package)]})
-            check_nodes(ray, address, timeout)
+            check_nodes(address, timeout)
         else:
-            _private_init(ray, workers)
-        yield RaySession(ray, address)
+            _private_init(workers)
+        yield RaySession(address)
     finally:
         # Ctrl-C or an error: ``ray.shutdown`` ends this job, and Ray stops the job's tasks with it (and a private
         # instance). No ``ray.cancel(force=True)`` of the pending tasks: racing with tasks that are just finishing, it
