@@ -6,10 +6,12 @@ says which extra to install.
 
 from __future__ import annotations
 
+import ast
 import json
 import pkgutil
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -19,6 +21,35 @@ from sb3_affect.study.launcher.launcher import run_ray
 
 #: The modules of the Ray backend, which import Ray at their top (``run_ray`` imports them).
 RAY_BACKEND = ("ray_cluster", "ray_connect")
+#: Who may import Ray or the backend's modules: ``module -> what it imports`` (the launcher after setting the environment).
+ALLOWED = {
+    "sb3_affect.study.launcher.launcher": {"sb3_affect.study.launcher.ray_cluster"},
+    "sb3_affect.study.launcher.ray_cluster": {
+        "ray",
+        "ray.util.scheduling_strategies",
+        "sb3_affect.study.launcher.ray_connect",
+    },
+    "sb3_affect.study.launcher.ray_connect": {"grpc", "ray.core.generated"},
+}
+PACKAGE = Path(study.__file__).parents[1]
+
+
+def ray_imports(root: Path) -> dict[str, set[str]]:
+    """``module -> the modules of Ray, gRPC or the Ray backend it imports`` (anywhere in it: top or function)."""
+    found: dict[str, set[str]] = {}
+    for path in sorted(root.rglob("*.py")):
+        module = ".".join(path.relative_to(root.parent).with_suffix("").parts)
+        for node in ast.walk(ast.parse(path.read_text())):
+            names = [a.name for a in node.names] if isinstance(node, ast.Import) else []
+            names += [node.module] if isinstance(node, ast.ImportFrom) and node.module and not node.level else []
+            for name in names:
+                if name.split(".")[0] in ("ray", "grpc") or name.rpartition(".")[2] in RAY_BACKEND:
+                    found.setdefault(module, set()).add(name)
+    return found
+
+
+def test_only_the_launcher_imports_the_ray_backend_and_only_the_backend_imports_ray() -> None:
+    assert ray_imports(PACKAGE) == ALLOWED
 
 
 def test_no_module_of_the_study_but_the_ray_backends_imports_ray() -> None:
