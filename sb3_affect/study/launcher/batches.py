@@ -28,6 +28,7 @@ from sb3_affect.engine.simulation import simulate_columns
 from sb3_affect.study.launcher.chunks import encode_chunk
 from sb3_affect.study.launcher.one_run import execute_run, package_env, package_versions
 from sb3_affect.study.launcher.run_ids import readable, run_config
+from sb3_affect.study.launcher.schema import is_tabular
 from sb3_affect.study.launcher.store import run_file
 
 #: The most runs one batch holds (bounds a worker's memory and the work a crash or Ctrl-C throws away).
@@ -156,13 +157,10 @@ def batchable(base: dict[str, Any], logs: bool) -> bool:
 
     if known_settings(base["algo"]) is not None:  # the package's agents, known by name (not imported: no torch)
         return True
-    from sb3_affect.agents.tabular import TabularQAlgorithm  # (torch: off the tabular sweep path)
-
     try:
-        cls = resolve_class(base["algo"])
+        return is_tabular(base["algo"]) and resolve_class(base["algo"]).__module__.split(".")[0] == "sb3_affect"
     except ValueError:
         return False
-    return issubclass(cls, TabularQAlgorithm) and cls.__module__.split(".")[0] == "sb3_affect"
 
 
 def team_batchable(base: dict[str, Any], logs: bool) -> bool:

@@ -1,56 +1,20 @@
 """
 The deep study's unit of work: a *batch*, some seeds of one cell (task x agent) trained together by the public
-trainer ``sb3_affect.train_many`` and evaluated every ``eval_every`` env steps (``deep_recording``). A batch is a
-``batches.Work``, so the launcher's one executor runs it: a long-lived local worker process, or one Ray task. Its
-record depends only on the study, the cell and its seeds: the same on either backend, and in any batch.
-
-A batch's record, per seed and evaluation: the greedy policy's success rate and mean return on its evaluation envs,
-and over the env steps since the previous evaluation the share of random decisions, the share of env steps in each
-emotion (``AffectDQN``), the training episodes ended and reached the goal; per seed, the env step of its first
-training episode that reached the goal (None: never, a censored run). ``merge_batches`` joins a cell's batches in
-seed order into the cell's record.
+trainer ``sb3_affect.train_many`` and evaluated every ``eval_every`` env steps (``deep_training``, ``deep_recording``). A
+batch is a ``batches.Work``, so the launcher's one executor runs it: a long-lived local worker process, or one Ray task.
+Its record depends only on the study, the cell and its seeds: the same on either backend, and in any batch.
+``merge_batches`` joins a cell's batches in seed order into the cell's record (what a record holds: ``deep_training``).
 """
 
 from __future__ import annotations
 
-import math
 import socket
-import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-import sb3_affect
-from sb3_affect.core.emotions import EMOTION_NAMES
-from sb3_affect.study.launcher.deep_schema import TUNED, DeepAgent, DeepStudy
+from sb3_affect.study.launcher.deep_schema import RECORD_ROWS, DeepStudy
 from sb3_affect.study.launcher.one_run import package_versions
-
-#: The evaluation envs of seed s are seeded ``EVAL_SEED_OFFSET + s * eval_episodes + i``: apart from every training env
-#: (seeded ``s + i`` for ``i < n_envs``) for seeds below the offset.
-EVAL_SEED_OFFSET = 1_000_000
-#: ``train_many``'s ``log_interval`` in the study: no run ends this many episodes, so no ``dump_logs`` resets the
-#: random-decision counters of an ``ActionRepeat`` agent, which ``deep_recording`` reads.
-NO_LOGS = 2**62
-#: The per-seed rows of a record, (seeds, evaluations) each.
-ROWS = ("success", "return", "random_share", "train_episodes", "train_successes")
-
-
-def agent_kwargs(study: DeepStudy, task: str, agent: DeepAgent, epsilons: Sequence[float] | None = None) -> dict[str, Any]:
-    """The agent's arguments on ``task``: the study's network, the task's tuned learning rate, then the agent's own."""
-    spec = study.tasks[task]
-    kwargs: dict[str, Any] = dict(study.network)
-    if spec.learning_rate is not None:
-        kwargs["learning_rate"] = spec.learning_rate
-    if agent.epsilon == TUNED:
-        kwargs["exploration_fraction"] = spec.exploration_fraction
-    if epsilons is not None:
-        kwargs["epsilons"] = list(epsilons)
-    kwargs.update(agent.kwargs)
-    return kwargs
-
-
-def bonus_scale(study: DeepStudy, task: str, agent: DeepAgent) -> float | None:
-    return study.tasks[task].count_bonus if agent.count_bonus == TUNED else agent.count_bonus  # type: ignore[return-value]
 
 
 def seed_batches(study: DeepStudy) -> list[tuple[int, ...]]:
@@ -59,59 +23,11 @@ def seed_batches(study: DeepStudy) -> list[tuple[int, ...]]:
     return [tuple(study.seeds[i:i + size]) for i in range(0, len(study.seeds), size)]
 
 
-def run_batch(study: DeepStudy, task: str, agent: DeepAgent, seeds: Sequence[int],
-              epsilons: Sequence[float] | None = None) -> dict[str, Any]:
-    """Train and evaluate ``seeds`` of ``agent`` on ``task`` through ``train_many``: the batch's record."""
-    from sb3_affect.engine.seed_envs import seed_vec_env  # (torch: the deep study's engine)
-    from sb3_affect.study.launcher.count_bonus import CountBonus  # (torch: SB3's VecEnvWrapper)
-    from sb3_affect.study.launcher.deep_recording import GreedyEvaluation, TrainingRecorder  # (torch: the engine)
-
-    start = time.process_time()
-    spec, compiled, n_eval = study.tasks[task], study.env == "compiled", study.eval_episodes
-    scale = bonus_scale(study, task, agent)
-    eval_seeds = [EVAL_SEED_OFFSET + seed * n_eval for seed in seeds]
-    evaluate = GreedyEvaluation([seed_vec_env(spec.id, n_eval, s, study.obs, compiled) for s in eval_seeds], eval_seeds)
-    recorders = [TrainingRecorder() for _ in seeds]
-    rows: dict[str, list[list[float]]] = {key: [] for key in ROWS}
-    emotion_rows: list[list[list[float]]] = []
-
-    def on_models(models: list[Any]) -> None:
-        success, returns = evaluate(models)
-        intervals = [recorder.take_interval() for recorder in recorders]
-        rows["success"].append(success.tolist())
-        rows["return"].append(returns.tolist())
-        for key in ("random_share", "train_episodes", "train_successes"):
-            rows[key].append([interval[key] for interval in intervals])
-        emotion_rows.append([interval["emotions"] for interval in intervals])
-
-    models = sb3_affect.train_many(
-        agent.algo, spec.id, list(seeds), study.n_envs, total_timesteps=spec.budget, obs=study.obs, compiled=compiled,
-        log_interval=NO_LOGS, every=study.eval_every, on_models=on_models, callbacks=recorders,
-        env_wrapper=(lambda env: CountBonus(env, scale)) if scale else None, **agent_kwargs(study, task, agent, epsilons),
-    )
-
-    def by_seed(table: list[list[float]]) -> list[list[float | None]]:  # (evaluations, seeds) -> (seeds, evaluations)
-        return [[None if math.isnan(v) else v for v in column] for column in zip(*table)]
-
-    affective = hasattr(models[0], "emotion_callback")
-    return {
-        "task": task, "agent": agent.name, "algo": agent.algo, "env_id": spec.id, "seeds": list(seeds),
-        "budget": spec.budget, "eval_every": study.eval_every, "eval_episodes": n_eval,
-        "eval_steps": [study.eval_every * (k + 1) for k in range(len(rows["success"]))],
-        "count_bonus": scale, "epsilons": None if epsilons is None else list(epsilons),
-        **{key: by_seed(table) for key, table in rows.items()},
-        "emotions": {name: by_seed([[seed[k] for seed in evaluation] for evaluation in emotion_rows])
-                     for k, name in enumerate(EMOTION_NAMES)} if affective else None,
-        "first_success": [recorder.first_success for recorder in recorders],
-        "seconds": time.process_time() - start,
-    }  # fmt: skip
-
-
 def merge_batches(records: Sequence[dict[str, Any]]) -> dict[str, Any]:
     """A cell's record from its batches' records, in seed order (``seconds``: the batches' CPU seconds, summed)."""
     first = records[0]
     merged = dict(first)
-    for key in (*ROWS, "seeds", "first_success"):
+    for key in (*RECORD_ROWS, "seeds", "first_success"):
         merged[key] = [value for record in records for value in record[key]]
     if first["emotions"] is not None:
         merged["emotions"] = {name: [row for record in records for row in record["emotions"][name]]
@@ -139,14 +55,9 @@ class DeepBatch:
         return f"deep:{self.task}:{self.study['agents'][self.agent]['name']}:{self.index}"
 
     def execute(self) -> dict[str, Any]:
-        """``run_batch``, with one torch thread (the stacked networks are small: more threads only wait on each other)."""
-        import torch  # (torch: only where a batch runs)
+        """``deep_training.run_batch`` of this batch, with the package versions and the host that ran it."""
+        from sb3_affect.study.launcher.deep_training import run_batch  # (torch: only where a batch runs)
 
         study = DeepStudy.model_validate(self.study)
-        threads = torch.get_num_threads()
-        torch.set_num_threads(1)
-        try:
-            record = run_batch(study, self.task, study.agents[self.agent], self.seeds, self.epsilons)
-        finally:
-            torch.set_num_threads(threads)
+        record = run_batch(study, self.task, study.agents[self.agent], self.seeds, self.epsilons)
         return {"record": record, "versions": package_versions(), "timings": {"host": socket.gethostname()}}

@@ -28,12 +28,15 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from sb3_affect.core.registry import AGENTS
+from sb3_affect.kernel.minigrid_world import MINIGRID_TASKS
 from sb3_affect.study.launcher.schema import NAME_PATTERN
 
 #: Fewest evaluation episodes the study's primary metric is read from (a smaller file is labelled a smoke size).
 STUDY_EVAL_EPISODES = 20
 #: The settings a task holds for every agent that asks for them (``epsilon: tuned``, ``count_bonus: tuned``).
 TUNED = "tuned"
+#: The per-seed rows of a batch's (and a cell's) record, (seeds, evaluations) each (``deep_training.run_batch``).
+RECORD_ROWS = ("success", "return", "random_share", "train_episodes", "train_successes")
 
 
 class DeepTask(BaseModel):
@@ -130,12 +133,10 @@ class DeepStudy(BaseModel):
 
     @model_validator(mode="after")
     def _consistent(self) -> DeepStudy:
-        compiled: Any = ()
-        if self.env == "compiled":
-            from sb3_affect.kernel.minigrid_world import MINIGRID_TASKS as compiled  # (numba: the compiled MiniGrid)
         for name, task in self.tasks.items():
-            if self.env == "compiled" and task.id not in compiled:
-                raise ValueError(f"tasks.{name}.id={task.id!r} is not compiled ({', '.join(compiled)}): give env: farama")
+            if self.env == "compiled" and task.id not in MINIGRID_TASKS:
+                compiled = ", ".join(MINIGRID_TASKS)
+                raise ValueError(f"tasks.{name}.id={task.id!r} is not compiled ({compiled}): give env: farama")
             if task.budget % self.eval_every:
                 raise ValueError(f"tasks.{name}.budget={task.budget} is not a multiple of eval_every={self.eval_every}")
         names = [agent.name for agent in self.agents]

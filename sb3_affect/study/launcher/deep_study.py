@@ -1,9 +1,9 @@
 """
 The deep study's runs (``study: deep``, ``sb3_affect.study.launcher.deep_schema``): for each task and agent, one *cell*,
 its seeds cut into batches (``seeds_per_batch``), each batch trained by the public trainer ``sb3_affect.train_many``
-and its greedy policies evaluated every ``eval_every`` env steps (``deep_batches``, ``deep_recording``). The batches
-run on the launcher's one executor: ``workers`` forked local processes (or this process when ``workers`` is 1), or
-one Ray task per batch (``backend="ray"``); a batch's record is the same on either.
+and its greedy policies evaluated every ``eval_every`` env steps (``deep_batches``, ``deep_training``,
+``deep_recording``). The batches run on the launcher's one executor: ``workers`` forked local processes (or this
+process when ``workers`` is 1), or one Ray task per batch (``backend="ray"``); a batch's record is the same on either.
 
 The driver is the only writer. A batch writes ``OUT/batches/<task>__<agent>/<index>.json`` as it finishes; when all
 batches of a cell are there, their records are merged in seed order into ``OUT/cells/<task>__<agent>.json`` and the

@@ -34,6 +34,7 @@ from typing import Any
 
 from tqdm.auto import tqdm
 
+from sb3_affect.core.extras import require_extra
 from sb3_affect.study.launcher.batches import (
     Batch,
     Job,
@@ -87,7 +88,14 @@ def run_ray(
     handled in :mod:`sb3_affect.study.launcher.ray_cluster`. A batch (or any other ``Work``) is one task (its
     ``execute``), a lone run one ``ray_cluster.execute_task``.
     """
-    import sb3_affect.study.launcher.ray_cluster as ray_cluster  # (the ray extra)
+    require_extra("ray", "the ray backend")
+    os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
+    if not address:
+        # A private single-machine instance: Ray rewrites 127.0.0.1 to the machine's address (and its gRPC servers then
+        # listen on every interface) unless "clusters" are disabled, which Ray reads when it is first imported (here,
+        # with ray_cluster): every Ray process then listens on 127.0.0.1 only (``ss -ltnp`` in test_experiments_ray.py).
+        os.environ.setdefault("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "0")
+    import sb3_affect.study.launcher.ray_cluster as ray_cluster  # (the ray extra; after the environment Ray reads)
 
     with ray_cluster.connect(address, workers, timeout) as session:
         ours = package_versions() if address else None

@@ -28,6 +28,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, Generic, TypeVar
 
+from sb3_affect.kernel import warm_up
 from sb3_affect.study.launcher.batches import Batch, Single, Work
 from sb3_affect.study.launcher.one_run import package_versions
 from sb3_affect.study.launcher.signals import STOP_SIGNALS, worker_signals
@@ -74,9 +75,6 @@ def preload(jobs: Sequence[Work]) -> None:
     """
     if not any(isinstance(job, Batch) for job in jobs):
         return
-
-    from sb3_affect.kernel import warm_up  # (numba: only where a kernel runs)
-
     warm_up()
     package_versions()
 

@@ -1,4 +1,8 @@
-"""Execute one run config (plain data) in whatever process it lands in: build the env, train, return the records."""
+"""
+Execute one run config (plain data) in whatever process it lands in: build the env, train, return the records; and
+check a sweep's configs before anything runs. What needs an SB3 model (torch) is in ``model_runs``, imported only
+where a run or a check builds one.
+"""
 
 from __future__ import annotations
 
@@ -7,7 +11,6 @@ import functools
 import importlib
 import inspect
 import json
-import math
 import multiprocessing
 import os
 import platform
@@ -16,26 +19,16 @@ import signal
 import socket
 import sys
 import time
+from collections.abc import Callable
 from importlib.metadata import PackageNotFoundError, version
-from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
 
 import sb3_affect
-from sb3_affect.core.episode_log import EPISODE_COLUMNS
-from sb3_affect.core.positions import make_position
-from sb3_affect.core.registry import (
-    EMOTION_MODELS,
-    import_env_package,
-    known_settings,
-    observer_class,
-    resolve_class,
-    resolve_wrapper,
-)
-from sb3_affect.core.settings import AffectQSettings
+from sb3_affect.core.registry import import_env_package, known_settings, resolve_class, resolve_wrapper
+from sb3_affect.engine.team_simulation import simulate_team
 from sb3_affect.envs import PARALLEL_ENVS, make_parallel
-from sb3_affect.study.launcher.chunks import checked_column
 
 
 def _version(name: str) -> str:
@@ -67,23 +60,6 @@ def package_versions() -> dict[str, str]:
     return dict(_package_versions())
 
 
-def _plain(value: Any) -> Any:
-    """A JSON-safe, deterministic Python value (NaN -> None, numpy scalars -> Python)."""
-    if hasattr(value, "item"):
-        value = value.item()
-    if isinstance(value, float) and math.isnan(value):
-        return None
-    return value
-
-
-def build_team(config: dict[str, Any]) -> Any:
-    """The ``HunterTeam`` of a team run config (a multi-agent env and one tabular agent per hunter)."""
-    from sb3_affect.agents.hunter_team import HunterTeam  # (torch: off the tabular sweep path)
-
-    env = make_parallel(config["env_id"], **config["env_kwargs"])
-    return HunterTeam(env, [(m["algo"], m["kwargs"]) for m in config["team"]], seed=config["seed"])
-
-
 def _make_env(config: dict[str, Any]) -> Any:
     if config["env_id"] in PARALLEL_ENVS:
         return make_parallel(config["env_id"], **config["env_kwargs"])
@@ -107,7 +83,7 @@ def make_single_env(config: dict[str, Any]) -> Any:
 CHECK_RESETS = 16
 
 
-def _check_single_env(env: Any, position: str | None) -> None:
+def _check_single_env(env: Any, position: str | None, check_position: Callable[[Any, str], None] | None) -> None:
     """
     Reset a run's env (its wrappers and all) with each of ``CHECK_RESETS`` seeds and take one step after each, and
     read its ``position`` preset once: a wrapper, an env or a preset that can not work on it fails here, before
@@ -118,36 +94,8 @@ def _check_single_env(env: Any, position: str | None) -> None:
         env.action_space.seed(seed)
         env.step(env.action_space.sample())
     if position is not None:
-        from stable_baselines3.common.vec_env import DummyVecEnv  # (torch: off the tabular sweep path)
-
-        venv = DummyVecEnv([lambda: env])
-        hook = make_position(position, venv.observation_space)
-        if hook is not None:
-            hook.bind(venv, venv.observation_space)
-            hook.cells(venv, venv.reset(), [{}])
-
-
-def build_model(config: dict[str, Any]) -> tuple[Any, bool]:
-    """The env and the algorithm of a run config: ``(model, tabular)`` (``tabular``: keeps its own ``episode_log``)."""
-    from sb3_affect.agents.tabular import TabularQAlgorithm  # (torch: off the tabular sweep path)
-
-    cls: Any = resolve_class(config["algo"])
-    env = make_single_env(config)
-    kwargs = dict(config["algo_kwargs"])
-    if issubclass(cls, TabularQAlgorithm):
-        if config.get("trace"):
-            kwargs["emotion_callback"] = _trace_callback(kwargs)
-        return cls("Grid", env, seed=config["seed"], **kwargs), True
-    policy = kwargs.pop("policy", "MlpPolicy")
-    return cls(policy, env, seed=config["seed"], **kwargs), False
-
-
-def _trace_callback(kwargs: dict[str, Any]) -> Any:
-    """The ``TraceCallback`` a traced AffectQ run drives, reading as its kwargs say (``launcher.emotion_trace``)."""
-    from sb3_affect.study.launcher.emotion_trace import TraceCallback  # (torch: off the tabular sweep path)
-
-    settings = AffectQSettings(**kwargs)
-    return TraceCallback(comparison=settings.comparison, act=settings.act, units=settings.units)
+        assert check_position is not None  # (``check_configs`` passes it where a config has a position)
+        check_position(env, position)
 
 
 def package_env(env_id: str) -> bool:
@@ -173,11 +121,24 @@ def check_configs(configs: list[dict[str, Any]]) -> list[tuple[str, str]]:
     """
     Build the env and the algorithm of each distinct (agent, env, kwargs) once, without training. The package's
     agents given settings only are checked by their settings (``settings_checkable``: the constructor's own checks,
-    no model built).
+    no model built); any other config, and a position preset, by building SB3's objects (``model_runs``: torch).
 
     :return: ``(agent name, problem)`` for each config that can not be built (an unknown or impossible kwarg); the
         agent name is empty when the env itself can not be built
     """
+    if all(settings_checkable(config) for config in configs):
+        return _checked(configs, None, None)
+    from sb3_affect.study.launcher import model_runs  # (torch: only where a config builds a model)
+
+    return _checked(configs, model_runs.check_position, model_runs.check_model)
+
+
+def _checked(
+    configs: list[dict[str, Any]],
+    check_position: Callable[[Any, str], None] | None,
+    check_model: Callable[[dict[str, Any], Any], None] | None,
+) -> list[tuple[str, str]]:
+    """``check_configs`` with the checks that build SB3's objects (None: every config is ``settings_checkable``)."""
     problems: list[tuple[str, str]] = []
     env_checked: set[str] = set()
     seen: set[str] = set()
@@ -194,7 +155,7 @@ def check_configs(configs: list[dict[str, Any]]) -> list[tuple[str, str]]:
                 env = _make_env(config)
                 try:
                     if config["env_id"] not in PARALLEL_ENVS:
-                        _check_single_env(env, config.get("env_position"))
+                        _check_single_env(env, config.get("env_position"), check_position)
                 finally:
                     env.close()
             except Exception as error:
@@ -205,15 +166,13 @@ def check_configs(configs: list[dict[str, Any]]) -> list[tuple[str, str]]:
             continue
         seen.add(key)
         try:
-            if "team" in config:
-                build_team(config).env.close()
-            elif settings_checkable(config):
+            if settings_checkable(config):
                 settings = known_settings(config["algo"])
                 assert settings is not None
                 settings(**config["algo_kwargs"])
             else:
-                model, _ = build_model(config)
-                model.get_env().close()
+                assert check_model is not None  # (``check_configs`` passes it where a config is not settings_checkable)
+                check_model(config, _make_env(config))
         except Exception as error:
             labels = {k: v for k, v in config["labels"].items() if k != "replicate"}
             where = f" at {labels}" if labels else ""
@@ -268,10 +227,7 @@ def check_configs_in_child(configs: list[dict[str, Any]]) -> list[tuple[str, str
 
 
 def _check_child(configs: list[dict[str, Any]], conn: Any) -> None:
-    import torch as th  # (torch: off the tabular sweep path)
-
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    th.set_num_threads(1)
     try:
         problems = check_configs(configs)
     except BaseException as error:  # pragma: no cover - check_configs catches per config
@@ -282,120 +238,28 @@ def _check_child(configs: list[dict[str, Any]], conn: Any) -> None:
 
 def execute_run(config: dict[str, Any], log_dir: str | None = None, log_formats: tuple[str, ...] = ("csv",)) -> dict[str, Any]:
     """
-    Train one agent as ``config`` says and return ``{"episodes": {column: [...]}, "timings": ..., "versions": ...}``.
+    Run one config as it says and return ``{"episodes": {column: [...]}, "timings": ..., "versions": ...}``.
 
-    Tabular agents of this package keep their own ``episode_log``; any other SB3 algorithm is watched by an
-    ``EmotionCallback``. Training stops after ``config["episodes"]`` episodes (``StopTrainingOnMaxEpisodes``) or
-    ``config["max_timesteps"]`` decisions, whichever comes first.
+    A team run without SB3 logs runs on the team kernel (``sb3_affect.engine.team_simulation``: no model, no torch)
+    when the kernel can run it; any other run builds its model and trains it (``model_runs.train``): tabular agents
+    of this package keep their own ``episode_log``, any other SB3 algorithm is watched by an ``EmotionCallback``.
     """
     start = time.perf_counter()
-    if "team" in config and log_dir is None:
-        record = _execute_team_compiled(config, start)
-        if record is not None:
-            return record
-    import torch as th  # (torch: off the tabular sweep path)
-
-    th.set_num_threads(1)
-    from stable_baselines3.common.callbacks import StopTrainingOnMaxEpisodes  # (torch: off the tabular sweep path)
-    from stable_baselines3.common.logger import Logger, configure  # (torch: off the tabular sweep path)
-
-    from sb3_affect.agents.callbacks import EmotionCallback  # (torch: off the tabular sweep path)
-
-    if "team" in config:
-        return _execute_team(config, log_dir, log_formats, start)
-    model, tabular = build_model(config)
-    episodes = int(config["episodes"])
-    if tabular:
-        budget = config["max_timesteps"] or episodes * model.max_episode_decisions
-        callback: Any = StopTrainingOnMaxEpisodes(episodes)
+    compiled = None
+    if "team" in config and log_dir is None:  # None: an agent or argument the kernel does not know, ``engine="python"``
+        members = [(m["algo"], m["kwargs"]) for m in config["team"]]
+        compiled = simulate_team(members, config["env_id"], config["env_kwargs"], int(config["seed"]), int(config["episodes"]))
+    if compiled is not None:
+        columns, decisions = compiled.columns, compiled.decisions
     else:
-        budget = config["max_timesteps"] or episodes * 20_000
-        # an agent driven by emotions logs its own (the callback that steers it); any other is watched by one
-        emotions = getattr(model, "emotion_callback", None) or EmotionCallback(position=config.get("env_position"))
-        callback = [emotions, StopTrainingOnMaxEpisodes(episodes)]
-    if log_dir is not None:
-        Path(log_dir).mkdir(parents=True, exist_ok=True)
-        model.set_logger(configure(log_dir, list(log_formats)))
-    else:  # SB3's default logger would leave an empty /tmp/SB3-<date> folder per run
-        model.set_logger(Logger(folder=None, output_formats=[]))
-    model.learn(int(budget), callback=callback)
-    log = model.episode_log if tabular else emotions.episode_log
-    columns = {name: [_plain(v) for v in log[name].tolist()] for name in EPISODE_COLUMNS}
-    for name in EPISODE_COLUMNS:  # a value that would not read back as it is: the run fails naming it
-        checked_column(name, [math.nan if v is None else v for v in columns[name]])
-    if config.get("trace"):  # the TraceCallback AffectQ drove (``build_model``)
-        columns.update({name: [_plain(v) for v in values] for name, values in model.emotion_callback.trace_columns().items()})
+        from sb3_affect.study.launcher import model_runs  # (torch: off the tabular sweep path)
+
+        columns, decisions = model_runs.train(config, _make_env(config), log_dir, log_formats)
     return {
         "episodes": columns,
         "timings": {
             "wall_seconds": round(time.perf_counter() - start, 4),
-            "decisions": int(model.num_timesteps),
-            "pid": os.getpid(),
-            "host": socket.gethostname(),
-        },
-        "versions": package_versions(),
-    }
-
-
-def _execute_team_compiled(config: dict[str, Any], start: float) -> dict[str, Any] | None:
-    """
-    A team run on the team kernel (``sb3_affect.engine.team_simulation``), without building a model (no torch): the
-    same record as ``_execute_team`` gives. None when the kernel can not run it (an agent or argument the kernel does
-    not know, a member's ``engine="python"``, a schedule of the training progress).
-    """
-    from sb3_affect.engine.team_simulation import simulate_team  # (numba: only where a kernel runs)
-
-    members = [(m["algo"], m["kwargs"]) for m in config["team"]]
-    run = simulate_team(members, config["env_id"], config["env_kwargs"], int(config["seed"]), int(config["episodes"]))
-    if run is None:
-        return None
-    return {
-        "episodes": run.columns,
-        "timings": {
-            "wall_seconds": round(time.perf_counter() - start, 4),
-            "decisions": run.decisions,
-            "pid": os.getpid(),
-            "host": socket.gethostname(),
-        },
-        "versions": package_versions(),
-    }
-
-
-def _execute_team(config: dict[str, Any], log_dir: str | None, log_formats: tuple[str, ...], start: float) -> dict[str, Any]:
-    """
-    A team run. Its ``episodes`` columns: the team's (``TEAM_COLUMNS``: ``EPISODE_COLUMNS`` for the team, then
-    ``capturer``), then per hunter ``<hunter>/<column>`` for its own episode log and, for each emotion model of the
-    registry (``EMOTION_MODELS``: Broekens'), ``<hunter>/<model>_<column>`` (mean intensity per decision, and
-    ``broekens_goal_joy``) from its observer watching the hunter.
-    """
-    from stable_baselines3.common.callbacks import CallbackList  # (torch: off the tabular sweep path)
-    from stable_baselines3.common.logger import configure  # (torch: off the tabular sweep path)
-
-    from sb3_affect.agents.hunter_team import TEAM_COLUMNS  # (torch: off the tabular sweep path)
-
-    team = build_team(config)
-    if log_dir is not None:
-        for agent, model in team.models.items():
-            Path(log_dir, agent).mkdir(parents=True, exist_ok=True)
-            model.set_logger(configure(str(Path(log_dir, agent)), list(log_formats)))
-    observers = {agent: {name: observer_class(name)() for name in EMOTION_MODELS} for agent in team.models}
-    callbacks = {agent: [*watching.values()] for agent, watching in observers.items()}
-    team.learn(int(config["episodes"]), callbacks={a: c[0] if len(c) == 1 else CallbackList(c) for a, c in callbacks.items()})
-    log = team.episode_log
-    columns = {name: [_plain(v) for v in log[name].tolist()] for name in TEAM_COLUMNS}
-    for agent, model in team.models.items():
-        own = model.episode_log
-        for name in EPISODE_COLUMNS:
-            columns[f"{agent}/{name}"] = [_plain(v) for v in own[name].tolist()]
-        for model, observer in observers[agent].items():
-            felt = observer.episode_log
-            for name in EMOTION_MODELS[model].columns:
-                columns[f"{agent}/{model}_{name}"] = [_plain(v) for v in felt[name].tolist()]
-    return {
-        "episodes": columns,
-        "timings": {
-            "wall_seconds": round(time.perf_counter() - start, 4),
-            "decisions": int(sum(m.num_timesteps for m in team.models.values())),
+            "decisions": int(decisions),
             "pid": os.getpid(),
             "host": socket.gethostname(),
         },

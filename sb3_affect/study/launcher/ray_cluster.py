@@ -2,7 +2,8 @@
 The Ray side of the ``ray`` backend: connect, ship the code, check versions, run tasks, notice a lost cluster.
 
 * Without an address: a private instance on this machine (``address="local"``, so neither ``RAY_ADDRESS`` nor a
-  cluster recorded by an earlier ``ray start`` can redirect it), dashboard off, every process on 127.0.0.1.
+  cluster recorded by an earlier ``ray start`` can redirect it), dashboard off, every process on 127.0.0.1 (the
+  environment Ray reads when it is imported is set by ``launcher.run_ray``, which imports this module).
 * With an address (``HOST:PORT`` or ``ray://HOST:PORT``): the address is tried first and ``ray.init`` is given
   ``timeout`` seconds (:mod:`sb3_affect.study.launcher.ray_connect`), so a wrong address or a missing token fails with a
   message instead of retrying forever;
@@ -29,11 +30,13 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
+import ray
+from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy
+
 import sb3_affect
 import sb3_affect.envs
 from sb3_affect.study.launcher.one_run import execute_run, package_versions
 from sb3_affect.study.launcher.ray_connect import (
-    RayClusterError,
     handshake,
     host_port,
     init_with_timeout,
@@ -42,23 +45,12 @@ from sb3_affect.study.launcher.ray_connect import (
     shutdown_within,
     working_directory,
 )
+from sb3_affect.study.launcher.ray_errors import ClusterLost, RayClusterError
 from sb3_affect.study.launcher.signals import sigint_ignored
 
-__all__ = ["ClusterLost", "RayClusterError", "RaySession", "connect", "execute_task", "plain_text", "write_logs"]
+__all__ = ["RaySession", "connect", "execute_task", "plain_text", "write_logs"]
 
 Versions = dict[str, str]
-
-
-class ClusterLost(KeyboardInterrupt):
-    """
-    The Ray cluster stopped answering mid-sweep: stop like Ctrl-C (finished runs are kept).
-
-    :param message: what was lost and how it showed
-    """
-
-    def __init__(self, message: str) -> None:
-        super().__init__(message)
-        self.message = message
 
 
 def stage_package(folder: Path) -> Path:
@@ -81,8 +73,6 @@ def stage_package(folder: Path) -> Path:
 
 def _probe() -> dict[str, Any]:
     """A zero-CPU task run once on every node: where it ran and the package versions there."""
-    import ray  # (the ray extra)
-
     return {"host": socket.gethostname(), "node": ray.get_runtime_context().get_node_id(), "versions": package_versions()}
 
 
@@ -91,10 +81,8 @@ def version_differences(ours: Versions, theirs: Versions) -> list[str]:
     return [f"{name} {theirs.get(name)} (the driver has {ours[name]})" for name in ours if theirs.get(name) != ours[name]]
 
 
-def check_nodes(ray: Any, address: str, timeout: float) -> list[dict[str, Any]]:
+def check_nodes(address: str, timeout: float) -> list[dict[str, Any]]:
     """Run :func:`_probe` on every alive node; refuse nodes that can not run sb3-affect or have other versions."""
-    from ray.util.scheduling_strategies import NodeAffinitySchedulingStrategy  # (the ray extra)
-
     ours = package_versions()
     probe = ray.remote(num_cpus=0, max_retries=0)(_probe)
     nodes = [n for n in ray.nodes() if n.get("Alive")]
@@ -136,11 +124,10 @@ class RaySession:
     """
     A connected Ray job for one sweep: :meth:`run` submits tasks, at most ``cap`` at a time, and watches the cluster.
 
-    :param ray: the imported ``ray`` module
     :param address: the cluster's address, or ``None`` for the private instance
     """
 
-    def __init__(self, ray: Any, address: str | None) -> None:
+    def __init__(self, address: str | None) -> None:
         self.ray = ray
         self.address = address
         self.gcs: tuple[str, int] | None = None
@@ -208,7 +195,7 @@ class RaySession:
                 on_value(item, value)
 
 
-def _private_init(ray: Any, workers: int) -> None:
+def _private_init(workers: int) -> None:
     # Ctrl-C in a terminal sends SIGINT to the whole process group: the instance's processes inherit "ignore SIGINT"
     # from here, so that only this driver reacts (cancels the tasks and shuts the instance down). address="local": a
     # new instance whatever RAY_ADDRESS or an earlier `ray start` says.
@@ -225,13 +212,7 @@ def connect(address: str | None, workers: int, timeout: float = 60.0) -> Iterato
     :param workers: CPUs of the private instance
     :param timeout: seconds to wait for a cluster to answer (connection, and the version check of its nodes)
     """
-    os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
-    if not address:
-        # A private single-machine instance: Ray rewrites 127.0.0.1 to the machine's address (and its gRPC servers then
-        # listen on every interface) unless "clusters" are disabled, which Ray reads when it is first imported; with
-        # this every Ray process listens on 127.0.0.1 only (checked with ``ss -ltnp`` in test_experiments_ray.py).
-        os.environ.setdefault("RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER", "0")
-    else:
+    if address:
         where = host_port(address)
         if where is None:
             raise RayClusterError(f"--ray-address {address!r} is not HOST:PORT or ray://HOST:PORT")
@@ -243,12 +224,8 @@ def connect(address: str | None, workers: int, timeout: float = 60.0) -> Iterato
             )
         if not address.startswith("ray://"):
             handshake(address, *where, timeout=timeout)
-    try:
-        import ray  # (the ray extra)
-    except ImportError:
-        raise RuntimeError("the ray backend needs Ray: pip install 'sb3-affect[ray]'") from None
     if ray.is_initialized():  # the caller's own ray.init: use it as it is, leave it running
-        yield RaySession(ray, address)
+        yield RaySession(address)
         return
     staging = None
     try:
@@ -260,10 +237,10 @@ def connect(address: str | None, workers: int, timeout: float = 60.0) -> Iterato
             (Path(staging) / "cwd").mkdir()
             with working_directory(Path(staging) / "cwd"):
                 init_with_timeout(ray, address, timeout, {"py_modules": [str(package)]})
-            check_nodes(ray, address, timeout)
+            check_nodes(address, timeout)
         else:
-            _private_init(ray, workers)
-        yield RaySession(ray, address)
+            _private_init(workers)
+        yield RaySession(address)
     finally:
         # Ctrl-C or an error: ``ray.shutdown`` ends this job, and Ray stops the job's tasks with it (and a private
         # instance). No ``ray.cancel(force=True)`` of the pending tasks: racing with tasks that are just finishing, it
@@ -290,8 +267,6 @@ def execute_task(config: dict[str, Any], log_dir: str | None, formats: tuple[str
                 if path.is_file():
                     logs[str(path.relative_to(scratch))] = path.read_bytes()
         with contextlib.suppress(Exception):
-            import ray  # (the ray extra)
-
             result["timings"]["ray_node"] = ray.get_runtime_context().get_node_id()
         return "ok", result, logs
     except Exception:

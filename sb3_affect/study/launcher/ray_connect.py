@@ -16,9 +16,10 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import grpc
+from ray.core.generated import gcs_service_pb2, gcs_service_pb2_grpc
 
-class RayClusterError(RuntimeError):
-    """The Ray cluster can not be used for this sweep (unreachable, authentication, other package versions)."""
+from sb3_affect.study.launcher.ray_errors import RayClusterError
 
 
 def plain_text(text: str) -> str:
@@ -64,11 +65,6 @@ def handshake(address: str, host: str, port: int, timeout: float) -> None:
     Ask the head node's GCS for its cluster id (one gRPC call) before ``ray.init``, which retries a wrong port or a
     missing token forever: raise :class:`RayClusterError` saying what is wrong, or return if Ray would get in.
     """
-    try:
-        import grpc  # (the ray extra)
-        from ray.core.generated import gcs_service_pb2, gcs_service_pb2_grpc  # (the ray extra)
-    except ImportError:  # another Ray layout: leave it to ray.init (and its timeout)
-        return
     token_mode = os.environ.get("RAY_AUTH_MODE", "").lower() == "token"
     token = _driver_token() if token_mode else None
     metadata = [("authorization", f"Bearer {token}")] if token else []

@@ -360,10 +360,7 @@ class ResultsStore:
         ``seed``, one column per label (``replicate`` included), ``decisions`` (every decision of the run),
         ``episodes`` (finished episodes), ``wall_seconds`` (a batch's runs: their share of it), ``max_timesteps``.
         """
-        from sb3_affect.study.launcher.folder_reading import read_folder  # (pandas: not on the launcher's path)
-
-        files = self._checked()
-        return read_folder(list(files.run_files), list(files.chunk_files), None, self.root, files.chunk_files)[0]
+        return next(self._read(None))[0]
 
     def results(self, columns: Sequence[str] | None = None, seed: bool = True) -> tuple[pd.DataFrame, pd.DataFrame]:
         """
@@ -377,17 +374,7 @@ class ResultsStore:
             when a count needs it; flags as bool, or float64 with NaN when a run could not tell; the rest float64); runs
             in run id order, each run's rows together in episode order
         """
-        from sb3_affect.study.launcher.folder_reading import (  # (pandas: not on the launcher's path)
-            RUN_COLUMNS,
-            episode_table,
-            read_folder,
-        )
-
-        files = self._checked()
-        wanted = EPISODE_COLUMNS if columns is None else tuple(columns)
-        runs, data = read_folder(list(files.run_files), list(files.chunk_files), wanted, self.root, files.chunk_files)
-        labels = [c for c in runs.columns if c not in RUN_COLUMNS]
-        return runs, episode_table(runs, data, ["run_id", "agent", *(["seed"] if seed else []), *labels])
+        return next(self.results_parts(columns, seed))
 
     def checked_files(self) -> FolderFiles:
         """The files that count (``results_parts`` takes them, so a reader checks the folder once)."""
@@ -413,16 +400,25 @@ class ResultsStore:
         :param ordered: parts one after the other in run id order (``reading.ordered_file_parts``): the rows of all
             parts, in the order read, are the rows of one whole read
         """
-        from sb3_affect.study.launcher.folder_reading import (  # (pandas: not on the launcher's path)
-            RUN_COLUMNS,
-            episode_table,
-            file_parts,
-            ordered_file_parts,
-            read_folder,
-        )
+        wanted = EPISODE_COLUMNS if columns is None else tuple(columns)
+        for runs, episodes in self._read(wanted, seed, agent, runs_per_part, files, labels, ordered):
+            assert episodes is not None
+            yield runs, episodes
+
+    def _read(
+        self,
+        wanted: Sequence[str] | None,
+        seed: bool = True,
+        agent: str | None = None,
+        runs_per_part: int | None = None,
+        files: FolderFiles | None = None,
+        labels: dict[str, Any] | None = None,
+        ordered: bool = False,
+    ) -> Iterator[tuple[pd.DataFrame, pd.DataFrame | None]]:
+        """``results_parts`` of the ``wanted`` episode columns (None: the run tables only, from the chunks' footers)."""
+        from sb3_affect.study.launcher import folder_reading  # (pandas: not on the launcher's path)
 
         files = self._checked() if files is None else files
-        wanted = EPISODE_COLUMNS if columns is None else tuple(columns)
         run_files = [path for path, owner in files.run_files.items() if agent is None or owner == agent]
         chunk_files = {
             p: meta
@@ -430,11 +426,16 @@ class ResultsStore:
             if (agent is None or meta["base"]["agent"] == agent)
             and all(meta["base"]["labels"].get(k) == v for k, v in (labels or {}).items())
         }
-        split = ordered_file_parts if ordered else file_parts
+        split = folder_reading.ordered_file_parts if ordered else folder_reading.file_parts
         for json_part, chunk_part in split(run_files, chunk_files, runs_per_part):
-            runs, data = read_folder(json_part, chunk_part, wanted, self.root, files.chunk_files, files.episode_counts)
-            named = [c for c in runs.columns if c not in RUN_COLUMNS]
-            yield runs, episode_table(runs, data, ["run_id", "agent", *(["seed"] if seed else []), *named])
+            runs, data = folder_reading.read_folder(
+                json_part, chunk_part, wanted, self.root, files.chunk_files, files.episode_counts
+            )
+            if wanted is None:
+                yield runs, None
+                continue
+            named = [c for c in runs.columns if c not in folder_reading.RUN_COLUMNS]
+            yield runs, folder_reading.episode_table(runs, data, ["run_id", "agent", *(["seed"] if seed else []), *named])
 
     def episodes_frame(self, columns: Sequence[str] | None = None) -> pd.DataFrame:
         """The episode table of ``results``."""

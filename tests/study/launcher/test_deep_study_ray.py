@@ -19,7 +19,7 @@ from test_deep_study_run import TOY, toy
 from test_experiments_ray import ray_instance  # noqa: F401  (the module's Ray instance)
 
 from sb3_affect.study.launcher.deep_study import CELLS, run_deep_study
-from sb3_affect.study.launcher.ray_connect import RayClusterError
+from sb3_affect.study.launcher.ray_errors import RayClusterError
 
 pytestmark = [
     pytest.mark.ray,

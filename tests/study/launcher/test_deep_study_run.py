@@ -1,6 +1,6 @@
 """
-The deep study's runs (study/launcher/deep_study.py, deep_batches.py, deep_recording.py) on a toy study: SB3's real DQN
-and AffectDQN trained by train_many on the compiled MiniGrid, in batches of seeds.
+The deep study's runs (study/launcher/deep_study.py, deep_batches.py, deep_training.py, deep_recording.py) on a toy
+study: SB3's real DQN and AffectDQN trained by train_many on the compiled MiniGrid, in batches of seeds.
 """
 
 from __future__ import annotations
@@ -16,10 +16,10 @@ import yaml
 pytest.importorskip("minigrid")
 
 from sb3_affect.study.cli import main
-from sb3_affect.study.launcher.deep_batches import EVAL_SEED_OFFSET
 from sb3_affect.study.launcher.deep_recording import GreedyEvaluation
 from sb3_affect.study.launcher.deep_schema import DeepStudy
 from sb3_affect.study.launcher.deep_study import batch_path, cell_path, deep_status, replayed_epsilons, run_deep_study
+from sb3_affect.study.launcher.deep_training import EVAL_SEED_OFFSET
 from sb3_affect.study.launcher.sweep_file import load_sweep_file
 
 TOY = {

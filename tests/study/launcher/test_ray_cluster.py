@@ -242,7 +242,7 @@ def test_two_node_sweep_ships_the_code_and_matches_the_local_backend(cluster: Cl
 WRONG_ADDRESSES = """
 import json, os, sys
 from sb3_affect.study.launcher import run_sweep
-from sb3_affect.study.launcher.ray_cluster import RayClusterError
+from sb3_affect.study.launcher.ray_errors import RayClusterError
 messages = {}
 for case, address, token in json.loads(sys.argv[1]):
     os.environ["RAY_AUTH_TOKEN"] = token
@@ -274,7 +274,7 @@ def test_wrong_address_or_token_fails_at_once_with_a_message(cluster: Cluster, t
     assert f"the Ray cluster at {ADDRESS} rejected this driver's token" in messages["token"]
     assert time.monotonic() - start < 60
     # a port that accepts connections and never answers (here, outside the namespace: it listens on 127.0.0.1 only)
-    from sb3_affect.study.launcher.ray_cluster import RayClusterError
+    from sb3_affect.study.launcher.ray_errors import RayClusterError
 
     with socket.socket() as silent:
         silent.bind(("127.0.0.1", 0))
