@@ -14,7 +14,7 @@ from pathlib import Path
 from sb3_affect.study.launcher import ResultsStore, run_sweep
 from sb3_affect.study.launcher.deep_schema import DeepStudy
 from sb3_affect.study.launcher.deep_study import STUDY_FILE, deep_status, run_deep_study
-from sb3_affect.study.launcher.ray_cluster import ClusterLost, RayClusterError
+from sb3_affect.study.launcher.ray_errors import ClusterLost, RayClusterError
 from sb3_affect.study.launcher.schema import SweepError
 from sb3_affect.study.launcher.signals import Terminated, stop_on_sigterm
 from sb3_affect.study.launcher.store import FORENSICS_FILE, StoreError

@@ -27,7 +27,6 @@ import gymnasium as gym
 
 import sb3_affect
 from sb3_affect.core.registry import import_env_package, known_settings, resolve_class, resolve_wrapper
-from sb3_affect.engine.team_simulation import simulate_team
 from sb3_affect.envs import PARALLEL_ENVS, make_parallel
 
 
@@ -247,6 +246,8 @@ def execute_run(config: dict[str, Any], log_dir: str | None = None, log_formats:
     start = time.perf_counter()
     compiled = None
     if "team" in config and log_dir is None:  # None: an agent or argument the kernel does not know, ``engine="python"``
+        from sb3_affect.engine.team_simulation import simulate_team  # (numba: only where a kernel runs)
+
         members = [(m["algo"], m["kwargs"]) for m in config["team"]]
         compiled = simulate_team(members, config["env_id"], config["env_kwargs"], int(config["seed"]), int(config["episodes"]))
     if compiled is not None:
