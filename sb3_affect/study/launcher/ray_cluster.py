@@ -21,7 +21,6 @@ from __future__ import annotations
 import contextlib
 import os
 import shutil
-import socket
 import tempfile
 import time
 import traceback
@@ -71,9 +70,9 @@ def stage_package(folder: Path) -> Path:
     return target
 
 
-def _probe() -> dict[str, Any]:
-    """A zero-CPU task run once on every node: where it ran and the package versions there."""
-    return {"host": socket.gethostname(), "node": ray.get_runtime_context().get_node_id(), "versions": package_versions()}
+def _probe() -> Versions:
+    """A zero-CPU task run once on every node: the package versions there."""
+    return package_versions()
 
 
 def version_differences(ours: Versions, theirs: Versions) -> list[str]:
@@ -81,7 +80,7 @@ def version_differences(ours: Versions, theirs: Versions) -> list[str]:
     return [f"{name} {theirs.get(name)} (the driver has {ours[name]})" for name in ours if theirs.get(name) != ours[name]]
 
 
-def check_nodes(address: str, timeout: float) -> list[dict[str, Any]]:
+def check_nodes(address: str, timeout: float) -> None:
     """Run :func:`_probe` on every alive node; refuse nodes that can not run sb3-affect or have other versions."""
     ours = package_versions()
     probe = ray.remote(num_cpus=0, max_retries=0)(_probe)
@@ -90,7 +89,7 @@ def check_nodes(address: str, timeout: float) -> list[dict[str, Any]]:
         probe.options(scheduling_strategy=NodeAffinitySchedulingStrategy(n["NodeID"], soft=False)).remote(): n for n in nodes
     }
     ready, missing = ray.wait(list(refs), num_returns=len(refs), timeout=timeout)
-    problems, found = [], []
+    problems = []
     for ref in missing:
         node = refs[ref]
         problems.append(f"node {node['NodeManagerAddress']} ({node['NodeManagerHostname']}) did not answer in {timeout:g} s")
@@ -98,13 +97,12 @@ def check_nodes(address: str, timeout: float) -> list[dict[str, Any]]:
         node = refs[ref]
         where = f"node {node['NodeManagerAddress']} ({node['NodeManagerHostname']})"
         try:
-            info = ray.get(ref)
+            versions = ray.get(ref)
         except Exception as error:
             cause = plain_text(str(error)).strip().splitlines()
             problems.append(f"{where} can not run sb3-affect: {cause[-1] if cause else type(error).__name__}")
             continue
-        found.append(info)
-        differences = version_differences(ours, info["versions"])
+        differences = version_differences(ours, versions)
         if differences:
             problems.append(f"{where} has " + ", ".join(differences))
     if problems:
@@ -113,7 +111,6 @@ def check_nodes(address: str, timeout: float) -> list[dict[str, Any]]:
             f"the Ray cluster at {address} can not run this sweep:\n  " + "\n  ".join(problems) + "\nsb3-affect's code is "
             f"shipped with the job; every node needs the driver's versions of: {needs} (and Ray {ray.__version__})"
         )
-    return found
 
 
 #: How long a failure that is not the run's own waits before the cluster's loss is ruled out (``RaySession.lost``).
