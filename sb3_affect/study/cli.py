@@ -131,7 +131,8 @@ def build_parser() -> argparse.ArgumentParser:
         "report",
         help="build DIR/report.html (and .md, tables, figures) from a results folder",
         description="Build DIR/report.md, DIR/report.html (self-contained), DIR/tables/*.csv and DIR/figures/*.png. "
-        "A `replicate` folder gives the full report; a single sweep folder the sections its runs allow.",
+        "A `replicate` folder gives the full report; a single sweep folder the sections its runs allow; a deep study's "
+        "folder its section.",
     )
     report.add_argument("dir", metavar="DIR", help="a results folder (the --out of `run` or `replicate`)")
     report.add_argument(

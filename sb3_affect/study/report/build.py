@@ -16,6 +16,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import gymnasium as gym
+import pandas as pd
 
 import sb3_affect  # noqa: F401  (registers the envs)
 from sb3_affect.core.settings import TabularSettings
@@ -24,13 +25,13 @@ from sb3_affect.study.launcher.store import ResultsStore
 from sb3_affect.study.report.reading import study_tables as engine_studies
 from sb3_affect.study.report.reading.context import ReportContext
 from sb3_affect.study.report.reading.episode_scan import scan
-from sb3_affect.study.report.reading.run_tables import EARLY_WINDOWS, LATE_WINDOWS, load_results
+from sb3_affect.study.report.reading.run_tables import EARLY_WINDOWS, LATE_WINDOWS, Results, load_results
 from sb3_affect.study.report.rendering.document import MAIN_PAGE, Document, fmt
 from sb3_affect.study.report.rendering.output_files import output_folder, write_text
 from sb3_affect.study.report.sections.ablation import ablation_section
 from sb3_affect.study.report.sections.abstract import abstract_section
 from sb3_affect.study.report.sections.beyond import beyond_section
-from sb3_affect.study.report.sections.deep_minigrid import deep_minigrid_section
+from sb3_affect.study.report.sections.deep_minigrid import deep_minigrid_section, is_deep_folder
 from sb3_affect.study.report.sections.dqn import dqn_section, learning_curves_section
 from sb3_affect.study.report.sections.emotion_models import emotion_models_sections
 from sb3_affect.study.report.sections.evidence import evidence_section
@@ -293,7 +294,8 @@ def build_report(
     """
     Write ``report.md``, ``report.html`` (self-contained), ``tables/*.csv`` and ``figures/*.png``.
 
-    :param run_dir: a results folder of the paper sweep, or a ``replicate`` folder holding paper/, dqn/, ...
+    :param run_dir: a results folder of the paper sweep, or a ``replicate`` folder holding paper/, dqn/, ..., or a deep
+        study's folder (its section alone)
     :param out: where to write (default: ``run_dir``)
     :param dqn_dir: results of experiments/dqn.yaml (default: ``run_dir/dqn`` when present)
     :param ablation_dir: results of experiments/ablation.yaml (default: ``run_dir/ablation`` when present)
@@ -305,6 +307,8 @@ def build_report(
     :return: the path of report.md
     """
     run_dir = Path(run_dir)
+    if is_deep_folder(run_dir):  # a deep study's own folder (`sb3-affect run experiments/minigrid_dqn.yaml`)
+        return _deep_study_report(run_dir, Path(out or run_dir), command)
     paper_dir, folders = _layout(run_dir)
     if dqn_dir is not None:
         folders["dqn"] = Path(dqn_dir)
@@ -340,9 +344,24 @@ def build_report(
     for section in sections if sections is not None else default:
         section(ctx)
     ctx.place_later()
-    for name, text in ctx.doc.markdown_pages(out).items():
-        write_text(out / name, text)
+    return _write_pages(ctx)
+
+
+def _deep_study_report(folder: Path, out: Path, command: str) -> Path:
+    """The report of a deep study's folder on its own: the study's section (no paper runs to read)."""
+    output_folder(out / "tables")
+    output_folder(out / "figures")
+    doc = Document(f"Deep agents on MiniGrid: {folder.name}")
+    ctx = ReportContext(doc, out, folder, Results(folder, pd.DataFrame()), pd.DataFrame(), command=command)
+    deep_minigrid_section(ctx)
+    return _write_pages(ctx)
+
+
+def _write_pages(ctx: ReportContext) -> Path:
+    """Write the document's Markdown and HTML pages into ``ctx.out``; the path of the main page's Markdown."""
+    for name, text in ctx.doc.markdown_pages(ctx.out).items():
+        write_text(ctx.out / name, text)
     for name, text in ctx.doc.html_pages().items():
-        write_text(out / name, text)
-    return out / f"{MAIN_PAGE}.md"
+        write_text(ctx.out / name, text)
+    return ctx.out / f"{MAIN_PAGE}.md"
 

@@ -1,4 +1,4 @@
-"""The deep study's report section (study/report/deep_minigrid.py) on synthetic folders whose answers are known."""
+"""The deep study's report section (study/report/sections/deep_minigrid.py) on synthetic folders whose answers are known."""
 
 from __future__ import annotations
 
@@ -146,3 +146,19 @@ def test_the_section_reads_the_folder_labels_a_smoke_size_and_follows_no_symlink
     moved = target.rename(tmp_path / "elsewhere.json")
     target.symlink_to(moved)
     assert [cell["agent"] for cell in deep.load_deep(small).cells] == ["dqn-linear", "affective"]
+
+
+def test_report_of_a_deep_study_folder_alone_is_its_section(tmp_path: Path) -> None:
+    from sb3_affect.study.cli import main
+
+    levels = {"dqn-linear": 1.0, "affective": 0.0, "matched": 0.5}
+    first = {agent: [EVERY] * 8 for agent in levels}
+    folder = write_folder(tmp_path / "minigrid_dqn", {agent: curves(v) for agent, v in levels.items()}, first)
+    out = tmp_path / "report"
+    assert main(["report", str(folder), "--out", str(out)]) == 0
+    text = (out / "report.md").read_text()
+    alone, _ = section(folder, tmp_path / "section")
+    assert text.startswith("# Deep agents on MiniGrid: minigrid_dqn\n")
+    assert "## Deep agents on MiniGrid, greedy policies: minigrid_dqn/" in text and "| Empty-8x8 | affective | 8 |" in text
+    assert alone.split("\n", 1)[1].strip() in text  # the section as the replicate report holds it, nothing else
+    assert (out / "report.html").is_file() and (out / "tables" / "minigrid_dqn_iqm.csv").is_file()
