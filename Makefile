@@ -1,14 +1,16 @@
 # Two entry points (see README): `make replicate` runs the paper's replication and writes the report,
-# `make test` runs the test suite and builds the docs. Both create .venv and install everything on a fresh machine.
+# `make test` runs the test suite and builds the docs. Both create .venv and install what they need on a fresh machine
+# (`make test` adds the test and docs tools and the Ray extra to what the main job needs).
 PYTHON ?= python3
 VENV ?= .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.sb3-affect-installed
+TOOLS_STAMP := $(VENV)/.sb3-affect-tools-installed
 OUT ?= runs
 DOCS_OUT ?= docs/_build/html
 TEST_WORKERS ?= auto
 
-.PHONY: venv test replicate docs lint bench clean
+.PHONY: venv tools test replicate docs lint bench clean
 
 venv: $(STAMP)
 
@@ -21,16 +23,24 @@ $(STAMP): pyproject.toml
 	@$(PY) -c "import torch" 2>/dev/null && echo "== torch already installed" || { \
 		echo "== installing CPU torch (1-3 min) ..."; \
 		$(PY) -m pip install -q torch==2.13.0 || $(PY) -m pip install -q torch --index-url https://download.pytorch.org/whl/cpu; }
-	@echo "== installing sb3-affect with all its extras and its test and docs tools (1-3 min) ..."
-	@PYTHONWARNINGS="ignore:Editable installation" $(PY) -m pip install -q -e '.[all,test,docs]'
-	@echo "== installing the optional Ray extra (1-2 min) ..."
-	@PYTHONWARNINGS="ignore:Editable installation" $(PY) -m pip install -q -e '.[ray]' || echo "note: the optional Ray extra could not be installed; Ray tests will be skipped"
+	@echo "== installing sb3-affect with all its extras (1-3 min) ..."
+	@PYTHONWARNINGS="ignore:Editable installation" $(PY) -m pip install -q -e '.[all]'
 	@echo "== compiling the compiled engine's kernels once for this machine (1-3 min; later runs load them) ..."
 	@$(PY) -m sb3_affect.kernel
 	@touch $(STAMP)
 	@echo "== installed in $(VENV). To use the sb3-affect command in this shell: source $(VENV)/bin/activate"
 
-test: venv
+# The test and docs tools and the optional Ray extra: what `make test` and `make docs` need beyond the main job's set-up.
+tools: $(TOOLS_STAMP)
+
+$(TOOLS_STAMP): $(STAMP)
+	@echo "== installing the test and docs tools (1-3 min) ..."
+	@PYTHONWARNINGS="ignore:Editable installation" $(PY) -m pip install -q -e '.[all,test,docs]'
+	@echo "== installing the optional Ray extra (1-2 min) ..."
+	@PYTHONWARNINGS="ignore:Editable installation" $(PY) -m pip install -q -e '.[ray]' || echo "note: the optional Ray extra could not be installed; Ray tests will be skipped"
+	@touch $(TOOLS_STAMP)
+
+test: tools
 	$(PY) -m ruff check .
 	$(PY) -m mypy
 	$(VENV)/bin/lint-imports --no-logo
@@ -41,7 +51,7 @@ test: venv
 	$(PY) -m pytest -q -m ray
 
 # The documentation site: warnings are errors (-W), every internal reference is checked (-n: nitpicky).
-docs: venv
+docs: tools
 	$(PY) -m sphinx -b html -W --keep-going -n -q docs $(DOCS_OUT)
 	@echo "docs: open $(DOCS_OUT)/index.html"
 
