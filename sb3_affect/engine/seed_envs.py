@@ -40,8 +40,8 @@ def seed_vec_env(env_id: str, n_envs: int, seed: int, obs: str, compiled: bool =
     ``make_vec_env(env_id, n_envs, seed=seed, wrapper_class=FlatObsWrapper)``, or ``ImageVector`` for ``"image"``;
     ``compiled``: ``minigrid_vec_env`` where it implements ``env_id``.
     """
-    if compiled and env_id in MINIGRID_TASKS:
-        return minigrid_vec_env(env_id, n_envs, seed=seed, obs=obs)
+    if compiled and env_id in MINIGRID_TASKS:  # the compiled env's "view" is the 147 entries ImageVector gives
+        return minigrid_vec_env(env_id, n_envs, seed=seed, obs="view" if obs == "image" else obs)
     from minigrid.wrappers import FlatObsWrapper
 
     wrapper: Any = FlatObsWrapper if obs == "flat" else ImageVector

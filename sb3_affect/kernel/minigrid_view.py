@@ -8,14 +8,14 @@ like ``Grid.encode()``: an empty cell is ``(1, 0, 0)`` (``OBJECT_TO_IDX["empty"]
 ``Grid.encode(vis_mask)`` give: the view's cell ``(i, j)`` (``i`` across, ``j`` from the far row 0 to the agent's row
 6, the agent at ``(3, 6)`` facing up) is the world's cell ``agent + forward * (6 - j) + right * (i - 3)``
 (``get_view_coords`` inverted, which is the slice and the ``agent_dir + 1`` left rotations), a wall outside the world;
+the same for any odd ``agent_view_size`` (``view``; the agent at ``(view // 2, view - 1)``);
 with ``see_through_walls`` False, ``Grid.process_vis`` hides what walls and closed doors occlude (the cells it does not
 reach are ``(0, 0, 0)``, "unseen"); the agent's own cell shows what it carries, else empty. The 147 values are written
-in ``image.flatten()`` order, ``(i * 7 + j) * 3 + c``: the first 147 entries of ``FlatObsWrapper``'s vector.
+in ``image.flatten()`` order, ``(i * 7 + j) * 3 + c``: the first 147 entries of ``FlatObsWrapper``'s vector (``view *
+view * 3`` in ``(i * view + j) * 3 + c`` order for another view size).
 """
 
 from __future__ import annotations
-
-from typing import Any
 
 import numpy as np
 
@@ -32,56 +32,70 @@ OPEN, CLOSED, LOCKED = 0, 1, 2
 #: ``DIR_TO_VEC``: right, down, left, up.
 DIR_X = np.array([1, 0, -1, 0], dtype=np.int64)
 DIR_Y = np.array([0, 1, 0, -1], dtype=np.int64)
-_ONE = np.uint64(1)
+
+
+#: A flag on a view cell's state channel while ``_mark_visible`` runs (states are 0..2): the cell is visible.
+_SEEN = 128
 
 
 @kernel_inline
-def _bit(i: int, j: int) -> Any:
-    return _ONE << np.uint64(i * VIEW + j)
+def _seen(out: np.ndarray, row: int, base: int) -> bool:
+    return out[row, base + 2] >= _SEEN
 
 
 @kernel_inline
 def _opaque(out: np.ndarray, row: int, base: int) -> bool:
     """A cell the agent can not see behind (``not see_behind()``): a wall, a door not open."""
     kind = out[row, base]
-    return kind == WALL or (kind == DOOR and out[row, base + 2] != OPEN)
+    return kind == WALL or (kind == DOOR and out[row, base + 2] % _SEEN != OPEN)
 
 
 @kernel_inline
-def _visible(out: np.ndarray, row: int) -> Any:
-    """``Grid.process_vis`` on the view written at ``out[row, :147]``, the agent at ``(3, 6)``: a 49-bit mask."""
-    mask = _bit(VIEW // 2, VIEW - 1)
-    for j in range(VIEW - 1, -1, -1):
-        for i in range(VIEW - 1):
-            if mask & _bit(i, j) == 0 or _opaque(out, row, (i * VIEW + j) * 3):
+def _mark(out: np.ndarray, row: int, base: int) -> None:
+    if out[row, base + 2] < _SEEN:
+        out[row, base + 2] += _SEEN
+
+
+@kernel_inline
+def _mark_visible(out: np.ndarray, row: int, view: int) -> None:
+    """``Grid.process_vis`` on the view written at ``out[row]``, the agent at ``(view // 2, view - 1)``: flags the
+    visible cells (``_SEEN``)."""
+    _mark(out, row, ((view // 2) * view + view - 1) * 3)
+    for j in range(view - 1, -1, -1):
+        for i in range(view - 1):
+            base = (i * view + j) * 3
+            if not _seen(out, row, base) or _opaque(out, row, base):
                 continue
-            mask |= _bit(i + 1, j)
+            _mark(out, row, ((i + 1) * view + j) * 3)
             if j > 0:
-                mask |= _bit(i + 1, j - 1) | _bit(i, j - 1)
-        for i in range(VIEW - 1, 0, -1):
-            if mask & _bit(i, j) == 0 or _opaque(out, row, (i * VIEW + j) * 3):
+                _mark(out, row, ((i + 1) * view + j - 1) * 3)
+                _mark(out, row, (i * view + j - 1) * 3)
+        for i in range(view - 1, 0, -1):
+            base = (i * view + j) * 3
+            if not _seen(out, row, base) or _opaque(out, row, base):
                 continue
-            mask |= _bit(i - 1, j)
+            _mark(out, row, ((i - 1) * view + j) * 3)
             if j > 0:
-                mask |= _bit(i - 1, j - 1) | _bit(i, j - 1)
-    return mask
+                _mark(out, row, ((i - 1) * view + j - 1) * 3)
+                _mark(out, row, (i * view + j - 1) * 3)
 
 
 @kernel_inline
 def write_view(grid: np.ndarray, row: int, x: int, y: int, direction: int, carry: np.ndarray, see_through: bool,
-               out: np.ndarray) -> None:
+               view: int, out: np.ndarray) -> None:
     """
-    World ``grid[row]``'s agent's encoded view (147 uint8) into ``out[row, :147]``; ``carry[row]`` is the code of the
-    object it carries (type 0: nothing).
+    World ``grid[row]``'s agent's encoded ``view`` x ``view`` view (``view * view * 3`` uint8) into ``out[row]``'s
+    first entries; ``carry[row]`` is the code of the object it carries (type 0: nothing).
     """
     width, height = grid.shape[1], grid.shape[2]
     dx, dy = DIR_X[direction], DIR_Y[direction]
     rx, ry = -dy, dx
-    for i in range(VIEW):
-        for j in range(VIEW):
-            wx = x + dx * (VIEW - 1 - j) + rx * (i - VIEW // 2)
-            wy = y + dy * (VIEW - 1 - j) + ry * (i - VIEW // 2)
-            base = (i * VIEW + j) * 3
+    half = view // 2
+    for i in range(view):
+        for j in range(view):
+            wx = x + dx * (view - 1 - j) + rx * (i - half)
+            wy = y + dy * (view - 1 - j) + ry * (i - half)
+            base = (i * view + j) * 3
             if 0 <= wx < width and 0 <= wy < height:
                 out[row, base] = grid[row, wx, wy, 0]
                 out[row, base + 1] = grid[row, wx, wy, 1]
@@ -91,15 +105,15 @@ def write_view(grid: np.ndarray, row: int, x: int, y: int, direction: int, carry
                 out[row, base + 1] = GREY
                 out[row, base + 2] = 0
     if not see_through:
-        mask = _visible(out, row)
-        for i in range(VIEW):
-            for j in range(VIEW):
-                if mask & _bit(i, j) == 0:
-                    base = (i * VIEW + j) * 3
-                    out[row, base] = 0
-                    out[row, base + 1] = 0
-                    out[row, base + 2] = 0
-    base = ((VIEW // 2) * VIEW + VIEW - 1) * 3
+        _mark_visible(out, row, view)
+        for base in range(0, view * view * 3, 3):
+            if _seen(out, row, base):
+                out[row, base + 2] -= _SEEN
+            else:
+                out[row, base] = 0
+                out[row, base + 1] = 0
+                out[row, base + 2] = 0
+    base = (half * view + view - 1) * 3
     if carry[row, 0] != 0:
         out[row, base] = carry[row, 0]
         out[row, base + 1] = carry[row, 1]

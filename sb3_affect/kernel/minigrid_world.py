@@ -37,6 +37,7 @@ from sb3_affect.kernel.minigrid_view import (
     KEY,
     LOCKED,
     OPEN,
+    VIEW,
     VIEW_SIZE,
     WALL,
     YELLOW,
@@ -196,34 +197,36 @@ def _generate(layout: int, grid: np.ndarray, n: int, rng: np.ndarray, agent: np.
 
 
 @kernel_inline
-def _reset_one(layout: int, see_through: bool, n: int, grid: np.ndarray, agent: np.ndarray, carry: np.ndarray,
-               rng: np.ndarray, obs: np.ndarray) -> None:
+def _reset_one(layout: int, see_through: bool, view: int, n: int, grid: np.ndarray, agent: np.ndarray,
+               carry: np.ndarray, rng: np.ndarray, obs: np.ndarray) -> None:
     _generate(layout, grid, n, rng[n], agent)
     agent[n, STEP_COUNT] = 0
     carry[n, 0] = 0
     carry[n, 1] = 0
     carry[n, 2] = 0
-    write_view(grid, n, agent[n, AGENT_X], agent[n, AGENT_Y], agent[n, AGENT_DIR], carry, see_through, obs)
+    write_view(grid, n, agent[n, AGENT_X], agent[n, AGENT_Y], agent[n, AGENT_DIR], carry, see_through, view, obs)
 
 
 @kernel_jit
-def reset_worlds(layout: int, see_through: bool, which: np.ndarray, grid: np.ndarray, agent: np.ndarray,
+def reset_worlds(layout: int, see_through: bool, view: int, which: np.ndarray, grid: np.ndarray, agent: np.ndarray,
                  carry: np.ndarray, rng: np.ndarray, obs: np.ndarray) -> None:
-    """``reset`` of every world ``n`` with ``which[n]``: a new layout from its generator, its view into ``obs[n, :147]``."""
+    """``reset`` of every world ``n`` with ``which[n]``: a new layout from its generator, its ``view`` x ``view`` view into
+    ``obs[n]``'s first ``view * view * 3`` entries."""
     for n in range(which.shape[0]):
         if which[n]:
-            _reset_one(layout, see_through, n, grid, agent, carry, rng, obs)
+            _reset_one(layout, see_through, view, n, grid, agent, carry, rng, obs)
 
 
 @kernel_jit
-def step_worlds(layout: int, see_through: bool, max_steps: int, actions: np.ndarray, grid: np.ndarray, agent: np.ndarray,
-                carry: np.ndarray, rng: np.ndarray, obs: np.ndarray, rewards: np.ndarray, terminated: np.ndarray,
-                truncated: np.ndarray, dones: np.ndarray, lengths: np.ndarray, terminal_obs: np.ndarray) -> int:
+def step_worlds(layout: int, see_through: bool, max_steps: int, view: int, actions: np.ndarray, grid: np.ndarray,
+                agent: np.ndarray, carry: np.ndarray, rng: np.ndarray, obs: np.ndarray, rewards: np.ndarray,
+                terminated: np.ndarray, truncated: np.ndarray, dones: np.ndarray, lengths: np.ndarray,
+                terminal_obs: np.ndarray) -> int:
     """
     One ``step`` of every world with ``actions[n]``, then, as SB3's VecEnvs do, a ``reset`` of each world whose
     episode ended: ``rewards`` (float32), ``terminated``, ``truncated``, ``dones`` (either) and ``obs[n, :147]`` (the
     first observation of the next episode where one ended, whose last observation is then in ``terminal_obs[n, :147]``
-    and its length in ``lengths[n]``).
+    and its length in ``lengths[n]``; ``view * view * 3`` entries for another ``view`` size).
 
     Returns the number of episodes that ended, or ``-1 - n`` for the first action ``n`` outside ``0..6`` (then no world
     has moved).
@@ -278,11 +281,11 @@ def step_worlds(layout: int, see_through: bool, max_steps: int, actions: np.ndar
         if dones[n]:
             ended += 1
             lengths[n] = agent[n, STEP_COUNT]
-            write_view(grid, n, agent[n, AGENT_X], agent[n, AGENT_Y], agent[n, AGENT_DIR], carry, see_through,
+            write_view(grid, n, agent[n, AGENT_X], agent[n, AGENT_Y], agent[n, AGENT_DIR], carry, see_through, view,
                        terminal_obs)
-            _reset_one(layout, see_through, n, grid, agent, carry, rng, obs)
+            _reset_one(layout, see_through, view, n, grid, agent, carry, rng, obs)
         else:
-            write_view(grid, n, agent[n, AGENT_X], agent[n, AGENT_Y], agent[n, AGENT_DIR], carry, see_through, obs)
+            write_view(grid, n, agent[n, AGENT_X], agent[n, AGENT_Y], agent[n, AGENT_DIR], carry, see_through, view, obs)
     return ended
 
 
@@ -295,7 +298,7 @@ def warm_up() -> None:
         worlds = new_worlds(task, 1)
         worlds.rng[0] = seeded_state(0)
         obs, terminal = np.zeros((1, VIEW_SIZE), dtype=np.uint8), np.zeros((1, VIEW_SIZE), dtype=np.uint8)
-        reset_worlds(task.layout, task.see_through_walls, np.ones(1, dtype=np.bool_), *worlds, obs)
+        reset_worlds(task.layout, task.see_through_walls, VIEW, np.ones(1, dtype=np.bool_), *worlds, obs)
         flags = [np.zeros(1, dtype=np.bool_) for _ in range(3)]
-        step_worlds(task.layout, task.see_through_walls, task.max_steps, np.zeros(1, dtype=np.int64), *worlds, obs,
+        step_worlds(task.layout, task.see_through_walls, task.max_steps, VIEW, np.zeros(1, dtype=np.int64), *worlds, obs,
                     np.zeros(1, dtype=np.float32), *flags, np.zeros(1, dtype=np.int64), terminal)

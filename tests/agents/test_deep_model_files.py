@@ -179,7 +179,7 @@ def test_a_minigrid_model_loads_without_an_env_and_keeps_its_appraisal(tmp_path:
     pytest.importorskip("minigrid")
     from sb3_affect import minigrid_vec_env
 
-    env = minigrid_vec_env("MiniGrid-Empty-5x5-v0", 2, seed=0, obs="image")
+    env = minigrid_vec_env("MiniGrid-Empty-5x5-v0", 2, seed=0, obs="view")
     model = AffectDQN("MlpPolicy", env, position="minigrid", learning_starts=50, seed=0)
     model.learn(300)
     model.save(tmp_path / "m.zip")

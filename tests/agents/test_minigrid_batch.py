@@ -62,3 +62,37 @@ def test_batch_refuses_other_envs_and_bad_actions() -> None:
         env.reset()
     with pytest.raises(ValueError, match="action 7 of env 2 is not a MiniGrid action"):
         batch.step(np.array([0, 1, 7]))
+
+
+def test_batch_checks_its_actions_as_step_arrays_and_casts_once() -> None:
+    """The reproducers: too many or too few actions, a list, 2-D arrays, int32, float64, 2.5, complex and bool."""
+    from sb3_affect.kernel.minigrid_world import step_worlds
+
+    batch = MiniGridBatch([minigrid_vec_env("MiniGrid-Empty-5x5-v0", 2, seed=s) for s in (0, 1)])
+    alone = [minigrid_vec_env("MiniGrid-Empty-5x5-v0", 2, seed=s) for s in (0, 1)]
+    with pytest.raises(RuntimeError, match="reset"):
+        batch.step(np.zeros(4, dtype=np.int64))
+    for env in (*batch.envs, *alone):
+        env.reset()
+    before = [env.get_attr("agent_pos") for env in batch.envs]
+    refused = [(np.zeros(4000, dtype=np.int64), r"actions of shape \(4000,\) for 4 envs"),
+               (np.zeros(1, dtype=np.int64), r"actions of shape \(1,\) for 4 envs"),
+               (np.zeros((2, 2), dtype=np.int64), r"actions of shape \(2, 2\) for 4 envs"),
+               (np.array([0, 1, 2.5, 0]), "action 2.5 of env 2 is not a MiniGrid action"),
+               (np.full(4, 2 + 0j), "actions of dtype complex128"), (np.ones(4, dtype=bool), "actions of dtype bool"),
+               (np.array([0, 1, 2, 9], dtype=np.int32), "action 9 of env 3"), (["a", "b", "c", "d"], "dtype <U1")]
+    for actions, message in refused:
+        with pytest.raises(ValueError, match=message) as error:
+            batch.step(actions)  # type: ignore[arg-type]
+        assert "\n" not in str(error.value)
+    assert [env.get_attr("agent_pos") for env in batch.envs] == before  # nothing moved
+    signatures = len(step_worlds.signatures)
+    for actions in ([2, 2, 0, 1], np.array([1, 2, 2, 0], dtype=np.int32), np.array([2.0, 1.0, 2.0, 2.0]),
+                    np.array([[0], [2], [2], [1]], dtype=np.uint8)):
+        obs, rewards, dones = batch.step(actions)  # type: ignore[arg-type]
+        flat = np.asarray(actions).reshape(4).astype(np.int64)
+        want = [env.step(flat[2 * i: 2 * i + 2]) for i, env in enumerate(alone)]
+        np.testing.assert_array_equal(obs, np.concatenate([w[0] for w in want]))
+        np.testing.assert_array_equal(rewards, np.concatenate([w[1] for w in want]))
+        np.testing.assert_array_equal(dones, np.concatenate([w[2] for w in want]))
+    assert len(step_worlds.signatures) == signatures  # cast once to the kernel's int64: no new signature compiled
