@@ -7,9 +7,14 @@ The MiniGrid figures of ``benchmarks/bench.py --minigrid`` (needs the ``[minigri
 * ``QLearning`` and ``AffectQ`` (Python engine: the compiled engine runs the package's grids only) on
   ``TabularMiniGrid(MiniGrid-Empty-8x8)``: decisions per second of ``learn`` against a bare loop over the same env
   (epsilon-greedy Q-learning in plain Python), in paired rounds;
-* the compiled MiniGrid's step (``sb3_affect.minigrid_vec_env``) beside minigrid's (``benchmarks/bench_minigrid_step.py``).
+* the compiled MiniGrid's step (``sb3_affect.minigrid_vec_env``) beside minigrid's (``benchmarks/bench_minigrid_step.py``);
+* ``--learn``: SB3's own ``DQN.learn`` and ``PPO.learn`` (SB3's default settings but the buffer, ``learning_starts``
+  and ``train_freq`` of the row above; 4 envs, torch on one thread) on Farama's env (``make_vec_env`` with
+  ``FlatObsWrapper``, or ``ImageVector``, its first 147 entries) and on ``minigrid_vec_env`` (``obs="flat"``,
+  ``obs="view"``), env steps per CPU second (``time.process_time``), in alternating rounds (Farama's, then the
+  compiled env's); a ratio is the median of the rounds' ratios. Target: at least 2x.
 
-    python benchmarks/bench_minigrid.py [--smoke] [--repeats N]
+    python benchmarks/bench_minigrid.py [--smoke] [--repeats N] [--learn]
 """
 
 from __future__ import annotations
@@ -118,11 +123,65 @@ def minigrid_rows(repeats: int, smoke: bool = False) -> list[tuple[str, float, s
     ]
 
 
+def learn_rate(algo: str, compiled: bool, obs: str, steps: int) -> Callable[[], float]:
+    """Env steps per CPU second of SB3's ``algo.learn(steps)`` on 4 envs of Farama's or the compiled env."""
+    import torch as th
+    from stable_baselines3 import DQN, PPO
+
+    from sb3_affect import minigrid_vec_env
+    from sb3_affect.engine.seed_envs import seed_vec_env
+
+    th.set_num_threads(1)
+
+    def run() -> float:
+        if compiled:
+            env = minigrid_vec_env(ENV_ID, 4, seed=0, obs=obs)
+        else:
+            env = seed_vec_env(ENV_ID, 4, 0, "flat" if obs == "flat" else "image")
+        if algo == "DQN":
+            model = DQN("MlpPolicy", env, learning_starts=1000, train_freq=4, seed=0, buffer_size=50_000, device="cpu")
+        else:
+            model = PPO("MlpPolicy", env, seed=0, device="cpu", **({"n_steps": 64, "batch_size": 64} if steps < 2000 else {}))
+        start = time.process_time()
+        model.learn(steps)
+        return model.num_timesteps / (time.process_time() - start)
+
+    return run
+
+
+def learn_rows(repeats: int, smoke: bool = False) -> list[tuple[str, float, str]]:
+    """SB3's DQN and PPO ``learn`` on Farama's env and on the compiled one: (measure, value, note)."""
+    import os
+
+    steps = {"DQN": 400, "PPO": 512} if smoke else {"DQN": 10_000, "PPO": 8_192}
+    rows = []
+    for algo in ("DQN", "PPO"):
+        for obs in ("flat", "view"):
+            farama, compiled = learn_rate(algo, False, obs, steps[algo]), learn_rate(algo, True, obs, steps[algo])
+            rounds = []
+            for i in range(repeats):
+                pair = (farama(), compiled())
+                rounds.append(pair)
+                print(f"learn round {i}: {algo} {obs}: Farama {pair[0]:,.0f}, compiled {pair[1]:,.0f} env steps per CPU s "
+                      f"({pair[1] / pair[0]:.2f} x), load {os.getloadavg()[0]:.1f}", flush=True)
+            ratio = statistics.median(c / f for f, c in rounds)
+            what = f"{algo}.learn({steps[algo]:,}), {ENV_ID}, 4 envs, obs={obs}"
+            rows.append((f"{what}, Farama's env (env steps per CPU s)", statistics.median(f for f, _ in rounds), "reference"))
+            rows.append((f"{what}, minigrid_vec_env (env steps per CPU s)", statistics.median(c for _, c in rounds),
+                         f"{ratio:.2f} x Farama's (target >= 2)"))
+    return rows
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--smoke", action="store_true")
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--learn", action="store_true", help="only SB3's learn on Farama's env and the compiled one")
     args = parser.parse_args(argv)
+    if args.learn:
+        for name, value, note in learn_rows(1 if args.smoke else args.repeats, args.smoke):
+            print(f"{name:<100}  {value:>12,.1f}  {note}")
+        return 0
     for name, value, note in minigrid_rows(1 if args.smoke else args.repeats, args.smoke):
         print(f"{name:<90}  {value:>12,.1f}  {note}")
     return 0
