@@ -96,3 +96,22 @@ def test_batch_checks_its_actions_as_step_arrays_and_casts_once() -> None:
         np.testing.assert_array_equal(rewards, np.concatenate([w[1] for w in want]))
         np.testing.assert_array_equal(dones, np.concatenate([w[2] for w in want]))
     assert len(step_worlds.signatures) == signatures  # cast once to the kernel's int64: no new signature compiled
+
+
+def test_an_env_of_a_batch_pickles_into_one_of_its_own() -> None:
+    """A batched env's copy holds its rows as arrays of its own and continues as the env would alone."""
+    import pickle
+
+    batch = MiniGridBatch([minigrid_vec_env("MiniGrid-DoorKey-5x5-v0", n, seed=s, obs="view") for s, n in ((0, 2), (5, 3))])
+    for env in batch.envs:
+        env.reset()
+    rng = np.random.default_rng(1)
+    for _ in range(30):
+        batch.step(rng.integers(7, size=5))
+    copy = pickle.loads(pickle.dumps(batch.envs[1]))
+    assert not np.shares_memory(copy._obs, batch.arrays[4])  # not the batch's memory
+    for _ in range(80):
+        actions = rng.integers(7, size=5)
+        batch.step(actions)
+        np.testing.assert_array_equal(copy.step(actions[2:])[0], batch.envs[1]._obs)
+    assert copy.env_method("get_episode_lengths") == batch.envs[1].env_method("get_episode_lengths")
