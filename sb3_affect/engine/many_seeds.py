@@ -23,7 +23,8 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
-from stable_baselines3 import DQN
+import torch as th
+from stable_baselines3 import DQN, PPO
 from stable_baselines3.common.buffers import ReplayBuffer
 from stable_baselines3.common.callbacks import BaseCallback, CallbackList
 from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
@@ -33,6 +34,7 @@ from stable_baselines3.common.vec_env import VecEnv
 from sb3_affect.agents.minigrid_vec_env import OBSERVATIONS
 from sb3_affect.engine.lockstep import Lockstep
 from sb3_affect.engine.seed_envs import seed_vec_env
+from sb3_affect.engine.stacked_ppo import LockstepPPO
 from sb3_affect.engine.stacked_q import ELEMENTWISE_OPTIMIZERS
 from sb3_affect.engine.stacked_replay import available_memory, replay_bytes
 from sb3_affect.kernel.minigrid_world import MINIGRID_TASKS
@@ -54,15 +56,21 @@ def _count(name: str, value: Any, minimum: int) -> int:
     return int(value)
 
 
-def _algorithm(algo: str | type) -> type[DQN]:
+def _algorithm(algo: str | type) -> type[DQN] | type[PPO]:
     from sb3_affect.core.registry import resolve_class
 
     cls: Any = resolve_class(algo) if isinstance(algo, str) else algo
     name = getattr(cls, "__name__", repr(cls))
+    if isinstance(cls, type) and issubclass(cls, PPO):
+        for method in ("train", "collect_rollouts"):
+            if getattr(cls, method) is not getattr(PPO, method):
+                raise ValueError(f"algo={name} has its own {method}: train_many runs PPO's, which would not be {name}'s")
+        return cls
     if isinstance(cls, type) and issubclass(cls, OnPolicyAlgorithm):
-        raise ValueError(f"algo={name} is on-policy: train_many trains SB3's off-policy DQN family (DQN and its subclasses)")
+        raise ValueError(f"algo={name} is on-policy but not PPO: train_many trains SB3's PPO and the DQN family")
     if not (isinstance(cls, type) and issubclass(cls, DQN)):
-        raise ValueError(f"algo={name} is not a DQN: train_many trains SB3's DQN and its subclasses (AffectDQN, ...)")
+        raise ValueError(f"algo={name} is not a DQN or PPO: train_many trains SB3's PPO, DQN and DQN's subclasses "
+                         "(AffectDQN, ...)")
     for method in ("train", "_on_step"):
         if getattr(cls, method) is not getattr(DQN, method):
             raise ValueError(f"algo={name} has its own {method}: train_many runs DQN's, which would not be {name}'s")
@@ -263,16 +271,37 @@ def train_many(
         raise ValueError(f"device={device!r}: train_many runs on the CPU")
     _check_settings(algo_kwargs)
     own_kwargs = _per_seed(per_seed, len(seed_list), algo_kwargs)
+    if issubclass(cls, PPO):
+        _check_ppo(algo_kwargs, per_seed or {})
     for index, kwargs in enumerate(own_kwargs):
         _check_settings(kwargs, f"per_seed[{index}]: ")
     envs = [_wrapped(env_wrapper, seed_vec_env(env_id, n_envs, seed_list[0], obs, compiled))]
     _check_memory(cls, envs[0], len(seed_list), total_timesteps, algo_kwargs)
     envs += [_wrapped(env_wrapper, seed_vec_env(env_id, n_envs, seed, obs, compiled)) for seed in seed_list[1:]]
-    models = [cls(policy, env, seed=seed, device="cpu", **algo_kwargs, **kwargs)
-              for env, seed, kwargs in zip(envs, seed_list, own_kwargs)]
+    if issubclass(cls, PPO):
+        ppo_models, generators = [], []
+        for env, seed, kwargs in zip(envs, seed_list, own_kwargs):
+            ppo_models.append(cls(policy, env, seed=seed, device="cpu", **algo_kwargs, **kwargs))
+            generators.append(th.random.get_rng_state())  # what the model's learn samples its actions from
+        return LockstepPPO(ppo_models, seed_list, generators).learn(
+            total_timesteps, log_interval=log_interval, every=every, on_models=on_models, user_callbacks=callbacks)
+    models: list[DQN] = [cls(policy, env, seed=seed, device="cpu", **algo_kwargs, **kwargs)
+                         for env, seed, kwargs in zip(envs, seed_list, own_kwargs)]
     _check_model(models[0])
     return Lockstep(models, seed_list).learn(total_timesteps, log_interval=log_interval, every=every, on_models=on_models,
                                              user_callbacks=callbacks)
+
+
+def _check_ppo(kwargs: dict[str, Any], per_seed: Mapping[str, Any]) -> None:
+    """What the lockstep PPO does not stack (one line each)."""
+    if "learning_rate" in per_seed:
+        raise ValueError("per_seed['learning_rate']: train_many's PPO takes one learning rate for all seeds")
+    if kwargs.get("target_kl") is not None:
+        raise ValueError(f"target_kl={kwargs['target_kl']!r}: train_many's PPO runs every epoch (give None)")
+    if kwargs.get("use_sde"):
+        raise ValueError("use_sde=True: train_many's PPO samples discrete actions (give False)")
+    if kwargs.get("normalize_advantage", True) not in (True, False):
+        raise ValueError(f"normalize_advantage={kwargs['normalize_advantage']!r} must be True or False")
 
 
 def _wrapped(env_wrapper: Callable[[VecEnv], VecEnv] | None, env: VecEnv) -> VecEnv:
@@ -306,12 +335,16 @@ def _check_memory(cls: type, env: VecEnv, n_seeds: int, total_timesteps: int, kw
     memory: the stacked buffers hold the rows training reaches (``StackedReplay``), one seed's more while they are
     given back, and each seed's networks a few copies of their weights.
     """
-    buffer_size = kwargs.get("buffer_size", _default(cls, "buffer_size"))
-    train_freq = kwargs.get("train_freq", _default(cls, "train_freq"))
-    frequency = train_freq[0] if isinstance(train_freq, tuple) else train_freq
-    vec_steps = -(-total_timesteps // (env.num_envs * frequency)) * frequency
-    rows = min(vec_steps + 1, max(buffer_size // env.num_envs, 1))
-    per_seed = replay_bytes(env.observation_space, env.action_space, env.num_envs, rows)
+    if issubclass(cls, PPO):  # the stacked rollout and each model's: float32 observations and seven numbers a row
+        rows = kwargs.get("n_steps", _default(cls, "n_steps"))
+        per_seed = 2 * rows * env.num_envs * (4 * int(np.prod(env.observation_space.shape or (1,))) + 4 * 8)
+    else:
+        buffer_size = kwargs.get("buffer_size", _default(cls, "buffer_size"))
+        train_freq = kwargs.get("train_freq", _default(cls, "train_freq"))
+        frequency = train_freq[0] if isinstance(train_freq, tuple) else train_freq
+        vec_steps = -(-total_timesteps // (env.num_envs * frequency)) * frequency
+        rows = min(vec_steps + 1, max(buffer_size // env.num_envs, 1))
+        per_seed = replay_bytes(env.observation_space, env.action_space, env.num_envs, rows)
     net_arch = (kwargs.get("policy_kwargs") or {}).get("net_arch", [64, 64])
     sizes = [int(np.prod(env.observation_space.shape or (1,))), *net_arch, int(getattr(env.action_space, "n", 1))]
     parameters = sum((a + 1) * b for a, b in itertools.pairwise(sizes))

@@ -68,6 +68,16 @@ def _column(values: Sequence[float]) -> float | th.Tensor:
     return float(values[0]) if len(set(values)) == 1 else th.tensor(values, dtype=th.float32).reshape(-1, 1)
 
 
+def network_activations(net: nn.Module) -> tuple[list[nn.Module], list[nn.Linear]]:
+    """The ``Linear`` layers of an SB3 MLP each followed by its parameter-free activation (``mlp_extractor``'s nets)."""
+    modules = list(net)  # type: ignore[call-overload]
+    linears, activations = modules[0::2], modules[1::2]
+    if len(linears) != len(activations) or not all(isinstance(m, nn.Linear) for m in linears) or any(
+            list(a.parameters()) or isinstance(a, nn.Linear) for a in activations):
+        raise ValueError(f"train_many stacks MLPs of Linear layers each followed by an activation: got {net}")
+    return activations, linears
+
+
 class StackedQ:
     """
     The online and target Q-networks and the optimizer of S DQN models, stacked (see the module docstring).
