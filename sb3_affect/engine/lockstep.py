@@ -82,7 +82,7 @@ def random_actions(space: spaces.Space, count: int) -> np.ndarray:
     return np.array([space.sample() for _ in range(count)])
 
 
-def _idle(callback: BaseCallback) -> bool:
+def idle(callback: BaseCallback) -> bool:
     """Whether SB3's callback is its stand-in for none (an empty list, or ``ConvertCallback(None)``)."""
     return (isinstance(callback, CallbackList) and not callback.callbacks) or (
         isinstance(callback, ConvertCallback) and callback.callback is None)
@@ -274,7 +274,7 @@ class Lockstep:
                                         "log_interval": log_interval}, globals())
             callbacks.append(callback)
         self.num_timesteps = first.num_timesteps
-        active = {i: c for i, c in enumerate(callbacks) if not _idle(c)}
+        active = {i: c for i, c in enumerate(callbacks) if not idle(c)}
         self.obs = np.stack([m._last_obs for m in models])  # type: ignore[misc]
         self.stack = StackedQ(models)
         frequency = first.train_freq.frequency  # type: ignore[union-attr]

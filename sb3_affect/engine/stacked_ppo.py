@@ -37,6 +37,7 @@ from stable_baselines3.common.type_aliases import MaybeCallback
 from stable_baselines3.common.utils import explained_variance
 from torch import nn
 
+from sb3_affect.engine.lockstep import idle
 from sb3_affect.engine.seed_envs import SeedEnvs
 from sb3_affect.engine.stacked_q import network_activations
 
@@ -402,7 +403,8 @@ class LockstepPPO:
             total, callback = model._setup_learn(total_timesteps, given, True, "PPO", False)
             callback.on_training_start({"self": model, "total_timesteps": total, "callback": callback,
                                         "log_interval": log_interval}, globals())
-            callbacks[index] = callback
+            if not idle(callback):
+                callbacks[index] = callback
         self.obs = np.stack([m._last_obs for m in models])  # type: ignore[misc]
         self.episode_starts = np.stack([m._last_episode_starts for m in models]).astype(np.float32)  # type: ignore[misc]
         self.stack = StackedActorCritic(models)
@@ -422,7 +424,8 @@ class LockstepPPO:
                         model.dump_logs(iteration)
                 self._train()
             for index in self._live():
-                callbacks[index].on_training_end()
+                if index in callbacks:
+                    callbacks[index].on_training_end()
         finally:
             live = self._live()
             self.stack.write_back(models, live)
