@@ -1,27 +1,30 @@
 """
-``train_many`` (many seeds of DQN in lockstep, stacked Q-networks) beside SB3's own ``learn`` on MiniGrid-Empty-8x8,
-the 7x7x3 view (``obs="image"``), 4 envs per seed (needs the ``[minigrid]`` extra).
+``train_many`` (many seeds of DQN or PPO in lockstep, stacked networks) beside SB3's own ``learn`` on MiniGrid-Empty-8x8,
+the 7x7x3 view (``obs="image"``), 4 envs per seed (needs the ``[minigrid]`` extra), one torch thread.
 
 * speed (default): env steps per CPU second of the process (so that other work on a shared machine counts less) and
-  per wall second, with 1 and with 2 torch threads, of SB3's ``DQN.learn`` on Farama's env with 1 env (as a user runs
-  it) and with 4, SB3's ``AffectDQN.learn`` with 4, and ``train_many`` at S = 1, 8 and 32 seeds (all seeds' env
-  steps, on the compiled MiniGrid, set-up included), each with its ratios to SB3's DQN with 1 env and with 4 (each at
-  the thread count of its faster wall time), all in one run;
-* ``--equivalence``: 20 seeds of SB3's ``DQN.learn`` and of ``train_many`` with the same seeds and settings (both on
-  the compiled MiniGrid, equal to Farama's step for step, and training at every VecEnv step), the greedy
-  policy evaluated on its own env (seed + 1000) every ``--every`` env steps over ``--episodes`` episodes, each run's
-  curve summarised by its mean return (the area under the curve over its length); the two are equivalent within
-  ``--margin`` (in return, on [0, 1]) by a paired TOST (two one-sided t-tests, scipy.stats, alpha 0.05): the 90%
-  confidence interval of the mean difference lies inside ``(-margin, margin)``.
+  per wall second of SB3's ``DQN.learn`` and ``PPO.learn`` on Farama's env with 1 env (as a user runs it) and with 4,
+  the same on the compiled MiniGrid with 4 (the compiled env inside SB3's own loop), and ``train_many`` DQN and PPO at
+  S = 8, 32 and 128 seeds (all seeds' env steps, on the compiled MiniGrid, set-up included), each with its ratios to
+  SB3's same algorithm with 1 env and with 4; then the DQN gradient step of S = 32 (and 128) stacked networks beside
+  its arithmetic bound: its matrix products' FLOPs over the GFLOP/s this core measures on one large product. JAX
+  rows (a vmapped JAX DQN on NAVIX) are printed only where ``jax`` and ``navix`` are installed; they are not here.
+* ``--equivalence [--algo PPO]``: 20 seeds of SB3's ``learn`` and of ``train_many`` with the same seeds and settings
+  (both on the compiled MiniGrid, equal to Farama's step for step), the greedy policy evaluated on its own env
+  (seed + 1000) every ``--every`` env steps over ``--episodes`` episodes, each run's curve summarised by its mean
+  return (the area under the curve over its length); the two are equivalent within ``--margin`` (in return, on
+  [0, 1]) by a paired TOST (two one-sided t-tests, scipy.stats, alpha 0.05): the 90% confidence interval of the mean
+  difference lies inside ``(-margin, margin)``.
 
     python benchmarks/bench_many_seeds.py [--smoke] [--steps N] [--csv PATH]
-    python benchmarks/bench_many_seeds.py --equivalence [--seeds 20] [--steps 20000] [--every 5000] [--margin 0.1]
+    python benchmarks/bench_many_seeds.py --equivalence [--algo DQN|PPO] [--seeds 20] [--steps 20000] [--every 5000]
 """
 
 from __future__ import annotations
 
 import argparse
 import csv
+import itertools
 import os
 import sys
 import time
@@ -41,6 +44,8 @@ EPSILON: dict[str, Any] = dict(exploration_fraction=0.3)
 #: reaches the goal within these budgets, and the equivalence would be an empty one)
 LEARNING: dict[str, Any] = {**SETTINGS, "batch_size": 64, "gamma": 0.9, "exploration_fraction": 0.5}
 AFFECT: dict[str, Any] = dict(position="minigrid", wait_action=6)
+#: PPO's settings here (SB3's defaults otherwise): a rollout of 128 steps per env, 4 epochs of minibatches of 64
+PPO_SETTINGS: dict[str, Any] = dict(n_steps=128, batch_size=64, n_epochs=4, learning_rate=3e-4, ent_coef=0.01)
 
 
 def _threads(n: int = 1) -> None:
@@ -62,38 +67,69 @@ def _timed(run: Callable[[], int]) -> Rate:
     return Rate(steps / (time.process_time() - cpu), steps / (time.perf_counter() - wall))
 
 
-def sb3_rate(agent: str, steps: int, n_envs: int = N_ENVS, threads: int = 1) -> Rate:
-    """Env steps per second of ``agent.learn(steps)`` (SB3's loop, Farama's env; the model built outside)."""
+def _settings(agent: str) -> dict[str, Any]:
+    if agent == "PPO":
+        return PPO_SETTINGS
+    return {**SETTINGS, **(AFFECT if agent == "AffectDQN" else EPSILON)}
+
+
+def sb3_rate(agent: str, steps: int, n_envs: int = N_ENVS, compiled: bool = False) -> Rate:
+    """Env steps per second of ``agent.learn(steps)`` (SB3's loop, Farama's env or the compiled one; built outside)."""
     from sb3_affect.core.registry import resolve_class
     from sb3_affect.engine.seed_envs import seed_vec_env
 
-    _threads(threads)
+    _threads()
     cls = resolve_class(agent)
-    extra = AFFECT if agent == "AffectDQN" else EPSILON
-    model = cls("MlpPolicy", seed_vec_env(ENV_ID, n_envs, 0, "image"), seed=0, device="cpu", **SETTINGS, **extra)
+    model = cls("MlpPolicy", seed_vec_env(ENV_ID, n_envs, 0, "image", compiled), seed=0, device="cpu", **_settings(agent))
     return _timed(lambda: model.learn(steps).num_timesteps)
 
 
-def trainer_rate(agent: str, n_seeds: int, steps: int, threads: int = 1) -> Rate:
+def trainer_rate(agent: str, n_seeds: int, steps: int) -> Rate:
     """Env steps per second, all seeds together, of ``train_many(agent, ..., seeds=range(n_seeds))`` (set-up included)."""
     from sb3_affect import train_many
 
-    _threads(threads)
-    extra = AFFECT if agent == "AffectDQN" else EPSILON
+    _threads()
 
     def run() -> int:
         models = train_many(agent, ENV_ID, list(range(n_seeds)), N_ENVS, total_timesteps=steps, obs="image",
-                            **SETTINGS, **extra)
+                            **_settings(agent))
         return sum(m.num_timesteps for m in models)
 
     return _timed(run)
 
 
-def gradient_floor(n_seeds: int, repeats: int = 200) -> tuple[float, float]:
+def _cpu_ms(run: Callable[[], object], repeats: int) -> float:
+    for _ in range(10):
+        run()
+    start = time.process_time()
+    for _ in range(repeats):
+        run()
+    return (time.process_time() - start) / repeats * 1e3
+
+
+def core_gflops() -> float:
+    """GFLOP/s of one large float32 matrix product on one thread (the best of five): the core's arithmetic rate."""
+    import torch as th
+
+    _threads()
+    a, b = th.randn(1024, 1024), th.randn(1024, 1024)
+    return 2 * 1024**3 / min(_cpu_ms(lambda: a @ b, 5) for _ in range(5)) / 1e6
+
+
+def step_flops(n_seeds: int, batch: int, sizes: list[int]) -> int:
     """
-    CPU milliseconds of one batched gradient step of ``n_seeds`` stacked networks (batch 32, random uint8 views; the
-    forward passes, the loss, backward, clipping and Adam) and of one greedy pass on a VecEnv step's observations
-    (``n_seeds`` x 4): the arithmetic every trainer of these networks pays, whatever its loop.
+    The matrix products' FLOPs of one DQN gradient step of ``n_seeds`` MLPs of ``sizes``: the target network's and the
+    online network's forward passes, the weight gradients and the input gradients of every layer but the first.
+    """
+    macs = [a * b for a, b in itertools.pairwise(sizes)]
+    return 2 * n_seeds * batch * (3 * sum(macs) + sum(macs[1:]))
+
+
+def gradient_step(n_seeds: int, repeats: int = 100) -> tuple[float, float]:
+    """
+    CPU milliseconds of one batched gradient step of ``n_seeds`` stacked networks (batch 32, random uint8 views, a third
+    of the inputs never seen: the forward passes, the loss, backward, clipping and Adam) and of one greedy pass on a
+    VecEnv step's observations (``n_seeds`` x 4): the arithmetic every trainer of these networks pays.
     """
     import torch as th
     from stable_baselines3 import DQN
@@ -107,61 +143,70 @@ def gradient_floor(n_seeds: int, repeats: int = 200) -> tuple[float, float]:
     stack = StackedQ(models)
     rng = np.random.default_rng(0)
     size, n_obs = SETTINGS["batch_size"], models[0].observation_space.shape[0]  # type: ignore[index]
-    views = [rng.integers(0, 11, size=(n_seeds, size, n_obs), dtype=np.uint8) for _ in range(2)]
+    views = rng.integers(0, 11, size=(2, n_seeds, size, n_obs), dtype=np.uint8)
+    views[:, :, :, ::3] = 0
     batch = (th.as_tensor(views[0]), th.as_tensor(rng.integers(7, size=(n_seeds, size, 1))), th.as_tensor(views[1]),
              th.zeros(n_seeds, size, 1), th.as_tensor(rng.random((n_seeds, size, 1), dtype=np.float32)))
     observations = views[0][:, :N_ENVS]
+    return _cpu_ms(lambda: stack.train_step(*batch), repeats), _cpu_ms(lambda: stack.greedy(observations), repeats)
 
-    def cpu_ms(run: Callable[[], object]) -> float:
-        for _ in range(10):
-            run()
-        start = time.process_time()
-        for _ in range(repeats):
-            run()
-        return (time.process_time() - start) / repeats * 1e3
 
-    return cpu_ms(lambda: stack.train_step(*batch)), cpu_ms(lambda: stack.greedy(observations))
+def _jax_available() -> bool:
+    import importlib.util
+
+    return all(importlib.util.find_spec(name) is not None for name in ("jax", "navix"))
 
 
 def speed(steps: int, sizes: list[int], out: Path) -> None:
-    """Every row's rates, and their ratios to SB3's DQN with 1 env (as a user runs it) and with 4 envs, in one run."""
+    """Every row's rates and their ratios to SB3's same algorithm with 1 env and with 4 envs, in one run."""
     trainer_rate("DQN", 2, 400)  # loads the compiled kernels and torch's first calls: no row pays for them
-    rows: list[tuple[str, int, Rate]] = []  # (run, torch threads, rates)
+    trainer_rate("PPO", 2, 1024)
+    rows: list[tuple[str, str, Rate]] = []  # (algorithm, run, rates)
 
-    def row(name: str, threads: int, rate: Rate) -> None:
-        rows.append((name, threads, rate))
-        print(f"  ({name}, {threads} torch threads: {rate.cpu:,.0f} per CPU s, {rate.wall:,.0f} per wall s)", flush=True)
+    def row(agent: str, name: str, rate: Rate) -> None:
+        rows.append((agent, name, rate))
+        print(f"  ({agent} {name}: {rate.cpu:,.0f} per CPU s, {rate.wall:,.0f} per wall s)", flush=True)
 
-    for threads in (1, 2):
-        row("SB3 DQN.learn, n_envs=1", threads, sb3_rate("DQN", steps, 1, threads))
-        row(f"SB3 DQN.learn, n_envs={N_ENVS}", threads, sb3_rate("DQN", steps, threads=threads))
-    row(f"SB3 AffectDQN.learn, n_envs={N_ENVS}", 1, sb3_rate("AffectDQN", steps))
-    for agent in ("DQN", "AffectDQN"):
+    for agent in ("DQN", "PPO"):
+        row(agent, "SB3 learn, Farama, n_envs=1", sb3_rate(agent, steps, 1))
+        row(agent, f"SB3 learn, Farama, n_envs={N_ENVS}", sb3_rate(agent, steps))
+        row(agent, f"SB3 learn, compiled, n_envs={N_ENVS}", sb3_rate(agent, steps, compiled=True))
         for n_seeds in sizes:
-            row(f"train_many {agent}, S={n_seeds}", 1, trainer_rate(agent, n_seeds, steps))
-        row(f"train_many {agent}, S={sizes[-1]}", 2, trainer_rate(agent, sizes[-1], steps, threads=2))
-    one = max((rate for name, _, rate in rows if name == "SB3 DQN.learn, n_envs=1"), key=lambda r: r.wall)
-    four = max((rate for name, _, rate in rows if name == f"SB3 DQN.learn, n_envs={N_ENVS}"), key=lambda r: r.wall)
-    print(f"{ENV_ID}, obs=image, {N_ENVS} envs per seed, {steps:,} env steps per seed, {os.cpu_count()} cores, "
-          f"load average {os.getloadavg()[0]:.1f}; ratios to SB3's DQN at its best thread count (the faster wall time)")
-    header = ["run", "torch_threads", "env_steps_per_cpu_s", "env_steps_per_wall_s", "cpu_x_sb3_dqn_1_env",
-              "cpu_x_sb3_dqn_4_envs", "wall_x_sb3_dqn_1_env", "wall_x_sb3_dqn_4_envs"]
-    table = [[name, threads, f"{rate.cpu:.0f}", f"{rate.wall:.0f}", f"{rate.cpu / one.cpu:.1f}", f"{rate.cpu / four.cpu:.1f}",
-              f"{rate.wall / one.wall:.1f}", f"{rate.wall / four.wall:.1f}"] for name, threads, rate in rows]
+            row(agent, f"train_many, S={n_seeds}", trainer_rate(agent, n_seeds, steps))
+    print(f"{ENV_ID}, obs=image, {N_ENVS} envs per seed, {steps:,} env steps per seed, 1 torch thread, "
+          f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f} (a shared machine: CPU seconds are the measure)")
+    header = ["algo", "run", "env_steps_per_cpu_s", "env_steps_per_wall_s", "cpu_x_sb3_1_env", "cpu_x_sb3_4_envs"]
+    table = []
+    for agent, name, rate in rows:
+        one = next(r for a, n, r in rows if a == agent and n == "SB3 learn, Farama, n_envs=1")
+        four = next(r for a, n, r in rows if a == agent and n == f"SB3 learn, Farama, n_envs={N_ENVS}")
+        table.append([agent, name, f"{rate.cpu:.0f}", f"{rate.wall:.0f}", f"{rate.cpu / one.cpu:.1f}",
+                      f"{rate.cpu / four.cpu:.1f}"])
     print("  " + " | ".join(header))
-    for row in table:
-        print("  " + " | ".join(map(str, row)))
+    for line in table:
+        print("  " + " | ".join(map(str, line)))
     with out.open("w", newline="") as handle:
         writer = csv.writer(handle)
         writer.writerow(header)
         writer.writerows(table)
-    step_ms, greedy_ms = gradient_floor(sizes[-1])
-    per_step = N_ENVS * SETTINGS["train_freq"]  # env steps per seed between two gradient steps
-    cap = sizes[-1] * per_step / ((step_ms + SETTINGS["train_freq"] * greedy_ms) / 1e3)
-    print(f"the arithmetic alone, S={sizes[-1]}, 1 torch thread: a batched gradient step {step_ms:.2f} ms of CPU, a "
-          f"greedy pass {greedy_ms:.2f} ms; one gradient step and {SETTINGS['train_freq']} greedy passes per "
-          f"{per_step} env steps of each seed cap any trainer at {cap:,.0f} env steps per CPU second "
-          f"({cap / one.cpu:.0f}x SB3's DQN with 1 env, {cap / four.cpu:.0f}x with {N_ENVS})")
+    for agent in ("DQN", "PPO"):
+        farama = next(r for a, n, r in rows if a == agent and n == f"SB3 learn, Farama, n_envs={N_ENVS}")
+        compiled = next(r for a, n, r in rows if a == agent and n == f"SB3 learn, compiled, n_envs={N_ENVS}")
+        print(f"SB3 {agent}.learn with {N_ENVS} envs, compiled MiniGrid / Farama's: {compiled.cpu / farama.cpu:.2f}x (CPU)")
+    gflops = core_gflops()
+    for n_seeds in sorted({min(32, sizes[-1]), sizes[-1]}):
+        step_ms, greedy_ms = gradient_step(n_seeds)
+        flops = step_flops(n_seeds, SETTINGS["batch_size"], [147, 64, 64, 7])
+        bound_ms = flops / gflops / 1e6
+        per_step = N_ENVS * SETTINGS["train_freq"]  # env steps per seed between two gradient steps
+        cap = n_seeds * per_step / ((step_ms + SETTINGS["train_freq"] * greedy_ms) / 1e3)
+        print(f"the DQN gradient step, S={n_seeds}, batch {SETTINGS['batch_size']}: {step_ms:.2f} ms of CPU; its "
+              f"matrix products {flops / 1e6:.0f} MFLOP, {bound_ms:.2f} ms at this core's {gflops:.0f} GFLOP/s "
+              f"({step_ms / bound_ms:.1f}x the bound); a greedy pass {greedy_ms:.2f} ms; one step and "
+              f"{SETTINGS['train_freq']} greedy passes per {per_step} env steps of each seed cap any trainer at "
+              f"{cap:,.0f} env steps per CPU second")
+    if not _jax_available():
+        print("JAX DQN: jax and navix are not installed, no row (pip install jax navix to add it)")
 
 
 def _evaluate(model: Any, seed: int, episodes: int) -> float:
@@ -173,11 +218,15 @@ def _evaluate(model: Any, seed: int, episodes: int) -> float:
     return float(mean)
 
 
-def sb3_curve(seed: int, steps: int, every: int, episodes: int) -> list[float]:
-    """The greedy curve of SB3's ``DQN.learn`` with this seed (evaluated where ``train_many`` evaluates)."""
-    from stable_baselines3 import DQN
+def _learning(algo: str) -> dict[str, Any]:
+    return {**PPO_SETTINGS, "gamma": 0.9} if algo == "PPO" else LEARNING
+
+
+def sb3_curve(seed: int, steps: int, every: int, episodes: int, algo: str = "DQN") -> list[float]:
+    """The greedy curve of SB3's ``learn`` with this seed (evaluated where ``train_many`` evaluates)."""
     from stable_baselines3.common.callbacks import BaseCallback
 
+    from sb3_affect.core.registry import resolve_class
     from sb3_affect.engine.seed_envs import seed_vec_env
 
     _threads()
@@ -189,12 +238,13 @@ def sb3_curve(seed: int, steps: int, every: int, episodes: int) -> list[float]:
                 curve.append(_evaluate(self.model, seed, episodes))
             return True
 
-    model = DQN("MlpPolicy", seed_vec_env(ENV_ID, N_ENVS, seed, "image", compiled=True), seed=seed, device="cpu", **LEARNING)
+    model = resolve_class(algo)("MlpPolicy", seed_vec_env(ENV_ID, N_ENVS, seed, "image", compiled=True), seed=seed,
+                                device="cpu", **_learning(algo))
     model.learn(steps, callback=Evaluate())
     return curve
 
 
-def equivalence(n_seeds: int, steps: int, every: int, episodes: int, margin: float) -> None:
+def equivalence(n_seeds: int, steps: int, every: int, episodes: int, margin: float, algo: str = "DQN") -> None:
     from concurrent.futures import ProcessPoolExecutor
 
     from scipy import stats
@@ -204,14 +254,15 @@ def equivalence(n_seeds: int, steps: int, every: int, episodes: int, margin: flo
     seeds = list(range(n_seeds))
     start = time.perf_counter()
     with ProcessPoolExecutor(2) as pool:
-        theirs = np.array(list(pool.map(sb3_curve, seeds, [steps] * n_seeds, [every] * n_seeds, [episodes] * n_seeds)))
+        theirs = np.array(list(pool.map(sb3_curve, seeds, [steps] * n_seeds, [every] * n_seeds, [episodes] * n_seeds,
+                                        [algo] * n_seeds)))
     sb3_time = time.perf_counter() - start
     _threads()
     curves: list[list[float]] = []
     start = time.perf_counter()
-    train_many("DQN", ENV_ID, seeds, N_ENVS, total_timesteps=steps, obs="image", every=every,
+    train_many(algo, ENV_ID, seeds, N_ENVS, total_timesteps=steps, obs="image", every=every,
                on_models=lambda models: curves.append([_evaluate(m, s, episodes) for m, s in zip(models, seeds)]),
-               **LEARNING)
+               **_learning(algo))
     trainer_time = time.perf_counter() - start
     ours = np.array(curves).T
     differences = ours.mean(axis=1) - theirs.mean(axis=1)
@@ -224,7 +275,7 @@ def equivalence(n_seeds: int, steps: int, every: int, episodes: int, margin: flo
         p_lower = p_upper = 0.0 if abs(mean) < margin else 1.0
         half = 0.0
     p_value = max(p_lower, p_upper)
-    print(f"{ENV_ID}, obs=image, {n_seeds} seeds x {N_ENVS} envs, {steps:,} env steps, greedy return every {every:,} "
+    print(f"{algo}, {ENV_ID}, obs=image, {n_seeds} seeds x {N_ENVS} envs, {steps:,} env steps, greedy return every {every:,} "
           f"steps over {episodes} episodes; SB3 {sb3_time:.0f} s (2 processes), train_many {trainer_time:.0f} s (1)")
     print("  SB3's curve (mean over seeds):       ", np.round(theirs.mean(axis=0), 3).tolist())
     print("  train_many's curve (mean over seeds):", np.round(ours.mean(axis=0), 3).tolist())
@@ -244,16 +295,17 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--every", type=int, default=10_000)
     parser.add_argument("--episodes", type=int, default=10)
     parser.add_argument("--margin", type=float, default=0.1)
+    parser.add_argument("--algo", default="DQN", choices=["DQN", "PPO"], help="the equivalence's algorithm")
     parser.add_argument("--env", default=ENV_ID, help=f"the MiniGrid task (default {ENV_ID})")
     args = parser.parse_args(argv)
     ENV_ID = args.env
     if args.equivalence:
         steps = args.steps or (2000 if args.smoke else 100_000)
         equivalence(3 if args.smoke else args.seeds, steps, 1000 if args.smoke else args.every,
-                    2 if args.smoke else args.episodes, args.margin)
+                    2 if args.smoke else args.episodes, args.margin, args.algo)
     else:
         steps = args.steps or (1200 if args.smoke else 8000)
-        speed(steps, [1, 2] if args.smoke else [1, 8, 32], args.csv)
+        speed(steps, [1, 2] if args.smoke else [8, 32, 128], args.csv)
     return 0
 
 

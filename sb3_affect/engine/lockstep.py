@@ -82,7 +82,7 @@ def random_actions(space: spaces.Space, count: int) -> np.ndarray:
     return np.array([space.sample() for _ in range(count)])
 
 
-def _idle(callback: BaseCallback) -> bool:
+def idle(callback: BaseCallback) -> bool:
     """Whether SB3's callback is its stand-in for none (an empty list, or ``ConvertCallback(None)``)."""
     return (isinstance(callback, CallbackList) and not callback.callbacks) or (
         isinstance(callback, ConvertCallback) and callback.callback is None)
@@ -104,6 +104,11 @@ class Lockstep:
     """
     SB3's ``learn`` of S DQN models in lockstep (see the module docstring).
 
+    The counts every seed shares while it trains (``num_timesteps``, ``_n_calls``, ``_n_updates``, the progress, the
+    exploration rates) are kept here and written into the models once per step only when something per seed reads them
+    (a callback, a class's own ``_sample_action``), else before each ``dump_logs``, each ``on_models`` and at the end; the
+    logged keys are recorded when they are dumped, with the values SB3 would have recorded last.
+
     :param models: the models, one per seed, of one class and one set of arguments, each with its VecEnv of E envs
     :param seeds: their seeds (each model's NumPy stream is ``RandomState(seed)``, as ``set_random_seed`` seeds SB3's)
     """
@@ -118,6 +123,46 @@ class Lockstep:
         self.ends_repeats = _ends_repeats(self.models[0])
         self.own_storage = _own(self.models[0], "_store_transition") and not self.ends_repeats
         self._greedy: np.ndarray | None = None
+        self.frozen = np.zeros(self.n_seeds, dtype=bool)
+        # the seeds of each exploration schedule (one group unless the seeds were given their own)
+        groups: dict[tuple[float, float, float], list[int]] = {}
+        for index, model in enumerate(self.models):
+            key = (model.exploration_initial_eps, model.exploration_final_eps, model.exploration_fraction)
+            groups.setdefault(key, []).append(index)
+        self.schedules = [(self.models[group[0]].exploration_schedule, np.array(group)) for group in groups.values()]
+        self.exploration = np.array([m.exploration_rate for m in self.models], dtype=float)
+        points = (1.0, 0.5, 0.0)
+        self.one_rate = len({tuple(m.lr_schedule(p) for p in points) for m in self.models}) == 1
+        first = self.models[0]
+        self.num_timesteps, self.n_calls, self.n_updates = first.num_timesteps, first._n_calls, first._n_updates
+        self.losses: list[float] = [0.0] * self.n_seeds
+        self.learning_rates: list[float] = [0.0] * self.n_seeds
+        self.clock = 0  # steps taken; a seed's logged keys since its last dump are those of the steps after it
+        self.dumped_at = [-1] * self.n_seeds
+        self.trained_at = -1.0
+
+    # -- the counts and logs of the models -----------------------------------------------------------------------------
+    def _sync(self, indices: Sequence[int]) -> None:
+        """Write the shared counts into the models ``indices`` (not frozen)."""
+        progress = self.models[0]._current_progress_remaining
+        for index in indices:
+            model = self.models[index]
+            model.num_timesteps, model._n_calls, model._n_updates = self.num_timesteps, self.n_calls, self.n_updates
+            model._current_progress_remaining = progress
+            model.exploration_rate = float(self.exploration[index])
+
+    def _record(self, index: int) -> None:
+        """Record seed ``index``'s keys of the steps since its last dump, with their last values (as SB3 records them)."""
+        logger = self.models[index].logger
+        if self.clock > self.dumped_at[index]:
+            logger.record("rollout/exploration_rate", float(self.exploration[index]))
+        if self.trained_at > self.dumped_at[index]:
+            logger.record("train/learning_rate", self.learning_rates[index])
+            logger.record("train/n_updates", self.n_updates, exclude="tensorboard")
+            logger.record("train/loss", self.losses[index])
+
+    def _live(self) -> list[int]:
+        return np.flatnonzero(~self.frozen).tolist()
 
     # -- the parts of SB3's loop ---------------------------------------------------------------------------------------
     def greedy(self) -> np.ndarray:
@@ -133,11 +178,11 @@ class Lockstep:
         if self.own_actions:
             pairs = [m._sample_action(learning_starts, None, n_envs) for m in models]
             return np.stack([np.asarray(p[0]).reshape(n_envs) for p in pairs]), np.stack([p[1] for p in pairs])
-        if models[0].num_timesteps < learning_starts:
+        if self.num_timesteps < learning_starts:
             actions = np.stack([random_actions(m.action_space, n_envs) for m in models])
             return actions, actions
-        explore = [rng.rand() < m.exploration_rate for rng, m in zip(self.rngs, models)]
-        actions = self.greedy().copy() if not all(explore) else np.zeros((self.n_seeds, n_envs), dtype=np.int64)
+        explore = np.array([rng.rand() for rng in self.rngs]) < self.exploration
+        actions = self.greedy().copy() if not explore.all() else np.zeros((self.n_seeds, n_envs), dtype=np.int64)
         for index in np.flatnonzero(explore):
             actions[index] = random_actions(models[index].action_space, n_envs)
         return actions, actions
@@ -146,10 +191,11 @@ class Lockstep:
                infos: list[list[dict[str, Any]]]) -> None:
         """Each seed's ``_store_transition`` into its replay buffer (SB3's ``ReplayBuffer.add``, for all seeds at once)."""
         if self.own_storage:
-            for index, model in enumerate(self.models):
+            for index in self._live():
+                model = self.models[index]
                 model._store_transition(model.replay_buffer, buffer_actions[index], new_obs[index],  # type: ignore[arg-type]
                                         rewards[index], dones[index], infos[index])
-            self.replay.follow()
+            self.replay.follow(self._live()[0])
             return
         next_obs = new_obs.copy()
         for s, e in zip(*np.nonzero(dones)):
@@ -159,41 +205,56 @@ class Lockstep:
         timeouts = [[info.get("TimeLimit.truncated", False) for info in seed_infos] for seed_infos in infos]
         self.replay.add(self.obs, next_obs, buffer_actions, rewards, dones, np.array(timeouts))
         if self.ends_repeats:
-            for model, seed_dones in zip(self.models, dones):
-                model._end_repeats(seed_dones)  # type: ignore[attr-defined]
+            for index in self._live():
+                self.models[index]._end_repeats(dones[index])  # type: ignore[attr-defined]
 
     def _train(self, gradient_steps: int, batch_size: int) -> None:
-        """``DQN.train`` of every seed: ``gradient_steps`` batched steps, then SB3's bookkeeping and logs."""
+        """``DQN.train`` of every seed: ``gradient_steps`` batched steps, then SB3's bookkeeping (logged when dumped)."""
         models = self.models
-        learning_rate = models[0].lr_schedule(models[0]._current_progress_remaining)
-        self.stack.set_learning_rate(learning_rate)
+        progress = models[0]._current_progress_remaining
+        if self.one_rate:
+            rate = models[0].lr_schedule(progress)
+            self.stack.set_learning_rate(rate)
+            self.learning_rates = [rate] * self.n_seeds
+        else:
+            self.learning_rates = [m.lr_schedule(progress) for m in models]
+            self.stack.set_learning_rate(self.learning_rates)
         losses = th.stack([self.stack.train_step(*self.replay.sample(self.rngs, batch_size)) for _ in range(gradient_steps)])
-        mean_losses = losses.double().mean(dim=0).tolist()
-        for model, loss in zip(models, mean_losses):
-            model.logger.record("train/learning_rate", learning_rate)
-            model._n_updates += gradient_steps
-            model.logger.record("train/n_updates", model._n_updates, exclude="tensorboard")
-            model.logger.record("train/loss", loss)
+        self.losses = losses.double().mean(dim=0).tolist()
+        self.n_updates += gradient_steps
+        self.trained_at = self.clock + 0.5
 
     def _after_step(self, dones: np.ndarray, log_interval: int) -> None:
         """``_update_current_progress_remaining``, ``DQN._on_step`` and the episode count of every seed."""
         first = self.models[0]
-        first._update_current_progress_remaining(first.num_timesteps, first._total_timesteps)
+        first._update_current_progress_remaining(self.num_timesteps, first._total_timesteps)
         progress = first._current_progress_remaining
-        exploration_rate = first.exploration_schedule(progress)
-        first._n_calls += 1
-        if first._n_calls % max(first.target_update_interval // self.n_envs, 1) == 0:
+        for schedule, group in self.schedules:
+            self.exploration[group] = schedule(progress)
+        self.n_calls += 1
+        self.clock += 1
+        if self.n_calls % max(first.target_update_interval // self.n_envs, 1) == 0:
             self.stack.update_target()
-        for model in self.models:
-            model._current_progress_remaining = progress
-            model._n_calls = first._n_calls
-            model.exploration_rate = exploration_rate
-            model.logger.record("rollout/exploration_rate", exploration_rate)
-        for s, _ in zip(*np.nonzero(dones)):
+        for s in np.flatnonzero(dones.any(axis=1) & ~self.frozen).tolist():
             model = self.models[s]
-            model._episode_num += 1
-            if model._episode_num % log_interval == 0:
-                model.dump_logs()
+            for _ in range(int(dones[s].sum())):
+                model._episode_num += 1
+                if model._episode_num % log_interval == 0:
+                    self._sync([s])
+                    self._record(s)
+                    self.dumped_at[s] = self.clock
+                    model.dump_logs()
+
+    def _freeze(self, index: int, callback: BaseCallback) -> None:
+        """Seed ``index``'s callback stopped its training: keep its model as ``learn`` leaves it, the others run on."""
+        model = self.models[index]
+        self.frozen[index] = True
+        self.stack.write_back(self.models, [index])
+        self.replay.release_one(index)
+        model.__dict__.pop("predict", None)
+        model._last_obs = self.obs[index]
+        self._record(index)
+        callback.on_training_end()
 
     # -- the loop --------------------------------------------------------------------------------------------------
     def learn(self, total_timesteps: int, log_interval: int = 4, every: int = 0,
@@ -202,7 +263,8 @@ class Lockstep:
         """
         ``model.learn(total_timesteps, callback=user_callbacks[i], log_interval=log_interval)`` of every model, in
         lockstep; ``on_models(models)`` each time ``num_timesteps`` passes a multiple of ``every``, after the callbacks'
-        ``on_step``, with the weights so far written into the models.
+        ``on_step``, with the weights so far written into the models. A seed whose callback's ``on_step`` returns False
+        stops there, as its ``learn`` would (its model, buffer and counts kept); the others run on.
         """
         models, first = self.models, self.models[0]
         callbacks: list[BaseCallback] = []
@@ -211,7 +273,8 @@ class Lockstep:
             callback.on_training_start({"self": model, "total_timesteps": total, "callback": callback,
                                         "log_interval": log_interval}, globals())
             callbacks.append(callback)
-        active = [(i, c) for i, c in enumerate(callbacks) if not _idle(c)]
+        self.num_timesteps = first.num_timesteps
+        active = {i: c for i, c in enumerate(callbacks) if not idle(c)}
         self.obs = np.stack([m._last_obs for m in models])  # type: ignore[misc]
         self.stack = StackedQ(models)
         frequency = first.train_freq.frequency  # type: ignore[union-attr]
@@ -220,30 +283,34 @@ class Lockstep:
         if self.own_actions:
             for index, model in enumerate(models):
                 model.predict = _StackedPredict(self, index)  # type: ignore[method-assign]
-        train_freq, n_envs = first.train_freq, self.n_envs
+        n_envs = self.n_envs
+        every_step = self.own_actions or self.own_storage or bool(active)
         try:
-            while first.num_timesteps < total:
-                for _, callback in active:
+            while self.num_timesteps < total and not self.frozen.all():
+                for callback in active.values():
                     callback.on_rollout_start()
                 collected = 0
-                while collected < train_freq.frequency:  # type: ignore[union-attr]
+                while collected < frequency and not self.frozen.all():
                     actions, buffer_actions = self._sample_actions(first.learning_starts)
                     new_obs, rewards, dones, infos = self.envs.step(actions)
-                    for model in models:
-                        model.num_timesteps += n_envs
+                    self.num_timesteps += n_envs
                     collected += 1
-                    for index, callback in active:
-                        model = models[int(index)]
+                    if every_step:
+                        self._sync(self._live())
+                    for index, callback in list(active.items()):
+                        model = models[index]
                         callback.update_locals({"self": model, "actions": actions[index], "new_obs": new_obs[index],
                                                 "rewards": rewards[index], "dones": dones[index],
                                                 "infos": infos[index], "env": model.env})
                         if not callback.on_step():
-                            raise RuntimeError(f"a callback of seed {index} stopped training: train_many runs every "
-                                               "seed for total_timesteps")
-                    if on_models is not None and first.num_timesteps // every > (first.num_timesteps - n_envs) // every:
-                        self.stack.write_back(models)
+                            del active[index]
+                            self._freeze(index, callback)
+                    if on_models is not None and self.num_timesteps // every > (self.num_timesteps - n_envs) // every:
+                        live = self._live()
+                        self._sync(live)
+                        self.stack.write_back(models, live)
                         on_models(models)
-                    for ended in np.flatnonzero(dones.any(axis=1)).tolist():
+                    for ended in np.flatnonzero(dones.any(axis=1) & ~self.frozen).tolist():
                         models[ended]._update_info_buffer(infos[ended], dones[ended])
                     self._store(buffer_actions, new_obs, rewards, dones, infos)
                     self.obs = new_obs
@@ -251,20 +318,26 @@ class Lockstep:
                         for model, obs in zip(models, new_obs):
                             model._last_obs = obs
                     self._after_step(dones, log_interval)
-                for _, callback in active:
+                    if every_step:
+                        self._sync(self._live())
+                for callback in active.values():
                     callback.on_rollout_end()
-                if first.num_timesteps > 0 and first.num_timesteps > first.learning_starts:
+                if self.num_timesteps > 0 and self.num_timesteps > first.learning_starts and not self.frozen.all():
                     gradient_steps = first.gradient_steps if first.gradient_steps >= 0 else collected * n_envs
                     if gradient_steps > 0:
                         self._train(gradient_steps, first.batch_size)
-            for _, callback in active:
+            for callback in active.values():
                 callback.on_training_end()
         finally:
+            live = self._live()
             for model in models:
                 model.__dict__.pop("predict", None)
-            self.stack.write_back(models)
+            self._sync(live)
+            for index in live:
+                self._record(index)
+            self.stack.write_back(models, live)
             self.replay.release()
             if not self.own_storage:
-                for model, obs in zip(models, self.obs):
-                    model._last_obs = obs
+                for index in live:
+                    models[index]._last_obs = self.obs[index]
         return models

@@ -9,13 +9,22 @@ product per layer (``torch.baddbmm``) for all S seeds. The gradient step is SB3'
 * the Huber loss (``smooth_l1_loss``, the mean over the batch) of each seed; the sum over seeds is differentiated, so
   each seed's parameters get the gradient of its own loss;
 * each seed's gradient clipped to ``max_grad_norm`` over all its parameters, as ``clip_grad_norm_`` does over
-  ``policy.parameters()`` (the norm of the per-parameter norms, ``max_norm / (norm + 1e-6)`` clamped at 1);
+  ``policy.parameters()`` (``max_norm / (norm + 1e-6)`` clamped at 1, the norm of all its gradient's entries);
 * the policy's optimizer (Adam by default) over the stacked tensors: its update is element-wise and its state is per
-  element, so each seed's slice gets exactly its own optimizer's update (run ``foreach``, which computes what the
-  per-tensor loop computes, bit for bit, unless the policy's ``optimizer_kwargs`` choose ``foreach`` or ``fused``).
+  element, so each seed's slice gets its own optimizer's update.
 
-The results differ from SB3's only by floating-point summation order (a batched product sums in another order than
-one network's ``addmm``).
+The step is fused: every seed's parameters live in one ``(S, P)`` tensor (each layer's weight and bias a view of
+it), the backward pass of an MLP of ReLU or Tanh layers is written out (one batched product per layer and
+operand, no autograd graph), and the norm, the clipping and Adam are each one operation on the whole ``(S, P)``
+gradient. Adam's square root is taken of ``v + 1e-30`` (``v`` the second moment): torch's CPU ``sqrt`` is about ten
+times slower on exact zeros, which a MiniGrid network's second moments are full of (the never-seen inputs); the
+change is below float32's resolution of ``sqrt(v) / sqrt(1 - beta2^t) + eps``. Other activations run torch's
+autograd through the same views; optimizers other than plain Adam (``AdamW``, ``RMSprop``, ``SGD``, Adam with
+``amsgrad``) run torch's own on the ``(S, P)`` tensor.
+
+Per-seed settings (each model's own): ``gamma``, ``tau``, ``max_grad_norm`` and the learning rate (with Adam) are
+``(S, 1)`` columns where the seeds differ. The results differ from SB3's only by floating-point summation order (a
+batched product sums in another order than one network's ``addmm``).
 """
 
 from __future__ import annotations
@@ -48,6 +57,27 @@ def network_layers(q_net: nn.Module) -> tuple[list[nn.Linear], list[nn.Module]]:
     return linears, activations
 
 
+#: the activations whose derivative the fused step writes out, from the layer's output ``y``
+_DERIVATIVES = {nn.ReLU: lambda y: y > 0, nn.Tanh: lambda y: 1 - y * y}
+#: added to Adam's second moment before its square root (see the module docstring)
+SQRT_FLOOR = 1e-30
+
+
+def _column(values: Sequence[float]) -> float | th.Tensor:
+    """One number if every seed has it, else an ``(S, 1)`` column."""
+    return float(values[0]) if len(set(values)) == 1 else th.tensor(values, dtype=th.float32).reshape(-1, 1)
+
+
+def network_activations(net: nn.Module) -> tuple[list[nn.Module], list[nn.Linear]]:
+    """The ``Linear`` layers of an SB3 MLP each followed by its parameter-free activation (``mlp_extractor``'s nets)."""
+    modules = list(net)  # type: ignore[call-overload]
+    linears, activations = modules[0::2], modules[1::2]
+    if len(linears) != len(activations) or not all(isinstance(m, nn.Linear) for m in linears) or any(
+            list(a.parameters()) or isinstance(a, nn.Linear) for a in activations):
+        raise ValueError(f"train_many stacks MLPs of Linear layers each followed by an activation: got {net}")
+    return activations, linears
+
+
 class StackedQ:
     """
     The online and target Q-networks and the optimizer of S DQN models, stacked (see the module docstring).
@@ -59,31 +89,47 @@ class StackedQ:
         first = models[0]
         linears, self.activations = network_layers(first.q_net)
         self.n_seeds = len(models)
-        per_model = [network_layers(m.q_net)[0] for m in models]
-        per_target = [network_layers(m.q_net_target)[0] for m in models]
-        self.weights = [th.stack([layers[i].weight.detach() for layers in per_model]).clone() for i in range(len(linears))]
-        self.biases = [th.stack([layers[i].bias.detach() for layers in per_model]).unsqueeze(1).clone()
-                       for i in range(len(linears))]
-        self.target_weights = [th.stack([layers[i].weight.detach() for layers in per_target]).clone()
-                               for i in range(len(linears))]
-        self.target_biases = [th.stack([layers[i].bias.detach() for layers in per_target]).unsqueeze(1).clone()
-                              for i in range(len(linears))]
-        for tensor in self.parameters():
-            tensor.requires_grad_(True)
+        self.shapes = [shape for layer in linears for shape in (tuple(layer.weight.shape), (1, layer.bias.shape[0]))]
+        sizes = [int(np.prod(shape)) for shape in self.shapes]
+        self.offsets = np.concatenate([[0], np.cumsum(sizes)]).tolist()
+        self.flat = self._stack([list(m.q_net.parameters()) for m in models])
+        self.target_flat = self._stack([list(m.q_net_target.parameters()) for m in models])
+        self.grad = th.zeros_like(self.flat)
+        self.weights, self.biases = self._views(self.flat)
+        self.target_weights, self.target_biases = self._views(self.target_flat)
+        self.grad_weights, self.grad_biases = self._views(self.grad)
+        self.derivatives = [_DERIVATIVES.get(type(a)) for a in self.activations]
+        self.fused = all(d is not None for d in self.derivatives)
+        self.gamma = _column([m.gamma for m in models])
+        self.max_grad_norm = _column([m.max_grad_norm for m in models])
+        self.tau = _column([m.tau for m in models])
         policy = first.policy
         kwargs = dict(policy.optimizer_kwargs)
-        if not {"foreach", "fused"} & kwargs.keys():
-            kwargs["foreach"] = True  # the same arithmetic as SB3's per-tensor loop, bit for bit, in fewer calls
-        self.optimizer: th.optim.Optimizer = policy.optimizer_class(  # type: ignore[call-arg]
-            self.parameters(), lr=first.lr_schedule(1), **kwargs)
-        self.gamma, self.max_grad_norm, self.tau = float(first.gamma), float(first.max_grad_norm), float(first.tau)
+        self.adam = policy.optimizer_class is th.optim.Adam and not any(
+            kwargs.get(key) for key in ("amsgrad", "maximize", "capturable", "differentiable", "fused"))
+        self.optimizer: th.optim.Optimizer | None = None
+        if self.adam:
+            self.betas = tuple(kwargs.get("betas", (0.9, 0.999)))
+            self.eps, self.weight_decay = float(kwargs.get("eps", 1e-8)), float(kwargs.get("weight_decay", 0.0))
+            self.exp_avg, self.exp_avg_sq = th.zeros_like(self.flat), th.zeros_like(self.flat)
+            self.steps = 0
+        else:
+            self.optimizer = policy.optimizer_class([self.flat], lr=first.lr_schedule(1), **kwargs)  # type: ignore[call-arg]
+        self.learning_rate: float | th.Tensor = first.lr_schedule(1)
+
+    def _stack(self, per_model: list[list[th.Tensor]]) -> th.Tensor:
+        with th.no_grad():
+            return th.cat([th.stack([p[i].detach().reshape(-1) for p in per_model]) for i in range(len(self.shapes))],
+                          dim=1).contiguous()
+
+    def _views(self, flat: th.Tensor) -> tuple[list[th.Tensor], list[th.Tensor]]:
+        """Each layer's weight ``(S, out, in)`` and bias ``(S, 1, out)``, views of ``flat``."""
+        views = [flat[:, a:b].view(self.n_seeds, *shape) for a, b, shape in zip(self.offsets, self.offsets[1:], self.shapes)]
+        return views[0::2], views[1::2]
 
     def parameters(self) -> list[th.Tensor]:
         """The online network's tensors in ``q_net.parameters()`` order (weight, bias per layer)."""
         return [t for pair in zip(self.weights, self.biases) for t in pair]
-
-    def _targets(self) -> list[th.Tensor]:
-        return [t for pair in zip(self.target_weights, self.target_biases) for t in pair]
 
     @staticmethod
     def features(observations: np.ndarray | th.Tensor) -> th.Tensor:
@@ -91,9 +137,13 @@ class StackedQ:
         tensor = th.as_tensor(observations)
         return tensor.float().reshape(tensor.shape[0], tensor.shape[1], -1)
 
-    def _forward(self, x: th.Tensor, weights: list[th.Tensor], biases: list[th.Tensor]) -> th.Tensor:
+    def _forward(self, x: th.Tensor, weights: list[th.Tensor], biases: list[th.Tensor],
+                 layers: list[th.Tensor] | None = None) -> th.Tensor:
+        """The Q-values of ``x``; ``layers`` collects each layer's input (for the backward pass)."""
         last = len(weights) - 1
         for i, (weight, bias) in enumerate(zip(weights, biases)):
+            if layers is not None:
+                layers.append(x)
             x = th.baddbmm(bias, x, weight.transpose(1, 2))
             if i < last:
                 x = self.activations[i](x)
@@ -110,9 +160,14 @@ class StackedQ:
         """Each seed's greedy actions ``(S, B)`` (the first of tied maxima, as ``argmax``)."""
         return self.q_values(observations).argmax(dim=2).numpy()
 
-    def set_learning_rate(self, learning_rate: float) -> None:
-        for group in self.optimizer.param_groups:
-            group["lr"] = learning_rate
+    def set_learning_rate(self, learning_rate: float | Sequence[float]) -> None:
+        """The learning rate of every seed, or one per seed."""
+        rate = _column(list(learning_rate)) if isinstance(learning_rate, Sequence) else float(learning_rate)
+        if self.optimizer is not None:
+            if not isinstance(rate, float):
+                raise ValueError(f"learning rates per seed need Adam, not {type(self.optimizer).__name__}")
+            self.optimizer.param_groups[0]["lr"] = rate
+        self.learning_rate = rate
 
     def train_step(self, observations: th.Tensor, actions: th.Tensor, next_observations: th.Tensor, dones: th.Tensor,
                    rewards: th.Tensor) -> th.Tensor:
@@ -120,49 +175,105 @@ class StackedQ:
         One gradient step of every seed on its batch (``(S, B, ...)`` tensors as SB3's ``ReplayBufferSamples``, one
         per seed); returns each seed's loss ``(S,)``.
         """
+        gamma = self.gamma if isinstance(self.gamma, float) else self.gamma.unsqueeze(2)
         with th.no_grad():
             next_q_values = self._forward(self.features(next_observations), self.target_weights, self.target_biases)
             next_q_values = next_q_values.max(dim=2)[0].unsqueeze(2)
-            target_q_values = rewards + (1 - dones) * self.gamma * next_q_values
-        current_q_values = self._forward(self.features(observations), self.weights, self.biases)
-        current_q_values = th.gather(current_q_values, dim=2, index=actions.long())
-        losses = F.smooth_l1_loss(current_q_values, target_q_values, reduction="none").mean(dim=(1, 2))
-        self.optimizer.zero_grad()
-        losses.sum().backward()
+            target_q_values = rewards + (1 - dones) * gamma * next_q_values
+        if self.fused:
+            losses = self._fused_gradient(self.features(observations), actions.long(), target_q_values)
+        else:
+            losses = self._autograd_gradient(self.features(observations), actions.long(), target_q_values)
         self._clip_gradients()
-        self.optimizer.step()
+        self._optimizer_step()
+        return losses
+
+    def _fused_gradient(self, x: th.Tensor, actions: th.Tensor, target_q_values: th.Tensor) -> th.Tensor:
+        """The gradient of each seed's Huber loss into ``self.grad``, by the written-out backward pass; the losses."""
+        layers: list[th.Tensor] = []
+        q_values = self._forward(x, self.weights, self.biases, layers)
+        difference = th.gather(q_values, dim=2, index=actions) - target_q_values
+        size = difference.abs()
+        batch = difference.shape[1]
+        losses = th.where(size < 1.0, 0.5 * difference * difference, size - 0.5).mean(dim=(1, 2))
+        upstream = th.zeros_like(q_values).scatter_(2, actions, difference.clamp(-1.0, 1.0) / batch)
+        for i in range(len(self.weights) - 1, -1, -1):
+            th.bmm(upstream.transpose(1, 2), layers[i], out=self.grad_weights[i]) if self.grad_weights[i].is_contiguous() \
+                else self.grad_weights[i].copy_(th.bmm(upstream.transpose(1, 2), layers[i]))
+            self.grad_biases[i].copy_(upstream.sum(dim=1, keepdim=True))
+            if i > 0:
+                upstream = th.bmm(upstream, self.weights[i]).mul_(self.derivatives[i - 1](layers[i]))  # type: ignore[misc]
+        return losses
+
+    def _autograd_gradient(self, x: th.Tensor, actions: th.Tensor, target_q_values: th.Tensor) -> th.Tensor:
+        """The gradient of each seed's Huber loss into ``self.grad``, by torch's autograd; the losses."""
+        flat = self.flat.detach().requires_grad_(True)
+        weights, biases = self._views(flat)
+        current_q_values = th.gather(self._forward(x, weights, biases), dim=2, index=actions)
+        losses = F.smooth_l1_loss(current_q_values, target_q_values, reduction="none").mean(dim=(1, 2))
+        (gradient,) = th.autograd.grad(losses.sum(), flat)
+        self.grad.copy_(gradient)
         return losses.detach()
 
     def _clip_gradients(self) -> None:
-        """``clip_grad_norm_`` per seed: the 2-norm of the per-parameter 2-norms, each seed's own."""
-        grads = [p.grad for p in self.parameters() if p.grad is not None]  # each (S, rows, columns)
-        norms = th.stack([th.linalg.vector_norm(g, 2, dim=(1, 2)) for g in grads])
-        total = th.linalg.vector_norm(norms, 2, dim=0)
-        coefficient = th.clamp(self.max_grad_norm / (total + 1e-6), max=1.0).reshape(-1, 1, 1)
-        for g in grads:
-            g.mul_(coefficient)
+        """``clip_grad_norm_`` per seed: each seed's gradient scaled to at most ``max_grad_norm``."""
+        total = th.linalg.vector_norm(self.grad, 2, dim=1, keepdim=True)
+        self.grad.mul_(th.clamp(self.max_grad_norm / (total + 1e-6), max=1.0))
+
+    def _optimizer_step(self) -> None:
+        """The policy's optimizer on the ``(S, P)`` parameters: Adam written out (see the module docstring), or torch's."""
+        with th.no_grad():
+            if self.optimizer is not None:
+                self.flat.grad = self.grad
+                self.optimizer.step()
+                return
+            beta1, beta2 = self.betas
+            self.steps += 1
+            grad = self.grad if not self.weight_decay else self.grad.add(self.flat, alpha=self.weight_decay)
+            self.exp_avg.lerp_(grad, 1 - beta1)
+            self.exp_avg_sq.mul_(beta2).addcmul_(grad, grad, value=1 - beta2)
+            bias_correction1 = 1 - beta1 ** self.steps
+            bias_correction2_sqrt = (1 - beta2 ** self.steps) ** 0.5
+            denominator = th.add(self.exp_avg_sq, SQRT_FLOOR).sqrt_().div_(bias_correction2_sqrt).add_(self.eps)
+            if isinstance(self.learning_rate, float):
+                self.flat.addcdiv_(self.exp_avg, denominator, value=-self.learning_rate / bias_correction1)
+            else:
+                self.flat.addcdiv_(self.exp_avg * (self.learning_rate / bias_correction1), denominator, value=-1.0)
 
     def update_target(self) -> None:
         """SB3's ``polyak_update`` of the target networks with ``tau``."""
         with th.no_grad():
-            targets = self._targets()
-            th._foreach_mul_(targets, 1 - self.tau)
-            th._foreach_add_(targets, self.parameters(), alpha=self.tau)
+            self.target_flat.mul_(1 - self.tau)
+            if isinstance(self.tau, float):
+                self.target_flat.add_(self.flat, alpha=self.tau)
+            else:
+                self.target_flat.addcmul_(self.flat, self.tau)
 
-    def write_back(self, models: Sequence[DQN]) -> None:
-        """Copy each seed's online and target weights and its optimizer state into its model."""
+    def _optimizer_state(self, index: int) -> list[dict[str, th.Tensor]]:
+        """Seed ``index``'s optimizer state per parameter, in torch's layout."""
+        if self.optimizer is None:
+            if not self.steps:
+                return []
+            state = {"step": th.tensor(float(self.steps)), "exp_avg": self.exp_avg, "exp_avg_sq": self.exp_avg_sq}
+        else:
+            state = self.optimizer.state.get(self.flat, {})
+            if not state:
+                return []
+        return [{key: value.clone() if value.dim() == 0 else value[index, a:b].clone()
+                 for key, value in state.items()} for a, b in zip(self.offsets, self.offsets[1:])]
+
+    def write_back(self, models: Sequence[DQN], indices: Sequence[int] | None = None) -> None:
+        """Copy each seed's online and target weights and its optimizer state into its model (``indices``: those only)."""
         with th.no_grad():
-            for s, model in enumerate(models):
-                for tensors, layers in ((self.parameters(), list(model.q_net.parameters())),
-                                        (self._targets(), list(model.q_net_target.parameters()))):
-                    for stacked, param in zip(tensors, layers):
-                        param.copy_(stacked[s].reshape(param.shape))
+            for s in range(len(models)) if indices is None else indices:
+                model = models[s]
+                for flat, layers in ((self.flat, list(model.q_net.parameters())),
+                                     (self.target_flat, list(model.q_net_target.parameters()))):
+                    for a, b, param in zip(self.offsets, self.offsets[1:], layers):
+                        param.copy_(flat[s, a:b].reshape(param.shape))
                 optimizer = model.policy.optimizer
-                optimizer.param_groups[0]["lr"] = self.optimizer.param_groups[0]["lr"]
-                for stacked, param in zip(self.parameters(), model.q_net.parameters()):
-                    state = self.optimizer.state.get(stacked)
-                    if state:
-                        optimizer.state[param] = {key: value.clone() if key == "step" or value.dim() == 0
-                                                  else value[s].reshape(param.shape).clone()
-                                                  for key, value in state.items()}
-
+                rate = self.learning_rate
+                optimizer.param_groups[0]["lr"] = rate if isinstance(rate, float) else float(rate[s, 0])
+                for state, param in zip(self._optimizer_state(s), model.q_net.parameters()):
+                    optimizer.state[param] = {key: value if value.dim() == 0 else value.reshape(param.shape)
+                                              for key, value in state.items()}

@@ -6,20 +6,76 @@ batches of all seeds are gathered by one read per array.
 ``rows`` is the buffer's own ``buffer_size // n_envs`` when training fills it, else the rows training can reach
 (the VecEnv steps of ``total_timesteps`` plus one rollout): a buffer that never wraps samples from ``[0, pos)`` whatever
 its size, so SB3's sampling is unchanged, and a short run of many seeds does not reserve a million rows per seed.
-``release`` gives each model back a buffer of its full size holding its transitions.
+``release`` gives each model back a buffer of its full size holding its transitions, freeing each seed's slice of the
+stacked arrays (their pages, which are the process's own anonymous memory) as it copies it, so that the process never
+holds much more than the stacked arrays while it gives them back.
 """
 
 from __future__ import annotations
 
+import mmap
+import os
 from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
 import torch as th
+from gymnasium import spaces
 from stable_baselines3 import DQN
+from stable_baselines3.common.preprocessing import get_action_dim
 
 #: the arrays of SB3's ``ReplayBuffer`` (``optimize_memory_usage=False``), in ``ReplayBufferSamples``' order of use
 ARRAYS = ("observations", "actions", "next_observations", "dones", "rewards", "timeouts")
+
+
+#: SB3's ``ReplayBuffer`` arrays of one float32 per row and env: rewards, dones, timeouts
+_FLOAT_ARRAYS = 3
+
+
+def replay_bytes(observation_space: spaces.Space, action_space: spaces.Space, n_envs: int, rows: int) -> int:
+    """The bytes of ``rows`` rows of SB3's ``ReplayBuffer`` (``optimize_memory_usage=False``) on ``n_envs`` envs."""
+    observation = int(np.prod(observation_space.shape or (1,))) * np.dtype(observation_space.dtype).itemsize
+    action_dtype = np.dtype(np.float32 if action_space.dtype == np.float64 else action_space.dtype)
+    action = get_action_dim(action_space) * action_dtype.itemsize
+    return rows * n_envs * (2 * observation + action + 4 * _FLOAT_ARRAYS)
+
+
+def available_memory() -> int | None:
+    """The bytes of memory the kernel says are available to new allocations (``MemAvailable``), None if unknown."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as handle:
+            for line in handle:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+class _Pages:
+    """An anonymous memory map holding arrays, whose pages can be given back to the system a range at a time."""
+
+    def __init__(self, nbytes: int) -> None:
+        self.map = mmap.mmap(-1, max(nbytes, 1))
+        self.used = 0
+
+    def array(self, shape: tuple[int, ...], dtype: np.dtype) -> np.ndarray:
+        """A zeroed array in the map, aligned to a page."""
+        nbytes = int(np.prod(shape)) * dtype.itemsize
+        array = np.frombuffer(self.map, dtype=dtype, count=int(np.prod(shape)), offset=self.used).reshape(shape)
+        self.used += -(-nbytes // mmap.PAGESIZE) * mmap.PAGESIZE
+        return array
+
+    def free(self, array: np.ndarray) -> None:
+        """Give back the whole pages of a contiguous array of the map (they read as zeros after)."""
+        start = array.__array_interface__["data"][0] - np.frombuffer(self.map, dtype=np.uint8).__array_interface__["data"][0]
+        first = -(-start // mmap.PAGESIZE) * mmap.PAGESIZE
+        last = (start + array.nbytes) // mmap.PAGESIZE * mmap.PAGESIZE
+        if last > first and hasattr(self.map, "madvise"):
+            self.map.madvise(mmap.MADV_DONTNEED, first, last - first)
 
 
 class StackedReplay:
@@ -37,8 +93,12 @@ class StackedReplay:
         self.size = first.buffer_size
         self.rows = min(rows, self.size)
         self.n_envs = first.n_envs
-        self.arrays = {name: np.zeros((len(self.models), self.rows, *getattr(first, name).shape[1:]),
-                                      dtype=getattr(first, name).dtype) for name in ARRAYS}
+        shapes = {name: ((len(self.models), self.rows, *getattr(first, name).shape[1:]), getattr(first, name).dtype)
+                  for name in ARRAYS}
+        pages = sum(-(-int(np.prod(shape)) * dtype.itemsize // mmap.PAGESIZE) for shape, dtype in shapes.values())
+        self.pages = _Pages(pages * mmap.PAGESIZE)
+        self.arrays = {name: self.pages.array(shape, dtype) for name, (shape, dtype) in shapes.items()}
+        self.released: set[int] = set()
         self.own: list[dict[str, np.ndarray]] = []  # each buffer's own arrays, given back by ``release``
         for index, model in enumerate(self.models):
             buffer: Any = model.replay_buffer
@@ -64,10 +124,10 @@ class StackedReplay:
         if self.pos == self.rows:
             self.full, self.pos = True, 0
 
-    def follow(self) -> None:
-        """Take ``pos`` and ``full`` from the models' buffers (when each model stored its own transitions)."""
-        first: Any = self.models[0].replay_buffer
-        self.pos, self.full = first.pos, first.full
+    def follow(self, index: int = 0) -> None:
+        """Take ``pos`` and ``full`` from model ``index``'s buffer (when each model stored its own transitions)."""
+        buffer: Any = self.models[index].replay_buffer
+        self.pos, self.full = buffer.pos, buffer.full
 
     def sample(self, rngs: Sequence[np.random.RandomState], batch_size: int) -> tuple[th.Tensor, ...]:
         """
@@ -92,12 +152,27 @@ class StackedReplay:
         parts = (gather("observations"), gather("actions"), gather("next_observations"), dones, gather("rewards")[..., None])
         return tuple(th.as_tensor(part) for part in parts)
 
+    def release_one(self, index: int) -> None:
+        """
+        Give seed ``index`` its buffer's own arrays back now, holding its transitions so far, and free its slice of the
+        stacked arrays (a seed that stops early; the others store on).
+        """
+        model: Any = self.models[index]
+        buffer, own = model.replay_buffer, self.own[index]
+        for name, array in self.arrays.items():
+            own[name][: self.rows] = array[index]
+            setattr(buffer, name, own[name])
+            self.pages.free(array[index])
+        buffer.buffer_size = self.size
+        buffer.pos, buffer.full = self.pos, self.full
+        self.released.add(index)
+
     def release(self) -> None:
-        """Give each model its buffer's own arrays back (``buffer_size // n_envs`` rows), holding its transitions."""
-        for index, (model, own) in enumerate(zip(self.models, self.own)):
-            buffer: Any = model.replay_buffer
-            for name, array in self.arrays.items():
-                own[name][: self.rows] = array[index]
-                setattr(buffer, name, own[name])
-            buffer.buffer_size = self.size
-            buffer.pos, buffer.full = self.pos, self.full
+        """
+        Give each model its buffer's own arrays back (``buffer_size // n_envs`` rows), holding its transitions, freeing
+        each seed's slice as it copies it; then the stacked arrays are gone.
+        """
+        for index in range(len(self.models)):
+            if index not in self.released:
+                self.release_one(index)
+        self.arrays = {}

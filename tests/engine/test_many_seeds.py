@@ -13,7 +13,7 @@ import numpy as np
 import pandas as pd
 import pytest
 import torch as th
-from stable_baselines3 import DQN, PPO
+from stable_baselines3 import A2C, DQN
 from stable_baselines3.common.evaluation import evaluate_policy
 from stable_baselines3.common.logger import configure
 from stable_baselines3.common.type_aliases import ReplayBufferSamples
@@ -178,7 +178,7 @@ def test_returned_models_are_sb3_models(tmp_path) -> None:
 
 @pytest.mark.parametrize(("algo", "kwargs", "message"), [
     ("NoSuchAgent", {}, "not a known algorithm"),
-    (PPO, {}, "algo=PPO is on-policy"),
+    (A2C, {}, "algo=A2C is on-policy but not PPO"),
     ("QLearning", {}, "algo=QLearning is not a DQN"),
     ("DQN", {"seed": 3}, "seed= is train_many's own argument"),
     ("DQN", {"policy": "CnnPolicy"}, "policy='CnnPolicy'"),

@@ -1,0 +1,436 @@
+"""
+SB3's PPO for S seeds in lockstep: the actor and critic networks of S ``ActorCriticPolicy`` models (``MlpPolicy``,
+discrete actions) stacked along a seed axis, their rollouts collected together and their updates taken together.
+
+Per seed everything is SB3's (``OnPolicyAlgorithm.collect_rollouts``, ``RolloutBuffer``, ``PPO.train``), in SB3's
+order:
+
+* **random streams**: SB3 samples the actions from torch's global generator (``Categorical.sample``, one
+  ``multinomial`` per VecEnv step) and shuffles the minibatches with NumPy's (``RolloutBuffer.get``); here each seed
+  has a torch ``Generator`` holding the state its model's construction left (``set_random_seed`` and the weight
+  initialisation) and a ``RandomState(seed)``, taking exactly those draws;
+* **the rollout**: ``n_steps`` VecEnv steps, the value of a truncated episode's terminal observation added to its
+  reward (``gamma * V``), then GAE (``gamma``, ``gae_lambda``) from the last values and dones;
+* **the update**: ``n_epochs`` passes over minibatches of ``batch_size`` (each seed's own permutation), the advantages
+  normalised per minibatch, the clipped surrogate, the value loss (clipped with ``clip_range_vf``), the entropy term,
+  ``clip_grad_norm_`` to ``max_grad_norm`` over each seed's parameters and the policy's Adam (each seed's slice of the
+  stacked tensors gets its own optimizer's update: Adam is element-wise);
+* **bookkeeping**: ``num_timesteps``, ``_n_updates``, ``ep_info_buffer``, the ``train/*`` keys and ``dump_logs``
+  every ``log_interval`` iterations.
+
+The forward and backward passes of all seeds are one batched matrix product per layer (``torch.baddbmm``); the results
+differ from SB3's by floating-point summation order only.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import numpy as np
+import torch as th
+import torch.nn.functional as F
+from gymnasium import spaces
+from stable_baselines3 import PPO
+from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.type_aliases import MaybeCallback
+from stable_baselines3.common.utils import explained_variance
+from torch import nn
+
+from sb3_affect.engine.lockstep import idle
+from sb3_affect.engine.seed_envs import SeedEnvs
+from sb3_affect.engine.stacked_q import network_activations
+
+
+def _stack(modules: Sequence[nn.Linear]) -> tuple[th.Tensor, th.Tensor]:
+    """One layer of S models: weight ``(S, out, in)`` and bias ``(S, 1, out)``, leaves that take gradients."""
+    weight = th.stack([m.weight.detach() for m in modules]).clone().requires_grad_(True)
+    bias = th.stack([m.bias.detach() for m in modules]).unsqueeze(1).clone().requires_grad_(True)
+    return weight, bias
+
+
+def _column(values: Sequence[float]) -> th.Tensor:
+    return th.tensor([float(v) for v in values], dtype=th.float32)
+
+
+class StackedActorCritic:
+    """
+    The actor and critic of S SB3 ``ActorCriticPolicy`` models stacked, and PPO's update of all of them at once.
+
+    :param models: S SB3 PPO models of one architecture (``write_back`` copies the weights and Adam's state back)
+    """
+
+    def __init__(self, models: Sequence[PPO]) -> None:
+        policies = [m.policy for m in models]
+        first = policies[0]
+        self.n_seeds = len(models)
+        self.pi_activations, pi_linears = network_activations(first.mlp_extractor.policy_net)
+        self.vf_activations, vf_linears = network_activations(first.mlp_extractor.value_net)
+        self.pi = [_stack([network_activations(p.mlp_extractor.policy_net)[1][i] for p in policies])
+                   for i in range(len(pi_linears))]
+        self.vf = [_stack([network_activations(p.mlp_extractor.value_net)[1][i] for p in policies])
+                   for i in range(len(vf_linears))]
+        self.action = _stack([p.action_net for p in policies])  # type: ignore[misc]
+        self.value = _stack([p.value_net for p in policies])
+        kwargs = dict(first.optimizer_kwargs)
+        if not {"foreach", "fused"} & kwargs.keys():
+            kwargs["foreach"] = True
+        self.optimizer: th.optim.Optimizer = first.optimizer_class(  # type: ignore[call-arg]
+            self.parameters(), lr=models[0].lr_schedule(1), **kwargs)
+
+    def parameters(self) -> list[th.Tensor]:
+        """The tensors in ``policy.parameters()`` order (policy net, value net, action head, value head)."""
+        return [t for layer in (*self.pi, *self.vf, self.action, self.value) for t in layer]
+
+    @staticmethod
+    def _mlp(x: th.Tensor, layers: list[tuple[th.Tensor, th.Tensor]], activations: list[nn.Module]) -> th.Tensor:
+        for (weight, bias), activation in zip(layers, activations):
+            x = activation(th.baddbmm(bias, x, weight.transpose(1, 2)))
+        return x
+
+    def forward(self, observations: np.ndarray | th.Tensor) -> tuple[th.Tensor, th.Tensor]:
+        """Each seed's action logits ``(S, B, n)`` and values ``(S, B)`` of observations ``(S, B, ...)``."""
+        tensor = th.as_tensor(observations)
+        x = tensor.float().reshape(tensor.shape[0], tensor.shape[1], -1)
+        latent_pi = self._mlp(x, self.pi, self.pi_activations)
+        latent_vf = self._mlp(x, self.vf, self.vf_activations)
+        logits = th.baddbmm(self.action[1], latent_pi, self.action[0].transpose(1, 2))
+        values = th.baddbmm(self.value[1], latent_vf, self.value[0].transpose(1, 2))
+        return logits - logits.logsumexp(dim=-1, keepdim=True), values.squeeze(2)
+
+    def values(self, observations: np.ndarray | th.Tensor) -> th.Tensor:
+        with th.no_grad():
+            return self.forward(observations)[1]
+
+    def update(self, buffer: StackedRollout, rngs: Sequence[np.random.RandomState], settings: dict[str, th.Tensor],
+               n_epochs: int, batch_size: int, normalize_advantage: bool) -> dict[str, Any]:
+        """
+        ``PPO.train`` of every seed on its rollout: ``n_epochs`` passes over minibatches from each seed's permutation;
+        returns each seed's logged values (``(S,)`` arrays) as ``PPO.train`` logs them.
+        """
+        clip, clip_vf = settings["clip_range"], settings.get("clip_range_vf")
+        ent_coef, vf_coef, max_grad_norm = settings["ent_coef"], settings["vf_coef"], settings["max_grad_norm"]
+        total = buffer.rows * buffer.n_envs
+        sums: dict[str, list[th.Tensor]] = {"entropy_loss": [], "policy_gradient_loss": [], "value_loss": [],
+                                            "clip_fraction": []}
+        approx_kl: list[th.Tensor] = []
+        loss = th.zeros(self.n_seeds)
+        for _ in range(n_epochs):
+            approx_kl = []
+            permutations = np.stack([rng.permutation(total) for rng in rngs])
+            for start in range(0, total, batch_size):
+                observations, actions, old_values, old_log_prob, advantages, returns = buffer.batch(
+                    permutations[:, start:start + batch_size])
+                log_probs, values = self.forward(observations)
+                log_prob = log_probs.gather(2, actions.unsqueeze(2)).squeeze(2)
+                entropy = -(log_probs.clamp(min=th.finfo(log_probs.dtype).min) * log_probs.exp()).sum(dim=2)
+                if normalize_advantage and advantages.shape[1] > 1:
+                    advantages = (advantages - advantages.mean(dim=1, keepdim=True)) / (
+                        advantages.std(dim=1, keepdim=True) + 1e-8)
+                ratio = th.exp(log_prob - old_log_prob)
+                column = clip.unsqueeze(1)
+                policy_loss = -th.min(advantages * ratio, advantages * th.clamp(ratio, 1 - column, 1 + column)).mean(dim=1)
+                if clip_vf is None:
+                    values_pred = values
+                else:
+                    limit = clip_vf.unsqueeze(1)
+                    values_pred = old_values + th.clamp(values - old_values, -limit, limit)
+                value_loss = F.mse_loss(returns, values_pred, reduction="none").mean(dim=1)
+                entropy_loss = -entropy.mean(dim=1)
+                loss = policy_loss + ent_coef * entropy_loss + vf_coef * value_loss
+                with th.no_grad():
+                    sums["policy_gradient_loss"].append(policy_loss.detach())
+                    sums["value_loss"].append(value_loss.detach())
+                    sums["entropy_loss"].append(entropy_loss.detach())
+                    sums["clip_fraction"].append(((ratio - 1).abs() > column).float().mean(dim=1))
+                    log_ratio = log_prob - old_log_prob
+                    approx_kl.append(((th.exp(log_ratio) - 1) - log_ratio).mean(dim=1))
+                self.optimizer.zero_grad()
+                loss.sum().backward()
+                self._clip_gradients(max_grad_norm)
+                self.optimizer.step()
+        logs = {key: th.stack(values).double().mean(dim=0).numpy() for key, values in sums.items()}
+        logs["approx_kl"] = th.stack(approx_kl).double().mean(dim=0).numpy()
+        logs["loss"] = loss.detach().numpy()
+        return logs
+
+    def _clip_gradients(self, max_grad_norm: th.Tensor) -> None:
+        """``clip_grad_norm_`` per seed: the 2-norm of the per-parameter 2-norms, each seed's own."""
+        grads = [p.grad for p in self.parameters() if p.grad is not None]
+        norms = th.stack([th.linalg.vector_norm(g, 2, dim=(1, 2)) for g in grads])
+        coefficient = th.clamp(max_grad_norm / (th.linalg.vector_norm(norms, 2, dim=0) + 1e-6), max=1.0)
+        th._foreach_mul_(grads, [coefficient.reshape(-1, 1, 1)] * len(grads))
+
+    def set_learning_rate(self, learning_rate: float) -> None:
+        for group in self.optimizer.param_groups:
+            group["lr"] = learning_rate
+
+    def write_back(self, models: Sequence[PPO], indices: Sequence[int] | None = None) -> None:
+        """Copy each seed's weights and Adam state into its model's policy (``indices``: those only)."""
+        with th.no_grad():
+            for s in range(len(models)) if indices is None else indices:
+                policy = models[s].policy
+                for stacked, param in zip(self.parameters(), policy.parameters()):
+                    param.copy_(stacked[s].reshape(param.shape))
+                    state = self.optimizer.state.get(stacked)
+                    if state:
+                        policy.optimizer.state[param] = {key: value.clone() if value.dim() == 0
+                                                         else value[s].reshape(param.shape).clone()
+                                                         for key, value in state.items()}
+                policy.optimizer.param_groups[0]["lr"] = self.optimizer.param_groups[0]["lr"]
+
+
+class StackedRollout:
+    """
+    The rollout buffers of S seeds in one set of arrays ``(S, n_steps, E)``, SB3's ``RolloutBuffer`` per seed (its
+    arrays, GAE and minibatches); ``release`` writes each seed's rollout into its model's buffer.
+    """
+
+    def __init__(self, n_seeds: int, rows: int, n_envs: int, obs_shape: tuple[int, ...]) -> None:
+        self.rows, self.n_envs = rows, n_envs
+        self.observations = np.zeros((n_seeds, rows, n_envs, *obs_shape), dtype=np.float32)
+        self.actions = np.zeros((n_seeds, rows, n_envs), dtype=np.int64)
+        self.rewards, self.episode_starts, self.values, self.log_probs, self.advantages, self.returns = (
+            np.zeros((n_seeds, rows, n_envs), dtype=np.float32) for _ in range(6))
+        self.pos = 0
+
+    def add(self, obs: np.ndarray, actions: np.ndarray, rewards: np.ndarray, episode_starts: np.ndarray,
+            values: th.Tensor, log_probs: th.Tensor) -> None:
+        pos = self.pos
+        self.observations[:, pos] = obs
+        self.actions[:, pos] = actions
+        self.rewards[:, pos] = rewards
+        self.episode_starts[:, pos] = episode_starts
+        self.values[:, pos] = values.numpy()
+        self.log_probs[:, pos] = log_probs.numpy()
+        self.pos += 1
+
+    def compute_returns_and_advantage(self, last_values: th.Tensor, dones: np.ndarray, gamma: np.ndarray,
+                                      gae_lambda: np.ndarray) -> None:
+        """SB3's GAE, every seed at once (``gamma`` and ``gae_lambda`` float32 columns ``(S, 1)``)."""
+        last = last_values.numpy()
+        gae = np.zeros_like(last)
+        for step in reversed(range(self.rows)):
+            if step == self.rows - 1:
+                next_non_terminal, next_values = 1.0 - dones.astype(np.float32), last
+            else:
+                next_non_terminal, next_values = 1.0 - self.episode_starts[:, step + 1], self.values[:, step + 1]
+            delta = self.rewards[:, step] + gamma * next_values * next_non_terminal - self.values[:, step]
+            gae = delta + gamma * gae_lambda * next_non_terminal * gae
+            self.advantages[:, step] = gae
+        self.returns = self.advantages + self.values
+
+    def batch(self, indices: np.ndarray) -> tuple[th.Tensor, ...]:
+        """Each seed's minibatch of flat indices ``(S, B)`` into its ``swap_and_flatten`` arrays (env-major)."""
+        steps, envs = indices % self.rows, indices // self.rows
+        seeds = np.arange(indices.shape[0])[:, None]
+
+        def take(array: np.ndarray) -> th.Tensor:
+            return th.as_tensor(array[seeds, steps, envs])
+
+        return (take(self.observations), take(self.actions), take(self.values), take(self.log_probs),
+                take(self.advantages), take(self.returns))
+
+    def release(self, models: Sequence[PPO], indices: Sequence[int]) -> None:
+        """
+        Write seeds ``indices``' rollout into their models' ``RolloutBuffer``, as SB3's holds it after ``train`` (the
+        arrays its minibatches read swapped and flattened to ``(E * n_steps, ...)``, env-major).
+        """
+        for s in indices:
+            buffer: Any = models[s].rollout_buffer
+            for name in ("rewards", "episode_starts"):
+                setattr(buffer, name, getattr(self, name)[s].copy())
+            for name in ("observations", "actions", "values", "log_probs", "advantages", "returns"):
+                array = getattr(self, name)[s].swapaxes(0, 1)
+                shape = (self.n_envs * self.rows, *(array.shape[2:] or (1,)))  # SB3's swap_and_flatten
+                setattr(buffer, name, array.reshape(shape).astype(np.float32))
+            buffer.pos, buffer.full, buffer.generator_ready = self.rows, True, True
+
+
+class LockstepPPO:
+    """
+    SB3's ``PPO.learn`` of S models in lockstep (see the module docstring).
+
+    :param models: the models, one per seed, of one class and one set of lockstep arguments, each with its VecEnv
+    :param seeds: their seeds
+    :param generators: each seed's torch generator state after its model was built (what SB3's sampling draws from)
+    """
+
+    #: set by ``learn``
+    obs: np.ndarray
+    episode_starts: np.ndarray
+    stack: StackedActorCritic
+    rollout: StackedRollout
+
+    def __init__(self, models: Sequence[PPO], seeds: Sequence[int], generators: Sequence[th.Tensor]) -> None:
+        self.models = list(models)
+        self.rngs = [np.random.RandomState(seed) for seed in seeds]
+        self.generators = []
+        for state in generators:
+            generator = th.Generator()
+            generator.set_state(state)
+            self.generators.append(generator)
+        first = self.models[0]
+        if not isinstance(first.action_space, spaces.Discrete):
+            raise ValueError(f"action_space={first.action_space}: train_many's PPO stacks discrete actions only")
+        self.n_seeds, self.n_envs = len(self.models), first.n_envs
+        self.envs = SeedEnvs([m.get_env() for m in self.models])  # type: ignore[misc]
+        self.frozen = np.zeros(self.n_seeds, dtype=bool)
+        self.gamma = np.array([[m.gamma] for m in self.models], dtype=np.float32)
+        self.gae_lambda = np.array([[m.gae_lambda] for m in self.models], dtype=np.float32)
+
+    def _live(self) -> list[int]:
+        return np.flatnonzero(~self.frozen).tolist()
+
+    def _sample(self, log_probs: th.Tensor) -> th.Tensor:
+        """Each seed's ``Categorical.sample()`` from its own generator: ``(S, E)``."""
+        probs = log_probs.exp()
+        return th.stack([th.multinomial(p, 1, True, generator=g).T.reshape(-1) for p, g in zip(probs, self.generators)])
+
+    def _settings(self, progress: float) -> dict[str, th.Tensor]:
+        models = self.models
+        settings = {"clip_range": _column([m.clip_range(progress) for m in models]),  # type: ignore[operator]
+                    "ent_coef": _column([m.ent_coef for m in models]), "vf_coef": _column([m.vf_coef for m in models]),
+                    "max_grad_norm": _column([m.max_grad_norm for m in models])}
+        if models[0].clip_range_vf is not None:
+            settings["clip_range_vf"] = _column([m.clip_range_vf(progress) for m in models])  # type: ignore[misc,operator]
+        return settings
+
+    def _freeze(self, index: int, callback: BaseCallback) -> None:
+        self.frozen[index] = True
+        self.stack.write_back(self.models, [index])
+        self.models[index]._last_obs = self.obs[index]
+        self.models[index]._last_episode_starts = self.episode_starts[index]
+        callback.on_training_end()
+
+    def _collect(self, callbacks: dict[int, BaseCallback], n_steps: int) -> None:
+        """``collect_rollouts`` of every live seed (``n_steps`` VecEnv steps, then GAE)."""
+        models, live = self.models, self._live()
+        for index in live:
+            models[index].policy.set_training_mode(False)
+        self.rollout.pos = 0
+        for callback in callbacks.values():
+            callback.on_rollout_start()
+        dones = np.zeros((self.n_seeds, self.n_envs), dtype=bool)
+        while self.rollout.pos < n_steps:
+            with th.no_grad():
+                log_probs, values = self.stack.forward(self.obs)
+                actions = self._sample(log_probs)
+                chosen = log_probs.gather(2, actions.unsqueeze(2)).squeeze(2)
+            action_array = actions.numpy()
+            new_obs, rewards, dones, infos = self.envs.step(action_array)
+            live = self._live()
+            for index in live:
+                models[index].num_timesteps += self.n_envs
+            for index, callback in list(callbacks.items()):
+                model = models[index]
+                callback.update_locals({"self": model, "actions": action_array[index], "new_obs": new_obs[index],
+                                        "rewards": rewards[index], "dones": dones[index], "infos": infos[index],
+                                        "env": model.env, "values": values[index], "log_probs": chosen[index]})
+                if not callback.on_step():
+                    del callbacks[index]
+                    self._freeze(index, callback)
+            if self.on_models is not None and self.every:
+                timesteps = models[self._live()[0]].num_timesteps if not self.frozen.all() else 0
+                if timesteps // self.every > (timesteps - self.n_envs) // self.every:
+                    self.stack.write_back(models, self._live())
+                    self.on_models(models)
+            for index in np.flatnonzero(dones.any(axis=1) & ~self.frozen).tolist():
+                models[index]._update_info_buffer(infos[index], dones[index])
+            rewards = rewards.astype(np.float32, copy=True)
+            truncated = [(s, e) for s, e in zip(*np.nonzero(dones))
+                         if infos[s][e].get("terminal_observation") is not None
+                         and infos[s][e].get("TimeLimit.truncated", False)]
+            if truncated:
+                terminal = np.stack([infos[s][e]["terminal_observation"] for s, e in truncated])
+                with th.no_grad():
+                    for (s, e), obs in zip(truncated, terminal):
+                        value = self._value(s, obs)
+                        rewards[s, e] += models[s].gamma * value
+            self.rollout.add(self.obs, action_array, rewards, self.episode_starts, values, chosen)
+            self.obs, self.episode_starts = new_obs, dones.astype(np.float32)
+            if self.frozen.all():
+                return
+        last_values = self.stack.values(self.obs)
+        self.rollout.compute_returns_and_advantage(last_values, dones, self.gamma, self.gae_lambda)
+        for callback in callbacks.values():
+            callback.on_rollout_end()
+
+    def _value(self, seed: int, observation: np.ndarray) -> th.Tensor:
+        """Seed ``seed``'s ``predict_values`` of one observation (a truncated episode's terminal one)."""
+        batch = th.as_tensor(observation).float().reshape(1, 1, -1)
+        x = batch
+        for (weight, bias), activation in zip(self.stack.vf, self.stack.vf_activations):
+            x = activation(th.baddbmm(bias[seed:seed + 1], x, weight[seed:seed + 1].transpose(1, 2)))
+        weight, bias = self.stack.value
+        return th.baddbmm(bias[seed:seed + 1], x, weight[seed:seed + 1].transpose(1, 2))[0, 0, 0]
+
+    def _train(self) -> None:
+        """``PPO.train`` of every live seed, on its rollout."""
+        models, first = self.models, self.models[self._live()[0]]
+        progress = first._current_progress_remaining
+        rates = {m.lr_schedule(progress) for m in models}
+        if len(rates) != 1:
+            raise ValueError("learning_rate per seed: train_many's PPO takes one learning rate for all seeds")
+        rate = rates.pop()
+        self.stack.set_learning_rate(rate)
+        settings = self._settings(progress)
+        logs = self.stack.update(self.rollout, self.rngs, settings, first.n_epochs, first.batch_size,
+                                 first.normalize_advantage)
+        for index in self._live():
+            model = models[index]
+            model._n_updates += first.n_epochs
+            logger = model.logger
+            logger.record("train/learning_rate", rate)
+            for key in ("entropy_loss", "policy_gradient_loss", "value_loss", "approx_kl", "clip_fraction", "loss"):
+                logger.record(f"train/{key}", float(logs[key][index]))
+            logger.record("train/explained_variance", float(explained_variance(
+                self.rollout.values[index].T.flatten(), self.rollout.returns[index].T.flatten())))
+            logger.record("train/n_updates", model._n_updates, exclude="tensorboard")
+            logger.record("train/clip_range", float(settings["clip_range"][index]))
+            if "clip_range_vf" in settings:
+                logger.record("train/clip_range_vf", float(settings["clip_range_vf"][index]))
+
+    def learn(self, total_timesteps: int, log_interval: int = 1, every: int = 0,
+              on_models: Callable[[list[PPO]], object] | None = None,
+              user_callbacks: Sequence[MaybeCallback] | None = None) -> list[PPO]:
+        """``model.learn(total_timesteps, callback=user_callbacks[i], log_interval=log_interval)`` of every model."""
+        models = self.models
+        self.every, self.on_models = every, on_models
+        callbacks: dict[int, BaseCallback] = {}
+        total = total_timesteps
+        for index, (model, given) in enumerate(zip(models, user_callbacks or [None] * len(models))):
+            total, callback = model._setup_learn(total_timesteps, given, True, "PPO", False)
+            callback.on_training_start({"self": model, "total_timesteps": total, "callback": callback,
+                                        "log_interval": log_interval}, globals())
+            if not idle(callback):
+                callbacks[index] = callback
+        self.obs = np.stack([m._last_obs for m in models])  # type: ignore[misc]
+        self.episode_starts = np.stack([m._last_episode_starts for m in models]).astype(np.float32)  # type: ignore[misc]
+        self.stack = StackedActorCritic(models)
+        first = models[0]
+        self.rollout = StackedRollout(self.n_seeds, first.n_steps, self.n_envs, first.observation_space.shape or ())
+        iteration = 0
+        try:
+            while not self.frozen.all() and models[self._live()[0]].num_timesteps < total:
+                self._collect(callbacks, first.n_steps)
+                if self.frozen.all():
+                    break
+                iteration += 1
+                for index in self._live():
+                    model = models[index]
+                    model._update_current_progress_remaining(model.num_timesteps, total)
+                    if log_interval is not None and iteration % log_interval == 0:
+                        model.dump_logs(iteration)
+                self._train()
+            for index in self._live():
+                if index in callbacks:
+                    callbacks[index].on_training_end()
+        finally:
+            live = self._live()
+            self.stack.write_back(models, live)
+            self.rollout.release(models, live)
+            for index in live:
+                models[index]._last_obs = self.obs[index]
+                models[index]._last_episode_starts = self.episode_starts[index]
+        return models
