@@ -168,10 +168,10 @@ def test_the_kernel_steps_gymnasiums_time_limit_while_rl_zoo3_has_rebound_it_and
 
 def test_the_zoo_extra_brings_every_module_the_zoos_plots_import() -> None:
     import ast
-    import tomllib
     from importlib import metadata
 
     import rl_zoo3.plots
+    import tomllib
     from packaging.requirements import Requirement
 
     def names(requirements: list[str]) -> set[str]:
