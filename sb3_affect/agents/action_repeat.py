@@ -28,6 +28,7 @@ from gymnasium import spaces
 from stable_baselines3.common.type_aliases import GymEnv
 
 from sb3_affect.agents.deep_model_files import add_deep_description, load_deep_safe
+from sb3_affect.agents.serialization import WRITE_PATHS, paths_from_caller
 
 SelfRepeat = TypeVar("SelfRepeat", bound="ActionRepeat")
 
@@ -114,13 +115,16 @@ class ActionRepeat:
         only for files you trust.
 
         :param safe: load without unpickling (default); False for SB3's loader
-        :param kwargs: attributes to change on the loaded model (as SB3's ``load``)
+        :param kwargs: attributes to change on the loaded model (as SB3's ``load``); ``tensorboard_log`` and
+            ``episode_log_path`` (the emotion callback's CSV) are None unless given here, whatever the file says (a
+            model file does not choose where ``learn`` writes)
         """
         if not safe:
-            return super().load(  # type: ignore[misc]
+            model = super().load(  # type: ignore[misc]
                 path, env=env, device=device, custom_objects=custom_objects, print_system_info=print_system_info,
-                force_reset=force_reset, **kwargs,
+                force_reset=force_reset, **{key: value for key, value in kwargs.items() if key not in WRITE_PATHS},
             )
+            return paths_from_caller(model, kwargs)
         return load_deep_safe(cls, path, env=env, device=device, force_reset=force_reset, custom_objects=custom_objects,
                               **kwargs)
 

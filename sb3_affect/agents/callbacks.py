@@ -73,8 +73,12 @@ class EmotionCallback(BaseCallback):
     :param appraiser: a ready appraiser to use instead of building one from ``act`` and ``units``
         (it must be created for the env's number of cells)
     :param emotion_rule: ``rule(appraisal_or_None) -> Emotion`` replacing Table II
-    :param goal: ``goal(reward, info) -> bool``, whether a terminating transition reached the goal (default
-        ``sb3_affect.core.goals.positive_terminal_reward``: ``info["is_success"]`` if the env gives it, else reward > 0)
+    :param goal: ``goal(reward, info) -> bool``, whether a terminating transition reached the goal; only
+        terminations are asked, truncations never reach it (default ``sb3_affect.core.goals.positive_terminal_reward``:
+        ``info["is_success"]`` if the env gives it, else reward > 0). The appraisal maps its way to the cells where
+        the goal was reached, so on an env whose terminations include failures give the test that tells them apart;
+        the default warns once when a termination it counts as the goal was rewarded like every step before it
+        (CartPole: +1 a step, the pole falling ends it); passing any ``goal=`` silences it
     :param episode_log_path: observer mode: append each episode's row to this CSV file (default: ``emotion_episodes.csv``
         in the logger's folder when the logger writes files, e.g. csv or tensorboard; else only ``episode_log``)
     :param position: observer mode: how each env's cell is found: None (the observation, when it is a cell),
@@ -135,6 +139,7 @@ class EmotionCallback(BaseCallback):
         self._csv_path: Path | None = None
         self._episodes = self._goals = 0
         self._warned = False
+        self._warned_goal = False  # _warn_rewarded_all_along, once per callback
         self._geometry: Geometry | None = None
 
     # -- set-up ------------------------------------------------------------------------------------------------
@@ -307,6 +312,8 @@ class EmotionCallback(BaseCallback):
             truncated = done and bool(info.get("TimeLimit.truncated", False))
             terminated = done and not truncated
             reached_goal = terminated and bool(self.goal(reward, info))
+            if reached_goal and lane.reward > 0 and not self._warned_goal and self.goal is positive_terminal_reward:
+                self._warn_rewarded_all_along(reward, lane.reward, info)
             s2 = new_cells[index]
             action = None if actions is None else actions[index]
             if done and position is not None:  # the VecEnv has reset: the cell reached is the episode's last
@@ -361,6 +368,25 @@ class EmotionCallback(BaseCallback):
         self.rows.append(row)
         if self._csv_path is not None:
             self._append_csv(row)
+
+    def _warn_rewarded_all_along(self, reward: float, before: float, info: dict[str, Any]) -> None:
+        """
+        Warn once when the default goal test takes a termination for the goal although its reward is not set apart
+        from the episode's: the rewards before it were positive too (CartPole's +1 a step, whose termination is the
+        pole falling). The env's ``is_success`` settles it without a warning.
+        """
+        if "is_success" in info:
+            return
+        self._warned_goal = True
+        warnings.warn(
+            f"EmotionCallback: an episode terminated with reward {reward:g} after rewards summing to {before:g}: the "
+            "default goal test (terminated with a reward > 0) counts it as reaching the goal, but a terminal reward of "
+            "the same sign as the rest of the return may end a failure (CartPole's pole falling), and the appraisal "
+            "then maps its way to that state. If this env's terminations are not its goal, pass "
+            "EmotionCallback(goal=lambda reward, info: ...) (see sb3_affect.core.goals); passing goal= silences this",
+            RuntimeWarning,
+            stacklevel=3,
+        )
 
     def _warn_if_degenerate(self) -> None:
         if self._warned or self._goals or self.warn_after is None or self._episodes < self.warn_after:

@@ -5,7 +5,11 @@ pickles (spaces, policy class, replay buffer class, train frequency, the last ob
 the schedules are rebuilt from the rates they schedule), and ``load`` rebuilds the model from it and from the ``.pth``
 members read with ``torch.load(weights_only=True)``: nothing in the file is unpickled unless the caller asks for SB3's
 own loader by name (``load(path, safe=False)``). Every value read is checked as the constructor checks it (the agent's
-``_setup_model`` checks its options again), and anything wrong is one ``ModelFileError`` line naming the file.
+``_setup_model`` checks its options again), and anything wrong is one ``ModelFileError`` line naming the file. The
+weights are read only after the model is built from the file's settings: a ``.pth`` member the model does not save, or
+one whose declared size is past what the model's own tensors take (``_weights_bounds``), is refused before a byte of
+it is read (a small file whose member expands to gigabytes of zeros allocates nothing). The model's paths where
+``learn`` writes (``tensorboard_log``, the emotion callback's ``episode_log_path``) are the caller's, never the file's.
 """
 
 from __future__ import annotations
@@ -29,6 +33,7 @@ from sb3_affect.agents.serialization import (
     FORMAT,
     MAX_JSON_BYTES,
     PLAIN_MEMBER,
+    WRITE_PATHS,
     ModelFileError,
     _check_declared_size,
     _check_values,
@@ -38,6 +43,7 @@ from sb3_affect.agents.serialization import (
     _read,
     _same_algorithm,
     add_plain_description,
+    paths_from_caller,
     plain_description,
     schedule_from_plain,
 )
@@ -54,9 +60,13 @@ KNOWN_CLASSES: dict[str, type] = {
 }
 #: Array dtypes a file's arrays may have.
 DTYPES = ("float64", "float32", "float16", "int64", "int32", "int16", "int8", "uint8", "bool")
-#: The most numbers a space's bounds or a saved array may hold, and the largest weights member.
+#: The most numbers a space's bounds or a saved array may hold.
 MAX_ENTRIES = 10_000_000
-MAX_WEIGHTS_BYTES = 4 * 2**30
+#: A weights member's bound (``_weights_bounds``): an optimizer's state per parameter (Adam with amsgrad, RMSprop:
+#: three tensors of its shape), torch's bytes per tensor (its record's name and metadata) and per member (the zip).
+OPTIMIZER_STATES = 3
+TENSOR_OVERHEAD_BYTES = 4096
+CONTAINER_BYTES = 2**20
 #: Names of the keys ``_setup_model`` rebuilds (never read from the file).
 _OBSERVATIONS = ("_last_obs", "_last_original_obs", "_last_episode_starts")
 
@@ -268,30 +278,60 @@ def load_deep_safe(cls: Any, path: Any, env: Any = None, device: Any = "auto", f
 def _load(cls: Any, path: Any, where: str, env: Any, device: Any, force_reset: bool,
           custom_objects: dict[str, Any] | None, **kwargs: Any) -> Any:
     archive, where = _open(path)
+    with archive:  # open while the model is built: its weights are read once their bounds are known
+        return _load_open(archive, cls, where, env, device, force_reset, custom_objects, **kwargs)
+
+
+def _weights_bounds(model: Any) -> dict[str, int]:
+    """
+    The most bytes each ``.pth`` member of a file may declare for ``model`` (built from the file's settings): the
+    bytes of the tensors the model holds there (an optimizer's state: ``OPTIMIZER_STATES`` times its parameters'),
+    plus room for torch's container. A member past its bound is refused before a byte of it is read.
+    """
+    names, variables = model._get_torch_save_params()
+    bounds: dict[str, int] = {}
+    for name in [*names, "pytorch_variables"]:
+        if name == "pytorch_variables":
+            tensors = [_attribute(model, variable) for variable in variables or []]
+            factor = 1
+        else:
+            target = _attribute(model, name)
+            if isinstance(target, th.optim.Optimizer):
+                tensors, factor = [p for group in target.param_groups for p in group["params"]], OPTIMIZER_STATES
+            else:
+                tensors, factor = list(target.state_dict().values()), 1
+        sizes = [t.numel() * t.element_size() for t in tensors if isinstance(t, th.Tensor)]
+        bounds[f"{name}.pth"] = factor * sum(sizes) + (factor + 1) * TENSOR_OVERHEAD_BYTES * len(sizes) + CONTAINER_BYTES
+    return bounds
+
+
+def _attribute(model: Any, dotted: str) -> Any:
+    target = model
+    for part in dotted.split("."):
+        target = getattr(target, part)
+    return target
+
+
+def _load_open(archive: Any, cls: Any, where: str, env: Any, device: Any, force_reset: bool,
+               custom_objects: dict[str, Any] | None, **kwargs: Any) -> Any:
     optin = f"if you trust this file, load it with {cls.__name__}.load(path, safe=False)"
-    with archive:
-        names = archive.namelist()
-        twice = sorted({name for name in names if names.count(name) > 1})
-        if twice:
-            raise ModelFileError(f"{where}: the entry {twice[0]!r} is in the zip more than once; a model holds each once")
-        for name in ("data", PLAIN_MEMBER):
-            _check_declared_size(archive, name, MAX_JSON_BYTES, where)
-        data = _json(_read(archive, "data", where), "data", where)
-        if not isinstance(data, dict):
-            raise ModelFileError(f"{where}: the 'data' entry is not a JSON object")
-        if PLAIN_MEMBER not in names:
-            raise ModelFileError(
-                f"{where}: no plain-data description ({PLAIN_MEMBER}): the file was not saved by sb3-affect, so loading "
-                f"it means unpickling code from it, which safe loading refuses; {optin}"
-            )
-        twin = _json(_read(archive, PLAIN_MEMBER, where), PLAIN_MEMBER, where)
-        if not isinstance(twin, dict) or twin.get("format") != FORMAT:
-            raise ModelFileError(f"{where}: unsupported {PLAIN_MEMBER} format")
-        weights: dict[str, Any] = {}
-        for name in names:
-            if name.endswith(".pth"):
-                _check_declared_size(archive, name, MAX_WEIGHTS_BYTES, where)
-                weights[name[: -len(".pth")]] = _read(archive, name, where)
+    names = archive.namelist()
+    twice = sorted({name for name in names if names.count(name) > 1})
+    if twice:
+        raise ModelFileError(f"{where}: the entry {twice[0]!r} is in the zip more than once; a model holds each once")
+    for name in ("data", PLAIN_MEMBER):
+        _check_declared_size(archive, name, MAX_JSON_BYTES, where)
+    data = _json(_read(archive, "data", where), "data", where)
+    if not isinstance(data, dict):
+        raise ModelFileError(f"{where}: the 'data' entry is not a JSON object")
+    if PLAIN_MEMBER not in names:
+        raise ModelFileError(
+            f"{where}: no plain-data description ({PLAIN_MEMBER}): the file was not saved by sb3-affect, so loading "
+            f"it means unpickling code from it, which safe loading refuses; {optin}"
+        )
+    twin = _json(_read(archive, PLAIN_MEMBER, where), PLAIN_MEMBER, where)
+    if not isinstance(twin, dict) or twin.get("format") != FORMAT:
+        raise ModelFileError(f"{where}: unsupported {PLAIN_MEMBER} format")
     if not _same_algorithm(str(twin.get("algorithm", "")), cls):
         saved = str(twin.get("algorithm", "?")).rpartition(":")[2]
         raise ModelFileError(f"{where}: this file holds a {saved} model; load it with {saved}.load (not {cls.__name__}.load)")
@@ -331,14 +371,25 @@ def _load(cls: Any, path: Any, where: str, env: Any, device: Any, force_reset: b
         if force_reset:
             restored["_last_obs"] = None
         restored["n_envs"] = env.num_envs
+    if isinstance(restored.get("_affect_state"), dict):  # the emotion callback's: its path is the caller's
+        restored["_affect_state"] = {**restored["_affect_state"], "episode_log_path": None}
     model = cls(policy=policy_class, env=env, device=device, _init_setup_model=False)
     model.__dict__.update(restored)
-    model.__dict__.update(kwargs)
+    model.__dict__.update({key: value for key, value in kwargs.items() if key not in WRITE_PATHS})
     model.observation_space, model.action_space, model.policy_class = observation_space, action_space, policy_class
     try:
         model._setup_model()  # the agent's options checked again, as the constructor checks them
     except (TypeError, ValueError) as error:
         raise ModelFileError(f"{where}: a saved value is not allowed: {' '.join(str(error).split())}") from None
+    paths_from_caller(model, kwargs)
+    bounds = _weights_bounds(model)
+    members = [name for name in names if name.endswith(".pth")]
+    other = next((name for name in members if name not in bounds), None)
+    if other is not None:
+        raise ModelFileError(f"{where}: the entry {other!r} is not one of the model's weights ({', '.join(bounds)})")
+    for name in members:
+        _check_declared_size(archive, name, bounds[name], where)
+    weights = {name[: -len(".pth")]: _read(archive, name, where) for name in members}
     params: dict[str, Any] = {}
     for name, raw in weights.items():
         try:
@@ -358,9 +409,7 @@ def _load(cls: Any, path: Any, where: str, env: Any, device: Any, force_reset: b
         raise ModelFileError(f"{where}: pytorch_variables.pth is missing or not a mapping of tensors")
     for name in variable_names or []:
         value = variables.get(name) if isinstance(variables, dict) else None
-        target = model
-        for part in name.split("."):
-            target = getattr(target, part)
+        target = _attribute(model, name)
         if not isinstance(value, th.Tensor) or not isinstance(target, th.Tensor) or value.shape != target.shape:
             raise ModelFileError(f"{where}: pytorch_variables.pth has no tensor {name!r} of the model's shape")
         target.data = value.data

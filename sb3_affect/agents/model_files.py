@@ -17,7 +17,7 @@ import torch as th
 from stable_baselines3.common.base_class import BaseAlgorithm
 from stable_baselines3.common.type_aliases import GymEnv
 
-from sb3_affect.agents.serialization import add_plain_description, load_safe
+from sb3_affect.agents.serialization import WRITE_PATHS, add_plain_description, load_safe, paths_from_caller
 from sb3_affect.core.episode_blocks import EpisodeBlocks
 from sb3_affect.core.registry import FORMER_MODULES
 
@@ -92,18 +92,20 @@ class ModelFiles(BaseAlgorithm):
         :param print_system_info: legacy loader only: print the saving and the current system info
         :param force_reset: reset the env before the next ``learn`` (SB3 convention)
         :param safe: load without unpickling (default); False for SB3's legacy loader
-        :param kwargs: attributes to change on the loaded model
+        :param kwargs: attributes to change on the loaded model; ``tensorboard_log`` is None unless given here, whatever
+            the file says (a model file does not choose where ``learn`` writes)
         :return: the loaded model
         """
         if not safe:
             with _former_module_names():
-                return super().load(
+                model = super().load(
                     path,
                     env=env,
                     device=device,
                     custom_objects=custom_objects,
                     print_system_info=print_system_info,
                     force_reset=force_reset,
-                    **kwargs,
+                    **{key: value for key, value in kwargs.items() if key not in WRITE_PATHS},
                 )
+            return paths_from_caller(model, kwargs)
         return load_safe(cls, path, env=env, device=device, force_reset=force_reset, custom_objects=custom_objects, **kwargs)

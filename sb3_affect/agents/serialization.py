@@ -37,6 +37,23 @@ MAX_JSON_BYTES = 64 * 2**20
 POLICY_OVERHEAD_BYTES = 2**20
 
 
+#: Where ``learn`` writes, as a model holds it: set from the caller's ``load`` keywords, never from the file.
+WRITE_PATHS = ("tensorboard_log", "episode_log_path")
+
+
+def paths_from_caller(model: Any, given: dict[str, Any]) -> Any:
+    """
+    Give a loaded ``model`` the paths ``learn`` writes to (``WRITE_PATHS``: SB3's ``tensorboard_log``, the emotion
+    callback's ``episode_log_path``) from ``given``, the caller's ``load`` keywords, else None, whatever the file says:
+    a model file does not choose which files training appends to or which folders it creates.
+    """
+    model.tensorboard_log = given.get("tensorboard_log")
+    callback = getattr(model, "emotion_callback", None)
+    if callback is not None:
+        callback.episode_log_path = given.get("episode_log_path")
+    return model
+
+
 class ModelFileError(ValueError):
     """A model file that is missing, corrupt, foreign or can not be loaded safely (one line: the causes quoted in it,
     torch's and zipfile's, are folded onto it)."""
@@ -385,9 +402,10 @@ def _load_safe(
         restored["n_envs"] = env.num_envs
     model = cls(policy=policy_class, env=env, device=device, _init_setup_model=False)
     model.__dict__.update(restored)
-    model.__dict__.update(kwargs)
+    model.__dict__.update({key: value for key, value in kwargs.items() if key not in WRITE_PATHS})
     model.observation_space, model.action_space, model.policy_class = observation_space, action_space, policy_class
     model._setup_model()
+    paths_from_caller(model, kwargs)
     try:
         state = th.load(io.BytesIO(policy_bytes), map_location=model.device, weights_only=True)
     except (pickle.UnpicklingError, RuntimeError, EOFError, ValueError) as error:
@@ -425,4 +443,4 @@ def _rebuild(key: str, plain: Any, where: str) -> Any:
     raise ModelFileError(f"{where}: invalid plain form for {key!r}")
 
 
-__all__ = ["PLAIN_MEMBER", "ModelFileError", "add_plain_description", "load_safe"]
+__all__ = ["PLAIN_MEMBER", "WRITE_PATHS", "ModelFileError", "add_plain_description", "load_safe", "paths_from_caller"]

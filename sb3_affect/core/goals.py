@@ -17,6 +17,13 @@ them every termination is the goal. On Gymnasium's toy-text envs the default giv
 yes, a hole (reward 0) no; Taxi, a correct drop-off (+20) yes. CliffWalking ends only at its goal, with the same
 reward as every step (-1), so the default never sees a goal there: pass ``every_termination`` (or your own test) as
 ``EmotionCallback(goal=...)``, and ``AffectQ(..., emotion_callback=EmotionCallback(goal=every_termination))``.
+
+A termination can also be a failure with a positive reward: CartPole pays +1 every step, the one where the pole falls
+included, so the default takes the fall for the goal and the appraisal would map its way to it. ``EmotionCallback``
+warns once when the default counts a termination whose reward has the sign of the rewards before it (a reward for
+surviving, not for arriving); tell it what the goal is, e.g. ``goal=lambda reward, info: False`` on an env without
+one (every termination a failure), or ``goal=lambda reward, info: info.get("x") == ...`` (passing ``goal=`` silences
+the warning).
 """
 
 from __future__ import annotations

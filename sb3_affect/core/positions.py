@@ -10,7 +10,9 @@ The ``position=`` option of ``EmotionCallback``, ``BroekensCallback`` and the de
 * ``"minigrid"`` or ``"minigrid-dir"``: a MiniGrid env's ``agent_pos`` (with ``agent_dir`` for ``"minigrid-dir"``),
   read through the VecEnv's ``get_attr`` whatever the observation wrapper;
 * a callable ``position(observation, info) -> cell`` of one env's observation and info (any hashable cell; cells
-  are numbered in the order they are first seen, up to ``MAX_MAPPED_CELLS``);
+  are numbered in the order they are first seen, up to ``MAX_MAPPED_CELLS``), called for each env at each step;
+* ``BatchPosition(function)``: ``function(observations, infos) -> cells`` of the whole VecEnv, called once a step
+  for all envs (a NumPy expression over the batch costs one call, not one per env);
 * a ``Position`` instance (a subclass of your own).
 
 The hooks read the cell after every env step. At the end of an episode the VecEnv has already reset, so the last
@@ -162,17 +164,16 @@ class MiniGridPosition(Position):
         return self._cell(x + dx, y + dy, direction)
 
 
-class CallablePosition(Position):
-    """``position(observation, info) -> cell`` of one env; each distinct cell gets a number the first time it is seen."""
+class _NumberedCells(Position):
+    """Cells of a user's function, any hashable values: each distinct cell gets a number the first time it is seen."""
 
-    def __init__(self, function: Callable[[Any, dict[str, Any]], Hashable]) -> None:
+    def __init__(self, function: Callable[..., Any], default_name: str) -> None:
         self.function = function
-        self.name = getattr(function, "__name__", "callable")
+        self.name = getattr(function, "__name__", default_name)
         self.n_cells = MAX_MAPPED_CELLS
         self.numbers: dict[Hashable, int] = {}
 
-    def cell_of(self, observation: Any, info: dict[str, Any] | None = None) -> int:
-        cell = self.function(observation, {} if info is None else info)
+    def _number(self, cell: Any) -> int:
         if isinstance(cell, np.ndarray):
             cell = tuple(cell.reshape(-1).tolist())
         try:
@@ -190,6 +191,16 @@ class CallablePosition(Position):
             number = self.numbers[cell] = len(self.numbers)
         return number
 
+
+class CallablePosition(_NumberedCells):
+    """``position(observation, info) -> cell`` of one env, called for each env at each step."""
+
+    def __init__(self, function: Callable[[Any, dict[str, Any]], Hashable]) -> None:
+        super().__init__(function, "callable")
+
+    def cell_of(self, observation: Any, info: dict[str, Any] | None = None) -> int:
+        return self._number(self.function(observation, {} if info is None else info))
+
     def cells(self, venv: Any, observations: Any, infos: Sequence[dict[str, Any]]) -> list[int]:
         if isinstance(observations, dict):
             n = len(next(iter(observations.values())))
@@ -197,6 +208,39 @@ class CallablePosition(Position):
         else:
             rows = list(np.asarray(observations))
         return [self.cell_of(row, infos[index] if index < len(infos) else {}) for index, row in enumerate(rows)]
+
+
+class BatchPosition(_NumberedCells):
+    """
+    ``function(observations, infos) -> cells``: every env's cell from one call per VecEnv step, given the VecEnv's
+    observations as they are (an array with a row per env, or a dict of such arrays) and its list of infos, and
+    returning one cell per env (a sequence or an array: ints, or any hashable cells, numbered as a callable's are).
+    A NumPy expression over the batch (``lambda obs, infos: obs[:, 2] > 0``) costs one call a step, not one per env.
+    The last cell of an ended episode is the function of its ``terminal_observation`` as a batch of one.
+    """
+
+    def __init__(self, function: Callable[[Any, Sequence[dict[str, Any]]], Any]) -> None:
+        if not callable(function):
+            raise TypeError(f"BatchPosition needs a callable function(observations, infos) -> cells, got {function!r}")
+        super().__init__(function, "batch")
+
+    def cells(self, venv: Any, observations: Any, infos: Sequence[dict[str, Any]]) -> list[int]:
+        cells = self.function(observations, infos)
+        n = len(next(iter(observations.values()))) if isinstance(observations, dict) else len(observations)
+        array = np.asarray(cells)
+        if array.ndim == 0 or len(array) != n:
+            raise ValueError(
+                f"position={self.name}: the function returned {repr(cells)[:80]} for {n} envs; a BatchPosition "
+                "function returns one cell per env (a sequence or an array of length n_envs)"
+            )
+        return [self._number(cell) for cell in (array.tolist() if array.ndim == 1 else array)]
+
+    def cell_of(self, observation: Any, info: dict[str, Any] | None = None) -> int:
+        if isinstance(observation, dict):
+            batch: Any = {key: np.asarray(value)[None] for key, value in observation.items()}
+        else:
+            batch = np.asarray(observation)[None]
+        return self.cells(None, batch, [{} if info is None else info])[0]
 
 
 def _finite(cell: Any) -> bool:

@@ -7,13 +7,19 @@ under their lower-case names (``ZOO_ALGOS``): the tabular ``qlearning`` and ``af
 sample each agent's own arguments besides DQN's, to its hyperparameter search.
 ``python -m sb3_affect.integrations.zoo COMMAND ARGS`` runs a zoo command with them registered; ``train`` reads the
 package's hyperparameter files (``sb3_affect/integrations/zoo_hyperparams/<algo>.yml``: for the tabular agents the
-package's envs, FrozenLake, CliffWalking and Taxi; for the deep agents and for ``dqn`` MiniGrid's Empty rooms, with
-settings measured to solve them, see docs/deep_agents.md) unless ``--conf-file`` is given; for ``dqn``, whose file
-the zoo has, only on the envs the package's file lists::
+package's envs, FrozenLake, CliffWalking and Taxi; for the deep agents and for ``dqn`` MiniGrid's Empty-8x8,
+DoorKey-5x5 and Empty-6x6 with the deep study's settings, which do not make every agent solve them: trained through
+the zoo with ``--seed 0``, ``dqn``'s greedy policy reached the goal of Empty-8x8 in 20 of 20 episodes and
+``affectdqn``'s in none, see docs/deep_agents.md) unless ``--conf-file`` is given; for ``dqn``, whose file the zoo
+has, only on the envs the package's file lists. The zoo's ``enjoy`` acts stochastically on MiniGrid (as on Atari)
+unless given ``--deterministic``, which replays the greedy policy. ``affectqrdqn`` costs 5 to 6 times
+``affectdqn`` per step and 1.2 times QR-DQN, which costs 4.5 times DQN (its quantile loss; measured in
+docs/use_it_in_your_project.md)::
 
     python -m sb3_affect.integrations.zoo train --algo affectq --env sb3_affect/GridPursuit-v0 -f logs
     python -m sb3_affect.integrations.zoo train --algo affectdqn --env MiniGrid-Empty-8x8-v0 -f logs
-    python -m sb3_affect.integrations.zoo enjoy --algo affectdqn --env MiniGrid-Empty-8x8-v0 -f logs --no-render -n 300
+    python -m sb3_affect.integrations.zoo enjoy --algo affectdqn --env MiniGrid-Empty-8x8-v0 -f logs --no-render -n 300 \
+        --deterministic
     python -m sb3_affect.integrations.zoo enjoy --algo affectq --env sb3_affect/GridPursuit-v0 -f logs --no-render -n 500
     python -m sb3_affect.integrations.zoo record_video --algo affectq --env sb3_affect/GridPursuit-v0 -f logs -n 200
     python -m sb3_affect.integrations.zoo plot_train --algo affectq --env sb3_affect/GridPursuit-v0 -f logs -w 10 \
@@ -23,11 +29,17 @@ the zoo has, only on the envs the package's file lists::
 ``rollout/ep_len_mean`` counts decisions (a decision moves 0, 1 or 2 cells) and ``rollout/ep_cells_mean`` cells.
 ``--output FILE`` (this module's option) saves the figure the zoo would only show.
 
-rl-zoo3 reads a logs folder's ``config.yml`` and ``args.yml`` with PyYAML's unsafe loader, which runs the Python
-tags a file holds. Before ``enjoy`` and ``record_video``, this entry point reads those files of the ``--algo``
-folder with a safe loader that knows only the ``OrderedDict`` tag the zoo writes itself; a file with any other
-Python tag is refused. (The zoo's own ``python -m rl_zoo3.enjoy`` does not check: use this entry point for logs
-folders you did not write.) ``enjoy`` and ``record_video`` load a deep agent with a replay buffer of one transition
+Nothing a logs folder holds runs through this entry point's ``enjoy`` and ``record_video``, which the zoo's own
+``python -m rl_zoo3.enjoy`` does not promise (use this entry point for logs folders you did not write). rl-zoo3 reads
+a run's ``config.yml`` and ``args.yml`` with PyYAML's unsafe loader, ``eval``s a string ``normalize``, unpickles
+``vecnormalize.pkl``, imports the module an ``env_wrapper`` names, and SB3's own model files hold pickles. While the
+zoo's command runs, this entry point takes the place of the zoo's ``get_model_path`` and ``get_saved_hyperparams``,
+so it checks exactly the run the zoo's argparse chose (``--folder=logs``, ``--fold logs``, the last ``-f``) and
+refuses, in one line naming the file: an algorithm outside the package's agents; a symlink below the ``-f`` folder
+(the run, the model, its files, ``videos``); a ``config.yml`` or ``args.yml`` with a Python tag other than the
+``OrderedDict`` the zoo writes; a run that normalised (``normalize`` set, or an ``obs_rms.pkl``: its statistics are
+a pickle); a wrapper that is not a wrapper class of ``WRAPPER_MODULES``. ``config.yml`` is read with the safe loader
+and nothing in it is evaluated. ``enjoy`` and ``record_video`` load a deep agent with a replay buffer of one transition
 (``buffer_size=1``), as the zoo loads its own off-policy algorithms: replaying stores nothing, and the trained
 model's buffer (50,000 MiniGrid observations in the shipped files, about 280 MB) would be allocated for nothing. A
 hyperparameter the agent refuses (``--hyperparams exploration_rate:5``) is one error
@@ -38,6 +50,7 @@ Commands: ``train``, ``enjoy``, ``record_video``, ``plot_train``, ``all_plots`` 
 
 from __future__ import annotations
 
+import functools
 import importlib
 import runpy
 import sys
@@ -188,10 +201,16 @@ def _conf_file(algo: str | None, argv: list[str]) -> Path | None:
 
 
 def _algo(argv: list[str]) -> str | None:
-    """The value of ``--algo`` in a zoo command line, if any."""
-    if "--algo" in argv and argv.index("--algo") + 1 < len(argv):
-        return argv[argv.index("--algo") + 1]
-    return None
+    """The value of ``--algo`` in a zoo command line (``--algo X`` or ``--algo=X``; the last, as argparse takes it), if
+    any (``train`` picks the package's hyperparameter file by it; ``enjoy`` and ``record_video`` check the algorithm
+    the zoo's own argparse gives, ``check_run``)."""
+    algo = None
+    for at, arg in enumerate(argv):
+        if arg == "--algo" and at + 1 < len(argv):
+            algo = argv[at + 1]
+        elif arg.startswith("--algo="):
+            algo = arg.removeprefix("--algo=")
+    return algo
 
 
 def _eval_env_kwargs(conf: Path, argv: list[str]) -> list[str]:
@@ -222,32 +241,141 @@ def _config_loader() -> Any:
     return ZooConfigLoader
 
 
-def check_logs_folder(argv: list[str]) -> None:
-    """
-    Refuse (``SystemExit``, one line naming the file) a ``config.yml`` or ``args.yml`` of the ``--algo`` logs folder
-    that holds a Python tag other than ``OrderedDict``: rl-zoo3 loads them with an unsafe loader, which would run it.
-    """
+#: Wrappers a logs folder's ``env_wrapper`` / ``vec_env_wrapper`` may name: classes of these installed modules (the zoo
+#: imports the module a name gives, so a name of a module in the folder itself would run its code).
+WRAPPER_MODULES = (
+    "gymnasium.wrappers", "minigrid.wrappers", "rl_zoo3.wrappers", "stable_baselines3.common.atari_wrappers",
+    "stable_baselines3.common.vec_env", "sb3_affect.envs",
+)
+#: What ``enjoy`` and ``record_video`` read or write in a run folder besides the model (checked not to be symlinks).
+RUN_FILES = ("config.yml", "args.yml", "vecnormalize.pkl", "obs_rms.pkl")
+
+
+def _refuse(path: Any, why: str) -> SystemExit:
+    return SystemExit(f"{path}: {' '.join(why.split())}")
+
+
+def _read_config(path: Path) -> Any:
+    """A run's ``config.yml`` or ``args.yml`` read with ``_config_loader`` (``SystemExit`` for a Python tag)."""
     import yaml
 
-    algo = _algo(argv)
-    at = next((argv.index(flag) for flag in ("-f", "--folder") if flag in argv), None)
-    folder = Path(argv[at + 1] if at is not None and at + 1 < len(argv) else "rl-trained-agents")
-    if algo is None or not (folder / algo).is_dir():
-        return
-    loader = _config_loader()
-    for path in sorted((folder / algo).rglob("*.yml")):
-        if path.name not in ("config.yml", "args.yml"):
-            continue
-        try:
-            yaml.load(path.read_text(), Loader=loader)  # (a SafeLoader with one more constructor)
-        except yaml.YAMLError as error:
-            problem = " ".join(str(getattr(error, "problem", None) or error).split())
-            raise SystemExit(
-                f"{path}: not plain YAML ({problem}); rl-zoo3 would load it with an unsafe loader, which runs Python "
-                "tags, so it is refused"
-            ) from None
-        except (OSError, UnicodeDecodeError) as error:
-            raise SystemExit(f"{path}: can not be read ({error})") from None
+    try:
+        return yaml.load(path.read_text(), Loader=_config_loader())  # (a SafeLoader with one more constructor)
+    except yaml.YAMLError as error:
+        problem = " ".join(str(getattr(error, "problem", None) or error).split())
+        raise _refuse(path, f"not plain YAML ({problem}); rl-zoo3 would load it with an unsafe loader, which runs Python "
+                      "tags, so it is refused") from None
+    except (OSError, UnicodeDecodeError) as error:
+        raise _refuse(path, f"can not be read ({error})") from None
+
+
+def _no_symlinks(top: Path, paths: list[Path]) -> None:
+    """Refuse any of ``paths`` that is a symlink, or lies under one below ``top`` (the ``-f`` folder itself is the user's)."""
+    for path in paths:
+        for part in [path, *path.parents]:
+            if part == top or top not in part.parents:
+                break
+            if part.is_symlink():
+                raise _refuse(part, "is a symlink; this entry point reads only the logs folder's own files, so it is "
+                              "refused")
+
+
+def check_run(folder: str, algo: str, env_name: str, model_path: str, log_path: str) -> None:
+    """
+    Refuse (``SystemExit``, one line naming the file) what ``enjoy`` or ``record_video`` would load from a logs folder
+    and run code with: an algorithm whose model files SB3 unpickles (any outside ``ZOO_ALGOS``), a symlink in the run
+    (the model, the run folder, its files, ``videos``), and a ``config.yml`` or ``args.yml`` with a Python tag other
+    than ``OrderedDict`` (rl-zoo3 loads them with an unsafe loader). Called by the zoo with the folder its own argparse
+    parsed (``get_model_path``).
+    """
+    if algo not in ZOO_ALGOS:
+        raise SystemExit(
+            f"--algo {algo}: this entry point replays only the package's agents ({', '.join(ZOO_ALGOS)}); SB3's own "
+            "model files hold pickled objects, which run code when loaded (python -m rl_zoo3.enjoy loads a folder you "
+            "wrote)"
+        )
+    run, stats = Path(log_path), Path(log_path) / env_name
+    _no_symlinks(Path(folder), [Path(model_path), run / "videos", *(stats / name for name in RUN_FILES)])
+    for name in ("config.yml", "args.yml"):
+        if (stats / name).is_file():
+            _read_config(stats / name)
+
+
+def _wrapper_names(value: Any) -> list[Any]:
+    names = value if isinstance(value, list) else [value]
+    return [next(iter(name)) if isinstance(name, dict) and len(name) == 1 else name for name in names]
+
+
+def _check_wrappers(config: Path, hyperparams: dict[str, Any]) -> None:
+    """Refuse a wrapper name outside ``WRAPPER_MODULES``, or not a wrapper class there, before the zoo imports it."""
+    import gymnasium as gym
+    from stable_baselines3.common.vec_env import VecEnvWrapper
+
+    for key in ("env_wrapper", "vec_env_wrapper"):
+        for name in _wrapper_names(hyperparams.get(key)) if hyperparams.get(key) is not None else []:
+            module, _, attr = name.rpartition(".") if isinstance(name, str) else ("", "", "")
+            wrapper = getattr(importlib.import_module(module), attr, None) if module in WRAPPER_MODULES else None
+            if not (isinstance(wrapper, type) and issubclass(wrapper, (gym.Wrapper, VecEnvWrapper))):
+                raise _refuse(config, f"{key}={name!r} is not a wrapper class of {', '.join(WRAPPER_MODULES)}; the zoo "
+                              "would import the module it names, so it is refused")
+
+
+def saved_hyperparams(stats_path: str, norm_reward: bool = False, test_mode: bool = False) -> tuple[dict[str, Any], Any]:
+    """
+    rl-zoo3's ``get_saved_hyperparams`` without running anything: ``config.yml`` read with the safe loader (no string
+    ``eval``), its wrapper names checked (``WRAPPER_MODULES``), and normalisation refused: ``vecnormalize.pkl`` is a
+    pickle, which runs code when loaded, so a run that normalised (``normalize`` set, or an ``obs_rms.pkl``) is one
+    error line.
+    """
+    stats = Path(stats_path)
+    if not stats.is_dir():
+        return {}, None
+    config = stats / "config.yml"
+    hyperparams = _read_config(config) if config.is_file() else {}
+    if not isinstance(hyperparams, dict):
+        raise _refuse(config, f"holds {type(hyperparams).__name__}, not the mapping of hyperparameters the zoo writes")
+    normalize = hyperparams.get("normalize", False) if config.is_file() else (stats / "obs_rms.pkl").is_file()
+    if normalize:
+        raise _refuse(
+            config if config.is_file() else stats / "obs_rms.pkl",
+            f"normalize={normalize!r}: the run normalised with VecNormalize, whose statistics (vecnormalize.pkl) are a "
+            "pickle, which runs code when loaded; this entry point does not load them",
+        )
+    _check_wrappers(config, hyperparams)
+    return {**hyperparams, "normalize": False}, str(stats)
+
+
+def _checked_model_path(original: Any) -> Any:
+    """The zoo's ``get_model_path``, then ``check_run`` on the run it found (the folder argparse gave the zoo)."""
+
+    def get_model_path(exp_id: int, folder: str, algo: str, env_name: Any, *args: Any, **kwargs: Any) -> Any:
+        name_prefix, model_path, log_path = original(exp_id, folder, algo, env_name, *args, **kwargs)
+        check_run(folder, algo, str(env_name), model_path, log_path)
+        return name_prefix, model_path, log_path
+
+    return get_model_path
+
+
+def _guard_replay() -> list[tuple[Any, str, Any]]:
+    """Put ``check_run`` and ``saved_hyperparams`` in the zoo's modules' places of the functions ``enjoy`` and
+    ``record_video`` import (they import them when run); returns what it replaced (for ``_restore``)."""
+    import rl_zoo3
+    import rl_zoo3.utils
+
+    replaced: list[tuple[Any, str, Any]] = []
+    for module in (rl_zoo3, rl_zoo3.utils):
+        for name, guard in (("get_model_path", _checked_model_path), ("get_saved_hyperparams", None)):
+            if hasattr(module, name):
+                replaced.append((functools.partial(setattr, module), name, getattr(module, name)))
+                setattr(module, name, saved_hyperparams if guard is None else guard(getattr(module, name)))
+    return replaced
+
+
+def _restore(replaced: list[tuple[Any, str, Any]]) -> None:
+    """Put back what ``_guard_replay`` and ``_load_for_replay`` replaced: ``(setter, name, value)``, a module's
+    attribute or an ``ALGOS`` entry."""
+    for setter, name, value in replaced:
+        setter(name, value)
 
 
 class ReplayLoader:
@@ -270,24 +398,20 @@ def _agent_error(error: BaseException) -> bool:
     return tb is not None and Path(tb.tb_frame.f_code.co_filename).resolve().is_relative_to(package)
 
 
-def _load_for_replay(algo: str | None) -> dict[str, Any]:
-    """Put a ``ReplayLoader`` in the zoo's ``ALGOS`` for ``algo`` if it is an off-policy agent of the package; returns
-    what it replaced (for ``_restore_algos``)."""
+def _load_for_replay() -> list[tuple[Any, str, Any]]:
+    """Put a ``ReplayLoader`` in the zoo's ``ALGOS`` for each off-policy agent of the package; returns what it replaced
+    (for ``_restore``)."""
     import rl_zoo3
     from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 
     algos: dict[str, Any] = rl_zoo3.ALGOS
-    cls = algos.get(algo) if algo in ZOO_ALGOS else None
-    if algo is None or not (isinstance(cls, type) and issubclass(cls, OffPolicyAlgorithm)):
-        return {}
-    algos[algo] = ReplayLoader(cls)
-    return {algo: cls}
-
-
-def _restore_algos(replaced: dict[str, Any]) -> None:
-    import rl_zoo3
-
-    rl_zoo3.ALGOS.update(replaced)
+    replaced: list[tuple[Any, str, Any]] = []
+    for algo in ZOO_ALGOS:
+        cls = algos.get(algo)
+        if isinstance(cls, type) and issubclass(cls, OffPolicyAlgorithm):
+            replaced.append((algos.__setitem__, algo, cls))
+            algos[algo] = ReplayLoader(cls)
+    return replaced
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -315,10 +439,9 @@ def main(argv: list[str] | None = None) -> None:
 
         # the zoo names its run folders after the env id with "/" replaced by "-"; plot_train looks them up by id
         rest = [arg.replace("/", "-") if "/" in arg and arg in gym.registry else arg for arg in rest]
-    replaced: dict[str, Any] = {}
+    replaced: list[tuple[Any, str, Any]] = []
     if command in ("enjoy", "record_video"):
-        check_logs_folder(rest)
-        replaced = _load_for_replay(_algo(rest))
+        replaced = [*_guard_replay(), *_load_for_replay()]
     saved = sys.argv
     sys.argv = [COMMANDS[command], *rest]
     try:
@@ -329,7 +452,7 @@ def main(argv: list[str] | None = None) -> None:
         raise SystemExit(f"sb3_affect.integrations.zoo {command}: error: {' '.join(str(error).split())}") from None
     finally:
         sys.argv = saved
-        _restore_algos(replaced)
+        _restore(replaced)
     if output is not None:
         import matplotlib.pyplot as plt
 

@@ -193,3 +193,23 @@ def test_a_minigrid_model_loads_without_an_env_and_keeps_its_appraisal(tmp_path:
     loaded.set_env(env)
     loaded.learn(100, reset_num_timesteps=False)  # the env given later fits the saved map
     assert loaded.emotion_callback.appraiser.known.n_states == 25
+
+
+def test_a_weights_member_larger_than_the_models_shapes_is_refused_before_it_is_read(saved: Path, tmp_path: Path) -> None:
+    bomb = tmp_path / "bomb.zip"
+    with zipfile.ZipFile(saved) as source, zipfile.ZipFile(bomb, "w", compression=zipfile.ZIP_DEFLATED) as target:
+        for name in source.namelist():
+            if name != "policy.pth":
+                target.writestr(name, source.read(name))
+        with target.open("policy.pth", "w", force_zip64=True) as member:  # 256 MiB of zeros in about 250 kB
+            for _ in range(16):
+                member.write(bytes(2**24))
+    assert bomb.stat().st_size < 2**20
+    with pytest.raises(ModelFileError) as raised:
+        AffectDQN.load(bomb)
+    one_line(raised, "the 'policy.pth' entry expands to 268,435,456 bytes", "more than the", "a model of this size needs")
+    extra = rewrite(saved, tmp_path / "extra.zip", members={"more.pth": b"x"})
+    with pytest.raises(ModelFileError) as raised:
+        AffectDQN.load(extra)
+    one_line(raised, "the entry 'more.pth' is not one of the model's weights (policy.pth, policy.optimizer.pth, "
+             "pytorch_variables.pth)")

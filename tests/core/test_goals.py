@@ -135,3 +135,39 @@ def test_affectq_on_the_compiled_engine_warns_after_the_run_and_not_once_the_goa
         warnings.simplefilter("error")
         near.learn(2000)
     assert near.engine_used == "compiled"
+
+
+def _cartpole_run(**kwargs) -> tuple[list[str], EmotionCallback]:
+    import warnings
+
+    import torch as th
+    from stable_baselines3 import PPO
+
+    th.set_num_threads(1)
+    callback = EmotionCallback(position=lambda obs, info: int(obs[2] > 0), warn_after=None, **kwargs)  # the pole's side
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        PPO("MlpPolicy", "CartPole-v1", n_steps=128, batch_size=64, n_epochs=1, seed=0).learn(256, callback=callback)
+    return [str(w.message) for w in caught if issubclass(w.category, RuntimeWarning)], callback
+
+
+def test_cartpoles_falling_pole_taken_for_the_goal_by_the_default_warns_once() -> None:
+    messages, callback = _cartpole_run()
+    told = [m for m in messages if "the same sign as the rest of the return" in m]
+    assert len(told) == 1 and "CartPole's pole falling" in told[0] and "goal=lambda reward, info" in told[0], messages
+    assert told[0].startswith("EmotionCallback: an episode terminated with reward 1 after rewards summing to ")
+    assert callback.appraiser is not None and callback.appraiser.known.goals  # (what it warns about: a map to the fall)
+
+
+def test_a_goal_test_given_tells_the_failure_apart_and_silences_the_warning() -> None:
+    messages, callback = _cartpole_run(goal=lambda reward, info: False)
+    assert not [m for m in messages if "the same sign as the rest of the return" in m], messages
+    assert callback.appraiser is not None and not callback.appraiser.known.goals
+
+
+def test_a_goal_rewarded_apart_from_the_steps_before_it_does_not_warn() -> None:
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.filterwarnings("error", message=".*the same sign as the rest of the return.*")
+        test_frozenlake_holes_are_not_goals_for_an_observing_emotion_callback()  # FrozenLake: 0 a step, 1 at the goal

@@ -164,3 +164,29 @@ def test_the_kernel_steps_gymnasiums_time_limit_while_rl_zoo3_has_rebound_it_and
     assert compiled_reason(QLearning("Grid", plain), plain, None) is None
     model = QLearning("Grid", plain, seed=0).learn(300)
     assert model.num_timesteps == 300 and model.engine_used == "compiled"
+
+
+def test_the_zoo_extra_brings_every_module_the_zoos_plots_import() -> None:
+    import ast
+    from importlib import metadata
+
+    import rl_zoo3.plots
+    import tomllib
+    from packaging.requirements import Requirement
+
+    def names(requirements: list[str]) -> set[str]:
+        return {Requirement(r).name.lower().replace("_", "-") for r in requirements if "extra ==" not in r}
+
+    project = tomllib.loads((Path(__file__).parents[2] / "pyproject.toml").read_text())["project"]
+    given = names(project["dependencies"]) | names(project["optional-dependencies"]["zoo"])
+    for package in ("rl-zoo3", "stable-baselines3"):  # what the extra's packages bring themselves
+        given |= names(metadata.requires(package) or [])
+    given |= {"rl-zoo3", "stable-baselines3"}
+    distributions = metadata.packages_distributions()
+    for command in ("plot_train.py", "all_plots.py"):
+        tree = ast.parse((Path(rl_zoo3.plots.__file__).parent / command).read_text())
+        imported = {alias.name.split(".")[0] for node in tree.body if isinstance(node, ast.Import) for alias in node.names}
+        imported |= {node.module.split(".")[0] for node in tree.body if isinstance(node, ast.ImportFrom) and node.module}
+        for module in sorted(imported - set(__import__("sys").stdlib_module_names)):
+            owners = {name.lower().replace("_", "-") for name in distributions.get(module, [module])}
+            assert owners & given, f"{command} imports {module} ({owners}), which the zoo extra does not bring"
