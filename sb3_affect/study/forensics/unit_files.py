@@ -27,7 +27,7 @@ from sb3_affect.study.launcher.store import (
     FORENSICS_FILE,
     ResultsStore,
     StoreError,
-    replication_parts,
+    claim_kind,
     store_error,
     write_atomic,
 )
@@ -50,12 +50,7 @@ class SummaryStore:
     def __init__(self, root: str | Path, protocol: Protocol) -> None:
         self.root = Path(root)
         self.protocol = protocol
-        held = replication_parts(self.root) or (["sweep.json"] if (self.root / "sweep.json").exists() else [])
-        if held:
-            raise StoreError(
-                f"{self.root} holds a replication or a sweep ({', '.join(held)}), which the forensics would mix with; "
-                f"give the forensics a folder of its own, e.g. --out {self.root / 'forensics'}"
-            )
+        claim_kind(self.root, "forensics", "forensics")
         try:
             self.root.mkdir(parents=True, exist_ok=True)
         except OSError as error:
