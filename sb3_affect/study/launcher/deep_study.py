@@ -52,6 +52,8 @@ STUDY_FILE = KIND_FILES["deep"]
 #: The largest cell or batch record read (10,000 seeds x 1,000 evaluations of ten rows: about 1 GB; a cell of the
 #: shipped study is under a megabyte).
 MAX_RECORD_BYTES = 2**30
+#: The rows every greedy evaluation fills (the others may be empty, None, where a part had no decision or emotion).
+EVALUATED = ("success", "return")
 #: The largest ``deep_study.json`` read.
 MAX_STUDY_BYTES = 2**24
 #: The folder of the finished cells.
@@ -117,6 +119,10 @@ def check_record(record: Any, study: DeepStudy, task: str, agent: str, seeds: Se
         if not (isinstance(rows, list) and len(rows) == len(seeds)
                 and all(isinstance(row, list) and len(row) == evaluations and all(_number(v) for v in row) for row in rows)):
             return f"has no {key} table of {len(seeds)} seeds x {evaluations} evaluations"
+    for key in EVALUATED:  # every evaluation gives them (None, NaN or out of range: not the evaluation's)
+        values = [v for row in record[key] for v in row]
+        if not all(v is not None and math.isfinite(v) and (key != "success" or 0 <= v <= 1) for v in values):
+            return f"has a {key} that no evaluation gives (empty, NaN or out of range)"
     first = record.get("first_success")
     if not (isinstance(first, list) and len(first) == len(seeds) and all(_number(v) for v in first)):
         return f"has no first_success of {len(seeds)} seeds"

@@ -179,7 +179,7 @@ def test_a_batch_killed_mid_write_resumes_to_the_results_of_an_uninterrupted_run
 
 
 def test_damaged_cells_are_named_not_counted_refused_by_the_report_and_redone(tmp_path: Path) -> None:
-    """A truncated, garbage, {} or symlinked cell counts as not done: status names it, the report refuses it, a
+    """A truncated, garbage, {}, symlinked or NaN-success cell counts as not done: status names it, the report refuses it, a
     rerun moves it to damaged/ and runs its batches again, to the same results."""
     from sb3_affect.study.launcher.deep_study import read_cells
     from sb3_affect.study.launcher.store import StoreError
@@ -190,7 +190,9 @@ def test_damaged_cells_are_named_not_counted_refused_by_the_report_and_redone(tm
     path = cell_path(out, "Empty-5x5", "dqn-linear")
     good = path.read_text()
     for damage, why in [(good[: len(good) // 2], "is not valid JSON"), ("garbage", "is not valid JSON"),
-                        ("{}", "is not a record of Empty-5x5 x dqn-linear"), (None, "a symbolic link")]:  # fmt: skip
+                        ("{}", "is not a record of Empty-5x5 x dqn-linear"), (None, "a symbolic link"),
+                        (json.dumps({**json.loads(good), "success": [[None, None], [None, None]]}),
+                         "has a success that no evaluation gives")]:  # fmt: skip
         path.unlink()
         if damage is None:
             (tmp_path / "elsewhere.json").write_text(good)
@@ -205,7 +207,7 @@ def test_damaged_cells_are_named_not_counted_refused_by_the_report_and_redone(tm
         done = run_deep_study(study, out, workers=1, log=log.append)
         assert (done.trained, done.batches) == (1, 1) and f"{path} " in log[0] and "moved to" in log[0]
         assert json.loads(path.read_text())["success"] == json.loads(good)["success"]
-    assert len(list((out / "damaged").iterdir())) == 4
+    assert len(list((out / "damaged").iterdir())) == 5
 
 
 def test_a_failed_batch_leaves_a_failure_record_and_a_second_launcher_is_refused(
