@@ -6,9 +6,10 @@ it is opened, and opened without following a link and without blocking (a FIFO p
 open does not hang the reader), then checked again on the open file. Anything else is an ``UnreadableFile``: one
 line naming the file and what it is.
 
-It also holds the one way the study writes a file (``replacing``, ``write_file``): a unique temporary name in the same
-folder, written, synced to disk, then renamed over the file: a reader, even after a crash or with a second writer at
-work, sees a whole file or none, and a symbolic link at the file's name is replaced, never written through.
+It also holds the one way the study writes a file (``replacing``, ``write_file``; many at once, ``write_files``): a
+unique temporary name in the same folder, written, synced to disk, then renamed over the file: a reader, even after a
+crash or with a second writer at work, sees a whole file or none, and a symbolic link at the file's name is replaced,
+never written through.
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ import json
 import os
 import stat
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import IO, Any
 
@@ -138,3 +139,25 @@ def write_file(path: Path | str, data: bytes | str) -> None:
     """``path`` holding ``data`` (text: UTF-8), written through ``replacing``."""
     with replacing(path) as tmp:
         tmp.write_bytes(data.encode() if isinstance(data, str) else data)
+
+
+def write_files(files: Sequence[tuple[Path, bytes]]) -> None:
+    """
+    Many files at once, as ``write_file`` writes one: each to a unique temporary name beside it, the file system synced
+    once (instead of once per file), then each renamed into place; every temporary file removed when one fails.
+    """
+    temporary: list[str] = []
+    try:
+        for path, data in files:
+            fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=path.suffix)
+            temporary.append(tmp)
+            with os.fdopen(fd, "wb") as handle:
+                handle.write(data)
+        os.sync()
+        for (path, _), tmp in zip(files, temporary):
+            os.replace(tmp, path)
+    except BaseException:  # a full disk, or Ctrl-C mid-write: never leave a partial file behind
+        for tmp in temporary:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+        raise

@@ -22,7 +22,6 @@ import contextlib
 import errno
 import json
 import os
-import tempfile
 from collections.abc import Callable, Collection, Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -33,7 +32,7 @@ from sb3_affect.core.episode_log import EPISODE_COLUMNS
 from sb3_affect.study.launcher import folder_lock
 from sb3_affect.study.launcher.chunks import chunk_records
 from sb3_affect.study.launcher.folder_files import MAX_SWEEP_FILE_BYTES, FolderFiles, guarded, sort_files
-from sb3_affect.study.launcher.regular_files import read_json, write_file
+from sb3_affect.study.launcher.regular_files import read_json, write_file, write_files
 from sb3_affect.study.launcher.run_ids import base_run_ids
 from sb3_affect.study.launcher.schema import Sweep
 
@@ -248,25 +247,13 @@ class ResultsStore:
         file system synced once (instead of once per file), then each renamed into place: a reader, even after a
         crash, sees each run's whole file or none.
         """
-        temporary = []
         try:
-            for _, data in files:
-                fd, tmp = tempfile.mkstemp(dir=self.runs, prefix=".tmp-", suffix=".json")
-                temporary.append(tmp)
-                with os.fdopen(fd, "wb") as handle:
-                    handle.write(data)
-            os.sync()
-            for (rid, _), tmp in zip(files, temporary):
-                os.replace(tmp, self.runs / f"{rid}.json")
-                with contextlib.suppress(FileNotFoundError):
-                    (self.failed / f"{rid}.json").unlink()
-        except BaseException as error:  # a full disk, or Ctrl-C mid-write: never leave a partial file behind
-            for tmp in temporary:
-                with contextlib.suppress(OSError):
-                    os.unlink(tmp)
-            if isinstance(error, OSError):
-                raise store_error(self.runs, error) from None
-            raise
+            write_files([(self.runs / f"{rid}.json", data) for rid, data in files])
+        except OSError as error:
+            raise store_error(self.runs, error) from None
+        for rid, _ in files:
+            with contextlib.suppress(FileNotFoundError):
+                (self.failed / f"{rid}.json").unlink()
 
     def write_chunk(self, name: str, data: bytes, run_ids: Iterable[str]) -> None:
         """Store a batch's chunk (``chunks.encode_chunk``) and forget earlier failures of its runs."""
