@@ -28,8 +28,8 @@ from sb3_affect.study.launcher.deep_schema import DeepStudy
 from sb3_affect.study.launcher.deep_study import run_deep_study
 from sb3_affect.study.launcher.epsilon_tuning import round_values, tune, tuning_grid
 from sb3_affect.study.launcher.folder_files import MAX_SWEEP_FILE_BYTES
-from sb3_affect.study.launcher.regular_files import UnreadableFile, read_json
-from sb3_affect.study.launcher.store import FORENSICS_FILE, ResultsStore, StoreError
+from sb3_affect.study.launcher.regular_files import UnreadableFile, read_json, write_file
+from sb3_affect.study.launcher.store import KIND_NAMES, ResultsStore, StoreError, folder_kind
 from sb3_affect.study.launcher.study_schema import ForensicsStudy
 from sb3_affect.study.launcher.sweep_file import load_sweep, load_sweep_file
 from sb3_affect.study.report import build_report
@@ -289,21 +289,22 @@ def _heartbeat(what: str, every: float | None = None) -> Iterator[None]:
 
 
 def _refuse_a_sweep_folder(out_dir: Path) -> None:
-    """A replication's folder holds its sweeps in sub-folders: one that holds a sweep itself is refused (a mix)."""
-
-    if (out_dir / FORENSICS_FILE).exists() or (out_dir / FORENSICS_FILE).is_symlink():
-        raise StoreError(
-            f"{out_dir} holds the replication forensics ({FORENSICS_FILE}), which a replication would mix with; give "
-            f"the replication a folder of its own, e.g. --out {out_dir / 'replication'}"
-        )
-    store = ResultsStore(out_dir)
-    saved = store.saved_sweep()
-    if saved is not None or any(store.chunks.glob("[!.]*.parquet")) or any(store.runs.glob("[!.]*.json")):
-        name = saved.get("name", "?") if saved is not None else "?"
-        raise StoreError(
-            f"{out_dir} holds the results of sweep {name!r}, which a replication would mix with; give the replication "
-            f"a folder of its own, e.g. --out {out_dir / 'replication'}"
-        )
+    """A replication's folder holds its studies in sub-folders: one that holds a study itself is refused (a mix)."""
+    held = folder_kind(out_dir)
+    results = ResultsStore(out_dir)
+    saved = results.saved_sweep()
+    if saved is not None:
+        what = f"the results of sweep {saved.get('name', '?')!r}"
+    elif held is not None and held[0] != "replication":
+        what = f"{KIND_NAMES[held[0]]} ({held[1]})"
+    elif any(results.chunks.glob("[!.]*.parquet")) or any(results.runs.glob("[!.]*.json")):
+        what = "the results of sweep '?'"
+    else:
+        return
+    raise StoreError(
+        f"{out_dir} holds {what}, which a replication would mix with; give the replication a folder of its own, "
+        f"e.g. --out {out_dir / 'replication'}"
+    )
 
 
 class _Record:
@@ -355,7 +356,5 @@ class _Record:
         self._write()
 
     def _write(self) -> None:
-        tmp = self.path.with_name(f".{self.path.name}.tmp")
-        tmp.write_text(json.dumps({"timings": self.timings, "runs": self.runs}, indent=1))
-        tmp.replace(self.path)
+        write_file(self.path, json.dumps({"timings": self.timings, "runs": self.runs}, indent=1))
 

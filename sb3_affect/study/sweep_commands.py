@@ -13,11 +13,11 @@ from pathlib import Path
 
 from sb3_affect.study.launcher import ResultsStore, run_sweep
 from sb3_affect.study.launcher.deep_schema import DeepStudy
-from sb3_affect.study.launcher.deep_study import STUDY_FILE, deep_status, run_deep_study
+from sb3_affect.study.launcher.deep_study import deep_status, run_deep_study
 from sb3_affect.study.launcher.ray_errors import ClusterLost, RayClusterError
 from sb3_affect.study.launcher.schema import SweepError
 from sb3_affect.study.launcher.signals import Terminated, stop_on_sigterm
-from sb3_affect.study.launcher.store import FORENSICS_FILE, StoreError
+from sb3_affect.study.launcher.store import StoreError, folder_kind
 from sb3_affect.study.launcher.study_schema import ForensicsStudy
 from sb3_affect.study.launcher.sweep_file import load_sweep_file
 
@@ -35,6 +35,9 @@ def dispatch(args: argparse.Namespace, commands: Mapping[str, Callable[[argparse
         return int((commands or COMMANDS)[args.command](args))
     except (SweepError, StoreError, UsageError, RayClusterError) as error:
         print(f"sb3-affect: error: {error}", file=sys.stderr)
+        return 2
+    except (ValueError, RuntimeError) as error:  # the launcher's checks of its arguments: one line, never a traceback
+        print(f"sb3-affect: error: {' '.join(str(error).split()) or type(error).__name__}", file=sys.stderr)
         return 2
     except KeyboardInterrupt as interrupt:
         how = "terminated" if isinstance(interrupt, Terminated) else "interrupted"
@@ -123,56 +126,50 @@ def _run_forensics(study: ForensicsStudy, args: argparse.Namespace) -> int:
 def status(args: argparse.Namespace) -> int:
     """``sb3-affect status DIR``: how far a sweep, a forensics study, a deep study or a `replicate` folder is."""
     root = existing_folder(args.dir, "status")
-    if ResultsStore(root).saved_sweep() is not None:  # sweep.json, or a copy of it when it was deleted
-        _print_status(root)
+    kind = folder_kind(root)
+    if kind is not None and kind[0] != "replication":
+        STATUS[kind[0]](root)
         return 0
-    if (root / FORENSICS_FILE).exists():  # a forensics folder (`sb3-affect run forensics`)
-        print(_forensics_status(root))
-        return 0
-    if (root / STUDY_FILE).exists():  # a deep study's folder
-        _print_deep_status(root)
-        return 0
-    # A `replicate` folder: one sweep folder per part (paper/, dqn/, ...), the forensics' and the deep study's.
-    parts = sorted(p for p in root.iterdir() if (p / "sweep.json").exists())
-    studies = sorted(p for p in root.iterdir() if (p / FORENSICS_FILE).exists())
-    deep = sorted(p for p in root.iterdir() if (p / STUDY_FILE).exists())
-    if not parts and not studies and not deep:
+    # A `replicate` folder: one folder per part (paper/, dqn/, ..., the forensics' and the deep study's).
+    parts: dict[str, list[Path]] = {name: [] for name in STATUS}
+    for folder in sorted(root.iterdir()):
+        held = folder_kind(folder) if folder.is_dir() else None
+        if held is not None and held[0] in parts:
+            parts[held[0]].append(folder)
+    if not any(parts.values()):
         print(
             f"{root}: no sweep has been run here (no sweep.json, nor sub-folders with one); "
             "start one with `sb3-affect run FILE --out DIR`",
             file=sys.stderr,
         )
         return 2
-    print(f"{root}: {len(parts)} sweeps" + (" and the forensics" if studies else "") + (" and the deep study" if deep else ""))
-    for part in parts:
-        _print_status(part)
-    for folder in studies:
-        print(_forensics_status(folder))
-    for folder in deep:
-        _print_deep_status(folder)
+    print(f"{root}: {len(parts['sweep'])} sweeps" + (" and the forensics" if parts["forensics"] else "")
+          + (" and the deep study" if parts["deep"] else ""))
+    for name, folders in parts.items():
+        for folder in folders:
+            STATUS[name](folder)
     report = root / "report.html"
     if report.exists():
         print(f"report: {report}")
     return 0
 
 
-def _forensics_status(root: Path) -> str:
+def _print_forensics_status(root: Path) -> None:
     from sb3_affect.study.forensics.unit_files import folder_status  # (pandas: not on the sweep path)
 
-    return folder_status(root)
+    print(folder_status(root))
 
 
 def _print_deep_status(root: Path) -> None:
-    try:
-        print("\n".join(deep_status(root)))
-    except (ValueError, TypeError) as error:  # pydantic's ValidationError is a ValueError
-        raise UsageError(f"{root}: its deep_study.json is not a valid deep study ({type(error).__name__}); "
-                         "rerun `sb3-affect run FILE --out DIR` into a new folder") from None
+    print("\n".join(deep_status(root)))
 
 
 def _print_status(root: Path) -> None:
     store = ResultsStore(root)
-    name, per_agent, rejected = store.progress()  # agent -> (runs, done, failed); files that do not count
+    try:  # agent -> (runs, done, failed); files that do not count
+        name, per_agent, rejected = store.progress()
+    except FileNotFoundError as error:  # sweep.json and its copies unreadable
+        raise UsageError(f"{error}: its sweep.json and the copies of it can not be read") from None
     total, done, failed = (sum(counts[i] for counts in per_agent.values()) for i in range(3))
     print(f"sweep {name!r} in {store.root}: {done}/{total} runs done, {failed} failed")
     for agent, (runs, done_agent, failed_agent) in per_agent.items():
@@ -184,5 +181,8 @@ def _print_status(root: Path) -> None:
         print(f"  in use by launcher pid {owner} (running)")
 
 
+#: How ``status`` shows a folder of each kind of study (``store.folder_kind``).
+STATUS: dict[str, Callable[[Path], None]] = {"sweep": _print_status, "forensics": _print_forensics_status,
+                                             "deep": _print_deep_status}  # fmt: skip
 #: The commands this module runs, by name.
 COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {"run": run, "status": status}

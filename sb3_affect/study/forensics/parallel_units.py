@@ -5,7 +5,9 @@ runs), with a progress bar; resumable.
 
 from __future__ import annotations
 
+import contextlib
 import socket
+import traceback
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -19,6 +21,7 @@ from sb3_affect.study.forensics.unit_files import SummaryStore
 from sb3_affect.study.launcher.launcher import run_ray
 from sb3_affect.study.launcher.local_pool import run_local
 from sb3_affect.study.launcher.one_run import package_versions
+from sb3_affect.study.launcher.store import ResultsStore
 
 Unit = tuple[Simulation, int]
 
@@ -123,11 +126,18 @@ def run_units(
     jobs = [UnitJob(u, store.protocol, (stop_above or {}).get(u[0])) for u in todo]
     failures: list[str] = []
 
+    records = ResultsStore(store.root)
+
     def on_result(job: UnitJob, result: dict[str, Any]) -> None:
         store.write(*job.unit, result["cells"], result["complete"])
+        with contextlib.suppress(FileNotFoundError):
+            (records.failed / f"{store.failure_id(*job.unit)}.json").unlink()
         bar.update()
 
     def on_failure(job: UnitJob, error: str) -> None:
+        simulation, replication = job.unit
+        records.write_failure(store.failure_id(*job.unit), {"simulation": simulation.key, "replication": replication},
+                              error)
         failures.append(f"{job.name}: {error}")
         bar.update()
 
@@ -137,7 +147,12 @@ def run_units(
             run_ray(jobs, workers, on_result, on_failure, ray_address, timeout=ray_timeout)
         elif workers <= 1:
             for job in jobs:
-                on_result(job, job.execute())
+                try:
+                    result = job.execute()
+                except Exception:  # recorded as a worker's failure is (KeyboardInterrupt passes)
+                    on_failure(job, traceback.format_exc())
+                    continue
+                on_result(job, result)
         else:
 
             _warm_up(todo, store.protocol)
@@ -145,5 +160,6 @@ def run_units(
     finally:
         bar.close()
     if failures:
-        raise RuntimeError(f"{len(failures)} of {len(jobs)} units failed (the others are kept); the first: {failures[0]}")
+        raise RuntimeError(f"{len(failures)} of {len(jobs)} units failed (the others are kept; tracebacks in "
+                           f"{records.failed}); the first: {failures[0]}")
     return len(todo)

@@ -7,14 +7,20 @@ Layout of ``DIR``::
     DIR/summaries/<simulation>/r0000.json  one replication of one simulation: its per-epsilon ``cell_summary`` rows
     DIR/summaries/<simulation>/r0000.partial.json  a pre-screen replication stopped early (the simulation is rejected)
     DIR/screen.csv, DIR/leaders.csv, ...   the analysis (rewritten by every run)
+    DIR/failed/<simulation>__r0000.json    a replication that raised or whose worker died (retried on resume)
+    DIR/damaged/                           summaries that did not read back, set aside (their replications rerun)
+    DIR/.lock, .lock.owner                 the launcher's lock, as a sweep's folder
 
-A rerun skips every replication already on disk: an interrupted run resumes where it stopped.
+A rerun skips every replication already on disk that reads back as a summary: an interrupted run resumes where it
+stopped; a summary that does not read back (empty, garbage, a link) is moved to ``DIR/damaged/`` and simulated again.
 """
 
 from __future__ import annotations
 
 import contextlib
 import math
+import os
+import sys
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -27,7 +33,7 @@ from sb3_affect.study.launcher.store import (
     FORENSICS_FILE,
     ResultsStore,
     StoreError,
-    replication_parts,
+    claim_kind,
     store_error,
     write_atomic,
 )
@@ -50,12 +56,7 @@ class SummaryStore:
     def __init__(self, root: str | Path, protocol: Protocol) -> None:
         self.root = Path(root)
         self.protocol = protocol
-        held = replication_parts(self.root) or (["sweep.json"] if (self.root / "sweep.json").exists() else [])
-        if held:
-            raise StoreError(
-                f"{self.root} holds a replication or a sweep ({', '.join(held)}), which the forensics would mix with; "
-                f"give the forensics a folder of its own, e.g. --out {self.root / 'forensics'}"
-            )
+        claim_kind(self.root, "forensics", "forensics")
         try:
             self.root.mkdir(parents=True, exist_ok=True)
         except OSError as error:
@@ -87,10 +88,25 @@ class SummaryStore:
         return self.root / "summaries" / simulation.key / name
 
     def has(self, simulation: Simulation, replication: int, partial_ok: bool = False) -> bool:
-        """Whether the replication is stored (complete; or stopped early too, with ``partial_ok``)."""
-        if self.path(simulation, replication).exists():
+        """
+        Whether the replication is stored (complete; or stopped early too, with ``partial_ok``). A file that does not
+        read back as a summary is moved to ``DIR/damaged/`` (one line on stderr): its replication is not stored.
+        """
+        paths = [self.path(simulation, replication)] + ([self.path(simulation, replication, False)] if partial_ok else [])
+        for path in paths:
+            if not os.path.lexists(path):
+                continue
+            why = _read_summary(path)
+            if isinstance(why, str):
+                for line in ResultsStore(self.root).set_aside([(path, why)]):
+                    print(f"sb3-affect: {line}", file=sys.stderr, flush=True)
+                continue
             return True
-        return partial_ok and self.path(simulation, replication, complete=False).exists()
+        return False
+
+    def failure_id(self, simulation: Simulation, replication: int) -> str:
+        """A replication's name in ``DIR/failed/``."""
+        return f"{simulation.key}__r{replication:04d}"
 
     def write(
         self, simulation: Simulation, replication: int, cells: dict[float, dict[str, float]], complete: bool = True
@@ -113,26 +129,34 @@ class SummaryStore:
         path = self.path(simulation, replication)
         if partial_ok and not path.exists():
             path = self.path(simulation, replication, complete=False)
-        try:
-            payload = read_json(path, MAX_SUMMARY_BYTES)
-        except UnreadableFile as error:
-            raise StoreError(f"{error}; {_REDO}") from None
-        cells = payload.get("cells") if isinstance(payload, dict) else None
-        try:
-            if not isinstance(cells, dict) or not cells:
-                raise ValueError("no cells")
-            rows = {float(k): v for k, v in cells.items()}
-            if not all(isinstance(v, dict) and math.isfinite(k) for k, v in rows.items()):
-                raise ValueError("a cell is not a row")
-            frame = pd.DataFrame.from_dict(rows, orient="index")
-        except (ValueError, TypeError):
-            raise StoreError(f"{path}: is not a replication's summary (no per-epsilon cells); {_REDO}") from None
-        return frame.sort_index()
+        rows = _read_summary(path)
+        if isinstance(rows, str):
+            raise StoreError(f"{path}: {rows}; {_REDO}")
+        return rows
 
     def replications(self, simulation: Simulation) -> list[int]:
         """The complete replications stored for a simulation."""
         folder = self.root / "summaries" / simulation.key
         return sorted(int(p.stem[1:]) for p in folder.glob("r[0-9][0-9][0-9][0-9].json")) if folder.is_dir() else []
+
+
+def _read_summary(path: Path) -> pd.DataFrame | str:
+    """A summary file's ``cell_summary`` rows, index: epsilon (sorted), or why it is not a summary."""
+    try:
+        payload = read_json(path, MAX_SUMMARY_BYTES)
+    except UnreadableFile as error:
+        return error.reason
+    cells = payload.get("cells") if isinstance(payload, dict) else None
+    try:
+        if not isinstance(cells, dict) or not cells:
+            raise ValueError("no cells")
+        rows = {float(k): v for k, v in cells.items()}
+        if not all(isinstance(v, dict) and math.isfinite(k) for k, v in rows.items()):
+            raise ValueError("a cell is not a row")
+        frame = pd.DataFrame.from_dict(rows, orient="index")
+    except (ValueError, TypeError):
+        return "is not a replication's summary (no per-epsilon cells)"
+    return frame.sort_index()
 
 
 def folder_status(root: str | Path) -> str:

@@ -22,10 +22,11 @@ evaluation envs every ``eval_every`` env steps. ``sweep_file.load_sweep_file`` v
 
 from __future__ import annotations
 
+import math
 import re
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, StrictInt, field_validator, model_validator
 
 from sb3_affect.core.registry import AGENTS
 from sb3_affect.kernel.minigrid_world import MINIGRID_TASKS
@@ -37,6 +38,53 @@ STUDY_EVAL_EPISODES = 20
 TUNED = "tuned"
 #: The per-seed rows of a batch's (and a cell's) record, (seeds, evaluations) each (``deep_training.run_batch``).
 RECORD_ROWS = ("success", "return", "random_share", "train_episodes", "train_successes")
+#: The evaluation envs of seed s are seeded ``EVAL_SEED_OFFSET + s * eval_episodes + i``: apart from every training env
+#: (seeded ``s + i`` for ``i < n_envs``) for seeds below the offset, which is the largest seed a study takes.
+EVAL_SEED_OFFSET = 1_000_000
+#: The arguments the study sets itself (the env of each seed, its seed, the CPU, SB3's MlpPolicy).
+OWN_ARGUMENTS = ("env", "seed", "device", "policy")
+#: The widest layer and the most layers of ``policy_kwargs.net_arch`` (the study's networks are 64 wide).
+MAX_LAYER_WIDTH, MAX_LAYERS = 4096, 16
+#: DQN's integer arguments the study checks before anything runs: (smallest, largest) of each.
+INTEGER_ARGUMENTS = {"buffer_size": (1, 10**8), "learning_starts": (0, 10**9), "batch_size": (1, 2**16),
+                     "train_freq": (1, 10**6), "gradient_steps": (1, 10**4), "target_update_interval": (1, 10**9),
+                     "max_duration": (1, 10**6), "wait_action": (0, 6)}  # fmt: skip
+#: DQN's real arguments the study checks: (lowest, highest, whether the lowest is allowed).
+REAL_ARGUMENTS = {"learning_rate": (0.0, 1.0, False), "gamma": (0.0, 1.0, True), "tau": (0.0, 1.0, False),
+                  "exploration_fraction": (0.0, 1.0, False), "exploration_initial_eps": (0.0, 1.0, True),
+                  "exploration_final_eps": (0.0, 1.0, True), "max_grad_norm": (0.0, math.inf, False),
+                  "mu": (0.0, math.inf, False)}  # fmt: skip
+
+
+def check_arguments(where: str, value: dict[str, Any]) -> dict[str, Any]:
+    """
+    ``network`` or an agent's ``kwargs``: none of the study's own arguments, the integer and real arguments it knows
+    of the right type and range, ``policy_kwargs.net_arch`` a list of layer widths (one-line ``ValueError``).
+    """
+    for key in OWN_ARGUMENTS:
+        if key in value:
+            raise ValueError(f"{where}.{key} is the study's own: it sets the env, the seed, the CPU and MlpPolicy")
+    for key, (low, high) in INTEGER_ARGUMENTS.items():
+        given = value.get(key, low)
+        if isinstance(given, bool) or not isinstance(given, int) or not low <= given <= high:
+            raise ValueError(f"{where}.{key}={given!r} must be an integer from {low} to {high:,}")
+    for key, (lowest, highest, closed) in REAL_ARGUMENTS.items():
+        if key not in value:
+            continue
+        given = value[key]
+        number = isinstance(given, (int, float)) and not isinstance(given, bool) and math.isfinite(given)
+        if not (number and (lowest <= given if closed else lowest < given) and given <= highest):
+            bound = f"{'>=' if closed else '>'} {lowest:g}" + (f" and <= {highest:g}" if math.isfinite(highest) else "")
+            raise ValueError(f"{where}.{key}={given!r} must be a finite number {bound}")
+    policy = value.get("policy_kwargs", {})
+    if not isinstance(policy, dict):
+        raise ValueError(f"{where}.policy_kwargs={policy!r} must be a mapping of MlpPolicy's arguments")
+    layers = policy.get("net_arch", [])
+    if not (isinstance(layers, list) and len(layers) <= MAX_LAYERS
+            and all(isinstance(w, int) and not isinstance(w, bool) and 1 <= w <= MAX_LAYER_WIDTH for w in layers)):
+        raise ValueError(f"{where}.policy_kwargs.net_arch={layers!r} must be a list of at most {MAX_LAYERS} layer "
+                         f"widths from 1 to {MAX_LAYER_WIDTH}")
+    return value
 
 
 class DeepTask(BaseModel):
@@ -65,7 +113,7 @@ class DeepAgent(BaseModel):
     epsilon: Literal["tuned"] | None = Field(
         default=None, description="tuned: the task's exploration_fraction for SB3's linear ε schedule"
     )
-    count_bonus: float | Literal["tuned"] | None = Field(
+    count_bonus: Annotated[float, Field(gt=0, le=10)] | Literal["tuned"] | None = Field(
         default=None, description="a count bonus β / sqrt(visits) added to the training reward: β, or tuned (the task's)"
     )
     replays: str | None = Field(
@@ -85,10 +133,7 @@ class DeepAgent(BaseModel):
     @field_validator("kwargs")
     @classmethod
     def _kwargs(cls, value: dict[str, Any]) -> dict[str, Any]:
-        for key in ("env", "seed", "device", "policy"):
-            if key in value:
-                raise ValueError(f"kwargs.{key} is the study's own: it sets the env, the seed, the CPU and MlpPolicy")
-        return value
+        return check_arguments("kwargs", value)
 
 
 class DeepStudy(BaseModel):
@@ -104,7 +149,9 @@ class DeepStudy(BaseModel):
         default="image", description="FlatObsWrapper's vector, or its first 147 entries (the 7x7x3 view), for every agent"
     )
     n_envs: int = Field(default=4, ge=1, le=256, description="training envs per seed")
-    seeds: list[int] = Field(min_length=1, max_length=10_000, description="one run per seed in every cell (distinct, >= 0)")
+    seeds: list[StrictInt] = Field(
+        min_length=1, max_length=10_000, description=f"one run per seed in every cell (distinct, 0 to {EVAL_SEED_OFFSET - 1})"
+    )
     seeds_per_batch: int | None = Field(
         default=None, ge=1, le=10_000, description="seeds trained together in one batch (one worker process or one Ray "
         "task; the batches of a cell are merged in seed order); default: all the cell's seeds in one batch"
@@ -121,7 +168,15 @@ class DeepStudy(BaseModel):
         twice = sorted({seed for seed in value if value.count(seed) > 1})
         if twice or min(value) < 0:
             raise ValueError(f"seeds must be distinct integers >= 0 (got {twice[0] if twice else min(value)!r})")
+        if max(value) >= EVAL_SEED_OFFSET:
+            raise ValueError(f"seeds: {max(value)} is too large; seeds go from 0 to {EVAL_SEED_OFFSET - 1} (the "
+                             f"evaluation envs are seeded from {EVAL_SEED_OFFSET:,} on)")
         return value
+
+    @field_validator("network")
+    @classmethod
+    def _network(cls, value: dict[str, Any]) -> dict[str, Any]:
+        return check_arguments("network", value)
 
     @field_validator("tasks")
     @classmethod

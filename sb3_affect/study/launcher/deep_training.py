@@ -12,6 +12,7 @@ training episode that reached the goal (None: never, a censored run).
 from __future__ import annotations
 
 import math
+import os
 import time
 from collections.abc import Sequence
 from typing import Any
@@ -20,14 +21,12 @@ import torch as th
 
 import sb3_affect
 from sb3_affect.core.emotions import EMOTION_NAMES
+from sb3_affect.core.registry import resolve_class
 from sb3_affect.engine.seed_envs import seed_vec_env
 from sb3_affect.study.launcher.count_bonus import CountBonus
 from sb3_affect.study.launcher.deep_recording import GreedyEvaluation, TrainingRecorder
-from sb3_affect.study.launcher.deep_schema import RECORD_ROWS, TUNED, DeepAgent, DeepStudy
+from sb3_affect.study.launcher.deep_schema import EVAL_SEED_OFFSET, RECORD_ROWS, TUNED, DeepAgent, DeepStudy
 
-#: The evaluation envs of seed s are seeded ``EVAL_SEED_OFFSET + s * eval_episodes + i``: apart from every training env
-#: (seeded ``s + i`` for ``i < n_envs``) for seeds below the offset.
-EVAL_SEED_OFFSET = 1_000_000
 #: ``train_many``'s ``log_interval`` in the study: no run ends this many episodes, so no ``dump_logs`` resets the
 #: random-decision counters of an ``ActionRepeat`` agent, which ``deep_recording`` reads.
 NO_LOGS = 2**62
@@ -49,6 +48,44 @@ def agent_kwargs(study: DeepStudy, task: str, agent: DeepAgent, epsilons: Sequen
 
 def bonus_scale(study: DeepStudy, task: str, agent: DeepAgent) -> float | None:
     return study.tasks[task].count_bonus if agent.count_bonus == TUNED else agent.count_bonus  # type: ignore[return-value]
+
+
+#: The replay buffer of the agents ``check_study`` builds (what a transition costs is read from it, then scaled).
+PROBE_BUFFER = 100
+
+
+def check_study(study: DeepStudy, batches_at_once: int) -> None:
+    """
+    Before a deep study claims its folder: every agent built once, on the first task's env (Farama's, one env, a small
+    buffer), so that an argument its algorithm refuses is refused now; and the memory of ``batches_at_once`` batches
+    estimated from those models (each seed's replay buffer, its Q-network, target network and Adam's two moments) and
+    refused when it exceeds this machine's. A ``ValueError`` of one line naming the agent, or the figure.
+    """
+    name, spec = next(iter(study.tasks.items()))
+    env = seed_vec_env(spec.id, 1, 0, study.obs, False)
+    seed_bytes = 0.0
+    for index, agent in enumerate(study.agents):
+        epsilons = [1.0] * (spec.budget // study.eval_every) if agent.replays is not None else None
+        kwargs = {**agent_kwargs(study, name, agent, epsilons), "buffer_size": PROBE_BUFFER}
+        try:
+            model = resolve_class(agent.algo)("MlpPolicy", env, seed=0, device="cpu", **kwargs)
+        except (ValueError, TypeError, KeyError, AssertionError) as error:
+            raise ValueError(f"agents[{index}] ({agent.name}) on {name}: {' '.join(str(error).split())}") from None
+        buffer = model.replay_buffer
+        transition = sum(getattr(buffer, field).nbytes for field in ("observations", "next_observations", "actions",
+                                                                      "rewards", "dones")) / PROBE_BUFFER
+        parameters = sum(p.numel() for p in model.q_net.parameters())
+        buffer_size = int(agent_kwargs(study, name, agent).get("buffer_size", 1_000_000))
+        seed_bytes = max(seed_bytes, transition * buffer_size + 16 * parameters)
+    size = study.seeds_per_batch or len(study.seeds)
+    need = seed_bytes * size * batches_at_once
+    have = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    if need > have:
+        raise ValueError(
+            f"the deep study needs about {need / 2**30:.1f} GiB ({size} seeds a batch x {batches_at_once} batches at a "
+            f"time x {seed_bytes / 2**20:.1f} MiB a seed: its replay buffer and networks), more than this machine's "
+            f"{have / 2**30:.1f} GiB: give fewer seeds_per_batch or workers, or a smaller buffer_size"
+        )
 
 
 def run_batch(study: DeepStudy, task: str, agent: DeepAgent, seeds: Sequence[int],

@@ -17,7 +17,7 @@ from pathlib import Path
 
 from filelock import FileLock, Timeout
 
-from sb3_affect.study.launcher.regular_files import read_text
+from sb3_affect.study.launcher.regular_files import read_text, write_file
 
 LOCK_NAME = ".lock"
 OWNER_NAME = ".lock.owner"
@@ -90,9 +90,7 @@ def hold(root: Path) -> Iterator[None]:
     owner = root / OWNER_NAME
     mine = f"{os.getpid()} {start_time(os.getpid()) or ''}".strip()
     try:
-        tmp = root / f"{OWNER_NAME}.{os.getpid()}"
-        tmp.write_text(mine)
-        os.replace(tmp, owner)
+        write_file(owner, mine)
     except OSError:
         lock.release()
         raise

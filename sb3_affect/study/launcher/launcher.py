@@ -48,7 +48,7 @@ from sb3_affect.study.launcher.batches import (
 from sb3_affect.study.launcher.local_pool import OnFailure, OnResult, W, run_local
 from sb3_affect.study.launcher.one_run import package_versions
 from sb3_affect.study.launcher.schema import Cell
-from sb3_affect.study.launcher.store import SWEEP_SCHEMA, ResultsStore, cell_run_ids, store_error
+from sb3_affect.study.launcher.store import SWEEP_SCHEMA, ResultsStore, cell_run_ids, claim_kind, store_error
 from sb3_affect.study.launcher.sweep_file import load_sweep
 
 
@@ -168,6 +168,7 @@ def run_sweep(
     if sweep.tasks:  # the file's order of the tasks (sweep.json sorts the keys of a mapping)
         resolved["task_order"] = list(sweep.tasks)
     store = ResultsStore(out_dir)
+    claim_kind(store.root, "sweep", sweep.name)  # (before the lock file: a folder of another kind is left as it was)
     try:
         store.root.mkdir(parents=True, exist_ok=True)
     except OSError as error:

@@ -19,7 +19,6 @@ The Ray side of the ``ray`` backend: connect, ship the code, check versions, run
 from __future__ import annotations
 
 import contextlib
-import os
 import shutil
 import tempfile
 import time
@@ -45,6 +44,7 @@ from sb3_affect.study.launcher.ray_connect import (
     working_directory,
 )
 from sb3_affect.study.launcher.ray_errors import ClusterLost, RayClusterError
+from sb3_affect.study.launcher.regular_files import write_file
 from sb3_affect.study.launcher.signals import sigint_ignored
 
 __all__ = ["RaySession", "connect", "execute_task", "plain_text", "write_logs"]
@@ -281,6 +281,4 @@ def write_logs(log_dir: str, logs: dict[str, bytes]) -> None:
         if root.resolve() not in path.resolve().parents:
             continue  # a worker can only name files below the run's log folder
         path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(f".tmp-{path.name}")
-        tmp.write_bytes(data)
-        os.replace(tmp, path)
+        write_file(path, data)

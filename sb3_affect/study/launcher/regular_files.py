@@ -5,13 +5,21 @@ to ``/dev/zero`` or to another user's file), a FIFO, a device or a folder. Each 
 it is opened, and opened without following a link and without blocking (a FIFO put there between the check and the
 open does not hang the reader), then checked again on the open file. Anything else is an ``UnreadableFile``: one
 line naming the file and what it is.
+
+It also holds the one way the study writes a file (``replacing``, ``write_file``; many at once, ``write_files``): a
+unique temporary name in the same folder, written, synced to disk, then renamed over the file: a reader, even after a
+crash or with a second writer at work, sees a whole file or none, and a symbolic link at the file's name is replaced,
+never written through.
 """
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import stat
+import tempfile
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import IO, Any
 
@@ -102,3 +110,54 @@ def read_text(path: Path | str, limit: int | None = None) -> str:
         return read_bytes(path, limit).decode()
     except UnicodeDecodeError as error:
         raise UnreadableFile(path, f"is not UTF-8 text ({error})") from None
+
+
+@contextlib.contextmanager
+def replacing(path: Path | str) -> Iterator[Path]:
+    """
+    A new temporary file beside ``path`` (a unique name, ``path``'s suffix so writers infer the format) for the block
+    to write; synced and renamed over ``path`` when the block ends, removed when it raises (``OSError`` passes on).
+    """
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=path.suffix)
+    os.close(fd)
+    try:
+        yield Path(tmp)
+        fd = os.open(tmp, os.O_RDONLY | os.O_NOFOLLOW)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
+        os.replace(tmp, path)
+    except BaseException:  # a full disk, or Ctrl-C mid-write: never leave a partial file behind
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+
+
+def write_file(path: Path | str, data: bytes | str) -> None:
+    """``path`` holding ``data`` (text: UTF-8), written through ``replacing``."""
+    with replacing(path) as tmp:
+        tmp.write_bytes(data.encode() if isinstance(data, str) else data)
+
+
+def write_files(files: Sequence[tuple[Path, bytes]]) -> None:
+    """
+    Many files at once, as ``write_file`` writes one: each to a unique temporary name beside it, the file system synced
+    once (instead of once per file), then each renamed into place; every temporary file removed when one fails.
+    """
+    temporary: list[str] = []
+    try:
+        for path, data in files:
+            fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=path.suffix)
+            temporary.append(tmp)
+            with os.fdopen(fd, "wb") as handle:
+                handle.write(data)
+        os.sync()
+        for (path, _), tmp in zip(files, temporary):
+            os.replace(tmp, path)
+    except BaseException:  # a full disk, or Ctrl-C mid-write: never leave a partial file behind
+        for tmp in temporary:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+        raise

@@ -22,7 +22,6 @@ import contextlib
 import errno
 import json
 import os
-import tempfile
 from collections.abc import Callable, Collection, Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -33,7 +32,7 @@ from sb3_affect.core.episode_log import EPISODE_COLUMNS
 from sb3_affect.study.launcher import folder_lock
 from sb3_affect.study.launcher.chunks import chunk_records
 from sb3_affect.study.launcher.folder_files import MAX_SWEEP_FILE_BYTES, FolderFiles, guarded, sort_files
-from sb3_affect.study.launcher.regular_files import read_json
+from sb3_affect.study.launcher.regular_files import read_json, write_file, write_files
 from sb3_affect.study.launcher.run_ids import base_run_ids
 from sb3_affect.study.launcher.schema import Sweep
 
@@ -56,24 +55,16 @@ def cell_run_ids(cell: Cell) -> list[str]:
 
 
 def write_atomic(path: Path, payload: dict[str, Any] | bytes) -> None:
-    """Temp file in the same folder, fsync, rename: a reader sees the whole file or none."""
+    """
+    ``regular_files.write_file`` of ``payload`` (a dict: as JSON), its folder made when missing; an OSError becomes a
+    one-line ``StoreError``.
+    """
     data = payload if isinstance(payload, bytes) else json.dumps(payload, sort_keys=True, indent=1).encode()
     try:
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=".tmp-", suffix=path.suffix)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_file(path, data)
     except OSError as error:
         raise store_error(path.parent, error) from None
-    try:
-        with os.fdopen(fd, "wb") as handle:
-            handle.write(data)
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.replace(tmp, path)
-    except BaseException as error:  # a full disk, or Ctrl-C mid-write: never leave a partial file behind
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        if isinstance(error, OSError):
-            raise store_error(path.parent, error) from None
-        raise
 
 
 def run_file(rid: str, config: dict[str, Any], result: dict[str, Any]) -> bytes:
@@ -94,8 +85,41 @@ def store_error(folder: Path, error: OSError) -> StoreError:
 
 
 IDENTITY_COPIES = ("chunks/.sweep", "runs/.sweep")
+#: The record that marks each kind of results folder, and how a refusal names it: a folder holds one kind of study.
+KIND_FILES = {"sweep": "sweep.json", "deep": "deep_study.json", "forensics": "forensics.json"}
+KIND_NAMES = {"sweep": "a sweep", "deep": "a deep study", "forensics": "the replication forensics",
+              "replication": "a replication"}  # fmt: skip
 #: The file that marks a forensics folder (``sb3_affect.study.forensics.unit_files``): no sweep is run into one.
-FORENSICS_FILE = "forensics.json"
+FORENSICS_FILE = KIND_FILES["forensics"]
+
+
+def folder_kind(root: Path) -> tuple[str, str] | None:
+    """
+    The kind of study ``root`` holds and the file that says so (its record; for a sweep, a copy of it; for a
+    ``replicate`` folder, its sweep sub-folders), or None when it holds none. Reads no file.
+    """
+    for kind, name in KIND_FILES.items():
+        if os.path.lexists(root / name):
+            return kind, name
+    copies = [copy for copy in IDENTITY_COPIES if os.path.lexists(root / copy)]
+    if copies:
+        return "sweep", copies[0]
+    parts = replication_parts(root)
+    return ("replication", ", ".join(parts)) if parts else None
+
+
+def claim_kind(root: Path, kind: str, suggestion: str) -> None:
+    """
+    Refuse (``StoreError``, one line) to run a study of ``kind`` into ``root`` when it holds another kind of study
+    (``folder_kind``); ``suggestion``: the sub-folder the line proposes instead.
+    """
+    held = folder_kind(root)
+    if held is not None and held[0] != kind:
+        what = KIND_NAMES[kind].split(" ", 1)[1]
+        raise StoreError(
+            f"{root} holds {KIND_NAMES[held[0]]} ({held[1]}), which {KIND_NAMES[kind]} run into it would mix with; "
+            f"give the {what} a folder of its own, e.g. --out {root / suggestion}"
+        )
 
 
 class ResultsStore:
@@ -140,17 +164,7 @@ class ResultsStore:
             sweep records are all gone, means the folder holds another sweep: refused)
         :return: one line per file set aside (its path, why, where it went)
         """
-        replication = replication_parts(self.root)
-        if replication and not (self.root / "sweep.json").exists():
-            raise StoreError(
-                f"{self.root} holds a replication (sweeps in {', '.join(replication)}), which a sweep run into it "
-                f"would mix with; give the sweep a folder of its own, e.g. --out {self.root / resolved_sweep['name']}"
-            )
-        if (self.root / FORENSICS_FILE).exists() or (self.root / FORENSICS_FILE).is_symlink():
-            raise StoreError(
-                f"{self.root} holds the replication forensics ({FORENSICS_FILE}), which a sweep run into it would mix "
-                f"with; give the sweep a folder of its own, e.g. --out {self.root / resolved_sweep['name']}"
-            )
+        claim_kind(self.root, "sweep", resolved_sweep["name"])
         try:
             for folder in (self.root, self.runs, self.chunks, self.failed):
                 folder.mkdir(parents=True, exist_ok=True)
@@ -185,9 +199,9 @@ class ResultsStore:
             probe.unlink()
         except OSError as error:
             raise store_error(self.runs, error) from None
-        return self._set_aside(files.rejected)
+        return self.set_aside(files.rejected)
 
-    def _set_aside(self, rejected: list[tuple[Path, str]]) -> list[str]:
+    def set_aside(self, rejected: list[tuple[Path, str]]) -> list[str]:
         """Move each rejected file into ``DIR/damaged/`` (never over an earlier one); one line per file."""
         lines = []
         for path, why in rejected:
@@ -233,25 +247,13 @@ class ResultsStore:
         file system synced once (instead of once per file), then each renamed into place: a reader, even after a
         crash, sees each run's whole file or none.
         """
-        temporary = []
         try:
-            for _, data in files:
-                fd, tmp = tempfile.mkstemp(dir=self.runs, prefix=".tmp-", suffix=".json")
-                temporary.append(tmp)
-                with os.fdopen(fd, "wb") as handle:
-                    handle.write(data)
-            os.sync()
-            for (rid, _), tmp in zip(files, temporary):
-                os.replace(tmp, self.runs / f"{rid}.json")
-                with contextlib.suppress(FileNotFoundError):
-                    (self.failed / f"{rid}.json").unlink()
-        except BaseException as error:  # a full disk, or Ctrl-C mid-write: never leave a partial file behind
-            for tmp in temporary:
-                with contextlib.suppress(OSError):
-                    os.unlink(tmp)
-            if isinstance(error, OSError):
-                raise store_error(self.runs, error) from None
-            raise
+            write_files([(self.runs / f"{rid}.json", data) for rid, data in files])
+        except OSError as error:
+            raise store_error(self.runs, error) from None
+        for rid, _ in files:
+            with contextlib.suppress(FileNotFoundError):
+                (self.failed / f"{rid}.json").unlink()
 
     def write_chunk(self, name: str, data: bytes, run_ids: Iterable[str]) -> None:
         """Store a batch's chunk (``chunks.encode_chunk``) and forget earlier failures of its runs."""

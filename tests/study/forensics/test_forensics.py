@@ -200,12 +200,12 @@ def test_the_shipped_sweep_file_is_the_main_jobs_forensics() -> None:
 
 def test_a_replications_or_a_sweeps_folder_is_refused(tmp_path: Path) -> None:
     (tmp_path / "replicate.json").write_text("{}")  # `sb3-affect run forensics --out runs`, forgetting /forensics
-    refused = rf"holds a replication or a sweep \(replicate.json\).*--out {tmp_path / 'forensics'}$"
+    refused = rf"holds a replication \(replicate.json\), which the replication forensics .*--out {tmp_path / 'forensics'}$"
     with pytest.raises(StoreError, match=refused):
         SummaryStore(tmp_path, TINY)
     assert not (tmp_path / "forensics.json").exists()
     run_sweep(ROOT / "experiments" / "smoke.yaml", tmp_path / "smoke", workers=1, progress=False, overrides=["episodes=2"])
-    with pytest.raises(StoreError, match=r"holds a replication or a sweep \(sweep.json\)"):
+    with pytest.raises(StoreError, match=r"holds a sweep \(sweep.json\)"):
         SummaryStore(tmp_path / "smoke", TINY)
 
 

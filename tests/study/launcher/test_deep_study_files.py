@@ -63,3 +63,78 @@ def test_the_schema_refuses_a_bad_file_naming_the_key(tmp_path: Path, changes: d
     with pytest.raises(SweepError, match="invalid sweep file") as error:
         load_sweep_file(write(tmp_path, **changes), build=False)
     assert message in str(error.value)
+
+
+NETWORK = yaml.safe_load((ROOT / "experiments" / "deep_smoke.yaml").read_text())["network"]
+AFFECTIVE = {"name": "a", "algo": "AffectDQN", "kwargs": {"position": "minigrid", "wait_action": 6}}
+
+
+@pytest.mark.parametrize(("changes", "message"), [
+    *[({"network": {**NETWORK, key: 1}}, f"network.{key} is the study's own") for key in ("seed", "policy", "device", "env")],
+    ({"network": {**NETWORK, "buffer_size": "x"}}, "network.buffer_size='x' must be an integer from 1 to 100,000,000"),
+    ({"network": {**NETWORK, "train_freq": 0}}, "network.train_freq=0 must be an integer from 1 to 1,000,000"),
+    ({"network": {**NETWORK, "train_freq": -1}}, "network.train_freq=-1 must be an integer from 1"),
+    ({"network": {**NETWORK, "policy_kwargs": {"net_arch": [60000, 60000]}}},
+     "network.policy_kwargs.net_arch=[60000, 60000] must be a list of at most 16 layer widths from 1 to 4096"),
+    ({"agents": [{**AFFECTIVE, "kwargs": {"wait_action": 99}}]}, "kwargs.wait_action=99 must be an integer from 0 to 6"),
+    ({"agents": [{"name": "e", "algo": "EzGreedyDQN", "kwargs": {"mu": -1}}]}, "kwargs.mu=-1 must be a finite number > 0"),
+    ({"agents": [{"name": "b", "algo": "DQN", "count_bonus": -1}]},
+     "agents[0] (b).count_bonus.constrained-float: Input should be greater than 0 (got -1)"),
+    ({"seeds": [4294967296]}, "seeds: 4294967296 is too large; seeds go from 0 to 999999"),
+    ({"seeds": [True]}, "seeds[0]: Input should be a valid integer (got True)"),
+    ({"seeds": list(range(10_001))}, "seeds: List should have at most 10000 items"),
+])  # fmt: skip
+def test_the_deep_fields_are_refused_in_one_line_naming_field_and_value(tmp_path: Path, changes: dict, message: str) -> None:
+    with pytest.raises(SweepError, match="invalid sweep file") as error:
+        load_sweep_file(write(tmp_path, **changes), build=False)
+    assert message in str(error.value)
+
+
+@pytest.mark.parametrize(("kwargs", "message"), [
+    ({"position": "os:system"}, "position='os:system' is not supported"),
+    ({"behaviour_table": "nonsense"}, "nonsense"),
+])  # fmt: skip
+def test_what_an_agent_refuses_is_refused_before_the_folder_is_claimed(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], kwargs: dict, message: str
+) -> None:
+    from sb3_affect.study.cli import main
+
+    path = write(tmp_path, agents=[{**AFFECTIVE, "kwargs": {**AFFECTIVE["kwargs"], **kwargs}}])
+    assert main(["run", str(path), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("sb3-affect: error: agents[0] (a) on DoorKey-5x5: ") and message in err
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_study_larger_than_the_machines_memory_is_refused_saying_the_figure(tmp_path: Path) -> None:
+    from sb3_affect.study.launcher.deep_study import run_deep_study
+
+    study = load_sweep_file(write(tmp_path, seeds=list(range(10_000)), network={**NETWORK, "buffer_size": 10**6}),
+                            build=False)  # fmt: skip
+    assert isinstance(study, DeepStudy)
+    with pytest.raises(ValueError, match=r"^the deep study needs about [0-9.]+ GiB \(10000 seeds a batch x 1 batches .*"
+                                         r"more than this machine's [0-9.]+ GiB"):
+        run_deep_study(study, tmp_path / "out")
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_folder_of_one_study_kind_refuses_another_in_one_line(tmp_path: Path) -> None:
+    from sb3_affect.study.launcher import run_sweep
+    from sb3_affect.study.launcher.deep_study import run_deep_study
+    from sb3_affect.study.launcher.store import StoreError
+
+    deep = tmp_path / "deep"
+    deep.mkdir()
+    (deep / "deep_study.json").write_text("{}")
+    with pytest.raises(StoreError, match=rf"^{deep} holds a deep study \(deep_study.json\), which a sweep run into it "
+                                         rf"would mix with; give the sweep a folder of its own, e.g. --out {deep}/smoke$"):
+        run_sweep(ROOT / "experiments" / "smoke.yaml", deep)
+    assert sorted(p.name for p in deep.iterdir()) == ["deep_study.json"]
+    sweep = tmp_path / "sweep"
+    sweep.mkdir()
+    (sweep / "sweep.json").write_text("{}")
+    study = load_sweep_file(write(tmp_path), build=False)
+    assert isinstance(study, DeepStudy)
+    with pytest.raises(StoreError, match=rf"^{sweep} holds a sweep \(sweep.json\), which a deep study run into it"):
+        run_deep_study(study, sweep)
+    assert sorted(p.name for p in sweep.iterdir()) == ["sweep.json"]

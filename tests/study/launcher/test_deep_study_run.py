@@ -6,6 +6,7 @@ study: SB3's real DQN and AffectDQN trained by train_many on the compiled MiniGr
 from __future__ import annotations
 
 import json
+import re
 import shutil
 from pathlib import Path
 
@@ -17,9 +18,8 @@ pytest.importorskip("minigrid")
 
 from sb3_affect.study.cli import main
 from sb3_affect.study.launcher.deep_recording import GreedyEvaluation
-from sb3_affect.study.launcher.deep_schema import DeepStudy
+from sb3_affect.study.launcher.deep_schema import EVAL_SEED_OFFSET, DeepStudy
 from sb3_affect.study.launcher.deep_study import batch_path, cell_path, deep_status, replayed_epsilons, run_deep_study
-from sb3_affect.study.launcher.deep_training import EVAL_SEED_OFFSET
 from sb3_affect.study.launcher.sweep_file import load_sweep_file
 
 TOY = {
@@ -69,7 +69,7 @@ def test_a_toy_study_runs_each_cell_evaluates_greedy_policies_and_resumes(tmp_pa
     again = run_deep_study(study, tmp_path / "out", workers=1, log=lines.append)
     assert (again.trained, again.reused, again.batches) == (0, 4, 0)
     assert "4/4 cells done" in deep_status(tmp_path / "out")[0]
-    with pytest.raises(ValueError, match="holds the results of another deep study"):
+    with pytest.raises(RuntimeError, match="holds the results of another deep study"):
         run_deep_study(toy(tmp_path, seeds=[0, 1, 2]), tmp_path / "out", workers=1)
 
 
@@ -138,3 +138,101 @@ def test_the_count_bonus_pays_scale_over_the_root_of_visits_of_each_envs_cell() 
     np.testing.assert_allclose(rewards, [[0.5, 0.5], [0.5 / np.sqrt(2)] * 2, [0.5 / np.sqrt(3)] * 2], rtol=1e-6)
     with pytest.raises(ValueError, match="count_bonus=0"):
         CountBonus(seed_vec_env("MiniGrid-Empty-5x5-v0", 1, 0, "image"), scale=0)
+
+
+KILL_ON_SECOND_BATCH = """
+import os, signal, sys
+from pathlib import Path
+from sb3_affect.study.launcher import regular_files
+from sb3_affect.study.launcher.deep_study import run_deep_study
+from sb3_affect.study.launcher.sweep_file import load_sweep_file
+
+fsync = os.fsync
+def fsync_then_die(fd):
+    written = Path(os.readlink(f"/proc/self/fd/{fd}"))
+    if written.parent.parent == Path(sys.argv[2]) / "batches" and (written.parent / "0.json").exists():
+        os.kill(os.getpid(), signal.SIGKILL)  # the second batch's file half made: written, not yet renamed
+    fsync(fd)
+regular_files.os.fsync = fsync_then_die
+run_deep_study(load_sweep_file(sys.argv[1], build=False), Path(sys.argv[2]), workers=1, log=lambda line: None)
+"""
+
+
+def test_a_batch_killed_mid_write_resumes_to_the_results_of_an_uninterrupted_run(tmp_path: Path) -> None:
+    """SIGKILL while the second batch's file is written: its temporary file is cleared and the batch run again."""
+    import subprocess
+    import sys
+
+    run_deep_study(toy(tmp_path, agents=TOY["agents"][:1]), tmp_path / "whole", workers=1, log=lambda line: None)  # type: ignore[index]
+    study = toy(tmp_path, agents=TOY["agents"][:1], seeds_per_batch=1)  # type: ignore[index]  # (toy.yaml: this one)
+    out = tmp_path / "out"
+    killed = subprocess.run([sys.executable, "-c", KILL_ON_SECOND_BATCH, str(tmp_path / "toy.yaml"), str(out)])
+    assert killed.returncode == -9
+    cell = out / "batches" / "Empty-5x5__dqn-linear"
+    assert sorted(p.name for p in cell.iterdir())[0].startswith(".tmp-") and (cell / "0.json").is_file()
+    assert not (cell / "1.json").exists() and not cell_path(out, "Empty-5x5", "dqn-linear").exists()
+    done = run_deep_study(study, out, workers=1, log=lambda line: None)
+    assert (done.trained, done.batches) == (1, 1) and not cell.exists()
+    merged, one = (json.loads(cell_path(tmp_path / name, "Empty-5x5", "dqn-linear").read_text()) for name in ("out", "whole"))
+    for key in ("success", "return", "random_share", "train_episodes", "train_successes", "first_success", "seeds"):
+        assert merged[key] == one[key], key
+
+
+def test_damaged_cells_are_named_not_counted_refused_by_the_report_and_redone(tmp_path: Path) -> None:
+    """A truncated, garbage, {}, symlinked or NaN-success cell counts as not done: status names it, the report refuses it, a
+    rerun moves it to damaged/ and runs its batches again, to the same results."""
+    from sb3_affect.study.launcher.deep_study import read_cells
+    from sb3_affect.study.launcher.store import StoreError
+
+    study = toy(tmp_path, agents=TOY["agents"][:1])  # type: ignore[index]
+    out = tmp_path / "out"
+    run_deep_study(study, out, workers=1, log=lambda line: None)
+    path = cell_path(out, "Empty-5x5", "dqn-linear")
+    good = path.read_text()
+    for damage, why in [(good[: len(good) // 2], "is not valid JSON"), ("garbage", "is not valid JSON"),
+                        ("{}", "is not a record of Empty-5x5 x dqn-linear"), (None, "a symbolic link"),
+                        (json.dumps({**json.loads(good), "success": [[None, None], [None, None]]}),
+                         "has a success that no evaluation gives")]:  # fmt: skip
+        path.unlink()
+        if damage is None:
+            (tmp_path / "elsewhere.json").write_text(good)
+            path.symlink_to(tmp_path / "elsewhere.json")
+        else:
+            path.write_text(damage)
+        lines = deep_status(out)
+        assert "0/1 cells done" in lines[0] and any(f"not counted: {path}" in line and why in line for line in lines)
+        with pytest.raises(StoreError, match=f"^{re.escape(str(path))} .*{why}.*to move it to damaged/"):
+            read_cells(out)
+        log: list[str] = []
+        done = run_deep_study(study, out, workers=1, log=log.append)
+        assert (done.trained, done.batches) == (1, 1) and f"{path} " in log[0] and "moved to" in log[0]
+        assert json.loads(path.read_text())["success"] == json.loads(good)["success"]
+    assert len(list((out / "damaged").iterdir())) == 5
+
+
+def test_a_failed_batch_leaves_a_failure_record_and_a_second_launcher_is_refused(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from sb3_affect.study.launcher.store import ResultsStore, StoreError
+
+    study = toy(tmp_path, agents=TOY["agents"][:1])  # type: ignore[index]
+    out = tmp_path / "out"
+
+    def broken(*args: object) -> None:
+        raise ZeroDivisionError("division by zero")
+
+    monkeypatch.setattr("sb3_affect.study.launcher.deep_training.run_batch", broken)
+    with pytest.raises(StoreError, match=r"1 batches of the deep study failed .*ZeroDivisionError: division by zero"):
+        run_deep_study(study, out, workers=1, log=lambda line: None)
+    record = json.loads((out / "failed" / "Empty-5x5__dqn-linear__0.json").read_text())
+    assert record["status"] == "failed" and "ZeroDivisionError" in record["error"]
+    assert "1 failed" in deep_status(out)[1]
+    monkeypatch.undo()
+    with ResultsStore(out).lock():  # another launcher holds the folder: refused at once, in one line
+        with pytest.raises(StoreError, match="is in use by another launcher"):
+            run_deep_study(study, out, workers=1, log=lambda line: None)
+        assert main(["run", str(tmp_path / "toy.yaml"), "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert err.count("\n") == 1 and "is in use by another launcher" in err
+    run_deep_study(study, out, workers=1, log=lambda line: None)
+    assert not (out / "failed" / "Empty-5x5__dqn-linear__0.json").exists() and "1/1 cells done" in deep_status(out)[0]

@@ -277,9 +277,9 @@ def test_full_disk_gives_clear_error_and_loses_nothing(tmp_path: Path, monkeypat
     sweep, out = sweep_file(tmp_path, ["none"], seeds=4), tmp_path / "out"
     real_fsync, writes = os.fsync, []
 
-    def fsync(fd: int) -> None:  # sweep.json (and its 2 copies) and 3 runs fit, then the disk is full
+    def fsync(fd: int) -> None:  # the lock's owner record, sweep.json (and its 2 copies) and 3 runs fit, then the disk is full
         writes.append(fd)
-        if len(writes) > 6:
+        if len(writes) > 7:
             raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
         real_fsync(fd)
 

@@ -22,11 +22,12 @@ import yaml
 
 from sb3_affect.study.cli import main
 from sb3_affect.study.forensics import CandidateSpace, Protocol, Simulation, run_forensics
+from sb3_affect.study.forensics.parallel_units import run_units
 from sb3_affect.study.forensics.section import forensics_section
 from sb3_affect.study.forensics.unit_files import SummaryStore, folder_status
 from sb3_affect.study.launcher import SweepError, folder_lock, load_sweep, run_sweep
 from sb3_affect.study.launcher.batches import batchable
-from sb3_affect.study.launcher.regular_files import UnreadableFile, read_bytes
+from sb3_affect.study.launcher.regular_files import UnreadableFile, read_bytes, read_json
 from sb3_affect.study.launcher.store import StoreError
 from sb3_affect.study.launcher.sweep_file import load_sweep_file
 from sb3_affect.study.replicate import _Record, _refuse_a_sweep_folder
@@ -126,6 +127,30 @@ def test_a_summary_that_is_not_one_is_one_line_naming_it(copy: Path, tmp_path: P
     with pytest.raises(StoreError) as error:
         store.read(simulation, 0)
     _one_line(error.value, path)
+    # the next run sets it aside and simulates the replication again
+    assert run_units(store, [(simulation, 0)], workers=1, progress=False) == 1
+    assert len(store.read(simulation, 0)) == len(TINY.epsilons) and len(list((copy / "damaged").iterdir())) == 1
+
+
+def test_a_failed_forensics_unit_leaves_a_failure_record_until_it_succeeds(
+    copy: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from sb3_affect.study.forensics.parallel_units import UnitJob
+
+    simulation, path = _summary(copy)
+    path.unlink()
+    store = SummaryStore(copy, TINY)
+
+    def broken(self: UnitJob) -> None:
+        raise ZeroDivisionError("division by zero")
+
+    monkeypatch.setattr(UnitJob, "execute", broken)
+    with pytest.raises(RuntimeError, match=r"1 of 1 units failed .*tracebacks in .*failed"):
+        run_units(store, [(simulation, 0)], workers=1, progress=False)
+    record = copy / "failed" / f"{simulation.key}__r0000.json"
+    assert "ZeroDivisionError" in read_json(record)["error"]
+    monkeypatch.undo()
+    assert run_units(store, [(simulation, 0)], workers=1, progress=False) == 1 and not record.exists()
 
 
 @pytest.mark.parametrize("kind", ["fifo", "device"])

@@ -34,6 +34,8 @@ def write_folder(folder: Path, curves: dict[str, np.ndarray], first: dict[str, l
             "task": "Empty-8x8", "agent": agent, "seeds": seeds, "budget": BUDGET, "eval_every": EVERY,
             "eval_steps": [EVERY * (k + 1) for k in range(success.shape[1])], "success": success.tolist(),
             "return": (success * 0.9).tolist(), "random_share": np.full(success.shape, 0.3).tolist(),
+            "train_episodes": np.full(success.shape, 4.0).tolist(), "train_successes": np.zeros(success.shape).tolist(),
+            "seconds": 1.0,
             "emotions": {name: np.full(success.shape, 0.25).tolist() for name in ("joy", "sadness", "fear", "anger")}
             if agent == "affective" else None,
             "first_success": first[agent],
@@ -141,11 +143,14 @@ def test_the_section_reads_the_folder_labels_a_smoke_size_and_follows_no_symlink
                          {a["name"]: [1000] * 5 for a in AGENTS})
     text, _ = section(pilot, tmp_path / "out4")
     assert "smoke" not in text.lower() and "5 seeds per cell, fewer than the study's 20: a tuning pass" in text
-    # a cell that is a symlink is not read: the section counts only the regular files
+    # a cell that is a symlink is never followed, nor silently dropped: the folder is refused naming it
+    from sb3_affect.study.launcher.store import StoreError
+
     target = small / "cells" / "Empty-8x8__matched.json"
     moved = target.rename(tmp_path / "elsewhere.json")
     target.symlink_to(moved)
-    assert [cell["agent"] for cell in deep.load_deep(small).cells] == ["dqn-linear", "affective"]
+    with pytest.raises(StoreError, match=f"^{target} is not a regular file \\(a symbolic link\\).*to move it to damaged/"):
+        deep.load_deep(small)
 
 
 def test_report_of_a_deep_study_folder_alone_is_its_section(tmp_path: Path) -> None:

@@ -19,7 +19,6 @@ import argparse
 import json
 import math
 from collections.abc import Iterable, Sequence
-from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
@@ -29,6 +28,7 @@ import pandas as pd
 import sb3_affect  # noqa: F401  (registers the envs)
 from sb3_affect.core.emotions import EMOTION_NAMES
 from sb3_affect.study.launcher.one_run import package_env
+from sb3_affect.study.launcher.regular_files import write_file
 from sb3_affect.study.report.reading.run_tables import load_run_records
 from sb3_affect.study.report.rendering.document import fmt
 
@@ -243,7 +243,7 @@ def main(argv: Sequence[str] | None = None) -> None:
         text += "\n" + profile_markdown(profile)
     print(text)
     if args.markdown:
-        Path(args.markdown).write_text(text)
+        write_file(args.markdown, text)
 
 
 if __name__ == "__main__":

@@ -9,7 +9,6 @@ and ``run_metrics`` reduces the episode rows run by run with numpy segment reduc
 
 from __future__ import annotations
 
-import json
 import math
 import warnings
 from collections.abc import Iterator, Sequence
@@ -21,7 +20,9 @@ import numpy as np
 import pandas as pd
 
 from sb3_affect.core.emotions import EMOTION_NAMES
+from sb3_affect.study.launcher.folder_files import MAX_RUN_FILE_BYTES
 from sb3_affect.study.launcher.folder_reading import read_folder
+from sb3_affect.study.launcher.regular_files import read_json
 from sb3_affect.study.launcher.store import ResultsStore
 from sb3_affect.study.report.estimation.grouped_sums import segment_means, window_bounds
 
@@ -206,7 +207,7 @@ def load_run_records(run_dir: str | Path) -> list[dict[str, Any]]:
         records = ResultsStore(root).load_runs()
     else:
 
-        records = [json.loads(f.read_text()) for f in sorted(root.glob("*.json"))]
+        records = [read_json(f, MAX_RUN_FILE_BYTES) for f in sorted(root.glob("*.json"))]
     return [r for r in records if r.get("status", "ok") == "ok"]
 
 

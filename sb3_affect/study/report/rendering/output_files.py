@@ -8,10 +8,9 @@ writes where one points). A cache it wrote and can not read back is redone.
 from __future__ import annotations
 
 import contextlib
-import os
-import tempfile
-from collections.abc import Iterator
 from pathlib import Path
+
+from sb3_affect.study.launcher import regular_files
 
 
 def output_folder(folder: Path) -> Path:
@@ -25,26 +24,16 @@ def output_folder(folder: Path) -> Path:
     return folder
 
 
-@contextlib.contextmanager
-def replacing(path: Path) -> Iterator[Path]:
+def replacing(path: Path) -> contextlib.AbstractContextManager[Path]:
     """
     A temporary file beside ``path`` (same suffix, so writers infer the format) for the block to write; renamed over
-    ``path`` when the block ends, removed when it raises.
+    ``path`` when the block ends, removed when it raises (``regular_files.replacing``, in a real folder).
     """
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=output_folder(path.parent), prefix=".tmp-", suffix=path.suffix)
-    os.close(fd)
-    try:
-        yield Path(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
+    return regular_files.replacing(output_folder(path.parent) / path.name)
 
 
 def write_text(path: Path, text: str) -> None:
     """``path.write_text(text)``, through a temporary file (``replacing``)."""
     with replacing(path) as tmp:
         tmp.write_text(text)
-

@@ -15,7 +15,6 @@ profile over training.
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -32,7 +31,8 @@ from scipy import stats as sps
 
 from sb3_affect.core.emotions import EMOTION_NAMES
 from sb3_affect.study.launcher.deep_schema import STUDY_EVAL_EPISODES
-from sb3_affect.study.launcher.deep_study import CELLS, STUDY_FILE
+from sb3_affect.study.launcher.deep_study import STUDY_FILE, read_cells
+from sb3_affect.study.launcher.store import folder_kind
 from sb3_affect.study.report.estimation.bootstrap import bootstrap_iqm_cis
 from sb3_affect.study.report.reading.context import ReportContext
 from sb3_affect.study.report.rendering.document import fmt
@@ -73,28 +73,13 @@ class DeepResults:
         return len(self.study["seeds"]) < STUDY_SEEDS
 
 
-def _regular_json(path: Path) -> Any:
-    """A regular file's JSON (a symlink or anything else is not followed)."""
-    if path.is_symlink() or not path.is_file():
-        raise FileNotFoundError(f"{path} is not a regular file")
-    return json.loads(path.read_text())
-
-
 def is_deep_folder(folder: Path) -> bool:
-    marker = folder / STUDY_FILE
-    return marker.is_file() and not marker.is_symlink()
+    return folder_kind(folder) == ("deep", STUDY_FILE)
 
 
 def load_deep(folder: Path) -> DeepResults:
-    """The study and its finished cells (``OUT/cells/<task>__<agent>.json``), in the order of tasks, then agents."""
-    study = _regular_json(folder / STUDY_FILE)
-    cells = []
-    for task in study["tasks"]:
-        for agent in study["agents"]:
-            path = folder / CELLS / f"{task}__{agent['name']}.json"
-            if path.is_file() and not path.is_symlink():
-                cells.append(_regular_json(path))
-    return DeepResults(folder, study, cells)
+    """The study and its finished cells (``deep_study.read_cells``), in the order of tasks, then agents."""
+    return DeepResults(folder, *read_cells(folder))
 
 
 def deep_folders(root: Path) -> list[Path]:

@@ -9,7 +9,6 @@ team's optimal capture) are in ``sb3_affect.agents.hunter_team`` and docs/hunter
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Sequence
 from pathlib import Path
@@ -18,6 +17,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from sb3_affect.study.launcher.folder_files import MAX_RUN_FILE_BYTES
+from sb3_affect.study.launcher.regular_files import read_json
 from sb3_affect.study.report.estimation.bootstrap import bootstrap_ci, bootstrap_improvement
 from sb3_affect.study.report.reading.context import ReportContext
 from sb3_affect.study.report.rendering.figures import COLOURS, distinct, plt
@@ -50,7 +51,7 @@ def team_runs(run_dirs: Sequence[str | Path]) -> list[dict[str, Any]]:
         return _LAST[key]
     runs = []
     for path in paths:
-        record = json.loads(path.read_bytes())
+        record = read_json(path, MAX_RUN_FILE_BYTES)
         if record.get("status", "ok") == "ok" and "team" in record.get("config", {}):
             record["episodes"] = {name: _column(values) for name, values in record["episodes"].items()}
             runs.append(record)
