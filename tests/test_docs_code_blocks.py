@@ -1,103 +1,88 @@
 """
-Every ```` ```python ```` block of the Markdown pages (README.md and docs/*.md) runs as a reader runs it: the blocks of
-one page in order, in one namespace, in a scratch folder. What differs from the page is written here and only here:
+Every ```` ```python ```` block of the Markdown pages (README.md and docs/*.md) runs as a reader pastes it: alone (its
+own process and namespace, in an empty folder: no set-up the page does not show, nothing from an earlier block), as
+written (the budgets are the page's own: a block that would train for minutes gives a smaller budget on the page), from
+the wheel installed in a fresh virtual environment with no checkout on its path (``wheel_venvs``).
 
-* **Budgets shrink** (``shrink``): a number of steps given to ``learn`` (``.learn(N`` or ``total_timesteps=N``)
-  larger than ``SB3_AFFECT_DOCS_BUDGET`` (an environment variable, default 300) becomes that budget, and
-  ``StopTrainingOnMaxEpisodes(N)`` stops after at most 3 episodes. ``SB3_AFFECT_DOCS_BUDGET=0`` runs the pages' own
-  budgets (minutes: the README's and the deep agents' examples train for real).
-* **A hidden set-up** may precede a block that continues a reader's own code (a ``model``, an ``env`` or a policy of
-  theirs): an HTML comment right above the block, which neither GitHub nor the docs site shows::
-
-      <!-- docs-test: before
-      env = gym.make("FrozenLake-v1")
-      -->
-
-  runs in the page's namespace before the block.
-* Nothing reaches the network: ``huggingface_hub.upload_folder`` records its arguments instead of uploading.
-
-A page whose blocks import an optional extra that is not installed is skipped, naming the module.
+A block that imports no optional extra runs in the **core** venv (the plugin's own requirements only, as after
+``pip install sb3-affect``); one that does (``minigrid``, ``pettingzoo`` through the hunters' env, the Hub's libraries,
+...) runs in the **full** venv. Both have the kernels' numba cache, as after ``python -m sb3_affect.kernel``. What
+differs from a reader's machine is set here and only here: one torch thread (the suite shares the cores), and nothing
+reaches the network (``huggingface_hub.upload_folder`` records its arguments; ``docs_blocks_runner``).
 """
 
 from __future__ import annotations
 
-import importlib.util
-import os
+import json
 import re
-import sys
-import warnings
 from pathlib import Path
 from typing import Any
 
 import pytest
+from wheel_venvs import build_wheel, core_venv, full_venv, run
 
 ROOT = Path(__file__).resolve().parents[1]
 PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
-#: A ```python block, with the hidden set-up comment right above it if there is one.
-BLOCK = re.compile(r"(?:<!-- docs-test: before\n(?P<before>.*?)-->\n)?^```python\n(?P<code>.*?)^```", re.S | re.M)
-#: The modules of the optional extras (and sb3-contrib) a page may import: the page is skipped when one is missing.
-OPTIONAL = ("minigrid", "sb3_contrib", "pettingzoo", "huggingface_hub", "huggingface_sb3", "rl_zoo3", "ray")
+BLOCK = re.compile(r"^```python\n(?P<code>.*?)^```", re.S | re.M)
+#: The modules outside the core install a block may import (the extras' and sb3-contrib's): such a block runs in the
+#: full venv. The hunters' env (``make_parallel``) needs PettingZoo without the block importing it.
+OPTIONAL = ("minigrid", "sb3_contrib", "pettingzoo", "huggingface_hub", "huggingface_sb3", "rl_zoo3", "ray", "matplotlib",
+            "scipy", "yaml", "sb3_affect.study", "sb3_affect.integrations.zoo")
+NEEDS_AN_EXTRA = re.compile(rf"^\s*(from|import) ({'|'.join(map(re.escape, OPTIONAL))})\b|\bmake_parallel\(", re.M)
 
 
-def blocks(page: Path) -> list[tuple[str, str, int]]:
-    """``(hidden set-up, code, line)`` of each python block of ``page``, in order."""
+def blocks(page: Path) -> list[tuple[str, str]]:
+    """``(id, code)`` of each python block of ``page``, in order; the id is the page and the block's first line."""
     text = page.read_text()
-    return [(m["before"] or "", m["code"], text.count("\n", 0, m.start("code"))) for m in BLOCK.finditer(text)]
+    return [(f"{page.relative_to(ROOT)}:{text.count(chr(10), 0, m.start('code')) + 1}", m["code"])
+            for m in BLOCK.finditer(text)]
 
 
-def budget() -> int:
-    return int(os.environ.get("SB3_AFFECT_DOCS_BUDGET", "300"))
+BLOCKS = [block for page in PAGES for block in blocks(page)]
 
 
-def shrink(code: str, steps: int) -> str:
-    """``code`` with its step budgets at most ``steps`` and its episode caps at most 3 (``steps`` 0: unchanged)."""
-    if not steps:
-        return code
-
-    def cap(match: re.Match[str]) -> str:
-        value = eval(match["n"].replace("_", ""), {})  # a literal such as 10**8 or 100_000
-        return match["head"] + str(min(int(value), steps))
-
-    code = re.sub(r"(?P<head>\.learn\((?:total_timesteps=)?)(?P<n>[0-9_]+(?:\*\*[0-9]+)?)", cap, code)
-    code = re.sub(r"(?P<head>total_timesteps=)(?P<n>[0-9_]+(?:\*\*[0-9]+)?)", cap, code)
-    episodes = r"StopTrainingOnMaxEpisodes\((?P<n>[0-9_]+)\)"
-    return re.sub(episodes, lambda m: f"StopTrainingOnMaxEpisodes({min(int(m['n']), 3)})", code)
+def needs_an_extra(code: str) -> bool:
+    return NEEDS_AN_EXTRA.search(code) is not None
 
 
-PAGES_WITH_CODE = [page for page in PAGES if blocks(page)]
+def test_the_blocks_are_found_and_sorted_by_the_install_they_need() -> None:
+    pages = {name.split(":")[0] for name, _ in BLOCKS}
+    assert {"README.md", "docs/deep_agents.md", "docs/extending.md", "docs/use_it_in_your_project.md"} <= pages
+    assert needs_an_extra("from minigrid.wrappers import FlatObsWrapper\n")
+    assert needs_an_extra("env = make_parallel('sb3_affect/HunterPursuit-v0')\n")
+    assert not needs_an_extra("from sb3_affect import AffectQ\nimport gymnasium as gym\n")
 
 
-def test_the_pages_with_code_are_found_and_the_budgets_shrink() -> None:
-    names = {page.name for page in PAGES_WITH_CODE}
-    assert {"README.md", "deep_agents.md", "extending.md", "use_it_in_your_project.md"} <= names
-    assert shrink("m.learn(10**8, callback=StopTrainingOnMaxEpisodes(200))", 300) == (
-        "m.learn(300, callback=StopTrainingOnMaxEpisodes(3))")
-    assert shrink("m.learn(total_timesteps=100_000)\nm.learn(50)", 300) == "m.learn(total_timesteps=300)\nm.learn(50)"
-    assert shrink("m.learn(100_000)", 0) == "m.learn(100_000)"
+def test_no_page_hides_a_set_up() -> None:
+    """What a block needs is on the page, in the block: no hidden comment runs code before it."""
+    hiding = [str(page.relative_to(ROOT)) for page in PAGES if "docs-test" in page.read_text()]
+    assert hiding == []
 
 
-@pytest.mark.parametrize("page", PAGES_WITH_CODE, ids=lambda p: str(p.relative_to(ROOT)))
-def test_every_python_block_of_the_page_runs(page: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    found = blocks(page)
-    source = "\n".join(before + code for before, code, _ in found)
-    for module in OPTIONAL:
-        if re.search(rf"^\s*(from|import) {module}\b", source, re.M) and importlib.util.find_spec(module) is None:
-            pytest.skip(f"{page.name} imports {module}, which is not installed")
-    uploads: list[dict[str, Any]] = []
-    if importlib.util.find_spec("huggingface_hub") is not None:
-        import huggingface_hub
+@pytest.fixture(scope="module")
+def results(tmp_path_factory: pytest.TempPathFactory) -> dict[str, dict[str, Any]]:
+    """Every block, run once: the core blocks in the core venv, the others in the full one."""
+    base = tmp_path_factory.mktemp("docs_blocks")
+    wheel = build_wheel(base / "dist")
+    runner = str(Path(__file__).with_name("docs_blocks_runner.py"))
+    out: dict[str, dict[str, Any]] = {}
+    for venv, extra in (("core", False), ("full", True)):
+        chosen = [(name, code) for name, code in BLOCKS if needs_an_extra(code) == extra]
+        python = full_venv(wheel, base / venv) if extra else core_venv(wheel, base / venv, compiled=True)
+        spec = [{"id": name, "code": code, "folder": str(base / "blocks" / re.sub(r"\W", "_", name))}
+                for name, code in chosen]
+        (base / f"{venv}.json").write_text(json.dumps(spec))
+        done = run(python, [runner, str(base / f"{venv}.json"), str(base / f"{venv}_results.json")], base,
+                   timeout=1800, env={"OMP_NUM_THREADS": "1", "MPLBACKEND": "Agg"})
+        assert done.returncode == 0, done.stderr[-3000:]
+        for name, result in json.loads((base / f"{venv}_results.json").read_text()).items():
+            out[name] = {**result, "venv": venv, "folder": base / "blocks" / re.sub(r"\W", "_", name)}
+    return out
 
-        monkeypatch.setattr(huggingface_hub, "upload_folder", lambda **kwargs: uploads.append(kwargs))
-    monkeypatch.chdir(tmp_path)
-    monkeypatch.setattr(sys, "argv", [page.name])
-    namespace: dict[str, Any] = {"__name__": "__docs__"}
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # e.g. SB3's "no goal reached yet" of a run cut short
-        for before, code, line in found:
-            where = f"{page.relative_to(ROOT)}, the block at line {line}"
-            try:
-                exec(compile(before + shrink(code, budget()), where, "exec"), namespace)
-            except Exception as error:
-                raise AssertionError(f"{where} fails: {type(error).__name__}: {error}") from error
-    if "upload_folder(" in source:
-        assert uploads and Path(uploads[0]["folder_path"]).is_dir()
+
+@pytest.mark.parametrize("name", [name for name, _ in BLOCKS])
+def test_the_block_runs_alone_from_the_installed_wheel(name: str, results: dict[str, dict[str, Any]]) -> None:
+    result = results[name]
+    assert result["status"] == 0, f"{name} fails in the {result['venv']} venv: {result['error']}{result['output']}"
+    for upload in result["uploads"]:  # the Hub block: the folder it would upload was written
+        assert (result["folder"] / upload["folder_path"]).is_dir(), upload

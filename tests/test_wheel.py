@@ -1,126 +1,46 @@
 """
-The built wheel, installed away from the checkout.
-
-Two venvs are made in a temporary folder (no checkout on their path; every command runs from an empty folder):
-
-* **core**: the wheel and only the packages its core requirements pull in (their installed copies, found through the
-  requirements' metadata and linked into the venv), so no extra's library can be imported;
-* **full**: the wheel beside every package of the test environment (all extras).
-
-A real fresh install (pip, from the registry) is measured by ``benchmarks/footprint.py``; here the point is what the
-installed package can do on its own.
+The built wheel (from the sdist), installed away from the checkout, in the two venvs of ``wheel_venvs``: **core** (the
+core requirements only, so no extra's library can be imported) and **full** (every library of the test environment).
 """
 
 from __future__ import annotations
 
-import os
 import re
-import shutil
 import subprocess
-import sys
-import sysconfig
-import zipfile
-from importlib import metadata
+import tarfile
 from pathlib import Path
 
 import pytest
-from packaging.markers import default_environment
-from packaging.requirements import Requirement
-
-ROOT = Path(__file__).resolve().parents[1]
-
-
-def _closure(names: list[str]) -> set[str]:
-    """The installed distributions ``names`` require, transitively (requirements without extras)."""
-    seen: set[str] = set()
-    stack = list(names)
-    environment = default_environment()
-    while stack:
-        name = re.sub(r"[-_.]+", "-", stack.pop()).lower()
-        if name in seen:
-            continue
-        seen.add(name)
-        for text in metadata.requires(name) or []:
-            requirement = Requirement(text)
-            if requirement.marker is None or requirement.marker.evaluate({**environment, "extra": ""}):
-                stack.append(requirement.name)
-    return seen
-
-
-def _link_distributions(names: set[str], site: Path) -> None:
-    """Link the top-level files of the installed distributions ``names`` into ``site``."""
-    for name in names:
-        dist = metadata.distribution(name)
-        base = Path(str(dist.locate_file("")))
-        tops = {Path(str(f)).parts[0] for f in dist.files or [] if not str(f).startswith("..")}
-        for top in tops:
-            source, target = base / top, site / top
-            if source.exists() and not target.exists() and top != "__pycache__":
-                target.symlink_to(source)
-
-
-def _venv(path: Path) -> tuple[Path, Path]:
-    subprocess.run([sys.executable, "-m", "venv", "--without-pip", str(path)], check=True)
-    python = path / "bin" / "python"
-    site = Path(subprocess.run([str(python), "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"],
-                               check=True, capture_output=True, text=True).stdout.strip())
-    return python, site
+from wheel_venvs import ROOT, build_sdist, build_wheel, core_venv, full_venv, run
 
 
 @pytest.fixture(scope="module")
-def wheel(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("dist")
-    built = subprocess.run([sys.executable, "-m", "pip", "wheel", "-q", "--no-deps", "--no-build-isolation", "-w", str(out),
-                            str(ROOT)], capture_output=True, text=True)
-    assert built.returncode == 0, built.stderr
-    return next(out.glob("sb3_affect-*.whl"))
+def sdist(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return build_sdist(tmp_path_factory.mktemp("sdist"))
 
 
-def _install(wheel: Path, site: Path) -> None:
-    """Install a pure-Python wheel: its files go to site-packages as they are (the test runs the CLI as a module)."""
-    with zipfile.ZipFile(wheel) as archive:
-        archive.extractall(site)
+@pytest.fixture(scope="module")
+def wheel(sdist: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return build_wheel(tmp_path_factory.mktemp("dist"), sdist)
+
+
+def test_the_sdist_ships_the_examples_the_docs_point_to(sdist: Path) -> None:
+    tracked = subprocess.run(["git", "ls-files", "examples"], cwd=ROOT, capture_output=True, text=True).stdout.split()
+    examples = tracked or [str(p.relative_to(ROOT)) for p in (ROOT / "examples").glob("*.*")]  # a checkout without git
+    with tarfile.open(sdist) as archive:
+        shipped = {name.split("/", 1)[1] for name in archive.getnames() if "/" in name}
+    assert examples and set(examples) <= shipped, sorted(set(examples) - shipped)
+    assert not [name for name in shipped if "__pycache__" in name or name.endswith(".pyc")]
 
 
 @pytest.fixture(scope="module")
 def core(wheel: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    python, site = _venv(tmp_path_factory.mktemp("core") / "venv")
-    core_requirements = [Requirement(r).name for r in metadata.requires("sb3-affect") or [] if "extra ==" not in r]
-    _link_distributions(_closure(core_requirements), site)
-    _install(wheel, site)
-    return python
-
-
-def _copy_compiled_code(site: Path) -> None:
-    """
-    Copy numba's cache of the checkout's compiled functions (the kernels, compiled or loaded here first, and what else
-    this session compiled) into the install's ``__pycache__`` folders, with the kernel's digest of its sources. numba
-    keys a cached function by its source file's content, not its path, so the install loads them as it would after
-    its own first run, instead of compiling every kernel again (minutes) in each of its commands. Compiling on a cold
-    cache is ``make venv``'s step (``python -m sb3_affect.kernel``) and the checkout's first import.
-    """
-    from sb3_affect.kernel import warm_up
-
-    warm_up()
-    for cache in (ROOT / "sb3_affect").rglob("__pycache__"):
-        target = site / cache.relative_to(ROOT)
-        for path in [*cache.glob("*.nbi"), *cache.glob("*.nbc"), *cache.glob("*.sha256")]:
-            target.mkdir(exist_ok=True)
-            shutil.copy2(path, target / path.name)
+    return core_venv(wheel, tmp_path_factory.mktemp("core") / "venv")
 
 
 @pytest.fixture(scope="module")
 def full(wheel: Path, tmp_path_factory: pytest.TempPathFactory) -> Path:
-    python, site = _venv(tmp_path_factory.mktemp("full") / "venv")
-    (site / "test-environment.pth").write_text(sysconfig.get_paths()["purelib"] + "\n")  # every library, not sb3_affect
-    _install(wheel, site)
-    _copy_compiled_code(site)
-    return python
-
-
-def run(python: Path, args: list[str], cwd: Path, timeout: float = 600) -> subprocess.CompletedProcess[str]:
-    env = {key: value for key, value in os.environ.items() if not key.startswith("PYTHON")}
-    return subprocess.run([str(python), *args], cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout)
+    return full_venv(wheel, tmp_path_factory.mktemp("full") / "venv")
 
 
 CORE_SCRIPT = """
