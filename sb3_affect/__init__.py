@@ -14,6 +14,7 @@ from sb3_affect.core.appraisal import Appraisal, Appraiser, KnownMap, PowerFit
 from sb3_affect.core.behaviour import TABLE_III, Behaviour
 from sb3_affect.core.emotions import EMOTION_NAMES, Emotion, make_table_ii, table_ii
 from sb3_affect.core.personalities import PERSONALITIES, PersonalityAppraiser
+from sb3_affect.core.registry import AGENT_ENTRIES
 from sb3_affect.envs import (
     GRID_PURSUIT_ID,
     MAZE_PURSUIT_ID,
@@ -48,21 +49,14 @@ register_envs()
 
 __version__ = "0.1.0"
 
-#: Public names imported on first use (PEP 562): they import torch and SB3 (or pandas).
+#: Public names imported on first use (PEP 562): they import torch and SB3 (or pandas). The agents' come from their
+#: entries in the registry (``sb3_affect.core.registry.AGENT_ENTRIES``); the names above are for type checkers.
 _LAZY: dict[str, str] = {
-    "AffectQ": "sb3_affect.agents.affectq",
-    "AffectDQN": "sb3_affect.agents.deep_affect",
-    "AffectQRDQN": "sb3_affect.agents.deep_affect_qrdqn",
-    "AffectiveExploration": "sb3_affect.agents.deep_affect",
+    **{name: entry.module for entry in AGENT_ENTRIES for name in entry.exports},
     "BroekensCallback": "sb3_affect.agents.broekens",
     "EmotionCallback": "sb3_affect.agents.callbacks",
-    "EzGreedyDQN": "sb3_affect.agents.deep_controls",
-    "EzGreedyExploration": "sb3_affect.agents.deep_controls",
-    "SpeedEpsilonGreedyDQN": "sb3_affect.agents.deep_controls",
-    "SpeedEpsilonGreedyExploration": "sb3_affect.agents.deep_controls",
     "EPISODE_COLUMNS": "sb3_affect.core.episode_log",
     "TabularQPolicy": "sb3_affect.agents.policies",
-    "QLearning": "sb3_affect.agents.qlearning",
     "TabularMiniGrid": "sb3_affect.agents.minigrid_tabular",
     "minigrid_vec_env": "sb3_affect.agents.minigrid_vec_env",
     "TabularQAlgorithm": "sb3_affect.agents.tabular",

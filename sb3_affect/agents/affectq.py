@@ -183,7 +183,7 @@ class AffectQ(TabularQAlgorithm):
             self.emotion_callback.count_episodes(self._episode_num - before, reached_goal=False)
         return self
 
-    def _start_learn(
+    def start_run(
         self,
         total_timesteps: int,
         callback: MaybeCallback,
@@ -194,7 +194,9 @@ class AffectQ(TabularQAlgorithm):
     ) -> tuple[int, BaseCallback]:
         assert self.emotion_callback is not None
         self.emotion_callback.init_callback(self)  # bound to this model for logging
-        return super()._start_learn(total_timesteps, callback, reset_num_timesteps, tb_log_name, progress_bar, new_episode)
+        return super().start_run(
+            total_timesteps, callback, reset_num_timesteps, tb_log_name, progress_bar, new_episode
+        )
 
     def _new_run(self) -> None:
         assert self.emotion_callback is not None and self.emotion_callback.appraiser is not None

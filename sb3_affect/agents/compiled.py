@@ -12,7 +12,6 @@ env and its wrappers, so learning can go on with either engine.
 
 from __future__ import annotations
 
-import time
 from typing import Any
 
 import numpy as np
@@ -110,7 +109,7 @@ def compiled_reason(model: Any, env: Any, callback: BaseCallback | None) -> str 
 
 def batch_reason(model: Any, episodes: int) -> str | None:
     """Why ``simulate`` can not run ``model``'s agent as one batch on the kernel (None: it can)."""
-    reason = compiled_reason(model, model._single_env(), None) or grid_env_reason(model._single_env())
+    reason = compiled_reason(model, model.single_env(), None) or grid_env_reason(model.single_env())
     if reason is not None:
         return reason
     if model.compiled_settings().episode_parameters(0, 1) is None:
@@ -119,23 +118,29 @@ def batch_reason(model: Any, episodes: int) -> str | None:
 
 
 def _stop_remaining(leaves: list[BaseCallback]) -> int | None:
-    remaining = [leaf._total_max_episodes - leaf.n_episodes for leaf in leaves if isinstance(leaf, StopTrainingOnMaxEpisodes)]
+    # (a tabular agent has one env: its budget of episodes is ``max_episodes``)
+    stops = [leaf for leaf in leaves if isinstance(leaf, StopTrainingOnMaxEpisodes)]
+    remaining = [leaf.max_episodes - leaf.n_episodes for leaf in stops]
     return min(remaining) if remaining else None
 
 
 def learn_compiled(
     model: Any,
     env: Any,
+    q: np.ndarray,
     total_timesteps: int,
     callback: BaseCallback,
     log_interval: int | None,
     plan: tuple[TabularSettings, KernelAgent],
 ) -> None:
-    """``reference_loop.run_loop`` on the kernel (see the module docstring), with the ``compiled_plan`` of the call."""
-    if model._episode_state is None:
-        model._begin_episode(total_timesteps)
+    """
+    ``reference_loop.run_loop`` on the kernel (see the module docstring), on the model's run methods as the Python
+    loop (``resume_episode`` to ``keep_episode``), with its table ``q`` and the ``compiled_plan`` of the call.
+    """
+    episode = model.resume_episode(total_timesteps)
     settings, agent = plan
-    run: RunArrays = (MovingKernelRun if moving_reason(env) is None else KernelRun)(model, env, settings, agent)
+    run_class = MovingKernelRun if moving_reason(env) is None else KernelRun
+    run: RunArrays = run_class(model, env, q, episode, settings, agent)
     leaves = callback_leaves(callback)
     bars = [leaf for leaf in leaves if isinstance(leaf, ProgressBarCallback)]
     episodic = [leaf for leaf in leaves if not isinstance(leaf, ProgressBarCallback)]
@@ -151,29 +156,30 @@ def learn_compiled(
                     limit_t = model.num_timesteps + 1
                 max_episodes = min(max_episodes, max(remaining, 1))
             if log_interval is not None and log_interval > 0:
-                to_dump = log_interval - model._episode_num % log_interval
+                to_dump = log_interval - model.episode_num % log_interval
                 if model.logger.output_formats:  # every dump is written: stop at each
                     max_episodes = min(max_episodes, to_dump)
                 elif max_episodes > to_dump:  # nothing is written: end the chunk on a dump, which leaves the logger
                     max_episodes = to_dump + (max_episodes - to_dump) // log_interval * log_interval  # as all would
             if bars:
                 limit_t = min(limit_t, model.num_timesteps + _PROGRESS_DECISIONS)
-            parameters = settings.episode_parameters(len(model._episode_blocks), max_episodes)
+            parameters = settings.episode_parameters(model.run_episodes, max_episodes)
             if parameters is None:
                 max_episodes = 1
                 alpha, p = np.empty(1), np.empty(1)
             else:
                 alpha, p = parameters
-            alpha[0] = model._alpha
-            p[0] = model._episode_exploration()
+            alpha[0] = model.alpha
+            p[0] = model.episode_exploration()
             before = model.num_timesteps
             finished, _ = run.step(alpha, p, limit_t, max_episodes)
             model.num_timesteps = run.timesteps
             if finished:
-                _close_episodes(model, run, finished)
+                block = run.block(finished)  # the episode log's columns of the finished episodes
+                model.close_episodes(block)
+                run.monitor_episodes(block["cells"], block["truncated"])
                 _record(model, run, log_interval)
-                model._update_current_progress_remaining(model.num_timesteps, total_timesteps)
-                model._update_schedules()
+                model.advance_schedules(total_timesteps)
             for bar in bars:
                 bar.pbar.update(model.num_timesteps - before)
             if episodic and (finished or limit_t == before + 1):
@@ -190,29 +196,10 @@ def learn_compiled(
         run.write_back()
 
 
-def _close_episodes(model: Any, run: RunArrays, finished: int) -> None:
-    """``grid_loop.close_episode`` for the kernel's ``finished`` episodes (the logger aside), in bulk: the
-    episode log gets them as one block of columns, with no Python work per episode."""
-    block = run.block(finished)
-    first = len(model._episode_blocks) + 1
-    block["episode"] = np.arange(first, first + finished, dtype=np.int64)
-    model._episode_blocks.append_columns(block)
-    truncated, decisions, cells, reward = block["truncated"], block["decisions"], block["cells"], block["reward"]
-    model._truncated_episodes += int(truncated.sum())
-    model._episode_num += finished
-    buffer = model.ep_info_buffer
-    keep = finished if buffer.maxlen is None else min(finished, buffer.maxlen)
-    stamp = round(time.time() - model.start_time / 1e9, 6)
-    last = slice(finished - keep, finished)  # only the episodes the buffer keeps
-    for r, n, c in zip(reward[last].tolist(), decisions[last].tolist(), cells[last].tolist()):
-        buffer.append({"r": r, "l": n, "c": c, "t": stamp})
-    run.monitor_episodes(cells, truncated)
-
-
 def _record(model: Any, run: RunArrays, log_interval: int | None) -> None:
     """The logger keys of an episode end (only the last episode before a dump matters: records overwrite)."""
     logger = model.logger  # recorded whenever a logger exists, as SB3 does (per chunk of episodes, never per decision)
-    row = model._episode_blocks.last()
+    row = model.last_episode_row()
     if run.agent.kind == agent_settings.AFFECT:
         counts = [row[COLUMN[name]] for name in EMOTION_NAMES]
         total = sum(counts)
@@ -220,9 +207,7 @@ def _record(model: Any, run: RunArrays, log_interval: int | None) -> None:
             logger.record(f"affect/{name}", count / total)
         norm = row[COLUMN["norm"]]
         logger.record("affect/norm", norm if norm == norm else 0.0)
-    logger.record("affect/equivalent_epsilon", row[COLUMN["random_moves"]] / row[COLUMN["decisions"]])
-    if log_interval is not None and model._episode_num % log_interval == 0:
-        model.dump_logs()
+    model.log_episode_end(row[COLUMN["random_moves"]], row[COLUMN["decisions"]], log_interval)
 
 
 def _call_back(

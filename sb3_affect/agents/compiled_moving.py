@@ -73,8 +73,10 @@ class MovingKernelRun(RunArrays):
     """
     One model's state in the moving-prey kernel's arrays for the length of a ``learn`` call.
 
-    :param model: the tabular model (its episode in progress already begun)
+    :param model: the tabular model
     :param env: the model's single env (a MovingPursuit, wrapped)
+    :param q: the model's Q-table during the run (``compiled_run.RunArrays``)
+    :param episode: the episode in progress (``TabularQAlgorithm.resume_episode``)
     :param settings: the model's settings (``compiled_settings``)
     :param agent: the agent as the kernel runs it
     """
@@ -82,8 +84,16 @@ class MovingKernelRun(RunArrays):
     n_ist: ClassVar[int] = moving_loop.N_MOVING_IST
     fixed_goal: ClassVar[bool] = False
 
-    def __init__(self, model: Any, env: Any, settings: TabularSettings, agent: KernelAgent) -> None:
-        super().__init__(model, env, agent)
+    def __init__(
+        self,
+        model: Any,
+        env: Any,
+        q: np.ndarray,
+        episode: dict[str, Any],
+        settings: TabularSettings,
+        agent: KernelAgent,
+    ) -> None:
+        super().__init__(model, env, q, episode, agent)
         base, ist, fst = self.base, self.ist, self.fst
         self.inputs = inputs = moving_inputs(settings, env, 1)
         self.pcg = state_from_generator(base.np_random)
@@ -168,7 +178,7 @@ class MovingKernelRun(RunArrays):
         if self.agent.kind == agent_settings.AFFECT:
             self._write_appraisal()
         base.hunter, base.prey_cell = int(self.ist[moving_loop.I_HUNTER]), int(self.ist[moving_loop.I_PREY])
-        self.model._greedy_optimal = None
+        self.model.greedy_optimal = None
         self._write_back(base.step_reward)
 
     def last_info(self) -> dict[str, Any]:

@@ -39,7 +39,8 @@ class FitArrays:
 
         fit = PowerFit()
         fit.values = self.values.tolist()
-        fit._sx, fit._sy, fit._sxx, fit._sxy = self.sums.tolist()
+        sx, sy, sxx, sxy = self.sums.tolist()
+        fit.sums = (sx, sy, sxx, sxy)
         return fit
 
 
@@ -55,7 +56,7 @@ def read_appraisal_scalars(callback: Any, ist: np.ndarray, fst: np.ndarray) -> n
         values, sums = kept.values, kept.sums
     else:
         fit = appraiser.fit
-        values, sums = np.asarray(fit.values, dtype=np.float64), np.array([fit._sx, fit._sy, fit._sxx, fit._sxy])
+        values, sums = np.asarray(fit.values, dtype=np.float64), np.array(fit.sums)
     fit_vals = np.zeros(max(64, 2 * len(values)))
     fit_vals[: len(values)] = values
     fst[state_layout.S_FIT0 : state_layout.S_FIT0 + 4] = sums
@@ -128,8 +129,10 @@ class RunArrays:
     ``fixed_goal`` and add their
     env's state, their known map, ``step``, ``state``, ``last_info`` and ``monitor_episodes``.
 
-    :param model: the tabular model (its episode in progress already begun)
+    :param model: the tabular model
     :param env: the model's single env (wrapped)
+    :param q: the model's Q-table during the run (float64, C order: the kernel updates it in place)
+    :param episode: the episode in progress (``TabularQAlgorithm.resume_episode``)
     :param agent: the agent as the kernel runs it
     """
 
@@ -137,32 +140,33 @@ class RunArrays:
     n_ist: ClassVar[int] = state_layout.N_IST
     fixed_goal: ClassVar[bool] = True
 
-    def __init__(self, model: Any, env: Any, agent: KernelAgent) -> None:
+    def __init__(
+        self, model: Any, env: Any, q: np.ndarray, episode: dict[str, Any], agent: KernelAgent
+    ) -> None:
         self.model, self.agent = model, agent
         self.base, wrappers = unwrap(env)
         self.monitor = next((w for w in wrappers if isinstance(w, Monitor)), None)
         self.time_limit = next((w for w in wrappers if hasattr(w, "_max_episode_steps")), None)  # (as time_limit_of)
         self.obs_start = int(model.observation_space.start)
         self.act_start = int(model.action_space.start)
-        self.q = np.ascontiguousarray(model._q, dtype=np.float64)
-        model._q = self.q  # the live table: what predict, q_table and save see from an episode-level callback
+        self.q = q  # the live table: what predict, q_table and save see from an episode-level callback
         n_states, n_actions = self.q.shape
-        self.mt, self.gauss = state_from_rng(model._rng)
+        self.mt, self.gauss = state_from_rng(model.rng)
         ist = self.ist = np.zeros(self.n_ist, dtype=np.int64)
         fst = self.fst = np.zeros(state_layout.N_FST)
         ist[state_layout.I_T] = model.num_timesteps
-        st = model._episode_state
-        if st is not None:
-            ist[state_layout.I_DECISIONS], ist[state_layout.I_CELLS] = st["decisions"], st["cells"]
-            ist[state_layout.I_RANDOM], ist[state_layout.I_WAITS] = st["random_moves"], st["waits"]
-            fst[state_layout.S_REWARD] = st["reward"]
+        ist[state_layout.I_DECISIONS] = episode["decisions"]
+        ist[state_layout.I_CELLS] = episode["cells"]
+        ist[state_layout.I_RANDOM] = episode["random_moves"]
+        ist[state_layout.I_WAITS] = episode["waits"]
+        fst[state_layout.S_REWARD] = episode["reward"]
         ist[state_layout.I_TL_ELAPSED] = 0 if self.time_limit is None else int(self.time_limit._elapsed_steps or 0)
         self.fit_vals = np.zeros(64)
         self.ucb_n = np.zeros((n_states, n_actions), dtype=np.int64)
         self.ucb_tot = np.zeros(n_states, dtype=np.int64)
         if agent.kind == agent_settings.UCB:
             self.ucb_n[:] = np.asarray(model.counts, dtype=np.int64)
-            self.ucb_tot[:] = np.asarray(model._totals, dtype=np.int64)
+            self.ucb_tot[:] = np.asarray(model.totals, dtype=np.int64)
         self.out_i = np.zeros((1, state_layout.N_OUT_I), dtype=np.int64)
         self.out_f = np.zeros((1, state_layout.N_OUT_F))
         self._handed_over = False  # whether the episode log holds the output rows (``block``)
@@ -238,21 +242,20 @@ class RunArrays:
     def _write_back(self, step_reward: float) -> None:
         """The state every run returns: Q-table, generator, UCB counts, the episode in progress, the wrappers."""
         model, ist = self.model, self.ist
-        model._q = self.q
-        state_to_rng(model._rng, self.mt, self.gauss)
+        state_to_rng(model.rng, self.mt, self.gauss)
         if self.agent.kind == agent_settings.UCB:
             model.counts = self.ucb_n.tolist()
-            model._totals = self.ucb_tot.tolist()
-        s = self.state
-        model._episode_state = {
-            "state": s,
-            "decisions": int(ist[state_layout.I_DECISIONS]),
-            "cells": int(ist[state_layout.I_CELLS]),
-            "random_moves": int(ist[state_layout.I_RANDOM]),
-            "waits": int(ist[state_layout.I_WAITS]),
-            "reward": float(self.fst[state_layout.S_REWARD]),
-        }
-        model._last_obs = np.array([s + self.obs_start])
+            model.totals = self.ucb_tot.tolist()
+        model.keep_episode(
+            {
+                "state": self.state,
+                "decisions": int(ist[state_layout.I_DECISIONS]),
+                "cells": int(ist[state_layout.I_CELLS]),
+                "random_moves": int(ist[state_layout.I_RANDOM]),
+                "waits": int(ist[state_layout.I_WAITS]),
+                "reward": float(self.fst[state_layout.S_REWARD]),
+            }
+        )
         if self.time_limit is not None:
             self.time_limit._elapsed_steps = int(ist[state_layout.I_TL_ELAPSED])
         if self.monitor is not None:

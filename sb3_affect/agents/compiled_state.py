@@ -17,7 +17,7 @@ from sb3_affect.agents.compiled_run import RunArrays, monitor_episodes, read_app
 from sb3_affect.core.settings import TabularSettings
 from sb3_affect.kernel import agent_settings, grid_arrays, grid_loop, state_layout
 from sb3_affect.kernel.agent_settings import KernelAgent
-from sb3_affect.kernel.grid_inputs import TableArrays, kernel_config
+from sb3_affect.kernel.grid_inputs import TableArrays, kernel_config, time_limit_of, unwrap
 from sb3_affect.kernel.jit import announce_compile
 
 #: The CPU time of compiling the grid loop on a cold cache (measured on the 2-core machine under load: README's first
@@ -81,24 +81,31 @@ class KernelRun(RunArrays):
     """
     One model's state in the grid kernel's arrays (``kernel.grid_loop``) for the length of a ``learn`` call.
 
-    :param model: the tabular model (its episode in progress already begun)
+    :param model: the tabular model
     :param env: the model's single env (wrapped)
+    :param q: the model's Q-table during the run (``compiled_run.RunArrays``)
+    :param episode: the episode in progress (``TabularQAlgorithm.resume_episode``)
     :param settings: the model's settings (``compiled_settings``)
     :param agent: the agent as the kernel runs it
     """
 
 
-    def __init__(self, model: Any, env: Any, settings: TabularSettings, agent: KernelAgent) -> None:
-        super().__init__(model, env, agent)
+    def __init__(
+        self,
+        model: Any,
+        env: Any,
+        q: np.ndarray,
+        episode: dict[str, Any],
+        settings: TabularSettings,
+        agent: KernelAgent,
+    ) -> None:
+        super().__init__(model, env, q, episode, agent)
         self.table = table = TableArrays.of(self.base)
         self.width = table.width
-        limit = 0 if self.time_limit is None else int(self.time_limit._max_episode_steps)
+        limit = time_limit_of(unwrap(env)[1])
         self.config = kernel_config(agent, table, limit)
         ist = self.ist
-        if model._episode_state is None:
-            ist[state_layout.I_STATE] = int(np.asarray(model._last_obs).reshape(-1)[0]) - self.obs_start
-        else:
-            ist[state_layout.I_STATE] = model._episode_state["state"]
+        ist[state_layout.I_STATE] = episode["state"]
         ist[state_layout.I_CHANGED] = 1
         ist[state_layout.I_GREEDY] = -1
         n_states, n_actions = self.q.shape
@@ -177,7 +184,7 @@ class KernelRun(RunArrays):
         if self.agent.kind == agent_settings.AFFECT:
             self._write_appraisal()
         greedy = int(self.ist[state_layout.I_GREEDY])
-        self.model._greedy_optimal = None if greedy < 0 else bool(greedy)
+        self.model.greedy_optimal = None if greedy < 0 else bool(greedy)
         self._write_back(self.table.step_reward)
         self.base.state = self.state
 

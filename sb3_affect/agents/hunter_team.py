@@ -139,7 +139,7 @@ class HunterTeam:
         steppers = {}
         for agent in agents:
             model = self.models[agent]
-            view = model._single_env().unwrapped
+            view = model.single_env().unwrapped
             assert isinstance(view, HunterView)
             view.current = first_obs[agent]
             steppers[agent] = DecisionStepper(model, episodes * model.max_episode_decisions, callback=callbacks.get(agent))
@@ -180,7 +180,7 @@ class HunterTeam:
                 episode_ended = steppers[a].end_decision(ended[a], over and not ended[a], reset=reset)
                 if episode_ended:
                     assert over, "a hunter's episode ends with the team's"
-                    rows.append(self.models[a]._episode_blocks.last())
+                    rows.append(self.models[a].last_episode_row())
             if over:
                 self._close(rows, rounds, steps, team_reward, captured, capturers)
                 done_episodes += 1

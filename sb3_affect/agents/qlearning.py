@@ -108,7 +108,7 @@ class QLearning(TabularQAlgorithm):
     def _exploration_value(self) -> float:
         return self._epsilon
 
-    def _episode_exploration(self) -> float:
+    def episode_exploration(self) -> float:
         return self._epsilon
 
     def _decide(self, state: int, q: Rows) -> tuple[int, int, bool]:

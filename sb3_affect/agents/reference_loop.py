@@ -9,22 +9,16 @@ loop (``engine="python"``) or its compiled twin in ``sb3_affect.kernel`` (same s
 
 from __future__ import annotations
 
-import math
-import operator
-import time
-from typing import TYPE_CHECKING, Any
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, NamedTuple, Protocol
 
 import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback, ConvertCallback
 
-from sb3_affect.core.episode_log import EPISODE_COLUMNS, greedy_walks_shortest_path
-
-if TYPE_CHECKING:
+if TYPE_CHECKING:  # (annotations only: the loop's helpers import neither torch nor the algorithm)
     from sb3_affect.agents.qtable import LoopTable
-    from sb3_affect.agents.tabular import TabularQAlgorithm
-
-#: A row's values in the order of ``EPISODE_COLUMNS`` (from the row by column name).
-_ROW_VALUES = operator.itemgetter(*EPISODE_COLUMNS)
+    from sb3_affect.core.episode_log import Rows
+    from sb3_affect.core.goals import GoalTest
 
 #: The ``dones`` of a one-env VecEnv step (read-only, shared).
 DONE = np.array([True])
@@ -33,10 +27,59 @@ DONE.flags.writeable = False
 NOT_DONE.flags.writeable = False
 
 
+class LoopParts(NamedTuple):
+    """What a run's Python loop takes from its agent (``TabularQAlgorithm.loop_parts``)."""
+
+    #: the loop's Q-table, a list of rows (synced to the policy's tensor by ``end_run``)
+    q: LoopTable
+    #: ``(state, q) -> (action, cells to move, whether the direction was random)``
+    decide: Callable[[int, Rows], tuple[int, int, bool]]
+    #: ``(s, s2, reached_goal)`` after every one-cell transition (the appraisal's), or None
+    observe: Callable[[int, int, bool], Any] | None
+    #: whether a terminal transition reached the goal
+    is_goal: GoalTest
+
+
+class LoopAgent(Protocol):
+    """The public run methods of ``TabularQAlgorithm`` the loop calls (the agent keeps its state; see its docs)."""
+
+    gamma: float
+    max_episode_decisions: int
+    multi_cell: str
+    num_timesteps: int
+    observation_space: Any
+    action_space: Any
+
+    @property
+    def alpha(self) -> float: ...
+
+    def loop_parts(self) -> LoopParts: ...
+
+    def resume_episode(self, total_timesteps: int) -> dict[str, Any]: ...
+
+    def begin_episode(self, total_timesteps: int) -> float: ...
+
+    def keep_episode(self, episode: dict[str, Any]) -> None: ...
+
+    def close_episode(
+        self,
+        decisions: int,
+        cells: int,
+        reward: float,
+        random_moves: int,
+        waits: int,
+        terminated: bool,
+        truncated: bool,
+        q_changed: bool,
+        log_interval: int | None,
+        reached_goal: bool | None = None,
+        info: dict[str, Any] | None = None,
+    ) -> None: ...
+
+
 def run_loop(
-    model: TabularQAlgorithm,
+    model: LoopAgent,
     env: Any,
-    q: LoopTable,
     total_timesteps: int,
     callback: BaseCallback,
     log_interval: int | None,
@@ -44,46 +87,37 @@ def run_loop(
     """
     Take decisions until ``total_timesteps`` (or a callback stops): decide, move ``k`` cells with their Eq. 1
     updates, close finished episodes, call the callbacks. (``sb3_affect.agents.stepping.DecisionStepper`` takes the same
-    steps one decision at a time, with the functions below.)
+    steps one decision at a time, with the same calls.)
 
-    :param model: the agent (its ``_decide``, appraisal hooks, schedules, counters and episode log)
+    :param model: the agent, after its ``start_run`` (its ``loop_parts``, its episode in progress, its episode ends)
     :param env: the single (Monitor-wrapped) Gymnasium env
-    :param q: the loop's Q-table, a list of rows (synced to the policy's tensor by ``learn``)
     :param total_timesteps: stop once ``model.num_timesteps`` reaches this many decisions
     :param callback: SB3 callback(s), called once per decision with a one-env VecEnv's locals
     :param log_interval: dump the logger every this many episodes (None: never)
     """
     gamma = model.gamma
     cap = model.max_episode_decisions
-    decide = model._decide
-    observe = model._transition_hook()
-    is_goal = model._goal_test()
+    q, decide, observe, is_goal = model.loop_parts()
     jump = model.multi_cell == "jump"
-    obs_start = int(model.observation_space.start)  # type: ignore[attr-defined]
-    act_start = int(model.action_space.start)  # type: ignore[attr-defined]
+    obs_start = int(model.observation_space.start)
+    act_start = int(model.action_space.start)
     cb_locals: dict[str, Any] = {"self": model, "total_timesteps": total_timesteps, "callback": callback}
     update_locals = callback.update_locals
     on_step = callback.on_step
     # learn(callback=None) without a progress bar: nothing to call per decision
     call_back = not (isinstance(callback, ConvertCallback) and callback.callback is None)
 
-    # the episode in progress (continued across learn(reset_num_timesteps=False) calls)
-    if model._episode_state is None:
-        s = int(np.asarray(model._last_obs).reshape(-1)[0]) - obs_start
-        decisions = cells = random_moves = waits = 0
-        reward_sum = 0.0
-        model._begin_episode(total_timesteps)
-    else:
-        st = model._episode_state
-        s, decisions, cells, random_moves, waits, reward_sum = (
-            st["state"],
-            st["decisions"],
-            st["cells"],
-            st["random_moves"],
-            st["waits"],
-            st["reward"],
-        )
-    alpha = model._alpha
+    # the episode in progress (continued across learn(reset_num_timesteps=False) calls, or begun now)
+    episode = model.resume_episode(total_timesteps)
+    s, decisions, cells, random_moves, waits, reward_sum = (
+        episode["state"],
+        episode["decisions"],
+        episode["cells"],
+        episode["random_moves"],
+        episode["waits"],
+        episode["reward"],
+    )
+    alpha = model.alpha
     s2, reward, terminated, truncated, info, action = s, 0.0, False, False, {}, 0
 
     t = model.num_timesteps
@@ -128,8 +162,7 @@ def run_loop(
                 info = episode_end_info(info, s2 + obs_start, terminated)
         if done:
             model.num_timesteps = t
-            close_episode(
-                model,
+            model.close_episode(
                 decisions,
                 cells,
                 reward_sum,
@@ -148,8 +181,7 @@ def run_loop(
             decisions = cells = random_moves = waits = 0
             reward_sum = 0.0
             terminated = truncated = False
-            model._begin_episode(total_timesteps)
-            alpha = model._alpha
+            alpha = model.begin_episode(total_timesteps)
         # 4. callbacks, once per decision, with the locals of a one-env VecEnv step
         if call_back:
             model.num_timesteps = t
@@ -159,7 +191,16 @@ def run_loop(
             if not on_step():
                 break
     model.num_timesteps = t
-    keep_episode(model, s, obs_start, decisions, cells, random_moves, waits, reward_sum)
+    model.keep_episode(
+        {
+            "state": s,
+            "decisions": decisions,
+            "cells": cells,
+            "random_moves": random_moves,
+            "waits": waits,
+            "reward": reward_sum,
+        }
+    )
 
 
 def q_update(
@@ -193,92 +234,3 @@ def step_locals(cb_locals: dict[str, Any], obs: int, reward: float, done: bool, 
     cb_locals["dones"] = DONE if done else NOT_DONE
     cb_locals["infos"] = [info]
     cb_locals["actions"] = np.array([action])
-
-
-def keep_episode(
-    model: TabularQAlgorithm, s: int, obs_start: int, decisions: int, cells: int, random_moves: int, waits: int, reward: float
-) -> None:
-    """Keep the episode in progress on the model, for the next ``learn`` (``reset_num_timesteps=False``) to continue."""
-    model._episode_state = {
-        "state": s,
-        "decisions": decisions,
-        "cells": cells,
-        "random_moves": random_moves,
-        "waits": waits,
-        "reward": reward,
-    }
-    model._last_obs = np.array([s + obs_start])
-
-
-def close_episode(
-    model: TabularQAlgorithm,
-    decisions: int,
-    cells: int,
-    reward: float,
-    random_moves: int,
-    waits: int,
-    terminated: bool,
-    truncated: bool,
-    q_changed: bool,
-    log_interval: int | None,
-    reached_goal: bool | None = None,
-    info: dict[str, Any] | None = None,
-) -> None:
-    """
-    Close an episode: the appraisal's end of episode, the episode-log row, SB3's episode buffers, the logger.
-
-    :param model: the agent
-    :param decisions: decisions taken in the episode
-    :param cells: one-cell transitions made
-    :param reward: sum of rewards
-    :param random_moves: decisions whose direction was random
-    :param waits: decisions that moved 0 cells
-    :param terminated: the env ended the episode
-    :param truncated: a time limit or the safety cap ended it
-    :param q_changed: whether the Q-table changed since the greedy path was last checked
-    :param log_interval: dump the logger every this many episodes (None: never)
-    :param reached_goal: whether the termination was the goal (default: ``terminated``)
-    :param info: the last transition's info (``is_success`` is read from it)
-    """
-    counts, norm = model._end_episode(terminated if reached_goal is None else reached_goal)
-    geometry = model._geometry
-    if geometry is None:
-        optimal: Any = math.nan
-        greedy: Any = math.nan
-    else:
-        optimal = terminated and cells == geometry.shortest_path_length
-        if q_changed or model._greedy_optimal is None:
-            assert model._q is not None, "_close_episode runs inside learn, on the loop's table"
-            model._greedy_optimal = greedy_walks_shortest_path(model._q, geometry)
-        greedy = model._greedy_optimal
-    joy, sadness, fear, anger = counts
-    row = {
-        "episode": len(model._episode_blocks) + 1,
-        "decisions": decisions,
-        "cells": cells,
-        "reward": reward,
-        "optimal": optimal,
-        "truncated": truncated,
-        "random_moves": random_moves,
-        "waits": waits,
-        "joy": joy,
-        "sadness": sadness,
-        "fear": fear,
-        "anger": anger,
-        "greedy_optimal": greedy,
-        "norm": norm,
-    }
-    model._episode_blocks.append_row(list(_ROW_VALUES(row)))
-    if truncated:
-        model._truncated_episodes += 1
-    model._episode_num += 1
-    assert model.ep_info_buffer is not None
-    model.ep_info_buffer.append({"r": reward, "l": decisions, "c": cells, "t": round(time.time() - model.start_time / 1e9, 6)})
-    success = None if info is None else info.get("is_success")
-    if success is not None:
-        assert model.ep_success_buffer is not None
-        model.ep_success_buffer.append(success)
-    # per episode, never per decision: a few dict writes, and a dump every log_interval episodes
-    model.logger.record("affect/equivalent_epsilon", random_moves / decisions)
-    if log_interval is not None and model._episode_num % log_interval == 0:
-        model.dump_logs()

@@ -3,12 +3,13 @@
 
 ``TabularQAlgorithm.learn`` steps one Gymnasium env in a tight loop. When several agents share one world (the
 hunters of ``hunter_team``), each needs to take a decision, wait while the world moves everyone, and learn from
-its own transitions. The stepper exposes exactly the pieces of ``learn`` for that, calling the same code: ``learn``'s
-set-up (``_start_learn``), the agent's ``_decide`` (epsilon-greedy, the emotion's behaviour, ...), Eq. 1
-(``sb3_affect.agents.reference_loop.q_update``), the transition hook (the appraisal's ``observe``), ``_begin_episode`` and
-``loop.close_episode`` (schedules, emotions, the episode log, the logger) and the SB3 callbacks with the locals ``learn``
-gives them (``sb3_affect.agents.reference_loop.step_locals``). Driving a single env with it gives the same episode log,
-Q-table and random draws as ``learn`` (tests/agents/test_hunters.py checks this)::
+its own transitions. The stepper exposes exactly the pieces of ``learn`` for that, calling the same code through the
+agent's run methods: ``learn``'s set-up (``start_run``), the agent's decision rule (``loop_parts``: epsilon-greedy, the
+emotion's behaviour, ...), Eq. 1 (``sb3_affect.agents.reference_loop.q_update``), the transition hook (the appraisal's
+``observe``), ``begin_episode`` and ``close_episode`` (schedules, emotions, the episode log, the logger) and the SB3
+callbacks with the locals ``learn`` gives them (``sb3_affect.agents.reference_loop.step_locals``). Driving a single
+env with it gives the same episode log, Q-table and random draws as ``learn`` (tests/agents/test_hunters.py checks
+this)::
 
     stepper = DecisionStepper(model, total_timesteps=10**6)          # starts a run, as learn() does
     action, cells, explored = stepper.decide()                     # one decision in the current state
@@ -26,12 +27,11 @@ from __future__ import annotations
 from collections.abc import Callable
 from typing import Any
 
-import numpy as np
 from stable_baselines3.common.callbacks import ConvertCallback
 from stable_baselines3.common.type_aliases import MaybeCallback
 
 from sb3_affect.agents.qtable import LoopTable
-from sb3_affect.agents.reference_loop import close_episode, episode_end_info, keep_episode, q_update, step_locals
+from sb3_affect.agents.reference_loop import episode_end_info, q_update, step_locals
 from sb3_affect.agents.tabular import TabularQAlgorithm
 
 
@@ -60,15 +60,13 @@ class DecisionStepper:
         if not isinstance(model, TabularQAlgorithm):
             raise TypeError(f"model must be a tabular agent of this package, got {type(model).__name__}")
         self.model = m = model
-        self.total_timesteps, self.callback = m._start_learn(  # what learn() does before its loop
+        self.total_timesteps, self.callback = m.start_run(  # what learn() does before its loop
             total_timesteps, callback, reset_num_timesteps, tb_log_name, False, new_episode=True
         )
-        assert m._q is not None and not isinstance(m._q, np.ndarray)  # _start_learn made the Python loop's table
-        self.q: LoopTable = m._q
         # what run_loop does before its loop
+        self.q: LoopTable
+        self.q, self._decide, self._observe, self._is_goal = m.loop_parts()
         self.log_interval = log_interval
-        self._observe = m._transition_hook()
-        self._is_goal = m._goal_test()
         self._jump = m.multi_cell == "jump"  # one Eq. 1 update per decision, made in end_decision
         self._obs_start = int(m.observation_space.start)  # type: ignore[attr-defined]
         self._act_start = int(m.action_space.start)  # type: ignore[attr-defined]
@@ -77,14 +75,15 @@ class DecisionStepper:
         self.t = m.num_timesteps
         self._changed = True
         self.continue_training = True
-        self._start(int(np.asarray(m._last_obs).reshape(-1)[0]))
+        # start_run began a new episode: resume_episode begins it in the env's first observation
+        self._start(m.resume_episode(self.total_timesteps)["state"], m.alpha)
 
-    def _start(self, obs: int) -> None:
-        self.s = obs - self._obs_start
+    def _start(self, s: int, alpha: float) -> None:
+        """Counters of a new episode in state ``s`` (counted from 0) that learns with ``alpha``."""
+        self.s = s
         self.decisions = self.cells = self.random_moves = self.waits = 0
         self.reward_sum = 0.0
-        self.model._begin_episode(self.total_timesteps)
-        self._alpha = self.model._alpha
+        self._alpha = alpha
         self._last: tuple[int, float, dict[str, Any]] = (self.s, 0.0, {})
         self._action = 0
         self._explored = False
@@ -101,7 +100,7 @@ class DecisionStepper:
 
     def decide(self) -> tuple[int, int, bool]:
         """``(action, cells to move, whether the direction was random)`` for a decision in the current state."""
-        action, k, explored = self.model._decide(self.s, self.q)
+        action, k, explored = self._decide(self.s, self.q)
         self._action, self._explored, self._k = action, explored, k
         self._decision_reward = 0.0
         self._start_cell, self._jump_reward = self.s, 0.0
@@ -152,8 +151,7 @@ class DecisionStepper:
         decision_reward, action = self._decision_reward, self._action  # before a reset starts the next episode
         if done:
             m.num_timesteps = self.t
-            close_episode(
-                m,
+            m.close_episode(
                 self.decisions,
                 self.cells,
                 self.reward_sum,
@@ -167,7 +165,8 @@ class DecisionStepper:
                 info=info,
             )
             self._changed = False
-            self._start(int(reset()))
+            s = int(reset()) - self._obs_start
+            self._start(s, m.begin_episode(self.total_timesteps))
         if self._call_back:
             m.num_timesteps = self.t
             step_locals(self._locals, self.s + self._obs_start, decision_reward, done, info, action + self._act_start)
@@ -180,7 +179,15 @@ class DecisionStepper:
         """End the run as ``learn`` does: the Q-table written back to the policy, ``on_training_end`` called."""
         m = self.model
         m.num_timesteps = self.t
-        keep_episode(m, self.s, self._obs_start, self.decisions, self.cells, self.random_moves, self.waits, self.reward_sum)
-        m._sync_policy()
-        m._q = None  # from now on the policy's tensor is the one truth, as after learn
+        m.keep_episode(
+            {
+                "state": self.s,
+                "decisions": self.decisions,
+                "cells": self.cells,
+                "random_moves": self.random_moves,
+                "waits": self.waits,
+                "reward": self.reward_sum,
+            }
+        )
+        m.end_run()  # from now on the policy's tensor is the one truth, as after learn
         self.callback.on_training_end()

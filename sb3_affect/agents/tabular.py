@@ -3,18 +3,20 @@
 logging; save and load come from its base class (``sb3_affect.agents.model_files.ModelFiles``).
 
 The decision loop itself is ``reference_loop.run_loop`` (the readable reference) and ``sb3_affect.kernel`` (its
-compiled twin). ``num_timesteps`` counts decisions (the paper's "steps"). Subclasses say how a decision is taken
+compiled twin). Both take the run from the algorithm through its public run methods (``start_run``,
+``resume_episode``, ``close_episode``, ``keep_episode``, ``end_run``: the algorithm keeps its own state, the loops
+never reach into it); ``num_timesteps`` counts decisions (the paper's "steps"). Subclasses say how a decision is taken
 (``_decide``).
 """
 
 from __future__ import annotations
 
 import math
+import operator
 import os
 import random
 import time
 import warnings
-from operator import itemgetter
 from typing import Any, ClassVar, TypeVar
 
 import numpy as np
@@ -31,9 +33,15 @@ from sb3_affect.agents.agent_checks import check_episode_in_progress, check_seed
 from sb3_affect.agents.model_files import ModelFiles
 from sb3_affect.agents.policies import TabularQPolicy, check_not_gym_tuple
 from sb3_affect.agents.qtable import LoopTable, VisitedRows
-from sb3_affect.agents.reference_loop import run_loop
+from sb3_affect.agents.reference_loop import LoopParts, run_loop
 from sb3_affect.core.episode_blocks import EpisodeBlocks
-from sb3_affect.core.episode_log import Geometry, Rows, env_geometry
+from sb3_affect.core.episode_log import (
+    EPISODE_COLUMNS,
+    Geometry,
+    Rows,
+    env_geometry,
+    greedy_walks_shortest_path,
+)
 from sb3_affect.core.extras import numba_usable
 from sb3_affect.core.goals import GoalTest, positive_terminal_reward
 from sb3_affect.core.registry import known_settings
@@ -45,6 +53,9 @@ SelfTabular = TypeVar("SelfTabular", bound="TabularQAlgorithm")
 __all__ = ["ENGINES", "MULTI_CELLS", "TIE_BREAKS", "TabularQAlgorithm"]
 
 _S = TabularSettings  # the defaults of the settings (one source: ``sb3_affect.core.settings``)
+
+#: A row's values in the order of ``EPISODE_COLUMNS`` (from the row by column name).
+_ROW_VALUES = operator.itemgetter(*EPISODE_COLUMNS)
 
 
 class TabularQAlgorithm(ModelFiles):
@@ -196,7 +207,7 @@ class TabularQAlgorithm(ModelFiles):
         """The value logged as ``rollout/exploration_rate``."""
         return 0.0
 
-    def _episode_exploration(self) -> float:
+    def episode_exploration(self) -> float:
         """The exploration parameter of the episode in progress as the kernel takes it (epsilon, inverse temperature)."""
         return 0.0
 
@@ -225,7 +236,8 @@ class TabularQAlgorithm(ModelFiles):
         self._alpha = float(self.lr_schedule(self._current_progress_remaining))
 
     # -- the learning loop ---------------------------------------------------------------------------------------
-    def _single_env(self) -> Any:
+    def single_env(self) -> Any:
+        """The one Gymnasium env the agent learns on (Monitor-wrapped); a TypeError for any other env."""
         if not isinstance(self.env, DummyVecEnv) or self.env.num_envs != 1:
             raise TypeError(
                 f"{type(self).__name__} learns on a single env; pass a Gymnasium env, an env id or a one-env DummyVecEnv "
@@ -265,25 +277,22 @@ class TabularQAlgorithm(ModelFiles):
         :return: the trained model
         """
         total_timesteps = check_total_timesteps(total_timesteps)
-        total_timesteps, callback = self._start_learn(
+        total_timesteps, callback = self.start_run(
             total_timesteps, callback, reset_num_timesteps, tb_log_name, progress_bar, new_episode=False
         )
-        env = self._single_env()
+        env = self.single_env()
         plan = self._use_kernel(env, callback)
         self._say_engine("compiled" if plan is not None else "python")
         try:
             if plan is not None:  # the kernel's table: an array (the Python loop makes a row the first time it visits a state)
                 from sb3_affect.agents.compiled import learn_compiled
 
-                self._q = self.policy.q_table.cpu().numpy().astype(np.float64)
-                learn_compiled(self, env, total_timesteps, callback, log_interval, plan)
+                q_array = self._q = self.policy.q_table.cpu().numpy().astype(np.float64, order="C")
+                learn_compiled(self, env, q_array, total_timesteps, callback, log_interval, plan)
             else:
-                q = self._q
-                assert q is not None and not isinstance(q, np.ndarray)
-                self._run_loop(env, q, total_timesteps, callback, log_interval)
+                run_loop(self, env, total_timesteps, callback, log_interval)
         finally:
-            self._sync_policy()
-            self._q = None  # from now on the policy's tensor is the one truth (set_parameters, edits, save)
+            self.end_run()
         self._warn_non_finite()
         callback.on_training_end()
         return self
@@ -306,7 +315,8 @@ class TabularQAlgorithm(ModelFiles):
             stacklevel=3,
         )
 
-    def _start_learn(
+    # -- the run: what the loops call (the Python loop, the stepper, the compiled engine) --------------------------
+    def start_run(
         self,
         total_timesteps: int,
         callback: MaybeCallback,
@@ -342,7 +352,7 @@ class TabularQAlgorithm(ModelFiles):
         n_states, start = int(self.observation_space.n), int(self.observation_space.start)  # type: ignore[attr-defined]
         check_episode_in_progress(self._episode_state, self._last_obs, n_states, start)
         callback.on_training_start(locals(), globals())
-        self._geometry: Geometry | None = env_geometry(self._single_env())
+        self._geometry: Geometry | None = env_geometry(self.single_env())
         self._greedy_optimal: bool | None = None
         # the Python loop's view of the table: a row is read from the tensor the first time its state is visited
         self._q = VisitedRows(self.policy.q_table)
@@ -382,17 +392,182 @@ class TabularQAlgorithm(ModelFiles):
             what = "on the compiled engine" if engine == "compiled" else f"the Python loop ({self._engine_reason})"
             print(f"{type(self).__name__}.learn runs {what}")
 
-    def _run_loop(
-        self, env: Any, q: LoopTable, total_timesteps: int, callback: BaseCallback, log_interval: int | None
-    ) -> None:
-        """The reference decision loop, ``reference_loop.run_loop`` (its compiled twin: ``sb3_affect.kernel``)."""
-        run_loop(self, env, q, total_timesteps, callback, log_interval)
+    def loop_parts(self) -> LoopParts:
+        """What the Python loop takes from the agent once ``start_run`` ran: the loop's Q-table, ``_decide``, the
+        transition hook and the goal test (``reference_loop.LoopParts``)."""
+        q = self._q
+        assert q is not None and not isinstance(q, np.ndarray), "loop_parts: after start_run, on the Python table"
+        return LoopParts(q, self._decide, self._transition_hook(), self._goal_test())
 
-    def _begin_episode(self, total_timesteps: int) -> None:
-        if total_timesteps > 0:  # learn(0) takes no decision: the progress stays where it was
+    @property
+    def rng(self) -> random.Random:
+        """The agent's own generator (every random choice of its decisions; its policy's too)."""
+        return self._rng
+
+    @property
+    def alpha(self) -> float:
+        """Eq. 1's learning rate of the episode in progress (the schedule's value when it began)."""
+        return self._alpha
+
+    @property
+    def episode_num(self) -> int:
+        """SB3's count of the episodes the run finished (``time/episodes``)."""
+        return self._episode_num
+
+    @property
+    def run_episodes(self) -> int:
+        """The rows of the current run's episode log."""
+        return len(self._episode_blocks)
+
+    def last_episode_row(self) -> list[Any]:
+        """The last row of the episode log, its values in the order of ``EPISODE_COLUMNS``."""
+        return self._episode_blocks.last()
+
+    @property
+    def greedy_optimal(self) -> bool | None:
+        """Whether the greedy path walked a shortest path at the last check (None: not checked since the run began)."""
+        return self._greedy_optimal
+
+    @greedy_optimal.setter
+    def greedy_optimal(self, value: bool | None) -> None:
+        self._greedy_optimal = value
+
+    def advance_schedules(self, total_timesteps: int) -> float:
+        """The training progress at ``num_timesteps`` of ``total_timesteps`` decisions and the schedules at it (``learn(0)``
+        takes no decision: the progress stays where it was); returns the learning rate (``alpha``)."""
+        if total_timesteps > 0:
             self._update_current_progress_remaining(self.num_timesteps, total_timesteps)
         self._update_schedules()
+        return self._alpha
+
+    def begin_episode(self, total_timesteps: int) -> float:
+        """Begin an episode: the schedules (``advance_schedules``), then ``_start_episode``; returns ``alpha``."""
+        alpha = self.advance_schedules(total_timesteps)
         self._start_episode()
+        return alpha
+
+    def resume_episode(self, total_timesteps: int) -> dict[str, Any]:
+        """
+        The episode in progress as a run's loop starts from it, ``{state, decisions, cells, random_moves, waits,
+        reward}`` (``state`` counted from 0): the one the last run kept (``keep_episode``), or a new one begun now
+        (``begin_episode``) in the env's last observation.
+        """
+        if self._episode_state is not None:
+            return dict(self._episode_state)
+        obs_start = int(self.observation_space.start)  # type: ignore[attr-defined]
+        state = int(np.asarray(self._last_obs).reshape(-1)[0]) - obs_start
+        self.begin_episode(total_timesteps)
+        return {"state": state, "decisions": 0, "cells": 0, "random_moves": 0, "waits": 0, "reward": 0.0}
+
+    def keep_episode(self, episode: dict[str, Any]) -> None:
+        """Keep the episode in progress (``resume_episode``'s keys) for the next run (``reset_num_timesteps=False``)."""
+        self._episode_state = episode
+        self._last_obs = np.array([episode["state"] + int(self.observation_space.start)])  # type: ignore[attr-defined]
+
+    def close_episode(
+        self,
+        decisions: int,
+        cells: int,
+        reward: float,
+        random_moves: int,
+        waits: int,
+        terminated: bool,
+        truncated: bool,
+        q_changed: bool,
+        log_interval: int | None,
+        reached_goal: bool | None = None,
+        info: dict[str, Any] | None = None,
+    ) -> None:
+        """
+        Close an episode of the Python loop: the appraisal's end of episode, the episode-log row, SB3's episode
+        buffers, the logger.
+
+        :param decisions: decisions taken in the episode
+        :param cells: one-cell transitions made
+        :param reward: sum of rewards
+        :param random_moves: decisions whose direction was random
+        :param waits: decisions that moved 0 cells
+        :param terminated: the env ended the episode
+        :param truncated: a time limit or the safety cap ended it
+        :param q_changed: whether the Q-table changed since the greedy path was last checked
+        :param log_interval: dump the logger every this many episodes (None: never)
+        :param reached_goal: whether the termination was the goal (default: ``terminated``)
+        :param info: the last transition's info (``is_success`` is read from it)
+        """
+        counts, norm = self._end_episode(terminated if reached_goal is None else reached_goal)
+        geometry = self._geometry
+        if geometry is None:
+            optimal: Any = math.nan
+            greedy: Any = math.nan
+        else:
+            optimal = terminated and cells == geometry.shortest_path_length
+            if q_changed or self._greedy_optimal is None:
+                assert self._q is not None, "close_episode runs inside a run, on the loop's table"
+                self._greedy_optimal = greedy_walks_shortest_path(self._q, geometry)
+            greedy = self._greedy_optimal
+        joy, sadness, fear, anger = counts
+        row = {
+            "episode": len(self._episode_blocks) + 1,
+            "decisions": decisions,
+            "cells": cells,
+            "reward": reward,
+            "optimal": optimal,
+            "truncated": truncated,
+            "random_moves": random_moves,
+            "waits": waits,
+            "joy": joy,
+            "sadness": sadness,
+            "fear": fear,
+            "anger": anger,
+            "greedy_optimal": greedy,
+            "norm": norm,
+        }
+        self._episode_blocks.append_row(list(_ROW_VALUES(row)))
+        if truncated:
+            self._truncated_episodes += 1
+        self._episode_num += 1
+        assert self.ep_info_buffer is not None
+        stamp = round(time.time() - self.start_time / 1e9, 6)
+        self.ep_info_buffer.append({"r": reward, "l": decisions, "c": cells, "t": stamp})
+        success = None if info is None else info.get("is_success")
+        if success is not None:
+            assert self.ep_success_buffer is not None
+            self.ep_success_buffer.append(success)
+        self.log_episode_end(random_moves, decisions, log_interval)
+
+    def close_episodes(self, block: dict[str, np.ndarray]) -> None:
+        """
+        ``close_episode`` for a block of episodes the compiled engine finished (the appraisal and the logger aside), in
+        bulk: the episode log gets them as one block of columns (``block``, every column but ``episode``), with no
+        Python work per episode.
+        """
+        finished = len(block["decisions"])
+        first = len(self._episode_blocks) + 1
+        block["episode"] = np.arange(first, first + finished, dtype=np.int64)
+        self._episode_blocks.append_columns(block)
+        truncated, decisions, cells, reward = block["truncated"], block["decisions"], block["cells"], block["reward"]
+        self._truncated_episodes += int(truncated.sum())
+        self._episode_num += finished
+        buffer = self.ep_info_buffer
+        assert buffer is not None
+        keep = finished if buffer.maxlen is None else min(finished, buffer.maxlen)
+        stamp = round(time.time() - self.start_time / 1e9, 6)
+        last = slice(finished - keep, finished)  # only the episodes the buffer keeps
+        for r, n, c in zip(reward[last].tolist(), decisions[last].tolist(), cells[last].tolist()):
+            buffer.append({"r": r, "l": n, "c": c, "t": stamp})
+
+    def log_episode_end(self, random_moves: int, decisions: int, log_interval: int | None) -> None:
+        """The logger at an episode end: ``affect/equivalent_epsilon`` (per episode, never per decision), and a dump
+        every ``log_interval`` episodes."""
+        self.logger.record("affect/equivalent_epsilon", random_moves / decisions)
+        if log_interval is not None and self._episode_num % log_interval == 0:
+            self.dump_logs()
+
+    def end_run(self) -> None:
+        """End a run's loop: the loop's Q-table written back to the policy, which from now on is the one truth
+        (``set_parameters``, edits, ``save``)."""
+        self._sync_policy()
+        self._q = None
 
     def dump_logs(self) -> None:
         """Write the logger: the keys SB3's DQN writes, plus rollout/ep_cells_mean and the affect/* keys."""
@@ -404,9 +579,9 @@ class TabularQAlgorithm(ModelFiles):
         record("time/episodes", self._episode_num, exclude="tensorboard")
         if buffer:  # plain-Python means: this runs every few episodes, also on the fast path
             n = len(buffer)
-            record("rollout/ep_rew_mean", sum(map(itemgetter("r"), buffer)) / n)
-            record("rollout/ep_len_mean", sum(map(itemgetter("l"), buffer)) / n)
-            record("rollout/ep_cells_mean", sum(map(itemgetter("c"), buffer)) / n)
+            record("rollout/ep_rew_mean", sum(map(operator.itemgetter("r"), buffer)) / n)
+            record("rollout/ep_len_mean", sum(map(operator.itemgetter("l"), buffer)) / n)
+            record("rollout/ep_cells_mean", sum(map(operator.itemgetter("c"), buffer)) / n)
         if self.ep_success_buffer:
             record("rollout/success_rate", sum(map(float, self.ep_success_buffer)) / len(self.ep_success_buffer))
         record("rollout/exploration_rate", self._exploration_value())

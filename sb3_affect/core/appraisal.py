@@ -41,6 +41,15 @@ class PowerFit:
         self._sxx += x * x
         self._sxy += x * ly
 
+    @property
+    def sums(self) -> tuple[float, float, float, float]:
+        """The fit's running sums ``(sum ln t, sum ln y, sum ln t^2, sum ln t ln y)`` (the compiled engine's copy)."""
+        return self._sx, self._sy, self._sxx, self._sxy
+
+    @sums.setter
+    def sums(self, sums: tuple[float, float, float, float]) -> None:
+        self._sx, self._sy, self._sxx, self._sxy = sums
+
     def coefficients(self) -> tuple[float, float]:
         """``(a, b)`` of the current fit; needs at least one point (with one point: ``a = y, b = 0``)."""
         n = len(self.values)

@@ -20,18 +20,62 @@ from typing import Any, NamedTuple
 
 from sb3_affect.core.settings import AGENT_SETTINGS, TabularSettings, settings_class
 
-#: Short names: the package's tabular agents (from their settings) and SB3's algorithms a study compares with.
+
+class AgentEntry(NamedTuple):
+    """
+    One agent of the package, registered once: its short name (sweep files, ``simulate``, the CLI), where it lives,
+    what the package root exports of it, its name and Optuna sampler in rl-zoo3 and whether the deep study trains it.
+    (A tabular agent's defaults and checks are its settings class, ``sb3_affect.core.settings``.)
+    """
+
+    #: the class, and its short name
+    name: str
+    #: the module it lives in
+    module: str
+    #: the names of that module ``sb3_affect`` exports (imported on first use): the class, its mixin; () for none
+    exports: tuple[str, ...] = ()
+    #: rl-zoo3 (``sb3_affect.integrations.zoo``): the name of its Optuna sampler there; the agent's zoo name is its
+    #: lower-case name. None: not in the zoo
+    sampler: str | None = None
+    #: a DQN of the deep study (``study: deep``), which the lockstep trainer (``train_many``) trains
+    deep: bool = False
+
+
+#: The package's agents: every name, export and zoo registration of each comes from its one entry here.
+AGENT_ENTRIES: tuple[AgentEntry, ...] = (
+    AgentEntry("QLearning", "sb3_affect.agents.qlearning", ("QLearning",), "sample_qlearning_params"),
+    AgentEntry("AffectQ", "sb3_affect.agents.affectq", ("AffectQ",), "sample_affectq_params"),
+    AgentEntry(
+        "AffectDQN", "sb3_affect.agents.deep_affect", ("AffectDQN", "AffectiveExploration"), "sample_affectdqn_params", True
+    ),
+    AgentEntry("AffectQRDQN", "sb3_affect.agents.deep_affect_qrdqn", ("AffectQRDQN",), "sample_affectqrdqn_params"),
+    AgentEntry(
+        "EzGreedyDQN", "sb3_affect.agents.deep_controls", ("EzGreedyDQN", "EzGreedyExploration"), "sample_ezgreedydqn_params",
+        True,
+    ),
+    AgentEntry(
+        "SpeedEpsilonGreedyDQN",
+        "sb3_affect.agents.deep_controls",
+        ("SpeedEpsilonGreedyDQN", "SpeedEpsilonGreedyExploration"),
+        "sample_speedepsilongreedydqn_params",
+        True,
+    ),
+    AgentEntry("ReplayedEpsilonDQN", "sb3_affect.agents.replayed_epsilon", deep=True),
+)
+
+#: The package's tabular agents by short name, each where its settings say it is exported from.
+_TABULAR = {s.agent.partition(":")[2]: f"{s.exported_from[0]}:{s.agent.partition(':')[2]}" for s in AGENT_SETTINGS}
+#: Short names: the package's tabular agents (from their settings), its other agents (``AGENT_ENTRIES``) and SB3's
+#: algorithms a study compares with.
 AGENTS: dict[str, str] = {
-    **{s.agent.partition(":")[2]: f"{s.exported_from[0]}:{s.agent.partition(':')[2]}" for s in AGENT_SETTINGS},
+    **_TABULAR,
     "DQN": "stable_baselines3:DQN",
     "PPO": "stable_baselines3:PPO",
     "A2C": "stable_baselines3:A2C",
-    "AffectDQN": "sb3_affect.agents.deep_affect:AffectDQN",
-    "AffectQRDQN": "sb3_affect.agents.deep_affect_qrdqn:AffectQRDQN",
-    "EzGreedyDQN": "sb3_affect.agents.deep_controls:EzGreedyDQN",
-    "SpeedEpsilonGreedyDQN": "sb3_affect.agents.deep_controls:SpeedEpsilonGreedyDQN",
-    "ReplayedEpsilonDQN": "sb3_affect.agents.replayed_epsilon:ReplayedEpsilonDQN",
+    **{entry.name: f"{entry.module}:{entry.name}" for entry in AGENT_ENTRIES if entry.name not in _TABULAR},
 }
+#: The algorithms a deep study trains: SB3's DQN and the package's DQNs that keep its ``train``.
+DEEP_AGENTS: tuple[str, ...] = ("DQN", *(entry.name for entry in AGENT_ENTRIES if entry.deep))
 
 #: Env wrappers a sweep file may name (``env.wrappers``), applied in the order given: only these, by name.
 ENV_WRAPPERS: dict[str, str] = {

@@ -23,7 +23,11 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from sb3_affect.core.appraisal import check_choice
 from sb3_affect.core.episode_log import EPISODE_COLUMNS
+from sb3_affect.core.registry import known_settings, resolve_class
+from sb3_affect.core.setting_checks import ENGINES
+from sb3_affect.envs import register_envs
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -34,7 +38,6 @@ SIMULATE_COLUMNS: tuple[str, ...] = ("seed", *EPISODE_COLUMNS)
 
 def _resolve(algo: str | type) -> type:
     from sb3_affect.agents.tabular import TabularQAlgorithm
-    from sb3_affect.core.registry import resolve_class
 
     cls: Any = resolve_class(algo) if isinstance(algo, str) else algo
     if not (isinstance(cls, type) and issubclass(cls, TabularQAlgorithm)):
@@ -43,9 +46,6 @@ def _resolve(algo: str | type) -> type:
 
 
 def _check_args(episodes: int, engine: str, seeds: list[Any]) -> None:
-    from sb3_affect.core.appraisal import check_choice
-    from sb3_affect.core.setting_checks import ENGINES
-
     if isinstance(episodes, bool) or not isinstance(episodes, int) or episodes < 1:
         raise ValueError(f"episodes={episodes!r} must be an integer >= 1")
     check_choice("engine", engine, ENGINES)
@@ -96,64 +96,85 @@ def simulate_columns(
     ``simulate``'s table, as a DataFrame or, where one kernel call computes it from the agent's settings, as
     ``{column: NumPy array}`` without importing pandas (the launcher's batches); same arguments as ``simulate``.
     """
-    import gymnasium as gym
-
-    import sb3_affect  # noqa: F401  (registers the envs)
-
+    register_envs()
     seeds = list(seeds)
     kwargs = dict(algo_kwargs or {})
     own = kwargs.get("engine", "auto")
-    if engine != "python" and own != "python":
-        from sb3_affect.core.registry import known_settings
-        from sb3_affect.kernel.grid_inputs import settings_inputs
-
-        if known_settings(algo) is not None:  # the package's agent: no model (nor torch, when named)
-            _check_args(episodes, engine, seeds)
-            inputs = settings_inputs(algo, kwargs, env_id, env_kwargs, episodes)
-            if inputs is not None and not seeds:
-                return _batch_frame(inputs, seeds, episodes)
-            if inputs is not None:
-                from sb3_affect.kernel.grid_batch import batch_columns
-
-                return batch_columns(inputs, seeds, episodes)
-            from sb3_affect.kernel.moving_batch import moving_columns, moving_settings_inputs
-
-            prey_inputs = moving_settings_inputs(algo, kwargs, env_id, env_kwargs, episodes)
-            if prey_inputs is not None:
-                return moving_columns(prey_inputs, seeds, episodes) if seeds else _batch_frame(None, seeds, episodes)
+    compiled = engine != "python" and own != "python"
+    if compiled and known_settings(algo) is not None:  # the package's agent: no model (nor torch, when named)
+        _check_args(episodes, engine, seeds)
+        table = _settings_columns(algo, kwargs, env_id, env_kwargs, seeds, episodes)
+        if table is not None:
+            return table
     cls = _resolve(algo)
     _check_args(episodes, engine, seeds)
+    if compiled:
+        table, reason = _template_columns(cls, kwargs, env_id, env_kwargs, seeds, episodes)
+        if table is not None:
+            return table
+        if engine == "compiled" or own == "compiled":
+            raise ValueError(f"engine='compiled' can not run this simulation: {reason}")
+    if engine == "python":
+        kwargs["engine"] = "python"
+    return _learned_frame(cls, kwargs, env_id, env_kwargs, seeds, episodes)
+
+
+def _settings_columns(
+    algo: str | type, kwargs: dict[str, Any], env_id: str, env_kwargs: dict[str, Any] | None, seeds: list[Any], episodes: int
+) -> Any:
+    """The table of one kernel call from the agent's settings, with no model (None: a model is needed)."""
+    from sb3_affect.kernel.grid_batch import batch_columns
+    from sb3_affect.kernel.grid_inputs import settings_inputs
+    from sb3_affect.kernel.moving_batch import moving_columns, moving_settings_inputs
+
+    inputs = settings_inputs(algo, kwargs, env_id, env_kwargs, episodes)
+    if inputs is not None:
+        return batch_columns(inputs, seeds, episodes) if seeds else _batch_frame(inputs, seeds, episodes)
+    prey_inputs = moving_settings_inputs(algo, kwargs, env_id, env_kwargs, episodes)
+    if prey_inputs is not None:
+        return moving_columns(prey_inputs, seeds, episodes) if seeds else _batch_frame(None, seeds, episodes)
+    return None
+
+
+def _template_columns(
+    cls: type, kwargs: dict[str, Any], env_id: str, env_kwargs: dict[str, Any] | None, seeds: list[Any], episodes: int
+) -> tuple[Any, str | None]:
+    """The table of one kernel call from one template model (seed 0), or ``(None, why the kernel can not)``."""
+    import gymnasium as gym
     import pandas as pd
 
-    if engine != "python" and own != "python":
-        from sb3_affect.agents.compiled import batch_reason
-        from sb3_affect.kernel.grid_inputs import batch_inputs
+    from sb3_affect.agents.compiled import batch_reason
+    from sb3_affect.kernel.grid_inputs import batch_inputs
+    from sb3_affect.kernel.moving_batch import moving_batch_reason, moving_columns, moving_inputs, moving_reason
 
-        env = gym.make(env_id, **(env_kwargs or {}))
+    env = gym.make(env_id, **(env_kwargs or {}))
+    try:
         template = cls("Grid", env, seed=0, **kwargs)
         reason = batch_reason(template, episodes)
         if reason is None:
-            inputs = batch_inputs(template.compiled_settings(), template._single_env(), episodes)
-            env.close()
-            return _batch_frame(inputs, seeds, episodes)
-        from sb3_affect.kernel.moving_batch import moving_batch_reason, moving_columns, moving_inputs, moving_reason
-
-        if moving_reason(template._single_env()) is None:  # MovingPursuit: the moving-prey kernel, or why not
+            inputs = batch_inputs(template.compiled_settings(), template.single_env(), episodes)
+            return _batch_frame(inputs, seeds, episodes), None
+        if moving_reason(template.single_env()) is None:  # MovingPursuit: the moving-prey kernel, or why not
             reason = moving_batch_reason(template)
             if reason is None:
-                prey_inputs = moving_inputs(template.compiled_settings(), template._single_env(), episodes)
-                env.close()
+                prey_inputs = moving_inputs(template.compiled_settings(), template.single_env(), episodes)
                 if not seeds:
-                    return _batch_frame(None, seeds, episodes)
-                return pd.DataFrame(moving_columns(prey_inputs, seeds, episodes))
+                    return _batch_frame(None, seeds, episodes), None
+                return pd.DataFrame(moving_columns(prey_inputs, seeds, episodes)), None
+        return None, reason
+    finally:
         env.close()
-        if engine == "compiled" or own == "compiled":
-            raise ValueError(f"engine='compiled' can not run this simulation: {reason}")
+
+
+def _learned_frame(
+    cls: type, kwargs: dict[str, Any], env_id: str, env_kwargs: dict[str, Any] | None, seeds: list[Any], episodes: int
+) -> pd.DataFrame:
+    """One ``learn`` per seed (with ``StopTrainingOnMaxEpisodes``), their episode logs in one table."""
+    import gymnasium as gym
+    import pandas as pd
     from stable_baselines3.common.callbacks import StopTrainingOnMaxEpisodes
     from stable_baselines3.common.logger import Logger
 
-    if engine == "python":
-        kwargs["engine"] = "python"
     frames = []
     for seed in seeds:
         env = gym.make(env_id, **(env_kwargs or {}))

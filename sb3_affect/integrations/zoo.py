@@ -58,15 +58,13 @@ from pathlib import Path
 from typing import Any
 
 from sb3_affect.core.extras import MissingExtraError, require_extra
-from sb3_affect.core.registry import split_algo
+from sb3_affect.core.registry import AGENT_ENTRIES, split_algo
 
 #: The hyperparameter files of the package's agents, one per algorithm (``<algo>.yml``), and DQN's MiniGrid settings.
 HYPERPARAMS_FOLDER = Path(__file__).with_name("zoo_hyperparams")
-#: The package's agents in the zoo: the zoo's name (``--algo``) -> the agent's name in the registry of agent names.
-ZOO_ALGOS = {
-    name.lower(): name
-    for name in ("QLearning", "AffectQ", "AffectDQN", "AffectQRDQN", "EzGreedyDQN", "SpeedEpsilonGreedyDQN")
-}
+#: The package's agents in the zoo (those whose registry entry names a sampler): the zoo's name (``--algo``) -> the
+#: agent's name in the registry of agent names.
+ZOO_ALGOS = {entry.name.lower(): entry.name for entry in AGENT_ENTRIES if entry.sampler is not None}
 #: The zoo's size names of an MLP (its own samplers' ``net_arch`` choices).
 NET_ARCHS = {"small": [64, 64], "medium": [128, 128], "big": [256, 256]}
 #: ``python -m sb3_affect.integrations.zoo COMMAND``: the zoo module each command runs.
@@ -160,15 +158,8 @@ def sample_speedepsilongreedydqn_params(
     return {**_sample_off_policy(trial), **_sample_epsilon(trial), "speeds": speeds[choice]}
 
 
-#: Each zoo name's Optuna sampler.
-SAMPLERS = {
-    "qlearning": sample_qlearning_params,
-    "affectq": sample_affectq_params,
-    "affectdqn": sample_affectdqn_params,
-    "affectqrdqn": sample_affectqrdqn_params,
-    "ezgreedydqn": sample_ezgreedydqn_params,
-    "speedepsilongreedydqn": sample_speedepsilongreedydqn_params,
-}
+#: Each zoo name's Optuna sampler (the function of this module its registry entry names).
+SAMPLERS = {entry.name.lower(): globals()[entry.sampler] for entry in AGENT_ENTRIES if entry.sampler is not None}
 
 
 def register_with_zoo() -> None:

@@ -177,7 +177,7 @@ def moving_columns(inputs: MovingInputs, seeds: Sequence[int], episodes: int) ->
 
 def moving_batch_reason(model: Any) -> str | None:
     """Why ``simulate`` can not run a freshly built ``model`` on MovingPursuit as one kernel batch (None: it can)."""
-    reason = moving_reason(model._single_env())
+    reason = moving_reason(model.single_env())
     if reason is not None:
         return reason
     settings = model.compiled_settings()

@@ -75,7 +75,7 @@ def model_inputs(algo: str, kwargs: dict[str, Any], env_id: str, env_kwargs: dic
     cls = CLASSES[algo.rpartition(":")[2] or algo]
     model = cls("Grid", gym.make(env_id, **env_kwargs), seed=0, **kwargs)
     assert batch_reason(model, episodes) is None
-    return batch_inputs(model.compiled_settings(), model._single_env(), episodes)
+    return batch_inputs(model.compiled_settings(), model.single_env(), episodes)
 
 
 def same_inputs(a: BatchInputs, b: BatchInputs) -> None:

@@ -96,10 +96,10 @@ def test_moving_kernel_equals_python(case: tuple[str, type, dict[str, Any], dict
     for seed in SEEDS:
         python = _python_run(cls, kwargs, env_kwargs, seed, episodes)
         template = cls("Grid", gym.make(MOVING, **env_kwargs), seed=seed, **kwargs)
-        run = run_moving(moving_inputs(template.compiled_settings(), template._single_env(), episodes), [seed], episodes)
+        run = run_moving(moving_inputs(template.compiled_settings(), template.single_env(), episodes), [seed], episodes)
         assert np.array_equal(run.q, python.q_table), f"seed {seed}: Q-table"
         assert np.array_equal(run.mt, state_from_rng(python._rng)[0]), f"seed {seed}: the agent's generator"
-        env_generator = python._single_env().unwrapped.np_random
+        env_generator = python.single_env().unwrapped.np_random
         assert np.array_equal(run.pcg, state_from_generator(env_generator)), f"seed {seed}: the env's generator"
         if cls is AffectQ:
             assert run.dist.tolist() == python.emotion_callback.appraiser.known.distance, f"seed {seed}: known map"

@@ -145,7 +145,7 @@ class Boltzmann(TabularQAlgorithm):
     def _exploration_value(self) -> float:
         return self._temperature
 
-    def _episode_exploration(self) -> float:
+    def episode_exploration(self) -> float:
         return self._inv_temperature
 
     def _decide(self, state: int, q: Rows) -> tuple[int, int, bool]:

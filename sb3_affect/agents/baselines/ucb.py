@@ -93,6 +93,15 @@ class UCBQLearning(TabularQAlgorithm):
             self.counts = [[0] * n_actions for _ in range(n_states)]
         self._totals = [sum(row) for row in self.counts]
 
+    @property
+    def totals(self) -> list[int]:
+        """The decisions taken in each state (each row of ``counts`` summed), as UCB's ``ln t`` reads them."""
+        return self._totals
+
+    @totals.setter
+    def totals(self, totals: list[int]) -> None:
+        self._totals = totals
+
     def _exploration_value(self) -> float:
         return self.exploration_coef
 
