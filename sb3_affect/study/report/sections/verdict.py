@@ -13,6 +13,7 @@ from sb3_affect.study.report.reading.context import AFFECTIVE, STANDARD, ReportC
 from sb3_affect.study.report.rendering.document import CardSpec, sig
 from sb3_affect.study.report.sections.window_verdicts import window_qualifiers, window_table
 from sb3_affect.study.report.verdicts import claims
+from sb3_affect.study.report.verdicts.censoring import censored_runs, difference_sign, difference_text, marked
 from sb3_affect.study.report.verdicts.claims import Judgement
 from sb3_affect.study.report.verdicts.judgement import per_epsilon
 
@@ -132,19 +133,31 @@ def tests_table(judged: list[Judgement]) -> pd.DataFrame:
 
 
 def units_table(m: pd.DataFrame) -> pd.DataFrame:
-    """Per ε: the affective agent's lead before the first walked optimal path in decisions (time) and in cells (distance)."""
+    """
+    Per ε: the affective agent's lead before the first walked optimal path in decisions (time) and in cells
+    (distance). Where ε-greedy runs never found the path (counted at their total) its mean and the lead are lower
+    bounds (``>=``), and the interval is the Kaplan-Meier restricted-mean difference to the horizon both agents reach
+    in place of Welch's.
+    """
     rows: dict[str, dict[str, str]] = {}
     for column, unit in (("decisions_before_optimal", "decisions"), ("cells_before_optimal", "cells")):
         if column not in m.columns:
             continue
         diffs, _ = per_epsilon(m, column, "")
-        base = m[m.agent == STANDARD].groupby("epsilon")[column].mean()
         for eps, d in diffs.items():
+            fast, slow = (m[(m.agent == agent) & (m.epsilon == eps)] for agent in (STANDARD, AFFECTIVE))
+            base = float(fast[column].mean())
+            censored = censored_runs(fast, column), censored_runs(slow, column)
+            sign = difference_sign(censored[0] > 0, censored[1] > 0)
             row = rows.setdefault(f"{eps:.1f}", {})
-            row[f"ε-greedy, {unit}"] = sig(float(base[eps]))
-            row[f"affective, {unit}"] = sig(float(m[(m.agent == AFFECTIVE) & (m.epsilon == eps)][column].mean()))
-            row[f"lead in {unit} [95% CI]"] = d.text()
-            row[f"lead in {unit}, share"] = f"{d.value / base[eps]:.1%}" if base[eps] else "n/a"
+            row[f"ε-greedy, {unit}"] = marked(sig(base), ">=" if censored[0] else "")
+            row[f"affective, {unit}"] = marked(sig(float(slow[column].mean())), ">=" if censored[1] else "")
+            row[f"lead in {unit} [95% CI]"] = difference_text(d, fast, slow, column)
+            row[f"lead in {unit}, share"] = marked(f"{d.value / base:.1%}", sign) if base else "n/a"
+        if unit == "decisions":
+            for eps in diffs:
+                cell = m[(m.agent == STANDARD) & (m.epsilon == eps)]
+                rows[f"{eps:.1f}"]["ε-greedy runs censored"] = f"{censored_runs(cell, column):,} of {len(cell):,}"
     table = pd.DataFrame.from_dict(rows, orient="index")
     table.index.name = "ε"
     return table

@@ -155,6 +155,6 @@ def eps_list(values: list[float]) -> str:
 
 
 def p_text(test: Test) -> str:
-    """A test's p-value, with its Holm-adjusted value where that differs."""
-    adjusted = not math.isnan(test.p_holm) and test.p_holm != test.p
+    """A test's p-value, with its Holm-adjusted value wherever the test is one of a Holm family (equal or not)."""
+    adjusted = not math.isnan(test.p_holm)
     return f"p {pval(test.p)}" + (f", Holm {pval(test.p_holm)}" if adjusted else "")
