@@ -70,9 +70,10 @@ def overview_section(ctx: ReportContext) -> None:
     ctx.doc.p(
         f"Results folder `{ctx.paper.folder}`: {len(m)} runs ({', '.join(f'{a}: {n}' for a, n in runs.items())}), "
         f"up to {int(m.episodes.max())} episodes each, ε values {', '.join(fmt(e, 1) for e in eps) or 'none'}. "
-        "A *step* is one decision (one unit of time), as in the paper; *cells* are one-cell moves (the affective "
-        "agent moves 0, 1 or 2 cells per decision). The paper's numbers are quoted verbatim with their table, figure "
-        "or section; every other number is computed from the run files by `sb3-affect report`."
+        "A *step* is one decision (one unit of time; the paper's Sec. IV also calls a cell moved a step); *cells* are "
+        "one-cell moves (the affective agent moves 1 or 2 cells per decision under the verdict's reading; 0 needs an "
+        "emotion that reading never produces). The paper's numbers are quoted verbatim with their table, figure or "
+        "section; every other number is computed from the run files by `sb3-affect report`."
     )
     refusal = ctx.verdict_refusal()
     if refusal:
@@ -146,7 +147,7 @@ def definitions_section(ctx: ReportContext) -> None:
             "Greedy stays optimal from: the first episode after which every greedy choice from the start walks a shortest "
             "path until the end of the run; steps until then: decisions of episodes 1 to that one.",
             "Equivalent ε: fraction of decisions whose direction was random (joy), per episode.",
-            "Emotion shares (the joy share, for example), three estimators, each number tagged with its name: *mean of "
+            "Emotion shares (the joy share, for example), four estimators, each number tagged with its name: *mean of "
             "per-episode fractions* (each episode counts once); *decision-weighted per run* (each run's decisions "
             "pooled in the window, then averaged over runs: the verdict's Fig. 5 and four-emotions rows and the "
             "readings table); *decision-weighted, pooled per episode* (each episode number's decisions pooled over "

@@ -166,6 +166,8 @@ def headline_table(
         if share_column is not None and needed is not None and j.label in needed.index:
             share = float(str(needed.at[j.label, share_column]))
             row[share_column] = "fixed by the design" if math.isnan(share) else f"{share:.0%}"
+            if j.key == "long_run" and not math.isnan(share):  # the power study has only the 200-episode runs
+                row[share_column] += " (episodes 181-200 of the 200-episode runs)"
         rows[j.label] = row
     table = pd.DataFrame.from_dict(rows, orient="index")
     table.index.name = "claim"

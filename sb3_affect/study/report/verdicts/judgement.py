@@ -36,6 +36,8 @@ class Judgement:
     :param bound: "lower" when our number is a lower bound (censored runs), so the ratio is an upper bound
     :param tests: the claim's family of tests (Holm-corrected within the claim)
     :param primary: the paper's own test, judged on its raw p-value as the paper did (None: the paper ran none)
+    :param equivalence: an equivalence test (TOST), judged on its raw p-value outside the Holm family of difference
+        tests (it asks another question: equivalence, not difference)
     :param seed_dependent: False when the outcome is fixed by the design (the 9 ε values), not by the seed count
     :param decide: the verdict from the judgement once the Holm-adjusted p-values are in
     :param verdict: the verdict, counting steps as decisions (time)
@@ -54,6 +56,7 @@ class Judgement:
     bound: str = ""
     tests: list[Test] = field(default_factory=list)
     primary: Test | None = None
+    equivalence: Test | None = None
     seed_dependent: bool = True
     decide: Callable[[Judgement], str] | None = None
     verdict: str = ""
