@@ -51,7 +51,7 @@ def count_sentence(judged_main: list[claims.Judgement]) -> str:
     held = [names[k] for k, w in words.items() if w == "reproduced"]
     not_held = [names[k] for k, w in words.items() if w.startswith("not reproduced")]
     rest = [f"{names[k]} ({w})" for k, w in words.items() if w != "reproduced" and not w.startswith("not reproduced")]
-    parts = [f"Of the paper's {len(groups)} claims (definitional variants counted once), {len(held)} are reproduced"]
+    parts = [f"Of the paper's {len(groups)} claims (variants counted once), {len(held)} are reproduced"]
     parts[0] += f" ({'; '.join(held)})" if held else ""
     parts.append(f"{len(not_held)} are not ({'; '.join(not_held)})" if not_held else "none is plainly not reproduced")
     if rest:
@@ -87,18 +87,14 @@ def ranks_sentence(ranks: dict[str, tuple[int, ...]], before: dict[str, tuple[in
     def clear(found: list[int]) -> str:
         if not found:
             return ""
-        if found[0]:
-            return f", {found[0]} of them ahead with non-overlapping 95% CIs"
-        return ", its 95% CI overlapping every one ahead"
+        return f" ({found[0]} ahead with non-overlapping 95% CIs)" if found[0] else " (its 95% CI overlapping every one ahead)"
 
-    text = (
-        f"Among the {total} agents of the fair-baselines study ({task}, 20 seeds each; the affective agent among them) "
-        f"it ranks {ordinal(position)} on decisions per episode"
+    text = f"Among the {total} agents of the fair-baselines study ({task}, 20 seeds each) the affective agent ranks " + (
+        f"{ordinal(position)} on decisions per episode{clear(ahead)}"
     )
-    text += clear(ahead)
     if task in before:
         place, _, *clearly = before[task]
-        text += f", and {ordinal(place)} on steps before the optimal path (Table V's metric){clear(clearly)}"
+        text += f" and {ordinal(place)} on steps before the optimal path{clear(clearly)}"
     return text + "."
 
 

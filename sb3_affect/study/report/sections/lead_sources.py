@@ -12,7 +12,6 @@ from sb3_affect.study.report.reading.context import AFFECTIVE, STANDARD, ReportC
 from sb3_affect.study.report.reading.study_tables import SPEED_ONE_AGENT
 from sb3_affect.study.report.rendering.document import sig
 from sb3_affect.study.report.sections.speed_ablation import DEFINITIONS, METRICS
-from sb3_affect.study.report.sections.verdict import units_table
 from sb3_affect.study.report.verdicts.censoring import UNBOUNDED, censored_runs, difference_sign, marked
 from sb3_affect.study.report.verdicts.judgement import cell_means, diff_over_eps, over_eps
 
@@ -175,13 +174,3 @@ def lead_section(ctx: ReportContext) -> None:
             "of two bounds is no bound",
         )
         ctx.doc.p(mechanism_sentence(table))
-    units = units_table(main)
-    if "lead in cells [95% CI]" in units.columns:
-        ctx.table(
-            "lead_in_decisions_and_cells",
-            units,
-            f"Per ε: the affective agent's lead before the first walked optimal path, in decisions and in cells (per "
-            f"run, {n:,} seeds per cell; Welch 95% CIs; where ε-greedy runs never found the path, \">=\" marks a lower "
-            "bound and the interval is the Kaplan-Meier restricted-mean difference to the horizon both agents reach); "
-            "the speed-1 table below qualifies it per ε",
-        )

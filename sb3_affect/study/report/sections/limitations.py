@@ -13,6 +13,7 @@ import pandas as pd
 from sb3_affect.study.report.estimation.bootstrap import EXPLORATORY_RULE
 from sb3_affect.study.report.reading.context import AFFECTIVE, STANDARD, ReportContext
 from sb3_affect.study.report.sections.evidence import REPETITIONS
+from sb3_affect.study.report.sections.main_finding import Comparison
 from sb3_affect.study.report.sections.protocol_draw import PAPER_SIDE, RANK, draw_table
 from sb3_affect.study.report.verdicts.censoring import censored_runs
 from sb3_affect.study.report.verdicts.judgement import eps_list
@@ -21,13 +22,13 @@ from sb3_affect.study.report.verdicts.judgement import eps_list
 RARE = 0.05
 
 
-def censoring_item(runs: pd.DataFrame, found: object) -> str:
+def censoring_item(runs: pd.DataFrame, found: Comparison | None) -> str:
     """How many runs of each paper agent never found the optimal path, under both definitions, and where."""
     standard, affective = runs[runs.agent == STANDARD], runs[runs.agent == AFFECTIVE]
     walked = censored_runs(standard, "decisions_before_optimal")
     greedy = censored_runs(standard, "decisions_to_greedy_optimal")
     shares = standard.groupby("epsilon").censored.mean()
-    heavy = [float(e) for e, share in shares.items() if share >= 0.5]
+    heavy = [float(str(e)) for e, share in shares.items() if share >= 0.5]
     text = (
         f"Censoring: {walked:,} of the {len(standard):,} ε-greedy runs never walk an optimal path within their episodes "
         f"({greedy:,} never reach a greedy policy that stays optimal; affective runs: "
@@ -36,9 +37,8 @@ def censoring_item(runs: pd.DataFrame, found: object) -> str:
     )
     if heavy:
         text += f", most of them at ε {eps_list(heavy)}, where half or more of a cell's runs are censored"
-    counts = getattr(found, "censored", None)
-    if counts is not None:
-        text += f"; the main finding's speed-matched ε-greedy: {counts[1]:,} of {found.runs[1]:,}"
+    if found is not None:
+        text += f"; the main finding's speed-matched ε-greedy: {found.censored[1]:,} of {found.runs[1]:,}"
     return (
         text + ". They count with all their decisions, so every mean and difference they enter is a bound, marked "
         "\">=\" or \"<=\" where it is printed, and the main finding, the lead per ε and the speed ablation put "

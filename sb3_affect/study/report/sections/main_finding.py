@@ -92,13 +92,12 @@ def finding_table(c: Comparison) -> pd.DataFrame:
 
 
 def finding_sentence(c: Comparison) -> str:
-    """The main finding in one sentence (the abstract's), every number from ``comparison``."""
+    """The main finding in one sentence with every number from ``comparison`` (the abstract's is ``finding_short``)."""
     rdiff, low, high = c.restricted_difference
     point, plow, phigh = c.improvement
     outcome = "needs fewer" if low > 0 else "needs more" if high < 0 else "does not need significantly fewer"
     return (
-        "Main finding: an ε-greedy agent that moves 1 or 2 cells per decision like the affective agent (ε 0.01, the "
-        f"project's speed-matched baseline) {outcome} decisions before the first optimal path than the affective "
+        f"The speed-matched ε-greedy {outcome} decisions before the first optimal path than the affective "
         f"agent: Kaplan-Meier restricted means to {fmt(c.horizon, 0)} decisions {fmt(c.restricted[1], 0)} against "
         f"{fmt(c.restricted[0], 0)} (affective minus speed-matched {fmt(rdiff, 0)} [95% CI {fmt(low, 0)}, "
         f"{fmt(high, 0)}]); plain means {c.mean[1]} against {c.mean[0]} ({c.censored[1]:,} of the speed-matched and "

@@ -217,7 +217,7 @@ def verdict_section(ctx: ReportContext) -> None:
         markdown={
             c: label
             for c in table.columns
-            for prefix, label in (("paper's numbers", "paper"), ("ours, time", "ours"), ("ours, distance", "in cells"),
+            for prefix, label in (("paper's numbers", "paper"), ("ours, time", "ours"),
                                   ("verdict (", "verdict" if str(n) in c.replace(",", "") else f"at {n_other} seeds"),
                                   ("verdict with steps counted as cells", "verdict in cells"))
             if c.startswith(prefix)

@@ -154,7 +154,9 @@ def judge_fig3(m: pd.DataFrame, column: str = "decisions_per_episode") -> Judgem
         f"once, the last ε-greedy-better ε >= {CROSSOVER[0]} and the first affective-better ε <= {CROSSOVER[1]})",
         f"ε-greedy minus affective {'steps' if column.startswith('decisions') else 'cells'} per episode: "
         + "; ".join(f"ε {fmt(e, 1)}: {d.text()}" for e, d in diffs.items())
-        + f". Point estimates change sign between ε {', '.join(cross) or 'none'}",
+        + f". Point estimates change sign between ε {', '.join(cross) or 'none'}"
+        + (f"; in cells, ε {fmt(min(cell_diffs), 1)} to {fmt(max(cell_diffs), 1)}: "
+           + ", ".join(sig(d.value) for d in cell_diffs.values()) if cell_diffs else ""),
         cells=(
             "ε-greedy minus affective cells per episode: "
             + "; ".join(f"ε {fmt(e, 1)}: {d.text()}" for e, d in cell_diffs.items())

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from sb3_affect.study.report.rendering.document import fmt, pval, sig
+from sb3_affect.study.report.rendering.document import fmt, sig
 from sb3_affect.study.report.verdicts import paper_numbers as paper
 from sb3_affect.study.report.verdicts.inference import Estimate, Test, predictive, welch, z_estimate
 
@@ -150,14 +150,8 @@ def size_against_paper(
     low, high = predictive(est, n_ours, n_paper)
     inside = bool(low <= printed <= high)
     ratio = printed / est.value if est.value else math.nan
-    return inside, ratio, f"predictive interval at the paper's {n_paper} {unit} [{sig(low)}, {sig(high)}]"
+    return inside, ratio, f"predictive interval at {n_paper} {unit} [{sig(low)}, {sig(high)}]"
 
 
 def eps_list(values: list[float]) -> str:
     return ", ".join(fmt(e, 1) for e in sorted(values)) or "none"
-
-
-def p_text(test: Test) -> str:
-    """A test's p-value, with its Holm-adjusted value wherever the test is one of a Holm family (equal or not)."""
-    adjusted = not math.isnan(test.p_holm)
-    return f"p {pval(test.p)}" + (f", Holm {pval(test.p_holm)}" if adjusted else "")
