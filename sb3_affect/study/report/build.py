@@ -147,6 +147,9 @@ def definitions_section(ctx: ReportContext) -> None:
             "Greedy stays optimal from: the first episode after which every greedy choice from the start walks a shortest "
             "path until the end of the run; steps until then: decisions of episodes 1 to that one.",
             "Equivalent ε: fraction of decisions whose direction was random (joy), per episode.",
+            "The appraisal: norm, the power-law fit of past episode lengths at this episode; exp1 = max(norm, elapsed), "
+            "the paper's \"initially equal to the average value, and increments every step past the average\" (not "
+            "the steps of the last episode); act = elapsed + the shortest known remaining path.",
             "Emotion shares (the joy share, for example), four estimators, each number tagged with its name: *mean of "
             "per-episode fractions* (each episode counts once); *decision-weighted per run* (each run's decisions "
             "pooled in the window, then averaged over runs: the verdict's Fig. 5 and four-emotions rows and the "

@@ -196,3 +196,18 @@ def test_the_per_epsilon_lead_marks_censored_cells_and_gives_kaplan_meier_in_pla
     assert lead.startswith(">= ") and "; KM to " in lead
     assert table.loc["0.9", "ε-greedy, decisions"].startswith(">= ")
     assert table.loc["0.9", "lead in decisions, share"].startswith(">=")
+
+
+def test_the_verdicts_sentence_on_time_and_distance_is_read_from_the_leads() -> None:
+    """Ahead in decisions per episode, behind in cells: the sentence says so, with the leads' own numbers."""
+    from sb3_affect.study.report.sections.verdict import units_sentence
+
+    eps = np.round(np.arange(0.1, 1.0, 0.1), 1)
+    m = pd.DataFrame(
+        [{"agent": a, "epsilon": e, "decisions_per_episode": d + r, "cells_per_episode": c + r}
+         for e in eps for r in range(3) for a, d, c in (("epsilon-greedy", 56.0, 56.0), ("affective", 49.0, 73.0))]
+    )  # fmt: skip
+    assert units_sentence(m) == (
+        "a lead in decisions is not one in cells: per episode, averaged over ε, it is 7 decisions ahead of ε-greedy "
+        "and 17 cells behind"
+    )

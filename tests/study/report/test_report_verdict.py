@@ -16,6 +16,7 @@ from sb3_affect.study.report.reading.run_tables import run_metrics
 from sb3_affect.study.report.reading.study_tables import study
 from sb3_affect.study.report.sections.evidence import sensitivity
 from sb3_affect.study.report.verdicts import claims
+from sb3_affect.study.report.verdicts.inference import holm
 
 ROOT = Path(__file__).resolve().parents[3]
 EPS = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9)
@@ -638,3 +639,17 @@ def test_the_abstract_states_the_main_finding_once_within_its_word_limit() -> No
     assert text.count("Main finding:") == 1 and "needs fewer decisions before the first optimal path" in text
     assert not finding_sentence(found).startswith("Main finding") and finding_sentence(found) not in text
     assert "rules fixed in code and applied alike at every seed count" in text and "written down before" not in text
+
+
+def test_table_v_marks_a_difference_that_censored_runs_enter_as_a_bound_and_its_ratio_the_other_way() -> None:
+    runs = _runs(10)
+    runs["greedy_censored"] = False
+    censored = (runs.agent == "epsilon-greedy") & (runs.epsilon == 0.9) & (runs.replicate < 3)
+    runs.loc[censored, "censored"] = True
+    walked, greedy = claims.judge_table_v(runs), claims.judge_table_v(runs, "decisions_to_greedy_optimal", "greedy")
+    assert walked.bound == "lower" and walked.ours.startswith(">= ") and "difference >= " in walked.ours
+    assert "3 ε-greedy and 0 affective runs censored: bounds" in walked.ours
+    assert greedy.bound == "" and not greedy.ours.startswith(">=")
+    holm(walked.tests)
+    verdict = walked.decide(walked) if walked.decide else ""
+    assert "paper / ours <= " in verdict or verdict.startswith("reproduced")
