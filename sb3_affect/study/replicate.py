@@ -148,8 +148,9 @@ def main(
     start = time.perf_counter()
     report = build_report(out_dir, timings=timings, extra_sections=extra, command=command or " ".join(sys.argv))
     timings["report"] = time.perf_counter() - start
-    record.finish(timings["report"])
+    total = record.finish(timings["report"])
     print("wall time: " + ", ".join(f"{name} {seconds:.1f} s" for name, seconds in timings.items()))
+    print(f"report step {timings['report']:.1f} s, total {total:.1f} s (both in {record.path})")
     print(f"report: {report} (and {report.with_suffix('.html')})")
     return report
 
@@ -349,11 +350,12 @@ class _Record:
         self._write()
         return seconds
 
-    def finish(self, report_seconds: float) -> None:
-        """This run's report step and its total wall time."""
+    def finish(self, report_seconds: float) -> float:
+        """Record this run's report step and its total wall time; the total."""
         self.runs[-1]["report"] = report_seconds
         self.runs[-1]["total"] = time.perf_counter() - self.start
         self._write()
+        return float(self.runs[-1]["total"])
 
     def _write(self) -> None:
         write_file(self.path, json.dumps({"timings": self.timings, "runs": self.runs}, indent=1))

@@ -2,9 +2,8 @@
 The list of studies of the main job (``sb3-affect replicate``), in the order it runs them: each study's sweep file
 (``experiments/<name>.yaml``, its results in ``OUT/<name>``), what the log and ``--help`` say of it (sizes read from the
 file: ``{runs}``, or any top-level key of it), how ``replicate``'s quick-check sizes cut it down, the extra whose package it
-needs, and the report's sections that read its folder, in the main text or in the appendix. ``replicate`` runs this
-list, ``replicate --help`` prints it, and the report's section lists hold every section it names (a test checks). To add
-a study: its sweep file and one entry here (plus its section module, if it has one).
+needs. ``replicate`` runs this list and ``replicate --help`` prints it. To add a study: its sweep file and one entry here
+(plus its section module, if it has one, placed in the report's one list of sections: ``report.build.REPORT``).
 
 Nothing here imports the rest of the study: ``--help`` reads this list without the study's extras installed.
 """
@@ -31,43 +30,28 @@ class Study(NamedTuple):
     size: str | None = None  # the quick-check size that cuts it down (``replicate.main``'s large_seeds and
     # engine_episodes: "large"; "long": 10 x the episodes; ablation_seeds: "ablation"; beyond_seeds: "beyond")
     extra: tuple[str, str] | None = None  # (package, extra) it needs: without it the study is skipped with one line
-    sections: tuple[str, ...] = ()  # the report's main-text sections that read its folder: "module:function" under
-    appendix: tuple[str, ...] = ()  # sb3_affect.study.report (and its appendix sections)
     tuned: bool = False  # run after the others, with ε tuned per task (the tuning's rounds, then the tasks beyond)
 
 
 #: The studies of the main job, in order (``tuned`` ones last: the tuning, then the tasks beyond the paper).
 STUDIES: tuple[Study, ...] = (
-    # (every section of the report's own lists reads it: ``report.build.SECTIONS`` and ``APPENDIX``)
     Study("paper", "the paper's protocol ({runs} runs)"),
-    Study("dqn", "SB3 DQN beside the tabular agents, equal seeds and budget ({runs} runs)",
-          sections=("sections.dqn:learning_curves_section",), appendix=("sections.dqn:dqn_section",)),
-    Study("baselines", "fair baselines beside both paper agents", sections=("sections.beyond:beyond_section",)),
-    Study("hunters", "two hunters on Kuremoto's pursuit problem", sections=("sections.hunters:hunters_sections",),
-          appendix=("sections.emotion_models:emotion_models_sections",)),
-    Study("hunters_moving", "two hunters, moving prey", sections=("sections.hunters:hunters_sections",),
-          appendix=("sections.emotion_models:emotion_models_sections",)),
-    Study("large", "large-N study: the paper's 18 cells and the speed-matched ε-greedy ({runs} runs)", size="large",
-          sections=("sections.abstract:abstract_section",), appendix=("sections.evidence:evidence_section",)),
-    Study("ablation", "reading ablation: the 8 readings of the appraisal x 9 ε ({runs} runs)", size="ablation",
-          sections=("sections.readings:readings_section", "sections.ablation:ablation_section")),
-    Study("speed_one", "speed ablation: the affective agent with speed fixed at 1 cell ({runs} runs)", size="large",
-          sections=("sections.speed_ablation:speed_one_section",)),
-    Study("long", "long runs: both paper agents, runs of 2,000 episodes ({runs} runs)", size="long",
-          sections=("sections.verdict:verdict_section",)),
-    Study("joy_trace", "joy trace: the paper's affective agent, each decision's emotion and act recorded ({runs} runs)",
-          sections=("sections.mechanism:mechanism_section",)),
-    Study("minigrid", "the tabular agents on MiniGrid ({runs} runs)", extra=("minigrid", "minigrid"),
-          sections=("sections.minigrid:minigrid_sections",)),
+    Study("dqn", "SB3 DQN beside the tabular agents, equal seeds and budget ({runs} runs)"),
+    Study("baselines", "fair baselines beside both paper agents"),
+    Study("hunters", "two hunters on Kuremoto's pursuit problem"),
+    Study("hunters_moving", "two hunters, moving prey"),
+    Study("large", "large-N study: the paper's 18 cells and the speed-matched ε-greedy ({runs} runs)", size="large"),
+    Study("ablation", "reading ablation: the 8 readings of the appraisal x 9 ε ({runs} runs)", size="ablation"),
+    Study("speed_one", "speed ablation: the affective agent with speed fixed at 1 cell ({runs} runs)", size="large"),
+    Study("long", "long runs: both paper agents, runs of 2,000 episodes ({runs} runs)", size="long"),
+    Study("joy_trace", "joy trace: the paper's affective agent, each decision's emotion and act recorded ({runs} runs)"),
+    Study("minigrid", "the tabular agents on MiniGrid ({runs} runs)", extra=("minigrid", "minigrid")),
     Study("deep_smoke", "the deep study at smoke size: {name}, greedy policies evaluated every {eval_every} env steps",
-          extra=("minigrid", "minigrid"), sections=("sections.deep_minigrid:deep_minigrid_section",)),
-    # (its section is the forensics' own, which replicate hands the report: ``build_report(extra_sections=...)``)
+          extra=("minigrid", "minigrid")),
     Study("forensics", "replication forensics: {screen_reps} screen, {leaders} leaders x {reps} replications"),
     Study("tuning", "ε of ε-greedy and speed-matched ε-greedy tuned on each task beyond the paper: the grid ({runs} runs) "
-          "in round0/, then one value further out where the best sits at an edge (round1/, ...)", size="large",
-          sections=("sections.beyond:beyond_section",), tuned=True),
-    Study("beyond", "static grid, moving and evading prey, mazes, with the tuned ε ({runs} runs)", size="beyond",
-          sections=("sections.beyond:beyond_section",), tuned=True),
+          "in round0/, then one value further out where the best sits at an edge (round1/, ...)", size="large", tuned=True),
+    Study("beyond", "static grid, moving and evading prey, mazes, with the tuned ε ({runs} runs)", size="beyond", tuned=True),
 )  # fmt: skip
 
 #: The sweeps of the main job before the tuning, in order: (name of experiments/<name>.yaml and of the results folder,

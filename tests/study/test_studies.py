@@ -1,18 +1,16 @@
 """
 The list of studies of the main job is the one source of replicate's parts (and so of its --help, which
-tests/study/test_cli.py checks against them) and names the report's sections that read each study.
+tests/study/test_cli.py checks against them); the report's one list of sections places every section once.
 """
 
 from __future__ import annotations
 
 import inspect
 
-import pytest
-
 from sb3_affect.study import studies
 from sb3_affect.study.report import build
-from sb3_affect.study.report.build import APPENDIX, SECTIONS, study_section, with_studies
-from sb3_affect.study.studies import STUDIES, Study
+from sb3_affect.study.report.build import REPORT, extra_slot
+from sb3_affect.study.studies import STUDIES
 
 
 def test_replicate_runs_the_studies_in_their_order() -> None:
@@ -27,27 +25,18 @@ def test_every_study_has_its_sweep_file() -> None:
     assert not missing, f"studies without a sweep file in {folder}: {missing}"
 
 
-def test_the_report_places_each_studys_sections_where_the_list_says() -> None:
-    main, appendix = with_studies(SECTIONS, "sections"), with_studies(APPENDIX, "appendix")
-    for study in STUDIES:
-        for name in study.sections:
-            assert study_section(name) in main or name in {f"build:{s.__name__}" for s in main}, (study.name, name)
-        for name in study.appendix:
-            assert study_section(name) in appendix, (study.name, name)
-    assert main == SECTIONS and appendix == APPENDIX  # every study's section is already in the report's own lists
-
-
-def test_a_new_studys_section_joins_the_report_without_an_entry_there(monkeypatch: pytest.MonkeyPatch) -> None:
-    new = Study("new_study", "a study the report's lists do not know", sections=("sections.mechanism:joy_section",))
-    monkeypatch.setattr(build, "STUDIES", (*STUDIES, new))
-    main = build.with_studies(SECTIONS, "sections")
-    assert main[: len(SECTIONS)] == SECTIONS and main[len(SECTIONS) :] == [study_section(new.sections[0])]
+def test_the_report_places_each_section_once_and_the_extra_sections_at_their_slot() -> None:
+    names = [(section.__module__, section.__name__) for section in REPORT]
+    assert len(names) == len(set(names))
+    assert REPORT.count(extra_slot) == 1
+    pages = [section.__name__ for section in REPORT if section.__name__.startswith("part_")]
+    assert REPORT.index(extra_slot) > REPORT.index(next(s for s in REPORT if s.__name__ == pages[-2]))
+    assert REPORT.index(extra_slot) < REPORT.index(next(s for s in REPORT if s.__name__ == pages[-1]))
 
 
 def test_every_section_takes_the_report_context_only() -> None:
-    for section in [*SECTIONS, *APPENDIX]:
+    for section in REPORT:
         assert list(inspect.signature(section).parameters) == ["ctx"], section.__name__
-
 
 
 def test_every_studys_folder_is_one_the_sections_may_read() -> None:

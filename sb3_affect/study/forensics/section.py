@@ -125,9 +125,11 @@ def step_unit_lines(top: pd.DataFrame) -> list[str]:
     for name, value, error in scores:
         found = [diff(a, b, value, error) for a, b in pairs]
         wins = sum(d > 0 for d, _ in found)
-        clear = sum(abs(d) > 2 * e for d, e in found)
-        tallies.append(f"on the {name} decisions score higher in {wins} of {len(pairs)} pairs ({clear} of the "
-                       f"{len(pairs)} differences reach two Monte Carlo errors)")  # fmt: skip
+        separated = [d for d, e in found if abs(d) > 2 * e]
+        favour = [f"{sum(d > 0 for d in separated)} favour decisions", f"{sum(d < 0 for d in separated)} favour cells"]
+        tallies.append(f"on the {name} decisions score higher in {wins} of {len(pairs)} pairs ({len(separated)} of the "
+                       f"{len(pairs)} differences reach two Monte Carlo errors"
+                       + (f": {', '.join(favour)}" if separated else "") + ")")  # fmt: skip
     return [
         f"The forensics does not decide the step unit: {len(pairs)} pairs of leading candidates differ only in it "
         "(decisions minus cells, log-likelihood ± the Monte Carlo error of the difference): " + "; ".join(texts)
@@ -233,7 +235,8 @@ def verdict_setting_lines(screen: pd.DataFrame) -> list[str]:
 
 
 def _sci(value: float) -> str:
-    return fmt(value, 3) if abs(value) < 1e7 or math.isnan(value) else f"{value:.3g}"
+    """One notation in a table: 3 decimals below 1,000, whole numbers with separators from 1,000 on."""
+    return fmt(value, 3)
 
 
 def forensics_section(folder: str | Path, figures_dir: str | Path | None = None) -> ForensicsSection:
@@ -285,8 +288,10 @@ def forensics_section(folder: str | Path, figures_dir: str | Path | None = None)
     largest = largest_separation(top)
     if math.isfinite(largest):
         lines += [
-            f"Among these {len(top)} leaders the largest difference from the best is {largest:.1f} Monte Carlo errors: "
-            + ("none reaches two, so the data do not separate them." if largest < 2 else "some reach two."),
+            f"Among these {len(top)} leaders the largest difference from the best in the full likelihood is "
+            f"{largest:.1f} Monte Carlo errors: "
+            + ("none reaches two there, so the full likelihood does not separate them (the reachable statistics: the "
+               "step-unit pairs below)." if largest < 2 else "some reach two."),
             "",
         ]
     lines += step_unit_lines(top)

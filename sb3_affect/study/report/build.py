@@ -2,16 +2,16 @@
 ``build_report``: the replication report from a results folder (the paper sweep) or a ``replicate`` folder
 (paper/, dqn/, ablation/, baselines*/, beyond/, large/, minigrid*/, ...).
 
-The report is the list ``SECTIONS`` of section functions, each ``section(ctx: ReportContext) -> None`` adding its
-blocks to ``ctx.doc`` (see ``report.reading.context``): the main text, then ``APPENDIX``. To add a section, write the function
-in its own module and append it to ``SECTIONS`` (or pass ``sections=`` to ``build_report``); a layer above the report
-(the forensics, wired by ``sb3_affect.study.replicate``) passes its own with ``extra_sections=``.
+The report is the one list ``REPORT`` of section functions, each ``section(ctx: ReportContext) -> None`` adding its
+blocks to ``ctx.doc`` (see ``report.reading.context``), in order: the main text, then each appendix page (a ``part``
+starts one). To add a section, write the function in its own module and put it in ``REPORT`` where it should stand (or
+pass ``sections=`` to ``build_report``); a layer above the report (the forensics, wired by ``sb3_affect.study.replicate``)
+passes its own with ``extra_sections=``, placed at ``extra_slot`` (on a page of its own).
 """
 
 from __future__ import annotations
 
 import functools
-import importlib
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -70,9 +70,10 @@ def overview_section(ctx: ReportContext) -> None:
     ctx.doc.p(
         f"Results folder `{ctx.paper.folder}`: {len(m)} runs ({', '.join(f'{a}: {n}' for a, n in runs.items())}), "
         f"up to {int(m.episodes.max())} episodes each, ε values {', '.join(fmt(e, 1) for e in eps) or 'none'}. "
-        "A *step* is one decision (one unit of time), as in the paper; *cells* are one-cell moves (the affective "
-        "agent moves 0, 1 or 2 cells per decision). The paper's numbers are quoted verbatim with their table, figure "
-        "or section; every other number is computed from the run files by `sb3-affect report`."
+        "A *step* is one decision (one unit of time; the paper's Sec. IV also calls a cell moved a step); *cells* are "
+        "one-cell moves (the affective agent moves 1 or 2 cells per decision under the verdict's reading; 0 needs an "
+        "emotion that reading never produces). The paper's numbers are quoted verbatim with their table, figure or "
+        "section; every other number is computed from the run files by `sb3-affect report`."
     )
     refusal = ctx.verdict_refusal()
     if refusal:
@@ -146,7 +147,10 @@ def definitions_section(ctx: ReportContext) -> None:
             "Greedy stays optimal from: the first episode after which every greedy choice from the start walks a shortest "
             "path until the end of the run; steps until then: decisions of episodes 1 to that one.",
             "Equivalent ε: fraction of decisions whose direction was random (joy), per episode.",
-            "Emotion shares (the joy share, for example), three estimators, each number tagged with its name: *mean of "
+            "The appraisal: norm, the power-law fit of past episode lengths at this episode; exp1 = max(norm, elapsed), "
+            "the paper's \"initially equal to the average value, and increments every step past the average\" (not "
+            "the steps of the last episode); act = elapsed + the shortest known remaining path.",
+            "Emotion shares (the joy share, for example), four estimators, each number tagged with its name: *mean of "
             "per-episode fractions* (each episode counts once); *decision-weighted per run* (each run's decisions "
             "pooled in the window, then averaged over runs: the verdict's Fig. 5 and four-emotions rows and the "
             "readings table); *decision-weighted, pooled per episode* (each episode number's decisions pooled over "
@@ -168,8 +172,16 @@ def part(name: str, title: str, heading: str = "") -> Section:
     return start
 
 
-#: The main text, in order: what a referee reads in one sitting (``report.md``); the appendix pages follow.
-SECTIONS: list[Section] = [
+def extra_slot(ctx: ReportContext) -> None:
+    """Where ``build_report(extra_sections=...)`` places the sections of layers above the report (a no-op itself)."""
+
+
+#: The page the sections of layers above the report start (``build_report(extra_sections=...)``: the forensics).
+EXTRA_PART = part("appendix-forensics", "Appendix C: replication forensics")
+
+#: The report in order: the main text, what a referee reads in one sitting (``report.md``), then the appendix pages,
+#: each started by a ``part``. The one list of the report's sections.
+REPORT: list[Section] = [
     abstract_section,
     overview_section,
     agents_section,
@@ -207,9 +219,7 @@ SECTIONS: list[Section] = [
     minigrid_sections,
     deep_minigrid_section,
     ablation_section,
-]
-#: The appendix, in order (after ``extra_sections``, which start a page of their own).
-APPENDIX: list[Section] = [
+    extra_slot,
     part(
         "appendix-record",
         "Appendix D: the verdict's tests, seed counts, DQN, the second emotion model, the record and the definitions",
@@ -223,30 +233,6 @@ APPENDIX: list[Section] = [
     record_section,
     definitions_section,
 ]
-#: The page the sections of layers above the report start (``build_report(extra_sections=...)``: the forensics).
-EXTRA_PART = part("appendix-forensics", "Appendix C: replication forensics")
-
-
-def study_section(name: str) -> Section:
-    """A section a study names (``studies.Study.sections``): ``module:function`` under ``sb3_affect.study.report``."""
-    module, _, function = name.partition(":")
-    section: Section = getattr(importlib.import_module(f"sb3_affect.study.report.{module}"), function)
-    return section
-
-
-def with_studies(sections: Sequence[Section], place: str) -> list[Section]:
-    """
-    ``sections``, then each section the studies name for ``place`` (``"sections"``: the main text, ``"appendix"``) that
-    ``sections`` does not hold, in the order of ``studies.STUDIES``: a new study's section needs no entry here.
-    """
-    held = {(section.__module__, section.__name__) for section in sections}
-    added = []
-    for study in STUDIES:
-        for section in map(study_section, getattr(study, place)):
-            if (section.__module__, section.__name__) not in held:
-                held.add((section.__module__, section.__name__))
-                added.append(section)
-    return [*sections, *added]
 
 
 def _layout(run_dir: Path) -> tuple[Path, dict[str, Path]]:
@@ -299,7 +285,7 @@ def build_report(
     :param out: where to write (default: ``run_dir``)
     :param dqn_dir: results of experiments/dqn.yaml (default: ``run_dir/dqn`` when present)
     :param ablation_dir: results of experiments/ablation.yaml (default: ``run_dir/ablation`` when present)
-    :param sections: the sections in order (default: ``SECTIONS``, then ``extra_sections``, then ``APPENDIX``)
+    :param sections: the sections in order (default: ``REPORT``, ``extra_sections`` at its ``extra_slot``)
     :param timings: wall seconds of each part of the run that produced the folder (reproducibility record)
     :param extra_sections: sections from layers above the report (e.g. the forensics), placed before the appendix;
         each may set ``ctx.cache["forensics"]`` to say what it included (reproducibility record)
@@ -340,9 +326,9 @@ def build_report(
     for note in notes:
         ctx.doc.p(note)
     extra = [EXTRA_PART, *extra_sections] if extra_sections else []
-    default = [*with_studies(SECTIONS, "sections"), *extra, *with_studies(APPENDIX, "appendix")]
-    for section in sections if sections is not None else default:
-        section(ctx)
+    for section in sections if sections is not None else REPORT:
+        for placed in extra if section is extra_slot else [section]:
+            placed(ctx)
     ctx.place_later()
     return _write_pages(ctx)
 

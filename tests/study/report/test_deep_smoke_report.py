@@ -35,7 +35,7 @@ def test_the_section_of_a_smoke_folder_has_curves_profile_iqm_censoring_power_an
     text, ctx = section(tmp_path, tmp_path / "out")
     assert "## Deep agents on MiniGrid, greedy policies (smoke size): deep_smoke/" in text
     assert deep.power_sentence(2) in text  # the power calculation, printed
-    assert "On Empty-8x8, by the IQM of the greedy success AUC" in text  # the sentence computed from the CIs
+    assert "On Empty-8x8, by the greedy success AUC per run (the rule: " in text  # the sentence computed by the rule
     for figure in ("success", "return", "random", "emotions"):  # learning curves, random share, emotion profile
         assert (ctx.out / "figures" / f"deep_smoke_{figure}.png").is_file()
     iqm = pd.read_csv(ctx.out / "tables" / "deep_smoke_iqm.csv")

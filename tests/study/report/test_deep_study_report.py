@@ -114,7 +114,35 @@ def test_the_sentence_is_computed_from_the_cis_and_flips_with_the_numbers(
     assert f"matched (the same amount of randomness, uniform in time) {versus} affective" in sentence
     equal = write_folder(tmp_path / "g", {a["name"]: curves(0.5) for a in AGENTS}, {a["name"]: [1000] * 8 for a in AGENTS})
     text, _ = section(equal, tmp_path / "out2")
-    assert "affective, matched not separated from it" in text and "not separated from affective" in text
+    assert "affective, matched not told apart from it" in text and "not told apart from affective" in text
+
+
+def test_every_exploratory_section_reads_a_difference_by_one_rule(tmp_path: Path) -> None:
+    """The deep study, MiniGrid and the two hunters: the probability of improvement's CI against 0.5, not CI overlap."""
+    from sb3_affect.study.report.estimation.bootstrap import EXPLORATORY_RULE, bootstrap_improvement, improvement_outcome
+    from sb3_affect.study.report.sections import hunters, minigrid
+
+    rng = np.random.default_rng(3)
+    # success AUCs whose IQM CIs overlap while most runs of one agent beat most runs of the other
+    levels = {"dqn-linear": 0.45 + rng.uniform(-0.2, 0.2, (8, 1)), "affective": 0.6 + rng.uniform(-0.2, 0.2, (8, 1)),
+              "matched": 0.45 + rng.uniform(-0.2, 0.2, (8, 1))}  # fmt: skip
+    folder = write_folder(tmp_path / "f", {a: np.repeat(v, 4, axis=1) for a, v in levels.items()},
+                          {a["name"]: [1000] * 8 for a in AGENTS})  # fmt: skip
+    scores = deep.run_scores(deep.load_deep(folder))
+    runs = {a: scores[scores.agent == a].auc_success.to_numpy(float) for a in levels}
+    _, low, high = bootstrap_improvement(runs["affective"], runs["dqn-linear"], deep.REPS // 5, seed=0, lower_is_better=False)
+    assert deep.comparison(scores, "Empty-8x8", "affective", "dqn-linear") == improvement_outcome(low, high)
+    (sentence,) = deep.verdict(scores, json.loads((folder / "deep_study.json").read_text()))
+    assert f"(the rule: {EXPLORATORY_RULE})" in sentence
+    tabular = pd.DataFrame([{"task": "t", "agent": agent, "success": float(v), "return": float(v) * 0.9,
+                             "steps_to_success": 1.0, "run_id": f"{agent}{i}"}
+                            for agent, values in (("affective", runs["affective"]), ("reversed", runs["matched"]))
+                            for i, v in enumerate(values)])  # fmt: skip
+    tabular_sentence = minigrid.verdict(tabular, "affective")[0]
+    assert f"(the rule: {EXPLORATORY_RULE})" in tabular_sentence
+    assert "on the success rate" in tabular_sentence and "on the return" in tabular_sentence  # both scores are read
+    assert hunters.improvement_outcome is improvement_outcome and improvement_outcome(0.51, 0.9) == "better"
+    assert improvement_outcome(0.1, 0.49) == "worse" and improvement_outcome(0.4, 0.6) == "not told apart"
 
 
 def test_the_power_calculation_gives_the_fewest_seeds_that_detect_its_effect() -> None:

@@ -7,9 +7,9 @@ import pandas as pd
 import pytest
 
 from sb3_affect.study.report.estimation import bootstrap as stats
-from sb3_affect.study.report.sections.main_finding import censored_mean, restricted_mean
 from sb3_affect.study.report.sections.protocol_draw import CAUSE, RANK, block_table
 from sb3_affect.study.report.verdicts import claims
+from sb3_affect.study.report.verdicts.censoring import censored_mean, restricted_mean
 
 
 def test_a_performance_profile_plateaus_at_the_share_of_runs_that_found_the_path() -> None:

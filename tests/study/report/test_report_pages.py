@@ -10,8 +10,10 @@ from number_formats import column_problem, mixed_formats
 
 from sb3_affect.study.report.rendering.document import MAIN_PAGE, CardSpec, Document, fmt, pval
 from sb3_affect.study.report.rendering.formats import with_separators
-from sb3_affect.study.report.sections.lead_sources import lead_numbers, mechanism_sentence
-from sb3_affect.study.report.sections.speed_ablation import SPEED_ONE_POOLED, speed_one_per_eps
+from sb3_affect.study.report.sections.lead_sources import lead_numbers, mechanism_sentence, mechanism_summary, shown_leads
+from sb3_affect.study.report.sections.speed_ablation import DEFINITIONS, speed_one_per_eps
+from sb3_affect.study.report.sections.verdict import units_table
+from sb3_affect.study.report.verdicts.censoring import UNBOUNDED, difference_sign, marked
 
 
 def test_the_scan_finds_each_mixed_format_and_leaves_consistent_ones_alone() -> None:
@@ -102,37 +104,110 @@ def _speed_runs() -> tuple[pd.DataFrame, pd.DataFrame]:
     return pd.DataFrame(rows), pd.DataFrame(slow)
 
 
-def test_the_speed_one_difference_column_is_the_columns_beside_it_subtracted() -> None:
-    """The speed-1 agent ignores ε: every ε is compared with all its runs, and its column prints that pooled mean."""
+def test_the_speed_one_difference_is_epsilon_greedy_minus_all_speed_one_runs_under_both_definitions() -> None:
+    """The speed-1 agent ignores ε: every ε is compared with all its runs (one pooled mean), walked and greedy alike."""
     main, slow = _speed_runs()
+    main["decisions_to_greedy_optimal"] = main.decisions_before_optimal + 100.0
+    slow["decisions_to_greedy_optimal"] = slow.decisions_before_optimal + 300.0
+    for frame in (main, slow):
+        frame["censored"] = frame["greedy_censored"] = False
     table = speed_one_per_eps(main, slow)
-    pooled = slow.decisions_before_optimal.mean()
-    assert (table[SPEED_ONE_POOLED] == f"{pooled:,.0f}").all()  # one pooled mean, not each label's own (2,900 at 0.1)
 
     def number(text: str) -> float:
-        return float(text.split(" [")[0].replace(",", ""))
+        return float(text.split(" [")[0].replace(",", "").replace(">= ", ""))
 
-    for eps, row in table.iterrows():
-        difference = number(row["ε-greedy minus speed 1 [95% CI]"])
-        assert difference == pytest.approx(number(row["ε-greedy"]) - number(row[SPEED_ONE_POOLED]), abs=1.0), eps
+    for column, name in DEFINITIONS:
+        pooled = slow[column].mean()  # one pooled mean, not each label's own (2,900 at 0.1)
+        for eps, row in table.iterrows():
+            own = main[(main.agent == "epsilon-greedy") & (main.epsilon == float(str(eps)))][column].mean()
+            difference = number(row[f"minus speed 1, {name} [95% CI]"])
+            assert difference == pytest.approx(own - pooled, abs=1.0), (name, eps)
+            assert number(row[f"ε-greedy, {name}"]) == pytest.approx(own, abs=1.0)
+            assert row[f"Holm p, {name}"]  # each outcome with the Holm-adjusted p it is judged on
 
 
-def test_the_lead_is_split_per_metric_into_what_remains_at_speed_one() -> None:
-    """Synthetic leads: 2,000 decisions with 2-cell moves, 1,600 at speed 1 (80%); behind in cells per episode."""
+def test_the_lead_is_split_per_metric_and_under_both_definitions_into_what_remains_at_speed_one() -> None:
+    """
+    Synthetic leads: walked, 2,000 decisions with 2-cell moves, 1,600 at speed 1 (80%), with censored ε-greedy runs
+    (so bounds); greedy, 500 becoming -100 (none remains); behind in cells per episode.
+    """
     eps = np.round(np.arange(0.1, 1.0, 0.1), 1)
     main = pd.DataFrame(
-        [{"agent": a, "epsilon": e, "decisions_before_optimal": v, "cells_per_episode": c}
+        [{"agent": a, "epsilon": e, "decisions_before_optimal": v, "decisions_to_greedy_optimal": g,
+          "cells_per_episode": c, "censored": a == "epsilon-greedy" and r == 0, "greedy_censored": False}
          for e in eps for r in range(2)
-         for a, v, c in (("epsilon-greedy", 5000.0 + r, 50.0 + r), ("affective", 3000.0 + r, 65.0 + r))]
+         for a, v, g, c in (("epsilon-greedy", 5000.0 + r, 3000.0 + r, 50.0 + r),
+                            ("affective", 3000.0 + r, 2500.0 + r, 65.0 + r))]
     )  # fmt: skip
     slow = pd.DataFrame([{"agent": "affective-speed-1", "epsilon": e, "decisions_before_optimal": 3400.0 + r,
-                          "cells_per_episode": 55.0 + r} for e in eps for r in range(2)])  # fmt: skip
+                          "decisions_to_greedy_optimal": 3100.0 + r, "cells_per_episode": 55.0 + r, "censored": False,
+                          "greedy_censored": False} for e in eps for r in range(2)])  # fmt: skip
     table = lead_numbers(main, slow)
-    before = table.loc["decisions before the optimal path"]
-    assert before["lead, 1 or 2 cells"] == pytest.approx(2000.0) and before["remains at speed 1"] == pytest.approx(0.8)
+    walked = table.loc["decisions before the optimal path (walked)"]
+    greedy = table.loc["decisions until the greedy policy stays optimal (greedy)"]
+    assert walked["lead, 1 or 2 cells"] == pytest.approx(2000.0) and walked["remains at speed 1"] == pytest.approx(0.8)
+    assert greedy["lead, 1 or 2 cells"] == pytest.approx(500.0) and greedy["lead, speed 1"] == pytest.approx(-100.0)
+    # censored ε-greedy runs: its mean and both leads are lower bounds; the share rises with ε-greedy's mean (speed 1
+    # is slower than the affective agent), so it is a lower bound too; no censored run, no mark
+    assert list(walked["censored (ε-greedy, affective, speed 1)"]) == [9, 0, 0]
+    assert (walked["bound, ε-greedy"], walked["bound, 1 or 2 cells"], walked["bound, speed 1"]) == (">=", ">=", ">=")
+    assert walked["bound, remains"] == ">="
+    assert (greedy["bound, ε-greedy"], greedy["bound, 1 or 2 cells"], greedy["bound, remains"]) == ("", "", "")
+    shown = shown_leads(table)
+    assert shown.loc["decisions before the optimal path (walked)", "ε-greedy"] == ">= 5,000"
+    assert shown.loc["decisions before the optimal path (walked)", "share of the lead that remains at speed 1"] == ">= 80%"
+    assert not shown.loc["decisions until the greedy policy stays optimal (greedy)", "ε-greedy"].startswith(">=")
     cells = table.loc["cells per episode"]
     assert cells["lead share, 1 or 2 cells"] == pytest.approx(-15.0 / 50.5) and np.isnan(cells["remains at speed 1"])
     sentence = mechanism_sentence(table, "speed 1 wins only against ε >= 0.4")
     assert "in cells per episode the affective agent is behind ε-greedy by 29.7% (15)" in sentence
-    assert "its lead of 2,000 becomes 1,600 at speed 1 (80% remains: mostly its direction rule" in sentence
+    assert "its lead of >= 2,000 becomes >= 1,600 at speed 1 (>= 80% remains; 9 of 18 ε-greedy runs censored" in sentence
+    assert "direction rule" not in sentence  # the share says how much remains, not why
     assert sentence.endswith("Per ε, speed 1 wins only against ε >= 0.4.")
+    summary = mechanism_summary(table)
+    assert ">= 80% remains under the walked definition (9 ε-greedy runs censored)" in summary
+    assert "none remains under the greedy definition (0 ε-greedy runs censored)" in summary
+
+
+def test_a_difference_of_censored_means_is_marked_as_the_bound_it_is() -> None:
+    assert difference_sign(True, False) == ">=" and difference_sign(False, True) == "<="
+    assert difference_sign(False, False) == "" and difference_sign(True, True) == UNBOUNDED
+    assert marked("8,937", ">=") == ">= 8,937" and marked("80%", UNBOUNDED) == f"80% ({UNBOUNDED})"
+
+
+def test_the_per_epsilon_lead_marks_censored_cells_and_gives_kaplan_meier_in_place_of_welch() -> None:
+    """ε 0.9: half of ε-greedy's runs never found the path (counted at their total): a bound, with its KM interval."""
+    rng = np.random.default_rng(1)
+    rows = []
+    for e in (0.1, 0.9):
+        for r in range(60):
+            censored = e == 0.9 and r % 2 == 0
+            value = 9000.0 if censored else 3000.0 + rng.normal(0, 100)
+            rows.append({"agent": "epsilon-greedy", "epsilon": e, "decisions_before_optimal": value,
+                         "cells_before_optimal": value, "censored": censored})  # fmt: skip
+            affective = 2000.0 + rng.normal(0, 100)
+            rows.append({"agent": "affective", "epsilon": e, "decisions_before_optimal": affective,
+                         "cells_before_optimal": 1.5 * affective, "censored": False})  # fmt: skip
+    table = units_table(pd.DataFrame(rows))
+    assert table.loc["0.1", "ε-greedy runs censored"] == "0 of 60"
+    assert table.loc["0.9", "ε-greedy runs censored"] == "30 of 60"
+    assert not table.loc["0.1", "lead in decisions [95% CI]"].startswith(">=")
+    lead = table.loc["0.9", "lead in decisions [95% CI]"]
+    assert lead.startswith(">= ") and "; KM to " in lead
+    assert table.loc["0.9", "ε-greedy, decisions"].startswith(">= ")
+    assert table.loc["0.9", "lead in decisions, share"].startswith(">=")
+
+
+def test_the_verdicts_sentence_on_time_and_distance_is_read_from_the_leads() -> None:
+    """Ahead in decisions per episode, behind in cells: the sentence says so, with the leads' own numbers."""
+    from sb3_affect.study.report.sections.verdict import units_sentence
+
+    eps = np.round(np.arange(0.1, 1.0, 0.1), 1)
+    m = pd.DataFrame(
+        [{"agent": a, "epsilon": e, "decisions_per_episode": d + r, "cells_per_episode": c + r}
+         for e in eps for r in range(3) for a, d, c in (("epsilon-greedy", 56.0, 56.0), ("affective", 49.0, 73.0))]
+    )  # fmt: skip
+    assert units_sentence(m) == (
+        "a lead in decisions is not one in cells: per episode, averaged over ε, it is 7 decisions ahead of ε-greedy "
+        "and 17 cells behind"
+    )

@@ -16,6 +16,7 @@ from sb3_affect.study.report.reading.run_tables import run_metrics
 from sb3_affect.study.report.reading.study_tables import study
 from sb3_affect.study.report.sections.evidence import sensitivity
 from sb3_affect.study.report.verdicts import claims
+from sb3_affect.study.report.verdicts.inference import holm
 
 ROOT = Path(__file__).resolve().parents[3]
 EPS = (0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9)
@@ -616,3 +617,39 @@ def _pages(report: Path) -> str:
     main = report.read_text()
     linked = re.findall(r"^- \[[^\]]+\]\(([\w-]+\.md)\)$", main, re.M)
     return "\n".join([main, *((report.parent / name).read_text() for name in linked)])
+
+
+def test_the_abstract_states_the_main_finding_once_within_its_word_limit() -> None:
+    """The abstract's main finding is the short one; the section's full sentence does not repeat it verbatim."""
+    from sb3_affect.study.report.sections.abstract import MAX_WORDS, abstract_sentences, abstract_words
+    from sb3_affect.study.report.sections.main_finding import comparison, finding_sentence, finding_short
+
+    rng = np.random.default_rng(4)
+    aff = pd.DataFrame({"decisions_before_optimal": 2100 + rng.normal(0, 300, 400), "censored": False,
+                        "decisions_per_episode": 49.0})  # fmt: skip
+    speed = pd.DataFrame({"decisions_before_optimal": 1900 + rng.normal(0, 300, 200), "censored": np.arange(200) < 3,
+                          "decisions_per_episode": 19.0})  # fmt: skip
+    found = comparison(aff, speed)
+    judged = claims.judge_all(_runs(30))
+    for j in judged:
+        j.verdict = j.decide(j) if j.decide else j.verdict
+    paragraphs = abstract_sentences(judged, 1000, 19000, finding_short(found), "With its speed fixed at 1 cell, ...")
+    text = " ".join(paragraphs)
+    assert abstract_words(paragraphs) <= MAX_WORDS
+    assert text.count("Main finding:") == 1 and "needs fewer decisions before the first optimal path" in text
+    assert not finding_sentence(found).startswith("Main finding") and finding_sentence(found) not in text
+    assert "rules fixed in code and applied alike at every seed count" in text and "written down before" not in text
+
+
+def test_table_v_marks_a_difference_that_censored_runs_enter_as_a_bound_and_its_ratio_the_other_way() -> None:
+    runs = _runs(10)
+    runs["greedy_censored"] = False
+    censored = (runs.agent == "epsilon-greedy") & (runs.epsilon == 0.9) & (runs.replicate < 3)
+    runs.loc[censored, "censored"] = True
+    walked, greedy = claims.judge_table_v(runs), claims.judge_table_v(runs, "decisions_to_greedy_optimal", "greedy")
+    assert walked.bound == "lower" and walked.ours.startswith(">= ") and "difference >= " in walked.ours
+    assert "3 ε-greedy and 0 affective runs censored: bounds" in walked.ours
+    assert greedy.bound == "" and not greedy.ours.startswith(">=")
+    holm(walked.tests)
+    verdict = walked.decide(walked) if walked.decide else ""
+    assert "paper / ours <= " in verdict or verdict.startswith("reproduced")

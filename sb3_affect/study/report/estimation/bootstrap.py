@@ -209,3 +209,15 @@ def _statistic(name: str) -> Callable[[np.ndarray], float]:
     if name == "iqm":
         return iqm
     raise ValueError(f"statistic={name!r} is not supported; use 'mean' or 'iqm'")
+
+
+#: The one decision rule of every exploratory section (two hunters, fair baselines' ranks aside, MiniGrid, the deep
+#: study): a difference is read only where the 95% bootstrap CI of the probability of improvement lies wholly above or
+#: below 0.5 (``improvement_outcome``).
+EXPLORATORY_RULE = "P(X better) with its 95% bootstrap CI wholly above 0.5 (better) or below 0.5 (worse)"
+BETTER, WORSE, NOT_TOLD_APART = "better", "worse", "not told apart"
+
+
+def improvement_outcome(low: float, high: float) -> str:
+    """``EXPLORATORY_RULE`` on a probability of improvement's CI: ``BETTER``, ``WORSE`` or ``NOT_TOLD_APART``."""
+    return BETTER if low > 0.5 else WORSE if high < 0.5 else NOT_TOLD_APART

@@ -16,7 +16,8 @@ def fmt(value: object, digits: int = 2) -> str:
     """
     A table cell: blank for missing values; ``digits`` decimals below 1,000 (a float keeps them when it is whole, so one
     column has one format: "35.0" beside "45.5"; an int is a count), whole numbers with thousands separators from
-    1,000 on (a count of decisions has no meaningful decimals there), scientific notation for tiny values.
+    1,000 on (a count of decisions has no meaningful decimals there), and a nonzero value too small for the decimals as
+    the bound it is below (``< 0.001``), never in scientific notation beside its column's decimals.
     """
     if value is None:
         return ""
@@ -31,8 +32,8 @@ def fmt(value: object, digits: int = 2) -> str:
             return f"{value:,.0f}"
         if isinstance(value, int):
             return f"{value:,d}"
-        if value != 0 and abs(value) < 10 ** (-digits):
-            return f"{value:.2e}"
+        if value != 0 and abs(value) < 10 ** (-digits):  # one notation in a column of decimals: a bound, not 1.47e-04
+            return f"{'> -' if value < 0 else '< '}{10 ** (-digits):.{digits}f}"
         return f"{value:,.{digits}f}"
     return str(value)
 

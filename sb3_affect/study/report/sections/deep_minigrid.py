@@ -33,7 +33,15 @@ from sb3_affect.core.emotions import EMOTION_NAMES
 from sb3_affect.study.launcher.deep_schema import STUDY_EVAL_EPISODES
 from sb3_affect.study.launcher.deep_study import STUDY_FILE, read_cells
 from sb3_affect.study.launcher.store import folder_kind
-from sb3_affect.study.report.estimation.bootstrap import bootstrap_iqm_cis
+from sb3_affect.study.report.estimation.bootstrap import (
+    BETTER,
+    EXPLORATORY_RULE,
+    NOT_TOLD_APART,
+    WORSE,
+    bootstrap_improvement,
+    bootstrap_iqm_cis,
+    improvement_outcome,
+)
 from sb3_affect.study.report.reading.context import ReportContext
 from sb3_affect.study.report.rendering.document import fmt
 from sb3_affect.study.report.rendering.figures import COLOURS, STYLES, distinct, save
@@ -192,44 +200,43 @@ def shown_iqm(table: pd.DataFrame) -> pd.DataFrame:
     return shown.reset_index().set_index("task")
 
 
-def comparison(table: pd.DataFrame, task: str, agent: str, other: str, label: str = "success AUC") -> str | None:
-    """'higher' / 'lower' when ``agent``'s CI of ``label`` lies above / below ``other``'s on ``task``, else 'overlap'."""
-    if (task, agent) not in table.index or (task, other) not in table.index:
+def comparison(scores: pd.DataFrame, task: str, agent: str, other: str, column: str = "auc_success") -> str | None:
+    """
+    ``EXPLORATORY_RULE`` on ``column``'s per-run values: ``agent`` better than, worse than, or not told apart from
+    ``other`` on ``task`` (None: one of them has no runs there).
+    """
+    mine, theirs = (scores[(scores.task == task) & (scores.agent == name)][column].to_numpy(float) for name in (agent, other))
+    if not len(mine) or not len(theirs):
         return None
-    bounds = table[[f"{label} low", f"{label} high"]].to_numpy(dtype=float)
-    rows = list(table.index)
-    (a_low, a_high), (b_low, b_high) = bounds[rows.index((task, agent))], bounds[rows.index((task, other))]
-    return "higher" if a_low > b_high else "lower" if a_high < b_low else "overlap"
+    _, low, high = bootstrap_improvement(mine, theirs, REPS // 5, seed=0, lower_is_better=False)
+    return improvement_outcome(low, high)
 
 
-def verdict(table: pd.DataFrame, study: dict[str, Any]) -> list[str]:
-    """One sentence per task, from the IQM CIs of the success AUC: each agent against the reference, each replay control
-    against the agent it replays."""
+def verdict(scores: pd.DataFrame, study: dict[str, Any]) -> list[str]:
+    """One sentence per task, by the rule of every exploratory section on the per-run greedy success AUC: each agent
+    against the reference, each replay control against the agent it replays."""
     out = []
     agents = [agent["name"] for agent in study["agents"]]
-    tasks = list(dict.fromkeys(table.index.get_level_values("task"))) if len(table) else []
-    for task in tasks:
+    words = {BETTER: "above", WORSE: "below", NOT_TOLD_APART: "not told apart from"}
+    for task in list(dict.fromkeys(scores.task)) if len(scores) else []:
         parts = []
         if REFERENCE in agents:
-            groups: dict[str, list[str]] = {"higher": [], "lower": [], "overlap": []}
+            groups: dict[str, list[str]] = {BETTER: [], WORSE: [], NOT_TOLD_APART: []}
             for agent in agents:
-                found = comparison(table, task, agent, REFERENCE) if agent != REFERENCE else None
+                found = comparison(scores, task, agent, REFERENCE) if agent != REFERENCE else None
                 if found:
                     groups[found].append(agent)
-            said = [f"{', '.join(groups[k])} {v}" for k, v in (
-                ("higher", "above"), ("lower", "below"), ("overlap", "not separated from it"))
-                if groups[k]]  # fmt: skip
+            said = [f"{', '.join(groups[k])} {words[k]}{' it' if k == NOT_TOLD_APART else ''}" for k in groups if groups[k]]
             if said:
                 parts.append(f"against {REFERENCE}: " + "; ".join(said))
         for agent in study["agents"]:
             if agent.get("replays"):
-                found = comparison(table, task, agent["name"], agent["replays"])
+                found = comparison(scores, task, agent["name"], agent["replays"])
                 if found:
-                    word = {"higher": "above", "lower": "below", "overlap": "not separated from"}[found]
-                    parts.append(f"{agent['name']} (the same amount of randomness, uniform in time) {word} "
+                    parts.append(f"{agent['name']} (the same amount of randomness, uniform in time) {words[found]} "
                                  f"{agent['replays']}")
         if parts:
-            out.append(f"On {task}, by the IQM of the greedy success AUC (95% CIs that do not overlap count): "
+            out.append(f"On {task}, by the greedy success AUC per run (the rule: {EXPLORATORY_RULE}): "
                        + "; ".join(parts) + ".")
     return out
 
@@ -335,7 +342,7 @@ def deep_section(ctx: ReportContext, results: DeepResults) -> None:
     table = iqm_table(scores, order)
     caption = "Greedy success and return per task and agent: IQM over runs [95% CI]"
     ctx.table(f"{name}_iqm", shown_iqm(table), caption)
-    for sentence in verdict(table, study):
+    for sentence in verdict(scores, study):
         ctx.doc.p(sentence)
     ctx.doc.img(curves_figure(results, "success", "greedy success (mean over seeds)", ctx.figure(f"{name}_success")),
                 "Greedy success against env steps, per task (mean over seeds)")

@@ -13,11 +13,13 @@ import pandas as pd
 
 from sb3_affect.study.report.estimation.bootstrap import paired_ttest_table
 from sb3_affect.study.report.reading.context import AFFECTIVE, STANDARD, ReportContext
+from sb3_affect.study.report.rendering.document import fmt
 from sb3_affect.study.report.sections.paper_tables import DEFINITIONS, per_epsilon
 from sb3_affect.study.report.sections.reproducibility import part_time
 from sb3_affect.study.report.sections.verdict import judged
 from sb3_affect.study.report.verdicts import claims
 from sb3_affect.study.report.verdicts import paper_numbers as paper
+from sb3_affect.study.report.verdicts.censoring import censored_runs, marked
 
 SEED_COUNTS = (5, 10, 20, 50, 100, 1000)
 #: Random subsamples of the power study (at the paper's 20 seeds per cell), and the agreement called "usually".
@@ -164,9 +166,10 @@ def headline_tables(large: pd.DataFrame, m: pd.DataFrame) -> pd.DataFrame:
         for data, n in ((m, n_paper), (large, n_large)):
             per_eps = per_epsilon(data, column) * scale
             t = paired_ttest_table(per_eps[STANDARD], per_eps[AFFECTIVE])
+            bound = {a: ">=" if censored_runs(data[data.agent == a], column) else "" for a in (STANDARD, AFFECTIVE)}
             rows[(name, f"ours, {n:,} seeds")] = {
-                "ε-greedy mean": t.at["Mean", "Variable 1"],
-                "affective mean": t.at["Mean", "Variable 2"],
+                "ε-greedy mean": marked(fmt(float(str(t.at["Mean", "Variable 1"]))), bound[STANDARD]),
+                "affective mean": marked(fmt(float(str(t.at["Mean", "Variable 2"]))), bound[AFFECTIVE]),
                 "ε-greedy variance": t.at["Variance", "Variable 1"],
                 "affective variance": t.at["Variance", "Variable 2"],
                 "Pearson r": t.at["Pearson Correlation", "Variable 1"],
@@ -175,8 +178,8 @@ def headline_tables(large: pd.DataFrame, m: pd.DataFrame) -> pd.DataFrame:
                 "P two-tail": t.at["P(T<=t) two-tail", "Variable 1"],
             }
         rows[(name, "paper, as printed")] = {
-            "ε-greedy mean": printed["Mean"][0],
-            "affective mean": printed["Mean"][1],
+            "ε-greedy mean": fmt(printed["Mean"][0]),
+            "affective mean": fmt(printed["Mean"][1]),
             "ε-greedy variance": printed["Variance"][0],
             "affective variance": printed["Variance"][1],
             "Pearson r": printed["Pearson Correlation"][0],

@@ -19,7 +19,13 @@ import pandas as pd
 
 from sb3_affect.study.launcher.folder_files import MAX_RUN_FILE_BYTES
 from sb3_affect.study.launcher.regular_files import read_json
-from sb3_affect.study.report.estimation.bootstrap import bootstrap_ci, bootstrap_improvement
+from sb3_affect.study.report.estimation.bootstrap import (
+    BETTER,
+    WORSE,
+    bootstrap_ci,
+    bootstrap_improvement,
+    improvement_outcome,
+)
 from sb3_affect.study.report.reading.context import ReportContext
 from sb3_affect.study.report.rendering.figures import COLOURS, distinct, plt
 from sb3_affect.study.report.rendering.output_files import output_folder, replacing
@@ -148,11 +154,10 @@ def claims(metrics: pd.DataFrame) -> list[tuple[str, bool, str]]:
             ):
                 p, low, high = _improvement(ours[column], base[column])
                 a, b = ours[column].mean(), base[column].mean()
-                supported = low > 0.5
-                worse = high < 0.5
-                evidence = f"{a:,.1f} vs {b:,.1f}; P({team} better) = {p:.2f} [{low:.2f}, {high:.2f}]" + (
-                    "" if supported else " (the epsilon-greedy team is better)" if worse else " (no clear difference)"
-                )
+                outcome = improvement_outcome(low, high)
+                supported = outcome == BETTER
+                reading = {BETTER: "", WORSE: " (the epsilon-greedy team is better)"}.get(outcome, " (no clear difference)")
+                evidence = f"{a:,.1f} vs {b:,.1f}; P({team} better) = {p:.2f} [{low:.2f}, {high:.2f}]{reading}"
                 out.append((f"{task}: the {team} team needs fewer {what} than the epsilon-greedy team", supported, evidence))
     return out
 

@@ -10,7 +10,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numpy as np
 import pandas as pd
 
 from sb3_affect.study.report.estimation.bootstrap import bootstrap_improvement
@@ -18,50 +17,12 @@ from sb3_affect.study.report.reading.context import AFFECTIVE, ReportContext
 from sb3_affect.study.report.reading.study_tables import SPEED_AGENT
 from sb3_affect.study.report.rendering.document import fmt, pval
 from sb3_affect.study.report.sections.project_checks import with_speed_matched
+from sb3_affect.study.report.verdicts.censoring import censored_mean, restricted_means
 from sb3_affect.study.report.verdicts.inference import Estimate, Z, welch
 
 COLUMN = "decisions_before_optimal"
 #: Bootstrap resamples of the probability of improvement (the project's checks use the same count).
 REPS = 200
-
-
-def censored_mean(values: np.ndarray, censored: np.ndarray, digits: int = 0) -> str:
-    """The mean of ``values``, prefixed ``>=`` when a censored value (a lower bound) enters it."""
-    text = fmt(float(np.mean(values)), digits)
-    return f">= {text}" if np.asarray(censored, bool).any() else text
-
-
-def restricted_mean(values: np.ndarray, censored: np.ndarray, horizon: float) -> tuple[float, float]:
-    """
-    The Kaplan-Meier restricted mean of ``values`` up to ``horizon`` (the area under the survival curve from 0 to it;
-    a censored value leaves the risk set without an event) and its variance (Greenwood's formula for the restricted
-    mean: the sum over event times t of A(t)^2 d / (n (n - d)), A(t) the area from t to the horizon).
-    """
-    values, censored = np.asarray(values, float), np.asarray(censored, bool)
-    times = np.unique(values)
-    deaths = np.bincount(np.searchsorted(times, values[~censored]), minlength=len(times)).astype(float)
-    leaving = np.bincount(np.searchsorted(times, values), minlength=len(times)).astype(float)
-    at_risk = len(values) - np.r_[0.0, np.cumsum(leaving)[:-1]]
-    survival = np.cumprod(1 - deaths / at_risk)  # S just after each time
-    keep = times < horizon
-    edges = np.r_[0.0, times[keep], horizon]
-    level = np.r_[1.0, survival[keep]]  # S on each interval between the edges
-    pieces = level * np.diff(edges)
-    mean = float(pieces.sum())
-    tail = np.cumsum(pieces[::-1])[::-1][1:]  # area from each event time to the horizon
-    d, n = deaths[keep], at_risk[keep]
-    ok = (d > 0) & (n > d)
-    variance = float(np.sum(tail[ok] ** 2 * d[ok] / (n[ok] * (n[ok] - d[ok]))))
-    return mean, variance
-
-
-def restricted_means(groups: dict[str, tuple[np.ndarray, np.ndarray]]) -> tuple[float, dict[str, tuple[float, float]]]:
-    """
-    ``restricted_mean`` of each group's ``(values, censored)`` to a common horizon (the smallest of the groups' largest
-    values, so every curve is defined up to it): ``(horizon, {name: (mean, variance)})``.
-    """
-    horizon = min(float(np.max(values)) for values, _ in groups.values())
-    return horizon, {name: restricted_mean(values, censored, horizon) for name, (values, censored) in groups.items()}
 
 
 @dataclass(frozen=True)
@@ -131,18 +92,28 @@ def finding_table(c: Comparison) -> pd.DataFrame:
 
 
 def finding_sentence(c: Comparison) -> str:
-    """The main finding in one sentence (the abstract's), every number from ``comparison``."""
+    """The main finding in one sentence with every number from ``comparison`` (the abstract's is ``finding_short``)."""
     rdiff, low, high = c.restricted_difference
     point, plow, phigh = c.improvement
     outcome = "needs fewer" if low > 0 else "needs more" if high < 0 else "does not need significantly fewer"
     return (
-        "Main finding: an ε-greedy agent that moves 1 or 2 cells per decision like the affective agent (ε 0.01, the "
-        f"project's speed-matched baseline) {outcome} decisions before the first optimal path than the affective "
+        f"The speed-matched ε-greedy {outcome} decisions before the first optimal path than the affective "
         f"agent: Kaplan-Meier restricted means to {fmt(c.horizon, 0)} decisions {fmt(c.restricted[1], 0)} against "
         f"{fmt(c.restricted[0], 0)} (affective minus speed-matched {fmt(rdiff, 0)} [95% CI {fmt(low, 0)}, "
         f"{fmt(high, 0)}]); plain means {c.mean[1]} against {c.mean[0]} ({c.censored[1]:,} of the speed-matched and "
         f"{c.censored[0]:,} of the affective runs never found it: a lower bound where any did; Welch p "
         f"{pval(c.welch_p)}); P(affective better) {fmt(point, 3)} [{fmt(plow, 3)}, {fmt(phigh, 3)}]"
+    )
+
+
+def finding_short(c: Comparison) -> str:
+    """The main finding as the abstract states it (once; ``finding_sentence`` gives every number)."""
+    rdiff, low, high = c.restricted_difference
+    outcome = "needs fewer" if low > 0 else "needs more" if high < 0 else "does not need significantly fewer"
+    return (
+        "Main finding: an ε-greedy agent moving 1 or 2 cells per decision like the affective agent (ε 0.01) "
+        f"{outcome} decisions before the first optimal path (Kaplan-Meier restricted means {fmt(c.restricted[1], 0)} "
+        f"against {fmt(c.restricted[0], 0)}; difference {fmt(rdiff, 0)} [95% CI {fmt(low, 0)}, {fmt(high, 0)}])."
     )
 
 

@@ -19,7 +19,15 @@ from rliable import metrics as rmetrics
 
 from sb3_affect.core.emotions import EMOTION_NAMES
 from sb3_affect.study.launcher.deep_study import STUDY_FILE
-from sb3_affect.study.report.estimation.bootstrap import bootstrap_improvement, bootstrap_iqm_cis
+from sb3_affect.study.report.estimation.bootstrap import (
+    BETTER,
+    EXPLORATORY_RULE,
+    NOT_TOLD_APART,
+    WORSE,
+    bootstrap_improvement,
+    bootstrap_iqm_cis,
+    improvement_outcome,
+)
 from sb3_affect.study.report.reading.context import ReportContext
 from sb3_affect.study.report.reading.run_tables import load_results
 from sb3_affect.study.report.rendering.document import fmt
@@ -98,16 +106,11 @@ def score_table(scores: pd.DataFrame, reference: str | None) -> pd.DataFrame:
     return table.reset_index().set_index("agent")
 
 
-#: The decision rule of the exploratory sections (MiniGrid, two hunters): a difference is read only where the 95% CI
-#: of the probability of improvement lies wholly above or below 0.5.
-RULE = "P(affective better) with its 95% bootstrap CI wholly above 0.5 (better) or below 0.5 (worse)"
-
-
 def verdict(scores: pd.DataFrame, reference: str | None = REFERENCE) -> list[str]:
     """
-    One sentence per task: what the success rate's CIs allow (``RULE``: the reference agent better than, worse than,
-    or not told apart from each other agent), then the IQMs; and why two agents' first successes coincide run by run
-    where they do.
+    One sentence per task: what the rule allows on the success rate and on the return (``EXPLORATORY_RULE``: the
+    reference agent better than, worse than, or not told apart from each other agent), then the IQMs; and why two
+    agents' first successes coincide run by run where they do.
     """
     out = []
     for key, t in scores.groupby("task", sort=True):
@@ -116,22 +119,23 @@ def verdict(scores: pd.DataFrame, reference: str | None = REFERENCE) -> list[str
         seeds = int(t.groupby("agent").size().min())
         iqm = {str(a): float(rmetrics.aggregate_iqm(g.success.to_numpy(float)[:, None])) for a, g in t.groupby("agent")}
         listing = "; ".join(f"{a} {fmt(v, 2)}" for a, v in sorted(iqm.items(), key=lambda kv: -kv[1]))
-        mine = t[t.agent == reference].success.to_numpy(float) if reference else np.array([])
-        if not len(mine):
+        if not reference or not (t.agent == reference).any():
             out.append(f"{where} ({seeds} seeds per agent), IQM success rates: {listing}; no reference agent to compare.")
             continue
-        better: list[str] = []
-        worse: list[str] = []
-        same: list[str] = []
-        for agent, g in t[t.agent != reference].groupby("agent", sort=True):
-            _, low, high = bootstrap_improvement(mine, g.success.to_numpy(float), REPS // 5, seed=0, lower_is_better=False)
-            (better if low > 0.5 else worse if high < 0.5 else same).append(str(agent))
-        parts = [f"{reference} better than {', '.join(better)}" if better else "",
-                 f"worse than {', '.join(worse)}" if worse else "",
-                 f"not told apart from {', '.join(same)}" if same else ""]  # fmt: skip
+        said = []
+        for column, label in (("success", "success rate"), ("return", "return")):
+            mine = t[t.agent == reference][column].to_numpy(float)
+            found: dict[str, list[str]] = {BETTER: [], WORSE: [], NOT_TOLD_APART: []}
+            for agent, g in t[t.agent != reference].groupby("agent", sort=True):
+                _, low, high = bootstrap_improvement(mine, g[column].to_numpy(float), REPS // 5, seed=0, lower_is_better=False)
+                found[improvement_outcome(low, high)].append(str(agent))
+            parts = [f"{reference} better than {', '.join(found[BETTER])}" if found[BETTER] else "",
+                     f"worse than {', '.join(found[WORSE])}" if found[WORSE] else "",
+                     f"not told apart from {', '.join(found[NOT_TOLD_APART])}" if found[NOT_TOLD_APART] else ""]  # fmt: skip
+            said.append(f"on the {label}, {'; '.join(p for p in parts if p)}")
         out.append(
-            f"{where}, {seeds} seeds per agent allow this on the success rate: {'; '.join(p for p in parts if p)} "
-            f"(the rule: {RULE}). IQM success rates over the last {LAST_EPISODES} episodes: {listing}."
+            f"{where}, {seeds} seeds per agent allow this {'; '.join(said)} (the rule: {EXPLORATORY_RULE}). IQM success "
+            f"rates over the last {LAST_EPISODES} episodes: {listing}."
         )
         out += twin_sentences(t)
     return out

@@ -19,6 +19,7 @@ from sb3_affect.study.report.reading.run_tables import load_results, run_metrics
 from sb3_affect.study.report.reading.study_tables import SPEED_AGENT
 from sb3_affect.study.report.rendering.document import fmt
 from sb3_affect.study.report.rendering.figures import save
+from sb3_affect.study.report.verdicts.censoring import censored_runs, difference_sign, marked
 
 METRICS = (
     ("decisions_per_episode", "steps per episode"),
@@ -70,14 +71,18 @@ def rliable_table(m: pd.DataFrame, seed: int = 0) -> pd.DataFrame:
     )
     for column, label in METRICS:
         scores = {name: part[column].to_numpy(float) for name, part in parts.items()}
+        # a run that never found the path counts at its total: an IQM over it is a lower bound, and so on
+        bounded = {name: censored_runs(part, column) > 0 for name, part in parts.items()}
         for name, values in scores.items():
             iqm = float(rmetrics.aggregate_iqm(values[:, None]))
             _, low, high = cis[name][column]
-            rows[name][f"IQM {label}"] = f"{fmt(iqm, 1)} [{fmt(low, 1)}, {fmt(high, 1)}]"
+            text = f"{fmt(iqm, 1)} [{fmt(low, 1)}, {fmt(high, 1)}]"
+            rows[name][f"IQM {label}"] = marked(text, ">=" if bounded[name] else "")
             if name == AFFECTIVE or AFFECTIVE not in scores:
                 continue
             point, low, high = better[(column, name)]
-            rows[name][f"P(affective better), {label}"] = f"{fmt(point, 3)} [{fmt(low, 3)}, {fmt(high, 3)}]"
+            sign = difference_sign(bounded[name], bounded[AFFECTIVE])  # P(affective lower) rises with the other's values
+            rows[name][f"P(affective better), {label}"] = marked(f"{fmt(point, 3)} [{fmt(low, 3)}, {fmt(high, 3)}]", sign)
     table = pd.DataFrame.from_dict(rows, orient="index")
     table.index.name = "agent"
     return table

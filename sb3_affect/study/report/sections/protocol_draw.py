@@ -20,18 +20,23 @@ from sb3_affect.study.report.verdicts import paper_numbers as paper
 from sb3_affect.study.report.verdicts.inference import ALPHA, predictive
 from sb3_affect.study.report.verdicts.judgement import STANDARD, cell_means, over_eps, seeds_per_cell
 
-#: The printed means the verdict sizes with the predictive interval: (label, agent, column, scale).
+#: The printed means the verdict sizes with the predictive interval: (label, agent, column, scale, the paper's number).
 STATISTICS = (
-    ("Table IV: ε-greedy, steps per episode", STANDARD, "decisions_per_episode", 1),
-    ("Table IV: affective, steps per episode", "affective", "decisions_per_episode", 1),
-    ("Table V: ε-greedy, walked (per 20 runs)", STANDARD, "decisions_before_optimal", paper.SEEDS_PER_CELL),
-    ("Table V: affective, walked (per 20 runs)", "affective", "decisions_before_optimal", paper.SEEDS_PER_CELL),
-    ("Table V: ε-greedy, greedy (per 20 runs)", STANDARD, "decisions_to_greedy_optimal", paper.SEEDS_PER_CELL),
-    ("Table V: affective, greedy (per 20 runs)", "affective", "decisions_to_greedy_optimal", paper.SEEDS_PER_CELL),
-)
+    ("Table IV: ε-greedy, steps per episode", STANDARD, "decisions_per_episode", 1, paper.TABLE_IV["Mean"][0]),
+    ("Table IV: affective, steps per episode", "affective", "decisions_per_episode", 1, paper.TABLE_IV["Mean"][1]),
+    ("Table V: ε-greedy, walked (per 20 runs)", STANDARD, "decisions_before_optimal", paper.SEEDS_PER_CELL,
+     paper.TABLE_V["Mean"][0]),
+    ("Table V: affective, walked (per 20 runs)", "affective", "decisions_before_optimal", paper.SEEDS_PER_CELL,
+     paper.TABLE_V["Mean"][1]),
+    ("Table V: ε-greedy, greedy (per 20 runs)", STANDARD, "decisions_to_greedy_optimal", paper.SEEDS_PER_CELL,
+     paper.TABLE_V["Mean"][0]),
+    ("Table V: affective, greedy (per 20 runs)", "affective", "decisions_to_greedy_optimal", paper.SEEDS_PER_CELL,
+     paper.TABLE_V["Mean"][1]),
+)  # fmt: skip
 #: Column names of ``block_table``.
 VALUE, INTERVAL = "protocol's runs", "95% predictive interval"
 OUTSIDE, RANK, CAUSE = "other blocks outside the interval", "protocol's rank among the blocks (1 = lowest)", "cause"
+PAPER_SIDE = "on the paper's side of the other blocks' mean"
 
 
 def block_statistics(m: pd.DataFrame, agent: str, column: str, scale: float, block: int) -> pd.Series:
@@ -44,11 +49,14 @@ def block_statistics(m: pd.DataFrame, agent: str, column: str, scale: float, blo
     return per_cell.groupby(level="block").mean() * scale
 
 
-def block_row(large: pd.DataFrame, protocol: pd.DataFrame, agent: str, column: str, scale: float) -> dict[str, object]:
+def block_row(
+    large: pd.DataFrame, protocol: pd.DataFrame, agent: str, column: str, scale: float, printed: float
+) -> dict[str, object]:
     """
     One statistic: the protocol's value, the predictive interval at the paper's seeds from ``large``, the other
     blocks outside it (and a one-sided binomial test of that count against 5%), the protocol's rank among the blocks,
-    its distance from the other blocks' mean in their standard deviations, and the cause these point to.
+    its distance from the other blocks' mean in their standard deviations, whether it lies on the side of the paper's
+    number ``printed``, and the cause these point to.
     """
     block = paper.SEEDS_PER_CELL
     est = over_eps(cell_means(large, column), agent).scaled(scale)
@@ -74,6 +82,7 @@ def block_row(large: pd.DataFrame, protocol: pd.DataFrame, agent: str, column: s
         OUTSIDE: f"{outside} of {len(others)} (binomial p {pval(binomial)} against 5%)",
         RANK: f"{rank} of {len(stats)}",
         "protocol - other blocks' mean, in their SDs": f"{z:+.2f}" if not math.isnan(z) else "",
+        PAPER_SIDE: "yes" if (value - float(others.mean())) * (printed - float(others.mean())) > 0 else "no",
         CAUSE: cause,
     }
 
@@ -81,8 +90,8 @@ def block_row(large: pd.DataFrame, protocol: pd.DataFrame, agent: str, column: s
 def block_table(large: pd.DataFrame, protocol: pd.DataFrame) -> pd.DataFrame:
     """``block_row`` for each printed mean the verdict sizes (``STATISTICS``)."""
     rows = {
-        label: block_row(large, protocol, agent, column, scale)
-        for label, agent, column, scale in STATISTICS
+        label: block_row(large, protocol, agent, column, scale, printed)
+        for label, agent, column, scale, printed in STATISTICS
         if column in large.columns and column in protocol.columns
     }
     table = pd.DataFrame.from_dict(rows, orient="index")

@@ -182,8 +182,9 @@ def record_section(ctx: ReportContext) -> None:
             "wall_times_by_run",
             runs_table(runs),
             "Each run of `replicate` into this folder with its own times (seconds; a part read back from an earlier run "
-            "takes little; the report step and the total of a run are recorded once it ends, so the run writing this "
-            "report has none yet)",
+            "takes little). The report step and the total of a run are recorded in `replicate.json` (`runs`: "
+            "`report`, `total`) and printed once it ends, so the run writing this report shows none yet; a report "
+            "built again from the folder (`sb3-affect report`) shows them",
             1,
         )
 

@@ -19,7 +19,7 @@ from lifelines.statistics import logrank_test
 from lifelines.utils import median_survival_times, restricted_mean_survival_time
 
 from sb3_affect.study.report.reading.context import AFFECTIVE, STANDARD, ReportContext
-from sb3_affect.study.report.rendering.document import fmt, pval
+from sb3_affect.study.report.rendering.document import fmt, pval, sig
 from sb3_affect.study.report.rendering.figures import COLOURS, STYLES, distinct, save
 
 
@@ -122,7 +122,7 @@ def survival_section(ctx: ReportContext) -> None:
         )
         ctx.doc.p(
             f"Log-rank test, affective (all ε pooled) against ε-greedy (all ε pooled), {label}: "
-            f"statistic {fmt(float(test.test_statistic))}, p {pval(float(test.p_value))}. "
+            f"statistic {sig(float(test.test_statistic))}, p {pval(float(test.p_value))}. "
             f"Censored runs: affective {int(aff.censored.sum()):,} of {len(aff):,}, ε-greedy {int(std.censored.sum()):,} of "
             f"{len(std):,}."
         )

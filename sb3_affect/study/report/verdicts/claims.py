@@ -26,6 +26,7 @@ from scipy import stats as sps
 
 from sb3_affect.study.report.rendering.document import first_words, fmt, pval, sig
 from sb3_affect.study.report.verdicts import paper_numbers as paper
+from sb3_affect.study.report.verdicts.censoring import difference_sign, marked
 from sb3_affect.study.report.verdicts.course_claims import (
     ABOUT,
     judge_episodes_to_optimal,
@@ -115,13 +116,14 @@ def judge_table_iv(m: pd.DataFrame, column: str = "decisions_per_episode") -> Ju
         direction=est.value > 0,
         size=inside,
         ratio=ratio,
-        tests=[equivalence, difference, *per_eps.values()],
+        tests=[difference, *per_eps.values()],
+        equivalence=equivalence,
     )
 
     def decide(j: Judgement) -> str:
         differ = [e for e in per_eps if significant(per_eps[e])]
-        if significant(equivalence):
-            return f"reproduced: equivalent within ±{sig(margin)} steps (TOST, Holm p {pval(equivalence.p_holm)})"
+        if equivalence.p < ALPHA:  # judged on its own: outside the Holm family of the difference tests
+            return f"reproduced: equivalent within ±{sig(margin)} steps (TOST p {pval(equivalence.p)})"
         if significant(difference):
             return (
                 f"not reproduced: the agents differ by {est.text()} steps per episode averaged over ε (outside the "
@@ -152,7 +154,9 @@ def judge_fig3(m: pd.DataFrame, column: str = "decisions_per_episode") -> Judgem
         f"once, the last ε-greedy-better ε >= {CROSSOVER[0]} and the first affective-better ε <= {CROSSOVER[1]})",
         f"ε-greedy minus affective {'steps' if column.startswith('decisions') else 'cells'} per episode: "
         + "; ".join(f"ε {fmt(e, 1)}: {d.text()}" for e, d in diffs.items())
-        + f". Point estimates change sign between ε {', '.join(cross) or 'none'}",
+        + f". Point estimates change sign between ε {', '.join(cross) or 'none'}"
+        + (f"; in cells, ε {fmt(min(cell_diffs), 1)} to {fmt(max(cell_diffs), 1)}: "
+           + ", ".join(sig(d.value) for d in cell_diffs.values()) if cell_diffs else ""),
         cells=(
             "ε-greedy minus affective cells per episode: "
             + "; ".join(f"ε {fmt(e, 1)}: {d.text()}" for e, d in cell_diffs.items())
@@ -194,16 +198,26 @@ def judge_table_v(m: pd.DataFrame, column: str = "decisions_before_optimal", def
     inside, ratio, where = size_against_paper(est, paper_diff, seeds_per_cell(m))
     primary, robust = _paired(cells[f"mean_{STANDARD}"], cells[f"mean_{AFFECTIVE}"], "greater")
     cell_column = "cells_before_optimal" if definition == "walked" else ""
+    flag = "censored" if definition == "walked" else "greedy_censored"
+    counts = [int(m[m.agent == agent][flag].sum()) if flag in m.columns else 0 for agent in (STANDARD, AFFECTIVE)]
+    sign = difference_sign(counts[0] > 0, counts[1] > 0)
+    means = (
+        marked(sig(over_eps(cells, agent).value * runs), ">=" if c else "") for agent, c in zip((STANDARD, AFFECTIVE), counts)
+    )
+    share = marked(f"{diff_over_eps(cells).value / over_eps(cells, STANDARD).value:.1%}", sign)
+    censored_text = f"; {counts[0]:,} ε-greedy and {counts[1]:,} affective runs censored: bounds" if sign else ""
     j = Judgement(
         f"table_v:{definition}",
         f"Table V ({definition} definition): affective needs significantly fewer steps",
         f"110190.20 vs 99357.56 per 20 runs (difference {fmt(paper_diff)}), P one-tail 0.01",
-        f"{sig(over_eps(cells, STANDARD).value * runs)} vs {sig(over_eps(cells, AFFECTIVE).value * runs)} per 20 runs; "
-        f"difference {est.text()} ({diff_over_eps(cells).value / over_eps(cells, STANDARD).value:.1%} of ε-greedy's)",
-        cells=f"cells before it, per run: ε-greedy minus affective {_lead(m, cell_column)}" if cell_column else "n/a",
+        " vs ".join(means) + f" per 20 runs; difference {marked(est.text(), sign)} ({share} of ε-greedy's{censored_text})",
+        cells=f"cells before it, per run: ε-greedy minus affective {marked(_lead(m, cell_column), sign)}"
+        if cell_column
+        else "n/a",
         direction=est.value > 0,
         size=inside,
         ratio=ratio,
+        bound={">=": "lower", "<=": "upper"}.get(sign, ""),
         tests=[primary, *robust],
         primary=primary,
     )
@@ -213,9 +227,10 @@ def judge_table_v(m: pd.DataFrame, column: str = "decisions_before_optimal", def
         if j.direction and primary.p < ALPHA and j.size:
             return f"reproduced: the paper's test significant (one-tailed p {pval(primary.p)}), size inside the {where}"
         if j.direction and primary.p < ALPHA:
+            ratio_text = {">=": "<= ", "<=": ">= "}.get(sign, "") + sig(ratio)  # ours a bound: the ratio one the other way
             return (
                 f"direction reproduced: the paper's test significant (one-tailed p {pval(primary.p)}); size differs "
-                f"(paper / ours {sig(ratio)}, outside the {where})"
+                f"(paper / ours {ratio_text}, outside the {where})"
             )
         if j.direction and robust_sig:
             return "not reproduced by the paper's test (p " + pval(primary.p) + "); a robust test is significant"

@@ -13,9 +13,9 @@ import pandas as pd
 from scipy import stats as sps
 
 from sb3_affect.study.report.reading.run_tables import EMOTIONS
-from sb3_affect.study.report.rendering.document import sig
+from sb3_affect.study.report.rendering.document import pval, sig
 from sb3_affect.study.report.verdicts import paper_numbers as paper
-from sb3_affect.study.report.verdicts.inference import Test, mean_ci, significant, z_estimate
+from sb3_affect.study.report.verdicts.inference import Test, holm, mean_ci, significant, z_estimate
 from sb3_affect.study.report.verdicts.judgement import (
     AFFECTIVE,
     Judgement,
@@ -197,13 +197,15 @@ def judge_long_run(m: pd.DataFrame, long: pd.DataFrame | None = None) -> Judgeme
         f"cells_{window}" in data.columns
     ) else ({}, {})
     n = seeds_per_cell(data)
+    _, by_label = per_epsilon(data, f"decisions_{window}", "")  # the other pairing: the affective runs of the same label
+    holm(list(by_label.values()))
     j = Judgement(
         "long_run",
         "Long run: the affective agent takes fewer steps than the standard agent"
         + ("" if data is long else f" (episodes {span} of {int(data.episodes.max())}-episode runs)"),
         "no numbers printed",
         f"{n:,} runs per cell of {int(data.episodes.max()):,} episodes; steps per episode in episodes {span}: affective "
-        f"{sig(float(np.nanmean(reference)))}; ε-greedy minus affective "
+        f"{sig(float(np.nanmean(reference)))}; ε-greedy minus affective (all its runs: it ignores ε) "
         + ", ".join(f"ε {e:.1f}: {d.text()}" for e, d in diffs.items()),
         cells=("cells per episode, ε-greedy minus affective "
                + ", ".join(f"ε {e:.1f}: {d.text()}" for e, d in cell_diffs.items()))
@@ -217,7 +219,7 @@ def judge_long_run(m: pd.DataFrame, long: pd.DataFrame | None = None) -> Judgeme
         higher = [e for e, d in diffs.items() if significant(tests[e]) and d.value < 0]
         text = (
             f"affective significantly lower against ε {eps_list(lower)}, higher against {eps_list(higher)} (judged on "
-            f"{n:,} runs per cell of {int(data.episodes.max()):,} episodes, episodes {span})"
+            f"{n:,} runs per cell of {int(data.episodes.max()):,} episodes, episodes {span}{pairing_note(tests, by_label)})"
         )
         if lower and len(lower) == len(diffs):
             return "reproduced: " + text
@@ -227,6 +229,17 @@ def judge_long_run(m: pd.DataFrame, long: pd.DataFrame | None = None) -> Judgeme
 
     j.decide = decide
     return j
+
+
+def pairing_note(pooled: dict[float, Test], by_label: dict[float, Test]) -> str:
+    """Where pairing each ε-greedy cell with the affective runs of its own ε label changes a Holm-significant outcome."""
+    changed = [e for e in pooled if e in by_label and significant(pooled[e]) != significant(by_label[e])]
+    if not changed:
+        return "; paired by ε label instead, the same ε are significant"
+    return "; paired by ε label instead, " + ", ".join(
+        f"ε {e:.1f} {'is not' if significant(pooled[e]) else 'is'} significant (Holm p {pval(by_label[e].p_holm)})"
+        for e in changed
+    )
 
 
 #: "Four emotions shape behaviour": each emotion must take at least this share of the decisions in an early or a late

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from sb3_affect.study.report.rendering.document import fmt, pval, sig
+from sb3_affect.study.report.rendering.document import fmt, sig
 from sb3_affect.study.report.verdicts import paper_numbers as paper
 from sb3_affect.study.report.verdicts.inference import Estimate, Test, predictive, welch, z_estimate
 
@@ -36,6 +36,8 @@ class Judgement:
     :param bound: "lower" when our number is a lower bound (censored runs), so the ratio is an upper bound
     :param tests: the claim's family of tests (Holm-corrected within the claim)
     :param primary: the paper's own test, judged on its raw p-value as the paper did (None: the paper ran none)
+    :param equivalence: an equivalence test (TOST), judged on its raw p-value outside the Holm family of difference
+        tests (it asks another question: equivalence, not difference)
     :param seed_dependent: False when the outcome is fixed by the design (the 9 ε values), not by the seed count
     :param decide: the verdict from the judgement once the Holm-adjusted p-values are in
     :param verdict: the verdict, counting steps as decisions (time)
@@ -54,6 +56,7 @@ class Judgement:
     bound: str = ""
     tests: list[Test] = field(default_factory=list)
     primary: Test | None = None
+    equivalence: Test | None = None
     seed_dependent: bool = True
     decide: Callable[[Judgement], str] | None = None
     verdict: str = ""
@@ -147,14 +150,8 @@ def size_against_paper(
     low, high = predictive(est, n_ours, n_paper)
     inside = bool(low <= printed <= high)
     ratio = printed / est.value if est.value else math.nan
-    return inside, ratio, f"predictive interval at the paper's {n_paper} {unit} [{sig(low)}, {sig(high)}]"
+    return inside, ratio, f"predictive interval at {n_paper} {unit} [{sig(low)}, {sig(high)}]"
 
 
 def eps_list(values: list[float]) -> str:
     return ", ".join(fmt(e, 1) for e in sorted(values)) or "none"
-
-
-def p_text(test: Test) -> str:
-    """A test's p-value, with its Holm-adjusted value where that differs."""
-    adjusted = not math.isnan(test.p_holm) and test.p_holm != test.p
-    return f"p {pval(test.p)}" + (f", Holm {pval(test.p_holm)}" if adjusted else "")
