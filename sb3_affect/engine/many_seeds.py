@@ -1,18 +1,15 @@
 """
-``train_many``: many seeds of one DQN-family agent trained in one process, in lockstep, one SB3 model per seed.
+``train_many``: many seeds of one DQN-family agent, or of PPO, trained in one process, in lockstep, one SB3 model per
+seed.
 
 ``train_many(algo, env_id, seeds, n_envs, total_timesteps=T, obs=..., **kwargs)[i]`` is, up to floating-point summation
 order, the model ``algo("MlpPolicy", make_vec_env(env_id, n_envs, seed=seeds[i], wrapper_class=FlatObsWrapper),
 seed=seeds[i], **kwargs).learn(T)`` gives: the same class, the same random streams, the same SB3 loop
-(``sb3_affect.engine.lockstep``), saved, loaded, evaluated and used as a model trained by ``learn``. What is shared is
-the arithmetic: every seed's Q-network forward pass and gradient step is one batched matrix product per layer
-(``sb3_affect.engine.stacked_q``), and every seed's compiled envs are stepped by one kernel call
-(``sb3_affect.engine.seed_envs``).
-
-Speed (``python benchmarks/bench_many_seeds.py``, Empty-8x8, ``obs="image"``, 4 envs per seed, ``train_freq`` 4,
-batch 32, one torch thread, on a shared 2-core machine): at S = 32 DQN makes about 58,000 env steps per CPU second,
-50 times SB3's ``DQN.learn`` with one env and 21 times with four; the batched gradient step's own arithmetic caps
-any trainer of these networks near 83,000 (docs/many_seeds.md, "Speed").
+(``sb3_affect.engine.lockstep`` for the DQN family, ``sb3_affect.engine.stacked_ppo`` for PPO), saved, loaded, evaluated
+and used as a model trained by ``learn``. What is shared is the arithmetic: every seed's forward pass and gradient step
+is one batched matrix product per layer (``sb3_affect.engine.stacked_q``), and every seed's compiled envs are stepped
+by one kernel call (``sb3_affect.engine.seed_envs``). Every input is checked, and the run's memory estimated, before
+any model is built (docs/many_seeds.md).
 """
 
 from __future__ import annotations
@@ -212,7 +209,7 @@ def train_many(
     Train one ``algo`` model per seed on ``n_envs`` envs each, all seeds in lockstep, and return the models.
 
     :param algo: SB3's ``DQN`` or a subclass that keeps its ``train`` (``AffectDQN``, ``EzGreedyDQN``,
-        ``SpeedEpsilonGreedyDQN``), a class or its name
+        ``SpeedEpsilonGreedyDQN``), or SB3's ``PPO`` (discrete actions), a class or its name
     :param env_id: a MiniGrid env id (``"MiniGrid-Empty-8x8-v0"``; ``sb3_affect.kernel.minigrid_world.MINIGRID_TASKS``
         are compiled)
     :param seeds: one run per seed

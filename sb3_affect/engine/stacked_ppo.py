@@ -39,7 +39,7 @@ from torch import nn
 
 from sb3_affect.engine.lockstep import idle
 from sb3_affect.engine.seed_envs import SeedEnvs
-from sb3_affect.engine.stacked_q import network_activations
+from sb3_affect.engine.stacked_q import SQRT_FLOOR, network_activations
 
 
 def _stack(modules: Sequence[nn.Linear]) -> tuple[th.Tensor, th.Tensor]:
@@ -73,10 +73,14 @@ class StackedActorCritic:
         self.action = _stack([p.action_net for p in policies])  # type: ignore[misc]
         self.value = _stack([p.value_net for p in policies])
         kwargs = dict(first.optimizer_kwargs)
-        if not {"foreach", "fused"} & kwargs.keys():
-            kwargs["foreach"] = True
-        self.optimizer: th.optim.Optimizer = first.optimizer_class(  # type: ignore[call-arg]
-            self.parameters(), lr=models[0].lr_schedule(1), **kwargs)
+        if first.optimizer_class is not th.optim.Adam or set(kwargs) - {"eps", "betas"}:
+            raise ValueError(f"optimizer_class={first.optimizer_class.__name__} with {kwargs}: train_many's PPO runs "
+                             "Adam with eps and betas only")
+        self.betas, self.eps = tuple(kwargs.get("betas", (0.9, 0.999))), float(kwargs.get("eps", 1e-8))
+        self.learning_rate = float(models[0].lr_schedule(1))
+        self.exp_avg = [th.zeros_like(p) for p in self.parameters()]
+        self.exp_avg_sq = [th.zeros_like(p) for p in self.parameters()]
+        self.steps = 0
 
     def parameters(self) -> list[th.Tensor]:
         """The tensors in ``policy.parameters()`` order (policy net, value net, action head, value head)."""
@@ -145,10 +149,11 @@ class StackedActorCritic:
                     sums["clip_fraction"].append(((ratio - 1).abs() > column).float().mean(dim=1))
                     log_ratio = log_prob - old_log_prob
                     approx_kl.append(((th.exp(log_ratio) - 1) - log_ratio).mean(dim=1))
-                self.optimizer.zero_grad()
+                for parameter in self.parameters():
+                    parameter.grad = None
                 loss.sum().backward()
                 self._clip_gradients(max_grad_norm)
-                self.optimizer.step()
+                self._adam()
         logs = {key: th.stack(values).double().mean(dim=0).numpy() for key, values in sums.items()}
         logs["approx_kl"] = th.stack(approx_kl).double().mean(dim=0).numpy()
         logs["loss"] = loss.detach().numpy()
@@ -161,23 +166,41 @@ class StackedActorCritic:
         coefficient = th.clamp(max_grad_norm / (th.linalg.vector_norm(norms, 2, dim=0) + 1e-6), max=1.0)
         th._foreach_mul_(grads, [coefficient.reshape(-1, 1, 1)] * len(grads))
 
+    def _adam(self) -> None:
+        """
+        torch's ``foreach`` Adam over the stacked tensors, its square root taken of ``v + 1e-30`` (``SQRT_FLOOR``: torch's
+        CPU ``sqrt`` is slow on exact zeros, which the weights of never-seen inputs have; see ``stacked_q``).
+        """
+        with th.no_grad():
+            params = self.parameters()
+            grads = [p.grad if p.grad is not None else th.zeros_like(p) for p in params]
+            beta1, beta2 = self.betas
+            self.steps += 1
+            th._foreach_lerp_(self.exp_avg, grads, 1 - beta1)
+            th._foreach_mul_(self.exp_avg_sq, beta2)
+            th._foreach_addcmul_(self.exp_avg_sq, grads, grads, 1 - beta2)
+            step_size = self.learning_rate / (1 - beta1 ** self.steps)
+            denominators = th._foreach_add(self.exp_avg_sq, SQRT_FLOOR)
+            th._foreach_sqrt_(denominators)
+            th._foreach_div_(denominators, (1 - beta2 ** self.steps) ** 0.5)
+            th._foreach_add_(denominators, self.eps)
+            th._foreach_addcdiv_(params, self.exp_avg, denominators, -step_size)
+
     def set_learning_rate(self, learning_rate: float) -> None:
-        for group in self.optimizer.param_groups:
-            group["lr"] = learning_rate
+        self.learning_rate = float(learning_rate)
 
     def write_back(self, models: Sequence[PPO], indices: Sequence[int] | None = None) -> None:
         """Copy each seed's weights and Adam state into its model's policy (``indices``: those only)."""
         with th.no_grad():
             for s in range(len(models)) if indices is None else indices:
                 policy = models[s].policy
-                for stacked, param in zip(self.parameters(), policy.parameters()):
+                for stacked, m, v, param in zip(self.parameters(), self.exp_avg, self.exp_avg_sq, policy.parameters()):
                     param.copy_(stacked[s].reshape(param.shape))
-                    state = self.optimizer.state.get(stacked)
-                    if state:
-                        policy.optimizer.state[param] = {key: value.clone() if value.dim() == 0
-                                                         else value[s].reshape(param.shape).clone()
-                                                         for key, value in state.items()}
-                policy.optimizer.param_groups[0]["lr"] = self.optimizer.param_groups[0]["lr"]
+                    if self.steps:
+                        policy.optimizer.state[param] = {"step": th.tensor(float(self.steps)),
+                                                         "exp_avg": m[s].reshape(param.shape).clone(),
+                                                         "exp_avg_sq": v[s].reshape(param.shape).clone()}
+                policy.optimizer.param_groups[0]["lr"] = self.learning_rate
 
 
 class StackedRollout:
@@ -283,9 +306,16 @@ class LockstepPPO:
         return np.flatnonzero(~self.frozen).tolist()
 
     def _sample(self, log_probs: th.Tensor) -> th.Tensor:
-        """Each seed's ``Categorical.sample()`` from its own generator: ``(S, E)``."""
+        """
+        Each seed's ``Categorical.sample()`` from its own generator: ``(S, E)``. For one sample torch's ``multinomial``
+        is ``argmax(p / q)`` with ``q`` exponential draws of ``p``'s shape; each seed's ``q`` is drawn from its generator,
+        the division and argmax are one operation for all seeds.
+        """
         probs = log_probs.exp()
-        return th.stack([th.multinomial(p, 1, True, generator=g).T.reshape(-1) for p, g in zip(probs, self.generators)])
+        draws = th.empty_like(probs)
+        for draw, generator in zip(draws, self.generators):
+            draw.exponential_(1, generator=generator)
+        return (probs / draws).argmax(dim=-1)
 
     def _settings(self, progress: float) -> dict[str, th.Tensor]:
         models = self.models
