@@ -164,7 +164,7 @@ class MiniGridPosition(Position):
         return self._cell(x + dx, y + dy, direction)
 
 
-class _NumberedCells(Position):
+class NumberedPosition(Position):
     """Cells of a user's function, any hashable values: each distinct cell gets a number the first time it is seen."""
 
     def __init__(self, function: Callable[..., Any], default_name: str) -> None:
@@ -192,7 +192,7 @@ class _NumberedCells(Position):
         return number
 
 
-class CallablePosition(_NumberedCells):
+class CallablePosition(NumberedPosition):
     """``position(observation, info) -> cell`` of one env, called for each env at each step."""
 
     def __init__(self, function: Callable[[Any, dict[str, Any]], Hashable]) -> None:
@@ -210,7 +210,7 @@ class CallablePosition(_NumberedCells):
         return [self.cell_of(row, infos[index] if index < len(infos) else {}) for index, row in enumerate(rows)]
 
 
-class BatchPosition(_NumberedCells):
+class BatchPosition(NumberedPosition):
     """
     ``function(observations, infos) -> cells``: every env's cell from one call per VecEnv step, given the VecEnv's
     observations as they are (an array with a row per env, or a dict of such arrays) and its list of infos, and
