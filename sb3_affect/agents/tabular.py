@@ -553,8 +553,8 @@ class TabularQAlgorithm(ModelFiles):
         keep = finished if buffer.maxlen is None else min(finished, buffer.maxlen)
         stamp = round(time.time() - self.start_time / 1e9, 6)
         last = slice(finished - keep, finished)  # only the episodes the buffer keeps
-        for r, n, c in zip(reward[last].tolist(), decisions[last].tolist(), cells[last].tolist()):
-            buffer.append({"r": r, "l": n, "c": c, "t": stamp})
+        for episode_reward, length, moved in zip(reward[last].tolist(), decisions[last].tolist(), cells[last].tolist()):
+            buffer.append({"r": episode_reward, "l": length, "c": moved, "t": stamp})
 
     def log_episode_end(self, random_moves: int, decisions: int, log_interval: int | None) -> None:
         """The logger at an episode end: ``affect/equivalent_epsilon`` (per episode, never per decision), and a dump
