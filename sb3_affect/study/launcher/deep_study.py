@@ -33,7 +33,7 @@ import time
 import traceback
 import warnings
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -154,13 +154,14 @@ def _read_record(path: Path, study: DeepStudy, task: str, agent: str, seeds: Seq
 class DeepFiles:
     """
     The files of a deep study's folder sorted out: the finished cells and the finished batches of unfinished cells
-    (``(task, agent) -> record``, ``(task, agent, index) -> record``), and ``(path, why)`` of each file that does not
-    count (unreadable, not its cell's record, or not a file of the study).
+    (``(task, agent) -> record``, ``(task, agent, index) -> record``), ``(path, why)`` of each file that does not
+    count (unreadable, not its cell's record, or not a file of the study), and the batch files of finished cells.
     """
 
     cells: dict[tuple[str, str], dict[str, Any]]
     batches: dict[tuple[str, str, int], dict[str, Any]]
     rejected: list[tuple[Path, str]]
+    merged: list[Path] = field(default_factory=list)  # batches of finished cells (a launcher stopped as it merged)
 
 
 def sort_files(out: Path, study: DeepStudy) -> DeepFiles:
@@ -183,7 +184,9 @@ def sort_files(out: Path, study: DeepStudy) -> DeepFiles:
                 record, why = _read_record(path, study, task, agent.name, seeds)
                 if why:
                     files.rejected.append((path, why))
-                elif record is not None and (task, agent.name) not in files.cells:
+                elif record is not None and (task, agent.name) in files.cells:
+                    files.merged.append(path)
+                elif record is not None:
                     files.batches[task, agent.name, index] = record
     found = [*(out / CELLS).glob("*"), *(out / BATCHES).glob("*/*")]
     files.rejected += [(path, "is not a file of this deep study (no cell or batch of it has this name)")
@@ -269,6 +272,10 @@ def run_deep_study(
         files = sort_files(out, study)
         for line in store.set_aside(files.rejected):
             (log or _print)(line)
+        for path in files.merged:
+            path.unlink()
+            with contextlib.suppress(OSError):  # (a file the folder holds besides the batches stays)
+                path.parent.rmdir()
         return _run(study, out, store, files, workers, backend, ray_address, ray_timeout, log or _print)
 
 
