@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 
 from sb3_affect.core.emotions import EMOTION_NAMES
-from sb3_affect.study.launcher.deep_batches import DeepBatch, merge_batches, seed_batches
+from sb3_affect.study.launcher.deep_batches import DeepBatch, merge_batches, seed_batches, training
 from sb3_affect.study.launcher.deep_schema import RECORD_ROWS, DeepStudy
 from sb3_affect.study.launcher.launcher import run_ray
 from sb3_affect.study.launcher.local_pool import run_local
@@ -256,11 +256,9 @@ def run_deep_study(
         raise ValueError(f"backend={backend!r} is not supported; choose {' or '.join(map(repr, BACKENDS))}")
     out = Path(out)
     claim_kind(out, "deep", study.name)
-    from sb3_affect.study.launcher.deep_training import check_study  # (torch: only where a deep study runs)
-
     planned = len(seed_batches(study)) * len(study.tasks) * len(study.agents)
     at_once = 1 if backend == "ray" else min(workers or len(os.sched_getaffinity(0)), planned)  # (Ray: one a node)
-    check_study(study, at_once)
+    training().check_study(study, at_once)
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as error:
