@@ -162,7 +162,7 @@ def _read_summary(path: Path) -> pd.DataFrame | str:
 def folder_status(root: str | Path) -> str:
     """
     One line on how far a forensics folder is: the replications stored (and stopped early), of how many simulations,
-    and the sizes of the last analysis written (``run.json``). Reads only; writes nothing.
+    those that failed, and the sizes of the last analysis written (``run.json``). Reads only; writes nothing.
     """
     root = Path(root)
     summaries = root / "summaries"
@@ -173,6 +173,9 @@ def folder_status(root: str | Path) -> str:
         f"forensics in {root}: {complete} replications stored ({partial} more stopped early in the pre-screen) "
         f"of {len(folders)} simulations"
     )
+    failed = sum(1 for _ in (root / "failed").glob("[!.]*.json"))
+    if failed:
+        line += f", {failed} failed (in {root / 'failed'}; the next run retries them)"
     try:
         run = read_json(root / "run.json", MAX_SUMMARY_BYTES)
         sizes = f"{run['screen_reps']} screen, {run['leaders']} leaders x {run['reps']} replications"

@@ -11,10 +11,18 @@ from __future__ import annotations
 import socket
 from collections.abc import Sequence
 from dataclasses import dataclass
+from types import ModuleType
 from typing import Any
 
 from sb3_affect.study.launcher.deep_schema import RECORD_ROWS, DeepStudy
 from sb3_affect.study.launcher.one_run import package_versions
+
+
+def training() -> ModuleType:
+    """``deep_training``, imported where a batch runs or a study is checked before it runs (it imports torch)."""
+    from sb3_affect.study.launcher import deep_training  # (torch: only where a deep study runs)
+
+    return deep_training
 
 
 def seed_batches(study: DeepStudy) -> list[tuple[int, ...]]:
@@ -56,8 +64,6 @@ class DeepBatch:
 
     def execute(self) -> dict[str, Any]:
         """``deep_training.run_batch`` of this batch, with the package versions and the host that ran it."""
-        from sb3_affect.study.launcher.deep_training import run_batch  # (torch: only where a batch runs)
-
         study = DeepStudy.model_validate(self.study)
-        record = run_batch(study, self.task, study.agents[self.agent], self.seeds, self.epsilons)
+        record = training().run_batch(study, self.task, study.agents[self.agent], self.seeds, self.epsilons)
         return {"record": record, "versions": package_versions(), "timings": {"host": socket.gethostname()}}

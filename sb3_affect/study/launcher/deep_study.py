@@ -33,14 +33,14 @@ import time
 import traceback
 import warnings
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from sb3_affect.core.emotions import EMOTION_NAMES
-from sb3_affect.study.launcher.deep_batches import DeepBatch, merge_batches, seed_batches
+from sb3_affect.study.launcher.deep_batches import DeepBatch, merge_batches, seed_batches, training
 from sb3_affect.study.launcher.deep_schema import RECORD_ROWS, DeepStudy
 from sb3_affect.study.launcher.launcher import run_ray
 from sb3_affect.study.launcher.local_pool import run_local
@@ -154,13 +154,14 @@ def _read_record(path: Path, study: DeepStudy, task: str, agent: str, seeds: Seq
 class DeepFiles:
     """
     The files of a deep study's folder sorted out: the finished cells and the finished batches of unfinished cells
-    (``(task, agent) -> record``, ``(task, agent, index) -> record``), and ``(path, why)`` of each file that does not
-    count (unreadable, not its cell's record, or not a file of the study).
+    (``(task, agent) -> record``, ``(task, agent, index) -> record``), ``(path, why)`` of each file that does not
+    count (unreadable, not its cell's record, or not a file of the study), and the batch files of finished cells.
     """
 
     cells: dict[tuple[str, str], dict[str, Any]]
     batches: dict[tuple[str, str, int], dict[str, Any]]
     rejected: list[tuple[Path, str]]
+    merged: list[Path] = field(default_factory=list)  # batches of finished cells (a launcher stopped as it merged)
 
 
 def sort_files(out: Path, study: DeepStudy) -> DeepFiles:
@@ -183,7 +184,9 @@ def sort_files(out: Path, study: DeepStudy) -> DeepFiles:
                 record, why = _read_record(path, study, task, agent.name, seeds)
                 if why:
                     files.rejected.append((path, why))
-                elif record is not None and (task, agent.name) not in files.cells:
+                elif record is not None and (task, agent.name) in files.cells:
+                    files.merged.append(path)
+                elif record is not None:
                     files.batches[task, agent.name, index] = record
     found = [*(out / CELLS).glob("*"), *(out / BATCHES).glob("*/*")]
     files.rejected += [(path, "is not a file of this deep study (no cell or batch of it has this name)")
@@ -253,11 +256,9 @@ def run_deep_study(
         raise ValueError(f"backend={backend!r} is not supported; choose {' or '.join(map(repr, BACKENDS))}")
     out = Path(out)
     claim_kind(out, "deep", study.name)
-    from sb3_affect.study.launcher.deep_training import check_study  # (torch: only where a deep study runs)
-
     planned = len(seed_batches(study)) * len(study.tasks) * len(study.agents)
     at_once = 1 if backend == "ray" else min(workers or len(os.sched_getaffinity(0)), planned)  # (Ray: one a node)
-    check_study(study, at_once)
+    training().check_study(study, at_once)
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as error:
@@ -269,6 +270,10 @@ def run_deep_study(
         files = sort_files(out, study)
         for line in store.set_aside(files.rejected):
             (log or _print)(line)
+        for path in files.merged:
+            path.unlink()
+            with contextlib.suppress(OSError):  # (a file the folder holds besides the batches stays)
+                path.parent.rmdir()
         return _run(study, out, store, files, workers, backend, ray_address, ray_timeout, log or _print)
 
 

@@ -171,8 +171,14 @@ def test_a_batch_killed_mid_write_resumes_to_the_results_of_an_uninterrupted_run
     cell = out / "batches" / "Empty-5x5__dqn-linear"
     assert sorted(p.name for p in cell.iterdir())[0].startswith(".tmp-") and (cell / "0.json").is_file()
     assert not (cell / "1.json").exists() and not cell_path(out, "Empty-5x5", "dqn-linear").exists()
+    first = (cell / "0.json").read_text()
     done = run_deep_study(study, out, workers=1, log=lambda line: None)
     assert (done.trained, done.batches) == (1, 1) and not cell.exists()
+    cell.mkdir()  # a launcher stopped between writing the cell and removing its batches: they are removed, not rerun
+    (cell / "0.json").write_text(first)
+    assert "1/1 cells done" in deep_status(out)[0]
+    again = run_deep_study(study, out, workers=1, log=lambda line: None)
+    assert (again.trained, again.reused, again.batches) == (0, 1, 0) and not cell.exists()
     merged, one = (json.loads(cell_path(tmp_path / name, "Empty-5x5", "dqn-linear").read_text()) for name in ("out", "whole"))
     for key in ("success", "return", "random_share", "train_episodes", "train_successes", "first_success", "seeds"):
         assert merged[key] == one[key], key

@@ -149,8 +149,10 @@ def test_a_failed_forensics_unit_leaves_a_failure_record_until_it_succeeds(
         run_units(store, [(simulation, 0)], workers=1, progress=False)
     record = copy / "failed" / f"{simulation.key}__r0000.json"
     assert "ZeroDivisionError" in read_json(record)["error"]
+    assert f", 1 failed (in {copy / 'failed'}; the next run retries them)" in folder_status(copy)
     monkeypatch.undo()
     assert run_units(store, [(simulation, 0)], workers=1, progress=False) == 1 and not record.exists()
+    assert " failed (in " not in folder_status(copy)
 
 
 @pytest.mark.parametrize("kind", ["fifo", "device"])
