@@ -170,11 +170,17 @@ def leader_sensitivity_lines(folder: Path, leaders: pd.DataFrame, intervals: pd.
         float(np.nanmean(sample[s])) if s in sample.columns and np.isfinite(sample[s]).any() else math.nan
         for s in STATISTICS
     ]
-    rows["leader / printed"] = rows.iloc[:, 1] / rows["printed"]
+    correlation = rows.index.str.contains("Pearson r")  # a correlation's ratio means nothing: its difference
+
+    def against(values: pd.Series | np.ndarray) -> np.ndarray:
+        values, printed = np.asarray(values, float), rows["printed"].to_numpy(float)
+        return np.where(correlation, values - printed, values / printed)
+
+    rows["leader / printed (r: minus)"] = against(rows.iloc[:, 1])
     own = protocol_statistics(Path(folder).parent / "paper")
     if own is not None:
         rows["the verdict's setting, the protocol's runs (walked, sum)"] = own
-        rows["verdict's / printed"] = own / rows["printed"].to_numpy(float)
+        rows["verdict's / printed (r: minus)"] = against(own)
     return [
         f"*Sensitivity of the sizes to the setting: each printed statistic beside its mean under the leading candidate "
         f"({setting}; {len(sample)} replications of the paper's protocol), and under the verdict's own setting (alpha "

@@ -273,6 +273,8 @@ def test_the_sensitivity_row_gives_each_printed_number_beside_the_leaders_mean(t
     assert "alpha 0.5, gamma 0.9; 2 replications" in lines[0]
     body = "\n".join(lines)
     assert f"| {STATISTICS[0]} | 4.00 | 2.00 | 0.50 |" in body and f"| {STATISTICS[-1]} | 28.00 | 14.00 | 0.50 |" in body
+    r = next(i for i, s in enumerate(STATISTICS) if "Pearson r" in s)  # a correlation: its difference, not a ratio
+    assert f"| {STATISTICS[r]} | {4 + 2 * r:.2f} | {2 + r:.2f} | {-(2 + r):.2f} |" in body
     assert leader_sensitivity_lines(tmp_path / "none", leaders, intervals) == []
 
 

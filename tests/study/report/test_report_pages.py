@@ -165,6 +165,7 @@ def test_the_lead_is_split_per_metric_and_under_both_definitions_into_what_remai
     assert "direction rule" not in sentence  # the share says how much remains, not why
     assert sentence.endswith("Per ε, speed 1 wins only against ε >= 0.4.")
     summary = mechanism_summary(table)
+    assert summary.startswith("At speed 1")
     assert ">= 80% remains under the walked definition (9 ε-greedy runs censored)" in summary
     assert "none remains under the greedy definition (0 ε-greedy runs censored)" in summary
 

@@ -89,7 +89,7 @@ def ranks_sentence(ranks: dict[str, tuple[int, ...]], before: dict[str, tuple[in
             return ""
         return f" ({found[0]} ahead with non-overlapping 95% CIs)" if found[0] else " (its 95% CI overlapping every one ahead)"
 
-    text = f"Among the {total} agents of the fair-baselines study ({task}, 20 seeds each) the affective agent ranks " + (
+    text = f"Among the {total} agents of the fair-baselines study ({task}, 20 seeds) the affective agent ranks " + (
         f"{ordinal(position)} on decisions per episode{clear(ahead)}"
     )
     if task in before:
@@ -108,7 +108,7 @@ def cells_sentence(judged_main: list[claims.Judgement]) -> str:
     ]
     if not changed:
         return ""
-    return "Counting the paper's steps as cells instead of decisions, " + "; ".join(changed) + "."
+    return "Counting steps as cells, " + "; ".join(changed) + "."
 
 
 def abstract_sentences(

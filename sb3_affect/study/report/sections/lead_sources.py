@@ -122,10 +122,7 @@ def mechanism_summary(table: pd.DataFrame) -> str:
         parts.append(f"{share} under the {definition} definition ({censored:,} ε-greedy runs censored)")
     if not parts:
         return ""
-    return (
-        "With its speed fixed at 1 cell, of the affective agent's lead before the optimal path (averaged over ε) "
-        + " and ".join(parts) + "."
-    )
+    return "At speed 1, of the affective agent's lead before the optimal path (mean over ε) " + " and ".join(parts) + "."
 
 
 def shown_leads(table: pd.DataFrame) -> pd.DataFrame:
@@ -170,7 +167,7 @@ def lead_section(ctx: ReportContext) -> None:
             "(ε-greedy minus affective; negative: ε-greedy ahead) with its 1- or 2-cell moves and with its speed fixed "
             "at 1 (the speed ablation's own seeds), and how much of the lead remains at speed 1; before the optimal path "
             "under both definitions (walked: the first episode whose path is shortest; greedy: until the greedy policy "
-            "stays optimal). \">=\": a lower bound (runs that never found the path counted at their total); a share "
-            "of two bounds is no bound",
+            "stays optimal). \">=\": a lower bound (runs that never found the path counted at their total; only "
+            "ε-greedy's mean is one here, so the share that remains is a bound too, in the direction marked)",
         )
         ctx.doc.p(mechanism_sentence(table))
