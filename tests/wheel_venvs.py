@@ -137,7 +137,10 @@ def core_venv(wheel: Path, path: Path, compiled: bool = False) -> Path:
 def full_venv(wheel: Path, path: Path) -> Path:
     """A venv at ``path`` with the wheel beside every library of the test environment, and the kernels' numba cache."""
     python, site = _venv(path)
-    (site / "test-environment.pth").write_text(sysconfig.get_paths()["purelib"] + "\n")  # every library, not sb3_affect
+    # every library of this environment, not sb3_affect: its site-packages folders (a .pth file of theirs that adds
+    # another folder is not read there, so each is named; an editable install's finder is not installed by them)
+    folders = dict.fromkeys([sysconfig.get_paths()["purelib"], *(p for p in sys.path if p.endswith("site-packages"))])
+    (site / "test-environment.pth").write_text("".join(f"{folder}\n" for folder in folders))
     _install(wheel, site)
     _copy_compiled_code(site)
     return python
