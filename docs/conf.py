@@ -56,7 +56,9 @@ nitpick_ignore_regex = [
     (r"py:class", r"sb3_affect\.study\.(report\.reading\.context\.ReportContext|launcher\.schema\.Cell)"),
     # the store's checked view of a folder's files, handed from ``checked_files`` to ``results_parts`` (private module)
     (r"py:class", r"(sb3_affect\.study\.launcher\.folder_files\.)?FolderFiles"),
-    (r"py:.*", r"(collections\.abc|typing|pathlib|enum|types|os|argparse|io)\..*"),
+    # what the tabular loop takes from its agent (``TabularQAlgorithm.loop_parts``), described there
+    (r"py:class", r"(sb3_affect\.agents\.reference_loop\.)?LoopParts"),
+    (r"py:.*", r"(collections\.abc|typing|pathlib|enum|types|os|argparse|io|random)\..*"),
     (r"py:.*", r"(GymEnv|Schedule|MaybeCallback|BaseCallback|BaseAlgorithm|BasePolicy|VecEnv|Env|Logger|Path|Figure|"
      r"Axes|DataFrame|Series|ndarray|NDArray|Tensor|Callable|Mapping|Sequence|Iterable|Iterator|Any|Self|TypeAlias|"
      r"EmotionRule|Geometry|SelfTabular|SelfFiles|SelfRepeat|Module|Task|OnResult|OnFailure|ObsType|ActType|SupportsFloat|RenderFrame|MazeSpec|_Context)"),
