@@ -212,3 +212,8 @@ def test_the_verdicts_sentence_on_time_and_distance_is_read_from_the_leads() -> 
         "a lead in decisions is not one in cells: per episode, averaged over ε, it is 7 decisions ahead of ε-greedy "
         "and 17 cells behind"
     )
+
+
+def test_a_value_too_small_for_its_columns_decimals_is_the_bound_it_is_below_not_scientific() -> None:
+    assert [fmt(v, 3) for v in (1.47e-4, -1.32e-5, 0.0, 0.0153)] == ["< 0.001", "> -0.001", "0.000", "0.015"]
+    assert fmt(7.67e7, 3) == "76,700,000" and fmt(5094589.0, 3) == "5,094,589"  # one notation in one table

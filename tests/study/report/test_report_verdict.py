@@ -374,14 +374,16 @@ def test_the_speed_ablation_concludes_per_epsilon() -> None:
     rng = np.random.default_rng(5)
     slow = runs[runs.agent == "affective"].assign(agent="affective-speed-1")
     slow["decisions_before_optimal"] = 3800 * rng.lognormal(0, 0.2, len(slow)) / np.exp(0.02)  # mean 3,800
+    slow["decisions_to_greedy_optimal"] = 1000.0 * rng.lognormal(0, 0.2, len(slow))  # far ahead everywhere
+    runs["greedy_censored"] = slow["greedy_censored"] = False
     table = speed_one_per_eps(runs, slow)
     assert list(table.index) == [f"{e:.1f}" for e in EPS]
-    assert list(table["at this ε"]) == ["ε-greedy fewer"] * 3 + ["no significant difference"] + ["speed 1 fewer"] * 5
-    text = per_eps_conclusion(table)
-    assert text.startswith("the direction rule alone beats ε-greedy only against ε >= 0.5"), text
+    walked = ["ε-greedy fewer"] * 3 + ["no significant difference"] + ["speed 1 fewer"] * 5
+    assert list(table["at this ε, walked"]) == walked
+    text = per_eps_conclusion(table, "walked")
+    assert text.startswith("walked: the direction rule alone beats ε-greedy only against ε >= 0.5"), text
     assert "significantly more at ε 0.1, 0.2, 0.3" in text and "neither at ε 0.4" in text
-    slow["decisions_before_optimal"] = 1000.0 * rng.lognormal(0, 0.2, len(slow))  # far ahead everywhere
-    assert per_eps_conclusion(speed_one_per_eps(runs, slow)).startswith("the direction rule alone beats ε-greedy at every ε")
+    assert per_eps_conclusion(table, "greedy").startswith("greedy: the direction rule alone beats ε-greedy at every ε")
 
 
 def test_the_speed_ablation_table_puts_decisions_beside_cells() -> None:
@@ -395,14 +397,16 @@ def test_the_speed_ablation_table_puts_decisions_beside_cells() -> None:
     slow["cells_per_episode"] = slow.decisions_per_episode  # one cell per decision
     slow["cells_before_optimal"] = slow.decisions_before_optimal
     table = speed_table(runs, slow)
+    walked, cells = "decisions before the optimal path (walked)", "cells before the optimal path (walked)"
     assert list(table.index) == [
-        "decisions per episode", "cells per episode", "decisions before the optimal path", "cells before the optimal path",
-    ]
+        "decisions per episode", "cells per episode", walked, cells,
+        "decisions until the greedy policy stays optimal (greedy)",
+    ]  # fmt: skip
     # at speed 1 a decision is a cell: its lead is the same in both units
     one = "ε-greedy minus affective, speed fixed at 1"
-    assert table.at["decisions before the optimal path", one] == table.at["cells before the optimal path", one]
+    assert table.at[walked, one] == table.at[cells, one]
     two = "ε-greedy minus affective (1 or 2 cells)"
-    assert table.at["decisions before the optimal path", two] != table.at["cells before the optimal path", two]
+    assert table.at[walked, two] != table.at[cells, two]
 
 
 def test_fig5_and_fig6_windows_move_the_verdicts() -> None:
