@@ -113,5 +113,5 @@ def test_the_deep_agents_page_trains_with_the_shipped_settings() -> None:
         shipped.pop(key)
     assert namespace["settings"] == {key: value for key, value in shipped.items() if key != "gradient_steps"}
     assert shipped["gradient_steps"] == 1  # DQN's default
-    assert "learn(100_000)" in page and _file("affectdqn")["MiniGrid-Empty-8x8-v0"]["n_timesteps"] == 100_000
+    assert "the runs below took 100_000" in page and _file("affectdqn")["MiniGrid-Empty-8x8-v0"]["n_timesteps"] == 100_000
     assert "n_envs=4" in page and _file("affectdqn")["MiniGrid-Empty-8x8-v0"]["n_envs"] == 4
