@@ -129,9 +129,11 @@ def _settings_columns(
 
     inputs = settings_inputs(algo, kwargs, env_id, env_kwargs, episodes)
     if inputs is not None:
+        _announce_compile(moving=False)
         return batch_columns(inputs, seeds, episodes) if seeds else _batch_frame(inputs, seeds, episodes)
     prey_inputs = moving_settings_inputs(algo, kwargs, env_id, env_kwargs, episodes)
     if prey_inputs is not None:
+        _announce_compile(moving=True)
         return moving_columns(prey_inputs, seeds, episodes) if seeds else _batch_frame(None, seeds, episodes)
     return None
 
@@ -153,6 +155,7 @@ def _template_columns(
         reason = batch_reason(template, episodes)
         if reason is None:
             inputs = batch_inputs(template.compiled_settings(), template.single_env(), episodes)
+            _announce_compile(moving=False)
             return _batch_frame(inputs, seeds, episodes), None
         if moving_reason(template.single_env()) is None:  # MovingPursuit: the moving-prey kernel, or why not
             reason = moving_batch_reason(template)
@@ -160,10 +163,24 @@ def _template_columns(
                 prey_inputs = moving_inputs(template.compiled_settings(), template.single_env(), episodes)
                 if not seeds:
                     return _batch_frame(None, seeds, episodes), None
+                _announce_compile(moving=True)
                 return pd.DataFrame(moving_columns(prey_inputs, seeds, episodes)), None
         return None, reason
     finally:
         env.close()
+
+
+def _announce_compile(moving: bool) -> None:
+    """Before a kernel call: one line if that kernel is not compiled yet on this machine (``kernel.jit.announce_compile``)."""
+    from sb3_affect.agents.compiled_moving import COMPILE_CPU_SECONDS as MOVING_SECONDS
+    from sb3_affect.agents.compiled_state import COMPILE_CPU_SECONDS as GRID_SECONDS
+    from sb3_affect.kernel import grid_batch, moving_loop
+    from sb3_affect.kernel.jit import announce_compile
+
+    if moving:
+        announce_compile("the tabular agents' moving-prey batch kernel (simulate)", (moving_loop.run_seeds,), MOVING_SECONDS)
+    else:
+        announce_compile("the tabular agents' batch kernel (simulate)", (grid_batch.run_seeds,), GRID_SECONDS)
 
 
 def _learned_frame(

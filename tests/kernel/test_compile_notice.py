@@ -53,3 +53,16 @@ def test_the_minigrid_worlds_are_cached_once_used() -> None:
 
     minigrid_vec_env("MiniGrid-Empty-5x5-v0", 1, seed=0).reset()
     assert cached(reset_worlds) and cached(step_worlds)
+
+
+@pytest.mark.parametrize("env_id", ["sb3_affect/GridPursuit-v0", "sb3_affect/MovingPursuit-v0"])
+def test_simulate_announces_the_batch_kernel_it_is_about_to_compile(env_id: str, capsys: Any,
+                                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    from sb3_affect.engine.simulation import simulate
+
+    monkeypatch.setattr(jit, "_ANNOUNCED", set())
+    monkeypatch.setattr(jit, "cached", lambda dispatcher: False)  # as on a machine whose numba cache is cold
+    simulate("AffectQ", {}, env_id, {}, [0], 2)
+    line = capsys.readouterr().err
+    kernel = "tabular agents' moving-prey batch kernel" if "Moving" in env_id else "tabular agents' batch kernel"
+    assert line.count("\n") == 1 and f"compiling the {kernel} (simulate)" in line
