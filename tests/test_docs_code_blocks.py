@@ -25,10 +25,13 @@ ROOT = Path(__file__).resolve().parents[1]
 PAGES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 BLOCK = re.compile(r"^```python\n(?P<code>.*?)^```", re.S | re.M)
 #: The modules outside the core install a block may import (the extras' and sb3-contrib's): such a block runs in the
-#: full venv. The hunters' env (``make_parallel``) needs PettingZoo without the block importing it.
+#: full venv. The hunters' env (``make_parallel``) needs PettingZoo, and SB3's ``VecVideoRecorder`` moviepy, without the
+#: block importing them.
 OPTIONAL = ("minigrid", "sb3_contrib", "pettingzoo", "huggingface_hub", "huggingface_sb3", "rl_zoo3", "ray", "matplotlib",
             "scipy", "yaml", "sb3_affect.study", "sb3_affect.integrations.zoo")
-NEEDS_AN_EXTRA = re.compile(rf"^\s*(from|import) ({'|'.join(map(re.escape, OPTIONAL))})\b|\bmake_parallel\(", re.M)
+NEEDS_AN_EXTRA = re.compile(
+    rf"^\s*(from|import) ({'|'.join(map(re.escape, OPTIONAL))})\b|\bmake_parallel\(|\bVecVideoRecorder\(", re.M
+)
 
 
 def blocks(page: Path) -> list[tuple[str, str]]:
@@ -50,6 +53,7 @@ def test_the_blocks_are_found_and_sorted_by_the_install_they_need() -> None:
     assert {"README.md", "docs/deep_agents.md", "docs/extending.md", "docs/use_it_in_your_project.md"} <= pages
     assert needs_an_extra("from minigrid.wrappers import FlatObsWrapper\n")
     assert needs_an_extra("env = make_parallel('sb3_affect/HunterPursuit-v0')\n")
+    assert needs_an_extra("venv = VecVideoRecorder(venv, 'videos', lambda step: step == 0)\n")
     assert not needs_an_extra("from sb3_affect import AffectQ\nimport gymnasium as gym\n")
 
 
