@@ -66,3 +66,15 @@ def test_simulate_announces_the_batch_kernel_it_is_about_to_compile(env_id: str,
     line = capsys.readouterr().err
     kernel = "tabular agents' moving-prey batch kernel" if "Moving" in env_id else "tabular agents' batch kernel"
     assert line.count("\n") == 1 and f"compiling the {kernel} (simulate)" in line
+
+
+def test_a_team_run_announces_the_team_loop_it_is_about_to_compile(capsys: Any, monkeypatch: pytest.MonkeyPatch) -> None:
+    pytest.importorskip("pettingzoo")
+    from sb3_affect.engine.team_simulation import simulate_team
+
+    monkeypatch.setattr(jit, "_ANNOUNCED", set())
+    monkeypatch.setattr(jit, "cached", lambda dispatcher: False)  # as on a machine whose numba cache is cold
+    members = [("AffectQ", {}), ("QLearning", {"exploration_rate": 0.1})]
+    assert simulate_team(members, "sb3_affect/HunterPursuit-v0", {}, 0, 2) is not None
+    line = capsys.readouterr().err
+    assert line.count("\n") == 1 and "compiling the hunter team's loop (simulate_team)" in line
