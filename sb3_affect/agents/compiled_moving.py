@@ -21,14 +21,10 @@ from sb3_affect.core.settings import TabularSettings
 from sb3_affect.kernel import agent_settings, grid_arrays, moving_loop, state_layout
 from sb3_affect.kernel.agent_settings import KernelAgent
 from sb3_affect.kernel.decision import ObsAppraisal
-from sb3_affect.kernel.jit import announce_compile
+from sb3_affect.kernel.jit import MOVING_COMPILE_CPU_SECONDS, announce_compile
 from sb3_affect.kernel.moving_batch import moving_inputs
 from sb3_affect.kernel.mt19937 import TW_SIZE
 from sb3_affect.kernel.pcg64 import state_from_generator, state_to_generator
-
-#: The CPU time of compiling the moving-prey loop on a cold cache: the grid loop's figure (``compiled_state``), whose
-#: decision functions it shares; not measured on its own.
-COMPILE_CPU_SECONDS = 30
 
 __all__ = ["MovingKernelRun", "MovingKnownArrays"]
 
@@ -148,7 +144,7 @@ class MovingKernelRun(RunArrays):
     def step(self, alpha: np.ndarray, p: np.ndarray, total_timesteps: int, max_episodes: int) -> tuple[int, int]:
         """Run the kernel (``moving_loop.moving_loop``); returns (episodes finished, 0)."""
         announce_compile("the tabular agents' moving-prey loop (engine='compiled')", (moving_loop.moving_loop,),
-                         COMPILE_CPU_SECONDS)
+                         MOVING_COMPILE_CPU_SECONDS)
         cells_before = self._room(max_episodes)
         inputs = self.inputs
         finished = moving_loop.moving_loop(

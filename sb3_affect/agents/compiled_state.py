@@ -18,11 +18,7 @@ from sb3_affect.core.settings import TabularSettings
 from sb3_affect.kernel import agent_settings, grid_arrays, grid_loop, state_layout
 from sb3_affect.kernel.agent_settings import KernelAgent
 from sb3_affect.kernel.grid_inputs import TableArrays, kernel_config, time_limit_of, unwrap
-from sb3_affect.kernel.jit import announce_compile
-
-#: The CPU time of compiling the grid loop on a cold cache (measured on the 2-core machine under load: README's first
-#: example took 29.6 CPU s cold, 3.7 s warm).
-COMPILE_CPU_SECONDS = 30
+from sb3_affect.kernel.jit import GRID_COMPILE_CPU_SECONDS, announce_compile
 
 __all__ = ["GridKnownArrays", "KernelRun", "empty_appraisal"]
 
@@ -154,7 +150,7 @@ class KernelRun(RunArrays):
     # -- running -------------------------------------------------------------------------------------------------
     def step(self, alpha: np.ndarray, p: np.ndarray, total_timesteps: int, max_episodes: int) -> tuple[int, int]:
         """Run the kernel (see ``grid_loop.run``); returns (episodes finished, why it stopped)."""
-        announce_compile("the tabular agents' grid loop (engine='compiled')", (grid_loop.run,), COMPILE_CPU_SECONDS)
+        announce_compile("the tabular agents' grid loop (engine='compiled')", (grid_loop.run,), GRID_COMPILE_CPU_SECONDS)
         cells_before = self._room(max_episodes)
         state = grid_arrays.RunState(self.q, self.mt, self.ist, self.fst, self.ucb_n, self.ucb_tot)
         appraisal = grid_arrays.Appraisal(self.dist, self.edge, self.pred, self.pred_n, self.goal, self.fit_vals)

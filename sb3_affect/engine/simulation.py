@@ -172,15 +172,14 @@ def _template_columns(
 
 def _announce_compile(moving: bool) -> None:
     """Before a kernel call: one line if that kernel is not compiled yet on this machine (``kernel.jit.announce_compile``)."""
-    from sb3_affect.agents.compiled_moving import COMPILE_CPU_SECONDS as MOVING_SECONDS
-    from sb3_affect.agents.compiled_state import COMPILE_CPU_SECONDS as GRID_SECONDS
     from sb3_affect.kernel import grid_batch, moving_loop
-    from sb3_affect.kernel.jit import announce_compile
+    from sb3_affect.kernel.jit import GRID_COMPILE_CPU_SECONDS, MOVING_COMPILE_CPU_SECONDS, announce_compile
 
     if moving:
-        announce_compile("the tabular agents' moving-prey batch kernel (simulate)", (moving_loop.run_seeds,), MOVING_SECONDS)
+        feature, kernel, seconds = "moving-prey batch kernel", moving_loop.run_seeds, MOVING_COMPILE_CPU_SECONDS
     else:
-        announce_compile("the tabular agents' batch kernel (simulate)", (grid_batch.run_seeds,), GRID_SECONDS)
+        feature, kernel, seconds = "batch kernel", grid_batch.run_seeds, GRID_COMPILE_CPU_SECONDS
+    announce_compile(f"the tabular agents' {feature} (simulate)", (kernel,), seconds)
 
 
 def _learned_frame(

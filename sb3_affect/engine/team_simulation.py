@@ -10,12 +10,8 @@ from collections.abc import Mapping, Sequence
 from typing import Any, NamedTuple
 
 from sb3_affect.kernel import team_loop
-from sb3_affect.kernel.jit import announce_compile
+from sb3_affect.kernel.jit import TEAM_COMPILE_CPU_SECONDS, announce_compile
 from sb3_affect.kernel.team_batch import run_team, team_columns, team_settings_inputs
-
-#: The CPU time of compiling the team loop on a cold cache (21 CPU s for a team of AffectQ and QLearning, measured on
-#: the 2-core machine beside another job).
-COMPILE_CPU_SECONDS = 20
 
 
 class TeamSimulation(NamedTuple):
@@ -42,6 +38,6 @@ def simulate_team(
     inputs = team_settings_inputs(members, env_id, env_kwargs, episodes)
     if inputs is None:
         return None
-    announce_compile("the hunter team's loop (simulate_team)", (team_loop.team_loop,), COMPILE_CPU_SECONDS)
+    announce_compile("the hunter team's loop (simulate_team)", (team_loop.team_loop,), TEAM_COMPILE_CPU_SECONDS)
     run = run_team(inputs, int(seed), episodes)
     return TeamSimulation(team_columns(inputs, run), run.decisions)
