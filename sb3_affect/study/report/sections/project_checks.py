@@ -5,6 +5,8 @@ interquartile means with stratified bootstrap CIs, probabilities of improvement 
 
 from __future__ import annotations
 
+import math
+
 import matplotlib
 
 matplotlib.use("Agg")
@@ -14,12 +16,13 @@ import pandas as pd
 from rliable import metrics as rmetrics
 
 from sb3_affect.study.report.estimation.bootstrap import bootstrap_improvement, bootstrap_iqm_cis, bootstrap_profile
+from sb3_affect.study.report.estimation.kaplan_meier import bootstrap_km_iqm
 from sb3_affect.study.report.reading.context import AFFECTIVE, STANDARD, ReportContext
 from sb3_affect.study.report.reading.run_tables import load_results, run_metrics
 from sb3_affect.study.report.reading.study_tables import SPEED_AGENT
 from sb3_affect.study.report.rendering.document import fmt
 from sb3_affect.study.report.rendering.figures import save
-from sb3_affect.study.report.verdicts.censoring import censored_runs, difference_sign, marked
+from sb3_affect.study.report.verdicts.censoring import FLAGS, censored_runs, difference_sign, marked
 
 METRICS = (
     ("decisions_per_episode", "steps per episode"),
@@ -74,10 +77,7 @@ def rliable_table(m: pd.DataFrame, seed: int = 0) -> pd.DataFrame:
         # a run that never found the path counts at its total: an IQM over it is a lower bound, and so on
         bounded = {name: censored_runs(part, column) > 0 for name, part in parts.items()}
         for name, values in scores.items():
-            iqm = float(rmetrics.aggregate_iqm(values[:, None]))
-            _, low, high = cis[name][column]
-            text = f"{fmt(iqm, 1)} [{fmt(low, 1)}, {fmt(high, 1)}]"
-            rows[name][f"IQM {label}"] = marked(text, ">=" if bounded[name] else "")
+            rows[name][f"IQM {label}"] = iqm_text(values, parts[name], column, cis[name][column], seed)
             if name == AFFECTIVE or AFFECTIVE not in scores:
                 continue
             point, low, high = better[(column, name)]
@@ -86,6 +86,23 @@ def rliable_table(m: pd.DataFrame, seed: int = 0) -> pd.DataFrame:
     table = pd.DataFrame.from_dict(rows, orient="index")
     table.index.name = "agent"
     return table
+
+
+def iqm_text(values: np.ndarray, runs: pd.DataFrame, column: str, ci: tuple[float, float, float], seed: int) -> str:
+    """
+    The IQM [95% CI] of one agent's ``values``: rliable's when no run is censored in ``column``; else the Kaplan-Meier
+    IQM with its bootstrap CI (``KM``), or, where more than a quarter of the runs are censored above every event, the
+    plain IQM marked as the lower bound it is, with the censored share and no interval.
+    """
+    if not censored_runs(runs, column):
+        _, low, high = ci
+        return f"{fmt(float(rmetrics.aggregate_iqm(values[:, None])), 1)} [{fmt(low, 1)}, {fmt(high, 1)}]"
+    censored = runs[FLAGS[column]].to_numpy(bool)
+    point, low, high = bootstrap_km_iqm(values, censored, REPS, seed=seed)
+    if math.isnan(low):
+        share = f"{censored.mean():.0%} censored: not estimable"
+        return f"{marked(fmt(float(rmetrics.aggregate_iqm(values[:, None])), 1), '>=')} ({share})"
+    return f"KM {fmt(point, 1)} [{fmt(low, 1)}, {fmt(high, 1)}]"
 
 
 def profile_figure(m: pd.DataFrame, path: str, column: str = "decisions_before_optimal") -> str:
@@ -144,7 +161,9 @@ def checks_section(ctx: ReportContext) -> None:
         f"rliable's measures ({n:,} runs per affective cell): interquartile mean (IQM) with bootstrap 95% CIs over runs "
         f"({REPS:,} seeded resamples; {REPS // 5:,} for the probability of improvement), and the probability of "
         "improvement P(affective better than X) with its CI "
-        "(0.5 = no difference; lower steps are better). The affective agent is pooled over its 9 ε labels."
+        "(0.5 = no difference; lower steps are better). The affective agent is pooled over its 9 ε labels. Where runs "
+        "never found the path (censored), the IQM is the Kaplan-Meier distribution's (KM, with its bootstrap CI), or a "
+        "lower bound (>=) where more than a quarter of the runs are censored above every event."
     )
     ctx.table("rliable", rliable_table(m), "IQM and probability of improvement (rliable)")
     profile_figure(m, str(ctx.figure("performance_profiles")))
