@@ -10,7 +10,7 @@ from sb3_affect.study.report.estimation import bootstrap as stats
 from sb3_affect.study.report.estimation.kaplan_meier import bootstrap_km_iqm, km_iqm
 from sb3_affect.study.report.sections.protocol_draw import CAUSE, RANK, block_table
 from sb3_affect.study.report.verdicts import claims
-from sb3_affect.study.report.verdicts.censoring import censored_mean, restricted_mean
+from sb3_affect.study.report.verdicts.censoring import censored_mean, restricted_mean, restricted_over_eps
 
 
 def test_a_performance_profile_plateaus_at_the_share_of_runs_that_found_the_path() -> None:
@@ -56,6 +56,25 @@ def test_the_kaplan_meier_iqm_is_the_trimmed_mean_without_censoring_and_integrat
     point, low, high = bootstrap_km_iqm(spread, censored, 300, seed=1)
     assert low < point < high and point > stats.iqm(np.where(censored, spread / 2, spread))  # halving the bounds lowers it
     assert bootstrap_km_iqm(spread, censored, 300, seed=1) == (point, low, high)  # seeded
+
+
+def test_the_restricted_mean_over_epsilon_averages_the_cells_to_one_horizon() -> None:
+    """
+    Two ε cells of two agents, nothing censored and every cell reaching 10: the plain means over ε (6 and 4) and their
+    difference; Greenwood's variance without censoring is each cell's variance / n, so the CI is the plain one's.
+    """
+    first = np.array([2.0, 6.0, 10.0, 6.0])
+    second = np.array([1.0, 3.0, 10.0, 2.0])
+    m = pd.DataFrame({"agent": ["a"] * 8 + ["b"] * 8, "epsilon": np.tile(np.repeat([0.1, 0.2], 4), 2),
+                      "decisions_before_optimal": np.r_[first, first, second, second], "censored": False})  # fmt: skip
+    horizon, one = restricted_over_eps(m, "decisions_before_optimal", ("a",))
+    assert horizon == 10.0 and one.value == pytest.approx(6.0) and one.se == pytest.approx(np.sqrt(2 * first.var() / 4) / 2)
+    _, both = restricted_over_eps(m, "decisions_before_optimal", ("a", "b"))
+    assert both.value == pytest.approx(2.0)
+    # one run at 6 of ε 0.1 never found it: S = 3/4 after 2, 1/2 after the event at 6, 0 after 10; area 2 + 3 + 2 = 7
+    m.loc[m.index[1], "censored"] = True
+    _, censored = restricted_over_eps(m, "decisions_before_optimal", ("a",))
+    assert censored.value == pytest.approx((7.0 + 6.0) / 2)
 
 
 def _censored_standard(censored: int) -> pd.DataFrame:

@@ -94,6 +94,28 @@ def restricted_difference(
     return horizon, Estimate(a - b, a - b - Z * se, a - b + Z * se, se)
 
 
+def restricted_over_eps(m: pd.DataFrame, column: str, agents: tuple[str, ...]) -> tuple[float, Estimate]:
+    """
+    The mean over ε of one agent's Kaplan-Meier restricted means in ``column`` (``agents`` of one name), or of the
+    first agent's minus the second's (two names), every (agent, ε) cell to the horizon all of them reach, with a normal
+    95% CI from Greenwood's variances (the cells independent): ``(horizon, estimate)``. The estimate a mean over ε of
+    plain means becomes where censored runs make those means bounds.
+    """
+    flag = FLAGS[column]
+    cells: dict[tuple[str, float], tuple[np.ndarray, np.ndarray]] = {}
+    for agent in agents:
+        runs = m[m.agent == agent]
+        for eps in np.unique(runs.epsilon.to_numpy(float)):
+            part = runs[runs.epsilon == eps]
+            cells[agent, float(eps)] = (part[column].to_numpy(float), part[flag].to_numpy(bool))
+    horizon, means = restricted_means({f"{agent} {eps}": cell for (agent, eps), cell in cells.items()})
+    epsilons = sorted({eps for _, eps in cells})
+    signs = dict(zip(agents, (1.0, -1.0)))
+    value = sum(signs[agent] * means[f"{agent} {eps}"][0] for agent, eps in cells) / len(epsilons)
+    se = math.sqrt(sum(means[f"{agent} {eps}"][1] for agent, eps in cells)) / len(epsilons)
+    return horizon, Estimate(value, value - Z * se, value + Z * se, se)
+
+
 def difference_text(difference: Estimate, first: pd.DataFrame, second: pd.DataFrame, column: str) -> str:
     """
     ``first`` minus ``second`` in ``column`` as the report prints it: the Welch estimate ``difference`` with its CI when

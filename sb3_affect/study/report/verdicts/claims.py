@@ -26,7 +26,7 @@ from scipy import stats as sps
 
 from sb3_affect.study.report.rendering.document import first_words, fmt, pval, sig
 from sb3_affect.study.report.verdicts import paper_numbers as paper
-from sb3_affect.study.report.verdicts.censoring import difference_sign, marked
+from sb3_affect.study.report.verdicts.censoring import difference_sign, marked, restricted_over_eps
 from sb3_affect.study.report.verdicts.course_claims import (
     ABOUT,
     judge_episodes_to_optimal,
@@ -35,7 +35,7 @@ from sb3_affect.study.report.verdicts.course_claims import (
     judge_four_emotions,
     judge_long_run,
 )
-from sb3_affect.study.report.verdicts.inference import ALPHA, Test, holm, significant, tost, two_sided_p
+from sb3_affect.study.report.verdicts.inference import ALPHA, Estimate, Test, holm, significant, tost, two_sided_p
 from sb3_affect.study.report.verdicts.judgement import (
     AFFECTIVE,
     STANDARD,
@@ -210,7 +210,8 @@ def judge_table_v(m: pd.DataFrame, column: str = "decisions_before_optimal", def
         f"table_v:{definition}",
         f"Table V ({definition} definition): affective needs significantly fewer steps",
         f"110190.20 vs 99357.56 per 20 runs (difference {fmt(paper_diff)}), P one-tail 0.01",
-        " vs ".join(means) + f" per 20 runs; difference {marked(est.text(), sign)} ({share} of ε-greedy's{censored_text})",
+        " vs ".join(means) + f" per 20 runs; difference {_difference(m, column, est, sign, runs)} ({share} of ε-greedy's"
+        f"{censored_text})",
         cells=f"cells before it, per run: ε-greedy minus affective {marked(_lead(m, cell_column), sign)}"
         if cell_column
         else "n/a",
@@ -240,6 +241,17 @@ def judge_table_v(m: pd.DataFrame, column: str = "decisions_before_optimal", def
 
     j.decide = decide
     return j
+
+
+def _difference(m: pd.DataFrame, column: str, est: Estimate, sign: str, runs: int) -> str:
+    """
+    Table V's difference per ``runs`` runs: ``est`` with its CI, or, where censored runs make it a bound (``sign``),
+    the bound marked and the Kaplan-Meier restricted-mean difference in place of the interval of a bound.
+    """
+    if not sign:
+        return est.text()
+    horizon, km = restricted_over_eps(m, column, (STANDARD, AFFECTIVE))
+    return f"{marked(sig(est.value), sign)}; Kaplan-Meier to {sig(horizon)} decisions a run: {km.scaled(runs).text()}"
 
 
 def judge_fig4(m: pd.DataFrame, column: str = "decisions_before_optimal", definition: str = "walked") -> Judgement:
@@ -295,7 +307,12 @@ def judge_printed_mean(m: pd.DataFrame, table: str, agent: str, definition: str 
     runs = m[m.agent == agent]
     # a run that never finds the path counts all its decisions: a lower bound on its steps before the optimal path
     censored = int(runs[flag].astype(bool).sum()) if table == "v" and flag in runs.columns else 0
-    bound = f">= {est.text()}" if censored else est.text()
+    if censored:  # a lower bound: the Kaplan-Meier restricted mean in place of the interval of a bound
+        horizon, km = restricted_over_eps(m, column, (agent,))
+        bound = f">= {sig(est.value)}; Kaplan-Meier restricted mean to {sig(horizon)} decisions a run: "
+        bound += km.scaled(scale).text()
+    else:
+        bound = est.text()
     j = Judgement(
         f"printed_{table}:{agent}" + (f":{definition}" if table == "v" else ""),
         name,
