@@ -53,6 +53,7 @@ Commands: ``train``, ``enjoy``, ``record_video``, ``plot_train``, ``all_plots`` 
 
 from __future__ import annotations
 
+import copy
 import functools
 import importlib
 import runpy
@@ -152,16 +153,17 @@ def _read_yaml(path: Any) -> Any:
     return yaml.safe_load(path.read_text())
 
 
-def dqn_minigrid() -> dict[str, dict[str, Any]]:
-    """DQN's MiniGrid settings: each task's keys of ``dqn.yml`` with the deep study's ``network`` (``STUDY_NETWORK``)."""
+def _dqn_minigrid() -> dict[str, dict[str, Any]]:
+    """DQN's MiniGrid settings: each task's keys of ``dqn.yml`` with the deep study's ``network`` (``STUDY_NETWORK``),
+    a copy of it for each task (the table written for the zoo then holds no YAML aliases)."""
     network = _read_yaml(resources.files(STUDY_NETWORK[0]) / STUDY_NETWORK[1])["network"]
-    return {task: {**keys, **network} for task, keys in _read_yaml(HYPERPARAMS_FOLDER / "dqn.yml").items()}
+    return {task: {**keys, **copy.deepcopy(network)} for task, keys in _read_yaml(HYPERPARAMS_FOLDER / "dqn.yml").items()}
 
 
 def hyperparams(algo: str) -> dict[str, dict[str, Any]]:
     """
     The hyperparameter table ``train`` gives the zoo for ``algo`` (env id -> keywords): for ``dqn``, and for a package
-    agent that shares DQN's settings, ``dqn_minigrid()`` (without DQN's epsilon for "network") and the agent's own
+    agent that shares DQN's settings, ``_dqn_minigrid()`` (without DQN's epsilon for "network") and the agent's own
     MiniGrid keywords; for any other package agent its file ``<algo>.yml``. KeyError for an algorithm of neither.
     """
     recipe = ZOO_RECIPES[algo] if algo != "dqn" else ZooRecipe((), "epsilon")
@@ -170,8 +172,8 @@ def hyperparams(algo: str) -> dict[str, dict[str, Any]]:
         return table
     epsilon = () if recipe.shares == "epsilon" else ("exploration_fraction", "exploration_final_eps")
     return {
-        task: {**{key: value for key, value in keys.items() if key not in epsilon}, **(recipe.minigrid or {})}
-        for task, keys in dqn_minigrid().items()
+        task: {**{key: value for key, value in keys.items() if key not in epsilon}, **copy.deepcopy(recipe.minigrid or {})}
+        for task, keys in _dqn_minigrid().items()
     }
 
 

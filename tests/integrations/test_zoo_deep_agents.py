@@ -104,6 +104,7 @@ def test_the_package_tables_are_given_for_its_agents_and_for_dqn_on_the_envs_it_
     assert {"qlearning", "affectq", *DEEP} == set(ZOO_RECIPES)
     conf = _conf_file("affectdqn", ["--env", "MiniGrid-Empty-8x8-v0"], tmp_path)
     assert conf == tmp_path / "affectdqn.yml" and yaml.safe_load(conf.read_text()) == hyperparams("affectdqn")
+    assert "&" not in conf.read_text()  # each task its own values, no YAML aliases
     conf = _conf_file("dqn", ["--env", "MiniGrid-DoorKey-5x5-v0"], tmp_path)
     assert conf == tmp_path / "dqn.yml" and yaml.safe_load(conf.read_text()) == hyperparams("dqn")
     assert _conf_file("qlearning", ["--env", "FrozenLake-v1"], tmp_path) == HYPERPARAMS_FOLDER / "qlearning.yml"
