@@ -1,6 +1,6 @@
 """
 AffectQRDQN's per-step cost against QR-DQN's (and AffectDQN's against DQN's), with the zoo's shipped MiniGrid settings
-(``sb3_affect/integrations/zoo_hyperparams/``: 4 envs, FlatObsWrapper, batch 64, train_freq 4), in CPU time
+(``sb3_affect.integrations.zoo.hyperparams``: 4 envs, FlatObsWrapper, batch 64, train_freq 4), in CPU time
 (``time.process_time``), the agents' rounds alternating so that the machine's load falls on each alike. Also how much of
 each step is the gradient step (``train``), where QR-DQN's quantile loss is.
 
@@ -13,25 +13,23 @@ from __future__ import annotations
 import argparse
 import statistics
 import time
-from pathlib import Path
 from typing import Any
 
 import torch as th
-import yaml
 from minigrid.wrappers import FlatObsWrapper
 from sb3_contrib import QRDQN
 from stable_baselines3 import DQN
 from stable_baselines3.common.env_util import make_vec_env
 
 from sb3_affect import AffectDQN, AffectQRDQN
+from sb3_affect.integrations.zoo import hyperparams
 
 ENV_ID = "MiniGrid-Empty-8x8-v0"
-FOLDER = Path(__file__).resolve().parents[1] / "sb3_affect" / "integrations" / "zoo_hyperparams"
 
 
 def settings(algo: str) -> dict[str, Any]:
-    """The shipped file's keywords of ``algo`` on ``ENV_ID`` (without the zoo's own keys)."""
-    params = dict(yaml.safe_load((FOLDER / f"{algo}.yml").read_text())[ENV_ID])
+    """The package's zoo keywords of ``algo`` on ``ENV_ID`` (``hyperparams``, without the zoo's own keys)."""
+    params = dict(hyperparams(algo)[ENV_ID])
     for key in ("env_wrapper", "n_envs", "n_timesteps", "policy"):
         params.pop(key, None)
     return params

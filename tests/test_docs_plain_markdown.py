@@ -9,7 +9,9 @@ gives now:
 * ``docstring: MODULE``: the module's docstring (a paragraph ending in ``::`` and its indented block become a
   paragraph ending in ``:`` and a text block);
 * ``sweep-schema`` and ``sweep-schema: forensics``: the experiment-file reference, one table per section, from the
-  validating models of ``sb3_affect.study.launcher.schema`` and ``study_schema``.
+  validating models of ``sb3_affect.study.launcher.schema`` and ``study_schema``;
+* ``controls``: the table of the package's deep controls, a row per registry entry with a ``docs_row``
+  (``sb3_affect.core.registry.AGENT_ENTRIES``: the control, what it is, its class with its MiniGrid keywords).
 
 After a change to any of them, write the pages again: ``python tests/test_docs_plain_markdown.py``.
 """
@@ -29,7 +31,7 @@ ROOT = Path(__file__).resolve().parents[1]
 PAGES = [*sorted((ROOT / "docs").glob("*.md")), ROOT / "README.md"]
 #: A generated block: its marker, what the code gives, the end marker.
 BLOCK = re.compile(
-    r"<!-- (?P<kind>file|docstring|sweep-schema)(?:: (?P<argument>[^ ]+))? -->\n(?P<body>.*?)<!-- end -->\n", re.S
+    r"<!-- (?P<kind>file|docstring|sweep-schema|controls)(?:: (?P<argument>[^ ]+))? -->\n(?P<body>.*?)<!-- end -->\n", re.S
 )
 #: What renders raw outside Sphinx: a MyST role, a directive fence (``` or :::), a reStructuredText directive.
 RAW = re.compile(r"\{[a-z][a-z0-9:_-]*\}`|^(```+|:::+) *\{[a-z][a-z0-9:_-]*\}|^\.\. [a-z][a-z0-9:_-]*::", re.M)
@@ -131,6 +133,19 @@ def schema_block(which: str | None) -> str:
     return "\n".join(lines)
 
 
+def controls_block() -> str:
+    """The deep controls' table: a row per registry entry with a docs row, run with its zoo recipe's MiniGrid keywords."""
+    from sb3_affect.core.registry import AGENT_ENTRIES
+
+    lines = ["| control | what it is | how to run it |", "|---|---|---|"]
+    for entry in AGENT_ENTRIES:
+        if entry.docs_row is not None:
+            keywords = ", ".join(f"{key}={value!r}" for key, value in ((entry.zoo and entry.zoo.minigrid) or {}).items())
+            run = f"`{entry.name}(..., {keywords})`" if keywords else f"`{entry.name}(...)`"
+            lines.append(f"| {_cell(entry.docs_row[0])} | {_cell(entry.docs_row[1])} | {run} |")
+    return "\n".join(lines) + "\n"
+
+
 def generated(kind: str, argument: str | None) -> str:
     if kind == "file":
         assert argument is not None
@@ -138,6 +153,8 @@ def generated(kind: str, argument: str | None) -> str:
     if kind == "docstring":
         assert argument is not None
         return docstring_block(argument)
+    if kind == "controls":
+        return controls_block()
     return schema_block(argument)
 
 
@@ -166,6 +183,7 @@ def test_the_check_finds_roles_and_directives() -> None:
 def test_the_generated_blocks_are_what_the_code_gives_now() -> None:
     pages = {page.name: page.read_text() for page in PAGES}
     blocks = [(name, m["kind"], m["argument"]) for name, text in pages.items() for m in BLOCK.finditer(text)]
+    assert ("deep_agents.md", "controls", None) in blocks
     assert ("experiment_files.md", "sweep-schema", None) in blocks and ("launcher.md", "docstring",
                                                                           "sb3_affect.study.launcher.store") in blocks
     stale = [name for name, text in pages.items() if written(text) != text]

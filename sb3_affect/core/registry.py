@@ -18,13 +18,44 @@ from __future__ import annotations
 import importlib
 from typing import Any, NamedTuple
 
+from sb3_affect.core.behaviour import BEHAVIOUR_TABLES, MAX_SPEED
 from sb3_affect.core.settings import AGENT_SETTINGS, TabularSettings, settings_class
+
+
+class Suggest(NamedTuple):
+    """
+    One argument an agent's Optuna sampler draws in rl-zoo3: ``trial.suggest_<kind>(name, ...)``, ``kind`` "float"
+    or "int" between the two ``bounds`` (``log``: on a log scale), "categorical" among the ``bounds`` (a dict's
+    labels, standing for its values). ``into``: the argument it goes in (``policy_kwargs``), else the agent's own.
+    """
+
+    kind: str
+    name: str
+    bounds: tuple[Any, ...] | dict[str, Any]
+    log: bool = False
+    into: str | None = None
+
+
+class ZooRecipe(NamedTuple):
+    """
+    An agent in rl-zoo3 (``sb3_affect.integrations.zoo``; its zoo name is its lower-case name): its hyperparameters
+    and the search space of its Optuna sampler. What it ``shares`` of DQN's: "" nothing (its own file,
+    ``integrations/zoo_hyperparams/<zoo name>.yml``); "network" DQN's MiniGrid settings (``dqn.yml`` with the deep
+    study's ``network``) and sampled arguments without epsilon; "epsilon" those and DQN's epsilon schedule.
+    """
+
+    #: the arguments its sampler draws (after DQN's, when it shares them)
+    space: tuple[Suggest, ...]
+    shares: str = ""
+    #: its own keywords on every MiniGrid task, added to DQN's settings (for an agent that shares them)
+    minigrid: dict[str, Any] | None = None
 
 
 class AgentEntry(NamedTuple):
     """
     One agent of the package, registered once: its short name (sweep files, ``simulate``, the CLI), where it lives,
-    what the package root exports of it, its name and Optuna sampler in rl-zoo3 and whether the deep study trains it.
+    what the package root exports of it, its rl-zoo3 recipe, whether the deep study trains it and, for a control of
+    the deep agents, its row of the controls' table (docs/deep_agents.md, written from it).
     (A tabular agent's defaults and checks are its settings class, ``sb3_affect.core.settings``.)
     """
 
@@ -34,31 +65,69 @@ class AgentEntry(NamedTuple):
     module: str
     #: the names of that module ``sb3_affect`` exports (imported on first use): the class, its mixin; () for none
     exports: tuple[str, ...] = ()
-    #: rl-zoo3 (``sb3_affect.integrations.zoo``): the name of its Optuna sampler there; the agent's zoo name is its
-    #: lower-case name. None: not in the zoo
-    sampler: str | None = None
+    #: rl-zoo3 (``sb3_affect.integrations.zoo``): its hyperparameters and sampler. None: not in the zoo
+    zoo: ZooRecipe | None = None
     #: a DQN of the deep study (``study: deep``), which the lockstep trainer (``train_many``) trains
     deep: bool = False
+    #: a control's row of the controls' table: (the control, what it is); how to run it is the class with ``zoo``'s
+    #: MiniGrid keywords
+    docs_row: tuple[str, str] | None = None
 
 
-#: The package's agents: every name, export and zoo registration of each comes from its one entry here.
+#: The tabular agents' Eq. 1 rates, as their samplers draw them.
+_RATES = (Suggest("float", "learning_rate", (0.05, 1.0)), Suggest("float", "gamma", (0.5, 0.999)))
+#: The behaviour table the deep affective agents' emotions follow, as their samplers draw it.
+_TABLE = Suggest("categorical", "behaviour_table", tuple(sorted(BEHAVIOUR_TABLES)))
+#: The deep affective agents' keywords on MiniGrid: the cell read from the env and MiniGrid's done (6) as the wait.
+_ON_MINIGRID = {"position": "minigrid", "wait_action": 6}
+
+#: The package's agents: every name, export, zoo registration and docs row of each comes from its one entry here.
 AGENT_ENTRIES: tuple[AgentEntry, ...] = (
-    AgentEntry("QLearning", "sb3_affect.agents.qlearning", ("QLearning",), "sample_qlearning_params"),
-    AgentEntry("AffectQ", "sb3_affect.agents.affectq", ("AffectQ",), "sample_affectq_params"),
     AgentEntry(
-        "AffectDQN", "sb3_affect.agents.deep_affect", ("AffectDQN", "AffectiveExploration"), "sample_affectdqn_params", True
-    ),
-    AgentEntry("AffectQRDQN", "sb3_affect.agents.deep_affect_qrdqn", ("AffectQRDQN",), "sample_affectqrdqn_params"),
-    AgentEntry(
-        "EzGreedyDQN", "sb3_affect.agents.deep_controls", ("EzGreedyDQN", "EzGreedyExploration"), "sample_ezgreedydqn_params",
-        True,
+        "QLearning", "sb3_affect.agents.qlearning", ("QLearning",),
+        ZooRecipe((*_RATES, Suggest("float", "exploration_rate", (0.01, 0.5), log=True))),
     ),
     AgentEntry(
-        "SpeedEpsilonGreedyDQN",
-        "sb3_affect.agents.deep_controls",
+        "AffectQ", "sb3_affect.agents.affectq", ("AffectQ",),
+        ZooRecipe((
+            *_RATES, Suggest("categorical", "comparison", ("literal", "valence")),
+            Suggest("categorical", "act", ("episode", "remaining")), Suggest("categorical", "units", ("cells", "decisions")),
+        )),
+    ),
+    AgentEntry(
+        "AffectDQN", "sb3_affect.agents.deep_affect", ("AffectDQN", "AffectiveExploration"),
+        ZooRecipe((_TABLE,), "network", _ON_MINIGRID), deep=True,
+    ),
+    AgentEntry(
+        "AffectQRDQN", "sb3_affect.agents.deep_affect_qrdqn", ("AffectQRDQN",),
+        ZooRecipe((_TABLE, Suggest("int", "n_quantiles", (5, 200), into="policy_kwargs")), "network", _ON_MINIGRID),
+    ),
+    AgentEntry(
+        "EzGreedyDQN", "sb3_affect.agents.deep_controls", ("EzGreedyDQN", "EzGreedyExploration"),
+        ZooRecipe(
+            (Suggest("float", "mu", (1.1, 3.0)), Suggest("int", "max_duration", (2, min(20, MAX_SPEED)))), "epsilon",
+            {"mu": 2.0, "max_duration": 10},  # Dabney et al.'s
+        ),
+        deep=True,
+        docs_row=(
+            "ez-greedy (Dabney et al. 2021)",
+            "with probability epsilon a random action repeated for n steps, P(n) ~ n^-mu on 1..`max_duration` (default "
+            "mu 2, at most 10); else the greedy action for one step: repeats without emotions",
+        ),
+    ),
+    AgentEntry(
+        "SpeedEpsilonGreedyDQN", "sb3_affect.agents.deep_controls",
         ("SpeedEpsilonGreedyDQN", "SpeedEpsilonGreedyExploration"),
-        "sample_speedepsilongreedydqn_params",
-        True,
+        ZooRecipe(
+            (Suggest("categorical", "speeds", {"1": [1], "1-2": [1, 2], "0-2": [0, 1, 2], "1-3": [1, 2, 3]}),), "epsilon",
+            {"speeds": [1, 2]},  # the affective agent's
+        ),
+        deep=True,
+        docs_row=(
+            "epsilon-greedy with the affective speeds",
+            "an epsilon-greedy direction, every decision lasting a speed drawn from `speeds` (default 1 or 2 steps), "
+            "the deep twin of the tabular `SpeedEpsilonGreedy`",
+        ),
     ),
     AgentEntry("ReplayedEpsilonDQN", "sb3_affect.agents.replayed_epsilon", deep=True),
 )

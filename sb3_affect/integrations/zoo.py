@@ -5,13 +5,16 @@ The package's agents in rl-zoo3 (the ``zoo`` extra: ``pip install "sb3-affect[zo
 under their lower-case names (``ZOO_ALGOS``): the tabular ``qlearning`` and ``affectq``, the deep ``affectdqn`` and
 ``affectqrdqn`` and the deep controls ``ezgreedydqn`` and ``speedepsilongreedydqn``; and their Optuna samplers, which
 sample each agent's own arguments besides DQN's, to its hyperparameter search.
-``python -m sb3_affect.integrations.zoo COMMAND ARGS`` runs a zoo command with them registered; ``train`` reads the
-package's hyperparameter files (``sb3_affect/integrations/zoo_hyperparams/<algo>.yml``: for the tabular agents the
-package's envs, FrozenLake, CliffWalking and Taxi; for the deep agents and for ``dqn`` MiniGrid's Empty-8x8,
-DoorKey-5x5 and Empty-6x6 with the deep study's settings, which do not make every agent solve them: trained through
-the zoo with ``--seed 0``, ``dqn``'s greedy policy reached the goal of Empty-8x8 in 20 of 20 episodes and
-``affectdqn``'s in none, see docs/deep_agents.md) unless ``--conf-file`` is given; for ``dqn``, whose file the zoo
-has, only on the envs the package's file lists. The zoo's ``enjoy`` acts stochastically on MiniGrid (as on Atari)
+Both come from the agents' registry entries (``sb3_affect.core.registry.AGENT_ENTRIES``: each one's ``ZooRecipe``).
+``python -m sb3_affect.integrations.zoo COMMAND ARGS`` runs a zoo command with them registered; ``train`` gives the
+zoo the package's hyperparameters (``hyperparams``: for the tabular agents their files
+``sb3_affect/integrations/zoo_hyperparams/<algo>.yml``, on the package's envs, FrozenLake, CliffWalking and Taxi; for
+the deep agents and for ``dqn`` MiniGrid's Empty-8x8, DoorKey-5x5 and Empty-6x6: DQN's settings, each task's keys of
+``dqn.yml`` with the deep study's ``network``, and each agent's own keywords from its recipe, written to a temporary
+file the zoo reads as its ``--conf-file``; the deep study's settings, which do not make every agent solve them:
+trained through the zoo with ``--seed 0``, ``dqn``'s greedy policy reached the goal of Empty-8x8 in 20 of 20 episodes
+and ``affectdqn``'s in none, see docs/deep_agents.md) unless ``--conf-file`` is given; for ``dqn``, whose file the zoo
+has, only on the envs ``dqn.yml`` lists. The zoo's ``enjoy`` acts stochastically on MiniGrid (as on Atari)
 unless given ``--deterministic``, which replays the greedy policy. ``affectqrdqn`` costs 5 to 6 times
 ``affectdqn`` per step and 1.2 times QR-DQN, which costs 4.5 times DQN (its quantile loss; measured in
 docs/use_it_in_your_project.md)::
@@ -50,21 +53,27 @@ Commands: ``train``, ``enjoy``, ``record_video``, ``plot_train``, ``all_plots`` 
 
 from __future__ import annotations
 
+import copy
 import functools
 import importlib
 import runpy
 import sys
+import tempfile
+from collections.abc import Callable
+from importlib import resources
 from pathlib import Path
 from typing import Any
 
 from sb3_affect.core.extras import MissingExtraError, require_extra
-from sb3_affect.core.registry import AGENT_ENTRIES, split_algo
+from sb3_affect.core.registry import AGENT_ENTRIES, AgentEntry, Suggest, ZooRecipe, split_algo
 
 #: The hyperparameter files of the package's agents, one per algorithm (``<algo>.yml``), and DQN's MiniGrid settings.
 HYPERPARAMS_FOLDER = Path(__file__).with_name("zoo_hyperparams")
-#: The package's agents in the zoo (those whose registry entry names a sampler): the zoo's name (``--algo``) -> the
+#: The package's agents in the zoo (those whose registry entry has a zoo recipe): the zoo's name (``--algo``) -> the
 #: agent's name in the registry of agent names.
-ZOO_ALGOS = {entry.name.lower(): entry.name for entry in AGENT_ENTRIES if entry.sampler is not None}
+ZOO_ALGOS = {entry.name.lower(): entry.name for entry in AGENT_ENTRIES if entry.zoo is not None}
+#: Each zoo name's recipe (its hyperparameters and sampler).
+ZOO_RECIPES = {entry.name.lower(): entry.zoo for entry in AGENT_ENTRIES if entry.zoo is not None}
 #: The zoo's size names of an MLP (its own samplers' ``net_arch`` choices).
 NET_ARCHS = {"small": [64, 64], "medium": [128, 128], "big": [256, 256]}
 #: ``python -m sb3_affect.integrations.zoo COMMAND``: the zoo module each command runs.
@@ -75,26 +84,6 @@ COMMANDS = {
     "plot_train": "rl_zoo3.plots.plot_train",
     "all_plots": "rl_zoo3.plots.all_plots",
 }
-
-
-def sample_qlearning_params(trial: Any, n_actions: int, n_envs: int, additional_args: dict[str, Any]) -> dict[str, Any]:
-    """Optuna sampler of QLearning's hyperparameters (the zoo's sampler signature)."""
-    return {
-        "learning_rate": trial.suggest_float("learning_rate", 0.05, 1.0),
-        "gamma": trial.suggest_float("gamma", 0.5, 0.999),
-        "exploration_rate": trial.suggest_float("exploration_rate", 0.01, 0.5, log=True),
-    }
-
-
-def sample_affectq_params(trial: Any, n_actions: int, n_envs: int, additional_args: dict[str, Any]) -> dict[str, Any]:
-    """Optuna sampler of AffectQ's hyperparameters: Eq. 1's rates and the reading of the appraisal."""
-    return {
-        "learning_rate": trial.suggest_float("learning_rate", 0.05, 1.0),
-        "gamma": trial.suggest_float("gamma", 0.5, 0.999),
-        "comparison": trial.suggest_categorical("comparison", ["literal", "valence"]),
-        "act": trial.suggest_categorical("act", ["episode", "remaining"]),
-        "units": trial.suggest_categorical("units", ["cells", "decisions"]),
-    }
 
 
 def _sample_off_policy(trial: Any) -> dict[str, Any]:
@@ -120,46 +109,72 @@ def _sample_epsilon(trial: Any) -> dict[str, Any]:
     }
 
 
-def sample_affectdqn_params(trial: Any, n_actions: int, n_envs: int, additional_args: dict[str, Any]) -> dict[str, Any]:
-    """Optuna sampler of AffectDQN: DQN's arguments without epsilon, and the behaviour table the emotions follow."""
-    from sb3_affect.core.behaviour import BEHAVIOUR_TABLES
+def _suggest(trial: Any, suggest: Suggest) -> Any:
+    """One argument of a sampler's space drawn from the trial (``Suggest``)."""
+    if suggest.kind == "categorical":
+        choice = trial.suggest_categorical(suggest.name, list(suggest.bounds))
+        return suggest.bounds[choice] if isinstance(suggest.bounds, dict) else choice
+    low, high = suggest.bounds
+    return getattr(trial, f"suggest_{suggest.kind}")(suggest.name, low, high, log=suggest.log)
 
+
+def sampler(entry: AgentEntry) -> Callable[..., dict[str, Any]]:
+    """
+    The Optuna sampler of an agent in the zoo (the zoo's sampler signature), from its entry's recipe: DQN's
+    arguments first when it shares them (``_sample_off_policy``, and ``_sample_epsilon`` for "epsilon"), then its
+    own ``space``, in order.
+    """
+    assert entry.zoo is not None
+    recipe = entry.zoo
+
+    def sample(trial: Any, n_actions: int, n_envs: int, additional_args: dict[str, Any]) -> dict[str, Any]:
+        params = _sample_off_policy(trial) if recipe.shares else {}
+        if recipe.shares == "epsilon":
+            params.update(_sample_epsilon(trial))
+        for suggest in recipe.space:
+            (params.setdefault(suggest.into, {}) if suggest.into else params)[suggest.name] = _suggest(trial, suggest)
+        return params
+
+    sample.__name__ = sample.__qualname__ = f"sample_{entry.name.lower()}_params"
+    sample.__doc__ = f"Optuna sampler of {entry.name}'s hyperparameters: {', '.join(s.name for s in recipe.space)}."
+    return sample
+
+
+#: Each zoo name's Optuna sampler (from its registry entry's recipe).
+SAMPLERS = {entry.name.lower(): sampler(entry) for entry in AGENT_ENTRIES if entry.zoo is not None}
+#: The deep study's sweep file whose ``network`` every MiniGrid task of ``dqn.yml`` takes (the one place of DQN's
+#: shared MiniGrid settings: the study trains with them, the zoo's DQN and the agents that share them too).
+STUDY_NETWORK = ("sb3_affect.sweeps", "minigrid_dqn.yaml")
+
+
+def _read_yaml(path: Any) -> Any:
+    import yaml
+
+    return yaml.safe_load(path.read_text())
+
+
+def _dqn_minigrid() -> dict[str, dict[str, Any]]:
+    """DQN's MiniGrid settings: each task's keys of ``dqn.yml`` with the deep study's ``network`` (``STUDY_NETWORK``),
+    a copy of it for each task (the table written for the zoo then holds no YAML aliases)."""
+    network = _read_yaml(resources.files(STUDY_NETWORK[0]) / STUDY_NETWORK[1])["network"]
+    return {task: {**keys, **copy.deepcopy(network)} for task, keys in _read_yaml(HYPERPARAMS_FOLDER / "dqn.yml").items()}
+
+
+def hyperparams(algo: str) -> dict[str, dict[str, Any]]:
+    """
+    The hyperparameter table ``train`` gives the zoo for ``algo`` (env id -> keywords): for ``dqn``, and for a package
+    agent that shares DQN's settings, ``_dqn_minigrid()`` (without DQN's epsilon for "network") and the agent's own
+    MiniGrid keywords; for any other package agent its file ``<algo>.yml``. KeyError for an algorithm of neither.
+    """
+    recipe = ZOO_RECIPES[algo] if algo != "dqn" else ZooRecipe((), "epsilon")
+    if not recipe.shares:
+        table: dict[str, dict[str, Any]] = _read_yaml(HYPERPARAMS_FOLDER / f"{algo}.yml")
+        return table
+    epsilon = () if recipe.shares == "epsilon" else ("exploration_fraction", "exploration_final_eps")
     return {
-        **_sample_off_policy(trial),
-        "behaviour_table": trial.suggest_categorical("behaviour_table", sorted(BEHAVIOUR_TABLES)),
+        task: {**{key: value for key, value in keys.items() if key not in epsilon}, **copy.deepcopy(recipe.minigrid or {})}
+        for task, keys in _dqn_minigrid().items()
     }
-
-
-def sample_affectqrdqn_params(trial: Any, n_actions: int, n_envs: int, additional_args: dict[str, Any]) -> dict[str, Any]:
-    """Optuna sampler of AffectQRDQN: AffectDQN's and QR-DQN's number of quantiles (a keyword of its policy)."""
-    params = sample_affectdqn_params(trial, n_actions, n_envs, additional_args)
-    params["policy_kwargs"]["n_quantiles"] = trial.suggest_int("n_quantiles", 5, 200)
-    return params
-
-
-def sample_ezgreedydqn_params(trial: Any, n_actions: int, n_envs: int, additional_args: dict[str, Any]) -> dict[str, Any]:
-    """Optuna sampler of EzGreedyDQN: DQN's arguments with its epsilon, and the durations' power law."""
-    from sb3_affect.core.behaviour import MAX_SPEED
-
-    return {
-        **_sample_off_policy(trial),
-        **_sample_epsilon(trial),
-        "mu": trial.suggest_float("mu", 1.1, 3.0),
-        "max_duration": trial.suggest_int("max_duration", 2, min(20, MAX_SPEED)),
-    }
-
-
-def sample_speedepsilongreedydqn_params(
-    trial: Any, n_actions: int, n_envs: int, additional_args: dict[str, Any]
-) -> dict[str, Any]:
-    """Optuna sampler of SpeedEpsilonGreedyDQN: DQN's arguments with its epsilon, and the speeds a decision lasts."""
-    speeds = {"1": [1], "1-2": [1, 2], "0-2": [0, 1, 2], "1-3": [1, 2, 3]}
-    choice = trial.suggest_categorical("speeds", list(speeds))
-    return {**_sample_off_policy(trial), **_sample_epsilon(trial), "speeds": speeds[choice]}
-
-
-#: Each zoo name's Optuna sampler (the function of this module its registry entry names).
-SAMPLERS = {entry.name.lower(): globals()[entry.sampler] for entry in AGENT_ENTRIES if entry.sampler is not None}
 
 
 def register_with_zoo() -> None:
@@ -174,21 +189,27 @@ def register_with_zoo() -> None:
     hyperparams_opt.HYPERPARAMS_SAMPLER.update(SAMPLERS)
 
 
-def _conf_file(algo: str | None, argv: list[str]) -> Path | None:
+def _conf_file(algo: str | None, argv: list[str], folder: Path) -> Path | None:
     """
-    The package's hyperparameter file ``train`` reads for ``algo``: always for the package's agents; for another
-    algorithm (``dqn``) only when the file lists the env, so the zoo's own settings stay in force for any other.
+    The hyperparameter file ``train`` gives the zoo for ``algo``: always for the package's agents (its own file, or
+    its table of ``hyperparams`` written into ``folder``); for ``dqn`` (``hyperparams("dqn")`` written there) only when
+    its table lists the env, so the zoo's own settings stay in force for any other env and algorithm.
     """
     if algo is None or "--conf-file" in argv or "-conf" in argv:
         return None
-    conf = HYPERPARAMS_FOLDER / f"{algo}.yml"
-    if algo in ZOO_ALGOS:
-        return conf
-    if not conf.is_file() or "--env" not in argv or argv.index("--env") + 1 >= len(argv):
+    if algo in ZOO_RECIPES and not ZOO_RECIPES[algo].shares:
+        return HYPERPARAMS_FOLDER / f"{algo}.yml"
+    if algo not in ZOO_RECIPES and algo != "dqn":
+        return None
+    table = hyperparams(algo)
+    env = argv[argv.index("--env") + 1] if "--env" in argv and argv.index("--env") + 1 < len(argv) else None
+    if algo == "dqn" and env not in table:
         return None
     import yaml
 
-    return conf if argv[argv.index("--env") + 1] in (yaml.safe_load(conf.read_text()) or {}) else None
+    conf = folder / f"{algo}.yml"
+    conf.write_text(yaml.safe_dump(table, sort_keys=False))
+    return conf
 
 
 def _algo(argv: list[str]) -> str | None:
@@ -405,21 +426,8 @@ def _load_for_replay() -> list[tuple[Any, str, Any]]:
     return replaced
 
 
-def main(argv: list[str] | None = None) -> None:
-    """``python -m sb3_affect.integrations.zoo COMMAND ARGS``: the zoo's command with the package's agents registered."""
-    args = list(sys.argv[1:] if argv is None else argv)
-    if not args or args[0] not in COMMANDS:
-        commands = ",".join(COMMANDS)
-        raise SystemExit(f"usage: python -m sb3_affect.integrations.zoo {{{commands}}} [the zoo command's arguments]")
-    command, rest = args[0], args[1:]
-    try:
-        register_with_zoo()
-    except MissingExtraError as error:  # one line naming the extra, as the sb3-affect command says it
-        print(f"python -m sb3_affect.integrations.zoo: error: {error}", file=sys.stderr)
-        raise SystemExit(2) from None
-    conf = _conf_file(_algo(rest), rest) if command == "train" else None
-    if conf is not None:
-        rest += ["--conf-file", str(conf), *_eval_env_kwargs(conf, rest)]
+def _run(command: str, rest: list[str]) -> None:
+    """The zoo's ``command`` with the arguments ``rest`` (``main``'s, the hyperparameter file added for ``train``)."""
     output = None
     if command in ("plot_train", "all_plots"):
         if "--output" in rest:  # ours: save the figure (the zoo only shows it)
@@ -449,6 +457,25 @@ def main(argv: list[str] | None = None) -> None:
 
         plt.gcf().savefig(output)
         print(f"figure: {output}")
+
+
+def main(argv: list[str] | None = None) -> None:
+    """``python -m sb3_affect.integrations.zoo COMMAND ARGS``: the zoo's command with the package's agents registered."""
+    args = list(sys.argv[1:] if argv is None else argv)
+    if not args or args[0] not in COMMANDS:
+        commands = ",".join(COMMANDS)
+        raise SystemExit(f"usage: python -m sb3_affect.integrations.zoo {{{commands}}} [the zoo command's arguments]")
+    command, rest = args[0], args[1:]
+    try:
+        register_with_zoo()
+    except MissingExtraError as error:  # one line naming the extra, as the sb3-affect command says it
+        print(f"python -m sb3_affect.integrations.zoo: error: {error}", file=sys.stderr)
+        raise SystemExit(2) from None
+    with tempfile.TemporaryDirectory(prefix="sb3_affect_zoo_") as folder:  # a table built for train (hyperparams)
+        conf = _conf_file(_algo(rest), rest, Path(folder)) if command == "train" else None
+        if conf is not None:
+            rest += ["--conf-file", str(conf), *_eval_env_kwargs(conf, rest)]
+        _run(command, rest)
 
 
 if __name__ == "__main__":

@@ -57,7 +57,16 @@ def test_the_zoo_tables_come_from_the_entries() -> None:
     from sb3_affect.integrations import zoo
 
     names = ("QLearning", "AffectQ", "AffectDQN", "AffectQRDQN", "EzGreedyDQN", "SpeedEpsilonGreedyDQN")
-    assert {name.lower(): name for name in names} == zoo.ZOO_ALGOS  # the agents the zoo had before the entries
+    assert {name.lower(): name for name in names}.items() <= zoo.ZOO_ALGOS.items()  # the agents the zoo had before
+    assert {entry.name.lower(): entry.name for entry in AGENT_ENTRIES if entry.zoo is not None} == zoo.ZOO_ALGOS
     assert set(zoo.SAMPLERS) == set(zoo.ZOO_ALGOS)
     assert all(sampler.__name__ == f"sample_{name}_params" for name, sampler in zoo.SAMPLERS.items())
-    assert all((zoo.HYPERPARAMS_FOLDER / f"{name}.yml").is_file() for name in zoo.ZOO_ALGOS)
+    for name, recipe in zoo.ZOO_RECIPES.items():  # a table for each: its own file, or DQN's with its keywords
+        assert (zoo.HYPERPARAMS_FOLDER / f"{name}.yml").is_file() != bool(recipe.shares), name
+        assert all(zoo.hyperparams(name).values()), name
+
+
+def test_a_docs_row_is_a_control_the_deep_study_trains_with_its_own_keywords() -> None:
+    rows = [entry for entry in AGENT_ENTRIES if entry.docs_row is not None]
+    assert {entry.name for entry in rows} >= {"EzGreedyDQN", "SpeedEpsilonGreedyDQN"}
+    assert all(entry.deep and entry.zoo is not None and entry.zoo.minigrid for entry in rows)

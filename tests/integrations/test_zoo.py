@@ -17,7 +17,7 @@ import pytest
 from sb3_affect import AffectQ, QLearning
 from sb3_affect.core.settings import TabularSettings
 from sb3_affect.envs import GRID_PURSUIT_ID, MAX_EPISODE_STEPS
-from sb3_affect.integrations.zoo import HYPERPARAMS_FOLDER, sample_affectq_params, sample_qlearning_params
+from sb3_affect.integrations.zoo import SAMPLERS, hyperparams
 
 
 @pytest.mark.parametrize(
@@ -39,10 +39,8 @@ def test_zoo_trains_enjoys_records_and_plots(algo: str, env_id: str, video: bool
 
 
 def test_hyperparameter_files_build_every_agent_on_every_env() -> None:
-    import yaml
-
     for algo, cls in (("qlearning", QLearning), ("affectq", AffectQ)):
-        table = yaml.safe_load((HYPERPARAMS_FOLDER / f"{algo}.yml").read_text())
+        table = hyperparams(algo)  # the agent's own file
         assert {GRID_PURSUIT_ID, "sb3_affect/MazePursuit-v0", "sb3_affect/MovingPursuit-v0", "FrozenLake-v1",
                 "CliffWalking-v1", "Taxi-v4"} <= set(table)
         for env_id, params in table.items():
@@ -52,11 +50,11 @@ def test_hyperparameter_files_build_every_agent_on_every_env() -> None:
             cls(env=env, **params).learn(20)
 
 
-@pytest.mark.parametrize(("sampler", "cls"), [(sample_qlearning_params, QLearning), (sample_affectq_params, AffectQ)])
-def test_optuna_samplers_give_valid_agents(sampler, cls) -> None:
+@pytest.mark.parametrize(("algo", "cls"), [("qlearning", QLearning), ("affectq", AffectQ)])
+def test_optuna_samplers_give_valid_agents(algo, cls) -> None:
     study = optuna.create_study(sampler=optuna.samplers.RandomSampler(seed=0))
     for _ in range(5):
-        params = sampler(study.ask(), 4, 1, {})
+        params = SAMPLERS[algo](study.ask(), 4, 1, {})
         cls("Grid", gym.make(GRID_PURSUIT_ID, size=4, goal=(2, 2)), seed=0, **params).learn(50)
 
 

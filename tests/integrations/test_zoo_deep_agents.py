@@ -1,7 +1,7 @@
 """
 rl-zoo3 with the deep agents and the deep controls: the zoo's own train and enjoy of AffectDQN on MiniGrid with the
-shipped hyperparameter file (a small budget on the command line), the files of every deep agent, their agreement with
-DQN's settings, the Optuna samplers and the zoo's hyperparameter search with AffectDQN's sampler.
+package's hyperparameters (a small budget on the command line), every deep agent's table (DQN's settings, the deep
+study's network, its own keywords), the Optuna samplers and the zoo's hyperparameter search with AffectDQN's sampler.
 """
 
 from __future__ import annotations
@@ -16,16 +16,21 @@ minigrid = pytest.importorskip("minigrid")
 from minigrid.wrappers import FlatObsWrapper  # noqa: E402
 from stable_baselines3.common.env_util import make_vec_env  # noqa: E402
 
-from sb3_affect.integrations.zoo import HYPERPARAMS_FOLDER, SAMPLERS, ZOO_ALGOS, _conf_file, register_with_zoo  # noqa: E402
+from sb3_affect.integrations.zoo import (  # noqa: E402
+    HYPERPARAMS_FOLDER,
+    SAMPLERS,
+    ZOO_RECIPES,
+    _conf_file,
+    hyperparams,
+    register_with_zoo,
+)
 
-DEEP = ("affectdqn", "affectqrdqn", "ezgreedydqn", "speedepsilongreedydqn")
+ROOT = Path(__file__).resolve().parents[2]
+#: The package's agents that share DQN's MiniGrid settings (their registry entries' zoo recipes).
+DEEP = tuple(algo for algo, recipe in ZOO_RECIPES.items() if recipe.shares)
 TASKS = ("MiniGrid-Empty-8x8-v0", "MiniGrid-DoorKey-5x5-v0", "MiniGrid-Empty-6x6-v0")
 #: DQN's epsilon, which the affective agents do not take.
 EPSILON = ("exploration_fraction", "exploration_final_eps")
-
-
-def _file(algo: str) -> dict[str, dict[str, object]]:
-    return yaml.safe_load((HYPERPARAMS_FOLDER / f"{algo}.yml").read_text())
 
 
 def _agent(algo: str) -> type:
@@ -43,29 +48,29 @@ def test_zoo_trains_affect_dqn_on_minigrid_with_the_shipped_file_and_enjoy_repla
     config = yaml.load((run / "MiniGrid-Empty-8x8-v0" / "config.yml").read_text(), Loader=yaml.UnsafeLoader)
     assert dict(config)["env_wrapper"] == "minigrid.wrappers.FlatObsWrapper" and dict(config)["position"] == "minigrid"
     model = _agent("affectdqn").load(run / "MiniGrid-Empty-8x8-v0.zip")
-    shipped = _file("affectdqn")["MiniGrid-Empty-8x8-v0"]
+    shipped = hyperparams("affectdqn")["MiniGrid-Empty-8x8-v0"]
     assert model.num_timesteps >= 600 and model.learning_starts == shipped["learning_starts"]  # (a repeat may end past it)
     out = zoo(["enjoy", *common, "--no-render", "-n", "300", "--seed", "0", "--deterministic"], tmp_path)  # > an episode (256)
     assert "Episode Reward" in out and "Episode Length" in out, out[-500:]
 
 
-def test_every_deep_agent_has_the_minigrid_tasks_and_dqns_settings() -> None:
-    dqn = _file("dqn")
-    assert set(dqn) == set(TASKS)
+def test_every_deep_agent_has_the_minigrid_tasks_dqns_settings_and_the_studys_network() -> None:
+    dqn, network = hyperparams("dqn"), yaml.safe_load((ROOT / "experiments" / "minigrid_dqn.yaml").read_text())["network"]
+    assert set(dqn) == set(TASKS) and {"affectdqn", "affectqrdqn", "ezgreedydqn", "speedepsilongreedydqn"} <= set(DEEP)
+    assert all(task.items() >= network.items() for task in dqn.values())  # the study trains with the same network
+    assert dqn["MiniGrid-Empty-8x8-v0"]["learning_rate"] == 0.0005 and dqn["MiniGrid-Empty-6x6-v0"]["n_timesteps"] == 50_000
     for algo in DEEP:
-        table = _file(algo)
+        recipe, table = ZOO_RECIPES[algo], hyperparams(algo)
         assert set(table) == set(TASKS), algo
         for task in TASKS:
-            own = {key: value for key, value in table[task].items() if key not in dqn[task]}
-            shared = {key: value for key, value in table[task].items() if key in dqn[task]}
-            expected = {k: v for k, v in dqn[task].items() if not (algo.startswith("affect") and k in EPSILON)}
-            assert shared == expected, (algo, task)  # DQN's settings, one source: only the agent's own are added
-            assert set(own) <= {"position", "wait_action", "mu", "max_duration", "speeds"}, own
+            expected = {k: v for k, v in dqn[task].items() if not (recipe.shares == "network" and k in EPSILON)}
+            assert table[task] == {**expected, **(recipe.minigrid or {})}, (algo, task)
+            assert (recipe.shares == "epsilon") == (set(EPSILON) <= set(table[task])), (algo, task)
 
 
 @pytest.mark.parametrize("algo", DEEP)
 def test_the_deep_agents_files_build_the_agent_on_every_task(algo: str) -> None:
-    for task, params in _file(algo).items():
+    for task, params in hyperparams(algo).items():
         params = dict(params)
         params.pop("n_timesteps"), params.pop("env_wrapper")
         env = make_vec_env(task, n_envs=params.pop("n_envs"), seed=0, wrapper_class=FlatObsWrapper)
@@ -76,12 +81,12 @@ def test_the_deep_agents_files_build_the_agent_on_every_task(algo: str) -> None:
 @pytest.mark.parametrize("algo", DEEP)
 def test_the_deep_samplers_give_valid_agents_with_their_own_arguments(algo: str) -> None:
     study = optuna.create_study(sampler=optuna.samplers.RandomSampler(seed=0))
-    own = {"affectdqn": "behaviour_table", "affectqrdqn": "n_quantiles", "ezgreedydqn": "mu",
-           "speedepsilongreedydqn": "speeds"}[algo]
-    position = {"position": "minigrid"} if algo.startswith("affect") else {}
+    own = [suggest.name for suggest in ZOO_RECIPES[algo].space]  # the agent's own arguments, besides DQN's
     for _ in range(2):
         params = SAMPLERS[algo](study.ask(), 7, 1, {})
-        assert own in {**params, **params["policy_kwargs"]} and not (algo.startswith("affect") and set(EPSILON) & set(params))
+        position = {k: v for k, v in (ZOO_RECIPES[algo].minigrid or {}).items() if k not in params}  # (position)
+        assert set(own) <= {**params, **params["policy_kwargs"]}.keys()
+        assert (ZOO_RECIPES[algo].shares == "epsilon") == (set(EPSILON) <= set(params)), params
         env = make_vec_env("MiniGrid-Empty-5x5-v0", n_envs=1, seed=0, wrapper_class=FlatObsWrapper)
         params = {**params, "buffer_size": 100, "learning_starts": 20}
         assert _agent(algo)("MlpPolicy", env, seed=0, **position, **params).learn(30).num_timesteps >= 30  # (repeats)
@@ -95,12 +100,17 @@ def test_the_zoo_optimizes_affect_dqn_with_its_sampler(tmp_path: Path, zoo) -> N
     assert "Number of finished trials:  1" in out and "behaviour_table: " in out and "net_arch: " in out
 
 
-def test_the_package_files_are_read_for_its_agents_and_for_dqn_on_the_envs_they_list() -> None:
-    assert set(ZOO_ALGOS) == {"qlearning", "affectq", *DEEP}
-    assert _conf_file("affectdqn", ["--env", "MiniGrid-Empty-8x8-v0"]) == HYPERPARAMS_FOLDER / "affectdqn.yml"
-    assert _conf_file("dqn", ["--env", "MiniGrid-DoorKey-5x5-v0"]) == HYPERPARAMS_FOLDER / "dqn.yml"
-    assert _conf_file("dqn", ["--env", "CartPole-v1"]) is None  # the zoo's own dqn.yml
-    assert _conf_file("affectdqn", ["--env", "MiniGrid-Empty-8x8-v0", "--conf-file", "mine.yml"]) is None
+def test_the_package_tables_are_given_for_its_agents_and_for_dqn_on_the_envs_it_lists(tmp_path: Path) -> None:
+    assert {"qlearning", "affectq", *DEEP} == set(ZOO_RECIPES)
+    conf = _conf_file("affectdqn", ["--env", "MiniGrid-Empty-8x8-v0"], tmp_path)
+    assert conf == tmp_path / "affectdqn.yml" and yaml.safe_load(conf.read_text()) == hyperparams("affectdqn")
+    assert "&" not in conf.read_text()  # each task its own values, no YAML aliases
+    conf = _conf_file("dqn", ["--env", "MiniGrid-DoorKey-5x5-v0"], tmp_path)
+    assert conf == tmp_path / "dqn.yml" and yaml.safe_load(conf.read_text()) == hyperparams("dqn")
+    assert _conf_file("qlearning", ["--env", "FrozenLake-v1"], tmp_path) == HYPERPARAMS_FOLDER / "qlearning.yml"
+    assert _conf_file("dqn", ["--env", "CartPole-v1"], tmp_path) is None  # the zoo's own dqn.yml
+    assert _conf_file("ppo", ["--env", "MiniGrid-Empty-8x8-v0"], tmp_path) is None
+    assert _conf_file("affectdqn", ["--env", "MiniGrid-Empty-8x8-v0", "--conf-file", "mine.yml"], tmp_path) is None
 
 
 def test_the_deep_agents_page_trains_with_the_shipped_settings() -> None:
@@ -108,10 +118,11 @@ def test_the_deep_agents_page_trains_with_the_shipped_settings() -> None:
     code = page[page.index("settings = dict(") : page.index("env = make_vec_env(")]
     namespace: dict[str, object] = {}
     exec(code, namespace)
-    shipped = dict(_file("affectdqn")["MiniGrid-Empty-8x8-v0"])
+    shipped = dict(hyperparams("affectdqn")["MiniGrid-Empty-8x8-v0"])
     for key in ("env_wrapper", "n_envs", "n_timesteps", "policy", "position", "wait_action"):
         shipped.pop(key)
     assert namespace["settings"] == {key: value for key, value in shipped.items() if key != "gradient_steps"}
     assert shipped["gradient_steps"] == 1  # DQN's default
-    assert "the runs below took 100_000" in page and _file("affectdqn")["MiniGrid-Empty-8x8-v0"]["n_timesteps"] == 100_000
-    assert "n_envs=4" in page and _file("affectdqn")["MiniGrid-Empty-8x8-v0"]["n_envs"] == 4
+    table = hyperparams("affectdqn")["MiniGrid-Empty-8x8-v0"]
+    assert "the runs below took 100_000" in page and table["n_timesteps"] == 100_000
+    assert "n_envs=4" in page and table["n_envs"] == 4
