@@ -76,16 +76,17 @@ def test_parts_become_appendix_pages_linked_from_the_main_page(tmp_path) -> None
 
 def test_markdown_cards_show_the_chosen_columns_labelled_and_some_in_a_word(tmp_path) -> None:  # type: ignore[no-untyped-def]
     frame = pd.DataFrame(
-        {"quote": ["q"], "verdict (1,000 seeds)": ["reproduced: inside"], "verdict (20 seeds)": ["not reproduced: far"],
-         "cells": ["n/a"]},
-        index=pd.Index(["claim one"], name="claim"),
+        {"quote": ["q", "q"], "verdict (1,000 seeds)": ["reproduced: inside", "not reproduced: far"],
+         "verdict (20 seeds)": ["not reproduced: far", "not reproduced: farther"], "cells": ["n/a", "n/a"]},
+        index=pd.Index(["claim one", "claim two"], name="claim"),
     )  # fmt: skip
-    spec = CardSpec("quote", markdown={"verdict (1,000 seeds)": "verdict", "verdict (20 seeds)": "at 20 seeds",
-                                       "cells": "in cells"}, words=("verdict (20 seeds)",))  # fmt: skip
+    spec = CardSpec("quote", ("verdict (1,000 seeds)",), markdown={"verdict (1,000 seeds)": "verdict",
+                    "verdict (20 seeds)": "at 20 seeds", "cells": "in cells"}, words=("verdict (20 seeds)",))  # fmt: skip
     doc = Document("r")
     doc.cards(frame, "cards", spec)
     text = doc.markdown(tmp_path)
     assert "- **claim one**. verdict: reproduced: inside. at 20 seeds: not reproduced." in text
+    assert "- **claim two**. verdict: not reproduced: far." in text  # its verdict at 20 seeds in the same words: left out
     assert "in cells" not in text and "| claim |" not in text
 
 

@@ -15,6 +15,7 @@ from sb3_affect.study.launcher import run_sweep
 from sb3_affect.study.report.reading.run_tables import run_metrics
 from sb3_affect.study.report.reading.study_tables import study
 from sb3_affect.study.report.sections.evidence import sensitivity
+from sb3_affect.study.report.sections.verdict import LONG_RUN_PROTOCOL, protocol_verdict
 from sb3_affect.study.report.verdicts import claims
 from sb3_affect.study.report.verdicts.inference import holm
 
@@ -661,3 +662,14 @@ def test_table_v_marks_a_difference_that_censored_runs_enter_as_a_bound_and_its_
     holm(walked.tests)
     verdict = walked.decide(walked) if walked.decide else ""
     assert "paper / ours <= " in verdict or verdict.startswith("reproduced")
+
+
+def test_the_protocol_column_names_the_runs_it_judges_the_long_run_on() -> None:
+    """The paper protocol has only 200-episode runs: its long-run verdict is judged on the first 20 long runs, and says so."""
+    long = claims.Judgement("long_run", "Long run", "", "")
+    long.verdict = "not reproduced: holds only against ε >= 0.7"
+    other = claims.Judgement("fig3", "Fig. 3", "", "")
+    other.verdict = "reproduced: a crossover"
+    assert protocol_verdict(long) == f"not reproduced {LONG_RUN_PROTOCOL}: holds only against ε >= 0.7"
+    assert claims.verdict_word(protocol_verdict(long)) == f"not reproduced {LONG_RUN_PROTOCOL}"
+    assert protocol_verdict(other) == other.verdict

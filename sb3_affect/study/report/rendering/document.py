@@ -204,10 +204,11 @@ def _md_cards(frame: pd.DataFrame, digits: int, spec: CardSpec) -> str:
     lines = []
     for row in rows:
         cells = dict(zip(header[1:], row[1:]))
+        lead = first_words(cells.get(spec.leads[0], "")) if spec.leads else ""
         shown = [
             f"{label}: {first_words(cells[name]) if name in spec.words else cells[name]}"
             for name, label in spec.markdown.items()
-            if cells.get(name, "") not in ("", "n/a")
+            if cells.get(name, "") not in ("", "n/a") and not (name in spec.words and first_words(cells[name]) == lead)
         ]
         lines.append(f"- **{row[0]}**. " + ". ".join(shown) + ("." if shown else ""))
     return "\n".join(lines)
@@ -395,7 +396,8 @@ class CardSpec:
     :param figures: a figure to show beside a row's card, by the row's index label
     :param markdown: the columns the Markdown shows, with their labels there, one list item per row (empty: the
         Markdown shows the whole table)
-    :param words: the columns of ``markdown`` shown there by their first words only (``first_words``)
+    :param words: the columns of ``markdown`` shown there by their first words only (``first_words``), and only where
+        those differ from the first lead column's
     """
 
     quote: str = ""

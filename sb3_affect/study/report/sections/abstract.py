@@ -15,7 +15,7 @@ from sb3_affect.study.report.reading.context import AFFECTIVE, ReportContext
 from sb3_affect.study.report.sections.lead_sources import mechanism_summary
 from sb3_affect.study.report.sections.main_finding import SPEED_AGENT, comparison, finding_short
 from sb3_affect.study.report.sections.project_checks import with_speed_matched
-from sb3_affect.study.report.sections.verdict import judged, shown_word
+from sb3_affect.study.report.sections.verdict import judged, protocol_verdict, shown_word
 from sb3_affect.study.report.verdicts import claims
 
 #: The row of the paper's own test outcome: given on its own, not counted as a claim.
@@ -158,7 +158,7 @@ def headline_table(
         row = {f"{n:,} seeds": shown_word(j)}
         if other is not None:
             own = others.get(j.key)
-            row[f"{n_other} seeds (the paper protocol's runs)"] = claims.verdict_word(own.verdict) if own else ""
+            row[f"{n_other} seeds (the paper protocol's runs)"] = claims.verdict_word(protocol_verdict(own)) if own else ""
         if share_column is not None and needed is not None and j.label in needed.index:
             share = float(str(needed.at[j.label, share_column]))
             row[share_column] = "fixed by the design" if math.isnan(share) else f"{share:.0%}"

@@ -99,11 +99,23 @@ def verdict_table(judged: list[Judgement], other: list[Judgement] | None, n: int
             f"verdict with steps counted as cells ({n:,} seeds)": j.cells_verdict or "n/a",
         }
         if other is not None:
-            row[f"verdict ({n_other} seeds, paper protocol)"] = others[j.key].verdict if j.key in others else ""
+            row[f"verdict ({n_other} seeds, paper protocol)"] = protocol_verdict(others[j.key]) if j.key in others else ""
         rows[j.label] = row
     table = pd.DataFrame.from_dict(rows, orient="index")
     table.index.name = "claim"
     return table
+
+
+#: The runs the paper protocol's column judges the long run on (the protocol itself has only 200-episode runs).
+LONG_RUN_PROTOCOL = "on the first 20 long runs per cell"
+
+
+def protocol_verdict(j: Judgement) -> str:
+    """A claim's verdict at the paper protocol's seed count, saying which runs it judges where they are not the protocol's."""
+    if j.key != "long_run":
+        return j.verdict
+    word = claims.verdict_word(j.verdict)
+    return f"{word} {LONG_RUN_PROTOCOL}{j.verdict[len(word):]}"
 
 
 def tests_table(judged: list[Judgement]) -> pd.DataFrame:
@@ -227,8 +239,9 @@ def verdict_section(ctx: ReportContext) -> None:
     ctx.cards(
         "verdict",
         table,
-        "Verdict on the paper's claims, one card per claim (every column, the quotes, the verdicts in cells and at the "
-        "paper's protocol in full: the HTML page and the CSV file)",
+        "Verdict on the paper's claims, one card per claim; the verdict in cells and at the paper's protocol are named "
+        "where their words differ from the verdict's (every column, the quotes and those verdicts in full: the HTML page "
+        "and the CSV file)",
         spec,
     )
     ctx.doc.h("Not reproduced, and why", 3)
