@@ -45,9 +45,10 @@ test: tools
 	$(PY) -m mypy
 	$(VENV)/bin/lint-imports --no-logo
 	$(MAKE) --no-print-directory docs
-	@# the suite on every core (pytest-xdist, each test file on one worker), then the Ray tests on their own: they start Ray
-	@# instances and clusters, and a Ray driver whose node is stopped under load may exit before Python sees the loss
-	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile -m "not ray"
+	@# the suite on every core (pytest-xdist, each test file on one worker; its 15 slowest tests listed), then the Ray tests
+	@# on their own: they start Ray instances and clusters, and a Ray driver whose node is stopped under load may exit
+	@# before Python sees the loss
+	$(PY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile -m "not ray" --durations=15
 	$(PY) -m pytest -q -m ray
 
 # The documentation site: warnings are errors (-W), every internal reference is checked (-n: nitpicky).
