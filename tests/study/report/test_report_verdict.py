@@ -142,7 +142,7 @@ def test_a_size_mismatch_is_caught_by_the_20_seed_predictive_interval() -> None:
     standard = runs.agent == "epsilon-greedy"
     runs.loc[standard, "decisions_per_episode"] *= 67.02 / runs.loc[standard, "decisions_per_episode"].mean()
     match = _by_key(runs)["printed_iv:epsilon-greedy"]
-    assert match.size is True and match.verdict.startswith("reproduced: inside the predictive interval")
+    assert match.size is True and match.verdict.startswith("reproduced: inside the 20-seed predictive interval [")
 
 
 def test_seed_sensitivity_uses_the_first_replicates() -> None:

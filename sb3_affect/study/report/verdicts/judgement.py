@@ -150,7 +150,8 @@ def size_against_paper(
     low, high = predictive(est, n_ours, n_paper)
     inside = bool(low <= printed <= high)
     ratio = printed / est.value if est.value else math.nan
-    return inside, ratio, f"predictive interval at {n_paper} {unit} [{sig(low)}, {sig(high)}]"
+    name = f"{n_paper}-seed predictive interval" if unit == "seeds per cell" else f"predictive interval at {n_paper} {unit}"
+    return inside, ratio, f"{name} [{sig(low)}, {sig(high)}]"
 
 
 def eps_list(values: list[float]) -> str:
