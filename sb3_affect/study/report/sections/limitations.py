@@ -41,8 +41,9 @@ def censoring_item(runs: pd.DataFrame, found: Comparison | None) -> str:
         text += f"; the main finding's speed-matched ε-greedy: {found.censored[1]:,} of {found.runs[1]:,}"
     return (
         text + ". They count with all their decisions, so every mean and difference they enter is a bound, marked "
-        "\">=\" or \"<=\" where it is printed, and the main finding, the speed ablation per ε and the lead per ε "
-        "(Appendix B) put Kaplan-Meier restricted means beside the bounds."
+        "\">=\" or \"<=\" where it is printed, and the main finding, Table V's cards, the speed ablation per ε and the "
+        "lead per ε (Appendix B) put Kaplan-Meier restricted means beside the bounds (rliable's IQMs: the Kaplan-Meier "
+        "distribution's, or a bound where it is not estimable)."
     )
 
 
