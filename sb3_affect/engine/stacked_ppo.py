@@ -164,27 +164,27 @@ class StackedActorCritic:
         grads = [p.grad for p in self.parameters() if p.grad is not None]
         norms = th.stack([th.linalg.vector_norm(g, 2, dim=(1, 2)) for g in grads])
         coefficient = th.clamp(max_grad_norm / (th.linalg.vector_norm(norms, 2, dim=0) + 1e-6), max=1.0)
-        th._foreach_mul_(grads, [coefficient.reshape(-1, 1, 1)] * len(grads))
+        scale = coefficient.reshape(-1, 1, 1)
+        for grad in grads:
+            grad.mul_(scale)
 
     def _adam(self) -> None:
         """
-        torch's ``foreach`` Adam over the stacked tensors, its square root taken of ``v + 1e-30`` (``SQRT_FLOOR``: torch's
-        CPU ``sqrt`` is slow on exact zeros, which the weights of never-seen inputs have; see ``stacked_q``).
+        torch's Adam over the stacked tensors (the per-tensor ops its CPU ``foreach`` path runs), its square root taken of
+        ``v + 1e-30`` (``SQRT_FLOOR``: torch's CPU ``sqrt`` is slow on exact zeros, which the weights of never-seen inputs
+        have; see ``stacked_q``).
         """
         with th.no_grad():
-            params = self.parameters()
-            grads = [p.grad if p.grad is not None else th.zeros_like(p) for p in params]
             beta1, beta2 = self.betas
             self.steps += 1
-            th._foreach_lerp_(self.exp_avg, grads, 1 - beta1)
-            th._foreach_mul_(self.exp_avg_sq, beta2)
-            th._foreach_addcmul_(self.exp_avg_sq, grads, grads, 1 - beta2)
             step_size = self.learning_rate / (1 - beta1 ** self.steps)
-            denominators = th._foreach_add(self.exp_avg_sq, SQRT_FLOOR)
-            th._foreach_sqrt_(denominators)
-            th._foreach_div_(denominators, (1 - beta2 ** self.steps) ** 0.5)
-            th._foreach_add_(denominators, self.eps)
-            th._foreach_addcdiv_(params, self.exp_avg, denominators, -step_size)
+            bias_correction2_sqrt = (1 - beta2 ** self.steps) ** 0.5
+            for param, exp_avg, exp_avg_sq in zip(self.parameters(), self.exp_avg, self.exp_avg_sq):
+                grad = param.grad if param.grad is not None else th.zeros_like(param)
+                exp_avg.lerp_(grad, 1 - beta1)
+                exp_avg_sq.mul_(beta2).addcmul_(grad, grad, value=1 - beta2)
+                denominator = th.add(exp_avg_sq, SQRT_FLOOR).sqrt_().div_(bias_correction2_sqrt).add_(self.eps)
+                param.addcdiv_(exp_avg, denominator, value=-step_size)
 
     def set_learning_rate(self, learning_rate: float) -> None:
         self.learning_rate = float(learning_rate)
