@@ -37,6 +37,7 @@ from stable_baselines3.common.type_aliases import MaybeCallback
 from stable_baselines3.common.utils import explained_variance
 from torch import nn
 
+from sb3_affect.agents.sb3_fields import ModelFields
 from sb3_affect.engine.lockstep import idle
 from sb3_affect.engine.seed_envs import SeedEnvs
 from sb3_affect.engine.stacked_q import SQRT_FLOOR, network_activations
@@ -287,6 +288,7 @@ class LockstepPPO:
 
     def __init__(self, models: Sequence[PPO], seeds: Sequence[int], generators: Sequence[th.Tensor]) -> None:
         self.models = list(models)
+        self.fields = [ModelFields(m) for m in self.models]
         self.rngs = [np.random.RandomState(seed) for seed in seeds]
         self.generators = []
         for state in generators:
@@ -329,9 +331,13 @@ class LockstepPPO:
     def _freeze(self, index: int, callback: BaseCallback) -> None:
         self.frozen[index] = True
         self.stack.write_back(self.models, [index])
-        self.models[index]._last_obs = self.obs[index]
-        self.models[index]._last_episode_starts = self.episode_starts[index]
+        self._hand_back(index)
         callback.on_training_end()
+
+    def _hand_back(self, index: int) -> None:
+        """Seed ``index``'s current observation and episode starts into its model, where ``learn`` leaves them."""
+        fields = self.fields[index]
+        fields.last_obs, fields.last_episode_starts = self.obs[index], self.episode_starts[index]
 
     def _collect(self, callbacks: dict[int, BaseCallback], n_steps: int) -> None:
         """``collect_rollouts`` of every live seed (``n_steps`` VecEnv steps, then GAE)."""
@@ -366,7 +372,7 @@ class LockstepPPO:
                     self.stack.write_back(models, self._live())
                     self.on_models(models)
             for index in np.flatnonzero(dones.any(axis=1) & ~self.frozen).tolist():
-                models[index]._update_info_buffer(infos[index], dones[index])
+                self.fields[index].update_info_buffer(infos[index], dones[index])
             rewards = rewards.astype(np.float32, copy=True)
             truncated = [(s, e) for s, e in zip(*np.nonzero(dones))
                          if infos[s][e].get("terminal_observation") is not None
@@ -397,8 +403,9 @@ class LockstepPPO:
 
     def _train(self) -> None:
         """``PPO.train`` of every live seed, on its rollout."""
-        models, first = self.models, self.models[self._live()[0]]
-        progress = first._current_progress_remaining
+        live = self._live()
+        models, first = self.models, self.models[live[0]]
+        progress = self.fields[live[0]].progress
         rates = {m.lr_schedule(progress) for m in models}
         if len(rates) != 1:
             raise ValueError("learning_rate per seed: train_many's PPO takes one learning rate for all seeds")
@@ -407,16 +414,16 @@ class LockstepPPO:
         settings = self._settings(progress)
         logs = self.stack.update(self.rollout, self.rngs, settings, first.n_epochs, first.batch_size,
                                  first.normalize_advantage)
-        for index in self._live():
-            model = models[index]
-            model._n_updates += first.n_epochs
-            logger = model.logger
+        for index in live:
+            fields = self.fields[index]
+            fields.n_updates += first.n_epochs
+            logger = models[index].logger
             logger.record("train/learning_rate", rate)
             for key in ("entropy_loss", "policy_gradient_loss", "value_loss", "approx_kl", "clip_fraction", "loss"):
                 logger.record(f"train/{key}", float(logs[key][index]))
             logger.record("train/explained_variance", float(explained_variance(
                 self.rollout.values[index].T.flatten(), self.rollout.returns[index].T.flatten())))
-            logger.record("train/n_updates", model._n_updates, exclude="tensorboard")
+            logger.record("train/n_updates", fields.n_updates, exclude="tensorboard")
             logger.record("train/clip_range", float(settings["clip_range"][index]))
             if "clip_range_vf" in settings:
                 logger.record("train/clip_range_vf", float(settings["clip_range_vf"][index]))
@@ -430,13 +437,13 @@ class LockstepPPO:
         callbacks: dict[int, BaseCallback] = {}
         total = total_timesteps
         for index, (model, given) in enumerate(zip(models, user_callbacks or [None] * len(models))):
-            total, callback = model._setup_learn(total_timesteps, given, True, "PPO", False)
+            total, callback = self.fields[index].setup_learn(total_timesteps, given, "PPO")
             callback.on_training_start({"self": model, "total_timesteps": total, "callback": callback,
                                         "log_interval": log_interval}, globals())
             if not idle(callback):
                 callbacks[index] = callback
-        self.obs = np.stack([m._last_obs for m in models])  # type: ignore[misc]
-        self.episode_starts = np.stack([m._last_episode_starts for m in models]).astype(np.float32)  # type: ignore[misc]
+        self.obs = np.stack([fields.last_obs for fields in self.fields])
+        self.episode_starts = np.stack([fields.last_episode_starts for fields in self.fields]).astype(np.float32)
         self.stack = StackedActorCritic(models)
         first = models[0]
         self.rollout = StackedRollout(self.n_seeds, first.n_steps, self.n_envs, first.observation_space.shape or ())
@@ -449,7 +456,7 @@ class LockstepPPO:
                 iteration += 1
                 for index in self._live():
                     model = models[index]
-                    model._update_current_progress_remaining(model.num_timesteps, total)
+                    self.fields[index].update_progress(model.num_timesteps, total)
                     if log_interval is not None and iteration % log_interval == 0:
                         model.dump_logs(iteration)
                 self._train()
@@ -461,6 +468,5 @@ class LockstepPPO:
             self.stack.write_back(models, live)
             self.rollout.release(models, live)
             for index in live:
-                models[index]._last_obs = self.obs[index]
-                models[index]._last_episode_starts = self.episode_starts[index]
+                self._hand_back(index)
         return models
