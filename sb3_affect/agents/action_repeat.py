@@ -205,6 +205,11 @@ class ActionRepeat:
         if len(self._remaining) == len(dones):
             self._remaining[np.asarray(dones, dtype=bool)] = 0
 
+    @property
+    def decision_counts(self) -> tuple[int, int]:
+        """``(random decisions, decisions)`` since the last ``dump_logs`` (which logs their share and restarts them)."""
+        return self._random_decisions, self._decisions
+
     def dump_logs(self) -> None:
         if self._decisions:
             share = self._random_decisions / self._decisions
