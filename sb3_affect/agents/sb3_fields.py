@@ -55,8 +55,10 @@ class ModelFields:
 
     @property
     def stats_window_size(self) -> int:
-        """The episodes ``ep_info_buffer`` averages over (SB3's default where the algorithm has none)."""
-        return int(getattr(self.model, "_stats_window_size", 100))
+        """The episodes ``ep_info_buffer`` averages over: its length, as ``learn``'s set-up made it (``stats_window_size``);
+        SB3's default, 100, before that."""
+        buffer = getattr(self.model, "ep_info_buffer", None)
+        return int(buffer.maxlen) if buffer is not None and buffer.maxlen is not None else 100
 
     # -- the loop's counts ---------------------------------------------------------------------------------------------
     @property
