@@ -298,7 +298,7 @@ class LockstepPPO:
         first = self.models[0]
         if not isinstance(first.action_space, spaces.Discrete):
             raise ValueError(f"action_space={first.action_space}: train_many's PPO stacks discrete actions only")
-        self.n_seeds, self.n_envs = len(self.models), first.n_envs
+        self.n_seeds, self.n_envs, self.n_actions = len(self.models), first.n_envs, int(first.action_space.n)
         self.envs = SeedEnvs([m.get_env() for m in self.models])  # type: ignore[misc]
         self.frozen = np.zeros(self.n_seeds, dtype=bool)
         self.gamma = np.array([[m.gamma] for m in self.models], dtype=np.float32)
@@ -307,17 +307,25 @@ class LockstepPPO:
     def _live(self) -> list[int]:
         return np.flatnonzero(~self.frozen).tolist()
 
-    def _sample(self, log_probs: th.Tensor) -> th.Tensor:
+    def _draws(self, n_steps: int) -> th.Tensor:
         """
-        Each seed's ``Categorical.sample()`` from its own generator: ``(S, E)``. For one sample torch's ``multinomial``
-        is ``argmax(p / q)`` with ``q`` exponential draws of ``p``'s shape; each seed's ``q`` is drawn from its generator,
-        the division and argmax are one operation for all seeds.
+        Each seed's exponential draws for the ``n_steps`` steps of a rollout, ``(S, n_steps, E, n_actions)``, from its
+        own generator: one call per seed, not per step, drawing the numbers one draw per step would, in their order
+        (torch's CPU ``exponential_`` fills a tensor one element after the other from the generator).
         """
-        probs = log_probs.exp()
-        draws = th.empty_like(probs)
+        draws = th.empty((self.n_seeds, n_steps, self.n_envs, self.n_actions))
         for draw, generator in zip(draws, self.generators):
             draw.exponential_(1, generator=generator)
-        return (probs / draws).argmax(dim=-1)
+        return draws
+
+    @staticmethod
+    def _sample(log_probs: th.Tensor, draws: th.Tensor) -> th.Tensor:
+        """
+        Each seed's ``Categorical.sample()``: ``(S, E)``. For one sample torch's ``multinomial`` is ``argmax(p / q)``
+        with ``q`` exponential draws of ``p``'s shape (the step's ``draws``, each seed's from its generator); the division
+        and argmax are one operation for all seeds.
+        """
+        return (log_probs.exp() / draws).argmax(dim=-1)
 
     def _settings(self, progress: float) -> dict[str, th.Tensor]:
         models = self.models
@@ -348,10 +356,11 @@ class LockstepPPO:
         for callback in callbacks.values():
             callback.on_rollout_start()
         dones = np.zeros((self.n_seeds, self.n_envs), dtype=bool)
+        draws = self._draws(n_steps)
         while self.rollout.pos < n_steps:
             with th.no_grad():
                 log_probs, values = self.stack.forward(self.obs)
-                actions = self._sample(log_probs)
+                actions = self._sample(log_probs, draws[:, self.rollout.pos])
                 chosen = log_probs.gather(2, actions.unsqueeze(2)).squeeze(2)
             action_array = actions.numpy()
             new_obs, rewards, dones, infos = self.envs.step(action_array)
