@@ -198,12 +198,17 @@ class ActionRepeat:
     def _store_transition(self, replay_buffer: Any, buffer_action: np.ndarray, new_obs: Any, reward: np.ndarray,
                           dones: np.ndarray, infos: list[dict[str, Any]]) -> None:
         super()._store_transition(replay_buffer, buffer_action, new_obs, reward, dones, infos)  # type: ignore[misc]
-        self._end_repeats(dones)
+        self.end_repeats(dones)
 
-    def _end_repeats(self, dones: np.ndarray) -> None:
+    def end_repeats(self, dones: np.ndarray) -> None:
         """An episode's end ends the repeat of its env (after the step's transition is stored)."""
         if len(self._remaining) == len(dones):
             self._remaining[np.asarray(dones, dtype=bool)] = 0
+
+    @property
+    def decision_counts(self) -> tuple[int, int]:
+        """``(random decisions, decisions)`` since the last ``dump_logs`` (which logs their share and restarts them)."""
+        return self._random_decisions, self._decisions
 
     def dump_logs(self) -> None:
         if self._decisions:

@@ -15,7 +15,6 @@ from sb3_affect.agents.callbacks import EmotionCallback
 from sb3_affect.core.appraisal import Appraiser, KnownMap, PowerFit
 from sb3_affect.core.episode_log import EPISODE_COLUMNS
 from sb3_affect.core.goals import every_termination, positive_terminal_reward
-from sb3_affect.core.lane_appraisal import LaneAppraisal
 from sb3_affect.core.personalities import PersonalityAppraiser
 from sb3_affect.core.positions import MAX_MAPPED_CELLS
 
@@ -45,12 +44,13 @@ def callback_state(callback: EmotionCallback) -> tuple[dict[str, Any], dict[str,
     goal = next((name for name, test in GOALS.items() if test is callback.goal), None)
     if goal is None:
         objects["goal"] = callback.goal
-    appraisers = [lane.appraiser for lane in callback._lanes] or ([callback.appraiser] if callback.appraiser else [])
+    appraisers = callback.lane_appraisers() or ([callback.appraiser] if callback.appraiser else [])
     kind = type(appraisers[0]).__name__ if appraisers else "Appraiser"
     if appraisers and APPRAISERS.get(kind) is not type(appraisers[0]):
         objects["appraisers"] = appraisers
         appraisers = []
     path = callback.episode_log_path
+    episodes, goals, warned = callback.episode_counts()
     plain = {
         "comparison": callback.comparison,
         "act": callback.act,
@@ -64,9 +64,9 @@ def callback_state(callback: EmotionCallback) -> tuple[dict[str, Any], dict[str,
         "appraiser": kind,
         "appraisers": [appraiser.get_state() for appraiser in appraisers],
         "rows": [[None if isinstance(v, float) and math.isnan(v) else v for v in row] for row in callback.rows],
-        "episodes": callback._episodes,
-        "goals": callback._goals,
-        "warned": callback._warned,
+        "episodes": episodes,
+        "goals": goals,
+        "warned": warned,
     }
     return plain, objects
 
@@ -122,15 +122,13 @@ def restore_callback(plain: Any, objects: Any) -> EmotionCallback:
             raise AffectStateError("appraisers must be a list of at most 4,096 appraisals (one per env)")
         appraisers = [_appraiser(APPRAISERS[kind], state, callback) for state in states]
     if appraisers:
-        callback.appraiser = appraisers[0]
-        callback._lanes = [LaneAppraisal(appraiser) for appraiser in appraisers]
+        callback.set_lane_appraisers(appraisers)
     callback.rows = _rows(plain.get("rows", []))
     for key in ("episodes", "goals"):
         value = plain.get(key, 0)
         if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= MAX_ROWS * 1000:
             raise AffectStateError(f"{key}={value!r} must be a count (an integer >= 0)")
-    callback._episodes, callback._goals = plain.get("episodes", 0), plain.get("goals", 0)
-    callback._warned = bool(plain.get("warned", False))
+    callback.set_episode_counts(plain.get("episodes", 0), plain.get("goals", 0), bool(plain.get("warned", False)))
     return callback
 
 

@@ -56,6 +56,7 @@ from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
 
 from sb3_affect.agents.callbacks import WindowMeans, check_step_locals, flat_array, logger_file_folder
 from sb3_affect.agents.numpy_values import NumpyQValues, q_values_fn
+from sb3_affect.agents.sb3_fields import ModelFields, policy_actions
 from sb3_affect.core.positions import Position, PositionSpec, check_position, make_position
 from sb3_affect.core.registry import EMOTION_MODELS
 
@@ -100,7 +101,7 @@ def value_kind(model: Any) -> str:
 def _model_values(model: Any, kind: str, obs: Any, lstm: Any = None, starts: Any = None) -> np.ndarray:
     """The values of a batch of observations (``obs``: a VecEnv's batch, or a dict of batches)."""
     if kind == "tabular":
-        q = getattr(model, "_q", None)
+        q = getattr(model, "loop_table", None)
         table = q if q is not None else model.q_table.tolist()
         cells = np.asarray(obs).reshape(-1) - int(model.observation_space.start)
         return np.array([max(table[int(cell)]) for cell in cells], dtype=float)
@@ -120,7 +121,7 @@ def _model_values(model: Any, kind: str, obs: Any, lstm: Any = None, starts: Any
             elif kind == "recurrent":
                 values = policy.predict_values(tensor, lstm, starts)
             else:  # "critic": Q(s, pi(s)) with the deterministic action
-                actions = policy._predict(tensor, deterministic=True)
+                actions = policy_actions(policy, tensor)
                 out = model.critic(tensor, actions)
                 if isinstance(out, (tuple, list)):  # twin critics (SAC, TD3, CrossQ): the minimum, as their targets
                     values = th.cat([q.reshape(len(q), -1) for q in out], dim=1).min(dim=1).values
@@ -276,7 +277,7 @@ class BroekensCallback(BaseCallback):
         mirror of the network) only the states asked for, whose one-row passes cost little; by torch every state at
         once, whose one pass costs about what a pass of one state does.
         """
-        version = self.model._n_updates
+        version = ModelFields(self.model).n_updates
         if self._table is None or version != self._table_version:
             self._table, self._table_version = {}, version
             mirror = self._mirror
@@ -304,8 +305,8 @@ class BroekensCallback(BaseCallback):
         """RecurrentPPO's value-LSTM states for the next observation (``index``: one env's, for its last observation)."""
         states = self.locals.get("lstm_states") if self.locals else None
         if states is None:  # training start: the states the next rollout begins with
-            states = getattr(self.model, "_last_lstm_states")  # noqa: B009  (RecurrentPPO's, not BaseAlgorithm's)
-            dones = np.asarray(getattr(self.model, "_last_episode_starts"))  # noqa: B009
+            fields = ModelFields(self.model)
+            states, dones = fields.last_lstm_states, np.asarray(fields.last_episode_starts)
         h, c = states.vf
         device = self.model.device
         if index is not None:  # a truncated episode's last observation continues its episode
@@ -333,7 +334,8 @@ class BroekensCallback(BaseCallback):
         self.locals = locals_
 
     def _on_training_start(self) -> None:
-        last_obs = getattr(self.model, "_last_obs", None)
+        fields = ModelFields(self.model)
+        last_obs = fields.last_obs
         if last_obs is None:
             raise RuntimeError("BroekensCallback: the algorithm has no current observation at training start")
         n = self.training_env.num_envs
@@ -341,7 +343,7 @@ class BroekensCallback(BaseCallback):
         self._sums = [[0.0] * 4 for _ in range(n)]
         self._steps = [0] * n
         self._reward = [0.0] * n
-        self._window = self._window.resized(int(getattr(self.model, "_stats_window_size", 100)))
+        self._window = self._window.resized(fields.stats_window_size)
         self._csv_path = self._episode_csv()
         self._pending = None
         self._queue = []

@@ -44,6 +44,7 @@ import numpy as np
 from stable_baselines3.common.callbacks import BaseCallback
 from stable_baselines3.common.logger import HumanOutputFormat
 
+from sb3_affect.agents.sb3_fields import ModelFields
 from sb3_affect.core.appraisal import Appraiser
 from sb3_affect.core.emotions import EMOTION_NAMES, Emotion, EmotionRule, make_table_ii
 from sb3_affect.core.episode_log import EPISODE_COLUMNS, Geometry, deterministic_walk_is_shortest, env_geometry, make_frame
@@ -237,12 +238,13 @@ class EmotionCallback(BaseCallback):
         self.locals = locals_
 
     def _on_training_start(self) -> None:
-        last_obs = getattr(self.model, "_last_obs", None)
+        fields = ModelFields(self.model)
+        last_obs = fields.last_obs
         if last_obs is None:
             raise RuntimeError("EmotionCallback: the algorithm has no current observation at training start")
         n_envs = self.training_env.num_envs
         self._geometry = self._find_geometry()
-        self._window = WindowMeans(len(WINDOW_KEYS), int(getattr(self.model, "_stats_window_size", 100)))
+        self._window = WindowMeans(len(WINDOW_KEYS), fields.stats_window_size)
         self._csv_path = self._episode_csv()
         # one lane per env: its own appraisal (env 0 keeps the callback's appraiser), counts and episode in progress
         assert self.appraiser is not None
@@ -288,6 +290,24 @@ class EmotionCallback(BaseCallback):
     def lane_emotions(self) -> list[Emotion]:
         """Observer mode: the emotion each env of the VecEnv feels for its next decision."""
         return [lane.emotion for lane in self._lanes]
+
+    def lane_appraisers(self) -> list[Appraiser]:
+        """Each env's appraiser (its known map and norm), in env order; empty before the first training start."""
+        return [lane.appraiser for lane in self._lanes]
+
+    def set_lane_appraisers(self, appraisers: Sequence[Appraiser]) -> None:
+        """One lane per appraiser, in env order (env 0's is the callback's ``appraiser``), as a saved callback had."""
+        self.appraiser = appraisers[0]
+        self._lanes = [LaneAppraisal(appraiser) for appraiser in appraisers]
+
+    def episode_counts(self) -> tuple[int, int, bool]:
+        """``(episodes, goals, warned)``: the episodes ended, those that reached the goal, and whether the warning that
+        none did has been given."""
+        return self._episodes, self._goals, self._warned
+
+    def set_episode_counts(self, episodes: int, goals: int, warned: bool) -> None:
+        """The counts ``episode_counts`` gave (a saved callback's)."""
+        self._episodes, self._goals, self._warned = episodes, goals, warned
 
     def _on_step(self) -> bool:
         check_step_locals(self)

@@ -131,6 +131,11 @@ class AffectiveExploration(ActionRepeat):
     def _excluded_save_params(self) -> list[str]:
         return [*super()._excluded_save_params(), "emotion_callback", "_behaviour", "_emotions"]
 
+    @property
+    def decision_emotions(self) -> list[Emotion]:
+        """The emotion each env decided its current action by (empty in the warm-up and before the first step)."""
+        return self._emotions
+
     def save(self, path: Any, exclude: Any = None, include: Any = None) -> None:
         """
         Save as SB3 does, with the emotion callback: its settings, each env's appraisal (known map, the norm's history)

@@ -28,6 +28,7 @@ from stable_baselines3.common.torch_layers import CombinedExtractor, FlattenExtr
 from stable_baselines3.common.type_aliases import TrainFreq, TrainFrequencyUnit
 from stable_baselines3.common.utils import check_for_correct_spaces
 
+from sb3_affect.agents.sb3_fields import ModelFields
 from sb3_affect.agents.serialization import (
     _SPACE_KEYS,
     FORMAT,
@@ -288,7 +289,7 @@ def _weights_bounds(model: Any) -> dict[str, int]:
     bytes of the tensors the model holds there (an optimizer's state: ``OPTIMIZER_STATES`` times its parameters'),
     plus room for torch's container. A member past its bound is refused before a byte of it is read.
     """
-    names, variables = model._get_torch_save_params()
+    names, variables = ModelFields(model).torch_save_params()
     bounds: dict[str, int] = {}
     for name in [*names, "pytorch_variables"]:
         if name == "pytorch_variables":
@@ -378,7 +379,7 @@ def _load_open(archive: Any, cls: Any, where: str, env: Any, device: Any, force_
     model.__dict__.update({key: value for key, value in kwargs.items() if key not in WRITE_PATHS})
     model.observation_space, model.action_space, model.policy_class = observation_space, action_space, policy_class
     try:
-        model._setup_model()  # the agent's options checked again, as the constructor checks them
+        ModelFields(model).setup_model()  # the agent's options checked again, as the constructor checks them
     except (TypeError, ValueError) as error:
         raise ModelFileError(f"{where}: a saved value is not allowed: {' '.join(str(error).split())}") from None
     paths_from_caller(model, kwargs)
@@ -404,7 +405,7 @@ def _load_open(archive: Any, cls: Any, where: str, env: Any, device: Any, force_
     except (RuntimeError, ValueError, KeyError, TypeError, AttributeError) as error:
         message = " ".join(str(error).split())[:300]
         raise ModelFileError(f"{where}: the weights do not fit a {cls.__name__} with the saved settings ({message})") from None
-    _, variable_names = model._get_torch_save_params()
+    _, variable_names = ModelFields(model).torch_save_params()
     if variable_names and not isinstance(variables, dict):
         raise ModelFileError(f"{where}: pytorch_variables.pth is missing or not a mapping of tensors")
     for name in variable_names or []:

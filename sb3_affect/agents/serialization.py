@@ -26,6 +26,7 @@ from gymnasium import spaces
 from stable_baselines3.common.utils import ConstantSchedule, FloatSchedule, LinearSchedule, check_for_correct_spaces
 
 from sb3_affect.agents.agent_checks import MAX_TABLE_ENTRIES, check_episode_in_progress, check_table_size
+from sb3_affect.agents.sb3_fields import ModelFields
 from sb3_affect.core.registry import FORMER_MODULES
 
 PLAIN_MEMBER = "sb3_affect.json"
@@ -404,7 +405,7 @@ def _load_safe(
     model.__dict__.update(restored)
     model.__dict__.update({key: value for key, value in kwargs.items() if key not in WRITE_PATHS})
     model.observation_space, model.action_space, model.policy_class = observation_space, action_space, policy_class
-    model._setup_model()
+    ModelFields(model).setup_model()
     paths_from_caller(model, kwargs)
     try:
         state = th.load(io.BytesIO(policy_bytes), map_location=model.device, weights_only=True)

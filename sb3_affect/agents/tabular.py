@@ -596,6 +596,12 @@ class TabularQAlgorithm(ModelFiles):
         self.logger.dump(step=self.num_timesteps)
 
     # -- the Q-table -------------------------------------------------------------------------------------------
+    @property
+    def loop_table(self) -> LoopTable | np.ndarray | None:
+        """The loop's Q-table while ``learn`` runs (what a callback reads mid-run; ``q_table`` is written at the end),
+        else None."""
+        return getattr(self, "_q", None)
+
     def _sync_policy(self) -> None:
         """Write the loop's Q-table (the Python loop's rows, or the kernel's array) back into the policy's tensor."""
         q = getattr(self, "_q", None)

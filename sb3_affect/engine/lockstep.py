@@ -40,6 +40,7 @@ from stable_baselines3.common.off_policy_algorithm import OffPolicyAlgorithm
 from stable_baselines3.common.type_aliases import MaybeCallback
 
 from sb3_affect.agents.action_repeat import ActionRepeat
+from sb3_affect.agents.sb3_fields import ModelFields
 from sb3_affect.engine.seed_envs import SeedEnvs
 from sb3_affect.engine.stacked_q import StackedQ
 from sb3_affect.engine.stacked_replay import StackedReplay
@@ -61,13 +62,13 @@ class _StackedPredict:
         if not deterministic and trainer.rngs[index].rand() < model.exploration_rate:
             batch = np.asarray(observation).reshape(-1, *trainer.obs_shape)
             return random_actions(model.action_space, len(batch)), state
-        if observation is model._last_obs:
+        if observation is trainer.fields[index].last_obs:
             return trainer.greedy()[index].copy(), state
         batch = np.asarray(observation).reshape(1, -1, *trainer.obs_shape)
         weights = [w[index:index + 1] for w in trainer.stack.weights]
         biases = [b[index:index + 1] for b in trainer.stack.biases]
         with th.no_grad():
-            q_values = trainer.stack._forward(trainer.stack.features(batch), weights, biases)
+            q_values = trainer.stack.forward(trainer.stack.features(batch), weights, biases)
         return q_values.argmax(dim=2).numpy()[0], state
 
 
@@ -88,16 +89,17 @@ def idle(callback: BaseCallback) -> bool:
         isinstance(callback, ConvertCallback) and callback.callback is None)
 
 
-def _own(model: DQN, name: str) -> bool:
-    """Whether the model's class overrides SB3's off-policy method ``name``."""
-    return getattr(type(model), name) is not getattr(OffPolicyAlgorithm, name)
-
-
-def _ends_repeats(model: DQN) -> bool:
-    """Whether the model stores as SB3 does, then ends the repeats of the envs whose episode ended (``ActionRepeat``)."""
-    stores = type(model)._store_transition
-    return stores is ActionRepeat._store_transition and (
-        super(ActionRepeat, model)._store_transition.__func__ is OffPolicyAlgorithm._store_transition)  # type: ignore[misc]
+def loop_methods(model: DQN) -> tuple[bool, bool, bool]:
+    """
+    ``(own_actions, own_storage, ends_repeats)``: whether the model's class has its own ``_sample_action``; its own
+    ``_store_transition``; or SB3's, then ends the repeats of the envs whose episode ended (``ActionRepeat``'s).
+    """
+    kind = type(model)
+    own_actions = kind._sample_action is not OffPolicyAlgorithm._sample_action
+    stores, sb3_stores = kind._store_transition, OffPolicyAlgorithm._store_transition
+    ends_repeats = stores is ActionRepeat._store_transition and (
+        super(ActionRepeat, model)._store_transition.__func__ is sb3_stores)  # type: ignore[misc]
+    return own_actions, stores is not sb3_stores and not ends_repeats, ends_repeats
 
 
 class Lockstep:
@@ -118,10 +120,9 @@ class Lockstep:
         self.rngs = [np.random.RandomState(seed) for seed in seeds]
         self.n_seeds, self.n_envs = len(self.models), self.models[0].n_envs
         self.obs_shape = self.models[0].observation_space.shape or ()
+        self.fields = [ModelFields(m) for m in self.models]
         self.envs = SeedEnvs([m.get_env() for m in self.models])  # type: ignore[misc]
-        self.own_actions = _own(self.models[0], "_sample_action")
-        self.ends_repeats = _ends_repeats(self.models[0])
-        self.own_storage = _own(self.models[0], "_store_transition") and not self.ends_repeats
+        self.own_actions, self.own_storage, self.ends_repeats = loop_methods(self.models[0])
         self._greedy: np.ndarray | None = None
         self.frozen = np.zeros(self.n_seeds, dtype=bool)
         # the seeds of each exploration schedule (one group unless the seeds were given their own)
@@ -133,8 +134,9 @@ class Lockstep:
         self.exploration = np.array([m.exploration_rate for m in self.models], dtype=float)
         points = (1.0, 0.5, 0.0)
         self.one_rate = len({tuple(m.lr_schedule(p) for p in points) for m in self.models}) == 1
-        first = self.models[0]
-        self.num_timesteps, self.n_calls, self.n_updates = first.num_timesteps, first._n_calls, first._n_updates
+        first = self.fields[0]
+        self.num_timesteps, self.n_calls, self.n_updates = self.models[0].num_timesteps, first.n_calls, first.n_updates
+        self.total_timesteps = 0  # learn's, once it has set up
         self.losses: list[float] = [0.0] * self.n_seeds
         self.learning_rates: list[float] = [0.0] * self.n_seeds
         self.clock = 0  # steps taken; a seed's logged keys since its last dump are those of the steps after it
@@ -144,11 +146,11 @@ class Lockstep:
     # -- the counts and logs of the models -----------------------------------------------------------------------------
     def _sync(self, indices: Sequence[int]) -> None:
         """Write the shared counts into the models ``indices`` (not frozen)."""
-        progress = self.models[0]._current_progress_remaining
+        progress = self.fields[0].progress
         for index in indices:
-            model = self.models[index]
-            model.num_timesteps, model._n_calls, model._n_updates = self.num_timesteps, self.n_calls, self.n_updates
-            model._current_progress_remaining = progress
+            model, fields = self.models[index], self.fields[index]
+            model.num_timesteps, fields.n_calls, fields.n_updates = self.num_timesteps, self.n_calls, self.n_updates
+            fields.progress = progress
             model.exploration_rate = float(self.exploration[index])
 
     def _record(self, index: int) -> None:
@@ -176,7 +178,7 @@ class Lockstep:
         self._greedy = None
         models, n_envs = self.models, self.n_envs
         if self.own_actions:
-            pairs = [m._sample_action(learning_starts, None, n_envs) for m in models]
+            pairs = [fields.sample_action(learning_starts, n_envs) for fields in self.fields]
             return np.stack([np.asarray(p[0]).reshape(n_envs) for p in pairs]), np.stack([p[1] for p in pairs])
         if self.num_timesteps < learning_starts:
             actions = np.stack([random_actions(m.action_space, n_envs) for m in models])
@@ -192,9 +194,8 @@ class Lockstep:
         """Each seed's ``_store_transition`` into its replay buffer (SB3's ``ReplayBuffer.add``, for all seeds at once)."""
         if self.own_storage:
             for index in self._live():
-                model = self.models[index]
-                model._store_transition(model.replay_buffer, buffer_actions[index], new_obs[index],  # type: ignore[arg-type]
-                                        rewards[index], dones[index], infos[index])
+                self.fields[index].store_transition(buffer_actions[index], new_obs[index], rewards[index], dones[index],
+                                                    infos[index])
             self.replay.follow(self._live()[0])
             return
         next_obs = new_obs.copy()
@@ -206,12 +207,12 @@ class Lockstep:
         self.replay.add(self.obs, next_obs, buffer_actions, rewards, dones, np.array(timeouts))
         if self.ends_repeats:
             for index in self._live():
-                self.models[index]._end_repeats(dones[index])  # type: ignore[attr-defined]
+                self.models[index].end_repeats(dones[index])  # type: ignore[attr-defined]
 
     def _train(self, gradient_steps: int, batch_size: int) -> None:
         """``DQN.train`` of every seed: ``gradient_steps`` batched steps, then SB3's bookkeeping (logged when dumped)."""
         models = self.models
-        progress = models[0]._current_progress_remaining
+        progress = self.fields[0].progress
         if self.one_rate:
             rate = models[0].lr_schedule(progress)
             self.stack.set_learning_rate(rate)
@@ -227,8 +228,8 @@ class Lockstep:
     def _after_step(self, dones: np.ndarray, log_interval: int) -> None:
         """``_update_current_progress_remaining``, ``DQN._on_step`` and the episode count of every seed."""
         first = self.models[0]
-        first._update_current_progress_remaining(self.num_timesteps, first._total_timesteps)
-        progress = first._current_progress_remaining
+        self.fields[0].update_progress(self.num_timesteps, self.total_timesteps)
+        progress = self.fields[0].progress
         for schedule, group in self.schedules:
             self.exploration[group] = schedule(progress)
         self.n_calls += 1
@@ -236,14 +237,14 @@ class Lockstep:
         if self.n_calls % max(first.target_update_interval // self.n_envs, 1) == 0:
             self.stack.update_target()
         for s in np.flatnonzero(dones.any(axis=1) & ~self.frozen).tolist():
-            model = self.models[s]
+            fields = self.fields[s]
             for _ in range(int(dones[s].sum())):
-                model._episode_num += 1
-                if model._episode_num % log_interval == 0:
+                fields.episode_num += 1
+                if fields.episode_num % log_interval == 0:
                     self._sync([s])
                     self._record(s)
                     self.dumped_at[s] = self.clock
-                    model.dump_logs()
+                    self.models[s].dump_logs()
 
     def _freeze(self, index: int, callback: BaseCallback) -> None:
         """Seed ``index``'s callback stopped its training: keep its model as ``learn`` leaves it, the others run on."""
@@ -252,7 +253,7 @@ class Lockstep:
         self.stack.write_back(self.models, [index])
         self.replay.release_one(index)
         model.__dict__.pop("predict", None)
-        model._last_obs = self.obs[index]
+        self.fields[index].last_obs = self.obs[index]
         self._record(index)
         callback.on_training_end()
 
@@ -268,14 +269,14 @@ class Lockstep:
         """
         models, first = self.models, self.models[0]
         callbacks: list[BaseCallback] = []
-        for model, given in zip(models, user_callbacks or [None] * len(models)):
-            total, callback = model._setup_learn(total_timesteps, given, True, "run", False)
+        for model, fields, given in zip(models, self.fields, user_callbacks or [None] * len(models)):
+            total, callback = fields.setup_learn(total_timesteps, given, "run")
             callback.on_training_start({"self": model, "total_timesteps": total, "callback": callback,
                                         "log_interval": log_interval}, globals())
             callbacks.append(callback)
-        self.num_timesteps = first.num_timesteps
+        self.num_timesteps, self.total_timesteps = first.num_timesteps, total
         active = {i: c for i, c in enumerate(callbacks) if not idle(c)}
-        self.obs = np.stack([m._last_obs for m in models])  # type: ignore[misc]
+        self.obs = np.stack([fields.last_obs for fields in self.fields])
         self.stack = StackedQ(models)
         frequency = first.train_freq.frequency  # type: ignore[union-attr]
         vec_steps = -(-total // (self.n_envs * frequency)) * frequency
@@ -311,12 +312,12 @@ class Lockstep:
                         self.stack.write_back(models, live)
                         on_models(models)
                     for ended in np.flatnonzero(dones.any(axis=1) & ~self.frozen).tolist():
-                        models[ended]._update_info_buffer(infos[ended], dones[ended])
+                        self.fields[ended].update_info_buffer(infos[ended], dones[ended])
                     self._store(buffer_actions, new_obs, rewards, dones, infos)
                     self.obs = new_obs
                     if self.own_actions and not self.own_storage:  # SB3's _sample_action predicts from _last_obs
-                        for model, obs in zip(models, new_obs):
-                            model._last_obs = obs
+                        for fields, obs in zip(self.fields, new_obs):
+                            fields.last_obs = obs
                     self._after_step(dones, log_interval)
                     if every_step:
                         self._sync(self._live())
@@ -339,5 +340,5 @@ class Lockstep:
             self.replay.release()
             if not self.own_storage:
                 for index in live:
-                    models[index]._last_obs = self.obs[index]
+                    self.fields[index].last_obs = self.obs[index]
         return models

@@ -184,7 +184,7 @@ def _check_model(model: DQN) -> None:
         allowed = ", ".join(c.__name__ for c in ELEMENTWISE_OPTIMIZERS)
         raise ValueError(f"optimizer_class={type(model.policy.optimizer).__name__} of {name}: train_many stacks "
                          f"element-wise optimizers only ({allowed})")
-    if model._vec_normalize_env is not None:
+    if model.get_vec_normalize_env() is not None:
         raise ValueError("train_many does not support VecNormalize")
 
 

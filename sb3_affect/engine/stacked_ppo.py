@@ -37,6 +37,7 @@ from stable_baselines3.common.type_aliases import MaybeCallback
 from stable_baselines3.common.utils import explained_variance
 from torch import nn
 
+from sb3_affect.agents.sb3_fields import ModelFields
 from sb3_affect.engine.lockstep import idle
 from sb3_affect.engine.seed_envs import SeedEnvs
 from sb3_affect.engine.stacked_q import SQRT_FLOOR, network_activations
@@ -164,27 +165,27 @@ class StackedActorCritic:
         grads = [p.grad for p in self.parameters() if p.grad is not None]
         norms = th.stack([th.linalg.vector_norm(g, 2, dim=(1, 2)) for g in grads])
         coefficient = th.clamp(max_grad_norm / (th.linalg.vector_norm(norms, 2, dim=0) + 1e-6), max=1.0)
-        th._foreach_mul_(grads, [coefficient.reshape(-1, 1, 1)] * len(grads))
+        scale = coefficient.reshape(-1, 1, 1)
+        for grad in grads:
+            grad.mul_(scale)
 
     def _adam(self) -> None:
         """
-        torch's ``foreach`` Adam over the stacked tensors, its square root taken of ``v + 1e-30`` (``SQRT_FLOOR``: torch's
-        CPU ``sqrt`` is slow on exact zeros, which the weights of never-seen inputs have; see ``stacked_q``).
+        torch's Adam over the stacked tensors (the per-tensor ops its CPU ``foreach`` path runs), its square root taken of
+        ``v + 1e-30`` (``SQRT_FLOOR``: torch's CPU ``sqrt`` is slow on exact zeros, which the weights of never-seen inputs
+        have; see ``stacked_q``).
         """
         with th.no_grad():
-            params = self.parameters()
-            grads = [p.grad if p.grad is not None else th.zeros_like(p) for p in params]
             beta1, beta2 = self.betas
             self.steps += 1
-            th._foreach_lerp_(self.exp_avg, grads, 1 - beta1)
-            th._foreach_mul_(self.exp_avg_sq, beta2)
-            th._foreach_addcmul_(self.exp_avg_sq, grads, grads, 1 - beta2)
             step_size = self.learning_rate / (1 - beta1 ** self.steps)
-            denominators = th._foreach_add(self.exp_avg_sq, SQRT_FLOOR)
-            th._foreach_sqrt_(denominators)
-            th._foreach_div_(denominators, (1 - beta2 ** self.steps) ** 0.5)
-            th._foreach_add_(denominators, self.eps)
-            th._foreach_addcdiv_(params, self.exp_avg, denominators, -step_size)
+            bias_correction2_sqrt = (1 - beta2 ** self.steps) ** 0.5
+            for param, exp_avg, exp_avg_sq in zip(self.parameters(), self.exp_avg, self.exp_avg_sq):
+                grad = param.grad if param.grad is not None else th.zeros_like(param)
+                exp_avg.lerp_(grad, 1 - beta1)
+                exp_avg_sq.mul_(beta2).addcmul_(grad, grad, value=1 - beta2)
+                denominator = th.add(exp_avg_sq, SQRT_FLOOR).sqrt_().div_(bias_correction2_sqrt).add_(self.eps)
+                param.addcdiv_(exp_avg, denominator, value=-step_size)
 
     def set_learning_rate(self, learning_rate: float) -> None:
         self.learning_rate = float(learning_rate)
@@ -287,6 +288,7 @@ class LockstepPPO:
 
     def __init__(self, models: Sequence[PPO], seeds: Sequence[int], generators: Sequence[th.Tensor]) -> None:
         self.models = list(models)
+        self.fields = [ModelFields(m) for m in self.models]
         self.rngs = [np.random.RandomState(seed) for seed in seeds]
         self.generators = []
         for state in generators:
@@ -296,7 +298,7 @@ class LockstepPPO:
         first = self.models[0]
         if not isinstance(first.action_space, spaces.Discrete):
             raise ValueError(f"action_space={first.action_space}: train_many's PPO stacks discrete actions only")
-        self.n_seeds, self.n_envs = len(self.models), first.n_envs
+        self.n_seeds, self.n_envs, self.n_actions = len(self.models), first.n_envs, int(first.action_space.n)
         self.envs = SeedEnvs([m.get_env() for m in self.models])  # type: ignore[misc]
         self.frozen = np.zeros(self.n_seeds, dtype=bool)
         self.gamma = np.array([[m.gamma] for m in self.models], dtype=np.float32)
@@ -305,17 +307,25 @@ class LockstepPPO:
     def _live(self) -> list[int]:
         return np.flatnonzero(~self.frozen).tolist()
 
-    def _sample(self, log_probs: th.Tensor) -> th.Tensor:
+    def _draws(self, n_steps: int) -> th.Tensor:
         """
-        Each seed's ``Categorical.sample()`` from its own generator: ``(S, E)``. For one sample torch's ``multinomial``
-        is ``argmax(p / q)`` with ``q`` exponential draws of ``p``'s shape; each seed's ``q`` is drawn from its generator,
-        the division and argmax are one operation for all seeds.
+        Each seed's exponential draws for the ``n_steps`` steps of a rollout, ``(S, n_steps, E, n_actions)``, from its
+        own generator: one call per seed, not per step, drawing the numbers one draw per step would, in their order
+        (torch's CPU ``exponential_`` fills a tensor one element after the other from the generator).
         """
-        probs = log_probs.exp()
-        draws = th.empty_like(probs)
+        draws = th.empty((self.n_seeds, n_steps, self.n_envs, self.n_actions))
         for draw, generator in zip(draws, self.generators):
             draw.exponential_(1, generator=generator)
-        return (probs / draws).argmax(dim=-1)
+        return draws
+
+    @staticmethod
+    def _sample(log_probs: th.Tensor, draws: th.Tensor) -> th.Tensor:
+        """
+        Each seed's ``Categorical.sample()``: ``(S, E)``. For one sample torch's ``multinomial`` is ``argmax(p / q)``
+        with ``q`` exponential draws of ``p``'s shape (the step's ``draws``, each seed's from its generator); the division
+        and argmax are one operation for all seeds.
+        """
+        return (log_probs.exp() / draws).argmax(dim=-1)
 
     def _settings(self, progress: float) -> dict[str, th.Tensor]:
         models = self.models
@@ -329,9 +339,13 @@ class LockstepPPO:
     def _freeze(self, index: int, callback: BaseCallback) -> None:
         self.frozen[index] = True
         self.stack.write_back(self.models, [index])
-        self.models[index]._last_obs = self.obs[index]
-        self.models[index]._last_episode_starts = self.episode_starts[index]
+        self._hand_back(index)
         callback.on_training_end()
+
+    def _hand_back(self, index: int) -> None:
+        """Seed ``index``'s current observation and episode starts into its model, where ``learn`` leaves them."""
+        fields = self.fields[index]
+        fields.last_obs, fields.last_episode_starts = self.obs[index], self.episode_starts[index]
 
     def _collect(self, callbacks: dict[int, BaseCallback], n_steps: int) -> None:
         """``collect_rollouts`` of every live seed (``n_steps`` VecEnv steps, then GAE)."""
@@ -342,10 +356,11 @@ class LockstepPPO:
         for callback in callbacks.values():
             callback.on_rollout_start()
         dones = np.zeros((self.n_seeds, self.n_envs), dtype=bool)
+        draws = self._draws(n_steps)
         while self.rollout.pos < n_steps:
             with th.no_grad():
                 log_probs, values = self.stack.forward(self.obs)
-                actions = self._sample(log_probs)
+                actions = self._sample(log_probs, draws[:, self.rollout.pos])
                 chosen = log_probs.gather(2, actions.unsqueeze(2)).squeeze(2)
             action_array = actions.numpy()
             new_obs, rewards, dones, infos = self.envs.step(action_array)
@@ -366,7 +381,7 @@ class LockstepPPO:
                     self.stack.write_back(models, self._live())
                     self.on_models(models)
             for index in np.flatnonzero(dones.any(axis=1) & ~self.frozen).tolist():
-                models[index]._update_info_buffer(infos[index], dones[index])
+                self.fields[index].update_info_buffer(infos[index], dones[index])
             rewards = rewards.astype(np.float32, copy=True)
             truncated = [(s, e) for s, e in zip(*np.nonzero(dones))
                          if infos[s][e].get("terminal_observation") is not None
@@ -397,8 +412,9 @@ class LockstepPPO:
 
     def _train(self) -> None:
         """``PPO.train`` of every live seed, on its rollout."""
-        models, first = self.models, self.models[self._live()[0]]
-        progress = first._current_progress_remaining
+        live = self._live()
+        models, first = self.models, self.models[live[0]]
+        progress = self.fields[live[0]].progress
         rates = {m.lr_schedule(progress) for m in models}
         if len(rates) != 1:
             raise ValueError("learning_rate per seed: train_many's PPO takes one learning rate for all seeds")
@@ -407,16 +423,16 @@ class LockstepPPO:
         settings = self._settings(progress)
         logs = self.stack.update(self.rollout, self.rngs, settings, first.n_epochs, first.batch_size,
                                  first.normalize_advantage)
-        for index in self._live():
-            model = models[index]
-            model._n_updates += first.n_epochs
-            logger = model.logger
+        for index in live:
+            fields = self.fields[index]
+            fields.n_updates += first.n_epochs
+            logger = models[index].logger
             logger.record("train/learning_rate", rate)
             for key in ("entropy_loss", "policy_gradient_loss", "value_loss", "approx_kl", "clip_fraction", "loss"):
                 logger.record(f"train/{key}", float(logs[key][index]))
             logger.record("train/explained_variance", float(explained_variance(
                 self.rollout.values[index].T.flatten(), self.rollout.returns[index].T.flatten())))
-            logger.record("train/n_updates", model._n_updates, exclude="tensorboard")
+            logger.record("train/n_updates", fields.n_updates, exclude="tensorboard")
             logger.record("train/clip_range", float(settings["clip_range"][index]))
             if "clip_range_vf" in settings:
                 logger.record("train/clip_range_vf", float(settings["clip_range_vf"][index]))
@@ -430,13 +446,13 @@ class LockstepPPO:
         callbacks: dict[int, BaseCallback] = {}
         total = total_timesteps
         for index, (model, given) in enumerate(zip(models, user_callbacks or [None] * len(models))):
-            total, callback = model._setup_learn(total_timesteps, given, True, "PPO", False)
+            total, callback = self.fields[index].setup_learn(total_timesteps, given, "PPO")
             callback.on_training_start({"self": model, "total_timesteps": total, "callback": callback,
                                         "log_interval": log_interval}, globals())
             if not idle(callback):
                 callbacks[index] = callback
-        self.obs = np.stack([m._last_obs for m in models])  # type: ignore[misc]
-        self.episode_starts = np.stack([m._last_episode_starts for m in models]).astype(np.float32)  # type: ignore[misc]
+        self.obs = np.stack([fields.last_obs for fields in self.fields])
+        self.episode_starts = np.stack([fields.last_episode_starts for fields in self.fields]).astype(np.float32)
         self.stack = StackedActorCritic(models)
         first = models[0]
         self.rollout = StackedRollout(self.n_seeds, first.n_steps, self.n_envs, first.observation_space.shape or ())
@@ -449,7 +465,7 @@ class LockstepPPO:
                 iteration += 1
                 for index in self._live():
                     model = models[index]
-                    model._update_current_progress_remaining(model.num_timesteps, total)
+                    self.fields[index].update_progress(model.num_timesteps, total)
                     if log_interval is not None and iteration % log_interval == 0:
                         model.dump_logs(iteration)
                 self._train()
@@ -461,6 +477,5 @@ class LockstepPPO:
             self.stack.write_back(models, live)
             self.rollout.release(models, live)
             for index in live:
-                models[index]._last_obs = self.obs[index]
-                models[index]._last_episode_starts = self.episode_starts[index]
+                self._hand_back(index)
         return models

@@ -137,8 +137,8 @@ class StackedQ:
         tensor = th.as_tensor(observations)
         return tensor.float().reshape(tensor.shape[0], tensor.shape[1], -1)
 
-    def _forward(self, x: th.Tensor, weights: list[th.Tensor], biases: list[th.Tensor],
-                 layers: list[th.Tensor] | None = None) -> th.Tensor:
+    def forward(self, x: th.Tensor, weights: list[th.Tensor], biases: list[th.Tensor],
+                layers: list[th.Tensor] | None = None) -> th.Tensor:
         """The Q-values of ``x``; ``layers`` collects each layer's input (for the backward pass)."""
         last = len(weights) - 1
         for i, (weight, bias) in enumerate(zip(weights, biases)):
@@ -153,8 +153,8 @@ class StackedQ:
         """Q-values ``(S, B, n_actions)`` of observations ``(S, B, ...)``."""
         with th.no_grad():
             if target:
-                return self._forward(self.features(observations), self.target_weights, self.target_biases)
-            return self._forward(self.features(observations), self.weights, self.biases)
+                return self.forward(self.features(observations), self.target_weights, self.target_biases)
+            return self.forward(self.features(observations), self.weights, self.biases)
 
     def greedy(self, observations: np.ndarray) -> np.ndarray:
         """Each seed's greedy actions ``(S, B)`` (the first of tied maxima, as ``argmax``)."""
@@ -177,7 +177,7 @@ class StackedQ:
         """
         gamma = self.gamma if isinstance(self.gamma, float) else self.gamma.unsqueeze(2)
         with th.no_grad():
-            next_q_values = self._forward(self.features(next_observations), self.target_weights, self.target_biases)
+            next_q_values = self.forward(self.features(next_observations), self.target_weights, self.target_biases)
             next_q_values = next_q_values.max(dim=2)[0].unsqueeze(2)
             target_q_values = rewards + (1 - dones) * gamma * next_q_values
         if self.fused:
@@ -191,7 +191,7 @@ class StackedQ:
     def _fused_gradient(self, x: th.Tensor, actions: th.Tensor, target_q_values: th.Tensor) -> th.Tensor:
         """The gradient of each seed's Huber loss into ``self.grad``, by the written-out backward pass; the losses."""
         layers: list[th.Tensor] = []
-        q_values = self._forward(x, self.weights, self.biases, layers)
+        q_values = self.forward(x, self.weights, self.biases, layers)
         difference = th.gather(q_values, dim=2, index=actions) - target_q_values
         size = difference.abs()
         batch = difference.shape[1]
@@ -209,7 +209,7 @@ class StackedQ:
         """The gradient of each seed's Huber loss into ``self.grad``, by torch's autograd; the losses."""
         flat = self.flat.detach().requires_grad_(True)
         weights, biases = self._views(flat)
-        current_q_values = th.gather(self._forward(x, weights, biases), dim=2, index=actions)
+        current_q_values = th.gather(self.forward(x, weights, biases), dim=2, index=actions)
         losses = F.smooth_l1_loss(current_q_values, target_q_values, reduction="none").mean(dim=(1, 2))
         (gradient,) = th.autograd.grad(losses.sum(), flat)
         self.grad.copy_(gradient)

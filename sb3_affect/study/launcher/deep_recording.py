@@ -63,7 +63,7 @@ class TrainingRecorder(BaseCallback):
                 self.epsilon_sum += model.exploration_rate
                 self.epsilon_steps += 1
         else:
-            for emotion in getattr(model, "_emotions", None) or ():  # each env's emotion at its decision (after warm-up)
+            for emotion in getattr(model, "decision_emotions", None) or ():  # each env's emotion at its decision
                 self.emotions[int(emotion)] += 1
         return True
 
@@ -72,7 +72,7 @@ class TrainingRecorder(BaseCallback):
         model = self.model
         with np.errstate(invalid="ignore", divide="ignore"):
             if isinstance(model, ActionRepeat):
-                counts = (model._random_decisions, model._decisions)
+                counts = model.decision_counts
                 decided = counts[1] - self._seen[1]
                 random_share = (counts[0] - self._seen[0]) / decided if decided else np.nan
                 self._seen = counts
