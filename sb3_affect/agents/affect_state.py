@@ -74,10 +74,7 @@ def callback_state(callback: EmotionCallback) -> tuple[dict[str, Any], dict[str,
 def detached(callback: EmotionCallback) -> EmotionCallback:
     """A shallow copy of the callback without what ties it to a run (the model, its env and the step's locals)."""
     copied = copy.copy(callback)
-    for name in ("model", "parent", "_position", "_position_spec", "_geometry", "decision_ends", "decision_random",
-                 "decision_wait"):
-        setattr(copied, name, None)
-    copied.locals, copied.globals = {}, {}
+    copied.forget_run()
     return copied
 
 

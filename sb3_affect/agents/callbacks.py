@@ -309,6 +309,14 @@ class EmotionCallback(BaseCallback):
         """The counts ``episode_counts`` gave (a saved callback's)."""
         self._episodes, self._goals, self._warned = episodes, goals, warned
 
+    def forget_run(self) -> None:
+        """Drop what ties the callback to a run (the model, its env's position and geometry, the step's locals and
+        decision hooks), keeping its settings, appraisers and records: a saved model's copy is made with it."""
+        self.model, self.parent = None, None  # type: ignore[assignment]
+        self._position, self._position_spec, self._geometry = None, None, None
+        self.decision_ends, self.decision_random, self.decision_wait = None, None, None
+        self.locals, self.globals = {}, {}
+
     def _on_step(self) -> bool:
         check_step_locals(self)
         locals_ = self.locals
