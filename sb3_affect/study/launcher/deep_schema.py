@@ -2,7 +2,7 @@
 Sweep files of the deep study (``study: deep``): DQN-family agents on MiniGrid tasks, many seeds of one agent on one
 task trained together (the public trainer ``sb3_affect.train_many``), each seed's greedy policy evaluated on its own
 evaluation envs every ``eval_every`` env steps. ``sweep_file.load_sweep_file`` validates a file with ``DeepStudy``;
-``sb3_affect.study.launcher.deep_study`` runs it::
+the launcher (``launcher.run_sweep``) runs its ``cells`` as ``deep_batches.DeepBatch`` jobs into a results store::
 
     name: minigrid-dqn
     study: deep
@@ -30,7 +30,7 @@ from pydantic import BaseModel, ConfigDict, Field, StrictInt, field_validator, m
 
 from sb3_affect.core.registry import AGENTS
 from sb3_affect.kernel.minigrid_world import MINIGRID_TASKS
-from sb3_affect.study.launcher.schema import NAME_PATTERN
+from sb3_affect.study.launcher.schema import NAME_PATTERN, Cell
 
 #: Fewest evaluation episodes the study's primary metric is read from (a smaller file is labelled a smoke size).
 STUDY_EVAL_EPISODES = 20
@@ -162,6 +162,28 @@ class DeepStudy(BaseModel):
     tasks: dict[str, DeepTask] = Field(min_length=1, description="task name -> task")
     agents: list[DeepAgent] = Field(min_length=1, description="the agents, run on every task in this order")
 
+    @property
+    def logs(self) -> list[str]:
+        """No SB3 logs: the study records its own curves (a sweep's ``logs``)."""
+        return []
+
+    def cells(self) -> list[Cell]:
+        """
+        The study as the launcher's cells, one per task and agent (tasks first, agents in the file's order): its base
+        run config holds all a run's training and evaluation depends on (its run ids hash it), its seeds the study's.
+        A ``replays`` agent's cell waits for the cell of the agent it replays on the same task (``launcher.plan_jobs``).
+        """
+        cells = []
+        for task, spec in self.tasks.items():
+            for agent in self.agents:
+                base = {"sweep": self.name, "study": "deep", "agent": agent.name, "algo": agent.algo, "seed": None,
+                        "labels": {"task": task}, "env_id": spec.id, "env": self.env, "obs": self.obs,
+                        "n_envs": self.n_envs, "budget": spec.budget, "eval_every": self.eval_every,
+                        "eval_episodes": self.eval_episodes, "algo_kwargs": agent_kwargs(self, task, agent),
+                        "count_bonus": bonus_scale(self, task, agent), "replays": agent.replays}  # fmt: skip
+                cells.append(Cell(base, list(self.seeds), self.seeds_per_batch or len(self.seeds)))
+        return cells
+
     @field_validator("seeds")
     @classmethod
     def _seeds(cls, value: list[int]) -> list[int]:
@@ -208,3 +230,20 @@ class DeepStudy(BaseModel):
                 if missing:
                     raise ValueError(f"agents[{index}] ({agent.name}) takes the tuned {field}: tasks.{missing[0]} has none")
         return self
+
+
+def agent_kwargs(study: DeepStudy, task: str, agent: DeepAgent) -> dict[str, Any]:
+    """The agent's arguments on ``task``: the study's network, the task's tuned learning rate, then the agent's own."""
+    spec = study.tasks[task]
+    kwargs: dict[str, Any] = dict(study.network)
+    if spec.learning_rate is not None:
+        kwargs["learning_rate"] = spec.learning_rate
+    if agent.epsilon == TUNED:
+        kwargs["exploration_fraction"] = spec.exploration_fraction
+    kwargs.update(agent.kwargs)
+    return kwargs
+
+
+def bonus_scale(study: DeepStudy, task: str, agent: DeepAgent) -> float | None:
+    """The count bonus's scale of ``agent`` on ``task`` (None: no bonus)."""
+    return study.tasks[task].count_bonus if agent.count_bonus == TUNED else agent.count_bonus  # type: ignore[return-value]
