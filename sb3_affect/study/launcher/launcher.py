@@ -54,7 +54,7 @@ from sb3_affect.study.launcher.deep_schema import DeepStudy
 from sb3_affect.study.launcher.local_pool import OnFailure, OnResult, W, run_local
 from sb3_affect.study.launcher.one_run import package_versions
 from sb3_affect.study.launcher.schema import Cell
-from sb3_affect.study.launcher.store import SWEEP_SCHEMA, ResultsStore, cell_run_ids, claim_kind, store_error
+from sb3_affect.study.launcher.store import SWEEP_SCHEMA, ResultsStore, cell_run_ids, store_error
 from sb3_affect.study.launcher.sweep_file import load_sweep
 
 
@@ -174,7 +174,7 @@ def run_sweep(
     if sweep.tasks:  # the file's order of the tasks (sweep.json sorts the keys of a mapping)
         resolved["task_order"] = list(sweep.tasks)
     store = ResultsStore(out_dir)
-    claim_kind(store.root, "sweep", sweep.name)  # (before the lock file: a folder of another kind is left as it was)
+    store.claim(resolved)  # (before the lock file: a folder of another kind is left as it was)
     if isinstance(sweep, DeepStudy):  # every agent built once, the memory estimated: before the folder is claimed
         batches = sum(math.ceil(len(cell.seeds) / (cell.batch_size or 1)) for cell in cells)
         training().check_study(sweep, 1 if backend == "ray" else min(workers, batches))  # (Ray: one a node)

@@ -176,7 +176,7 @@ class ResultsStore:
             sweep records are all gone, means the folder holds another sweep: refused)
         :return: one line per file set aside (its path, why, where it went)
         """
-        claim_kind(self.root, "sweep", resolved_sweep["name"])
+        self.claim(resolved_sweep)
         try:
             for folder in (self.root, self.runs, self.chunks, self.failed):
                 folder.mkdir(parents=True, exist_ok=True)
@@ -188,10 +188,6 @@ class ResultsStore:
         )
         previous = self.saved_sweep()
         wanted = set(run_ids)
-        if previous is not None and study_kind(previous) != study_kind(resolved_sweep):
-            held, kind = KIND_NAMES[study_kind(previous)], KIND_NAMES[study_kind(resolved_sweep)]
-            raise StoreError(f"{self.root} holds {held} (sweep.json), which {kind} run into it would mix with; give the "
-                             f"{kind.split(' ', 1)[1]} a folder of its own, e.g. --out {self.root / resolved_sweep['name']}")
         if previous is not None:
             same = _identity(previous) == _identity(resolved_sweep)
             if same and isinstance(previous.get("runs"), dict) and wanted:  # a folder of the one-file-per-run era
@@ -216,6 +212,18 @@ class ResultsStore:
         except OSError as error:
             raise store_error(self.runs, error) from None
         return self.set_aside(files.rejected)
+
+    def claim(self, resolved_sweep: dict[str, Any]) -> None:
+        """
+        Refuse (``StoreError``, one line) a folder of another kind of study (``claim_kind``), or whose saved sweep is of
+        another kind than ``resolved_sweep`` (``study_kind``: a deep study, a sweep of runs). Writes nothing.
+        """
+        claim_kind(self.root, "sweep", resolved_sweep["name"])
+        previous = self.saved_sweep()
+        if previous is not None and study_kind(previous) != study_kind(resolved_sweep):
+            held, kind = KIND_NAMES[study_kind(previous)], KIND_NAMES[study_kind(resolved_sweep)]
+            raise StoreError(f"{self.root} holds {held} (sweep.json), which {kind} run into it would mix with; give the "
+                             f"{kind.split(' ', 1)[1]} a folder of its own, e.g. --out {self.root / resolved_sweep['name']}")
 
     def set_aside(self, rejected: list[tuple[Path, str]]) -> list[str]:
         """Move each rejected file into ``DIR/damaged/`` (never over an earlier one); one line per file."""
@@ -376,9 +384,14 @@ class ResultsStore:
     def evaluations(self) -> dict[tuple[str, str], dict[str, Any]]:
         """
         A deep study's finished cells ``(task, agent) -> record`` (``chunks.evaluation_cells``: its runs in seed
-        order), from the files that count; StoreError naming the first that does not (a rerun sets it aside).
+        order), in the order of the study's tasks, then agents, from the files that count; StoreError naming the first
+        that does not (a rerun sets it aside).
         """
-        return evaluation_cells(self._checked().chunk_files)
+        cells = evaluation_cells(self._checked().chunk_files)
+        saved = self.saved_sweep() or {"sweep": {}}
+        tasks, agents = saved.get("task_order") or list(saved["sweep"].get("tasks", {})), saved["sweep"].get("agents", [])
+        return {(task, agent["name"]): cells[task, agent["name"]] for task in tasks for agent in agents
+                if (task, agent["name"]) in cells}  # fmt: skip
 
     def runs_frame(self) -> pd.DataFrame:
         """

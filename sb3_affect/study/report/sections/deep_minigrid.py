@@ -93,10 +93,10 @@ def load_deep(folder: Path) -> DeepResults:
     naming the first file that does not count (a rerun sets it aside).
     """
     store = ResultsStore(folder)
-    study = store.saved_sweep()["sweep"]  # type: ignore[index]  # (is_deep_folder: there is one)
-    cells = store.evaluations()
-    order = [(task, agent["name"]) for task in study["tasks"] for agent in study["agents"]]
-    return DeepResults(folder, study, [cells[key] for key in order if key in cells])
+    saved: dict[str, Any] = store.saved_sweep() or {}  # (is_deep_folder: there is one)
+    tasks = saved["sweep"]["tasks"]  # (sweep.json sorts a mapping's keys: the file's order is its task_order)
+    study = {**saved["sweep"], "tasks": {task: tasks[task] for task in saved.get("task_order") or tasks}}
+    return DeepResults(folder, study, list(store.evaluations().values()))
 
 
 def deep_folders(root: Path) -> list[Path]:
