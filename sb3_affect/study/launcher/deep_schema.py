@@ -145,8 +145,9 @@ class DeepStudy(BaseModel):
     env: Literal["compiled", "farama"] = Field(
         default="compiled", description="compiled: sb3_affect.minigrid_vec_env; farama: make_vec_env with FlatObsWrapper"
     )
-    obs: Literal["flat", "image"] = Field(
-        default="image", description="FlatObsWrapper's vector, or its first 147 entries (the 7x7x3 view), for every agent"
+    obs: Literal["flat", "view"] = Field(
+        default="view", description="FlatObsWrapper's vector, or its first 147 entries (view: the 7x7x3 view flattened, "
+        "minigrid_vec_env's name), for every agent"
     )
     n_envs: int = Field(default=4, ge=1, le=256, description="training envs per seed")
     seeds: list[StrictInt] = Field(
@@ -183,6 +184,14 @@ class DeepStudy(BaseModel):
                         "count_bonus": bonus_scale(self, task, agent), "replays": agent.replays}  # fmt: skip
                 cells.append(Cell(base, list(self.seeds), self.seeds_per_batch or len(self.seeds)))
         return cells
+
+    @field_validator("obs", mode="before")
+    @classmethod
+    def _obs(cls, value: Any) -> Any:
+        if value == "image":
+            raise ValueError("obs='image' is minigrid_vec_env's 7x7x3 image; the flat 147 entries of the agent's view are "
+                             "obs: view (or flat: FlatObsWrapper's whole vector)")
+        return value
 
     @field_validator("seeds")
     @classmethod

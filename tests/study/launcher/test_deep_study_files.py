@@ -59,6 +59,8 @@ def write(tmp_path: Path, **changes: object) -> Path:
     ({"env": "compiled", "tasks": {"K": {"id": "MiniGrid-KeyCorridorS3R1-v0", "budget": 4000, "exploration_fraction": 0.5,
                                          "count_bonus": 0.1}}}, "tasks.K.id='MiniGrid-KeyCorridorS3R1-v0' is not compiled"),
     ({"seeds_per_batch": 0}, "seeds_per_batch"),
+    ({"obs": "image"}, "obs: obs='image' is minigrid_vec_env's 7x7x3 image; the flat 147 entries of the agent's view are "
+                       "obs: view"),
 ])  # fmt: skip
 def test_the_schema_refuses_a_bad_file_naming_the_key(tmp_path: Path, changes: dict, message: str) -> None:
     with pytest.raises(SweepError, match="invalid sweep file") as error:

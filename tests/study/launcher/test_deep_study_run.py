@@ -131,13 +131,13 @@ def test_the_batched_greedy_evaluation_equals_sb3_predict_on_each_seeds_evaluati
     import sb3_affect
     from sb3_affect.engine.seed_envs import seed_vec_env
 
-    models = sb3_affect.train_many("DQN", "MiniGrid-Empty-5x5-v0", [0, 1, 2], 2, total_timesteps=400, obs="image",
+    models = sb3_affect.train_many("DQN", "MiniGrid-Empty-5x5-v0", [0, 1, 2], 2, total_timesteps=400, obs="view",
                                    learning_starts=100, buffer_size=2000, batch_size=16, policy_kwargs={"net_arch": [16]})
     seeds = [EVAL_SEED_OFFSET + 3 * s for s in range(3)]
-    evaluate = GreedyEvaluation([seed_vec_env("MiniGrid-Empty-5x5-v0", 3, s, "image", True) for s in seeds], seeds)
+    evaluate = GreedyEvaluation([seed_vec_env("MiniGrid-Empty-5x5-v0", 3, s, "view", True) for s in seeds], seeds)
     success, returns = evaluate(models)
     for index, model in enumerate(models):
-        env = seed_vec_env("MiniGrid-Empty-5x5-v0", 3, seeds[index], "image", True)
+        env = seed_vec_env("MiniGrid-Empty-5x5-v0", 3, seeds[index], "view", True)
         obs = env.reset()
         total, reached, finished = np.zeros(env.num_envs), np.zeros(env.num_envs, bool), np.zeros(env.num_envs, bool)
         while not finished.all():
@@ -153,12 +153,12 @@ def test_the_count_bonus_pays_scale_over_the_root_of_visits_of_each_envs_cell() 
     from sb3_affect.engine.seed_envs import seed_vec_env
     from sb3_affect.study.launcher.count_bonus import CountBonus
 
-    env = CountBonus(seed_vec_env("MiniGrid-Empty-5x5-v0", 2, 0, "image"), scale=0.5)
+    env = CountBonus(seed_vec_env("MiniGrid-Empty-5x5-v0", 2, 0, "view"), scale=0.5)
     env.reset()
     rewards = [env.step(np.array([0, 0]))[1] for _ in range(3)]  # turning left: the agent stays in its cell
     np.testing.assert_allclose(rewards, [[0.5, 0.5], [0.5 / np.sqrt(2)] * 2, [0.5 / np.sqrt(3)] * 2], rtol=1e-6)
     with pytest.raises(ValueError, match="count_bonus=0"):
-        CountBonus(seed_vec_env("MiniGrid-Empty-5x5-v0", 1, 0, "image"), scale=0)
+        CountBonus(seed_vec_env("MiniGrid-Empty-5x5-v0", 1, 0, "view"), scale=0)
 
 
 KILL_ON_SECOND_BATCH = """

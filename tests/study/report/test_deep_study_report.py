@@ -29,7 +29,7 @@ def write_folder(folder: Path, curves: dict[str, np.ndarray], first: dict[str, l
     """
     seeds = list(range(next(iter(curves.values())).shape[0]))
     study = DeepStudy.model_validate({
-        "name": "synthetic", "study": "deep", "env": "compiled", "obs": "image", "n_envs": 4, "seeds": seeds,
+        "name": "synthetic", "study": "deep", "env": "compiled", "obs": "view", "n_envs": 4, "seeds": seeds,
         "eval_every": EVERY, "eval_episodes": eval_episodes, "network": {},
         "tasks": {"Empty-8x8": {"id": "MiniGrid-Empty-8x8-v0", "budget": BUDGET}}, "agents": AGENTS})  # fmt: skip
     cells = study.cells()
