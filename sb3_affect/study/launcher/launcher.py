@@ -211,7 +211,7 @@ def run_sweep(
 
         try:
             while jobs:  # (nothing to do: no workers, nor a Ray instance, started)
-                tried.update(job.run_id if isinstance(job, Single) else rid for job in jobs for rid in _ids(job))
+                tried.update(rid for job in jobs for rid in _ids(job))
                 if backend == "local":
                     run_local(jobs, workers, on_result, on_failure)
                 else:
