@@ -119,7 +119,7 @@ def test_a_study_larger_than_the_machines_memory_is_refused_saying_the_figure(tm
     assert not (tmp_path / "out").exists()
 
 
-def test_a_folder_of_one_study_kind_refuses_another_in_one_line(tmp_path: Path) -> None:
+def test_a_folder_of_one_study_kind_refuses_another_in_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     from sb3_affect.study.launcher import run_sweep
     from sb3_affect.study.launcher.store import StoreError
 
@@ -132,6 +132,11 @@ def test_a_folder_of_one_study_kind_refuses_another_in_one_line(tmp_path: Path) 
                                              rf"--out {old}-new$"):
             run_sweep(path, old, workers=1, progress=False)
     assert sorted(p.name for p in old.iterdir()) == ["deep_study.json"]
+    from sb3_affect.study.cli import main
+
+    assert main(["status", str(old)]) == 2  # status refuses it too, in the same one line
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{old} holds a deep study of an earlier layout" in err and "rerun the study" in err
     sweep = tmp_path / "sweep"
     sweep.mkdir()
     (sweep / "sweep.json").write_text(json.dumps({"name": "smoke", "sweep": {"name": "smoke"}}))
