@@ -36,8 +36,6 @@ from sb3_affect.study.launcher.schema import NAME_PATTERN, Cell
 STUDY_EVAL_EPISODES = 20
 #: The settings a task holds for every agent that asks for them (``epsilon: tuned``, ``count_bonus: tuned``).
 TUNED = "tuned"
-#: The per-seed rows of a batch's (and a cell's) record, (seeds, evaluations) each (``deep_training.run_batch``).
-RECORD_ROWS = ("success", "return", "random_share", "train_episodes", "train_successes")
 #: The evaluation envs of seed s are seeded ``EVAL_SEED_OFFSET + s * eval_episodes + i``: apart from every training env
 #: (seeded ``s + i`` for ``i < n_envs``) for seeds below the offset, which is the largest seed a study takes.
 EVAL_SEED_OFFSET = 1_000_000

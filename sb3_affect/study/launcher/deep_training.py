@@ -24,9 +24,10 @@ import sb3_affect
 from sb3_affect.core.emotions import EMOTION_NAMES
 from sb3_affect.core.registry import resolve_class
 from sb3_affect.engine.seed_envs import seed_vec_env
+from sb3_affect.study.launcher.chunks import EVALUATION_ROWS
 from sb3_affect.study.launcher.count_bonus import CountBonus
 from sb3_affect.study.launcher.deep_recording import GreedyEvaluation, TrainingRecorder
-from sb3_affect.study.launcher.deep_schema import EVAL_SEED_OFFSET, RECORD_ROWS, DeepStudy
+from sb3_affect.study.launcher.deep_schema import EVAL_SEED_OFFSET, DeepStudy
 
 #: ``train_many``'s ``log_interval`` in the study: no run ends this many episodes, so no ``dump_logs`` resets the
 #: random-decision counters of an ``ActionRepeat`` agent, which ``deep_recording`` reads.
@@ -93,7 +94,7 @@ def _run_batch(base: dict[str, Any], seeds: Sequence[int], epsilons: Sequence[fl
     eval_seeds = [EVAL_SEED_OFFSET + seed * n_eval for seed in seeds]
     evaluate = GreedyEvaluation([seed_vec_env(env_id, n_eval, s, obs, compiled) for s in eval_seeds], eval_seeds)
     recorders = [TrainingRecorder() for _ in seeds]
-    rows: dict[str, list[list[float]]] = {key: [] for key in RECORD_ROWS}
+    rows: dict[str, list[list[float]]] = {key: [] for key in EVALUATION_ROWS}
     emotion_rows: list[list[list[float]]] = []
 
     def on_models(models: list[Any]) -> None:
