@@ -249,7 +249,8 @@ def plan_jobs(
             for cell, ids in zip(cells, cell_ids)]  # fmt: skip
     kinds = [DeepBatch if cell.base.get("study") == "deep" else batch_kind(cell.base, bool(logs)) for cell in cells]
     size = batch_size(sum(len(runs) for runs, kind in zip(todo, kinds) if kind is not None), workers)
-    finished = {(cell.base["labels"].get("task"), cell.base["agent"]): set(ids) <= done for cell, ids in zip(cells, cell_ids)}
+    finished = {(cell.base["labels"].get("task"), cell.base["agent"]): set(ids) <= done
+                for cell, ids, kind in zip(cells, cell_ids, kinds) if kind is DeepBatch}  # (what a replaying cell waits for)
     sources: dict[tuple[str, str], dict[str, Any]] | None = None
     jobs: list[Job] = []
     for cell, runs, kind in zip(cells, todo, kinds):
