@@ -28,9 +28,8 @@ from stable_baselines3.common.on_policy_algorithm import OnPolicyAlgorithm
 from stable_baselines3.common.type_aliases import MaybeCallback, TrainFrequencyUnit
 from stable_baselines3.common.vec_env import VecEnv
 
-from sb3_affect.agents.minigrid_vec_env import OBSERVATIONS
 from sb3_affect.engine.lockstep import Lockstep
-from sb3_affect.engine.seed_envs import seed_vec_env
+from sb3_affect.engine.seed_envs import check_observation, seed_vec_env
 from sb3_affect.engine.stacked_ppo import LockstepPPO
 from sb3_affect.engine.stacked_q import ELEMENTWISE_OPTIMIZERS
 from sb3_affect.engine.stacked_replay import available_memory, replay_bytes
@@ -215,7 +214,7 @@ def train_many(
     :param seeds: one run per seed
     :param n_envs: envs per seed (SB3's ``n_envs``: each VecEnv step is ``n_envs`` env steps)
     :param total_timesteps: env steps per seed, as ``learn(total_timesteps)``
-    :param obs: ``"flat"`` (``FlatObsWrapper``'s vector) or ``"image"`` (its first 147 entries, the 7x7x3 view)
+    :param obs: ``"flat"`` (``FlatObsWrapper``'s vector) or ``"view"`` (its first 147 entries, the 7x7x3 view flattened)
     :param compiled: step the compiled MiniGrid (``minigrid_vec_env``, equal to Farama's step for step) where it
         implements ``env_id``; False: Farama's env through ``make_vec_env``
     :param log_interval: ``learn``'s: ``dump_logs`` every this many episodes
@@ -251,8 +250,7 @@ def train_many(
         every = _count("every", every, 1)
         if not callable(on_models):
             raise ValueError(f"on_models={on_models!r} must be a function of the list of models")
-    if obs not in OBSERVATIONS:
-        raise ValueError(f"obs={obs!r} is not one of {', '.join(OBSERVATIONS)}")
+    check_observation(obs)
     shared = [key for key, value in algo_kwargs.items() if isinstance(value, BaseCallback)]
     if shared:
         raise ValueError(f"{shared[0]}= is one {type(algo_kwargs[shared[0]]).__name__} for every seed: give a dict of its "

@@ -2,7 +2,8 @@
 The envs of many seeds stepped together: ``SeedEnvs`` holds one SB3 ``VecEnv`` of E envs per seed and steps them as
 one ``(S, E)`` batch, and ``seed_vec_env`` builds a seed's VecEnv as SB3 users build it for MiniGrid:
 ``make_vec_env(env_id, n_envs, seed=seed, wrapper_class=FlatObsWrapper)`` (``obs="flat"``), or its first 147 entries,
-the agent's 7x7x3 view (``obs="image"``, ``ImageVector``); ``compiled=True`` gives its compiled twin,
+the agent's 7x7x3 view flattened (``obs="view"``, ``ImageVector``: ``minigrid_vec_env``'s names); ``compiled=True``
+gives its compiled twin,
 ``minigrid_vec_env`` (the same layouts, observations, rewards and infos step for step), for the tasks it implements.
 """
 
@@ -35,17 +36,31 @@ class ImageVector(gym.ObservationWrapper):
         return observation[:VIEW_SIZE]
 
 
+#: The observations of ``seed_vec_env`` (and ``train_many``), named as ``minigrid_vec_env`` names them.
+SEED_OBSERVATIONS = ("flat", "view")
+
+
 def seed_vec_env(env_id: str, n_envs: int, seed: int, obs: str, compiled: bool = False) -> VecEnv:
     """
-    ``make_vec_env(env_id, n_envs, seed=seed, wrapper_class=FlatObsWrapper)``, or ``ImageVector`` for ``"image"``;
+    ``make_vec_env(env_id, n_envs, seed=seed, wrapper_class=FlatObsWrapper)``, or ``ImageVector`` for ``"view"``;
     ``compiled``: ``minigrid_vec_env`` where it implements ``env_id``.
     """
-    if compiled and env_id in MINIGRID_TASKS:  # the compiled env's "view" is the 147 entries ImageVector gives
-        return minigrid_vec_env(env_id, n_envs, seed=seed, obs="view" if obs == "image" else obs)
+    check_observation(obs)
+    if compiled and env_id in MINIGRID_TASKS:
+        return minigrid_vec_env(env_id, n_envs, seed=seed, obs=obs)
     from minigrid.wrappers import FlatObsWrapper
 
     wrapper: Any = FlatObsWrapper if obs == "flat" else ImageVector
     return make_vec_env(env_id, n_envs, seed=seed, wrapper_class=wrapper)
+
+
+def check_observation(obs: str) -> None:
+    """A one-line ``ValueError`` unless ``obs`` is one of ``SEED_OBSERVATIONS`` (``"image"``: the 7x7x3 image, not here)."""
+    if obs == "image":
+        raise ValueError("obs='image' is minigrid_vec_env's 7x7x3 image; the flat 147 entries of the agent's view are "
+                         "obs='view' (or 'flat': FlatObsWrapper's whole vector)")
+    if obs not in SEED_OBSERVATIONS:
+        raise ValueError(f"obs={obs!r} is not one of {', '.join(SEED_OBSERVATIONS)}")
 
 
 class SeedEnvs:

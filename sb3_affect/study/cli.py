@@ -124,7 +124,7 @@ def build_parser() -> argparse.ArgumentParser:
         "status",
         help="show how far a results folder is",
         description="Count finished and failed runs per agent (each sweep of a `replicate` folder), and whether a "
-        "launcher is using the folder; of a deep study, the cells done of planned (task x agent) and each cell's batches.",
+        "launcher is using the folder; a deep study's runs are its task x agent x seed.",
     )
     status.add_argument("dir", metavar="DIR", help="a results folder (the --out of `run` or `replicate`)")
     report = sub.add_parser(

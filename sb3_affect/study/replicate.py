@@ -24,8 +24,6 @@ import yaml
 from sb3_affect.study.forensics.section import report_section
 from sb3_affect.study.forensics.study_run import run_study
 from sb3_affect.study.launcher import run_sweep
-from sb3_affect.study.launcher.deep_schema import DeepStudy
-from sb3_affect.study.launcher.deep_study import run_deep_study
 from sb3_affect.study.launcher.epsilon_tuning import round_values, tune, tuning_grid
 from sb3_affect.study.launcher.folder_files import MAX_SWEEP_FILE_BYTES
 from sb3_affect.study.launcher.regular_files import UnreadableFile, read_json, write_file
@@ -166,9 +164,6 @@ def _run_part(
     """
 
     study = load_sweep_file(path, overrides, build=False)
-    if isinstance(study, DeepStudy):
-        done = run_deep_study(study, folder, **executor)
-        return record.part(key, done.seconds, done_before=done.reused, todo=done.trained), None
     if isinstance(study, ForensicsStudy):  # no progress bars of its own in the log: a heartbeat instead
         with _heartbeat(key):
             result = run_study(study, folder, progress=False, **executor)

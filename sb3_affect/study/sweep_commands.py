@@ -12,12 +12,10 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 
 from sb3_affect.study.launcher import ResultsStore, run_sweep
-from sb3_affect.study.launcher.deep_schema import DeepStudy
-from sb3_affect.study.launcher.deep_study import deep_status, run_deep_study
 from sb3_affect.study.launcher.ray_errors import ClusterLost, RayClusterError
 from sb3_affect.study.launcher.schema import SweepError
 from sb3_affect.study.launcher.signals import Terminated, stop_on_sigterm
-from sb3_affect.study.launcher.store import StoreError, folder_kind
+from sb3_affect.study.launcher.store import KIND_FILES, StoreError, folder_kind, old_deep_layout
 from sb3_affect.study.launcher.study_schema import ForensicsStudy
 from sb3_affect.study.launcher.sweep_file import load_sweep_file
 
@@ -70,20 +68,12 @@ def existing_folder(directory: str, command: str) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
-    """``sb3-affect run FILE --out DIR``: a sweep of runs, a deep study or a forensics study, resumed where it stopped."""
+    """``sb3-affect run FILE --out DIR``: a sweep of runs (the deep study's too) or a forensics study, resumed."""
     check_out(args.out)
     study = load_sweep_file(args.file, args.set or (), build=False)
     stop_on_sigterm()
     if isinstance(study, ForensicsStudy):
         return _run_forensics(study, args)
-    if isinstance(study, DeepStudy):  # tasks x agents, each cell all its seeds together (study/launcher/deep_study.py)
-        if args.logs:
-            raise UsageError(f"--logs {args.logs}: the deep study records its own curves and writes no SB3 logs")
-        done = run_deep_study(study, Path(args.out), workers=args.workers, backend=args.backend,
-                              ray_address=args.ray_address, ray_timeout=args.ray_timeout)
-        print(f"{done.name}: {done.total} cells, {done.reused} already done, {done.batches} batches now, "
-              f"{done.seconds:.1f} s -> {done.out_dir}")
-        return 0
     summary = run_sweep(
         args.file,
         args.out,
@@ -143,8 +133,7 @@ def status(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
         return 2
-    print(f"{root}: {len(parts['sweep'])} sweeps" + (" and the forensics" if parts["forensics"] else "")
-          + (" and the deep study" if parts["deep"] else ""))
+    print(f"{root}: {len(parts['sweep'])} sweeps" + (" and the forensics" if parts["forensics"] else ""))
     for name, folders in parts.items():
         for folder in folders:
             STATUS[name](folder)
@@ -160,8 +149,8 @@ def _print_forensics_status(root: Path) -> None:
     print(folder_status(root))
 
 
-def _print_deep_status(root: Path) -> None:
-    print("\n".join(deep_status(root)))
+def _refuse_old_deep(root: Path) -> None:
+    raise UsageError(old_deep_layout(root, KIND_FILES["deep"]))
 
 
 def _print_status(root: Path) -> None:
@@ -183,6 +172,6 @@ def _print_status(root: Path) -> None:
 
 #: How ``status`` shows a folder of each kind of study (``store.folder_kind``).
 STATUS: dict[str, Callable[[Path], None]] = {"sweep": _print_status, "forensics": _print_forensics_status,
-                                             "deep": _print_deep_status}  # fmt: skip
+                                             "deep": _refuse_old_deep}  # fmt: skip
 #: The commands this module runs, by name.
 COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {"run": run, "status": status}

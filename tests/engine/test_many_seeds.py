@@ -41,7 +41,7 @@ def _one_thread() -> object:
     th.set_num_threads(before)
 
 
-def _sb3(seed: int, n_envs: int, total_timesteps: int, obs: str = "image", cls: type = DQN, **kwargs) -> DQN:
+def _sb3(seed: int, n_envs: int, total_timesteps: int, obs: str = "view", cls: type = DQN, **kwargs) -> DQN:
     model = cls("MlpPolicy", seed_vec_env(ENV_ID, n_envs, seed, obs), seed=seed, device="cpu", **{**SETTINGS, **kwargs})
     return model.learn(total_timesteps)
 
@@ -62,7 +62,7 @@ def _max_weight_difference(ours: DQN, theirs: DQN) -> float:
 def test_gradient_step_equals_dqn_train() -> None:
     """100 steps of three seeds on the same batches: the stacked step and SB3's ``DQN.train`` (its Huber loss, gradient
     clipping, Adam and target copies) give weights within 1e-6 and the same losses."""
-    models = [DQN("MlpPolicy", seed_vec_env(ENV_ID, 1, seed, "image"), seed=seed, device="cpu", max_grad_norm=0.5,
+    models = [DQN("MlpPolicy", seed_vec_env(ENV_ID, 1, seed, "view"), seed=seed, device="cpu", max_grad_norm=0.5,
                   learning_rate=1e-3) for seed in range(3)]
     for model in models:
         model.set_logger(configure(None, []))
@@ -86,7 +86,7 @@ def test_gradient_step_equals_dqn_train() -> None:
             for model in models:
                 model.target_update_interval, model._n_calls = 1, 0
                 model._on_step()
-    copies = [DQN("MlpPolicy", seed_vec_env(ENV_ID, 1, seed, "image"), seed=seed, device="cpu") for seed in range(3)]
+    copies = [DQN("MlpPolicy", seed_vec_env(ENV_ID, 1, seed, "view"), seed=seed, device="cpu") for seed in range(3)]
     stack.write_back(copies)
     for ours, theirs in zip(copies, models):
         assert _max_weight_difference(ours, theirs) < 1e-6
@@ -105,12 +105,12 @@ def test_one_seed_one_env_takes_sb3s_actions() -> None:
     than SB3's ``addmm`` (``baddbmm`` over a batch of one seed), so the two Q-values differ by about 1e-7 and the
     weights drift apart at that level (3e-7 after 625 updates). The runs part when an argmax flips: when two
     actions' Q-values are closer than the drift, after which the two runs are different samples of the same process.
-    Measured on Empty-8x8 (obs="image", one env, learning_starts 1,000, learning rate 1e-3, target copy every 500
+    Measured on Empty-8x8 (obs="view", one env, learning_starts 1,000, learning rate 1e-3, target copy every 500
     steps, epsilon over the first 30% of 20,000 steps): the first different transition at env step 4,592, 6,754 and
     9,048 for seeds 0, 1 and 2 (after 900 to 2,000 gradient steps).
     """
     theirs = _sb3(3, 1, 1_500, **EPSILON)
-    (ours,) = train_many(DQN, ENV_ID, [3], 1, total_timesteps=1_500, obs="image", **SETTINGS, **EPSILON)
+    (ours,) = train_many(DQN, ENV_ID, [3], 1, total_timesteps=1_500, obs="view", **SETTINGS, **EPSILON)
     _assert_same_buffer(ours, theirs)
     assert _max_weight_difference(ours, theirs) < 1e-6
     assert (ours.num_timesteps, ours._n_updates, ours._episode_num) == (theirs.num_timesteps, theirs._n_updates,
@@ -125,7 +125,7 @@ def test_seeds_and_envs_counted_as_sb3_counts_them() -> None:
     """Three seeds x three envs, training every 2 VecEnv steps with 2 gradient steps and a target copy every
     ``30 // 3`` VecEnv steps: each seed's buffer is the buffer of its own ``learn``."""
     settings = dict(train_freq=2, gradient_steps=2, target_update_interval=30, **EPSILON)
-    ours = train_many("DQN", ENV_ID, [5, 0, 9], 3, total_timesteps=900, obs="image", **{**SETTINGS, **settings})
+    ours = train_many("DQN", ENV_ID, [5, 0, 9], 3, total_timesteps=900, obs="view", **{**SETTINGS, **settings})
     for seed, model in zip([5, 0, 9], ours):
         theirs = _sb3(seed, 3, 900, **settings)
         _assert_same_buffer(model, theirs)
@@ -143,7 +143,7 @@ def test_deep_controls_and_affect_dqn_as_their_own_learn(algo, kwargs, tmp_path)
     ``_store_transition`` per seed: each seed's buffer, logged keys and episode log are those of its ``learn``; the
     model saves and loads as its class does."""
     cls = resolve_class(algo)
-    ours = train_many(algo, ENV_ID, [4, 2], 2, total_timesteps=800, obs="image", **{**SETTINGS, **kwargs})
+    ours = train_many(algo, ENV_ID, [4, 2], 2, total_timesteps=800, obs="view", **{**SETTINGS, **kwargs})
     for seed, model in zip([4, 2], ours):
         assert type(model) is cls
         theirs = _sb3(seed, 2, 800, cls=cls, **kwargs)
@@ -154,7 +154,7 @@ def test_deep_controls_and_affect_dqn_as_their_own_learn(algo, kwargs, tmp_path)
             assert len(model.emotion_callback.episode_log) > 0
             pd.testing.assert_frame_equal(model.emotion_callback.episode_log, theirs.emotion_callback.episode_log)
     ours[0].save(tmp_path / "model.zip")
-    loaded = cls.load(tmp_path / "model.zip", env=seed_vec_env(ENV_ID, 2, 4, "image"), device="cpu")
+    loaded = cls.load(tmp_path / "model.zip", env=seed_vec_env(ENV_ID, 2, 4, "view"), device="cpu")
     observations = ours[0].replay_buffer.observations[:50, 0]
     np.testing.assert_array_equal(loaded.predict(observations, deterministic=True)[0],
                                   ours[0].predict(observations, deterministic=True)[0])
@@ -182,7 +182,8 @@ def test_returned_models_are_sb3_models(tmp_path) -> None:
     ("QLearning", {}, "algo=QLearning is not a DQN"),
     ("DQN", {"seed": 3}, "seed= is train_many's own argument"),
     ("DQN", {"policy": "CnnPolicy"}, "policy='CnnPolicy'"),
-    ("DQN", {"obs": "rgb"}, "obs='rgb' is not one of flat, image"),
+    ("DQN", {"obs": "rgb"}, "obs='rgb' is not one of flat, view"),
+    ("DQN", {"obs": "image"}, "obs='image' is minigrid_vec_env's 7x7x3 image; the flat 147 entries of the agent's"),
     ("DQN", {"n_envs": 0}, "n_envs=0 must be an integer >= 1"),
     ("DQN", {"seeds": [1, 1]}, "seeds has 1 twice"),
     ("DQN", {"seeds": []}, "seeds=[] must be a non-empty list"),

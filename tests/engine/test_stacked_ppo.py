@@ -42,9 +42,9 @@ def test_update_equals_ppo_train_on_the_same_rollout() -> None:
     surrogate, value and entropy terms, clipping, Adam) and SB3's ``PPO.train`` on the same rollout and permutations
     give weights within 1e-5 (measured: at most 6e-8) and the same logged losses."""
     settings = {**SETTINGS, "ent_coef": 0.01, "clip_range_vf": 0.2}
-    models = [PPO("MlpPolicy", seed_vec_env(ENV_ID, 2, seed, "image"), seed=seed, device="cpu", **settings)
+    models = [PPO("MlpPolicy", seed_vec_env(ENV_ID, 2, seed, "view"), seed=seed, device="cpu", **settings)
               for seed in range(3)]
-    copies = [PPO("MlpPolicy", seed_vec_env(ENV_ID, 2, seed, "image"), seed=seed, device="cpu", **settings)
+    copies = [PPO("MlpPolicy", seed_vec_env(ENV_ID, 2, seed, "view"), seed=seed, device="cpu", **settings)
               for seed in range(3)]
     rollout = StackedRollout(3, 64, 2, models[0].observation_space.shape)
     for index, model in enumerate(models):
@@ -76,7 +76,7 @@ def test_update_equals_ppo_train_on_the_same_rollout() -> None:
 
 
 def _sb3(seed: int, n_envs: int, total: int, callback: Any = None, **kwargs: Any) -> PPO:
-    model = PPO("MlpPolicy", seed_vec_env(ENV_ID, n_envs, seed, "image"), seed=seed, device="cpu", **kwargs)
+    model = PPO("MlpPolicy", seed_vec_env(ENV_ID, n_envs, seed, "view"), seed=seed, device="cpu", **kwargs)
     return model.learn(total, callback=callback)
 
 
@@ -95,7 +95,7 @@ def _assert_same_run(ours: PPO, theirs: PPO) -> None:
 def test_one_seed_one_env_is_ppo_learn() -> None:
     """One seed, one env, 20 rollouts of 64 steps (1,280 env steps): the same actions (each seed's torch generator as
     SB3's global one), the same last rollout and the weights within 1e-5."""
-    (ours,) = train_many(PPO, ENV_ID, [3], 1, total_timesteps=1_280, obs="image", **SETTINGS)
+    (ours,) = train_many(PPO, ENV_ID, [3], 1, total_timesteps=1_280, obs="view", **SETTINGS)
     _assert_same_run(ours, _sb3(3, 1, 1_280, **SETTINGS))
 
 
@@ -106,7 +106,7 @@ def test_seeds_and_envs_are_their_own_learn() -> None:
         def _on_step(self) -> bool:
             return self.n_calls < 100
 
-    ours = train_many("PPO", ENV_ID, [5, 1], 2, total_timesteps=1_024, obs="image",
+    ours = train_many("PPO", ENV_ID, [5, 1], 2, total_timesteps=1_024, obs="view",
                       callbacks=[None, StopAt()], per_seed={"gamma": [0.9, 0.99]}, **SETTINGS)
     _assert_same_run(ours[0], _sb3(5, 2, 1_024, gamma=0.9, **SETTINGS))
     theirs = _sb3(1, 2, 1_024, StopAt(), gamma=0.99, **SETTINGS)

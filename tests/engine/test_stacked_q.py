@@ -41,7 +41,7 @@ def _hundred_steps(per_seed: list[dict[str, Any]], **shared: Any) -> float:
     """100 gradient steps (a target copy every 10) of the stacked networks and of each seed's ``DQN.train`` on the same
     batches, whose observations leave a third of the inputs at 0 (so Adam's second moments hold exact zeros); the
     largest weight difference."""
-    models = [DQN("MlpPolicy", seed_vec_env(ENV_ID, 1, seed, "image"), seed=seed, device="cpu", **shared, **own)
+    models = [DQN("MlpPolicy", seed_vec_env(ENV_ID, 1, seed, "view"), seed=seed, device="cpu", **shared, **own)
               for seed, own in enumerate(per_seed)]
     for model in models:
         model.set_logger(configure(None, []))
@@ -68,7 +68,7 @@ def _hundred_steps(per_seed: list[dict[str, Any]], **shared: Any) -> float:
             for model in models:
                 model.target_update_interval, model._n_calls = 1, 0
                 model._on_step()
-    copies = [DQN("MlpPolicy", seed_vec_env(ENV_ID, 1, seed, "image"), seed=seed, device="cpu", **shared, **own)
+    copies = [DQN("MlpPolicy", seed_vec_env(ENV_ID, 1, seed, "view"), seed=seed, device="cpu", **shared, **own)
               for seed, own in enumerate(per_seed)]
     stack.write_back(copies)
     for ours, theirs in zip(copies, models):

@@ -50,7 +50,7 @@ def test_each_seed_gets_its_callback_and_its_wrapped_env() -> None:
         wrapped.append(Doubled(env))
         return wrapped[-1]
 
-    models = sb3_affect.train_many("AffectDQN", "MiniGrid-Empty-5x5-v0", [3, 4], 2, total_timesteps=200, obs="image",
+    models = sb3_affect.train_many("AffectDQN", "MiniGrid-Empty-5x5-v0", [3, 4], 2, total_timesteps=200, obs="view",
                                    callbacks=callbacks, env_wrapper=wrap, position="minigrid", **SMALL)
     for model, callback, env in zip(models, callbacks, wrapped):
         assert callback.model is model and model.get_env() is env
@@ -64,4 +64,4 @@ def test_each_seed_gets_its_callback_and_its_wrapped_env() -> None:
 ])  # fmt: skip
 def test_bad_hooks_are_refused_in_one_line(kwargs: dict[str, Any], message: str) -> None:
     with pytest.raises(ValueError, match="^" + re.escape(message)):
-        sb3_affect.train_many("DQN", "MiniGrid-Empty-5x5-v0", [0, 1], 2, total_timesteps=100, obs="image", **kwargs, **SMALL)
+        sb3_affect.train_many("DQN", "MiniGrid-Empty-5x5-v0", [0, 1], 2, total_timesteps=100, obs="view", **kwargs, **SMALL)

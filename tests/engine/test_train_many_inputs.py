@@ -49,7 +49,7 @@ class StopAt(BaseCallback):
 
 
 def _sb3(seed: int, n_envs: int, total_timesteps: int, callback: Any = None, **kwargs: Any) -> DQN:
-    model = DQN("MlpPolicy", seed_vec_env(ENV_ID, n_envs, seed, "image"), seed=seed, device="cpu", **kwargs)
+    model = DQN("MlpPolicy", seed_vec_env(ENV_ID, n_envs, seed, "view"), seed=seed, device="cpu", **kwargs)
     return model.learn(total_timesteps, callback=callback)
 
 
@@ -80,7 +80,7 @@ shared = StopAt()
     ({"env_id": "CartPole-v1"}, "env_id='CartPole-v1' is not a MiniGrid env"),
     ({"env_id": None}, "env_id=None must be a MiniGrid env id"),
     ({"env_id": gym.make("CartPole-v1")}, "env_id=TimeLimit is an env: train_many builds each seed's envs itself"),
-    ({"env_id": seed_vec_env(ENV_ID, 1, 0, "image")}, "env_id=DummyVecEnv is an env"),
+    ({"env_id": seed_vec_env(ENV_ID, 1, 0, "view")}, "env_id=DummyVecEnv is an env"),
     ({"callbacks": [5, 6]}, "callbacks[0]=5 is not a callback"),
     ({"callbacks": [shared, shared]}, "callbacks[1] holds the StopAt of callbacks[0]"),
     ({"callbacks": [[shared], [StopAt(), shared]]}, "callbacks[1] holds the StopAt of callbacks[0]"),
@@ -112,7 +112,7 @@ def test_a_seed_whose_callback_stops_is_kept_as_its_learn_leaves_it() -> None:
     """Seed 1's callback stops it at its 300th VecEnv step: its model is SB3's ``learn`` with that callback (the buffer,
     weights, counts and logs); seed 0 runs on to the end as its own ``learn``."""
     callbacks = [StopAt(), StopAt(300)]
-    ours = train_many("DQN", ENV_ID, [0, 1], 2, total_timesteps=1_200, obs="image", callbacks=callbacks, **SETTINGS)
+    ours = train_many("DQN", ENV_ID, [0, 1], 2, total_timesteps=1_200, obs="view", callbacks=callbacks, **SETTINGS)
     theirs_stopped = StopAt(300)
     _assert_same_run(ours[1], _sb3(1, 2, 1_200, theirs_stopped, **SETTINGS))
     assert ours[1].num_timesteps == 600 and callbacks[1].ends == theirs_stopped.ends == 1
@@ -122,7 +122,7 @@ def test_a_seed_whose_callback_stops_is_kept_as_its_learn_leaves_it() -> None:
 
 def test_every_seed_stopped_ends_the_run() -> None:
     callbacks = [StopAt(40), StopAt(10)]
-    ours = train_many("DQN", ENV_ID, [0, 1], 1, total_timesteps=1_000, obs="image", callbacks=callbacks, **SETTINGS)
+    ours = train_many("DQN", ENV_ID, [0, 1], 1, total_timesteps=1_000, obs="view", callbacks=callbacks, **SETTINGS)
     assert [m.num_timesteps for m in ours] == [40, 10]
 
 
@@ -132,7 +132,7 @@ def test_arguments_per_seed_are_each_seeds_own_learn() -> None:
     per_seed = {"learning_rate": [1e-3, 3e-4], "gamma": [0.9, 0.99], "tau": [1.0, 0.5], "max_grad_norm": [10.0, 0.5],
                 "exploration_fraction": [0.5, 0.2]}
     settings = {key: value for key, value in SETTINGS.items() if key not in per_seed}
-    ours = train_many("DQN", ENV_ID, [2, 3], 2, total_timesteps=1_000, obs="image", per_seed=per_seed, **settings)
+    ours = train_many("DQN", ENV_ID, [2, 3], 2, total_timesteps=1_000, obs="view", per_seed=per_seed, **settings)
     for index, seed in enumerate([2, 3]):
         own = {key: values[index] for key, values in per_seed.items()}
         theirs = _sb3(seed, 2, 1_000, **settings, **own)

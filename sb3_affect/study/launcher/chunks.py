@@ -1,5 +1,6 @@
 """
-Chunks: the finished runs of one batch in one Parquet file (``DIR/chunks/<batch>.parquet``).
+Chunks: the finished runs of one batch in one Parquet file (``DIR/chunks/<batch>.parquet``): a tabular batch's episodes
+(``encode_chunk``), or a deep batch's evaluations (``encode_evaluations``, its footer's ``kind``: ``evaluations``).
 
 A chunk holds one row per episode: ``run`` (the run's index in the chunk) and every ``EPISODE_COLUMNS`` column (counts
 as int64, flags as booleans, null where a run can not tell, the rest float64; written before counts were int64:
@@ -193,3 +194,107 @@ def chunk_records(path: Path, meta: dict[str, Any] | None = None) -> list[dict[s
             }
         )
     return records
+
+
+#: The per-seed rows of a deep batch's evaluations, ``(seeds, evaluations)`` each (``deep_training.run_batch``).
+EVALUATION_ROWS = ("success", "return", "random_share", "train_episodes", "train_successes")
+#: A chunk of evaluations (the deep study's batches) says so in its footer's ``kind``.
+EVALUATIONS = "evaluations"
+
+
+def encode_evaluations(
+    name: str,
+    base: dict[str, Any],
+    runs: Sequence[tuple[str, int, int]],
+    record: dict[str, Any],
+    timings: dict[str, Any],
+    versions: dict[str, str],
+    epsilons: Sequence[float] | None,
+) -> bytes:
+    """
+    The Parquet bytes of a chunk of evaluations: one row per run and evaluation, ``run``, ``step`` (the env steps
+    trained), every ``EVALUATION_ROWS`` row and, for an affective agent, ``emotion.<name>`` (NaN: no decision or emotion
+    in that part); the footer as ``encode_chunk``'s (each run's decisions: the budget) with ``kind``, each run's
+    ``first_success`` (None: never) and the ``epsilons`` a replaying agent took.
+    """
+    seeds, evaluations = len(runs), base["budget"] // base["eval_every"]
+    tables = {key: record[key] for key in EVALUATION_ROWS}
+    tables.update({f"emotion.{key}": table for key, table in (record["emotions"] or {}).items()})
+    arrays: dict[str, Any] = {
+        "run": arrow_array(np.repeat(np.arange(seeds, dtype=np.int32), evaluations), pa.int32()),
+        "step": arrow_array(np.tile(base["eval_every"] * np.arange(1, evaluations + 1), seeds), pa.int64()),
+    }
+    for key, table in tables.items():
+        values = np.asarray(table, dtype=np.float64)
+        if values.shape != (seeds, evaluations):
+            raise ValueError(f"batch {name}: {key} has the shape {values.shape}, not {seeds} x {evaluations} evaluations")
+        arrays[key] = arrow_array(values.ravel(), pa.float64())
+    meta = {
+        "schema": CHUNK_SCHEMA, "kind": EVALUATIONS, "batch": name, "base": base,
+        "runs": [[rid, seed, replicate, base["budget"]] for rid, seed, replicate in runs],
+        "first_success": list(record["first_success"]), "epsilons": None if epsilons is None else list(epsilons),
+        "timings": timings, "versions": versions,
+    }  # fmt: skip
+    table = pa.table(arrays).replace_schema_metadata({META_KEY: json.dumps(meta, sort_keys=True).encode()})
+    sink = io.BytesIO()
+    pq.write_table(table, sink, compression="lz4")
+    return sink.getvalue()
+
+
+def evaluation_table(path: Path, meta: dict[str, Any]) -> dict[str, np.ndarray]:
+    """
+    A chunk of evaluations' rows ``(runs, evaluations)`` by column, or a ``ValueError`` saying why they are not the
+    rows its footer describes: every run's evaluations in order, a success rate in [0, 1] and a finite return in each.
+    """
+    base, runs = meta["base"], len(meta["runs"])
+    evaluations = base["budget"] // base["eval_every"]
+    table = pq.ParquetFile(path).read()
+    columns = {name: table.column(name).to_numpy() for name in table.column_names}
+    missing = [key for key in ("run", "step", *EVALUATION_ROWS) if key not in columns]
+    if missing or table.num_rows != runs * evaluations:
+        raise ValueError(f"holds {table.num_rows} rows without {missing} or not {runs} runs x {evaluations} evaluations")
+    steps = np.tile(base["eval_every"] * np.arange(1, evaluations + 1), runs)
+    in_order = np.array_equal(columns["run"], np.repeat(np.arange(runs), evaluations))
+    if not (in_order and np.array_equal(columns["step"], steps)):
+        raise ValueError("does not hold each run's evaluations in order")
+    success, returns = columns["success"], columns["return"]
+    if not (np.isfinite(success).all() and ((success >= 0) & (success <= 1)).all() and np.isfinite(returns).all()):
+        raise ValueError("has a success or return that no evaluation gives (empty, NaN or out of range)")
+    if not (isinstance(meta.get("first_success"), list) and len(meta["first_success"]) == runs):
+        raise ValueError(f"has no first_success of its {runs} runs in its footer")
+    return {name: values.reshape(runs, evaluations) for name, values in columns.items() if name not in ("run", "step")}
+
+
+def _rows(values: np.ndarray) -> list[list[float | None]]:
+    return [[None if math.isnan(v) else v for v in row] for row in values.tolist()]
+
+
+def evaluation_cells(chunks: dict[Path, dict[str, Any]]) -> dict[tuple[str, str], dict[str, Any]]:
+    """
+    The chunks of evaluations of a folder (path -> footer, checked) as one record per cell ``(task, agent)``: its runs
+    in replicate order, each row a list per run (None where a part had no decision or emotion), the cell's settings.
+    """
+    parts: dict[tuple[str, str], list[tuple[int, int, dict[str, Any], dict[str, np.ndarray]]]] = {}
+    for path, meta in chunks.items():
+        if meta.get("kind") == EVALUATIONS:
+            table = evaluation_table(path, meta)
+            key = (meta["base"]["labels"]["task"], meta["base"]["agent"])
+            for index, (_, _, replicate, _) in enumerate(meta["runs"]):
+                parts.setdefault(key, []).append((replicate, index, meta, table))
+    cells = {}
+    for (task, agent), runs in parts.items():
+        runs.sort(key=lambda run: run[0])
+        metas = [meta for _, _, meta, _ in runs]
+        base = metas[0]["base"]
+        tables = {name: _rows(np.stack([table[name][index] for _, index, _, table in runs])) for name in runs[0][3]}
+        emotions = {name.removeprefix("emotion."): rows for name, rows in tables.items() if name.startswith("emotion.")}
+        cells[task, agent] = {
+            "task": task, "agent": agent, "algo": base["algo"], "env_id": base["env_id"], "budget": base["budget"],
+            "seeds": [meta["runs"][index][1] for _, index, meta, _ in runs], "eval_every": base["eval_every"],
+            "eval_episodes": base["eval_episodes"], "count_bonus": base["count_bonus"], "epsilons": metas[0]["epsilons"],
+            "eval_steps": [base["eval_every"] * (k + 1) for k in range(base["budget"] // base["eval_every"])],
+            **{name: tables[name] for name in EVALUATION_ROWS}, "emotions": emotions or None,
+            "first_success": [meta["first_success"][index] for _, index, meta, _ in runs],
+            "seconds": sum({meta["batch"]: meta["timings"]["cpu_seconds"] for meta in metas}.values()),
+        }  # fmt: skip
+    return cells

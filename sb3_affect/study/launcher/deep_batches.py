@@ -1,20 +1,29 @@
 """
-The deep study's unit of work: a *batch*, some seeds of one cell (task x agent) trained together by the public
-trainer ``sb3_affect.train_many`` and evaluated every ``eval_every`` env steps (``deep_training``, ``deep_recording``). A
-batch is a ``batches.Work``, so the launcher's one executor runs it: a long-lived local worker process, or one Ray task.
-Its record depends only on the study, the cell and its seeds: the same on either backend, and in any batch.
-``merge_batches`` joins a cell's batches in seed order into the cell's record (what a record holds: ``deep_training``).
+The deep study's unit of work, a batch kind of the launcher (``launcher.plan_jobs``): some seeds of one cell (task x
+agent, ``DeepStudy.cells``) trained together by the public trainer ``sb3_affect.train_many`` and evaluated every
+``eval_every`` env steps (``deep_training``, ``deep_recording``), stored as one chunk of evaluations
+(``chunks.encode_evaluations``). It runs on the launcher's one executor, a long-lived local worker or one Ray task; its
+rows depend only on the cell and its seeds: the same on either backend, and in any batch.
+
+A cell whose agent ``replays`` another waits for that agent's cell on the same task: its ε, part by part, is the
+source's random share averaged over seeds (``replayed_epsilons``; ``ReplayedEpsilonDQN``).
 """
 
 from __future__ import annotations
 
+import math
+import os
 import socket
-from collections.abc import Sequence
+import time
+import warnings
 from dataclasses import dataclass
 from types import ModuleType
 from typing import Any
 
-from sb3_affect.study.launcher.deep_schema import RECORD_ROWS, DeepStudy
+import numpy as np
+
+from sb3_affect.study.launcher.batches import Batch
+from sb3_affect.study.launcher.chunks import encode_evaluations
 from sb3_affect.study.launcher.one_run import package_versions
 
 
@@ -25,45 +34,28 @@ def training() -> ModuleType:
     return deep_training
 
 
-def seed_batches(study: DeepStudy) -> list[tuple[int, ...]]:
-    """The study's seeds cut into batches of ``seeds_per_batch`` (all in one when not given), in the file's order."""
-    size = study.seeds_per_batch or len(study.seeds)
-    return [tuple(study.seeds[i:i + size]) for i in range(0, len(study.seeds), size)]
-
-
-def merge_batches(records: Sequence[dict[str, Any]]) -> dict[str, Any]:
-    """A cell's record from its batches' records, in seed order (``seconds``: the batches' CPU seconds, summed)."""
-    first = records[0]
-    merged = dict(first)
-    for key in (*RECORD_ROWS, "seeds", "first_success"):
-        merged[key] = [value for record in records for value in record[key]]
-    if first["emotions"] is not None:
-        merged["emotions"] = {name: [row for record in records for row in record["emotions"][name]]
-                              for name in first["emotions"]}  # fmt: skip
-    merged["seconds"] = sum(record["seconds"] for record in records)
-    return merged
+def replayed_epsilons(source: dict[str, Any]) -> list[float]:
+    """A finished cell's random share, averaged over its seeds, per part of training (a part without decisions: 1)."""
+    shares = np.asarray(source["random_share"], dtype=float)  # (seeds, parts); None read as NaN
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # a part without decisions in any seed
+        mean = np.nanmean(shares, axis=0)
+    return [1.0 if math.isnan(value) else float(value) for value in mean]
 
 
 @dataclass(frozen=True)
-class DeepBatch:
-    """
-    One batch as a unit of work of the launcher's executors (``batches.Work``): the study (as its file's data), the
-    task, the agent's index, the batch's index and seeds, and the ε a replaying agent takes.
-    """
+class DeepBatch(Batch):
+    """A ``Batch`` of a deep cell (its ``base``: ``DeepStudy.cells``), with the ε a replaying agent takes."""
 
-    study: dict[str, Any]
-    task: str
-    agent: int
-    index: int
-    seeds: tuple[int, ...]
     epsilons: tuple[float, ...] | None = None
 
-    @property
-    def name(self) -> str:
-        return f"deep:{self.task}:{self.study['agents'][self.agent]['name']}:{self.index}"
-
     def execute(self) -> dict[str, Any]:
-        """``deep_training.run_batch`` of this batch, with the package versions and the host that ran it."""
-        study = DeepStudy.model_validate(self.study)
-        record = training().run_batch(study, self.task, study.agents[self.agent], self.seeds, self.epsilons)
-        return {"record": record, "versions": package_versions(), "timings": {"host": socket.gethostname()}}
+        """Train and evaluate the batch (in a worker): ``{"chunk": Parquet bytes, "run_ids": [...]}``."""
+        start = time.perf_counter()
+        seeds = [seed for _, seed, _ in self.runs]
+        record = training().run_batch(self.base, seeds, self.epsilons)
+        timings = {"wall_seconds": round(time.perf_counter() - start, 4), "cpu_seconds": record["seconds"],
+                   "pid": os.getpid(), "host": socket.gethostname()}  # fmt: skip
+        versions = package_versions()
+        chunk = encode_evaluations(self.name, self.base, self.runs, record, timings, versions, self.epsilons)
+        return {"chunk": chunk, "run_ids": [rid for rid, _, _ in self.runs], "timings": timings, "versions": versions}

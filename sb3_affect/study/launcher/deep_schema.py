@@ -2,7 +2,7 @@
 Sweep files of the deep study (``study: deep``): DQN-family agents on MiniGrid tasks, many seeds of one agent on one
 task trained together (the public trainer ``sb3_affect.train_many``), each seed's greedy policy evaluated on its own
 evaluation envs every ``eval_every`` env steps. ``sweep_file.load_sweep_file`` validates a file with ``DeepStudy``;
-``sb3_affect.study.launcher.deep_study`` runs it::
+the launcher (``launcher.run_sweep``) runs its ``cells`` as ``deep_batches.DeepBatch`` jobs into a results store::
 
     name: minigrid-dqn
     study: deep
@@ -30,14 +30,12 @@ from pydantic import BaseModel, ConfigDict, Field, StrictInt, field_validator, m
 
 from sb3_affect.core.registry import AGENTS
 from sb3_affect.kernel.minigrid_world import MINIGRID_TASKS
-from sb3_affect.study.launcher.schema import NAME_PATTERN
+from sb3_affect.study.launcher.schema import NAME_PATTERN, Cell
 
 #: Fewest evaluation episodes the study's primary metric is read from (a smaller file is labelled a smoke size).
 STUDY_EVAL_EPISODES = 20
 #: The settings a task holds for every agent that asks for them (``epsilon: tuned``, ``count_bonus: tuned``).
 TUNED = "tuned"
-#: The per-seed rows of a batch's (and a cell's) record, (seeds, evaluations) each (``deep_training.run_batch``).
-RECORD_ROWS = ("success", "return", "random_share", "train_episodes", "train_successes")
 #: The evaluation envs of seed s are seeded ``EVAL_SEED_OFFSET + s * eval_episodes + i``: apart from every training env
 #: (seeded ``s + i`` for ``i < n_envs``) for seeds below the offset, which is the largest seed a study takes.
 EVAL_SEED_OFFSET = 1_000_000
@@ -145,8 +143,9 @@ class DeepStudy(BaseModel):
     env: Literal["compiled", "farama"] = Field(
         default="compiled", description="compiled: sb3_affect.minigrid_vec_env; farama: make_vec_env with FlatObsWrapper"
     )
-    obs: Literal["flat", "image"] = Field(
-        default="image", description="FlatObsWrapper's vector, or its first 147 entries (the 7x7x3 view), for every agent"
+    obs: Literal["flat", "view"] = Field(
+        default="view", description="FlatObsWrapper's vector, or its first 147 entries (view: the 7x7x3 view flattened, "
+        "minigrid_vec_env's name), for every agent"
     )
     n_envs: int = Field(default=4, ge=1, le=256, description="training envs per seed")
     seeds: list[StrictInt] = Field(
@@ -161,6 +160,36 @@ class DeepStudy(BaseModel):
     network: dict[str, Any] = Field(default_factory=dict, description="DQN's arguments shared by every agent")
     tasks: dict[str, DeepTask] = Field(min_length=1, description="task name -> task")
     agents: list[DeepAgent] = Field(min_length=1, description="the agents, run on every task in this order")
+
+    @property
+    def logs(self) -> list[str]:
+        """No SB3 logs: the study records its own curves (a sweep's ``logs``)."""
+        return []
+
+    def cells(self) -> list[Cell]:
+        """
+        The study as the launcher's cells, one per task and agent (tasks first, agents in the file's order): its base
+        run config holds all a run's training and evaluation depends on (its run ids hash it), its seeds the study's.
+        A ``replays`` agent's cell waits for the cell of the agent it replays on the same task (``launcher.plan_jobs``).
+        """
+        cells = []
+        for task, spec in self.tasks.items():
+            for agent in self.agents:
+                base = {"sweep": self.name, "study": "deep", "agent": agent.name, "algo": agent.algo, "seed": None,
+                        "labels": {"task": task}, "env_id": spec.id, "env": self.env, "obs": self.obs,
+                        "n_envs": self.n_envs, "budget": spec.budget, "eval_every": self.eval_every,
+                        "eval_episodes": self.eval_episodes, "algo_kwargs": agent_kwargs(self, task, agent),
+                        "count_bonus": bonus_scale(self, task, agent), "replays": agent.replays}  # fmt: skip
+                cells.append(Cell(base, list(self.seeds), self.seeds_per_batch or len(self.seeds)))
+        return cells
+
+    @field_validator("obs", mode="before")
+    @classmethod
+    def _obs(cls, value: Any) -> Any:
+        if value == "image":
+            raise ValueError("obs='image' is minigrid_vec_env's 7x7x3 image; the flat 147 entries of the agent's view are "
+                             "obs: view (or flat: FlatObsWrapper's whole vector)")
+        return value
 
     @field_validator("seeds")
     @classmethod
@@ -208,3 +237,20 @@ class DeepStudy(BaseModel):
                 if missing:
                     raise ValueError(f"agents[{index}] ({agent.name}) takes the tuned {field}: tasks.{missing[0]} has none")
         return self
+
+
+def agent_kwargs(study: DeepStudy, task: str, agent: DeepAgent) -> dict[str, Any]:
+    """The agent's arguments on ``task``: the study's network, the task's tuned learning rate, then the agent's own."""
+    spec = study.tasks[task]
+    kwargs: dict[str, Any] = dict(study.network)
+    if spec.learning_rate is not None:
+        kwargs["learning_rate"] = spec.learning_rate
+    if agent.epsilon == TUNED:
+        kwargs["exploration_fraction"] = spec.exploration_fraction
+    kwargs.update(agent.kwargs)
+    return kwargs
+
+
+def bonus_scale(study: DeepStudy, task: str, agent: DeepAgent) -> float | None:
+    """The count bonus's scale of ``agent`` on ``task`` (None: no bonus)."""
+    return study.tasks[task].count_bonus if agent.count_bonus == TUNED else agent.count_bonus  # type: ignore[return-value]

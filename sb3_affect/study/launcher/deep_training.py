@@ -3,51 +3,35 @@ One batch of the deep study trained and evaluated (``deep_batches.DeepBatch`` ru
 cell trained together by the public trainer ``sb3_affect.train_many`` with one torch thread, and evaluated every
 ``eval_every`` env steps (``deep_recording``).
 
-A batch's record, per seed and evaluation: the greedy policy's success rate and mean return on its evaluation envs,
-and over the env steps since the previous evaluation the share of random decisions, the share of env steps in each
-emotion (``AffectDQN``), the training episodes ended and reached the goal; per seed, the env step of its first
-training episode that reached the goal (None: never, a censored run).
+A batch's record, per seed and evaluation (arrays ``(seeds, evaluations)``, NaN where a part had no decision or
+emotion): the greedy policy's success rate and mean return on its evaluation envs, and over the env steps since the
+previous evaluation the share of random decisions, the share of env steps in each emotion (``AffectDQN``), the
+training episodes ended and reached the goal; per seed, the env step of its first training episode that reached the
+goal (None: never, a censored run). ``chunks.encode_evaluations`` stores it as one chunk.
 """
 
 from __future__ import annotations
 
-import math
 import os
 import time
 from collections.abc import Sequence
 from typing import Any
 
+import numpy as np
 import torch as th
 
 import sb3_affect
 from sb3_affect.core.emotions import EMOTION_NAMES
 from sb3_affect.core.registry import resolve_class
 from sb3_affect.engine.seed_envs import seed_vec_env
+from sb3_affect.study.launcher.chunks import EVALUATION_ROWS
 from sb3_affect.study.launcher.count_bonus import CountBonus
 from sb3_affect.study.launcher.deep_recording import GreedyEvaluation, TrainingRecorder
-from sb3_affect.study.launcher.deep_schema import EVAL_SEED_OFFSET, RECORD_ROWS, TUNED, DeepAgent, DeepStudy
+from sb3_affect.study.launcher.deep_schema import EVAL_SEED_OFFSET, DeepStudy
 
 #: ``train_many``'s ``log_interval`` in the study: no run ends this many episodes, so no ``dump_logs`` resets the
 #: random-decision counters of an ``ActionRepeat`` agent, which ``deep_recording`` reads.
 NO_LOGS = 2**62
-
-
-def agent_kwargs(study: DeepStudy, task: str, agent: DeepAgent, epsilons: Sequence[float] | None = None) -> dict[str, Any]:
-    """The agent's arguments on ``task``: the study's network, the task's tuned learning rate, then the agent's own."""
-    spec = study.tasks[task]
-    kwargs: dict[str, Any] = dict(study.network)
-    if spec.learning_rate is not None:
-        kwargs["learning_rate"] = spec.learning_rate
-    if agent.epsilon == TUNED:
-        kwargs["exploration_fraction"] = spec.exploration_fraction
-    if epsilons is not None:
-        kwargs["epsilons"] = list(epsilons)
-    kwargs.update(agent.kwargs)
-    return kwargs
-
-
-def bonus_scale(study: DeepStudy, task: str, agent: DeepAgent) -> float | None:
-    return study.tasks[task].count_bonus if agent.count_bonus == TUNED else agent.count_bonus  # type: ignore[return-value]
 
 
 #: The replay buffer of the agents ``check_study`` builds (what a transition costs is read from it, then scaled).
@@ -64,9 +48,10 @@ def check_study(study: DeepStudy, batches_at_once: int) -> None:
     name, spec = next(iter(study.tasks.items()))
     env = seed_vec_env(spec.id, 1, 0, study.obs, False)
     seed_bytes = 0.0
-    for index, agent in enumerate(study.agents):
+    for index, (agent, cell) in enumerate(zip(study.agents, study.cells())):
         epsilons = [1.0] * (spec.budget // study.eval_every) if agent.replays is not None else None
-        kwargs = {**agent_kwargs(study, name, agent, epsilons), "buffer_size": PROBE_BUFFER}
+        kwargs = {**cell.base["algo_kwargs"], **({} if epsilons is None else {"epsilons": epsilons}),
+                  "buffer_size": PROBE_BUFFER}  # fmt: skip
         try:
             model = resolve_class(agent.algo)("MlpPolicy", env, seed=0, device="cpu", **kwargs)
         except (ValueError, TypeError, KeyError, AssertionError) as error:
@@ -75,7 +60,7 @@ def check_study(study: DeepStudy, batches_at_once: int) -> None:
         transition = sum(getattr(buffer, field).nbytes for field in ("observations", "next_observations", "actions",
                                                                       "rewards", "dones")) / PROBE_BUFFER
         parameters = sum(p.numel() for p in model.q_net.parameters())
-        buffer_size = int(agent_kwargs(study, name, agent).get("buffer_size", 1_000_000))
+        buffer_size = int(cell.base["algo_kwargs"].get("buffer_size", 1_000_000))
         seed_bytes = max(seed_bytes, transition * buffer_size + 16 * parameters)
     size = study.seeds_per_batch or len(study.seeds)
     need = seed_bytes * size * batches_at_once
@@ -88,29 +73,28 @@ def check_study(study: DeepStudy, batches_at_once: int) -> None:
         )
 
 
-def run_batch(study: DeepStudy, task: str, agent: DeepAgent, seeds: Sequence[int],
-              epsilons: Sequence[float] | None = None) -> dict[str, Any]:
+def run_batch(base: dict[str, Any], seeds: Sequence[int], epsilons: Sequence[float] | None = None) -> dict[str, Any]:
     """
-    Train and evaluate ``seeds`` of ``agent`` on ``task`` through ``train_many``: the batch's record. With one torch
-    thread (the stacked networks are small: more threads only wait on each other); the caller's count is restored.
+    Train and evaluate ``seeds`` of the cell whose base run config is ``base`` (``DeepStudy.cells``) through
+    ``train_many``: the batch's record. With one torch thread (the stacked networks are small: more threads only wait
+    on each other); the caller's count is restored.
     """
     threads = th.get_num_threads()
     th.set_num_threads(1)
     try:
-        return _run_batch(study, task, agent, seeds, epsilons)
+        return _run_batch(base, seeds, epsilons)
     finally:
         th.set_num_threads(threads)
 
 
-def _run_batch(study: DeepStudy, task: str, agent: DeepAgent, seeds: Sequence[int],
-               epsilons: Sequence[float] | None) -> dict[str, Any]:
+def _run_batch(base: dict[str, Any], seeds: Sequence[int], epsilons: Sequence[float] | None) -> dict[str, Any]:
     start = time.process_time()
-    spec, compiled, n_eval = study.tasks[task], study.env == "compiled", study.eval_episodes
-    scale = bonus_scale(study, task, agent)
+    env_id, compiled, n_eval, obs = base["env_id"], base["env"] == "compiled", base["eval_episodes"], base["obs"]
+    scale = base["count_bonus"]
     eval_seeds = [EVAL_SEED_OFFSET + seed * n_eval for seed in seeds]
-    evaluate = GreedyEvaluation([seed_vec_env(spec.id, n_eval, s, study.obs, compiled) for s in eval_seeds], eval_seeds)
+    evaluate = GreedyEvaluation([seed_vec_env(env_id, n_eval, s, obs, compiled) for s in eval_seeds], eval_seeds)
     recorders = [TrainingRecorder() for _ in seeds]
-    rows: dict[str, list[list[float]]] = {key: [] for key in RECORD_ROWS}
+    rows: dict[str, list[list[float]]] = {key: [] for key in EVALUATION_ROWS}
     emotion_rows: list[list[list[float]]] = []
 
     def on_models(models: list[Any]) -> None:
@@ -122,23 +106,16 @@ def _run_batch(study: DeepStudy, task: str, agent: DeepAgent, seeds: Sequence[in
             rows[key].append([interval[key] for interval in intervals])
         emotion_rows.append([interval["emotions"] for interval in intervals])
 
+    kwargs = {**base["algo_kwargs"], **({} if epsilons is None else {"epsilons": list(epsilons)})}
     models = sb3_affect.train_many(
-        agent.algo, spec.id, list(seeds), study.n_envs, total_timesteps=spec.budget, obs=study.obs, compiled=compiled,
-        log_interval=NO_LOGS, every=study.eval_every, on_models=on_models, callbacks=recorders,
-        env_wrapper=(lambda env: CountBonus(env, scale)) if scale else None, **agent_kwargs(study, task, agent, epsilons),
+        base["algo"], env_id, list(seeds), base["n_envs"], total_timesteps=base["budget"], obs=obs, compiled=compiled,
+        log_interval=NO_LOGS, every=base["eval_every"], on_models=on_models, callbacks=recorders,
+        env_wrapper=(lambda env: CountBonus(env, scale)) if scale else None, **kwargs,
     )
-
-    def by_seed(table: list[list[float]]) -> list[list[float | None]]:  # (evaluations, seeds) -> (seeds, evaluations)
-        return [[None if math.isnan(v) else v for v in column] for column in zip(*table)]
-
     affective = hasattr(models[0], "emotion_callback")
     return {
-        "task": task, "agent": agent.name, "algo": agent.algo, "env_id": spec.id, "seeds": list(seeds),
-        "budget": spec.budget, "eval_every": study.eval_every, "eval_episodes": n_eval,
-        "eval_steps": [study.eval_every * (k + 1) for k in range(len(rows["success"]))],
-        "count_bonus": scale, "epsilons": None if epsilons is None else list(epsilons),
-        **{key: by_seed(table) for key, table in rows.items()},
-        "emotions": {name: by_seed([[seed[k] for seed in evaluation] for evaluation in emotion_rows])
+        **{key: np.asarray(table, dtype=float).T for key, table in rows.items()},  # (seeds, evaluations) each
+        "emotions": {name: np.asarray([[seed[k] for seed in evaluation] for evaluation in emotion_rows], dtype=float).T
                      for k, name in enumerate(EMOTION_NAMES)} if affective else None,
         "first_success": [recorder.first_success for recorder in recorders],
         "seconds": time.process_time() - start,

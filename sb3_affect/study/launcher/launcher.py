@@ -2,8 +2,11 @@
 Run a sweep: skip finished runs, execute the rest on a backend, store each result as it arrives.
 
 The runs are cut into jobs (``batches``): tabular runs of this package's agents on its envs go in batches of one
-cell each (one ``engine.simulate`` call, stored as one Parquet chunk), any other run is a job of its own (one JSON
-file). Import and scheduling costs are paid once per job, the fork once per worker.
+cell each (one ``engine.simulate`` call, stored as one Parquet chunk), the deep study's runs (``study: deep``) in deep
+batches of one cell each (``deep_batches``: seeds trained together by ``train_many``, their evaluations stored as one
+chunk), any other run is a job of its own (one JSON file). Import and scheduling costs are paid once per job, the fork
+once per worker. A cell whose agent replays another's random share waits for that agent's cell on the same task: the
+jobs run in waves, each wave the jobs whose sources are done (``plan_jobs``).
 
 Backends:
 
@@ -23,11 +26,12 @@ same per-episode records on either backend.
 
 from __future__ import annotations
 
+import math
 import os
 import sys
 import time
 import traceback
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -45,10 +49,12 @@ from sb3_affect.study.launcher.batches import (
     batch_size,
     split_cell,
 )
+from sb3_affect.study.launcher.deep_batches import DeepBatch, replayed_epsilons, training
+from sb3_affect.study.launcher.deep_schema import DeepStudy
 from sb3_affect.study.launcher.local_pool import OnFailure, OnResult, W, run_local
 from sb3_affect.study.launcher.one_run import package_versions
 from sb3_affect.study.launcher.schema import Cell
-from sb3_affect.study.launcher.store import SWEEP_SCHEMA, ResultsStore, cell_run_ids, claim_kind, store_error
+from sb3_affect.study.launcher.store import SWEEP_SCHEMA, ResultsStore, cell_run_ids, store_error
 from sb3_affect.study.launcher.sweep_file import load_sweep
 
 
@@ -160,7 +166,7 @@ def run_sweep(
     if workers < 1:
         raise ValueError(f"workers={workers} must be >= 1")
     start = time.perf_counter()
-    sweep = load_sweep(sweep_path, tuple(overrides))
+    sweep = load_sweep(sweep_path, tuple(overrides), deep=True)
     cells = sweep.cells()
     cell_ids = [cell_run_ids(cell) for cell in cells]
     total = sum(len(ids) for ids in cell_ids)
@@ -168,7 +174,10 @@ def run_sweep(
     if sweep.tasks:  # the file's order of the tasks (sweep.json sorts the keys of a mapping)
         resolved["task_order"] = list(sweep.tasks)
     store = ResultsStore(out_dir)
-    claim_kind(store.root, "sweep", sweep.name)  # (before the lock file: a folder of another kind is left as it was)
+    store.claim(resolved)  # (before the lock file: a folder of another kind is left as it was)
+    if isinstance(sweep, DeepStudy):  # every agent built once, the memory estimated: before the folder is claimed
+        batches = sum(math.ceil(len(cell.seeds) / (cell.batch_size or 1)) for cell in cells)
+        training().check_study(sweep, 1 if backend == "ray" else min(workers, batches))  # (Ray: one a node)
     try:
         store.root.mkdir(parents=True, exist_ok=True)
     except OSError as error:
@@ -176,10 +185,12 @@ def run_sweep(
     with store.lock():
         for line in store.prepare(resolved, [rid for ids in cell_ids for rid in ids]):
             print(f"sb3-affect: {line}", file=sys.stderr, flush=True)
-        jobs = plan_jobs(cells, cell_ids, store, workers, sweep.logs)
-        todo = sum(job.size for job in jobs)
+        done = store.done_ids()
+        todo = total - len(done)
+        jobs = plan_jobs(cells, cell_ids, store, workers, sweep.logs, done=done)
         counts = {"finished": 0, "failed": 0}
         bar = _progress(total, total - todo, sweep.name, progress)
+        tried: set[str] = set()  # the runs of this launch's jobs: a failed one waits for the next launch
 
         def on_result(job: Job, result: dict[str, Any]) -> None:
             if isinstance(job, TeamBatch):
@@ -199,36 +210,64 @@ def run_sweep(
             bar.set_postfix(failed=counts["failed"])
 
         try:
-            if not jobs:
-                pass  # everything is done already: start no workers (nor a Ray instance)
-            elif backend == "local":
-                run_local(jobs, workers, on_result, on_failure)
-            else:
-                run_ray(jobs, workers, on_result, on_failure, ray_address, cap=cap, timeout=ray_timeout)
+            while jobs:  # (nothing to do: no workers, nor a Ray instance, started)
+                tried.update(rid for job in jobs for rid in _ids(job))
+                if backend == "local":
+                    run_local(jobs, workers, on_result, on_failure)
+                else:
+                    run_ray(jobs, workers, on_result, on_failure, ray_address, cap=cap, timeout=ray_timeout)
+                waves = any(cell.base.get("replays") for cell in cells)  # (a sweep of runs: one wave)
+                jobs = plan_jobs(cells, cell_ids, store, workers, sweep.logs, tried) if waves else []
         finally:
             bar.close()
     seconds = time.perf_counter() - start
     return SweepSummary(sweep.name, total, total - todo, counts["finished"], counts["failed"], seconds, Path(out_dir))
 
 
-def plan_jobs(cells: list[Cell], cell_ids: list[list[str]], store: ResultsStore, workers: int, logs: list[str]) -> list[Job]:
+def _ids(job: Job) -> list[str]:
+    return [job.run_id] if isinstance(job, Single) else [rid for rid, _, _ in job.runs]
+
+
+def plan_jobs(
+    cells: list[Cell],
+    cell_ids: list[list[str]],
+    store: ResultsStore,
+    workers: int,
+    logs: list[str],
+    tried: Collection[str] = (),
+    done: set[str] | None = None,
+) -> list[Job]:
     """
-    The jobs of the runs ``store`` does not hold yet: batches of the cells that can run as batches (at most
-    ``batch_size`` runs each), one job per run for the others (with its log folder when ``logs`` asks for one).
+    The jobs of the runs ``store`` does not hold yet (nor ``tried``): batches of the cells that can run as batches (at
+    most ``batch_size`` runs each, or the cell's own ``batch_size``), deep batches of the deep study's cells whose
+    ``replays`` source is done (a cell waiting for its source: no job yet), one job per run for the others (with its
+    log folder when ``logs`` asks for one). ``done``: the store's finished runs, when already read.
     """
-    done = store.done_ids()
+    done = store.done_ids() if done is None else done
     formats = tuple(logs) or ("csv",)
-    todo = [[(rid, cell.seeds[i], i) for i, rid in enumerate(ids) if rid not in done] for cell, ids in zip(cells, cell_ids)]
-    kinds = [batch_kind(cell.base, bool(logs)) for cell in cells]
+    todo = [[(rid, cell.seeds[i], i) for i, rid in enumerate(ids) if rid not in done and rid not in tried]
+            for cell, ids in zip(cells, cell_ids)]  # fmt: skip
+    kinds = [DeepBatch if cell.base.get("study") == "deep" else batch_kind(cell.base, bool(logs)) for cell in cells]
     size = batch_size(sum(len(runs) for runs, kind in zip(todo, kinds) if kind is not None), workers)
+    finished = {(cell.base["labels"].get("task"), cell.base["agent"]): set(ids) <= done
+                for cell, ids, kind in zip(cells, cell_ids, kinds) if kind is DeepBatch}  # (what a replaying cell waits for)
+    sources: dict[tuple[str, str], dict[str, Any]] | None = None
     jobs: list[Job] = []
     for cell, runs, kind in zip(cells, todo, kinds):
-        if kind is not None:
-            jobs.extend(split_cell(cell.base, runs, size, kind))
-        else:
+        if kind is None:
             jobs.extend(
                 Single(rid, cell.config(i), str(store.logs / rid) if logs else None, formats) for rid, _, i in runs
             )
+            continue
+        batches = split_cell(cell.base, runs, cell.batch_size or size, kind)
+        task, replays = cell.base["labels"].get("task"), cell.base.get("replays")
+        if runs and replays is not None:
+            if not finished[task, replays]:
+                continue  # the next wave's
+            sources = store.evaluations() if sources is None else sources
+            epsilons = tuple(replayed_epsilons(sources[task, replays]))
+            batches = [DeepBatch(batch.name, batch.base, batch.runs, epsilons) for batch in batches]
+        jobs.extend(batches)
     return jobs
 
 

@@ -602,10 +602,12 @@ class Cell:
 
     :param base: the run config with ``seed`` None and ``labels`` without ``replicate``
     :param seeds: the seed of each replicate, in replicate order
+    :param batch_size: the most runs a batch of the cell holds (None: the launcher's choice, ``batches.batch_size``)
     """
 
     base: dict[str, Any]
     seeds: list[int]
+    batch_size: int | None = None
 
     def config(self, replicate: int) -> dict[str, Any]:
         """The full run config of one replicate."""

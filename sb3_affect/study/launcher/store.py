@@ -5,7 +5,8 @@ the driver only.
 Layout of a results folder ``DIR``::
 
     DIR/sweep.json          the resolved sweep; a different sweep into DIR is refused
-    DIR/chunks/<batch>.parquet  the finished runs of one batch: one row per episode, per-run data in the footer
+    DIR/chunks/<batch>.parquet  the finished runs of one batch: one row per episode (a deep batch: per evaluation),
+                            per-run data in the footer
     DIR/runs/<id>.json      one finished run executed on its own: config, per-episode columns, timings, versions
     DIR/chunks/.sweep, DIR/runs/.sweep  copies of sweep.json: deleting one file does not forget the sweep
     DIR/failed/<id>.json    a run that raised or whose worker died: config and traceback (retried on resume)
@@ -30,7 +31,8 @@ from pydantic import ValidationError
 
 from sb3_affect.core.episode_log import EPISODE_COLUMNS
 from sb3_affect.study.launcher import folder_lock
-from sb3_affect.study.launcher.chunks import chunk_records
+from sb3_affect.study.launcher.chunks import chunk_records, evaluation_cells
+from sb3_affect.study.launcher.deep_schema import DeepStudy
 from sb3_affect.study.launcher.folder_files import MAX_SWEEP_FILE_BYTES, FolderFiles, guarded, sort_files
 from sb3_affect.study.launcher.regular_files import read_json, write_file, write_files
 from sb3_affect.study.launcher.run_ids import base_run_ids
@@ -85,7 +87,9 @@ def store_error(folder: Path, error: OSError) -> StoreError:
 
 
 IDENTITY_COPIES = ("chunks/.sweep", "runs/.sweep")
-#: The record that marks each kind of results folder, and how a refusal names it: a folder holds one kind of study.
+#: The record that marks each kind of results folder, and how a refusal names it: a folder holds one kind of study
+#: (``deep``: a deep study of the layout before its runs went into the store, refused; a deep study's folder now holds a
+#: sweep.json whose sweep says ``study: deep``, ``study_kind``).
 KIND_FILES = {"sweep": "sweep.json", "deep": "deep_study.json", "forensics": "forensics.json"}
 KIND_NAMES = {"sweep": "a sweep", "deep": "a deep study", "forensics": "the replication forensics",
               "replication": "a replication"}  # fmt: skip
@@ -108,12 +112,20 @@ def folder_kind(root: Path) -> tuple[str, str] | None:
     return ("replication", ", ".join(parts)) if parts else None
 
 
+def old_deep_layout(root: Path, marker: str) -> str:
+    """The one line that refuses a deep study's folder of the layout before its runs went into the store."""
+    return (f"{root} holds a deep study of an earlier layout ({marker}, cells/), which is no longer read: rerun the "
+            f"study into a new folder, e.g. --out {root.parent / (root.name + '-new')}")
+
+
 def claim_kind(root: Path, kind: str, suggestion: str) -> None:
     """
     Refuse (``StoreError``, one line) to run a study of ``kind`` into ``root`` when it holds another kind of study
     (``folder_kind``); ``suggestion``: the sub-folder the line proposes instead.
     """
     held = folder_kind(root)
+    if held is not None and held[0] == "deep":
+        raise StoreError(old_deep_layout(root, held[1]))
     if held is not None and held[0] != kind:
         what = KIND_NAMES[kind].split(" ", 1)[1]
         raise StoreError(
@@ -164,7 +176,7 @@ class ResultsStore:
             sweep records are all gone, means the folder holds another sweep: refused)
         :return: one line per file set aside (its path, why, where it went)
         """
-        claim_kind(self.root, "sweep", resolved_sweep["name"])
+        self.claim(resolved_sweep)
         try:
             for folder in (self.root, self.runs, self.chunks, self.failed):
                 folder.mkdir(parents=True, exist_ok=True)
@@ -200,6 +212,18 @@ class ResultsStore:
         except OSError as error:
             raise store_error(self.runs, error) from None
         return self.set_aside(files.rejected)
+
+    def claim(self, resolved_sweep: dict[str, Any]) -> None:
+        """
+        Refuse (``StoreError``, one line) a folder of another kind of study (``claim_kind``), or whose saved sweep is of
+        another kind than ``resolved_sweep`` (``study_kind``: a deep study, a sweep of runs). Writes nothing.
+        """
+        claim_kind(self.root, "sweep", resolved_sweep["name"])
+        previous = self.saved_sweep()
+        if previous is not None and study_kind(previous) != study_kind(resolved_sweep):
+            held, kind = KIND_NAMES[study_kind(previous)], KIND_NAMES[study_kind(resolved_sweep)]
+            raise StoreError(f"{self.root} holds {held} (sweep.json), which {kind} run into it would mix with; give the "
+                             f"{kind.split(' ', 1)[1]} a folder of its own, e.g. --out {self.root / resolved_sweep['name']}")
 
     def set_aside(self, rejected: list[tuple[Path, str]]) -> list[str]:
         """Move each rejected file into ``DIR/damaged/`` (never over an earlier one); one line per file."""
@@ -293,7 +317,8 @@ class ResultsStore:
             return {rid: c["agent"] for rid, c in resolved["runs"].items()}
 
         try:
-            sweep = Sweep.validate_saved(resolved["sweep"])
+            deep = study_kind(resolved) == "deep"
+            sweep = DeepStudy.model_validate(resolved["sweep"]) if deep else Sweep.validate_saved(resolved["sweep"])
         except ValidationError as error:
             first = error.errors()[0]
             where = ".".join(str(part) for part in first["loc"])
@@ -355,6 +380,18 @@ class ResultsStore:
         for path, meta in files.chunk_files.items():
             records.extend(guarded(path, lambda p, meta=meta: chunk_records(p, meta)))  # type: ignore[misc]
         return sorted((r for r in records if r.get("status", "ok") == "ok"), key=lambda r: r["run_id"])
+
+    def evaluations(self) -> dict[tuple[str, str], dict[str, Any]]:
+        """
+        A deep study's finished cells ``(task, agent) -> record`` (``chunks.evaluation_cells``: its runs in seed
+        order), in the order of the study's tasks, then agents, from the files that count; StoreError naming the first
+        that does not (a rerun sets it aside).
+        """
+        cells = evaluation_cells(self._checked().chunk_files)
+        saved = self.saved_sweep() or {"sweep": {}}
+        tasks, agents = saved.get("task_order") or list(saved["sweep"].get("tasks", {})), saved["sweep"].get("agents", [])
+        return {(task, agent["name"]): cells[task, agent["name"]] for task in tasks for agent in agents
+                if (task, agent["name"]) in cells}  # fmt: skip
 
     def runs_frame(self) -> pd.DataFrame:
         """
@@ -442,6 +479,12 @@ class ResultsStore:
     def episodes_frame(self, columns: Sequence[str] | None = None) -> pd.DataFrame:
         """The episode table of ``results``."""
         return self.results(columns)[1]
+
+
+def study_kind(resolved: dict[str, Any]) -> str:
+    """The kind of study a resolved sweep (``sweep.json``) runs: ``deep`` (``study: deep``) or ``sweep`` (of runs)."""
+    sweep = resolved.get("sweep")
+    return "deep" if isinstance(sweep, dict) and sweep.get("study") == "deep" else "sweep"
 
 
 def replication_parts(root: Path) -> list[str]:

@@ -259,15 +259,18 @@ def _key_path(location: tuple[Any, ...], data: dict[str, Any]) -> str:
     return ".".join(parts)
 
 
-def load_sweep(path: str | Path, overrides: tuple[str, ...] | list[str] = (), *, build: bool = True) -> Sweep:
+def load_sweep(
+    path: str | Path, overrides: tuple[str, ...] | list[str] = (), *, build: bool = True, deep: bool = False
+) -> Sweep | DeepStudy:
     """
     Read, override and validate a sweep file of runs; every problem is a ``SweepError`` naming the file and the key.
 
     :param build: also build the env and each agent once (without training, in a short-lived child process), so
         that an unknown or impossible kwarg is reported now rather than by every run of the sweep
+    :param deep: a deep study's file (``study: deep``, a ``DeepStudy``) is one too (the launcher's)
     """
     sweep = load_sweep_file(path, overrides, build=build)
-    if not isinstance(sweep, Sweep):
+    if not isinstance(sweep, Sweep) and not (deep and isinstance(sweep, DeepStudy)):
         raise SweepError(
             f"{resolve_sweep_path(path)}: the {sweep.study} study has no runs of its own; run it with "
             f"`sb3-affect run {path} --out DIR`"

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import pytest
@@ -58,6 +59,8 @@ def write(tmp_path: Path, **changes: object) -> Path:
     ({"env": "compiled", "tasks": {"K": {"id": "MiniGrid-KeyCorridorS3R1-v0", "budget": 4000, "exploration_fraction": 0.5,
                                          "count_bonus": 0.1}}}, "tasks.K.id='MiniGrid-KeyCorridorS3R1-v0' is not compiled"),
     ({"seeds_per_batch": 0}, "seeds_per_batch"),
+    ({"obs": "image"}, "obs: obs='image' is minigrid_vec_env's 7x7x3 image; the flat 147 entries of the agent's view are "
+                       "obs: view"),
 ])  # fmt: skip
 def test_the_schema_refuses_a_bad_file_naming_the_key(tmp_path: Path, changes: dict, message: str) -> None:
     with pytest.raises(SweepError, match="invalid sweep file") as error:
@@ -107,34 +110,45 @@ def test_what_an_agent_refuses_is_refused_before_the_folder_is_claimed(
 
 
 def test_a_study_larger_than_the_machines_memory_is_refused_saying_the_figure(tmp_path: Path) -> None:
-    from sb3_affect.study.launcher.deep_study import run_deep_study
+    from sb3_affect.study.launcher import run_sweep
 
-    study = load_sweep_file(write(tmp_path, seeds=list(range(10_000)), network={**NETWORK, "buffer_size": 10**6}),
-                            build=False)  # fmt: skip
-    assert isinstance(study, DeepStudy)
+    path = write(tmp_path, seeds=list(range(10_000)), network={**NETWORK, "buffer_size": 10**6})
     with pytest.raises(ValueError, match=r"^the deep study needs about [0-9.]+ GiB \(10000 seeds a batch x 1 batches .*"
                                          r"more than this machine's [0-9.]+ GiB"):
-        run_deep_study(study, tmp_path / "out")
+        run_sweep(path, tmp_path / "out", workers=1, progress=False)
     assert not (tmp_path / "out").exists()
 
 
-def test_a_folder_of_one_study_kind_refuses_another_in_one_line(tmp_path: Path) -> None:
+def test_a_folder_of_one_study_kind_refuses_another_in_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     from sb3_affect.study.launcher import run_sweep
-    from sb3_affect.study.launcher.deep_study import run_deep_study
     from sb3_affect.study.launcher.store import StoreError
 
-    deep = tmp_path / "deep"
-    deep.mkdir()
-    (deep / "deep_study.json").write_text("{}")
-    with pytest.raises(StoreError, match=rf"^{deep} holds a deep study \(deep_study.json\), which a sweep run into it "
-                                         rf"would mix with; give the sweep a folder of its own, e.g. --out {deep}/smoke$"):
-        run_sweep(ROOT / "experiments" / "smoke.yaml", deep)
-    assert sorted(p.name for p in deep.iterdir()) == ["deep_study.json"]
+    old = tmp_path / "deep"
+    old.mkdir()
+    (old / "deep_study.json").write_text("{}")  # a deep study of the layout before the results store
+    for path in (ROOT / "experiments" / "smoke.yaml", write(tmp_path)):
+        with pytest.raises(StoreError, match=rf"^{old} holds a deep study of an earlier layout \(deep_study.json, cells/\), "
+                                             rf"which is no longer read: rerun the study into a new folder, e.g. "
+                                             rf"--out {old}-new$"):
+            run_sweep(path, old, workers=1, progress=False)
+    assert sorted(p.name for p in old.iterdir()) == ["deep_study.json"]
+    from sb3_affect.study.cli import main
+
+    assert main(["status", str(old)]) == 2  # status refuses it too, in the same one line
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"{old} holds a deep study of an earlier layout" in err and "rerun the study" in err
     sweep = tmp_path / "sweep"
     sweep.mkdir()
-    (sweep / "sweep.json").write_text("{}")
-    study = load_sweep_file(write(tmp_path), build=False)
-    assert isinstance(study, DeepStudy)
-    with pytest.raises(StoreError, match=rf"^{sweep} holds a sweep \(sweep.json\), which a deep study run into it"):
-        run_deep_study(study, sweep)
+    (sweep / "sweep.json").write_text(json.dumps({"name": "smoke", "sweep": {"name": "smoke"}}))
+    with pytest.raises(StoreError, match=rf"^{sweep} holds a sweep \(sweep.json\), which a deep study run into it "
+                                         rf"would mix with; give the deep study a folder of its own, e.g. "
+                                         rf"--out {sweep}/deep-smoke$"):
+        run_sweep(write(tmp_path), sweep, workers=1, progress=False)
     assert sorted(p.name for p in sweep.iterdir()) == ["sweep.json"]
+    deep = tmp_path / "new-deep"
+    deep.mkdir()
+    (deep / "sweep.json").write_text(json.dumps({"name": "deep-smoke", "sweep": {"name": "deep-smoke", "study": "deep"}}))
+    with pytest.raises(StoreError, match=rf"^{deep} holds a deep study \(sweep.json\), which a sweep run into it would mix "
+                                         rf"with; give the sweep a folder of its own, e.g. --out {deep}/smoke$"):
+        run_sweep(ROOT / "experiments" / "smoke.yaml", deep, workers=1, progress=False)
+    assert sorted(p.name for p in deep.iterdir()) == ["sweep.json"]

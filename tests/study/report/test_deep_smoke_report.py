@@ -16,8 +16,8 @@ pytest.importorskip("minigrid")
 from rliable import metrics as rmetrics
 from test_deep_study_report import section
 
+from sb3_affect.study.launcher import run_sweep
 from sb3_affect.study.launcher.deep_schema import DeepStudy
-from sb3_affect.study.launcher.deep_study import run_deep_study
 from sb3_affect.study.launcher.sweep_file import load_sweep_file
 from sb3_affect.study.report.sections import deep_minigrid as deep
 
@@ -31,7 +31,7 @@ def test_the_section_of_a_smoke_folder_has_curves_profile_iqm_censoring_power_an
     (tmp_path / "small.yaml").write_text(yaml.safe_dump(data))
     study = load_sweep_file(tmp_path / "small.yaml", build=False)
     assert isinstance(study, DeepStudy)
-    run_deep_study(study, tmp_path / "deep_smoke", workers=1, log=lambda line: None)
+    run_sweep(tmp_path / "small.yaml", tmp_path / "deep_smoke", workers=1, progress=False)
     text, ctx = section(tmp_path, tmp_path / "out")
     assert "## Deep agents on MiniGrid, greedy policies (smoke size): deep_smoke/" in text
     assert deep.power_sentence(2) in text  # the power calculation, printed

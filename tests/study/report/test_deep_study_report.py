@@ -2,15 +2,16 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pandas as pd
 import pytest
 from scipy import stats as sps
 
+from sb3_affect.study.launcher.chunks import encode_evaluations
+from sb3_affect.study.launcher.deep_schema import DeepStudy
+from sb3_affect.study.launcher.store import SWEEP_SCHEMA, ResultsStore, cell_run_ids
 from sb3_affect.study.report.reading.context import ReportContext
 from sb3_affect.study.report.rendering.document import Document
 from sb3_affect.study.report.sections import deep_minigrid as deep
@@ -22,25 +23,32 @@ BUDGET, EVERY = 40_000, 10_000
 
 def write_folder(folder: Path, curves: dict[str, np.ndarray], first: dict[str, list[int | None]],
                  eval_episodes: int = 20) -> Path:
-    """A deep-study folder of one task: each agent's success curves ``(seeds, evaluations)`` and first successes."""
+    """
+    A deep-study folder of one task written through the results store, as the launcher writes it: each agent's success
+    curves ``(seeds, evaluations)`` and first successes, one chunk of evaluations per agent.
+    """
     seeds = list(range(next(iter(curves.values())).shape[0]))
-    study = {"name": "synthetic", "study": "deep", "env": "compiled", "obs": "image", "n_envs": 4, "seeds": seeds,
-             "eval_every": EVERY, "eval_episodes": eval_episodes, "network": {},
-             "tasks": {"Empty-8x8": {"id": "MiniGrid-Empty-8x8-v0", "budget": BUDGET}}, "agents": AGENTS}  # fmt: skip
-    (folder / "cells").mkdir(parents=True)
-    (folder / "deep_study.json").write_text(json.dumps(study))
-    for agent, success in curves.items():
-        cell: dict[str, Any] = {
-            "task": "Empty-8x8", "agent": agent, "seeds": seeds, "budget": BUDGET, "eval_every": EVERY,
-            "eval_steps": [EVERY * (k + 1) for k in range(success.shape[1])], "success": success.tolist(),
-            "return": (success * 0.9).tolist(), "random_share": np.full(success.shape, 0.3).tolist(),
-            "train_episodes": np.full(success.shape, 4.0).tolist(), "train_successes": np.zeros(success.shape).tolist(),
-            "seconds": 1.0,
-            "emotions": {name: np.full(success.shape, 0.25).tolist() for name in ("joy", "sadness", "fear", "anger")}
-            if agent == "affective" else None,
-            "first_success": first[agent],
-        }  # fmt: skip
-        (folder / "cells" / f"Empty-8x8__{agent}.json").write_text(json.dumps(cell))
+    study = DeepStudy.model_validate({
+        "name": "synthetic", "study": "deep", "env": "compiled", "obs": "view", "n_envs": 4, "seeds": seeds,
+        "eval_every": EVERY, "eval_episodes": eval_episodes, "network": {},
+        "tasks": {"Empty-8x8": {"id": "MiniGrid-Empty-8x8-v0", "budget": BUDGET}}, "agents": AGENTS})  # fmt: skip
+    cells = study.cells()
+    ids = [cell_run_ids(cell) for cell in cells]
+    store = ResultsStore(folder)
+    folder.mkdir(parents=True)
+    store.prepare({"schema": SWEEP_SCHEMA, "name": study.name, "sweep": study.model_dump(mode="json"),
+                   "total_runs": sum(map(len, ids)), "task_order": list(study.tasks)}, [rid for run in ids for rid in run])
+    for cell, run_ids in zip(cells, ids):
+        agent = cell.base["agent"]
+        success = curves[agent]
+        record = {"success": success, "return": success * 0.9, "random_share": np.full(success.shape, 0.3),
+                  "train_episodes": np.full(success.shape, 4.0), "train_successes": np.zeros(success.shape),
+                  "emotions": {name: np.full(success.shape, 0.25) for name in ("joy", "sadness", "fear", "anger")}
+                  if agent == "affective" else None, "first_success": first[agent]}  # fmt: skip
+        runs = [(rid, seed, index) for index, (rid, seed) in enumerate(zip(run_ids, cell.seeds))]
+        name = f"{agent}-synthetic"
+        timings = {"wall_seconds": 1.0, "cpu_seconds": 1.0}
+        store.write_chunk(name, encode_evaluations(name, cell.base, runs, record, timings, {}, None), run_ids)
     return folder
 
 
@@ -132,7 +140,7 @@ def test_every_exploratory_section_reads_a_difference_by_one_rule(tmp_path: Path
     runs = {a: scores[scores.agent == a].auc_success.to_numpy(float) for a in levels}
     _, low, high = bootstrap_improvement(runs["affective"], runs["dqn-linear"], deep.REPS // 5, seed=0, lower_is_better=False)
     assert deep.comparison(scores, "Empty-8x8", "affective", "dqn-linear") == improvement_outcome(low, high)
-    (sentence,) = deep.verdict(scores, json.loads((folder / "deep_study.json").read_text()))
+    (sentence,) = deep.verdict(scores, deep.load_deep(folder).study)
     assert f"(the rule: {EXPLORATORY_RULE})" in sentence
     tabular = pd.DataFrame([{"task": "t", "agent": agent, "success": float(v), "return": float(v) * 0.9,
                              "steps_to_success": 1.0, "run_id": f"{agent}{i}"}
@@ -171,11 +179,11 @@ def test_the_section_reads_the_folder_labels_a_smoke_size_and_follows_no_symlink
                          {a["name"]: [1000] * 5 for a in AGENTS})
     text, _ = section(pilot, tmp_path / "out4")
     assert "smoke" not in text.lower() and "5 seeds per cell, fewer than the study's 20: a tuning pass" in text
-    # a cell that is a symlink is never followed, nor silently dropped: the folder is refused naming it
+    # a chunk that is a symlink is never followed, nor silently dropped: the folder is refused naming it
     from sb3_affect.study.launcher.store import StoreError
 
-    target = small / "cells" / "Empty-8x8__matched.json"
-    moved = target.rename(tmp_path / "elsewhere.json")
+    target = small / "chunks" / "matched-synthetic.parquet"
+    moved = target.rename(tmp_path / "elsewhere.parquet")
     target.symlink_to(moved)
     with pytest.raises(StoreError, match=f"^{target} is not a regular file \\(a symbolic link\\).*to move it to damaged/"):
         deep.load_deep(small)

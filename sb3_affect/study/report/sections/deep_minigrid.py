@@ -1,6 +1,7 @@
 """
-The deep study's section (``study: deep``, run by ``sb3_affect.study.launcher.deep_study``): read from each deep-study
-folder present (``FOLDERS`` of a replicate folder, or the report's folder itself), never run.
+The deep study's section (``study: deep``, run by the launcher, ``launcher.deep_batches``): read through the results
+store (``ResultsStore.evaluations``) from each deep-study folder present (``FOLDERS`` of a replicate folder, or the
+report's folder itself), never run.
 
 The primary metric is the greedy policy's: each seed's Q-network, every ``eval_every`` env steps, acting greedily for
 one episode on each of ``eval_episodes`` evaluation envs seeded apart from its training envs; its success rate and
@@ -31,8 +32,7 @@ from scipy import stats as sps
 
 from sb3_affect.core.emotions import EMOTION_NAMES
 from sb3_affect.study.launcher.deep_schema import STUDY_EVAL_EPISODES
-from sb3_affect.study.launcher.deep_study import STUDY_FILE, read_cells
-from sb3_affect.study.launcher.store import folder_kind
+from sb3_affect.study.launcher.store import ResultsStore, study_kind
 from sb3_affect.study.report.estimation.bootstrap import (
     BETTER,
     EXPLORATORY_RULE,
@@ -82,12 +82,21 @@ class DeepResults:
 
 
 def is_deep_folder(folder: Path) -> bool:
-    return folder_kind(folder) == ("deep", STUDY_FILE)
+    """Whether ``folder`` holds a deep study's results (its saved sweep says ``study: deep``)."""
+    saved = ResultsStore(folder).saved_sweep() if folder.is_dir() else None
+    return saved is not None and study_kind(saved) == "deep"
 
 
 def load_deep(folder: Path) -> DeepResults:
-    """The study and its finished cells (``deep_study.read_cells``), in the order of tasks, then agents."""
-    return DeepResults(folder, *read_cells(folder))
+    """
+    The study and its finished cells (``ResultsStore.evaluations``), in the order of tasks, then agents; ``StoreError``
+    naming the first file that does not count (a rerun sets it aside).
+    """
+    store = ResultsStore(folder)
+    saved: dict[str, Any] = store.saved_sweep() or {}  # (is_deep_folder: there is one)
+    tasks = saved["sweep"]["tasks"]  # (sweep.json sorts a mapping's keys: the file's order is its task_order)
+    study = {**saved["sweep"], "tasks": {task: tasks[task] for task in saved.get("task_order") or tasks}}
+    return DeepResults(folder, study, list(store.evaluations().values()))
 
 
 def deep_folders(root: Path) -> list[Path]:

@@ -18,7 +18,6 @@ import pandas as pd
 from rliable import metrics as rmetrics
 
 from sb3_affect.core.emotions import EMOTION_NAMES
-from sb3_affect.study.launcher.deep_study import STUDY_FILE
 from sb3_affect.study.report.estimation.bootstrap import (
     BETTER,
     EXPLORATORY_RULE,
@@ -31,6 +30,7 @@ from sb3_affect.study.report.estimation.bootstrap import (
 from sb3_affect.study.report.reading.context import ReportContext
 from sb3_affect.study.report.reading.run_tables import load_results
 from sb3_affect.study.report.rendering.document import fmt
+from sb3_affect.study.report.sections.deep_minigrid import is_deep_folder
 
 #: The results folders of the sections: (folder, title, what it holds).
 FOLDERS = (
@@ -163,7 +163,7 @@ def minigrid_sections(ctx: ReportContext) -> None:
     for name, title, holds in FOLDERS:
         if name in ctx.folders:
             minigrid_section(ctx, name, title, holds)
-    if "minigrid" in ctx.folders and not (ctx.root / "minigrid_dqn" / STUDY_FILE).is_file():
+    if "minigrid" in ctx.folders and not is_deep_folder(ctx.root / "minigrid_dqn"):
         ctx.doc.p(
             "The deep study (DQN, AffectDQN and their controls on MiniGrid) is not part of this folder: "
             "`make replicate` runs it at smoke size only. `sb3-affect run experiments/minigrid_dqn.yaml --out "
