@@ -198,8 +198,10 @@ def chunk_records(path: Path, meta: dict[str, Any] | None = None) -> list[dict[s
 
 #: The per-seed rows of a deep batch's evaluations, ``(seeds, evaluations)`` each (``deep_training.run_batch``).
 EVALUATION_ROWS = ("success", "return", "random_share", "train_episodes", "train_successes")
-#: A chunk of evaluations (the deep study's batches) says so in its footer's ``kind``.
+#: A chunk of evaluations (the deep study's batches) says so in its footer's ``kind``; one of episodes says no kind.
 EVALUATIONS = "evaluations"
+#: The kind of record of a run file or a chunk whose footer says no ``kind``: one row per episode.
+EPISODES = "episodes"
 
 
 def encode_evaluations(

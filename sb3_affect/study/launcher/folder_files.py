@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 from sb3_affect.core.episode_log import EPISODE_COLUMNS
-from sb3_affect.study.launcher.chunks import EVALUATIONS, chunk_meta, evaluation_table
+from sb3_affect.study.launcher.chunks import EPISODES, EVALUATIONS, chunk_meta, evaluation_table
 from sb3_affect.study.launcher.regular_files import UnreadableFile, check_regular, read_bytes
 from sb3_affect.study.launcher.run_ids import base_run_ids, run_id, stored_matches
 
@@ -91,6 +91,15 @@ class FolderFiles:
         for meta in self.chunk_files.values():
             done.update(run[0] for run in meta["runs"])
         return done
+
+    def episode_chunks(self) -> dict[Path, dict[str, Any]]:
+        """The chunks of episodes, each with its footer: not those of a deep study's evaluations (their footer's kind)."""
+        return {path: meta for path, meta in self.chunk_files.items() if meta.get("kind") != EVALUATIONS}
+
+    def kinds(self) -> set[str]:
+        """The kinds of records the files hold: ``EPISODES`` (run files, chunks of episodes), ``EVALUATIONS``."""
+        kinds = {EVALUATIONS if meta.get("kind") == EVALUATIONS else EPISODES for meta in self.chunk_files.values()}
+        return kinds | ({EPISODES} if self.run_files else set())
 
 
 def check_run_file(path: Path) -> dict[str, Any]:

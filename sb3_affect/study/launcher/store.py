@@ -377,7 +377,7 @@ class ResultsStore:
         small folders; large ones read ``runs_frame`` and ``episodes_frame``."""
         files = self._checked()
         records = [{**guarded(p, read_json), "run_id": files.run_ids[p]} for p in files.run_files]
-        for path, meta in files.chunk_files.items():
+        for path, meta in files.episode_chunks().items():
             records.extend(guarded(path, lambda p, meta=meta: chunk_records(p, meta)))  # type: ignore[misc]
         return sorted((r for r in records if r.get("status", "ok") == "ok"), key=lambda r: r["run_id"])
 
@@ -454,14 +454,17 @@ class ResultsStore:
         labels: dict[str, Any] | None = None,
         ordered: bool = False,
     ) -> Iterator[tuple[pd.DataFrame, pd.DataFrame | None]]:
-        """``results_parts`` of the ``wanted`` episode columns (None: the run tables only, from the chunks' footers)."""
+        """
+        ``results_parts`` of the ``wanted`` episode columns (None: the run tables only, from the chunks' footers); the
+        chunks of episodes only (``FolderFiles.episode_chunks``: a deep study's evaluations are read by ``evaluations``).
+        """
         from sb3_affect.study.launcher import folder_reading  # (pandas: not on the launcher's path)
 
         files = self._checked() if files is None else files
         run_files = [path for path, owner in files.run_files.items() if agent is None or owner == agent]
         chunk_files = {
             p: meta
-            for p, meta in files.chunk_files.items()
+            for p, meta in files.episode_chunks().items()
             if (agent is None or meta["base"]["agent"] == agent)
             and all(meta["base"]["labels"].get(k) == v for k, v in (labels or {}).items())
         }

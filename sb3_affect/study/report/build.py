@@ -1,12 +1,14 @@
 """
 ``build_report``: the replication report from a results folder (the paper sweep) or a ``replicate`` folder
-(paper/, dqn/, ablation/, baselines*/, beyond/, large/, minigrid*/, ...).
+(paper/, dqn/, ablation/, baselines*/, beyond/, large/, minigrid*/, ...), or a deep study's folder.
 
 The report is the one list ``REPORT`` of section functions, each ``section(ctx: ReportContext) -> None`` adding its
 blocks to ``ctx.doc`` (see ``report.reading.context``), in order: the main text, then each appendix page (a ``part``
 starts one). To add a section, write the function in its own module and put it in ``REPORT`` where it should stand (or
 pass ``sections=`` to ``build_report``); a layer above the report (the forensics, wired by ``sb3_affect.study.replicate``)
-passes its own with ``extra_sections=``, placed at ``extra_slot`` (on a page of its own).
+passes its own with ``extra_sections=``, placed at ``extra_slot`` (on a page of its own). Every folder is read one way
+(``load_results``); the records it holds choose the sections: a folder without paper runs (a deep study's, whose
+chunks hold evaluations) gives only the sections of ``WITHOUT_PAPER_RUNS``.
 """
 
 from __future__ import annotations
@@ -20,18 +22,19 @@ import pandas as pd
 
 import sb3_affect  # noqa: F401  (registers the envs)
 from sb3_affect.core.settings import TabularSettings
+from sb3_affect.study.launcher.chunks import EPISODES
 from sb3_affect.study.launcher.one_run import package_env
 from sb3_affect.study.launcher.store import ResultsStore
 from sb3_affect.study.report.reading import study_tables as engine_studies
 from sb3_affect.study.report.reading.context import ReportContext
 from sb3_affect.study.report.reading.episode_scan import scan
-from sb3_affect.study.report.reading.run_tables import EARLY_WINDOWS, LATE_WINDOWS, Results, load_results
+from sb3_affect.study.report.reading.run_tables import EARLY_WINDOWS, LATE_WINDOWS, load_results
 from sb3_affect.study.report.rendering.document import MAIN_PAGE, Document, fmt
 from sb3_affect.study.report.rendering.output_files import output_folder, write_text
 from sb3_affect.study.report.sections.ablation import ablation_section
 from sb3_affect.study.report.sections.abstract import abstract_section
 from sb3_affect.study.report.sections.beyond import beyond_section
-from sb3_affect.study.report.sections.deep_minigrid import deep_minigrid_section, is_deep_folder
+from sb3_affect.study.report.sections.deep_minigrid import deep_minigrid_section
 from sb3_affect.study.report.sections.dqn import dqn_section, learning_curves_section
 from sb3_affect.study.report.sections.emotion_models import emotion_models_sections
 from sb3_affect.study.report.sections.evidence import evidence_section
@@ -233,6 +236,9 @@ REPORT: list[Section] = [
     record_section,
     definitions_section,
 ]
+#: The sections of ``REPORT`` that read no paper runs (each finds its own folders through the store): the only ones a
+#: folder without paper runs gives (a deep study's own folder: its section alone).
+WITHOUT_PAPER_RUNS = frozenset({deep_minigrid_section})
 
 
 def _layout(run_dir: Path) -> tuple[Path, dict[str, Path]]:
@@ -281,7 +287,7 @@ def build_report(
     Write ``report.md``, ``report.html`` (self-contained), ``tables/*.csv`` and ``figures/*.png``.
 
     :param run_dir: a results folder of the paper sweep, or a ``replicate`` folder holding paper/, dqn/, ..., or a deep
-        study's folder (its section alone)
+        study's folder (no paper runs: the sections of ``WITHOUT_PAPER_RUNS`` alone)
     :param out: where to write (default: ``run_dir``)
     :param dqn_dir: results of experiments/dqn.yaml (default: ``run_dir/dqn`` when present)
     :param ablation_dir: results of experiments/ablation.yaml (default: ``run_dir/ablation`` when present)
@@ -293,8 +299,6 @@ def build_report(
     :return: the path of report.md
     """
     run_dir = Path(run_dir)
-    if is_deep_folder(run_dir):  # a deep study's own folder (`sb3-affect run experiments/minigrid_dqn.yaml`)
-        return _deep_study_report(run_dir, Path(out or run_dir), command)
     paper_dir, folders = _layout(run_dir)
     if dqn_dir is not None:
         folders["dqn"] = Path(dqn_dir)
@@ -305,41 +309,36 @@ def build_report(
     output_folder(out / "tables")
     output_folder(out / "figures")
     results = load_results(paper_dir)
-    if not len(results.runs) or not int(results.runs.episodes.sum()):
+    held = results.kinds  # what the folder's records allow: paper runs (episodes), a deep study's evaluations
+    paper = EPISODES in held
+    if not held or (paper and not int(results.runs.episodes.sum())):
         raise ValueError(f"{paper_dir / 'runs'} holds no finished runs")
-    found = scan(results, (*EARLY_WINDOWS, *LATE_WINDOWS))  # one pass over the episode rows, by parts
+    found = scan(results, (*EARLY_WINDOWS, *LATE_WINDOWS)) if paper else None  # one pass over the episode rows, by parts
     large, meta = engine_studies.study(run_dir, "large") or (None, None)
+    title = "Q-Learning with Basic Emotions: a replication study" if paper else f"Deep agents on MiniGrid: {run_dir.name}"
     ctx = ReportContext(
-        Document("Q-Learning with Basic Emotions: a replication study"),
+        Document(title),
         out,
         run_dir,
         results,
-        found.metrics,
+        found.metrics if found is not None else pd.DataFrame(),
         folders=folders,
         large=large,
         large_meta=meta,
         timings=dict(timings or {}),
         command=command,
-        cache={"scan": found},
+        cache={"scan": found} if found is not None else {},
     )
     del found
     for note in notes:
         ctx.doc.p(note)
     extra = [EXTRA_PART, *extra_sections] if extra_sections else []
     for section in sections if sections is not None else REPORT:
+        if not paper and section not in WITHOUT_PAPER_RUNS:  # (extra_slot too: the extras read the paper runs)
+            continue
         for placed in extra if section is extra_slot else [section]:
             placed(ctx)
     ctx.place_later()
-    return _write_pages(ctx)
-
-
-def _deep_study_report(folder: Path, out: Path, command: str) -> Path:
-    """The report of a deep study's folder on its own: the study's section (no paper runs to read)."""
-    output_folder(out / "tables")
-    output_folder(out / "figures")
-    doc = Document(f"Deep agents on MiniGrid: {folder.name}")
-    ctx = ReportContext(doc, out, folder, Results(folder, pd.DataFrame()), pd.DataFrame(), command=command)
-    deep_minigrid_section(ctx)
     return _write_pages(ctx)
 
 

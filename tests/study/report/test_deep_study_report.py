@@ -203,3 +203,15 @@ def test_report_of_a_deep_study_folder_alone_is_its_section(tmp_path: Path) -> N
     assert "## Deep agents on MiniGrid, greedy policies: minigrid_dqn/" in text and "| Empty-8x8 | affective | 8 |" in text
     assert alone.split("\n", 1)[1].strip() in text  # the section as the replicate report holds it, nothing else
     assert (out / "report.html").is_file() and (out / "tables" / "minigrid_dqn_iqm.csv").is_file()
+
+
+def test_the_paper_loader_reads_a_deep_folders_evaluations_as_no_episodes(tmp_path: Path) -> None:
+    from sb3_affect.study.launcher.chunks import EVALUATIONS
+    from sb3_affect.study.report.reading.run_tables import load_results
+
+    folder = write_folder(tmp_path / "deep", {a["name"]: curves(0.5) for a in AGENTS}, {a["name"]: [EVERY] * 8 for a in AGENTS})
+    store = ResultsStore(folder)
+    results = load_results(folder)
+    assert results.kinds == {EVALUATIONS}  # told apart by each chunk's footer
+    assert results.runs.empty and store.runs_frame().empty and store.load_runs() == []
+    assert len(store.evaluations()) == len(AGENTS) and len(store.done_ids()) == 8 * len(AGENTS)  # (the launcher's count)

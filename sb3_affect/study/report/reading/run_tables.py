@@ -65,6 +65,13 @@ class Results:
     _episodes: pd.DataFrame | None = field(default=None, repr=False)
 
     @property
+    def kinds(self) -> set[str]:
+        """The kinds of records the folder holds (``FolderFiles.kinds``: episodes, a deep study's evaluations)."""
+        if self.files is None:
+            self.files = ResultsStore(self.folder).checked_files()
+        return self.files.kinds()
+
+    @property
     def episodes(self) -> pd.DataFrame:
         if self._episodes is None:
             self._episodes = next(iter(self.parts(self.columns)))[1]
@@ -223,8 +230,8 @@ def load_results(run_dir: Path, columns: Sequence[str] = REPORT_COLUMNS) -> Resu
 
     store = ResultsStore(run_dir)
     files = store.checked_files()
-    chunks = list(files.chunk_files)
-    runs = read_folder(list(files.run_files), chunks, (), Path(run_dir), files.chunk_files, files.episode_counts)[0]
+    footers = files.episode_chunks()  # (a deep study's evaluations: not episodes, ``ResultsStore.evaluations``)
+    runs = read_folder(list(files.run_files), list(footers), (), Path(run_dir), footers, files.episode_counts)[0]
     return Results(Path(run_dir), runs, tuple(columns), files)
 
 
