@@ -209,7 +209,8 @@ def test_the_paper_loader_reads_a_deep_folders_evaluations_as_no_episodes(tmp_pa
     from sb3_affect.study.launcher.chunks import EVALUATIONS
     from sb3_affect.study.report.reading.run_tables import load_results
 
-    folder = write_folder(tmp_path / "deep", {a["name"]: curves(0.5) for a in AGENTS}, {a["name"]: [EVERY] * 8 for a in AGENTS})
+    first = {a["name"]: [EVERY] * 8 for a in AGENTS}
+    folder = write_folder(tmp_path / "deep", {a["name"]: curves(0.5) for a in AGENTS}, first)
     store = ResultsStore(folder)
     results = load_results(folder)
     assert results.kinds == {EVALUATIONS}  # told apart by each chunk's footer
