@@ -15,7 +15,10 @@ from __future__ import annotations
 import os
 from typing import Any
 
-VIEW, ACTIONS, HIDDEN = 147, 7, 64
+from sb3_affect.kernel.minigrid_view import VIEW_SIZE as VIEW
+from sb3_affect.kernel.minigrid_world import MINIGRID_ACTIONS as ACTIONS
+
+HIDDEN = 64  # SB3's DQN net_arch [64, 64]
 EPSILON_END = 0.05
 
 
