@@ -30,7 +30,9 @@ give Farama's frames of the same worlds (drawn by Farama's ``minigrid``, which r
 ``SubprocVecEnv``-style workers, Ray): a copy continues as the original would.
 
 ``step_arrays(actions)`` is the step without the info dicts, for a trainer that steps many envs itself;
-``MiniGridBatch`` steps several such VecEnvs (e.g. one per seed) by one kernel call.
+``MiniGridBatch`` steps several such VecEnvs (e.g. one per seed) by one kernel call, through each one's public
+``kernel_args``, ``state_arrays`` and ``bind`` (its rows of the batch's arrays), ``require_started``,
+``record_episodes`` and ``ended_info``.
 """
 
 from __future__ import annotations
