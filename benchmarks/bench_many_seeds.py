@@ -7,8 +7,11 @@ the 7x7x3 view (``obs="image"``), 4 envs per seed (needs the ``[minigrid]`` extr
   the same on the compiled MiniGrid with 4 (the compiled env inside SB3's own loop), and ``train_many`` DQN and PPO at
   S = 8, 32 and 128 seeds (all seeds' env steps, on the compiled MiniGrid, set-up included), each with its ratios to
   SB3's same algorithm with 1 env and with 4; then the DQN gradient step of S = 32 (and 128) stacked networks beside
-  its arithmetic bound: its matrix products' FLOPs over the GFLOP/s this core measures on one large product. JAX
-  rows (a vmapped JAX DQN on NAVIX) are printed only where ``jax`` and ``navix`` are installed; they are not here.
+  its arithmetic bound: its matrix products' FLOPs over the GFLOP/s this core measures on one large product; then
+  the JAX rows, a vmapped JAX DQN on NAVIX's Empty-8x8 (``benchmarks/jax_dqn.py``: the same network, batch and train
+  ratio, one XLA thread) at S = 8 and 32, its compile timed apart, where ``jax``, ``navix`` and ``optax`` are installed
+  (``pip install "sb3-affect[jax]"``; a line says so otherwise). ``--rows`` runs some of them only: ``sb3`` (SB3's
+  ``learn``), ``many`` (``train_many``), ``gradient`` (the gradient step), ``jax``; ``--agents`` the algorithms.
 * ``--equivalence [--algo PPO]``: 20 seeds of SB3's ``learn`` and of ``train_many`` with the same seeds and settings
   (both on the compiled MiniGrid, equal to Farama's step for step), the greedy policy evaluated on its own env
   (seed + 1000) every ``--every`` env steps over ``--episodes`` episodes, each run's curve summarised by its mean
@@ -16,7 +19,7 @@ the 7x7x3 view (``obs="image"``), 4 envs per seed (needs the ``[minigrid]`` extr
   [0, 1]) by a paired TOST (two one-sided t-tests, scipy.stats, alpha 0.05): the 90% confidence interval of the mean
   difference lies inside ``(-margin, margin)``.
 
-    python benchmarks/bench_many_seeds.py [--smoke] [--steps N] [--csv PATH]
+    python benchmarks/bench_many_seeds.py [--smoke] [--steps N] [--csv PATH] [--rows sb3,many,gradient,jax] [--agents PPO]
     python benchmarks/bench_many_seeds.py --equivalence [--algo DQN|PPO] [--seeds 20] [--steps 20000] [--every 5000]
 """
 
@@ -154,10 +157,28 @@ def gradient_step(n_seeds: int, repeats: int = 100) -> tuple[float, float]:
 def _jax_available() -> bool:
     import importlib.util
 
-    return all(importlib.util.find_spec(name) is not None for name in ("jax", "navix"))
+    return all(importlib.util.find_spec(name) is not None for name in ("jax", "navix", "optax"))
 
 
-def speed(steps: int, sizes: list[int], out: Path) -> None:
+def jax_rate(n_seeds: int, steps: int) -> tuple[Rate, float]:
+    """Env steps per second (all seeds') of the vmapped JAX DQN, its compile apart, and the compile's CPU seconds."""
+    from jax_dqn import dqn_many
+
+    run = dqn_many(n_seeds, N_ENVS, steps, {**SETTINGS, **EPSILON})
+    import jax
+
+    cpu = time.process_time()
+    jax.block_until_ready(run(0))  # the first call compiles
+    compile_cpu = time.process_time() - cpu
+    return _timed(lambda: (jax.block_until_ready(run(1)), n_seeds * (steps // N_ENVS) * N_ENVS)[1]), compile_cpu
+
+
+#: the row groups ``--rows`` picks
+ROWS = ("sb3", "many", "gradient", "jax")
+
+
+def speed(steps: int, sizes: list[int], out: Path, groups: tuple[str, ...] = ROWS, agents: tuple[str, ...] = ("DQN", "PPO")
+          ) -> None:
     """Every row's rates and their ratios to SB3's same algorithm with 1 env and with 4 envs, in one run."""
     trainer_rate("DQN", 2, 400)  # loads the compiled kernels and torch's first calls: no row pays for them
     trainer_rate("PPO", 2, 1024)
@@ -167,21 +188,28 @@ def speed(steps: int, sizes: list[int], out: Path) -> None:
         rows.append((agent, name, rate))
         print(f"  ({agent} {name}: {rate.cpu:,.0f} per CPU s, {rate.wall:,.0f} per wall s)", flush=True)
 
-    for agent in ("DQN", "PPO"):
-        row(agent, "SB3 learn, Farama, n_envs=1", sb3_rate(agent, steps, 1))
-        row(agent, f"SB3 learn, Farama, n_envs={N_ENVS}", sb3_rate(agent, steps))
-        row(agent, f"SB3 learn, compiled, n_envs={N_ENVS}", sb3_rate(agent, steps, compiled=True))
-        for n_seeds in sizes:
+    for agent in agents:
+        if "sb3" in groups:
+            row(agent, "SB3 learn, Farama, n_envs=1", sb3_rate(agent, steps, 1))
+            row(agent, f"SB3 learn, Farama, n_envs={N_ENVS}", sb3_rate(agent, steps))
+            row(agent, f"SB3 learn, compiled, n_envs={N_ENVS}", sb3_rate(agent, steps, compiled=True))
+        for n_seeds in sizes if "many" in groups else []:
             row(agent, f"train_many, S={n_seeds}", trainer_rate(agent, n_seeds, steps))
+    jax_compiles = []
+    if "jax" in groups and "DQN" in agents and _jax_available():
+        for n_seeds in sorted({min(8, sizes[-1]), min(32, sizes[-1])}):
+            rate, compile_cpu = jax_rate(n_seeds, steps)
+            row("DQN", f"JAX vmapped, NAVIX, S={n_seeds} (compile apart)", rate)
+            jax_compiles.append(f"S={n_seeds} {compile_cpu:.0f} CPU s")
     print(f"{ENV_ID}, obs=image, {N_ENVS} envs per seed, {steps:,} env steps per seed, 1 torch thread, "
           f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f} (a shared machine: CPU seconds are the measure)")
     header = ["algo", "run", "env_steps_per_cpu_s", "env_steps_per_wall_s", "cpu_x_sb3_1_env", "cpu_x_sb3_4_envs"]
     table = []
     for agent, name, rate in rows:
-        one = next(r for a, n, r in rows if a == agent and n == "SB3 learn, Farama, n_envs=1")
-        four = next(r for a, n, r in rows if a == agent and n == f"SB3 learn, Farama, n_envs={N_ENVS}")
-        table.append([agent, name, f"{rate.cpu:.0f}", f"{rate.wall:.0f}", f"{rate.cpu / one.cpu:.1f}",
-                      f"{rate.cpu / four.cpu:.1f}"])
+        one = next((r for a, n, r in rows if a == agent and n == "SB3 learn, Farama, n_envs=1"), None)
+        four = next((r for a, n, r in rows if a == agent and n == f"SB3 learn, Farama, n_envs={N_ENVS}"), None)
+        table.append([agent, name, f"{rate.cpu:.0f}", f"{rate.wall:.0f}", f"{rate.cpu / one.cpu:.1f}" if one else "",
+                      f"{rate.cpu / four.cpu:.1f}" if four else ""])
     print("  " + " | ".join(header))
     for line in table:
         print("  " + " | ".join(map(str, line)))
@@ -189,12 +217,16 @@ def speed(steps: int, sizes: list[int], out: Path) -> None:
         writer = csv.writer(handle)
         writer.writerow(header)
         writer.writerows(table)
-    for agent in ("DQN", "PPO"):
+    for agent in agents if "sb3" in groups else ():
         farama = next(r for a, n, r in rows if a == agent and n == f"SB3 learn, Farama, n_envs={N_ENVS}")
         compiled = next(r for a, n, r in rows if a == agent and n == f"SB3 learn, compiled, n_envs={N_ENVS}")
         print(f"SB3 {agent}.learn with {N_ENVS} envs, compiled MiniGrid / Farama's: {compiled.cpu / farama.cpu:.2f}x (CPU)")
-    gflops = core_gflops()
-    for n_seeds in sorted({min(32, sizes[-1]), sizes[-1]}):
+    if jax_compiles:
+        print(f"JAX DQN compiles (once per S and step count, not in its rows): {', '.join(jax_compiles)}")
+    elif "jax" in groups and "DQN" in agents:
+        print("JAX DQN: jax, navix and optax are not installed, no row (pip install 'sb3-affect[jax]' to add it)")
+    gflops = core_gflops() if "gradient" in groups else 0.0
+    for n_seeds in sorted({min(32, sizes[-1]), sizes[-1]}) if "gradient" in groups else []:
         step_ms, greedy_ms = gradient_step(n_seeds)
         flops = step_flops(n_seeds, SETTINGS["batch_size"], [147, 64, 64, 7])
         bound_ms = flops / gflops / 1e6
@@ -205,8 +237,6 @@ def speed(steps: int, sizes: list[int], out: Path) -> None:
               f"({step_ms / bound_ms:.1f}x the bound); a greedy pass {greedy_ms:.2f} ms; one step and "
               f"{SETTINGS['train_freq']} greedy passes per {per_step} env steps of each seed cap any trainer at "
               f"{cap:,.0f} env steps per CPU second")
-    if not _jax_available():
-        print("JAX DQN: jax and navix are not installed, no row (pip install jax navix to add it)")
 
 
 def _evaluate(model: Any, seed: int, episodes: int) -> float:
@@ -297,15 +327,22 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--margin", type=float, default=0.1)
     parser.add_argument("--algo", default="DQN", choices=["DQN", "PPO"], help="the equivalence's algorithm")
     parser.add_argument("--env", default=ENV_ID, help=f"the MiniGrid task (default {ENV_ID})")
+    parser.add_argument("--rows", default=",".join(ROWS), help=f"the speed rows to run, of {','.join(ROWS)} (default all)")
+    parser.add_argument("--agents", default="DQN,PPO", help="the speed rows' algorithms, of DQN,PPO (default both)")
     args = parser.parse_args(argv)
     ENV_ID = args.env
+    groups, agents = tuple(args.rows.split(",")), tuple(args.agents.split(","))
+    for option, chosen, allowed in (("--rows", groups, ROWS), ("--agents", agents, ("DQN", "PPO"))):
+        for value in chosen:
+            if value not in allowed:
+                parser.error(f"{option} has {value!r}; allowed: {', '.join(allowed)}")
     if args.equivalence:
         steps = args.steps or (2000 if args.smoke else 100_000)
         equivalence(3 if args.smoke else args.seeds, steps, 1000 if args.smoke else args.every,
                     2 if args.smoke else args.episodes, args.margin, args.algo)
     else:
         steps = args.steps or (1200 if args.smoke else 8000)
-        speed(steps, [1, 2] if args.smoke else [8, 32, 128], args.csv)
+        speed(steps, [1, 2] if args.smoke else [8, 32, 128], args.csv, groups, agents)
     return 0
 
 

@@ -41,3 +41,14 @@ def test_benchmark_minigrid_smoke_run_writes_its_rows(tmp_path: Path) -> None:
     assert any(n.startswith("AffectDQN.learn, MiniGrid") for n in names)
     assert any(n.startswith("AffectQ.learn on TabularMiniGrid") for n in names)
     assert any(n.startswith("minigrid_vec_env step, MiniGrid-DoorKey-8x8-v0") for n in names)
+
+
+def test_benchmark_many_seeds_refuses_an_unknown_row_in_one_line() -> None:
+    result = subprocess.run(
+        [sys.executable, str(ROOT / "benchmarks" / "bench_many_seeds.py"), "--rows", "sb3,gpu"],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert result.returncode == 2
+    assert "--rows has 'gpu'; allowed: sb3, many, gradient, jax" in result.stderr.splitlines()[-1]

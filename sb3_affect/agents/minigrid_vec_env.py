@@ -30,7 +30,9 @@ give Farama's frames of the same worlds (drawn by Farama's ``minigrid``, which r
 ``SubprocVecEnv``-style workers, Ray): a copy continues as the original would.
 
 ``step_arrays(actions)`` is the step without the info dicts, for a trainer that steps many envs itself;
-``MiniGridBatch`` steps several such VecEnvs (e.g. one per seed) by one kernel call.
+``MiniGridBatch`` steps several such VecEnvs (e.g. one per seed) by one kernel call, through each one's public
+``kernel_args``, ``state_arrays`` and ``bind`` (its rows of the batch's arrays), ``require_started``,
+``record_episodes`` and ``ended_info``.
 """
 
 from __future__ import annotations
@@ -228,7 +230,7 @@ class MiniGridVecEnv(VecEnv):
         #: What ``gym.make(env_id, ...)`` of each env would give as its ``spec`` (``make_vec_env``'s envs' ``spec``).
         self.spec = _spec(env_id, registered, obs, env_kwargs)
         announce_compile("the MiniGrid worlds (minigrid_vec_env)", (reset_worlds, step_worlds), COMPILE_CPU_SECONDS)
-        self._bind(_state_arrays(task, obs, view, n))
+        self.bind(_state_arrays(task, obs, view, n))
         self._actions: Any = None
         self._started = False
         self._closed = False
@@ -238,8 +240,8 @@ class MiniGridVecEnv(VecEnv):
         self._episode_lengths: list[list[int]] = [[] for _ in range(n)]
         self._episode_times: list[list[float]] = [[] for _ in range(n)]
         self._abandoned = np.zeros(n, dtype=np.int64)  # the steps of episodes cut short by reset()
-        # step_worlds's arguments before the actions
-        self._task_args = (task.layout, task.see_through_walls, task.max_steps, view)
+        #: ``step_worlds``'s arguments before the actions (the task's layout, walls, step limit and view size).
+        self.kernel_args = (task.layout, task.see_through_walls, task.max_steps, view)
         shape = (view, view, 3) if obs == "image" else self._obs.shape[1:]
         observation_space = spaces.Box(low=0, high=255, shape=shape, dtype=np.uint8)
         super().__init__(n, observation_space, spaces.Discrete(MINIGRID_ACTIONS))
@@ -248,7 +250,12 @@ class MiniGridVecEnv(VecEnv):
             self.action_space.seed(int(seed))
         self.seed(None if seed is None else int(seed))
 
-    def _bind(self, arrays: StateArrays) -> None:
+    @property
+    def state_arrays(self) -> StateArrays:
+        """The worlds' state and the step's buffers it holds (``StateArrays``: its own, or its rows of a batch's)."""
+        return self._arrays
+
+    def bind(self, arrays: StateArrays) -> None:
         """Hold ``arrays`` as the worlds' state and the step's buffers (its own, or its rows of a ``MiniGridBatch``'s)."""
         self._arrays = arrays
         self.worlds = Worlds(*arrays[:4])
@@ -270,7 +277,7 @@ class MiniGridVecEnv(VecEnv):
 
     def __setstate__(self, state: dict[str, Any]) -> None:
         self.__dict__.update(state)
-        self._bind(state["_arrays"])
+        self.bind(state["_arrays"])
 
     # ---- stepping --------------------------------------------------------------------------------------------------
 
@@ -294,6 +301,12 @@ class MiniGridVecEnv(VecEnv):
         if self._closed:
             raise RuntimeError("minigrid_vec_env: the VecEnv is closed (close() was called); build a new one")
 
+    def require_started(self, refusal: str = "minigrid_vec_env: call reset() before step()") -> None:
+        """Refuse a step unless the VecEnv was reset and is not closed (a closed one's line, or ``refusal``)."""
+        if not self._started:
+            self._refuse_closed()
+            raise RuntimeError(refusal)
+
     def step_async(self, actions: np.ndarray) -> None:
         self._actions = actions
 
@@ -306,10 +319,10 @@ class MiniGridVecEnv(VecEnv):
         infos: list[dict[str, Any]] = [{"TimeLimit.truncated": False} for _ in range(self.num_envs)]
         if self._dones.any():
             for index in np.flatnonzero(self._dones).tolist():
-                infos[index] = self._ended_info(index)
+                infos[index] = self.ended_info(index)
         return infos
 
-    def _ended_info(self, index: int) -> dict[str, Any]:
+    def ended_info(self, index: int) -> dict[str, Any]:
         """The info of env ``index``, whose episode ended at the last step."""
         return {
             "episode": {"r": round(self._episode_rewards[index][-1], 6), "l": self._episode_lengths[index][-1],
@@ -328,18 +341,17 @@ class MiniGridVecEnv(VecEnv):
         records (``env_method``) are kept.
         """
         if not self._started:
-            self._refuse_closed()
-            raise RuntimeError("minigrid_vec_env: call reset() before step()")
+            self.require_started()
         if not (type(actions) is np.ndarray and actions.dtype == np.int64 and actions.shape == self._dones.shape):
             actions = checked_actions(actions, self.num_envs)
-        ended = step_worlds(*self._task_args, actions, *self._arrays)
+        ended = step_worlds(*self.kernel_args, actions, *self._arrays)
         if ended < 0:
             raise _bad_action(actions[-1 - ended].item(), -1 - ended)
         if ended:
-            self._record_episodes(np.flatnonzero(self._dones).tolist())
+            self.record_episodes(np.flatnonzero(self._dones).tolist())
         return self._seen, self._rewards, self._terminated, self._truncated
 
-    def _record_episodes(self, indices: list[int]) -> None:
+    def record_episodes(self, indices: list[int]) -> None:
         """The ``Monitor``'s records of the episodes of envs ``indices``, which ended at the last step."""
         now = time.time() - self._t_start
         for index in indices:
@@ -510,8 +522,8 @@ class MiniGridBatch:
         self.envs = list(envs)
         first = self.envs[0]
         for env in self.envs:
-            if not isinstance(env, MiniGridVecEnv) or (env.env_id, env.obs, env._task_args) != (
-                    first.env_id, first.obs, first._task_args):
+            if not isinstance(env, MiniGridVecEnv) or (env.env_id, env.obs, env.kernel_args) != (
+                    first.env_id, first.obs, first.kernel_args):
                 raise ValueError(f"MiniGridBatch: every env must be a minigrid_vec_env of {first.env_id} with "
                                  f"obs={first.obs!r} and env 0's env_kwargs, got {env!r}")
         counts = [env.num_envs for env in self.envs]
@@ -519,10 +531,10 @@ class MiniGridBatch:
         self._owner = np.repeat(np.arange(len(counts)), counts)
         self.arrays = _state_arrays(first.task, first.obs, first.view, self.offsets[-1])
         for env, start, stop in zip(self.envs, self.offsets, self.offsets[1:]):
-            for joined, own in zip(self.arrays, env._arrays):
+            for joined, own in zip(self.arrays, env.state_arrays):
                 joined[start:stop] = own
-            env._bind(tuple(array[start:stop] for array in self.arrays))
-        self._task_args = first._task_args
+            env.bind(tuple(array[start:stop] for array in self.arrays))
+        self.kernel_args = first.kernel_args
         count, view = self.offsets[-1], first.view
         self._seen = self.arrays[4].reshape(count, view, view, 3) if first.obs == "image" else self.arrays[4]
 
@@ -536,17 +548,15 @@ class MiniGridBatch:
         if not (type(actions) is np.ndarray and actions.dtype == np.int64 and actions.shape == (count,)):
             actions = checked_actions(actions, count)
         for env in self.envs:
-            if not env._started:
-                env._refuse_closed()
-                raise RuntimeError("MiniGridBatch: call each env's reset() before step()")
-        ended = step_worlds(*self._task_args, actions, *self.arrays)
+            env.require_started("MiniGridBatch: call each env's reset() before step()")
+        ended = step_worlds(*self.kernel_args, actions, *self.arrays)
         if ended < 0:
             raise _bad_action(actions[-1 - ended].item(), -1 - ended)
         dones = self.arrays[8]
         if ended:
             for row in np.flatnonzero(dones).tolist():
                 owner = int(self._owner[row])
-                self.envs[owner]._record_episodes([row - self.offsets[owner]])
+                self.envs[owner].record_episodes([row - self.offsets[owner]])
         return self._seen, self.arrays[5], dones
 
     def infos(self) -> list[list[dict[str, Any]]]:
@@ -554,7 +564,7 @@ class MiniGridBatch:
         infos: list[dict[str, Any]] = [{"TimeLimit.truncated": False} for _ in range(self.offsets[-1])]
         for row in np.flatnonzero(self.arrays[8]).tolist():
             owner = int(self._owner[row])
-            infos[row] = self.envs[owner]._ended_info(row - self.offsets[owner])
+            infos[row] = self.envs[owner].ended_info(row - self.offsets[owner])
         return [infos[start:stop] for start, stop in zip(self.offsets, self.offsets[1:])]
 
 

@@ -68,17 +68,22 @@ def refresh_cache(sources: Path, cache: Path) -> bool:
 refresh_cache(Path(__file__).parent, Path(__file__).parent / "__pycache__")
 
 
-def warm_up() -> None:
+def warm_up(tabular: bool = True, minigrid: bool = True) -> None:
     """
-    Load every kernel now (the grid, moving-prey, team and MiniGrid kernels; compiling them, the first time on a machine),
-    without building a model (no torch): for example in a launcher before it forks workers, so that each worker does
-    not compile (on a cold cache) or load them again. Cheap once the cache is warm. ``make venv`` runs it once, so a
-    first ``make replicate`` finds the kernels compiled (``python -m sb3_affect.kernel``).
+    Load every kernel now (the grid, moving-prey and team kernels: ``tabular``; the MiniGrid worlds: ``minigrid``;
+    compiling them, the first time on a machine), without building a model (no torch): for example in a launcher
+    before it forks workers, so that each worker does not compile (on a cold cache) or load them again. Cheap once the
+    cache is warm. ``make venv`` runs it once, so a first ``make replicate`` finds the kernels compiled
+    (``python -m sb3_affect.kernel``, which compiles the two parts side by side on a machine of two cores or more).
     """
-    from sb3_affect.kernel.grid_batch import warm_up as grid
-    from sb3_affect.kernel.minigrid_world import warm_up as minigrid
-    from sb3_affect.kernel.moving_batch import warm_up as moving
-    from sb3_affect.kernel.team_batch import warm_up as team
+    if tabular:
+        from sb3_affect.kernel.grid_batch import warm_up as grid
+        from sb3_affect.kernel.moving_batch import warm_up as moving
+        from sb3_affect.kernel.team_batch import warm_up as team
 
-    for load in (grid, moving, team, minigrid):
-        load()
+        for load in (grid, moving, team):
+            load()
+    if minigrid:
+        from sb3_affect.kernel.minigrid_world import warm_up as worlds
+
+        worlds()
