@@ -10,10 +10,10 @@ import numpy as np
 import pandas as pd
 
 from sb3_affect.core.settings import AffectQSettings
-from sb3_affect.study.forensics.candidates import Reading
+from sb3_affect.study.forensics.folder_status import MAX_RUN_BYTES
 from sb3_affect.study.forensics.scoring import MIN_REACH_REPS, NOT_REACHED, NOT_RULED_OUT, REACHED, transform
 from sb3_affect.study.forensics.statistics import LOG_SCALE, STATISTICS, candidate_statistics, cell_summary
-from sb3_affect.study.forensics.unit_files import MAX_SUMMARY_BYTES
+from sb3_affect.study.launcher.forensics_candidates import Reading
 from sb3_affect.study.launcher.regular_files import open_regular, read_json
 from sb3_affect.study.launcher.store import write_atomic
 from sb3_affect.study.report.reading.run_tables import load_results
@@ -258,7 +258,7 @@ def forensics_section(folder: str | Path, figures_dir: str | Path | None = None)
         raise FileNotFoundError(f"{folder} holds no forensics results (run `sb3-affect forensics --out {folder}`)")
     figures_dir = Path(figures_dir or folder / "figures")
     figures_dir.mkdir(parents=True, exist_ok=True)
-    run = read_json(folder / "run.json", MAX_SUMMARY_BYTES)
+    run = read_json(folder / "run.json", MAX_RUN_BYTES)
     leaders = _csv(folder / "leaders.csv")
     screen = _csv(folder / "screen.csv")
     table = _csv(folder / "intervals.csv", index_col=0)
@@ -432,7 +432,7 @@ def report_section(folder: str | Path) -> Any:
         return None
 
     def forensics_report_section(ctx: Any) -> None:
-        run = read_json(folder / "run.json", MAX_SUMMARY_BYTES)
+        run = read_json(folder / "run.json", MAX_RUN_BYTES)
         section = forensics_section(folder, ctx.out / "figures")
         ctx.doc.md(section.markdown)
         for figure_path, caption in section.figures:
