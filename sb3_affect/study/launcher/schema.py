@@ -682,9 +682,10 @@ class ProtocolSpec(BaseModel):
 
 class ForensicsStudy(BaseModel):
     """
-    A sweep file of the replication forensics (``study: forensics``): which candidate implementation could have
-    printed the paper's numbers. Its runs are (simulation, replication) units (``cells``), run in stages by the
-    launcher (``plan_jobs`` with the forensics' ``stages``)::
+    A sweep file of the replication forensics (top-level keys).
+
+    Which candidate implementation could have printed the paper's numbers: its runs are (simulation, replication)
+    units (``cells``), run in stages by the launcher (``plan_jobs`` with the forensics' ``stages``)::
 
         name: forensics
         study: forensics
