@@ -45,7 +45,7 @@ from sb3_affect.study.launcher.store import ResultsStore, store_error, write_ato
 @dataclass
 class ForensicsResult:
     """
-    What ``run_forensics`` found (also written to its folder as CSV files).
+    What ``analysis.analyse`` found (also written to its folder as CSV files).
 
     :param screen: every candidate with its screening log-likelihood, best first
     :param leaders: the leaders' candidates with their full log-likelihood and posterior probability, best first;

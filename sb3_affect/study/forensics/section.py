@@ -1,4 +1,4 @@
-"""The report section of the forensics: tables and one figure, from the CSV files ``run_forensics`` wrote."""
+"""The report section of the forensics: tables and one figure, from the CSV files ``analysis.analyse`` wrote."""
 
 from __future__ import annotations
 
@@ -249,7 +249,7 @@ def forensics_section(folder: str | Path, figures_dir: str | Path | None = None)
     """
     The section "Replication forensics" from a ``sb3-affect forensics`` folder.
 
-    :param folder: the folder ``run_forensics`` wrote
+    :param folder: the folder ``analysis.analyse`` wrote
     :param figures_dir: where to write the figure (default: ``folder/figures``)
     :return: its Markdown and its figure
     """
@@ -347,7 +347,7 @@ def forensics_section(folder: str | Path, figures_dir: str | Path | None = None)
 def findings_lines(table: pd.DataFrame, run: dict[str, Any]) -> list[str]:
     """
     What the forensics showed about each printed number, from the interval table's "finding" column (written by
-    ``run_forensics``): reached only on the leaders' full replications; screen-size coverage is "not ruled out".
+    ``analysis.analyse``): reached only on the leaders' full replications; screen-size coverage is "not ruled out".
     """
     if "finding" not in table.columns:  # a folder from before the findings: nothing is decided from its counts
         return ["This folder predates the findings: rerun `sb3-affect forensics` to decide which numbers are reached.", ""]
