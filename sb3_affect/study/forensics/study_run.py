@@ -11,9 +11,11 @@ import functools
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from sb3_affect.engine.simulation import simulate
 from sb3_affect.study.forensics.analysis import analyse
 from sb3_affect.study.forensics.stages import plan_stages
 from sb3_affect.study.launcher import run_sweep
+from sb3_affect.study.launcher.forensics_candidates import Simulation
 from sb3_affect.study.launcher.schema import ForensicsStudy
 from sb3_affect.study.launcher.store import StoreError
 from sb3_affect.study.launcher.sweep_file import load_sweep_file
@@ -44,6 +46,8 @@ def run_study(
     study = load_sweep_file(path, overrides, build=False)
     if not isinstance(study, ForensicsStudy):
         raise ValueError(f"{path} is not a forensics study file (study: forensics)")
+    if backend == "local":
+        _warm_up(study)
     stages = functools.partial(plan_stages, printed=printed)
     summary = run_sweep(path, out, workers=workers, backend=backend, ray_address=ray_address, ray_timeout=ray_timeout,
                         overrides=overrides, progress=progress, stages=stages)  # fmt: skip
@@ -53,6 +57,17 @@ def run_study(
     result = analyse(study, out, printed, summary.seconds)
     result.simulated, result.reused = summary.finished, summary.skipped
     return result
+
+
+def _warm_up(study: ForensicsStudy) -> None:
+    """One one-episode run of each agent in the driver: compiled code is loaded once, and every stage's forked workers
+    share it."""
+    space, protocol = study.space(), study.paper_protocol()
+    first: dict[str, Simulation] = {}
+    for simulation in space.standard_simulations() + space.affective_simulations():
+        first.setdefault(simulation.algo, simulation)
+    for simulation in first.values():
+        simulate(simulation.algo, simulation.algo_kwargs(0.5), protocol.env_id, protocol.env_kwargs, [0], 1)
 
 
 def summary_lines(study: ForensicsStudy, result: ForensicsResult, out: str | Path) -> list[str]:
