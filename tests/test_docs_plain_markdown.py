@@ -9,7 +9,7 @@ gives now:
 * ``docstring: MODULE``: the module's docstring (a paragraph ending in ``::`` and its indented block become a
   paragraph ending in ``:`` and a text block);
 * ``sweep-schema`` and ``sweep-schema: forensics``: the experiment-file reference, one table per section, from the
-  validating models of ``sb3_affect.study.launcher.schema`` and ``study_schema``;
+  validating models of ``sb3_affect.study.launcher.schema``;
 * ``controls``: the table of the package's deep controls, a row per registry entry with a ``docs_row``
   (``sb3_affect.core.registry.AGENT_ENTRIES``: the control, what it is, its class with its MiniGrid keywords).
 
@@ -72,8 +72,7 @@ def docstring_block(module: str) -> str:
 def _type_name(annotation: Any) -> str:
     text = getattr(annotation, "__name__", None) if not getattr(annotation, "__args__", None) else None
     text = text or str(annotation).replace("typing.", "")
-    for module in ("sb3_affect.study.launcher.schema.", "sb3_affect.study.launcher.study_schema."):
-        text = text.replace(module, "")
+    text = text.replace("sb3_affect.study.launcher.schema.", "")
     return text.replace("NoneType", "None")
 
 
@@ -102,8 +101,7 @@ def schema_block(which: str | None) -> str:
     """One table per section of an experiment file: top-level keys, ``env``, an item of ``agents`` (or a study's)."""
     from pydantic_core import PydanticUndefined
 
-    from sb3_affect.study.launcher.schema import AgentSpec, EnvSpec, MemberSpec, Sweep
-    from sb3_affect.study.launcher.study_schema import ForensicsStudy, ProtocolSpec
+    from sb3_affect.study.launcher.schema import AgentSpec, EnvSpec, ForensicsStudy, MemberSpec, ProtocolSpec, Sweep
 
     sections: tuple[tuple[str, Any], ...] = (
         ("Top-level keys", Sweep), ("`env`", EnvSpec), ("Each item of `agents`", AgentSpec),

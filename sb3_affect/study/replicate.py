@@ -27,8 +27,8 @@ from sb3_affect.study.launcher import run_sweep
 from sb3_affect.study.launcher.epsilon_tuning import round_values, tune, tuning_grid
 from sb3_affect.study.launcher.folder_files import MAX_SWEEP_FILE_BYTES
 from sb3_affect.study.launcher.regular_files import UnreadableFile, read_json, write_file
+from sb3_affect.study.launcher.schema import ForensicsStudy
 from sb3_affect.study.launcher.store import KIND_NAMES, ResultsStore, StoreError, folder_kind
-from sb3_affect.study.launcher.study_schema import ForensicsStudy
 from sb3_affect.study.launcher.sweep_file import load_sweep, load_sweep_file
 from sb3_affect.study.report import build_report
 from sb3_affect.study.report.reading.study_tables import folder_study
@@ -166,7 +166,7 @@ def _run_part(
     study = load_sweep_file(path, overrides, build=False)
     if isinstance(study, ForensicsStudy):  # no progress bars of its own in the log: a heartbeat instead
         with _heartbeat(key):
-            result = run_study(study, folder, progress=False, **executor)
+            result = run_study(path, folder, overrides, progress=False, **executor)
         print(f"   {result.simulated} replications now, {result.reused} already done, {result.seconds:.1f} s", flush=True)
         return record.part(key, result.seconds, done_before=result.reused, todo=result.simulated), report_section(folder)
     summary = run_sweep(path, folder, overrides=overrides, **executor)

@@ -17,8 +17,8 @@ from pydantic import ValidationError
 from sb3_affect.study import replicate, sweep_commands
 from sb3_affect.study.forensics.section import report_section
 from sb3_affect.study.forensics.study_run import run_study, summary_lines
+from sb3_affect.study.launcher.schema import ForensicsStudy
 from sb3_affect.study.launcher.signals import stop_on_sigterm
-from sb3_affect.study.launcher.study_schema import ForensicsStudy
 from sb3_affect.study.launcher.sweep_file import load_sweep_file
 from sb3_affect.study.report import build_report
 from sb3_affect.study.studies import shipped_sweeps_folder
@@ -64,7 +64,8 @@ def replicate_command(args: argparse.Namespace) -> int:
 
 def forensics(args: argparse.Namespace) -> int:
     """``sb3-affect forensics``: the study of the shipped experiments/forensics.yaml with the command's sizes and grid."""
-    shipped = load_sweep_file(shipped_sweeps_folder() / "forensics.yaml", build=False)
+    path = shipped_sweeps_folder() / "forensics.yaml"
+    shipped = load_sweep_file(path, build=False)
     given = {"screen_reps": args.screen_reps, "leaders": args.leaders, "reps": args.reps}
     given.update({key: list(getattr(args, key)) for key in ("alphas", "gammas") if getattr(args, key)})
     try:
@@ -75,7 +76,8 @@ def forensics(args: argparse.Namespace) -> int:
         raise SystemExit(f"sb3-affect forensics: error: {option}{first['msg'].removeprefix('Value error, ')}") from None
     stop_on_sigterm()  # `kill`: stop like Ctrl-C (the pool's workers first), exit 143
     executor = {"backend": args.backend, "ray_address": args.ray_address}
-    result = run_study(study, args.out, workers=args.workers, progress=not args.no_progress, **executor)
+    overrides = [f"{key}={value}" for key, value in given.items()]  # the same as `sb3-affect run forensics --set ...`
+    result = run_study(path, args.out, overrides, workers=args.workers, progress=not args.no_progress, **executor)
     print("\n".join(summary_lines(study, result, args.out)))
     return 0
 

@@ -13,10 +13,9 @@ from pathlib import Path
 
 from sb3_affect.study.launcher import ResultsStore, run_sweep
 from sb3_affect.study.launcher.ray_errors import ClusterLost, RayClusterError
-from sb3_affect.study.launcher.schema import SweepError
+from sb3_affect.study.launcher.schema import ForensicsStudy, SweepError
 from sb3_affect.study.launcher.signals import Terminated, stop_on_sigterm
-from sb3_affect.study.launcher.store import KIND_FILES, StoreError, folder_kind, old_deep_layout
-from sb3_affect.study.launcher.study_schema import ForensicsStudy
+from sb3_affect.study.launcher.store import StoreError, folder_kind, old_layout, study_kind
 from sb3_affect.study.launcher.sweep_file import load_sweep_file
 
 
@@ -73,7 +72,7 @@ def run(args: argparse.Namespace) -> int:
     study = load_sweep_file(args.file, args.set or (), build=False)
     stop_on_sigterm()
     if isinstance(study, ForensicsStudy):
-        return _run_forensics(study, args)
+        return _run_forensics(study, args)  # (its stages through run_sweep, then its analysis)
     summary = run_sweep(
         args.file,
         args.out,
@@ -101,8 +100,9 @@ def _run_forensics(study: ForensicsStudy, args: argparse.Namespace) -> int:
     if args.logs:
         raise UsageError(f"--logs {args.logs}: the forensics study runs on the compiled engine and writes no SB3 logs")
     result = run_study(
-        study,
+        args.file,
         args.out,
+        args.set or (),
         workers=args.workers,
         backend=args.backend,
         ray_address=args.ray_address,
@@ -116,16 +116,16 @@ def _run_forensics(study: ForensicsStudy, args: argparse.Namespace) -> int:
 def status(args: argparse.Namespace) -> int:
     """``sb3-affect status DIR``: how far a sweep, a forensics study, a deep study or a `replicate` folder is."""
     root = existing_folder(args.dir, "status")
-    kind = folder_kind(root)
-    if kind is not None and kind[0] != "replication":
-        STATUS[kind[0]](root)
+    kind = _kind(root)
+    if kind is not None and kind != "replication":
+        STATUS[kind](root)
         return 0
     # A `replicate` folder: one folder per part (paper/, dqn/, ..., the forensics' and the deep study's).
     parts: dict[str, list[Path]] = {name: [] for name in STATUS}
     for folder in sorted(root.iterdir()):
-        held = folder_kind(folder) if folder.is_dir() else None
-        if held is not None and held[0] in parts:
-            parts[held[0]].append(folder)
+        held = _kind(folder) if folder.is_dir() else None
+        if held is not None and held in parts:
+            parts[held].append(folder)
     if not any(parts.values()):
         print(
             f"{root}: no sweep has been run here (no sweep.json, nor sub-folders with one); "
@@ -143,14 +143,25 @@ def status(args: argparse.Namespace) -> int:
     return 0
 
 
-def _print_forensics_status(root: Path) -> None:
-    from sb3_affect.study.forensics.unit_files import folder_status  # (pandas: not on the sweep path)
+def _kind(folder: Path) -> str | None:
+    """The kind of study a folder holds (``store.folder_kind``; a sweep.json of ``study: forensics``: ``forensics``)."""
+    held = folder_kind(folder)
+    if held is None or held[0] != "sweep":
+        return None if held is None else held[0]
+    saved = ResultsStore(folder).saved_sweep()
+    return "forensics" if saved is not None and study_kind(saved) == "forensics" else "sweep"
 
+
+def _print_forensics_status(root: Path) -> None:
+    from sb3_affect.study.forensics.folder_status import folder_status  # (no analysis: the store's files only)
+
+    if folder_kind(root) == ("forensics", "forensics.json"):  # the layout before its replications went into the store
+        raise UsageError(old_layout(root, "forensics"))
     print(folder_status(root))
 
 
 def _refuse_old_deep(root: Path) -> None:
-    raise UsageError(old_deep_layout(root, KIND_FILES["deep"]))
+    raise UsageError(old_layout(root, "deep"))
 
 
 def _print_status(root: Path) -> None:

@@ -11,9 +11,9 @@ import pytest
 import sb3_affect
 from sb3_affect.study import replicate, studies
 from sb3_affect.study.cli import main
-from sb3_affect.study.forensics import Protocol
-from sb3_affect.study.forensics.unit_files import SummaryStore
-from sb3_affect.study.launcher import SweepError, load_sweep, run_sweep
+from sb3_affect.study.launcher import ResultsStore, SweepError, load_sweep, run_sweep
+from sb3_affect.study.launcher.store import SWEEP_SCHEMA
+from sb3_affect.study.launcher.sweep_file import load_sweep_file
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -76,7 +76,9 @@ def test_status_of_missing_folder_and_of_a_replicate_folder(tmp_path: Path, caps
     # The layout `replicate` writes: one sweep per sub-folder.
     for part in ("paper", "dqn"):
         run_sweep(tiny(tmp_path / "files", part), tmp_path / "runs" / part, workers=1, progress=False)
-    SummaryStore(tmp_path / "runs" / "forensics", Protocol())  # the forensics' folder, before its first replication
+    forensics = load_sweep_file("forensics", build=False)  # its folder, before its first replication: claimed, empty
+    resolved = {"schema": SWEEP_SCHEMA, "name": forensics.name, "sweep": forensics.model_dump(mode="json")}
+    ResultsStore(tmp_path / "runs" / "forensics").prepare(resolved)
     capsys.readouterr()
     assert main(["status", str(tmp_path / "runs")]) == 0
     out = capsys.readouterr().out

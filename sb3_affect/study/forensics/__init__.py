@@ -1,7 +1,7 @@
 """Replication forensics: which candidate implementation could have produced the paper's printed numbers.
 
 The names below are imported on first use (PEP 562), so that importing a module of this package (``sb3-affect status``
-reads ``forensics.unit_files``) does not import the analysis (SciPy, the report's statistics).
+reads ``forensics.folder_status``) does not import the analysis (SciPy, the report's statistics).
 """
 
 from __future__ import annotations
@@ -10,18 +10,20 @@ import importlib
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from sb3_affect.study.forensics.analysis import ForensicsResult, run_forensics
-    from sb3_affect.study.forensics.candidates import Candidate, CandidateSpace, Protocol, Reading, Simulation
+    from sb3_affect.study.forensics.analysis import ForensicsResult, analyse
     from sb3_affect.study.forensics.statistics import STATISTICS, printed_numbers
+    from sb3_affect.study.forensics.study_run import run_study
+    from sb3_affect.study.launcher.forensics_candidates import Candidate, CandidateSpace, Protocol, Reading, Simulation
 
 _LAZY: dict[str, str] = {
     "ForensicsResult": "sb3_affect.study.forensics.analysis",
-    "run_forensics": "sb3_affect.study.forensics.analysis",
-    "Candidate": "sb3_affect.study.forensics.candidates",
-    "CandidateSpace": "sb3_affect.study.forensics.candidates",
-    "Protocol": "sb3_affect.study.forensics.candidates",
-    "Reading": "sb3_affect.study.forensics.candidates",
-    "Simulation": "sb3_affect.study.forensics.candidates",
+    "analyse": "sb3_affect.study.forensics.analysis",
+    "run_study": "sb3_affect.study.forensics.study_run",
+    "Candidate": "sb3_affect.study.launcher.forensics_candidates",
+    "CandidateSpace": "sb3_affect.study.launcher.forensics_candidates",
+    "Protocol": "sb3_affect.study.launcher.forensics_candidates",
+    "Reading": "sb3_affect.study.launcher.forensics_candidates",
+    "Simulation": "sb3_affect.study.launcher.forensics_candidates",
     "STATISTICS": "sb3_affect.study.forensics.statistics",
     "printed_numbers": "sb3_affect.study.forensics.statistics",
 }
@@ -48,6 +50,7 @@ __all__ = [
     "Protocol",
     "Reading",
     "Simulation",
+    "analyse",
     "printed_numbers",
-    "run_forensics",
+    "run_study",
 ]

@@ -1,4 +1,4 @@
-"""The report section of the forensics: tables and one figure, from the CSV files ``run_forensics`` wrote."""
+"""The report section of the forensics: tables and one figure, from the CSV files ``analysis.analyse`` wrote."""
 
 from __future__ import annotations
 
@@ -10,10 +10,10 @@ import numpy as np
 import pandas as pd
 
 from sb3_affect.core.settings import AffectQSettings
-from sb3_affect.study.forensics.candidates import Reading
+from sb3_affect.study.forensics.folder_status import MAX_RUN_BYTES
 from sb3_affect.study.forensics.scoring import MIN_REACH_REPS, NOT_REACHED, NOT_RULED_OUT, REACHED, transform
 from sb3_affect.study.forensics.statistics import LOG_SCALE, STATISTICS, candidate_statistics, cell_summary
-from sb3_affect.study.forensics.unit_files import MAX_SUMMARY_BYTES
+from sb3_affect.study.launcher.forensics_candidates import Reading
 from sb3_affect.study.launcher.regular_files import open_regular, read_json
 from sb3_affect.study.launcher.store import write_atomic
 from sb3_affect.study.report.reading.run_tables import load_results
@@ -249,7 +249,7 @@ def forensics_section(folder: str | Path, figures_dir: str | Path | None = None)
     """
     The section "Replication forensics" from a ``sb3-affect forensics`` folder.
 
-    :param folder: the folder ``run_forensics`` wrote
+    :param folder: the folder ``analysis.analyse`` wrote
     :param figures_dir: where to write the figure (default: ``folder/figures``)
     :return: its Markdown and its figure
     """
@@ -258,7 +258,7 @@ def forensics_section(folder: str | Path, figures_dir: str | Path | None = None)
         raise FileNotFoundError(f"{folder} holds no forensics results (run `sb3-affect forensics --out {folder}`)")
     figures_dir = Path(figures_dir or folder / "figures")
     figures_dir.mkdir(parents=True, exist_ok=True)
-    run = read_json(folder / "run.json", MAX_SUMMARY_BYTES)
+    run = read_json(folder / "run.json", MAX_RUN_BYTES)
     leaders = _csv(folder / "leaders.csv")
     screen = _csv(folder / "screen.csv")
     table = _csv(folder / "intervals.csv", index_col=0)
@@ -347,7 +347,7 @@ def forensics_section(folder: str | Path, figures_dir: str | Path | None = None)
 def findings_lines(table: pd.DataFrame, run: dict[str, Any]) -> list[str]:
     """
     What the forensics showed about each printed number, from the interval table's "finding" column (written by
-    ``run_forensics``): reached only on the leaders' full replications; screen-size coverage is "not ruled out".
+    ``analysis.analyse``): reached only on the leaders' full replications; screen-size coverage is "not ruled out".
     """
     if "finding" not in table.columns:  # a folder from before the findings: nothing is decided from its counts
         return ["This folder predates the findings: rerun `sb3-affect forensics` to decide which numbers are reached.", ""]
@@ -432,7 +432,7 @@ def report_section(folder: str | Path) -> Any:
         return None
 
     def forensics_report_section(ctx: Any) -> None:
-        run = read_json(folder / "run.json", MAX_SUMMARY_BYTES)
+        run = read_json(folder / "run.json", MAX_RUN_BYTES)
         section = forensics_section(folder, ctx.out / "figures")
         ctx.doc.md(section.markdown)
         for figure_path, caption in section.figures:

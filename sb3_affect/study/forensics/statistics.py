@@ -15,7 +15,7 @@ import math
 import numpy as np
 import pandas as pd
 
-from sb3_affect.study.forensics.candidates import OPTIMAL, STEP_UNITS, Reading
+from sb3_affect.study.launcher.forensics_candidates import OPTIMAL, STEP_UNITS, Reading
 from sb3_affect.study.report.estimation.bootstrap import paired_ttest_table
 from sb3_affect.study.report.verdicts import paper_numbers as paper
 

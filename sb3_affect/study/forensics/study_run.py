@@ -1,74 +1,73 @@
 """
-The forensics a sweep file states (``study: forensics``, ``launcher.study_schema.ForensicsStudy``): its sizes, its
-candidate grid and its protocol into ``run_forensics``, on the launcher's executor. ``sb3-affect run FILE``,
-``sb3-affect forensics`` and the main job all run the forensics through ``run_study``.
+The forensics a sweep file states (``study: forensics``, ``launcher.schema.ForensicsStudy``): its stages run by the
+launcher (``run_sweep`` with ``stages.plan_stages``, on its executor, stored by its ``ResultsStore``), then scored
+(``analysis.analyse``). ``sb3-affect run FILE``, ``sb3-affect forensics`` and the main job all run it through
+``run_study``.
 """
 
 from __future__ import annotations
 
-import dataclasses
-import os
+import functools
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from sb3_affect.study.forensics.analysis import run_forensics
-from sb3_affect.study.forensics.candidates import CandidateSpace, Protocol
+from sb3_affect.engine.simulation import simulate
+from sb3_affect.study.forensics.analysis import analyse
+from sb3_affect.study.forensics.stages import plan_stages
+from sb3_affect.study.launcher import run_sweep
+from sb3_affect.study.launcher.forensics_candidates import Simulation
+from sb3_affect.study.launcher.schema import ForensicsStudy
+from sb3_affect.study.launcher.store import StoreError
+from sb3_affect.study.launcher.sweep_file import load_sweep_file
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from sb3_affect.study.forensics.analysis import ForensicsResult
-    from sb3_affect.study.forensics.candidates import CandidateSpace, Protocol
-    from sb3_affect.study.launcher.study_schema import ForensicsStudy
-
-
-def study_space(study: ForensicsStudy) -> CandidateSpace:
-    """The candidate space of the file: the default space with the file's alphas and gammas."""
-
-    return dataclasses.replace(CandidateSpace.default(), alphas=tuple(study.alphas), gammas=tuple(study.gammas))
-
-
-def study_protocol(study: ForensicsStudy) -> Protocol:
-    """The protocol of the file: the paper's, with the keys its ``protocol`` section gives."""
-
-    given = study.protocol.model_dump(exclude_none=True)
-    if "epsilons" in given:
-        given["epsilons"] = tuple(given["epsilons"])
-    return Protocol(**given)
 
 
 def run_study(
-    study: ForensicsStudy,
+    path: str | Path,
     out: str | Path,
+    overrides: tuple[str, ...] | list[str] = (),
     *,
     workers: int | None = None,
     backend: str = "local",
     ray_address: str | None = None,
     ray_timeout: float = 60.0,
     progress: bool = True,
+    printed: np.ndarray | None = None,
 ) -> ForensicsResult:
     """
-    Run the forensics of a sweep file into ``out`` (resumable: stored replications are skipped).
-
-    :param workers: worker processes (default: the usable CPUs; Ray: tasks at a time on a private instance)
-    :param backend: ``"local"`` (forked processes) or ``"ray"`` (Ray tasks)
-    :param ray_address: the Ray cluster, HOST:PORT or ray://HOST:PORT (default: a private instance)
-    :param ray_timeout: seconds to wait for the Ray cluster to answer
-    :param progress: show progress bars
+    Run the forensics of a sweep file (with its ``--set`` ``overrides``) into ``out``, resumable: stored replications
+    are skipped. The launcher's arguments are ``run_sweep``'s; ``printed``: the numbers to explain (default: the
+    paper's). StoreError when some replications failed (the others are kept; a rerun retries them).
     """
+    study = load_sweep_file(path, overrides, build=False)
+    if not isinstance(study, ForensicsStudy):
+        raise ValueError(f"{path} is not a forensics study file (study: forensics)")
+    if backend == "local":
+        _warm_up(study)
+    stages = functools.partial(plan_stages, printed=printed)
+    summary = run_sweep(path, out, workers=workers, backend=backend, ray_address=ray_address, ray_timeout=ray_timeout,
+                        overrides=overrides, progress=progress, stages=stages)  # fmt: skip
+    if summary.failed:
+        raise StoreError(f"{summary.failed} replications failed (the others are kept; tracebacks in {Path(out) / 'failed'});"
+                         " rerun the same command to retry them")  # fmt: skip
+    result = analyse(study, out, printed, summary.seconds)
+    result.simulated, result.reused = summary.finished, summary.skipped
+    return result
 
-    workers = workers or (len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1)
-    return run_forensics(
-        out,
-        study_space(study),
-        study_protocol(study),
-        screen_reps=study.screen_reps,
-        leaders=study.leaders,
-        reps=study.reps,
-        workers=workers,
-        progress=progress,
-        backend=backend,
-        ray_address=ray_address,
-        ray_timeout=ray_timeout,
-    )
+
+def _warm_up(study: ForensicsStudy) -> None:
+    """One one-episode run of each agent in the driver: compiled code is loaded once, and every stage's forked workers
+    share it."""
+    space, protocol = study.space(), study.paper_protocol()
+    first: dict[str, Simulation] = {}
+    for simulation in space.standard_simulations() + space.affective_simulations():
+        first.setdefault(simulation.algo, simulation)
+    for simulation in first.values():
+        simulate(simulation.algo, simulation.algo_kwargs(0.5), protocol.env_id, protocol.env_kwargs, [0], 1)
 
 
 def summary_lines(study: ForensicsStudy, result: ForensicsResult, out: str | Path) -> list[str]:

@@ -1,6 +1,7 @@
 """
 Chunks: the finished runs of one batch in one Parquet file (``DIR/chunks/<batch>.parquet``): a tabular batch's episodes
-(``encode_chunk``), or a deep batch's evaluations (``encode_evaluations``, its footer's ``kind``: ``evaluations``).
+(``encode_chunk``), a deep batch's evaluations (``encode_evaluations``, its footer's ``kind``: ``evaluations``), or the
+forensics' replications (``encode_summaries``, ``kind``: ``summaries``).
 
 A chunk holds one row per episode: ``run`` (the run's index in the chunk) and every ``EPISODE_COLUMNS`` column (counts
 as int64, flags as booleans, null where a run can not tell, the rest float64; written before counts were int64:
@@ -299,4 +300,78 @@ def evaluation_cells(chunks: dict[Path, dict[str, Any]]) -> dict[tuple[str, str]
             "first_success": [meta["first_success"][index] for _, index, meta, _ in runs],
             "seconds": sum({meta["batch"]: meta["timings"]["cpu_seconds"] for meta in metas}.values()),
         }  # fmt: skip
+    return cells
+
+
+#: A chunk of the forensics' replications (``forensics.units.ForensicsBatch``) says so in its footer's ``kind``.
+SUMMARIES = "summaries"
+
+
+def encode_summaries(
+    name: str,
+    base: dict[str, Any],
+    runs: Sequence[tuple[str, int, int]],
+    cells: Sequence[dict[float, dict[str, float]]],
+    complete: Sequence[bool],
+    timings: dict[str, Any],
+    versions: dict[str, str],
+) -> bytes:
+    """
+    The Parquet bytes of a chunk of the forensics' replications: one row per run and ε cell, ``run``, ``epsilon`` and
+    each of the cell's sums (``forensics.statistics.cell_summary``, float64); the footer as ``encode_chunk``'s (each
+    run's decisions: 0) with ``kind`` and each run's ``complete`` (False: a pre-screen replication stopped early).
+    """
+    keys = sorted({key for run in cells for row in run.values() for key in row})
+    index = [(number, float(eps)) for number, run in enumerate(cells) for eps in sorted(run)]
+    arrays: dict[str, Any] = {
+        "run": arrow_array(np.array([number for number, _ in index], dtype=np.int32), pa.int32()),
+        "epsilon": arrow_array(np.array([eps for _, eps in index], dtype=np.float64), pa.float64()),
+    }
+    for key in keys:
+        arrays[key] = arrow_array(np.array([cells[n][e][key] for n, e in index], dtype=np.float64), pa.float64())
+    meta = {
+        "schema": CHUNK_SCHEMA, "kind": SUMMARIES, "batch": name, "base": base,
+        "runs": [[rid, seed, replicate, 0] for rid, seed, replicate in runs], "complete": [bool(c) for c in complete],
+        "timings": timings, "versions": versions,
+    }  # fmt: skip
+    table = pa.table(arrays).replace_schema_metadata({META_KEY: json.dumps(meta, sort_keys=True).encode()})
+    sink = io.BytesIO()
+    pq.write_table(table, sink, compression="lz4")
+    return sink.getvalue()
+
+
+def summary_rows(path: Path, meta: dict[str, Any]) -> list[tuple[dict[str, np.ndarray], bool]]:
+    """
+    A chunk of replications' rows, per run (in the footer's order): ``{column: values by ε}`` with ``epsilon``, and
+    whether the run is complete; or a ``ValueError`` saying why they are not the rows its footer describes.
+    """
+    runs, complete = len(meta["runs"]), meta.get("complete")
+    if not (isinstance(complete, list) and len(complete) == runs and all(isinstance(c, bool) for c in complete)):
+        raise ValueError(f"has no complete flag of its {runs} runs in its footer")
+    table = pq.ParquetFile(path).read()
+    columns = {name: table.column(name).to_numpy() for name in table.column_names}
+    if "run" not in columns or "epsilon" not in columns or len(columns) < 3:
+        raise ValueError("holds no run, epsilon and summary columns")
+    if not all(np.isfinite(values).all() for name, values in columns.items() if name != "run"):
+        raise ValueError("has a cell summary that is not a finite number")
+    out = []
+    for number in range(runs):
+        rows = columns["run"] == number
+        if not rows.any() or not np.all(np.diff(columns["epsilon"][rows]) > 0):
+            raise ValueError(f"does not hold run {number}'s ε cells in order")
+        out.append(({name: values[rows] for name, values in columns.items() if name != "run"}, complete[number]))
+    return out
+
+
+def summary_cells(chunks: dict[Path, dict[str, Any]]) -> dict[tuple[str, str, int], tuple[dict[str, np.ndarray], bool]]:
+    """
+    The chunks of replications of a folder (path -> footer, checked): ``(simulation, stage, replication) -> (rows,
+    complete)`` (``summary_rows``).
+    """
+    cells = {}
+    for path, meta in chunks.items():
+        if meta.get("kind") == SUMMARIES:
+            base = meta["base"]
+            for (_, _, replicate, _), rows in zip(meta["runs"], summary_rows(path, meta)):
+                cells[base["agent"], base["labels"]["stage"], replicate] = rows
     return cells

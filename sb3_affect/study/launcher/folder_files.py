@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 from sb3_affect.core.episode_log import EPISODE_COLUMNS
-from sb3_affect.study.launcher.chunks import EPISODES, EVALUATIONS, chunk_meta, evaluation_table
+from sb3_affect.study.launcher.chunks import EPISODES, EVALUATIONS, SUMMARIES, chunk_meta, evaluation_table, summary_rows
 from sb3_affect.study.launcher.regular_files import UnreadableFile, check_regular, read_bytes
 from sb3_affect.study.launcher.run_ids import base_run_ids, run_id, stored_matches
 
@@ -93,12 +93,15 @@ class FolderFiles:
         return done
 
     def episode_chunks(self) -> dict[Path, dict[str, Any]]:
-        """The chunks of episodes, each with its footer: not those of a deep study's evaluations (their footer's kind)."""
-        return {path: meta for path, meta in self.chunk_files.items() if meta.get("kind") != EVALUATIONS}
+        """The chunks of episodes, each with its footer: not those of a deep study's evaluations or of the forensics'
+        summaries (their footer's kind)."""
+        return {path: meta for path, meta in self.chunk_files.items() if meta.get("kind") not in (EVALUATIONS, SUMMARIES)}
 
     def kinds(self) -> set[str]:
-        """The kinds of records the files hold: ``EPISODES`` (run files, chunks of episodes), ``EVALUATIONS``."""
-        kinds = {EVALUATIONS if meta.get("kind") == EVALUATIONS else EPISODES for meta in self.chunk_files.values()}
+        """The kinds of records the files hold: ``EPISODES`` (run files, chunks of episodes), ``EVALUATIONS``,
+        ``SUMMARIES``."""
+        kinds = {str(meta["kind"]) if meta.get("kind") in (EVALUATIONS, SUMMARIES) else EPISODES
+                 for meta in self.chunk_files.values()}
         return kinds | ({EPISODES} if self.run_files else set())
 
 
@@ -162,9 +165,9 @@ def check_chunk(path: Path) -> dict[str, Any]:
         raise DamagedFile("has no timings in its footer")
     if meta.get("batch") != path.stem:
         raise DamagedFile(f"holds batch {meta.get('batch')!r}, not the batch of its file name (a copy?)")
-    if meta.get("kind") == EVALUATIONS:  # a deep batch's few rows: read and checked whole
+    if meta.get("kind") in (EVALUATIONS, SUMMARIES):  # a deep or forensics batch's few rows: read and checked whole
         try:
-            evaluation_table(path, meta)
+            (evaluation_table if meta["kind"] == EVALUATIONS else summary_rows)(path, meta)
         except Exception as error:
             if not isinstance(error, (OSError, ValueError, KeyError, TypeError)) and "pyarrow" not in type(error).__module__:
                 raise

@@ -4,9 +4,10 @@ Run a sweep: skip finished runs, execute the rest on a backend, store each resul
 The runs are cut into jobs (``batches``): tabular runs of this package's agents on its envs go in batches of one
 cell each (one ``engine.simulate`` call, stored as one Parquet chunk), the deep study's runs (``study: deep``) in deep
 batches of one cell each (``deep_batches``: seeds trained together by ``train_many``, their evaluations stored as one
-chunk), any other run is a job of its own (one JSON file). Import and scheduling costs are paid once per job, the fork
-once per worker. A cell whose agent replays another's random share waits for that agent's cell on the same task: the
-jobs run in waves, each wave the jobs whose sources are done (``plan_jobs``).
+chunk), the forensics' replications (``study: forensics``) in the batches its ``stages`` plan (``forensics.stages``:
+stage after stage, each a wave), any other run is a job of its own (one JSON file). Import and scheduling costs are
+paid once per job, the fork once per worker. A cell whose agent replays another's random share waits for that agent's
+cell on the same task: the jobs run in waves, each wave the jobs whose sources are done (``plan_jobs``).
 
 Backends:
 
@@ -26,12 +27,13 @@ same per-episode records on either backend.
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 import sys
 import time
 import traceback
-from collections.abc import Collection, Sequence
+from collections.abc import Callable, Collection, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -53,9 +55,13 @@ from sb3_affect.study.launcher.deep_batches import DeepBatch, replayed_epsilons,
 from sb3_affect.study.launcher.deep_schema import DeepStudy
 from sb3_affect.study.launcher.local_pool import OnFailure, OnResult, W, run_local
 from sb3_affect.study.launcher.one_run import package_versions
-from sb3_affect.study.launcher.schema import Cell
+from sb3_affect.study.launcher.schema import Cell, ForensicsStudy, SweepError
 from sb3_affect.study.launcher.store import SWEEP_SCHEMA, ResultsStore, cell_run_ids, store_error
 from sb3_affect.study.launcher.sweep_file import load_sweep
+
+#: A study's own planner of its waves (the forensics' ``stages.plan_stages``): ``stages(study, cells, cell_ids, store,
+#: workers, tried)``, the next wave's jobs ([]: none now).
+Stages = Callable[..., list[Job]]
 
 
 @dataclass
@@ -144,6 +150,7 @@ def run_sweep(
     ray_timeout: float = 60.0,
     overrides: tuple[str, ...] | list[str] = (),
     progress: bool = True,
+    stages: Stages | None = None,
 ) -> SweepSummary:
     """
     Run every run of a sweep file that ``out_dir`` does not already hold, and store the results.
@@ -158,6 +165,7 @@ def run_sweep(
     :param ray_timeout: seconds to wait for the Ray cluster to answer before giving up with a message
     :param overrides: ``key=value`` assignments applied to the file before validation (``--set``)
     :param progress: show a progress bar
+    :param stages: the planner of a study run in stages (the forensics': ``forensics.stages.plan_stages``)
     """
     if backend not in ("local", "ray"):
         raise ValueError(f"backend={backend!r} is not supported; choose 'local' or 'ray'")
@@ -167,11 +175,18 @@ def run_sweep(
         raise ValueError(f"workers={workers} must be >= 1")
     start = time.perf_counter()
     sweep = load_sweep(sweep_path, tuple(overrides), deep=True)
+    if not isinstance(sweep, ForensicsStudy):
+        stages = None  # (a sweep of runs, the deep study: planned by plan_jobs itself)
+    elif stages is None:
+        raise SweepError(f"{sweep_path}: the forensics runs in stages: pass stages=forensics.stages.plan_stages, or run "
+                         f"it with `sb3-affect run {sweep_path} --out DIR`")
+    else:
+        stages = functools.partial(stages, sweep)
     cells = sweep.cells()
     cell_ids = [cell_run_ids(cell) for cell in cells]
     total = sum(len(ids) for ids in cell_ids)
     resolved = {"schema": SWEEP_SCHEMA, "name": sweep.name, "sweep": sweep.model_dump(mode="json"), "total_runs": total}
-    if sweep.tasks:  # the file's order of the tasks (sweep.json sorts the keys of a mapping)
+    if not isinstance(sweep, ForensicsStudy) and sweep.tasks:  # the file's order of the tasks (sweep.json sorts them)
         resolved["task_order"] = list(sweep.tasks)
     store = ResultsStore(out_dir)
     store.claim(resolved)  # (before the lock file: a folder of another kind is left as it was)
@@ -187,7 +202,7 @@ def run_sweep(
             print(f"sb3-affect: {line}", file=sys.stderr, flush=True)
         done = store.done_ids()
         todo = total - len(done)
-        jobs = plan_jobs(cells, cell_ids, store, workers, sweep.logs, done=done)
+        jobs = plan_jobs(cells, cell_ids, store, workers, sweep.logs, done=done, stages=stages)
         counts = {"finished": 0, "failed": 0}
         bar = _progress(total, total - todo, sweep.name, progress)
         tried: set[str] = set()  # the runs of this launch's jobs: a failed one waits for the next launch
@@ -216,8 +231,8 @@ def run_sweep(
                     run_local(jobs, workers, on_result, on_failure)
                 else:
                     run_ray(jobs, workers, on_result, on_failure, ray_address, cap=cap, timeout=ray_timeout)
-                waves = any(cell.base.get("replays") for cell in cells)  # (a sweep of runs: one wave)
-                jobs = plan_jobs(cells, cell_ids, store, workers, sweep.logs, tried) if waves else []
+                waves = stages is not None or any(cell.base.get("replays") for cell in cells)  # (a sweep of runs: one)
+                jobs = plan_jobs(cells, cell_ids, store, workers, sweep.logs, tried, stages=stages) if waves else []
         finally:
             bar.close()
     seconds = time.perf_counter() - start
@@ -236,13 +251,17 @@ def plan_jobs(
     logs: list[str],
     tried: Collection[str] = (),
     done: set[str] | None = None,
+    stages: Stages | None = None,
 ) -> list[Job]:
     """
     The jobs of the runs ``store`` does not hold yet (nor ``tried``): batches of the cells that can run as batches (at
     most ``batch_size`` runs each, or the cell's own ``batch_size``), deep batches of the deep study's cells whose
     ``replays`` source is done (a cell waiting for its source: no job yet), one job per run for the others (with its
-    log folder when ``logs`` asks for one). ``done``: the store's finished runs, when already read.
+    log folder when ``logs`` asks for one). ``done``: the store's finished runs, when already read. A study run in
+    ``stages`` (the forensics) is planned by them, its study bound: the next stage's jobs.
     """
+    if stages is not None:
+        return stages(cells, cell_ids, store, workers, tried)
     done = store.done_ids() if done is None else done
     formats = tuple(logs) or ("csv",)
     todo = [[(rid, cell.seeds[i], i) for i, rid in enumerate(ids) if rid not in done and rid not in tried]

@@ -2,10 +2,10 @@
 The ``local`` backend: jobs in forked worker processes, at most ``workers`` at a time.
 
 A batch (``batches.Batch``: one ``engine.simulate`` call, a pure function of its config), or any other unit of work
-that is not a single run (``batches.Work``: a forensics replication), runs in a long-lived worker, which is forked
-once and then takes unit after unit over a pipe: the fork, and the copy-on-write and page faults
-that follow it, are paid once per worker instead of once per unit. A single run (``batches.Single``: DQN, a user's
-class, a run with logs) keeps a fresh process of its own, as it always had, so nothing one run leaves in a process
+that is not a single run (``batches.Work``: a deep study's or the forensics' batch), runs in a long-lived worker, which
+is forked once and then takes unit after unit over a pipe: the fork, and the copy-on-write and page faults that follow
+it, are paid once per worker instead of once per unit. A single run (``batches.Single``: DQN, a user's class, a run
+with logs) keeps a fresh process of its own, as it always had, so nothing one run leaves in a process
 (global random states, warnings filters, registered envs, torch settings) can reach another; the process exits
 after that one run.
 

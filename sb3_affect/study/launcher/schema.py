@@ -32,6 +32,7 @@ numbers before anything is allocated: ``MAX_SEEDS``, ``MAX_GRID_POINTS``, ``MAX_
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import importlib
 import itertools
@@ -39,7 +40,7 @@ import json
 import math
 import re
 from dataclasses import dataclass
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 import gymnasium as gym
 from pydantic import (
@@ -59,6 +60,7 @@ from sb3_affect.core.positions import POSITION_PRESETS
 from sb3_affect.core.registry import ENV_WRAPPERS, check_algo, check_wrapper, import_env_package, known_settings, resolve_class
 from sb3_affect.core.settings import AffectQSettings
 from sb3_affect.envs import PARALLEL_ENVS
+from sb3_affect.study.launcher.forensics_candidates import CandidateSpace, Protocol
 from sb3_affect.study.launcher.run_ids import RESERVED_LABELS
 
 #: Wrapper names (the env section's and an agent's own), each checked against the registry's ``ENV_WRAPPERS``.
@@ -634,3 +636,134 @@ def derive_seeds(sweep: str, agent: str, point: dict[str, Any], count: int) -> l
         int.from_bytes(hashlib.sha256(f"{head}{replicate}]".encode()).digest()[:4], "big") & 0x7FFFFFFF
         for replicate in range(count)
     ]
+
+
+#: Replications of one simulation of the forensics (``ForensicsStudy``).
+MAX_REPS = 10_000
+#: The forensics' stages as cell labels: the pre-screen's replication 0 (maybe stopped early), then every replication.
+PRESCREEN, REPLICATIONS = "prescreen", "replications"
+
+
+def _check_range(values: list[float] | None, what: str, low_open: bool) -> None:
+    """
+    Each value in [0, 1] (``low_open``: in (0, 1]) and given once (a value twice would be one simulation counted as
+    two), or a one-line error naming the first that is not.
+    """
+    for index, value in enumerate(values or []):
+        if not (0 < value <= 1 if low_open else 0 <= value <= 1):
+            raise ValueError(f"{value!r} is not {what}; each is in {'(0, 1]' if low_open else '[0, 1]'}")
+        if value in (values or [])[:index]:
+            raise ValueError(f"{value!r} is given twice; give each {what.removeprefix('an ').removeprefix('a ')} once")
+
+
+class ProtocolSpec(BaseModel):
+    """The forensics' ``protocol``: what one replication of a simulation runs (a key left out: the paper's)."""
+
+    model_config = ConfigDict(extra="forbid")
+    epsilons: list[float] | None = Field(
+        default=None,
+        min_length=2,
+        description="the ε values, each in [0, 1]; the affective agent runs once per value (null: the paper's 0.1, "
+        "0.2, ..., 0.9)",
+    )
+    seeds: int | None = Field(
+        default=None, gt=0, le=MAX_SEEDS, description="simulations per ε and agent (null: the paper's 20)"
+    )
+    episodes: int | None = Field(
+        default=None, gt=0, le=MAX_EPISODES, description="episodes per simulation (null: the paper's 200)"
+    )
+
+    @field_validator("epsilons")
+    @classmethod
+    def _epsilons(cls, value: list[float] | None) -> list[float] | None:
+        _check_range(value, "an ε", low_open=False)
+        return value
+
+
+class ForensicsStudy(BaseModel):
+    """
+    A sweep file of the replication forensics (top-level keys).
+
+    Which candidate implementation could have printed the paper's numbers: its runs are (simulation, replication)
+    units (``cells``), run in stages by the launcher (``plan_jobs`` with the forensics' ``stages``)::
+
+        name: forensics
+        study: forensics
+        screen_reps: 2          # replications of every simulation in the screen
+        leaders: 4              # affective simulations replicated in full
+        reps: 30                # replications of each leader
+        alphas: [0.5, 1.0]      # the candidate grid's learning rates
+        gammas: [0.7, 0.8, 0.9] # and discounts
+    """
+
+    model_config = ConfigDict(extra="forbid")
+    name: str = Field(pattern=NAME_PATTERN, description="the study's name (letters, digits, _ . + -, at most 64 characters)")
+    study: Literal["forensics"] = Field(
+        description="marks the file as the replication forensics: which candidate implementation could have printed "
+        "the paper's numbers"
+    )
+    screen_reps: int = Field(
+        ge=2, le=MAX_REPS, description="replications of every simulation in the screen (a spread needs two)"
+    )
+    leaders: int = Field(ge=1, description="affective simulations, best first after the screen, replicated in full")
+    reps: int = Field(
+        ge=2, le=MAX_REPS, description=f"replications of each leader, at least screen_reps (at most {MAX_REPS:,})"
+    )
+    alphas: list[float] = Field(min_length=1, description="the learning rates of the candidate grid, each in (0, 1]")
+    gammas: list[float] = Field(min_length=1, description="the discounts of the candidate grid, each in [0, 1]")
+    protocol: ProtocolSpec = Field(
+        default_factory=ProtocolSpec, description="what one replication runs (below; default: the paper's protocol)"
+    )
+
+    @property
+    def logs(self) -> list[str]:
+        """No SB3 logs: the forensics runs on the compiled engine (a sweep's ``logs``)."""
+        return []
+
+    def space(self) -> CandidateSpace:
+        """The candidate space of the file: the default space with the file's alphas and gammas."""
+        return dataclasses.replace(CandidateSpace.default(), alphas=tuple(self.alphas), gammas=tuple(self.gammas))
+
+    def paper_protocol(self) -> Protocol:
+        """The protocol of the file: the paper's, with the keys its ``protocol`` section gives."""
+        given = self.protocol.model_dump(exclude_none=True)
+        if "epsilons" in given:
+            given["epsilons"] = tuple(given["epsilons"])
+        return Protocol(**given)
+
+    def cells(self) -> list[Cell]:
+        """
+        The study as the launcher's cells, two per simulation of the grid: its pre-screen (replication 0, which may
+        stop early) and its replications (``reps``; the stages ask for those they need). A replication is a run: its
+        ``seed`` and replicate are its index, its base the simulation and the protocol (its run id hashes them).
+        """
+        space, protocol = self.space(), self.paper_protocol()
+        cells = []
+        for stage, count in ((PRESCREEN, 1), (REPLICATIONS, self.reps)):
+            for sim in space.standard_simulations() + space.affective_simulations():
+                base = {"sweep": self.name, "study": "forensics", "agent": sim.key, "algo": sim.algo, "seed": None,
+                        "labels": {"stage": stage}, "simulation": dataclasses.asdict(sim), "algo_kwargs": {},
+                        "env_id": protocol.env_id, "env_kwargs": protocol.env_kwargs,
+                        "protocol": protocol.as_dict()}  # fmt: skip
+                cells.append(Cell(base, list(range(count))))
+        return cells
+
+    @field_validator("alphas")
+    @classmethod
+    def _alphas(cls, value: list[float]) -> list[float]:
+        _check_range(value, "a learning rate", low_open=True)
+        return value
+
+    @field_validator("gammas")
+    @classmethod
+    def _gammas(cls, value: list[float]) -> list[float]:
+        _check_range(value, "a discount", low_open=False)
+        return value
+
+    @field_validator("reps")
+    @classmethod
+    def _enough_reps(cls, value: int, info: ValidationInfo) -> int:
+        screen_reps = info.data.get("screen_reps")
+        if screen_reps is not None and value < screen_reps:
+            raise ValueError(f"fewer than screen_reps ({screen_reps}); give reps >= {screen_reps}")
+        return value

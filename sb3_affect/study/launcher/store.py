@@ -5,8 +5,8 @@ the driver only.
 Layout of a results folder ``DIR``::
 
     DIR/sweep.json          the resolved sweep; a different sweep into DIR is refused
-    DIR/chunks/<batch>.parquet  the finished runs of one batch: one row per episode (a deep batch: per evaluation),
-                            per-run data in the footer
+    DIR/chunks/<batch>.parquet  the finished runs of one batch: one row per episode (a deep batch: per evaluation,
+                            a forensics batch: per ε cell), per-run data in the footer
     DIR/runs/<id>.json      one finished run executed on its own: config, per-episode columns, timings, versions
     DIR/chunks/.sweep, DIR/runs/.sweep  copies of sweep.json: deleting one file does not forget the sweep
     DIR/failed/<id>.json    a run that raised or whose worker died: config and traceback (retried on resume)
@@ -31,12 +31,12 @@ from pydantic import ValidationError
 
 from sb3_affect.core.episode_log import EPISODE_COLUMNS
 from sb3_affect.study.launcher import folder_lock
-from sb3_affect.study.launcher.chunks import chunk_records, evaluation_cells
+from sb3_affect.study.launcher.chunks import chunk_records, evaluation_cells, summary_cells
 from sb3_affect.study.launcher.deep_schema import DeepStudy
 from sb3_affect.study.launcher.folder_files import MAX_SWEEP_FILE_BYTES, FolderFiles, guarded, sort_files
 from sb3_affect.study.launcher.regular_files import read_json, write_file, write_files
 from sb3_affect.study.launcher.run_ids import base_run_ids
-from sb3_affect.study.launcher.schema import Sweep
+from sb3_affect.study.launcher.schema import ForensicsStudy, Sweep
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -88,13 +88,13 @@ def store_error(folder: Path, error: OSError) -> StoreError:
 
 IDENTITY_COPIES = ("chunks/.sweep", "runs/.sweep")
 #: The record that marks each kind of results folder, and how a refusal names it: a folder holds one kind of study
-#: (``deep``: a deep study of the layout before its runs went into the store, refused; a deep study's folder now holds a
-#: sweep.json whose sweep says ``study: deep``, ``study_kind``).
+#: (``deep``, ``forensics``: a study of the layout before its runs went into the store, refused; such a study's folder
+#: now holds a sweep.json whose sweep says ``study: deep`` or ``study: forensics``, ``study_kind``).
 KIND_FILES = {"sweep": "sweep.json", "deep": "deep_study.json", "forensics": "forensics.json"}
 KIND_NAMES = {"sweep": "a sweep", "deep": "a deep study", "forensics": "the replication forensics",
               "replication": "a replication"}  # fmt: skip
-#: The file that marks a forensics folder (``sb3_affect.study.forensics.unit_files``): no sweep is run into one.
-FORENSICS_FILE = KIND_FILES["forensics"]
+#: The per-run folders of the studies' earlier layouts (``old_layout``).
+OLD_FOLDERS = {"deep": "cells/", "forensics": "summaries/"}
 
 
 def folder_kind(root: Path) -> tuple[str, str] | None:
@@ -112,10 +112,10 @@ def folder_kind(root: Path) -> tuple[str, str] | None:
     return ("replication", ", ".join(parts)) if parts else None
 
 
-def old_deep_layout(root: Path, marker: str) -> str:
-    """The one line that refuses a deep study's folder of the layout before its runs went into the store."""
-    return (f"{root} holds a deep study of an earlier layout ({marker}, cells/), which is no longer read: rerun the "
-            f"study into a new folder, e.g. --out {root.parent / (root.name + '-new')}")
+def old_layout(root: Path, kind: str) -> str:
+    """The one line that refuses a deep study's or a forensics' folder of the layout before its runs went into the store."""
+    return (f"{root} holds {KIND_NAMES[kind]} of an earlier layout ({KIND_FILES[kind]}, {OLD_FOLDERS[kind]}), which is "
+            f"no longer read: rerun the study into a new folder, e.g. --out {root.parent / (root.name + '-new')}")
 
 
 def claim_kind(root: Path, kind: str, suggestion: str) -> None:
@@ -124,8 +124,8 @@ def claim_kind(root: Path, kind: str, suggestion: str) -> None:
     (``folder_kind``); ``suggestion``: the sub-folder the line proposes instead.
     """
     held = folder_kind(root)
-    if held is not None and held[0] == "deep":
-        raise StoreError(old_deep_layout(root, held[1]))
+    if held is not None and held[0] in OLD_FOLDERS:
+        raise StoreError(old_layout(root, held[0]))
     if held is not None and held[0] != kind:
         what = KIND_NAMES[kind].split(" ", 1)[1]
         raise StoreError(
@@ -317,8 +317,11 @@ class ResultsStore:
             return {rid: c["agent"] for rid, c in resolved["runs"].items()}
 
         try:
-            deep = study_kind(resolved) == "deep"
-            sweep = DeepStudy.model_validate(resolved["sweep"]) if deep else Sweep.validate_saved(resolved["sweep"])
+            kind, saved = study_kind(resolved), resolved["sweep"]
+            sweep: Sweep | DeepStudy | ForensicsStudy = (
+                DeepStudy.model_validate(saved) if kind == "deep"
+                else ForensicsStudy.model_validate(saved) if kind == "forensics" else Sweep.validate_saved(saved)
+            )  # fmt: skip
         except ValidationError as error:
             first = error.errors()[0]
             where = ".".join(str(part) for part in first["loc"])
@@ -392,6 +395,13 @@ class ResultsStore:
         tasks, agents = saved.get("task_order") or list(saved["sweep"].get("tasks", {})), saved["sweep"].get("agents", [])
         return {(task, agent["name"]): cells[task, agent["name"]] for task in tasks for agent in agents
                 if (task, agent["name"]) in cells}  # fmt: skip
+
+    def summaries(self) -> dict[tuple[str, str, int], tuple[dict[str, Any], bool]]:
+        """
+        The forensics' finished replications ``(simulation, stage, replication) -> (rows by ε, complete)``
+        (``chunks.summary_cells``), from the files that count; StoreError naming the first that does not.
+        """
+        return summary_cells(self._checked().chunk_files)
 
     def runs_frame(self) -> pd.DataFrame:
         """
@@ -485,9 +495,10 @@ class ResultsStore:
 
 
 def study_kind(resolved: dict[str, Any]) -> str:
-    """The kind of study a resolved sweep (``sweep.json``) runs: ``deep`` (``study: deep``) or ``sweep`` (of runs)."""
+    """The kind of study a resolved sweep (``sweep.json``) runs: ``deep``, ``forensics`` (its ``study``) or ``sweep``."""
     sweep = resolved.get("sweep")
-    return "deep" if isinstance(sweep, dict) and sweep.get("study") == "deep" else "sweep"
+    study = sweep.get("study") if isinstance(sweep, dict) else None
+    return study if study in ("deep", "forensics") else "sweep"
 
 
 def replication_parts(root: Path) -> list[str]:

@@ -1,9 +1,9 @@
 """
 Reading a sweep file: ``load_sweep_file`` parses the YAML, applies ``--set key.path=value`` overrides (each checked
-against the schema of ``schema``, or of ``study_schema`` for a file with ``study:``, naming the keys allowed where one
-is unknown), validates the result and turns every problem into one ``SweepError`` that names the file, the key
-(agents by name) and whether the file or an override caused it; for a sweep of runs (``load_sweep``) it then builds the
-env and each agent once, so that a bad kwarg is reported before anything runs.
+against the schema of ``schema``, or of a study's model (``ForensicsStudy``, ``DeepStudy``) for a file with ``study:``,
+naming the keys allowed where one is unknown), validates the result and turns every problem into one ``SweepError`` that
+names the file, the key (agents by name) and whether the file or an override caused it; for a sweep of runs
+(``load_sweep``) it then builds the env and each agent once, so that a bad kwarg is reported before anything runs.
 
 The YAML is read strictly: a key given twice in one mapping is an error (not "the last wins"), and a file that
 expands to more than ``MAX_VALUES`` values (YAML aliases repeat what they name: a few hundred bytes can stand for
@@ -23,8 +23,15 @@ from pydantic import ValidationError
 
 from sb3_affect.study.launcher.deep_schema import DeepStudy
 from sb3_affect.study.launcher.one_run import check_configs_in_child
-from sb3_affect.study.launcher.schema import KWARG_REFERENCE, AgentSpec, EnvSpec, Sweep, SweepError
-from sb3_affect.study.launcher.study_schema import ForensicsStudy, ProtocolSpec
+from sb3_affect.study.launcher.schema import (
+    KWARG_REFERENCE,
+    AgentSpec,
+    EnvSpec,
+    ForensicsStudy,
+    ProtocolSpec,
+    Sweep,
+    SweepError,
+)
 from sb3_affect.study.studies import shipped_sweeps_folder
 
 __all__ = ["load_sweep", "load_sweep_file", "resolve_sweep_path", "shipped_sweeps"]
@@ -261,16 +268,16 @@ def _key_path(location: tuple[Any, ...], data: dict[str, Any]) -> str:
 
 def load_sweep(
     path: str | Path, overrides: tuple[str, ...] | list[str] = (), *, build: bool = True, deep: bool = False
-) -> Sweep | DeepStudy:
+) -> Sweep | DeepStudy | ForensicsStudy:
     """
     Read, override and validate a sweep file of runs; every problem is a ``SweepError`` naming the file and the key.
 
     :param build: also build the env and each agent once (without training, in a short-lived child process), so
         that an unknown or impossible kwarg is reported now rather than by every run of the sweep
-    :param deep: a deep study's file (``study: deep``, a ``DeepStudy``) is one too (the launcher's)
+    :param deep: a study's file the launcher runs too (``study: deep`` or ``study: forensics``) is one too
     """
     sweep = load_sweep_file(path, overrides, build=build)
-    if not isinstance(sweep, Sweep) and not (deep and isinstance(sweep, DeepStudy)):
+    if not isinstance(sweep, Sweep) and not (deep and isinstance(sweep, (DeepStudy, ForensicsStudy))):
         raise SweepError(
             f"{resolve_sweep_path(path)}: the {sweep.study} study has no runs of its own; run it with "
             f"`sb3-affect run {path} --out DIR`"

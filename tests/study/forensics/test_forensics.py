@@ -1,8 +1,10 @@
-"""Replication forensics: the statistics agree with the report's, the store resumes, the method recovers a candidate."""
+"""
+Replication forensics: the statistics agree with the report's, its stages run through the launcher and its results
+store (resume, failed/, damaged/, status), the method recovers a candidate.
+"""
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import math
 import re
@@ -22,10 +24,9 @@ from sb3_affect.study.forensics import (
     Reading,
     Simulation,
     printed_numbers,
-    run_forensics,
+    run_study,
 )
-from sb3_affect.study.forensics.analysis import REJECT_FACTOR, _interval_table, _steps_ratio
-from sb3_affect.study.forensics.parallel_units import run_units, simulate_unit
+from sb3_affect.study.forensics.analysis import _interval_table
 from sb3_affect.study.forensics.scoring import (
     MIN_REACH_REPS,
     NOT_REACHED,
@@ -37,12 +38,12 @@ from sb3_affect.study.forensics.scoring import (
     reach_findings,
 )
 from sb3_affect.study.forensics.section import findings_lines, forensics_section, report_section
+from sb3_affect.study.forensics.stages import REJECT_FACTOR, steps_ratio
 from sb3_affect.study.forensics.statistics import candidate_statistics, cell_summary
-from sb3_affect.study.forensics.study_run import study_protocol, study_space
-from sb3_affect.study.forensics.unit_files import SummaryStore
-from sb3_affect.study.launcher import run_sweep
+from sb3_affect.study.forensics.units import ForensicsBatch, simulate_unit
+from sb3_affect.study.launcher import ResultsStore, run_sweep
+from sb3_affect.study.launcher.schema import PRESCREEN, ForensicsStudy, SweepError
 from sb3_affect.study.launcher.store import StoreError
-from sb3_affect.study.launcher.study_schema import ForensicsStudy
 from sb3_affect.study.launcher.sweep_file import load_sweep_file
 from sb3_affect.study.report import build_report
 from sb3_affect.study.report.reading.run_tables import run_metrics
@@ -94,23 +95,20 @@ def test_table_v_sum_is_the_mean_times_the_runs() -> None:
 def test_pre_screen_factor_uses_the_closer_step_unit() -> None:
     summary = pd.DataFrame({"n": [20.0, 20.0], "decisions": [20 * 50.0, 20 * 70.0], "cells": [20 * 600.0, 20 * 600.0]})
     observed = printed_numbers()  # affective 56.28, epsilon-greedy 67.02
-    assert _steps_ratio(summary, observed, standard=False) == pytest.approx(60 / 56.28)
-    assert _steps_ratio(summary, observed, standard=True) == pytest.approx(67.02 / 60)
+    assert steps_ratio(summary, observed, standard=False) == pytest.approx(60 / 56.28)
+    assert steps_ratio(summary, observed, standard=True) == pytest.approx(67.02 / 60)
     frozen = summary.assign(decisions=20 * 20000.0, cells=20 * 20000.0)
-    assert _steps_ratio(frozen, observed, standard=True) == pytest.approx(20000 / 67.02)
+    assert steps_ratio(frozen, observed, standard=True) == pytest.approx(20000 / 67.02)
     assert REJECT_FACTOR < 20000 / 67.02
 
 
-def test_pre_screen_stops_a_frozen_replication_early(tmp_path: Path) -> None:
+def test_pre_screen_stops_a_frozen_replication_early() -> None:
     protocol = Protocol(epsilons=(0.1, 0.2, 0.9), seeds=2, episodes=5)
     frozen = Simulation("epsilon-greedy", 1.0, 0.8)  # first cell ~ a few hundred steps per episode: above 1 step
-    store = SummaryStore(tmp_path, protocol)
-    assert run_units(store, [(frozen, 0)], workers=1, progress=False, stop_above={frozen: 1.0}) == 1
-    assert store.has(frozen, 0, partial_ok=True) and not store.has(frozen, 0)
-    assert len(store.read(frozen, 0, partial_ok=True)) == 1  # stopped after the first epsilon cell
-    assert run_units(store, [(frozen, 0)], workers=1, progress=False, stop_above={frozen: 1.0}) == 0
-    assert run_units(store, [(frozen, 0)], workers=1, progress=False) == 1  # a full replication is another thing
-    assert len(store.read(frozen, 0)) == 3 and store.replications(frozen) == [0]
+    _, cells, complete = simulate_unit((frozen, 0), protocol, stop_above=1.0)
+    assert not complete and list(cells) == [0.1]  # stopped after the first epsilon cell
+    _, full, complete = simulate_unit((frozen, 0), protocol)
+    assert complete and list(full) == [0.1, 0.2, 0.9] and full[0.1] == cells[0.1]
 
 
 def test_scoring_prefers_the_sample_that_holds_the_value() -> None:
@@ -195,18 +193,29 @@ def test_the_shipped_sweep_file_is_the_main_jobs_forensics() -> None:
     study = load_sweep_file("forensics")  # by name: the file shipped with the package
     assert isinstance(study, ForensicsStudy)
     assert (study.screen_reps, study.leaders, study.reps) == (2, 4, 30)
-    assert study_space(study) == CandidateSpace.default() and study_protocol(study) == Protocol()
+    assert study.space() == CandidateSpace.default() and study.paper_protocol() == Protocol()
 
 
-def test_a_replications_or_a_sweeps_folder_is_refused(tmp_path: Path) -> None:
-    (tmp_path / "replicate.json").write_text("{}")  # `sb3-affect run forensics --out runs`, forgetting /forensics
-    refused = rf"holds a replication \(replicate.json\), which the replication forensics .*--out {tmp_path / 'forensics'}$"
+def test_a_replications_a_sweeps_or_an_old_forensics_folder_is_refused(tmp_path: Path) -> None:
+    (tmp_path / "tiny.yaml").write_text(TINY_STUDY)
+    (tmp_path / "runs").mkdir()
+    (tmp_path / "runs" / "replicate.json").write_text("{}")  # `sb3-affect run forensics --out runs`, forgetting /forensics
+    refused = rf"holds a replication \(replicate.json\), which a sweep run into it would mix with; .*--out {tmp_path}/runs/"
     with pytest.raises(StoreError, match=refused):
-        SummaryStore(tmp_path, TINY)
-    assert not (tmp_path / "forensics.json").exists()
+        run_study(tmp_path / "tiny.yaml", tmp_path / "runs", workers=1, progress=False)
+    assert not (tmp_path / "runs" / "sweep.json").exists()
     run_sweep(ROOT / "experiments" / "smoke.yaml", tmp_path / "smoke", workers=1, progress=False, overrides=["episodes=2"])
-    with pytest.raises(StoreError, match=r"holds a sweep \(sweep.json\)"):
-        SummaryStore(tmp_path / "smoke", TINY)
+    with pytest.raises(StoreError, match=r"holds a sweep \(sweep.json\), which the replication forensics run into it"):
+        run_study(tmp_path / "tiny.yaml", tmp_path / "smoke", workers=1, progress=False)
+    old = tmp_path / "old"  # the layout before the forensics' replications went into the store
+    (old / "summaries").mkdir(parents=True)
+    (old / "forensics.json").write_text("{}")
+    earlier = rf"^{old} holds the replication forensics of an earlier layout \(forensics.json, summaries/\), which is no "
+    with pytest.raises(StoreError, match=earlier):
+        run_study(tmp_path / "tiny.yaml", old, workers=1, progress=False)
+    assert main(["status", str(old)]) == 2
+    with pytest.raises(SweepError, match="the forensics runs in stages: pass stages="):
+        run_sweep(tmp_path / "tiny.yaml", tmp_path / "bare", workers=1, progress=False)
 
 
 def test_the_forensics_command_names_a_bad_size(tmp_path: Path) -> None:
@@ -219,8 +228,9 @@ def test_the_forensics_command_names_a_bad_size(tmp_path: Path) -> None:
 
 
 @pytest.mark.slow
-def test_self_check_recovers_the_candidate_that_printed_the_numbers(tmp_path: Path) -> None:
-    """Numbers 'printed' by one replication of a known candidate: the analysis ranks that candidate first."""
+def test_self_check_recovers_the_candidate_that_printed_the_numbers(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Numbers 'printed' by one replication of a known candidate: the analysis ranks that candidate first (a study of
+    a smaller grid than a file states: 2 readings of Table II, 8 candidates)."""
     space = CandidateSpace(
         readings=(("literal", "episode", "cells"), ("valence", "episode", "cells")),
         alphas=(1.0,),
@@ -229,15 +239,19 @@ def test_self_check_recovers_the_candidate_that_printed_the_numbers(tmp_path: Pa
         steps=("decisions",),
         table_v=("sum", "mean"),
     )
+    monkeypatch.setattr(ForensicsStudy, "space", lambda study: space)
+    (tmp_path / "tiny.yaml").write_text(TINY_STUDY.replace("leaders: 1\nreps: 2", "leaders: 2\nreps: 12").replace(
+        "seeds: 2, episodes: 10", "seeds: 4, episodes: 25"))  # fmt: skip
+    study = load_sweep_file(tmp_path / "tiny.yaml", build=False)
+    assert isinstance(study, ForensicsStudy)
+    protocol = study.paper_protocol()
     wanted = Reading("greedy", "decisions", "mean")
     truth = next(c for c in space.candidates() if c.reading == wanted and c.affective == AFFECTIVE)
-    store = SummaryStore(tmp_path / "held-out", TINY)
     held_out = 99  # a replication the analysis never sees
-    run_units(store, [(truth.standard, held_out), (truth.affective, held_out)], workers=1, progress=False)
-    printed = candidate_statistics(store.read(truth.standard, held_out), store.read(truth.affective, held_out), truth.reading)
-    result = run_forensics(
-        tmp_path / "f", space, TINY, screen_reps=3, leaders=2, reps=12, workers=1, progress=False, printed=printed
-    )
+    std, aff = (pd.DataFrame.from_dict(simulate_unit((sim, held_out), protocol)[1], orient="index")
+                for sim in (truth.standard, truth.affective))  # fmt: skip
+    printed = candidate_statistics(std, aff, truth.reading)
+    result = run_study(tmp_path / "tiny.yaml", tmp_path / "f", workers=1, progress=False, printed=printed)
     assert len(result.screen) == 8 and len(result.leaders) == 8
     assert result.leaders.candidate.iloc[0] == truth.name
     assert result.leaders.posterior.iloc[0] > 0.5
@@ -254,11 +268,11 @@ def test_self_check_recovers_the_candidate_that_printed_the_numbers(tmp_path: Pa
     assert "## Replication forensics" in text and "figures/forensics_statistics.png" in text
     assert "Replication forensics: included" in text
     assert (smoke / "figures" / "forensics_statistics.png").exists()
-    # resumable: everything is on disk, nothing is simulated again
-    units = [(s, r) for s in (truth.standard, *[c.affective for c in space.candidates()]) for r in range(3)]
-    assert run_units(SummaryStore(tmp_path / "f", TINY), units, workers=1, progress=False) == 0
-    with pytest.raises(StoreError, match="another protocol"):
-        SummaryStore(tmp_path / "f", dataclasses.replace(TINY, seeds=5))
+    # resumable: everything is stored, nothing is simulated again; another protocol into the folder is refused
+    again = run_study(tmp_path / "tiny.yaml", tmp_path / "f", workers=1, progress=False, printed=printed)
+    assert again.simulated == 0 and again.reused == result.simulated
+    with pytest.raises(StoreError, match="already holds the results of a different sweep"):
+        run_study(tmp_path / "tiny.yaml", tmp_path / "f", ["protocol.seeds=5"], workers=1, progress=False)
 
 
 def test_the_sensitivity_row_gives_each_printed_number_beside_the_leaders_mean(tmp_path: Path) -> None:
@@ -290,29 +304,24 @@ protocol: {epsilons: [0.2, 0.6], seeds: 2, episodes: 10}
 """
 
 
+def _replications(root: Path) -> dict[tuple[str, str, int], tuple[dict[str, list[float]], bool]]:
+    """A forensics folder's stored replications, as plain lists (comparable with ==)."""
+    stored = ResultsStore(root).summaries()
+    return {key: ({k: v.tolist() for k, v in rows.items()}, done) for key, (rows, done) in stored.items()}
+
+
 @pytest.mark.parametrize("backend", ["local", pytest.param("ray", marks=pytest.mark.ray)])
 def test_units_on_the_launchers_executor_store_what_one_process_stores(
     tmp_path: Path, backend: str, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """
-    The same summary files in this process and on the launcher's executor (2 forked workers, or Ray tasks); a
-    forensics sweep file runs there with ``sb3-affect run`` and resumes.
+    The same replications stored in this process' launcher with one worker and on the launcher's executor (2 forked
+    workers, or Ray tasks); a forensics sweep file runs there with ``sb3-affect run`` and resumes; status reads it.
     """
     if backend == "ray":
         pytest.importorskip("ray")
-    protocol = Protocol(epsilons=(0.1, 0.2, 0.9), seeds=2, episodes=8)
-    frozen = Simulation("epsilon-greedy", 1.0, 0.8)
-    units = [(AFFECTIVE, 0), (AFFECTIVE, 1), (frozen, 0)]
-    stored = {}
-    for name, workers, where in (("one", 1, "local"), ("executor", 2, backend)):
-        store = SummaryStore(tmp_path / name, protocol)
-        assert run_units(store, units, workers=workers, progress=False, backend=where) == 3
-        assert run_units(store, [(frozen, 1)], workers=workers, progress=False, stop_above={frozen: 1.0}, backend=where) == 1
-        files = (store.root / "summaries").rglob("*.json")
-        stored[name] = {p.relative_to(store.root).as_posix(): p.read_bytes() for p in files}
-    assert len(stored["one"]) == 4 and stored["executor"] == stored["one"]
-    # a forensics sweep file through `sb3-affect run`, on the same executor; the second run simulates nothing new
     (tmp_path / "tiny.yaml").write_text(TINY_STUDY)
+    run_study(tmp_path / "tiny.yaml", tmp_path / "one", workers=1, progress=False)
     out = tmp_path / "study"
     command = ["run", str(tmp_path / "tiny.yaml"), "--out", str(out), "--workers", "2", "--backend", backend, "--no-progress"]
     printed = []
@@ -320,18 +329,55 @@ def test_units_on_the_launchers_executor_store_what_one_process_stores(
         capsys.readouterr()
         assert main(command) == 0
         printed.append(capsys.readouterr().out.splitlines())
+    stored = _replications(out)
+    assert stored == _replications(tmp_path / "one") and any(stage == PRESCREEN for _, stage, _ in stored)
     simulated, reused = (int(n) for n in re.findall(r"(\d+) replications simulated now, (\d+) already done", printed[0][0])[0])
-    units = len(list((out / "summaries").rglob("*.json")))
-    assert simulated == units > 0 and reused == 0
-    assert printed[1][0].startswith(f"tiny-forensics: 0 replications simulated now, {units} already done")
+    assert simulated == len(stored) > 0 and reused == 0
+    assert printed[1][0].startswith(f"tiny-forensics: 0 replications simulated now, {len(stored)} already done")
     assert printed[1][1:] == printed[0][1:] and printed[0][1].startswith("best candidate: affective_a1_g0.8_")
     run = json.loads((out / "run.json").read_text())
     assert (run["screen_reps"], run["leaders"], run["reps"]) == (2, 1, 2) and (out / "forensics.md").exists()
-    assert json.loads((out / "forensics.json").read_text())["protocol"] == {**TINY.as_dict(), "epsilons": [0.2, 0.6],
-                                                                            "seeds": 2, "episodes": 10}
     assert main(["status", str(out)]) == 0
     status = capsys.readouterr().out
-    assert status.startswith(f"forensics in {out}: ") and "analysis of 2 screen, 1 leaders x 2 replications" in status
+    complete = sum(done for _, done in stored.values())
+    assert status.startswith(f"forensics in {out}: {complete} replications stored ")
+    assert "analysis of 2 screen, 1 leaders x 2 replications" in status
+
+
+def test_a_failed_or_damaged_replication_is_run_again_and_the_numbers_hold(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A batch that raises is recorded in failed/ (the others kept, the run stops with one line) and retried by the next
+    run; a chunk that does not read back is set aside in damaged/ and simulated again; the scores are the same."""
+    (tmp_path / "tiny.yaml").write_text(TINY_STUDY)
+    clean = run_study(tmp_path / "tiny.yaml", tmp_path / "clean", workers=1, progress=False)
+    execute = ForensicsBatch.execute
+
+    def fail_the_affective(batch: ForensicsBatch) -> dict[str, object]:
+        if batch.base["simulation"]["agent"] == "affective" and batch.base["labels"]["stage"] != PRESCREEN:
+            raise RuntimeError("a worker's bad day")
+        return execute(batch)
+
+    monkeypatch.setattr(ForensicsBatch, "execute", fail_the_affective)
+    out = tmp_path / "f"
+    with pytest.raises(StoreError, match=rf"replications failed \(the others are kept; tracebacks in {out / 'failed'}\)"):
+        run_study(tmp_path / "tiny.yaml", out, workers=2, progress=False)
+    failed = sorted(p.name for p in (out / "failed").glob("*.json"))
+    assert failed and all(name.startswith("affective_") and "stagereplications" in name for name in failed)
+    assert main(["status", str(out)]) == 0
+    assert f", {len(failed)} failed (in {out / 'failed'}; the next run retries them)" in capsys.readouterr().out
+    monkeypatch.setattr(ForensicsBatch, "execute", execute)
+    resumed = run_study(tmp_path / "tiny.yaml", out, workers=2, progress=False)
+    assert not list((out / "failed").glob("*.json")) and resumed.reused > 0
+    pd.testing.assert_frame_equal(resumed.leaders, clean.leaders)
+    chunk = sorted((out / "chunks").glob("*.parquet"))[0]
+    chunk.write_bytes(chunk.read_bytes()[:100])  # a chunk cut short (a full disk, a copy)
+    capsys.readouterr()
+    again = run_study(tmp_path / "tiny.yaml", out, workers=2, progress=False)
+    assert again.simulated >= 1 and len(list((out / "damaged").iterdir())) == 1
+    assert f"{chunk} is not a readable chunk" in capsys.readouterr().err
+    pd.testing.assert_frame_equal(again.leaders, clean.leaders)
+    pd.testing.assert_frame_equal(again.screen, clean.screen)
 
 
 def _pages(report: Path) -> str:

@@ -8,8 +8,7 @@ import pytest
 
 from sb3_affect.study.cli import main
 from sb3_affect.study.launcher import SweepError, load_sweep
-from sb3_affect.study.launcher.schema import derive_seed
-from sb3_affect.study.launcher.study_schema import ForensicsStudy
+from sb3_affect.study.launcher.schema import ForensicsStudy, derive_seed
 from sb3_affect.study.launcher.sweep_file import load_sweep_file
 
 EXPERIMENTS = Path(__file__).resolve().parents[3] / "experiments"

@@ -1,7 +1,8 @@
 """
 Hostile files and folders against the study: every file it reads from a folder is a regular file inside it or one
 line naming it (FIFOs and links to devices are never opened, so nothing blocks); the forensics give one line for a bad
-summary, a read-only folder or a full disk, lock their folder and are never mixed with a sweep or a replication; a
+chunk of replications, a read-only folder or a full disk, lock their folder and are never mixed with a sweep or a
+replication; a
 sweep whose wrappers, position or env can not work, or an override that would relabel runs, is refused before it runs.
 """
 
@@ -21,13 +22,12 @@ import pytest
 import yaml
 
 from sb3_affect.study.cli import main
-from sb3_affect.study.forensics import CandidateSpace, Protocol, Simulation, run_forensics
-from sb3_affect.study.forensics.parallel_units import run_units
+from sb3_affect.study.forensics import run_study
+from sb3_affect.study.forensics.folder_status import folder_status
 from sb3_affect.study.forensics.section import forensics_section
-from sb3_affect.study.forensics.unit_files import SummaryStore, folder_status
-from sb3_affect.study.launcher import SweepError, folder_lock, load_sweep, run_sweep
+from sb3_affect.study.launcher import ResultsStore, SweepError, folder_lock, load_sweep, run_sweep
 from sb3_affect.study.launcher.batches import batchable
-from sb3_affect.study.launcher.regular_files import UnreadableFile, read_bytes, read_json
+from sb3_affect.study.launcher.regular_files import UnreadableFile, read_bytes
 from sb3_affect.study.launcher.store import StoreError
 from sb3_affect.study.launcher.sweep_file import load_sweep_file
 from sb3_affect.study.replicate import _Record, _refuse_a_sweep_folder
@@ -36,11 +36,17 @@ from sb3_affect.study.report.sections.reproducibility import replicate_runs, run
 
 ROOT = Path(__file__).resolve().parents[3]
 SMOKE = ROOT / "experiments" / "smoke.yaml"
-TINY = Protocol(epsilons=(0.2, 0.6), seeds=2, episodes=10)
-SPACE = CandidateSpace(
-    readings=(("literal", "episode", "cells"),), alphas=(1.0,), gammas=(0.8,), optimal=("walked",), steps=("decisions",),
-    table_v=("sum",),
-)
+#: The smallest forensics of the default candidate space: one alpha and gamma, a tiny protocol.
+TINY = """\
+name: tiny-forensics
+study: forensics
+screen_reps: 2
+leaders: 1
+reps: 3
+alphas: [1.0]
+gammas: [0.8]
+protocol: {epsilons: [0.2, 0.6], seeds: 2, episodes: 10}
+"""
 
 
 @pytest.fixture(autouse=True)
@@ -99,10 +105,17 @@ def test_the_one_rule_reads_regular_files_only(tmp_path: Path, kind: str) -> Non
 
 
 @pytest.fixture(scope="module")
-def forensics(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A finished forensics folder of the smallest candidate space and protocol."""
+def tiny(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("files") / "tiny.yaml"
+    path.write_text(TINY)
+    return path
+
+
+@pytest.fixture(scope="module")
+def forensics(tmp_path_factory: pytest.TempPathFactory, tiny: Path) -> Path:
+    """A finished forensics folder of the smallest grid and protocol."""
     out = tmp_path_factory.mktemp("forensics") / "f"
-    run_forensics(out, SPACE, TINY, screen_reps=2, leaders=1, reps=3, workers=1, progress=False)
+    run_study(tiny, out, workers=1, progress=False)
     return out
 
 
@@ -114,45 +127,18 @@ def copy(forensics: Path, tmp_path: Path) -> Path:
     return tmp_path / "f"
 
 
-def _summary(folder: Path) -> tuple[Simulation, Path]:
-    simulation = next(iter(SPACE.affective_simulations()))
-    return simulation, folder / "summaries" / simulation.key / "r0000.json"
-
-
 @pytest.mark.parametrize("kind", ["fifo", "device", "link", "folder", "empty", "garbage"])
-def test_a_summary_that_is_not_one_is_one_line_naming_it(copy: Path, tmp_path: Path, kind: str) -> None:
-    simulation, path = _summary(copy)
-    _hostile(path, kind, Path("/etc/passwd") if kind == "link" else tmp_path / "x")
-    store = SummaryStore(copy, TINY)
-    with pytest.raises(StoreError) as error:
-        store.read(simulation, 0)
-    _one_line(error.value, path)
-    # the next run sets it aside and simulates the replication again
-    assert run_units(store, [(simulation, 0)], workers=1, progress=False) == 1
-    assert len(store.read(simulation, 0)) == len(TINY.epsilons) and len(list((copy / "damaged").iterdir())) == 1
-
-
-def test_a_failed_forensics_unit_leaves_a_failure_record_until_it_succeeds(
-    copy: Path, monkeypatch: pytest.MonkeyPatch
+def test_a_chunk_of_replications_that_is_not_one_is_one_line_naming_it(
+    copy: Path, tmp_path: Path, tiny: Path, kind: str
 ) -> None:
-    from sb3_affect.study.forensics.parallel_units import UnitJob
-
-    simulation, path = _summary(copy)
-    path.unlink()
-    store = SummaryStore(copy, TINY)
-
-    def broken(self: UnitJob) -> None:
-        raise ZeroDivisionError("division by zero")
-
-    monkeypatch.setattr(UnitJob, "execute", broken)
-    with pytest.raises(RuntimeError, match=r"1 of 1 units failed .*tracebacks in .*failed"):
-        run_units(store, [(simulation, 0)], workers=1, progress=False)
-    record = copy / "failed" / f"{simulation.key}__r0000.json"
-    assert "ZeroDivisionError" in read_json(record)["error"]
-    assert f", 1 failed (in {copy / 'failed'}; the next run retries them)" in folder_status(copy)
-    monkeypatch.undo()
-    assert run_units(store, [(simulation, 0)], workers=1, progress=False) == 1 and not record.exists()
-    assert " failed (in " not in folder_status(copy)
+    path = sorted((copy / "chunks").glob("*.parquet"))[0]
+    _hostile(path, kind, Path("/etc/passwd") if kind == "link" else tmp_path / "x")
+    with pytest.raises(StoreError) as error:
+        ResultsStore(copy).summaries()
+    _one_line(error.value, path)
+    # the next run sets it aside and simulates its replications again
+    assert run_study(tiny, copy, workers=1, progress=False).simulated >= 1
+    assert len(list((copy / "damaged").iterdir())) == 1 and len(ResultsStore(copy).summaries()) > 0
 
 
 @pytest.mark.parametrize("kind", ["fifo", "device"])
@@ -167,10 +153,6 @@ def test_forensics_records_that_are_not_regular_are_named_never_opened(copy: Pat
     with pytest.raises(ValueError) as error:
         forensics_section(copy)
     _one_line(error.value, copy / "leaders.csv")
-    _hostile(copy / "forensics.json", kind, tmp_path / "x")
-    with pytest.raises(StoreError) as refused:
-        SummaryStore(copy, TINY)
-    _one_line(refused.value, copy / "forensics.json")
 
 
 @pytest.mark.parametrize("kind", ["fifo", "device"])
@@ -193,20 +175,19 @@ def test_replication_records_and_tables_that_are_not_regular_are_named(tmp_path:
 
 
 def test_a_full_disk_or_a_read_only_folder_during_the_analysis_is_one_line(
-    copy: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+    copy: Path, tmp_path: Path, tiny: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     before = {p.name: p.read_bytes() for p in copy.iterdir() if p.is_file()}
     for code, said in ((errno.ENOSPC, "the disk is full"), (errno.EROFS, "not writable")):
         def refuse(fd: int, code: int = code) -> None:
             raise OSError(code, os.strerror(code))
 
-        monkeypatch.setattr(os, "fsync", refuse)  # every summary is on disk: only the analysis writes
+        monkeypatch.setattr(os, "fsync", refuse)  # every replication is stored: only the analysis writes
         with pytest.raises(StoreError, match=said) as error:
-            run_forensics(copy, SPACE, TINY, screen_reps=2, leaders=1, reps=3, workers=1, progress=False)
+            run_study(tiny, copy, workers=1, progress=False)
         _one_line(error.value, copy)
         with pytest.raises(StoreError, match=said):  # a new --out on a read-only disk: refused before anything runs
-            run_forensics(tmp_path / code.__str__(), SPACE, TINY, screen_reps=2, leaders=1, reps=3, workers=1,
-                          progress=False)
+            run_study(tiny, tmp_path / code.__str__(), workers=1, progress=False)
         monkeypatch.undo()
     assert {p.name: p.read_bytes() for p in copy.iterdir() if p.is_file() and p.name in before} == before
 
@@ -216,13 +197,14 @@ def test_duplicated_protocol_epsilons_are_refused_at_validation() -> None:
         load_sweep_file(ROOT / "experiments" / "forensics.yaml", ["protocol.epsilons=[0.1, 0.1]"])
 
 
-def test_forensics_folders_are_locked_and_never_mixed(copy: Path, tmp_path: Path) -> None:
+def test_forensics_folders_are_locked_and_never_mixed(copy: Path, tmp_path: Path, tiny: Path) -> None:
     with folder_lock.hold(copy), pytest.raises(StoreError, match="in use by another launcher"):
-        run_forensics(copy, SPACE, TINY, screen_reps=2, leaders=1, reps=3, workers=1, progress=False)
-    with pytest.raises(StoreError, match=r"holds the replication forensics \(forensics.json\)"):
+        run_study(tiny, copy, workers=1, progress=False)
+    saved = (copy / "sweep.json").read_bytes()
+    with pytest.raises(StoreError, match=r"holds the replication forensics \(sweep.json\), which a sweep run into it"):
         run_sweep(SMOKE, copy, workers=1, progress=False, overrides=["episodes=2"])
-    assert not (copy / "sweep.json").exists()
-    with pytest.raises(StoreError, match=r"holds the replication forensics \(forensics.json\)"):
+    assert (copy / "sweep.json").read_bytes() == saved
+    with pytest.raises(StoreError, match=r"holds the results of sweep 'tiny-forensics', which a replication would mix"):
         _refuse_a_sweep_folder(copy)
 
 
@@ -277,10 +259,9 @@ def test_set_can_not_override_a_kwarg_a_grid_label_drives(override: str) -> None
     ]
 
 
-def test_status_into_a_closed_pipe_ends_quietly(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+def test_status_into_a_closed_pipe_ends_quietly(copy: Path, monkeypatch: pytest.MonkeyPatch,
                                                capfd: pytest.CaptureFixture[str]) -> None:
-    folder = tmp_path / "f"
-    SummaryStore(folder, TINY)
+    folder = copy  # a forensics folder
     read, write = os.pipe()
     os.close(read)  # `| head -1` has gone
     with open(write, "w", buffering=1) as pipe:
