@@ -30,22 +30,22 @@ from stable_baselines3.common.utils import check_for_correct_spaces
 
 from sb3_affect.agents.sb3_fields import ModelFields
 from sb3_affect.agents.serialization import (
-    _SPACE_KEYS,
     FORMAT,
     MAX_JSON_BYTES,
     PLAIN_MEMBER,
+    SPACE_KEYS,
     WRITE_PATHS,
     ModelFileError,
-    _check_declared_size,
-    _check_values,
-    _json,
-    _open,
-    _plain_json,
-    _read,
-    _same_algorithm,
     add_plain_description,
+    check_declared_size,
+    check_values,
+    json_member,
+    open_model_file,
     paths_from_caller,
     plain_description,
+    plain_json,
+    read_member,
+    same_algorithm,
     schedule_from_plain,
 )
 
@@ -184,7 +184,7 @@ def _kwargs_to_plain(value: Any) -> Any:
         items = [_kwargs_to_plain(inner) for inner in value]
         return None if any(v is None and x is not None for v, x in zip(items, value)) else {"sequence": items}
     try:
-        return _plain_json(value)
+        return plain_json(value)
     except TypeError:
         return None
 
@@ -278,7 +278,7 @@ def load_deep_safe(cls: Any, path: Any, env: Any = None, device: Any = "auto", f
 
 def _load(cls: Any, path: Any, where: str, env: Any, device: Any, force_reset: bool,
           custom_objects: dict[str, Any] | None, **kwargs: Any) -> Any:
-    archive, where = _open(path)
+    archive, where = open_model_file(path)
     with archive:  # open while the model is built: its weights are read once their bounds are known
         return _load_open(archive, cls, where, env, device, force_reset, custom_objects, **kwargs)
 
@@ -321,8 +321,8 @@ def _load_open(archive: Any, cls: Any, where: str, env: Any, device: Any, force_
     if twice:
         raise ModelFileError(f"{where}: the entry {twice[0]!r} is in the zip more than once; a model holds each once")
     for name in ("data", PLAIN_MEMBER):
-        _check_declared_size(archive, name, MAX_JSON_BYTES, where)
-    data = _json(_read(archive, "data", where), "data", where)
+        check_declared_size(archive, name, MAX_JSON_BYTES, where)
+    data = json_member(read_member(archive, "data", where), "data", where)
     if not isinstance(data, dict):
         raise ModelFileError(f"{where}: the 'data' entry is not a JSON object")
     if PLAIN_MEMBER not in names:
@@ -330,10 +330,10 @@ def _load_open(archive: Any, cls: Any, where: str, env: Any, device: Any, force_
             f"{where}: no plain-data description ({PLAIN_MEMBER}): the file was not saved by sb3-affect, so loading "
             f"it means unpickling code from it, which safe loading refuses; {optin}"
         )
-    twin = _json(_read(archive, PLAIN_MEMBER, where), PLAIN_MEMBER, where)
+    twin = json_member(read_member(archive, PLAIN_MEMBER, where), PLAIN_MEMBER, where)
     if not isinstance(twin, dict) or twin.get("format") != FORMAT:
         raise ModelFileError(f"{where}: unsupported {PLAIN_MEMBER} format")
-    if not _same_algorithm(str(twin.get("algorithm", "")), cls):
+    if not same_algorithm(str(twin.get("algorithm", "")), cls):
         saved = str(twin.get("algorithm", "?")).rpartition(":")[2]
         raise ModelFileError(f"{where}: this file holds a {saved} model; load it with {saved}.load (not {cls.__name__}.load)")
     policy_class = cls.policy_aliases.get(twin.get("policy"))
@@ -355,7 +355,7 @@ def _load_open(archive: Any, cls: Any, where: str, env: Any, device: Any, force_
             restored[key] = custom[key]
         elif not (isinstance(stored, dict) and ":serialized:" in stored):
             restored[key] = stored
-        elif key in (*_SPACE_KEYS, "policy_class") or (key in derived and key.endswith("_schedule")):
+        elif key in (*SPACE_KEYS, "policy_class") or (key in derived and key.endswith("_schedule")):
             continue
         elif key in values:
             restored[key] = _rebuild(key, values[key], where)
@@ -365,7 +365,7 @@ def _load_open(archive: Any, cls: Any, where: str, env: Any, device: Any, force_
     if "policy_kwargs" in restored and not isinstance(restored["policy_kwargs"], dict):
         raise ModelFileError(f"{where}: policy_kwargs must be a JSON object")
     (restored.get("policy_kwargs") or {}).pop("device", None)
-    _check_values(cls, restored, where)
+    check_values(cls, restored, where)
     if env is not None:
         env = cls._wrap_env(env, restored.get("verbose", 0))
         check_for_correct_spaces(env, observation_space, action_space)
@@ -389,8 +389,8 @@ def _load_open(archive: Any, cls: Any, where: str, env: Any, device: Any, force_
     if other is not None:
         raise ModelFileError(f"{where}: the entry {other!r} is not one of the model's weights ({', '.join(bounds)})")
     for name in members:
-        _check_declared_size(archive, name, bounds[name], where)
-    weights = {name[: -len(".pth")]: _read(archive, name, where) for name in members}
+        check_declared_size(archive, name, bounds[name], where)
+    weights = {name[: -len(".pth")]: read_member(archive, name, where) for name in members}
     params: dict[str, Any] = {}
     for name, raw in weights.items():
         try:

@@ -31,7 +31,7 @@ from sb3_affect.core.registry import FORMER_MODULES
 
 PLAIN_MEMBER = "sb3_affect.json"
 FORMAT = 1
-_SPACE_KEYS = ("observation_space", "action_space")
+SPACE_KEYS = ("observation_space", "action_space")
 #: The largest JSON member (``data``, ``sb3_affect.json``) a file may declare, before anything is read.
 MAX_JSON_BYTES = 64 * 2**20
 #: Room in ``policy.pth`` beyond the Q-table's own bytes (torch's zip container and names).
@@ -118,7 +118,7 @@ def schedule_from_plain(plain: Any, where: str) -> Any:
     raise ModelFileError(f"{where}: unknown schedule type {kind!r} (known: FloatSchedule, ConstantSchedule, LinearSchedule)")
 
 
-def _plain_json(value: Any) -> Any:
+def plain_json(value: Any) -> Any:
     """``value`` if it survives a strict JSON round trip unchanged in meaning; raises TypeError otherwise."""
     return json.loads(json.dumps(value, default=_numpy_default))
 
@@ -142,7 +142,7 @@ def plain_description(model: Any, data: dict[str, Any], special: Any = None, spa
     derived: list[str] = []
     opaque: list[str] = []
     for key, stored in data.items():
-        if not (isinstance(stored, dict) and ":serialized:" in stored) or key in (*_SPACE_KEYS, "policy_class"):
+        if not (isinstance(stored, dict) and ":serialized:" in stored) or key in (*SPACE_KEYS, "policy_class"):
             continue
         value = getattr(model, key, None)
         form = None if special is None else special(key, value)
@@ -156,7 +156,7 @@ def plain_description(model: Any, data: dict[str, Any], special: Any = None, spa
             )
         elif isinstance(value, deque):
             try:
-                values[key] = {"deque": _plain_json(list(value)), "maxlen": value.maxlen}
+                values[key] = {"deque": plain_json(list(value)), "maxlen": value.maxlen}
             except TypeError:
                 opaque.append(key)
         else:
@@ -179,7 +179,7 @@ def plain_description(model: Any, data: dict[str, Any], special: Any = None, spa
     }
 
 
-def _same_algorithm(saved: str, cls: type) -> bool:
+def same_algorithm(saved: str, cls: type) -> bool:
     """Whether ``saved`` (``module:qualname``, as written) names ``cls``, in the module where it lives now or where it
     lived before the package's modules moved into layer folders (``registry.FORMER_MODULES``). Compared, never imported."""
     module, _, qualname = saved.rpartition(":")
@@ -209,7 +209,7 @@ def add_plain_description(path: Any, model: Any, describe: Any = None) -> None:
 
 
 # -- load ---------------------------------------------------------------------------------------------------------------
-def _open(path: Any) -> tuple[zipfile.ZipFile, str]:
+def open_model_file(path: Any) -> tuple[zipfile.ZipFile, str]:
     if isinstance(path, (str, pathlib.Path)):
         candidate = pathlib.Path(path)
         if not candidate.exists() and candidate.suffix == "" and pathlib.Path(f"{candidate}.zip").exists():
@@ -228,7 +228,7 @@ def _open(path: Any) -> tuple[zipfile.ZipFile, str]:
         raise ModelFileError(f"{where}: can not read the model file ({error})") from None
 
 
-def _check_declared_size(archive: zipfile.ZipFile, name: str, limit: int, where: str) -> None:
+def check_declared_size(archive: zipfile.ZipFile, name: str, limit: int, where: str) -> None:
     """Refuse a member whose declared size is over ``limit`` (a zip bomb: reading stops at the declared size)."""
     try:
         info = archive.getinfo(name)
@@ -241,7 +241,7 @@ def _check_declared_size(archive: zipfile.ZipFile, name: str, limit: int, where:
         )
 
 
-def _check_values(cls: Any, restored: dict[str, Any], where: str) -> None:
+def check_values(cls: Any, restored: dict[str, Any], where: str) -> None:
     """
     The saved values, checked as the constructor checks its arguments (the agent's settings class), and no saved
     entry may replace a method or property of the class (``predict: "x"``).
@@ -266,7 +266,7 @@ def _check_values(cls: Any, restored: dict[str, Any], where: str) -> None:
         raise ModelFileError(f"{where}: a saved value is not allowed: {error}") from None
 
 
-def _read(archive: zipfile.ZipFile, name: str, where: str) -> bytes:
+def read_member(archive: zipfile.ZipFile, name: str, where: str) -> bytes:
     try:
         return archive.read(name)
     except KeyError:
@@ -275,7 +275,7 @@ def _read(archive: zipfile.ZipFile, name: str, where: str) -> bytes:
         raise ModelFileError(f"{where}: the {name!r} entry is corrupt ({error})") from None
 
 
-def _json(raw: bytes, name: str, where: str) -> Any:
+def json_member(raw: bytes, name: str, where: str) -> Any:
     try:
         return json.loads(raw)
     except (ValueError, UnicodeDecodeError) as error:
@@ -313,7 +313,7 @@ def load_safe(
 def _load_safe(
     cls: Any, path: Any, env: Any, device: Any, force_reset: bool, custom_objects: dict[str, Any] | None, **kwargs: Any
 ) -> Any:
-    archive, where = _open(path)
+    archive, where = open_model_file(path)
     optin = f"if you trust this file, load it with {cls.__name__}.load(path, safe=False)"
     with archive:
         names = archive.namelist()
@@ -321,8 +321,8 @@ def _load_safe(
         if twice:  # zipfile reads the last of them, SB3's loader may read another: which one counts is ambiguous
             raise ModelFileError(f"{where}: the entry {twice[0]!r} is in the zip more than once; a model holds each once")
         for name in ("data", PLAIN_MEMBER):
-            _check_declared_size(archive, name, MAX_JSON_BYTES, where)
-        data = _json(_read(archive, "data", where), "data", where)
+            check_declared_size(archive, name, MAX_JSON_BYTES, where)
+        data = json_member(read_member(archive, "data", where), "data", where)
         if not isinstance(data, dict):
             raise ModelFileError(f"{where}: the 'data' entry is not a JSON object")
         if PLAIN_MEMBER not in archive.namelist():
@@ -330,7 +330,7 @@ def _load_safe(
                 f"{where}: no plain-data description ({PLAIN_MEMBER}): the file was not saved by sb3-affect, so loading "
                 f"it means unpickling code from it, which safe loading refuses; {optin}"
             )
-        twin = _json(_read(archive, PLAIN_MEMBER, where), PLAIN_MEMBER, where)
+        twin = json_member(read_member(archive, PLAIN_MEMBER, where), PLAIN_MEMBER, where)
         if not isinstance(twin, dict) or twin.get("format") != FORMAT:
             raise ModelFileError(
                 f"{where}: unsupported {PLAIN_MEMBER} format {twin.get('format') if isinstance(twin, dict) else twin!r}"
@@ -342,15 +342,15 @@ def _load_safe(
         except ValueError as error:
             raise ModelFileError(str(error)) from None
         table_bytes = int(observation_space.n) * int(action_space.n) * 8
-        _check_declared_size(archive, "policy.pth", table_bytes + POLICY_OVERHEAD_BYTES, where)
-        policy_bytes = _read(archive, "policy.pth", where)
+        check_declared_size(archive, "policy.pth", table_bytes + POLICY_OVERHEAD_BYTES, where)
+        policy_bytes = read_member(archive, "policy.pth", where)
         if len(policy_bytes) < table_bytes > POLICY_OVERHEAD_BYTES:  # torch stores a tensor's bytes whole: a large
             # table the file declares and does not hold is refused before it is allocated
             raise ModelFileError(
                 f"{where}: policy.pth holds {len(policy_bytes):,} bytes, fewer than the {table_bytes:,} of the "
                 f"{observation_space.n} x {action_space.n} Q-table the file declares"
             )
-    if not _same_algorithm(str(twin.get("algorithm", "")), cls):
+    if not same_algorithm(str(twin.get("algorithm", "")), cls):
         saved = str(twin.get("algorithm", "?")).rpartition(":")[2]
         raise ModelFileError(f"{where}: this file holds a {saved} model; load it with {saved}.load (not {cls.__name__}.load)")
     policy_class = cls.policy_aliases.get(twin.get("policy"))
@@ -367,7 +367,7 @@ def _load_safe(
             restored[key] = custom[key]
         elif not (isinstance(stored, dict) and ":serialized:" in stored):
             restored[key] = stored
-        elif key in (*_SPACE_KEYS, "policy_class") or key in derived:
+        elif key in (*SPACE_KEYS, "policy_class") or key in derived:
             continue
         elif key in values:
             restored[key] = _rebuild(key, values[key], where)
@@ -377,14 +377,14 @@ def _load_safe(
     if "policy_kwargs" in restored and not isinstance(restored["policy_kwargs"], dict):
         raise ModelFileError(f"{where}: policy_kwargs must be a JSON object")
     (restored.get("policy_kwargs") or {}).pop("device", None)
-    _check_values(cls, {k: v for k, v in restored.items() if k not in custom}, where)  # the file's, not the caller's
+    check_values(cls, {k: v for k, v in restored.items() if k not in custom}, where)  # the file's, not the caller's
     if custom:
         checked = dict(restored)
         rate = custom.get("learning_rate")
         if isinstance(rate, (int, float)) and not isinstance(rate, bool) and rate == 0:  # SB3's and rl-zoo3's way of
             del checked["learning_rate"]  # loading for inference only: no learning
         try:
-            _check_values(cls, checked, where)
+            check_values(cls, checked, where)
         except ModelFileError as error:
             reason = str(error).removeprefix(f"{where}: a saved value is not allowed: ")
             raise ModelFileError(f"{where}: custom_objects: a value is not allowed: {reason}") from None
