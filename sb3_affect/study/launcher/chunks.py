@@ -86,6 +86,14 @@ def checked_column(column: str, values: Any) -> tuple[np.ndarray, np.ndarray | N
     return np.asarray(values, dtype=np.float64), None
 
 
+def chunk_bytes(arrays: dict[str, Any], meta: dict[str, Any]) -> bytes:
+    """A chunk's Parquet bytes: its columns, and its footer ``meta`` as JSON under ``META_KEY``."""
+    table = pa.table(arrays).replace_schema_metadata({META_KEY: json.dumps(meta, sort_keys=True).encode()})
+    sink = io.BytesIO()
+    pq.write_table(table, sink, compression="lz4")  # fast to write and read; dictionary + RLE encoding does the rest
+    return sink.getvalue()
+
+
 def encode_chunk(
     name: str,
     base: dict[str, Any],
@@ -135,10 +143,7 @@ def encode_chunk(
         "timings": timings,
         "versions": versions,
     }
-    table = pa.table(arrays).replace_schema_metadata({META_KEY: json.dumps(meta, sort_keys=True).encode()})
-    sink = io.BytesIO()
-    pq.write_table(table, sink, compression="lz4")  # fast to write and read; dictionary + RLE encoding does the rest
-    return sink.getvalue()
+    return chunk_bytes(arrays, meta)
 
 
 def chunk_meta(path: Path) -> dict[str, Any]:
@@ -238,10 +243,7 @@ def encode_evaluations(
         "first_success": list(record["first_success"]), "epsilons": None if epsilons is None else list(epsilons),
         "timings": timings, "versions": versions,
     }  # fmt: skip
-    table = pa.table(arrays).replace_schema_metadata({META_KEY: json.dumps(meta, sort_keys=True).encode()})
-    sink = io.BytesIO()
-    pq.write_table(table, sink, compression="lz4")
-    return sink.getvalue()
+    return chunk_bytes(arrays, meta)
 
 
 def evaluation_table(path: Path, meta: dict[str, Any]) -> dict[str, np.ndarray]:
@@ -334,10 +336,7 @@ def encode_summaries(
         "runs": [[rid, seed, replicate, 0] for rid, seed, replicate in runs], "complete": [bool(c) for c in complete],
         "timings": timings, "versions": versions,
     }  # fmt: skip
-    table = pa.table(arrays).replace_schema_metadata({META_KEY: json.dumps(meta, sort_keys=True).encode()})
-    sink = io.BytesIO()
-    pq.write_table(table, sink, compression="lz4")
-    return sink.getvalue()
+    return chunk_bytes(arrays, meta)
 
 
 def summary_rows(path: Path, meta: dict[str, Any]) -> list[tuple[dict[str, np.ndarray], bool]]:
