@@ -58,6 +58,10 @@ nitpick_ignore_regex = [
     (r"py:class", r"(sb3_affect\.study\.launcher\.folder_files\.)?FolderFiles"),
     # what the tabular loop takes from its agent (``TabularQAlgorithm.loop_parts``), described there
     (r"py:class", r"(sb3_affect\.agents\.reference_loop\.)?LoopParts"),
+    # the Q-table the loop reads and writes while ``learn`` runs (``TabularQAlgorithm.loop_table``; private module)
+    (r"py:class", r"(sb3_affect\.agents\.qtable\.)?LoopTable"),
+    # the launcher's units of work and the deep and forensics study models, named in the launcher's signatures
+    (r"py:class", r"sb3_affect\.study\.launcher\.(batches\.(Batch|Single)|deep_schema\.DeepStudy|schema\.ForensicsStudy)"),
     (r"py:.*", r"(collections\.abc|typing|pathlib|enum|types|os|argparse|io|random)\..*"),
     (r"py:.*", r"(GymEnv|Schedule|MaybeCallback|BaseCallback|BaseAlgorithm|BasePolicy|VecEnv|Env|Logger|Path|Figure|"
      r"Axes|DataFrame|Series|ndarray|NDArray|Tensor|Callable|Mapping|Sequence|Iterable|Iterator|Any|Self|TypeAlias|"
