@@ -1,6 +1,6 @@
 """
 ``train_many`` (many seeds of DQN or PPO in lockstep, stacked networks) beside SB3's own ``learn`` on MiniGrid-Empty-8x8,
-the 7x7x3 view (``obs="image"``), 4 envs per seed (needs the ``[minigrid]`` extra), one torch thread.
+the 7x7x3 view flattened (``obs="view"``), 4 envs per seed (needs the ``[minigrid]`` extra), one torch thread.
 
 * speed (default): env steps per CPU second of the process (so that other work on a shared machine counts less) and
   per wall second of SB3's ``DQN.learn`` and ``PPO.learn`` on Farama's env with 1 env (as a user runs it) and with 4,
@@ -83,7 +83,7 @@ def sb3_rate(agent: str, steps: int, n_envs: int = N_ENVS, compiled: bool = Fals
 
     _threads()
     cls = resolve_class(agent)
-    model = cls("MlpPolicy", seed_vec_env(ENV_ID, n_envs, 0, "image", compiled), seed=0, device="cpu", **_settings(agent))
+    model = cls("MlpPolicy", seed_vec_env(ENV_ID, n_envs, 0, "view", compiled), seed=0, device="cpu", **_settings(agent))
     return _timed(lambda: model.learn(steps).num_timesteps)
 
 
@@ -94,7 +94,7 @@ def trainer_rate(agent: str, n_seeds: int, steps: int) -> Rate:
     _threads()
 
     def run() -> int:
-        models = train_many(agent, ENV_ID, list(range(n_seeds)), N_ENVS, total_timesteps=steps, obs="image",
+        models = train_many(agent, ENV_ID, list(range(n_seeds)), N_ENVS, total_timesteps=steps, obs="view",
                             **_settings(agent))
         return sum(m.num_timesteps for m in models)
 
@@ -141,7 +141,7 @@ def gradient_step(n_seeds: int, repeats: int = 100) -> tuple[float, float]:
     from sb3_affect.engine.stacked_q import StackedQ
 
     _threads()
-    models = [DQN("MlpPolicy", seed_vec_env(ENV_ID, 1, seed, "image", compiled=True), seed=seed, device="cpu",
+    models = [DQN("MlpPolicy", seed_vec_env(ENV_ID, 1, seed, "view", compiled=True), seed=seed, device="cpu",
                   learning_rate=SETTINGS["learning_rate"]) for seed in range(n_seeds)]
     stack = StackedQ(models)
     rng = np.random.default_rng(0)
@@ -201,7 +201,7 @@ def speed(steps: int, sizes: list[int], out: Path, groups: tuple[str, ...] = ROW
             rate, compile_cpu = jax_rate(n_seeds, steps)
             row("DQN", f"JAX vmapped, NAVIX, S={n_seeds} (compile apart)", rate)
             jax_compiles.append(f"S={n_seeds} {compile_cpu:.0f} CPU s")
-    print(f"{ENV_ID}, obs=image, {N_ENVS} envs per seed, {steps:,} env steps per seed, 1 torch thread, "
+    print(f"{ENV_ID}, obs=view, {N_ENVS} envs per seed, {steps:,} env steps per seed, 1 torch thread, "
           f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f} (a shared machine: CPU seconds are the measure)")
     header = ["algo", "run", "env_steps_per_cpu_s", "env_steps_per_wall_s", "cpu_x_sb3_1_env", "cpu_x_sb3_4_envs"]
     table = []
@@ -244,7 +244,7 @@ def _evaluate(model: Any, seed: int, episodes: int) -> float:
 
     from sb3_affect.engine.seed_envs import seed_vec_env
 
-    mean, _ = evaluate_policy(model, seed_vec_env(ENV_ID, 1, seed + 1000, "image", compiled=True), n_eval_episodes=episodes)
+    mean, _ = evaluate_policy(model, seed_vec_env(ENV_ID, 1, seed + 1000, "view", compiled=True), n_eval_episodes=episodes)
     return float(mean)
 
 
@@ -268,7 +268,7 @@ def sb3_curve(seed: int, steps: int, every: int, episodes: int, algo: str = "DQN
                 curve.append(_evaluate(self.model, seed, episodes))
             return True
 
-    model = resolve_class(algo)("MlpPolicy", seed_vec_env(ENV_ID, N_ENVS, seed, "image", compiled=True), seed=seed,
+    model = resolve_class(algo)("MlpPolicy", seed_vec_env(ENV_ID, N_ENVS, seed, "view", compiled=True), seed=seed,
                                 device="cpu", **_learning(algo))
     model.learn(steps, callback=Evaluate())
     return curve
@@ -290,7 +290,7 @@ def equivalence(n_seeds: int, steps: int, every: int, episodes: int, margin: flo
     _threads()
     curves: list[list[float]] = []
     start = time.perf_counter()
-    train_many(algo, ENV_ID, seeds, N_ENVS, total_timesteps=steps, obs="image", every=every,
+    train_many(algo, ENV_ID, seeds, N_ENVS, total_timesteps=steps, obs="view", every=every,
                on_models=lambda models: curves.append([_evaluate(m, s, episodes) for m, s in zip(models, seeds)]),
                **_learning(algo))
     trainer_time = time.perf_counter() - start
@@ -305,7 +305,7 @@ def equivalence(n_seeds: int, steps: int, every: int, episodes: int, margin: flo
         p_lower = p_upper = 0.0 if abs(mean) < margin else 1.0
         half = 0.0
     p_value = max(p_lower, p_upper)
-    print(f"{algo}, {ENV_ID}, obs=image, {n_seeds} seeds x {N_ENVS} envs, {steps:,} env steps, greedy return every {every:,} "
+    print(f"{algo}, {ENV_ID}, obs=view, {n_seeds} seeds x {N_ENVS} envs, {steps:,} env steps, greedy return every {every:,} "
           f"steps over {episodes} episodes; SB3 {sb3_time:.0f} s (2 processes), train_many {trainer_time:.0f} s (1)")
     print("  SB3's curve (mean over seeds):       ", np.round(theirs.mean(axis=0), 3).tolist())
     print("  train_many's curve (mean over seeds):", np.round(ours.mean(axis=0), 3).tolist())

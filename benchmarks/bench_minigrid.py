@@ -137,7 +137,7 @@ def learn_rate(algo: str, compiled: bool, obs: str, steps: int) -> Callable[[], 
         if compiled:
             env = minigrid_vec_env(ENV_ID, 4, seed=0, obs=obs)
         else:
-            env = seed_vec_env(ENV_ID, 4, 0, "flat" if obs == "flat" else "image")
+            env = seed_vec_env(ENV_ID, 4, 0, "flat" if obs == "flat" else "view")
         if algo == "DQN":
             model = DQN("MlpPolicy", env, learning_starts=1000, train_freq=4, seed=0, buffer_size=50_000, device="cpu")
         else:
