@@ -108,8 +108,8 @@ def _install(wheel: Path, site: Path) -> None:
 def _copy_compiled_code(site: Path) -> None:
     """
     Copy numba's cache of the checkout's compiled functions (the kernels, compiled or loaded here first, and what else
-    this session compiled) into the install's ``__pycache__`` folders, with the kernel's digest of its sources. numba
-    keys a cached function by its source file's content, not its path, so the install loads them as it would after
+    this session compiled) into the install's ``__pycache__`` folders, with the kernel's digest of its sources and the
+    source files' modification times (numba's index checks them), so the install loads them as it would after
     its own first run, instead of compiling every kernel again (minutes) in each of its commands. Compiling on a cold
     cache is ``make venv``'s step (``python -m sb3_affect.kernel``) and the checkout's first import.
     """
@@ -121,6 +121,12 @@ def _copy_compiled_code(site: Path) -> None:
         for path in [*cache.glob("*.nbi"), *cache.glob("*.nbc"), *cache.glob("*.sha256")]:
             target.mkdir(exist_ok=True)
             shutil.copy2(path, target / path.name)
+        # numba's index checks each source file's size and modification time: the wheel's files got the time of their
+        # extraction, so they take the checkout's (the same content) and the install finds the cached code valid
+        for source in cache.parent.glob("*.py"):
+            installed = target.parent / source.name
+            if installed.exists():
+                os.utime(installed, ns=(source.stat().st_atime_ns, source.stat().st_mtime_ns))
 
 
 def core_venv(wheel: Path, path: Path, compiled: bool = False) -> Path:
