@@ -118,7 +118,9 @@ replicate.ENGINE_EPISODES = 5
 replicate.OVERRIDES = {"forensics": ["leaders=1", "reps=2"]}  # the forensics run, with one leader replicated twice
 from sb3_affect.study.launcher import sweep_file
 load = sweep_file.load_sweep
-sweep_file.load_sweep = lambda path, overrides=(), **kw: load(path, [*overrides, "seeds=1", "episodes=5"], **kw)
+toy = ("seeds=1", "episodes=5")  # the tabular sweeps at toy size (the forensics file has its own sizes, above)
+sweep_file.load_sweep = lambda path, overrides=(), **kw: load(
+    path, [*overrides, *(() if str(path).endswith("forensics.yaml") else toy)], **kw)
 import sb3_affect.study.launcher.launcher as launcher
 launcher.load_sweep = sweep_file.load_sweep
 from sb3_affect.study.cli import main
