@@ -10,7 +10,8 @@ themselves. The functions that allocate (``grid_loop.run``'s work space, ``grid_
 
 ``kernel_inline`` also inlines the function into its callers (numba's ``inline="always"``): the small functions of
 the decision loop (random draws, row maximum, greedy choice), whose call would cost more than their work (a call
-passes every array as seven machine words).
+passes every array as seven machine words). The MiniGrid worlds' functions are plain ``kernel_jit`` calls: inlined
+in numba's IR they took 105 CPU s to compile on a cold cache, as calls 5 CPU s, for the same steps per second.
 
 ``announce_compile`` says, in one line on stderr, that a compiled feature's kernels are about to be compiled (their
 first use on a machine, numba's cache cold) and about how long it takes; silent once they are cached.

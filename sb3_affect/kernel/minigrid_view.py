@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from sb3_affect.kernel.jit import kernel_inline
+from sb3_affect.kernel.jit import kernel_jit
 
 VIEW = 7
 VIEW_SIZE = VIEW * VIEW * 3
@@ -38,25 +38,25 @@ DIR_Y = np.array([0, 1, 0, -1], dtype=np.int64)
 _SEEN = 128
 
 
-@kernel_inline
+@kernel_jit
 def _seen(out: np.ndarray, row: int, base: int) -> bool:
     return out[row, base + 2] >= _SEEN
 
 
-@kernel_inline
+@kernel_jit
 def _opaque(out: np.ndarray, row: int, base: int) -> bool:
     """A cell the agent can not see behind (``not see_behind()``): a wall, a door not open."""
     kind = out[row, base]
     return kind == WALL or (kind == DOOR and out[row, base + 2] % _SEEN != OPEN)
 
 
-@kernel_inline
+@kernel_jit
 def _mark(out: np.ndarray, row: int, base: int) -> None:
     if out[row, base + 2] < _SEEN:
         out[row, base + 2] += _SEEN
 
 
-@kernel_inline
+@kernel_jit
 def _mark_visible(out: np.ndarray, row: int, view: int) -> None:
     """``Grid.process_vis`` on the view written at ``out[row]``, the agent at ``(view // 2, view - 1)``: flags the
     visible cells (``_SEEN``)."""
@@ -80,7 +80,7 @@ def _mark_visible(out: np.ndarray, row: int, view: int) -> None:
                 _mark(out, row, (i * view + j - 1) * 3)
 
 
-@kernel_inline
+@kernel_jit
 def write_view(grid: np.ndarray, row: int, x: int, y: int, direction: int, carry: np.ndarray, see_through: bool,
                view: int, out: np.ndarray) -> None:
     """

@@ -25,7 +25,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from sb3_affect.kernel.jit import kernel_inline, kernel_jit
+from sb3_affect.kernel.jit import kernel_jit
 from sb3_affect.kernel.minigrid_view import (
     DIR_X,
     DIR_Y,
@@ -100,27 +100,27 @@ def new_worlds(task: MiniGridTask, n: int) -> Worlds:
     )
 
 
-@kernel_inline
+@kernel_jit
 def _rand_int(rng: np.ndarray, low: int, high: int) -> Any:
     """``MiniGridEnv._rand_int``: ``np_random.integers(low, high)``."""
     return low + integers(rng, high - low)
 
 
-@kernel_inline
+@kernel_jit
 def _put(grid: np.ndarray, n: int, x: int, y: int, kind: int, color: int, state: int) -> None:
     grid[n, x, y, 0] = kind
     grid[n, x, y, 1] = color
     grid[n, x, y, 2] = state
 
 
-@kernel_inline
+@kernel_jit
 def _walls(grid: np.ndarray, n: int, x: int, y: int, dx: int, dy: int, length: int) -> None:
     """``Grid.horz_wall`` (``dx = 1``) or ``vert_wall`` (``dy = 1``) of ``length`` cells from ``(x, y)``."""
     for k in range(length):
         _put(grid, n, x + dx * k, y + dy * k, WALL, GREY, 0)
 
 
-@kernel_inline
+@kernel_jit
 def _place(grid: np.ndarray, n: int, rng: np.ndarray, agent: np.ndarray, top_x: int, top_y: int, size_x: int,
            size_y: int) -> Any:
     """``MiniGridEnv.place_obj``'s cell: drawn until empty and not the agent's; returns ``x * height + y``."""
@@ -135,7 +135,7 @@ def _place(grid: np.ndarray, n: int, rng: np.ndarray, agent: np.ndarray, top_x: 
         return x * height + y
 
 
-@kernel_inline
+@kernel_jit
 def _place_agent(grid: np.ndarray, n: int, rng: np.ndarray, agent: np.ndarray, size_x: int, size_y: int) -> None:
     """``MiniGridEnv.place_agent(size=(size_x, size_y))``: a cell, then a direction."""
     height = grid.shape[2]
@@ -147,7 +147,7 @@ def _place_agent(grid: np.ndarray, n: int, rng: np.ndarray, agent: np.ndarray, s
     agent[n, AGENT_DIR] = _rand_int(rng, 0, 4)
 
 
-@kernel_inline
+@kernel_jit
 def _generate(layout: int, grid: np.ndarray, n: int, rng: np.ndarray, agent: np.ndarray) -> None:
     """The task's ``_gen_grid`` for world ``n``."""
     width, height = grid.shape[1], grid.shape[2]
@@ -196,7 +196,7 @@ def _generate(layout: int, grid: np.ndarray, n: int, rng: np.ndarray, agent: np.
         _put(grid, n, cell // height, cell % height, KEY, YELLOW, 0)
 
 
-@kernel_inline
+@kernel_jit
 def _reset_one(layout: int, see_through: bool, view: int, n: int, grid: np.ndarray, agent: np.ndarray,
                carry: np.ndarray, rng: np.ndarray, obs: np.ndarray) -> None:
     _generate(layout, grid, n, rng[n], agent)
