@@ -6,8 +6,9 @@ the 7x7x3 view flattened (``obs="view"``), 4 envs per seed (needs the ``[minigri
   per wall second of SB3's ``DQN.learn`` and ``PPO.learn`` on Farama's env with 1 env (as a user runs it) and with 4,
   the same on the compiled MiniGrid with 4 (the compiled env inside SB3's own loop), and ``train_many`` DQN and PPO at
   S = 8, 32 and 128 seeds (all seeds' env steps, on the compiled MiniGrid, set-up included), each with its ratios to
-  SB3's same algorithm with 1 env and with 4; then the DQN gradient step of S = 32 (and 128) stacked networks beside
-  its arithmetic bound: its matrix products' FLOPs over the GFLOP/s this core measures on one large product; then
+  SB3's same algorithm with 1 env and with 4; then the DQN gradient step of S = 32 (and 128) stacked networks, in the
+  state a run of the same steps leaves them (Adam's moments with their zeros and denormals),
+  beside its arithmetic bound: its matrix products' FLOPs over the GFLOP/s this core measures on one large product; then
   the JAX rows, a vmapped JAX DQN on NAVIX's Empty-8x8 (``benchmarks/jax_dqn.py``: the same network, batch and train
   ratio, one XLA thread) at S = 8 and 32, its compile timed apart, where ``jax``, ``navix`` and ``optax`` are installed
   (``pip install "sb3-affect[jax]"``; a line says so otherwise). ``--rows`` runs some of them only: ``sb3`` (SB3's
@@ -128,22 +129,32 @@ def step_flops(n_seeds: int, batch: int, sizes: list[int]) -> int:
     return 2 * n_seeds * batch * (3 * sum(macs) + sum(macs[1:]))
 
 
-def gradient_step(n_seeds: int, repeats: int = 100) -> tuple[float, float]:
+def gradient_step(n_seeds: int, steps: int, repeats: int = 100) -> tuple[float, float, float]:
     """
-    CPU milliseconds of one batched gradient step of ``n_seeds`` stacked networks (batch 32, random uint8 views, a third
-    of the inputs never seen: the forward passes, the loss, backward, clipping and Adam) and of one greedy pass on a
-    VecEnv step's observations (``n_seeds`` x 4): the arithmetic every trainer of these networks pays.
+    CPU milliseconds of one batched gradient step of ``n_seeds`` stacked networks in the state a run leaves them
+    (``train_many`` for ``steps`` env steps per seed: the weights and Adam's moments, whose entries for inputs not seen
+    lately are exact zeros and denormals), on a batch of 32 random uint8 views with a third of the inputs 0 (the
+    forward passes, the loss, backward, clipping and Adam), and of one greedy pass on a VecEnv step's observations
+    (``n_seeds`` x 4): the arithmetic every trainer of these networks pays; and the share of Adam's first moments that
+    are denormal at the start.
     """
     import torch as th
-    from stable_baselines3 import DQN
 
-    from sb3_affect.engine.seed_envs import seed_vec_env
+    from sb3_affect import train_many
     from sb3_affect.engine.stacked_q import StackedQ
 
     _threads()
-    models = [DQN("MlpPolicy", seed_vec_env(ENV_ID, 1, seed, "view", compiled=True), seed=seed, device="cpu",
-                  learning_rate=SETTINGS["learning_rate"]) for seed in range(n_seeds)]
+    models = train_many("DQN", ENV_ID, list(range(n_seeds)), N_ENVS, total_timesteps=steps, obs="view",
+                        **_settings("DQN"))
     stack = StackedQ(models)
+    with th.no_grad():
+        for index, model in enumerate(models):
+            state = [model.policy.optimizer.state[p] for p in model.q_net.parameters()]
+            stack.exp_avg[index] = th.cat([s["exp_avg"].reshape(-1) for s in state])
+            stack.exp_avg_sq[index] = th.cat([s["exp_avg_sq"].reshape(-1) for s in state])
+        stack.steps = int(state[0]["step"])
+    magnitude = stack.exp_avg.abs()
+    denormal = float(((magnitude > 0) & (magnitude < th.finfo(th.float32).tiny)).float().mean())
     rng = np.random.default_rng(0)
     size, n_obs = SETTINGS["batch_size"], models[0].observation_space.shape[0]  # type: ignore[index]
     views = rng.integers(0, 11, size=(2, n_seeds, size, n_obs), dtype=np.uint8)
@@ -151,7 +162,8 @@ def gradient_step(n_seeds: int, repeats: int = 100) -> tuple[float, float]:
     batch = (th.as_tensor(views[0]), th.as_tensor(rng.integers(7, size=(n_seeds, size, 1))), th.as_tensor(views[1]),
              th.zeros(n_seeds, size, 1), th.as_tensor(rng.random((n_seeds, size, 1), dtype=np.float32)))
     observations = views[0][:, :N_ENVS]
-    return _cpu_ms(lambda: stack.train_step(*batch), repeats), _cpu_ms(lambda: stack.greedy(observations), repeats)
+    return (_cpu_ms(lambda: stack.train_step(*batch), repeats), _cpu_ms(lambda: stack.greedy(observations), repeats),
+            denormal)
 
 
 def _jax_available() -> bool:
@@ -227,16 +239,17 @@ def speed(steps: int, sizes: list[int], out: Path, groups: tuple[str, ...] = ROW
         print("JAX DQN: jax, navix and optax are not installed, no row (pip install 'sb3-affect[jax]' to add it)")
     gflops = core_gflops() if "gradient" in groups else 0.0
     for n_seeds in sorted({min(32, sizes[-1]), sizes[-1]}) if "gradient" in groups else []:
-        step_ms, greedy_ms = gradient_step(n_seeds)
+        step_ms, greedy_ms, denormal = gradient_step(n_seeds, steps)
         flops = step_flops(n_seeds, SETTINGS["batch_size"], [147, 64, 64, 7])
         bound_ms = flops / gflops / 1e6
         per_step = N_ENVS * SETTINGS["train_freq"]  # env steps per seed between two gradient steps
         cap = n_seeds * per_step / ((step_ms + SETTINGS["train_freq"] * greedy_ms) / 1e3)
-        print(f"the DQN gradient step, S={n_seeds}, batch {SETTINGS['batch_size']}: {step_ms:.2f} ms of CPU; its "
+        print(f"the DQN gradient step, S={n_seeds}, batch {SETTINGS['batch_size']}, after {steps:,} env steps per seed "
+              f"({denormal:.0%} of Adam's first moments denormal): {step_ms:.2f} ms of CPU; its "
               f"matrix products {flops / 1e6:.0f} MFLOP, {bound_ms:.2f} ms at this core's {gflops:.0f} GFLOP/s "
               f"({step_ms / bound_ms:.1f}x the bound); a greedy pass {greedy_ms:.2f} ms; one step and "
               f"{SETTINGS['train_freq']} greedy passes per {per_step} env steps of each seed cap any trainer at "
-              f"{cap:,.0f} env steps per CPU second")
+              f"{cap:,.0f} env steps per CPU second; load average {os.getloadavg()[0]:.1f}")
 
 
 def _evaluate(model: Any, seed: int, episodes: int) -> float:

@@ -18,7 +18,11 @@ it), the backward pass of an MLP of ReLU or Tanh layers is written out (one batc
 operand, no autograd graph), and the norm, the clipping and Adam are each one operation on the whole ``(S, P)``
 gradient. Adam's square root is taken of ``v + 1e-30`` (``v`` the second moment): torch's CPU ``sqrt`` is about ten
 times slower on exact zeros, which a MiniGrid network's second moments are full of (the never-seen inputs); the
-change is below float32's resolution of ``sqrt(v) / sqrt(1 - beta2^t) + eps``. Other activations run torch's
+change is below float32's resolution of ``sqrt(v) / sqrt(1 - beta2^t) + eps``. Adam runs with denormal floats flushed
+to zero (``torch.set_flush_denormal``, the earlier setting restored after): the first moment of an input a seed saw
+once decays by ``beta1`` each step into denormals (a quarter of a MiniGrid network's entries after 20,000 steps), and
+arithmetic on them is about ten times slower on x86; an entry below ``2**-126`` moves a weight by less than
+``1e-30 * lr``. Other activations run torch's
 autograd through the same views; optimizers other than plain Adam (``AdamW``, ``RMSprop``, ``SGD``, Adam with
 ``amsgrad``) run torch's own on the ``(S, P)`` tensor.
 
@@ -61,6 +65,8 @@ def network_layers(q_net: nn.Module) -> tuple[list[nn.Linear], list[nn.Module]]:
 _DERIVATIVES = {nn.ReLU: lambda y: y > 0, nn.Tanh: lambda y: 1 - y * y}
 #: added to Adam's second moment before its square root (see the module docstring)
 SQRT_FLOOR = 1e-30
+#: a denormal float32 (half the smallest normal one): it reads as 0 where denormals are flushed
+DENORMAL = 2.0**-127
 
 
 def _column(values: Sequence[float]) -> float | th.Tensor:
@@ -227,6 +233,16 @@ class StackedQ:
                 self.flat.grad = self.grad
                 self.optimizer.step()
                 return
+            flushing = th.tensor(DENORMAL).item() == 0.0
+            th.set_flush_denormal(True)
+            try:
+                self._adam_step()
+            finally:
+                th.set_flush_denormal(flushing)
+
+    def _adam_step(self) -> None:
+        """Adam's update of ``self.flat`` by ``self.grad`` (torch's ``_single_tensor_adam``, the square root floored)."""
+        with th.no_grad():
             beta1, beta2 = self.betas
             self.steps += 1
             grad = self.grad if not self.weight_decay else self.grad.add(self.flat, alpha=self.weight_decay)
