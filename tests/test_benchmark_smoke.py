@@ -52,3 +52,20 @@ def test_benchmark_many_seeds_refuses_an_unknown_row_in_one_line() -> None:
     )
     assert result.returncode == 2
     assert "--rows has 'gpu'; allowed: sb3, many, gradient, jax" in result.stderr.splitlines()[-1]
+
+
+def test_benchmark_learn_parts_smoke_run_splits_both_envs_runs() -> None:
+    pytest.importorskip("minigrid")
+    result = subprocess.run(
+        [sys.executable, str(ROOT / "benchmarks" / "bench_learn_parts.py"), "--smoke", "--algo", "PPO"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=True,
+    )
+    lines = result.stdout.splitlines()
+    for part in ("env step_wait + reset", "train", "SB3's collecting work", "learn"):
+        row = next(line for line in lines if line.strip().startswith(part + " "))
+        farama, compiled = row.split("Farama's")[1].split("compiled")
+        assert float(farama) > 0 and float(compiled) > 0
+    assert lines[-1].startswith("pair 0: compiled / Farama's ") and "with a step that cost nothing" in lines[-1]
