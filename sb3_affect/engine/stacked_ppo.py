@@ -18,8 +18,10 @@ order:
 * **bookkeeping**: ``num_timesteps``, ``_n_updates``, ``ep_info_buffer``, the ``train/*`` keys and ``dump_logs``
   every ``log_interval`` iterations.
 
-The forward and backward passes of all seeds are one batched matrix product per layer (``torch.baddbmm``); the results
-differ from SB3's by floating-point summation order only.
+The forward and backward passes of all seeds are one batched matrix product per layer (``torch.baddbmm``), the
+backward pass written out for Tanh and ReLU layers (as ``stacked_q``'s, from the loss's gradient by the logits and
+values as autograd takes it) and torch's autograd for other activations; the results differ from SB3's by
+floating-point summation order only.
 """
 
 from __future__ import annotations
@@ -41,7 +43,7 @@ from sb3_affect.agents.sb3_fields import ModelFields
 from sb3_affect.engine.lockstep import idle
 from sb3_affect.engine.seed_envs import SeedEnvs
 from sb3_affect.engine.stacked_adam import adam, clip_rows
-from sb3_affect.engine.stacked_q import network_activations
+from sb3_affect.engine.stacked_q import DERIVATIVES, network_activations
 
 
 def _column(values: Sequence[float]) -> th.Tensor:
@@ -79,6 +81,10 @@ class StackedActorCritic:
                            dim=1).contiguous()
         self.grad = th.zeros_like(self.flat)
         self.tensors = [view.requires_grad_(True) for view in self._views(self.flat)]
+        self.grads = self._views(self.grad)
+        self.pi_derivatives = [DERIVATIVES.get(type(a)) for a in self.pi_activations]
+        self.vf_derivatives = [DERIVATIVES.get(type(a)) for a in self.vf_activations]
+        self.written = all(d is not None for d in (*self.pi_derivatives, *self.vf_derivatives))
         layers = list(zip(self.tensors[0::2], self.tensors[1::2]))
         self.pi, self.vf = layers[:len(pi_linears)], layers[len(pi_linears):len(pi_linears) + len(vf_linears)]
         self.action, self.value = layers[-2], layers[-1]
@@ -103,17 +109,26 @@ class StackedActorCritic:
         return [t for layer in linears for t in (layer.weight, layer.bias)]
 
     @staticmethod
-    def _mlp(x: th.Tensor, layers: list[tuple[th.Tensor, th.Tensor]], activations: list[nn.Module]) -> th.Tensor:
+    def _mlp(x: th.Tensor, layers: list[tuple[th.Tensor, th.Tensor]], activations: list[nn.Module],
+             kept: list[th.Tensor] | None) -> th.Tensor:
         for (weight, bias), activation in zip(layers, activations):
+            if kept is not None:
+                kept.append(x)
             x = activation(th.baddbmm(bias, x, weight))
+        if kept is not None:
+            kept.append(x)
         return x
 
-    def forward(self, observations: np.ndarray | th.Tensor) -> tuple[th.Tensor, th.Tensor]:
-        """Each seed's action log-probabilities ``(S, B, n)`` and values ``(S, B)`` of observations ``(S, B, ...)``."""
+    def forward(self, observations: np.ndarray | th.Tensor,
+                kept: tuple[list[th.Tensor], list[th.Tensor]] | None = None) -> tuple[th.Tensor, th.Tensor]:
+        """
+        Each seed's action log-probabilities ``(S, B, n)`` and values ``(S, B)`` of observations ``(S, B, ...)``;
+        ``kept``: the actor's and the critic's lists, to which each layer's input and the last layer's output go.
+        """
         tensor = th.as_tensor(observations)
         x = tensor.float().reshape(tensor.shape[0], tensor.shape[1], -1)
-        latent_pi = self._mlp(x, self.pi, self.pi_activations)
-        latent_vf = self._mlp(x, self.vf, self.vf_activations)
+        latent_pi = self._mlp(x, self.pi, self.pi_activations, None if kept is None else kept[0])
+        latent_vf = self._mlp(x, self.vf, self.vf_activations, None if kept is None else kept[1])
         logits = th.baddbmm(self.action[1], latent_pi, self.action[0])
         values = th.baddbmm(self.value[1], latent_vf, self.value[0])
         return logits - logits.logsumexp(dim=-1, keepdim=True), values.squeeze(2)
@@ -142,23 +157,23 @@ class StackedActorCritic:
             for start in range(0, total, batch_size):
                 observations, actions, old_values, old_log_prob, advantages, returns = samples.batch(
                     permutations[:, start:start + batch_size])
-                log_probs, values = self.forward(observations)
-                log_prob = log_probs.gather(2, actions.unsqueeze(2)).squeeze(2)
-                entropy = -(log_probs.clamp(min=th.finfo(log_probs.dtype).min) * log_probs.exp()).sum(dim=2)
-                if normalize_advantage and advantages.shape[1] > 1:
-                    advantages = (advantages - advantages.mean(dim=1, keepdim=True)) / (
-                        advantages.std(dim=1, keepdim=True) + 1e-8)
-                ratio = th.exp(log_prob - old_log_prob)
-                column = clip.unsqueeze(1)
-                policy_loss = -th.min(advantages * ratio, advantages * th.clamp(ratio, 1 - column, 1 + column)).mean(dim=1)
-                if clip_vf is None:
-                    values_pred = values
-                else:
-                    limit = clip_vf.unsqueeze(1)
-                    values_pred = old_values + th.clamp(values - old_values, -limit, limit)
-                value_loss = F.mse_loss(returns, values_pred, reduction="none").mean(dim=1)
-                entropy_loss = -entropy.mean(dim=1)
-                loss = policy_loss + ent_coef * entropy_loss + vf_coef * value_loss
+                kept: tuple[list[th.Tensor], list[th.Tensor]] | None = ([], []) if self.written else None
+                with th.set_grad_enabled(not self.written):
+                    log_probs, values = self.forward(observations, kept)
+                    log_prob = log_probs.gather(2, actions.unsqueeze(2)).squeeze(2)
+                    entropy = -(log_probs.clamp(min=th.finfo(log_probs.dtype).min) * log_probs.exp()).sum(dim=2)
+                    if normalize_advantage and advantages.shape[1] > 1:
+                        advantages = (advantages - advantages.mean(dim=1, keepdim=True)) / (
+                            advantages.std(dim=1, keepdim=True) + 1e-8)
+                    ratio = th.exp(log_prob - old_log_prob)
+                    column = clip.unsqueeze(1)
+                    clipped = advantages * th.clamp(ratio, 1 - column, 1 + column)
+                    policy_loss = -th.min(advantages * ratio, clipped).mean(dim=1)
+                    limit = None if clip_vf is None else clip_vf.unsqueeze(1)
+                    values_pred = values if limit is None else old_values + th.clamp(values - old_values, -limit, limit)
+                    value_loss = F.mse_loss(returns, values_pred, reduction="none").mean(dim=1)
+                    entropy_loss = -entropy.mean(dim=1)
+                    loss = policy_loss + ent_coef * entropy_loss + vf_coef * value_loss
                 with th.no_grad():
                     sums["policy_gradient_loss"].append(policy_loss.detach())
                     sums["value_loss"].append(value_loss.detach())
@@ -166,9 +181,17 @@ class StackedActorCritic:
                     sums["clip_fraction"].append(((ratio - 1).abs() > column).float().mean(dim=1))
                     log_ratio = log_prob - old_log_prob
                     approx_kl.append(((th.exp(log_ratio) - 1) - log_ratio).mean(dim=1))
-                gradients = th.autograd.grad(loss.sum(), self.tensors)
-                with th.no_grad():
-                    th.cat([g.reshape(self.n_seeds, -1) for g in gradients], dim=1, out=self.grad)
+                if kept is None:
+                    gradients = th.autograd.grad(loss.sum(), self.tensors)
+                    with th.no_grad():
+                        th.cat([g.reshape(self.n_seeds, -1) for g in gradients], dim=1, out=self.grad)
+                else:
+                    with th.no_grad():
+                        logits_grad = self._logits_gradient(log_probs, actions, ratio, advantages, clipped, column,
+                                                            ent_coef)
+                        inside = None if limit is None else (values - old_values).abs() <= limit
+                        values_grad = self._values_gradient(values_pred, returns, inside, vf_coef)
+                        self._written_gradient(kept, logits_grad, values_grad)
                 clip_rows(self.grad, max_grad_norm.reshape(-1, 1))
                 self.steps += 1
                 adam(self.flat, self.grad, self.exp_avg, self.exp_avg_sq, self.steps, self.betas, self.eps,
@@ -177,6 +200,51 @@ class StackedActorCritic:
         logs["approx_kl"] = th.stack(approx_kl).double().mean(dim=0).numpy()
         logs["loss"] = loss.detach().numpy()
         return logs
+
+    @staticmethod
+    def _logits_gradient(log_probs: th.Tensor, actions: th.Tensor, ratio: th.Tensor, advantages: th.Tensor,
+                         clipped: th.Tensor, column: th.Tensor, ent_coef: th.Tensor) -> th.Tensor:
+        """
+        The gradient of each seed's loss by its logits ``(S, B, n)``, as autograd takes it: the clipped surrogate's
+        through ``min`` (half to each side of a tie) and ``clamp`` (passing inside its closed range), the entropy
+        term's, then ``log_softmax``'s backward.
+        """
+        size = log_probs.shape[1]
+        unclipped = advantages * ratio
+        tie = (unclipped == clipped) * 0.5
+        inside = (ratio >= 1 - column) & (ratio <= 1 + column)
+        share = (unclipped < clipped) + tie + ((clipped < unclipped) + tie) * inside
+        log_prob_grad = (-advantages / size) * share * ratio
+        probabilities = log_probs.exp()
+        grad = probabilities * (1 + log_probs.clamp(min=th.finfo(log_probs.dtype).min)) * (ent_coef / size).reshape(-1, 1, 1)
+        grad.scatter_add_(2, actions.unsqueeze(2), log_prob_grad.unsqueeze(2))
+        return grad - probabilities * grad.sum(dim=2, keepdim=True)
+
+    @staticmethod
+    def _values_gradient(values_pred: th.Tensor, returns: th.Tensor, inside: th.Tensor | None, vf_coef: th.Tensor
+                         ) -> th.Tensor:
+        """The gradient of each seed's loss by its values ``(S, B, 1)`` (``inside``: where ``clip_range_vf`` passes it)."""
+        grad = (values_pred - returns) * (2 * vf_coef / values_pred.shape[1]).unsqueeze(1)
+        return (grad if inside is None else grad * inside).unsqueeze(2)
+
+    def _written_gradient(self, kept: tuple[list[th.Tensor], list[th.Tensor]], logits_grad: th.Tensor,
+                          values_grad: th.Tensor) -> None:
+        """
+        The backward pass of the actor and the critic written out (Tanh or ReLU layers: ``DERIVATIVES``) into
+        ``self.grad``, from their layers' inputs ``kept`` by ``forward``: per layer one batched product for the weight's
+        gradient, one for the input's (but the first layer's), one sum for the bias's.
+        """
+        n_pi, n_vf = len(self.pi), len(self.vf)
+        heads = 2 * (n_pi + n_vf)
+        for layers, derivatives, inputs, upstream, indices in (
+                ([*self.pi, self.action], self.pi_derivatives, kept[0], logits_grad, [*range(0, 2 * n_pi, 2), heads]),
+                ([*self.vf, self.value], self.vf_derivatives, kept[1], values_grad,
+                 [*range(2 * n_pi, heads, 2), heads + 2])):
+            for i in range(len(layers) - 1, -1, -1):
+                self.grads[indices[i]].copy_(th.bmm(inputs[i].mT, upstream))
+                self.grads[indices[i] + 1].copy_(upstream.sum(dim=1, keepdim=True))
+                if i:
+                    upstream = th.bmm(upstream, layers[i][0].mT).mul_(derivatives[i - 1](inputs[i]))  # type: ignore[misc]
 
     def set_learning_rate(self, learning_rate: float) -> None:
         self.learning_rate = float(learning_rate)

@@ -58,7 +58,7 @@ def network_layers(q_net: nn.Module) -> tuple[list[nn.Linear], list[nn.Module]]:
 
 
 #: the activations whose derivative the fused step writes out, from the layer's output ``y``
-_DERIVATIVES = {nn.ReLU: lambda y: y > 0, nn.Tanh: lambda y: 1 - y * y}
+DERIVATIVES = {nn.ReLU: lambda y: y > 0, nn.Tanh: lambda y: 1 - y * y}
 
 
 def _column(values: Sequence[float]) -> float | th.Tensor:
@@ -96,7 +96,7 @@ class StackedQ:
         self.weights, self.biases = self._views(self.flat)
         self.target_weights, self.target_biases = self._views(self.target_flat)
         self.grad_weights, self.grad_biases = self._views(self.grad)
-        self.derivatives = [_DERIVATIVES.get(type(a)) for a in self.activations]
+        self.derivatives = [DERIVATIVES.get(type(a)) for a in self.activations]
         self.fused = all(d is not None for d in self.derivatives)
         self.gamma = _column([m.gamma for m in models])
         self.max_grad_norm = _column([m.max_grad_norm for m in models])
