@@ -43,7 +43,7 @@ from sb3_affect.agents.sb3_fields import ModelFields
 from sb3_affect.engine.lockstep import idle
 from sb3_affect.engine.seed_envs import SeedEnvs
 from sb3_affect.engine.stacked_adam import adam, clip_rows
-from sb3_affect.engine.stacked_q import DERIVATIVES, network_activations
+from sb3_affect.engine.stacked_q import BACKWARDS, network_activations
 
 
 def _column(values: Sequence[float]) -> th.Tensor:
@@ -82,9 +82,9 @@ class StackedActorCritic:
         self.grad = th.zeros_like(self.flat)
         self.tensors = [view.requires_grad_(True) for view in self._views(self.flat)]
         self.grads = self._views(self.grad)
-        self.pi_derivatives = [DERIVATIVES.get(type(a)) for a in self.pi_activations]
-        self.vf_derivatives = [DERIVATIVES.get(type(a)) for a in self.vf_activations]
-        self.written = all(d is not None for d in (*self.pi_derivatives, *self.vf_derivatives))
+        self.pi_backwards = [BACKWARDS.get(type(a)) for a in self.pi_activations]
+        self.vf_backwards = [BACKWARDS.get(type(a)) for a in self.vf_activations]
+        self.written = all(b is not None for b in (*self.pi_backwards, *self.vf_backwards))
         layers = list(zip(self.tensors[0::2], self.tensors[1::2]))
         self.pi, self.vf = layers[:len(pi_linears)], layers[len(pi_linears):len(pi_linears) + len(vf_linears)]
         self.action, self.value = layers[-2], layers[-1]
@@ -230,21 +230,20 @@ class StackedActorCritic:
     def _written_gradient(self, kept: tuple[list[th.Tensor], list[th.Tensor]], logits_grad: th.Tensor,
                           values_grad: th.Tensor) -> None:
         """
-        The backward pass of the actor and the critic written out (Tanh or ReLU layers: ``DERIVATIVES``) into
-        ``self.grad``, from their layers' inputs ``kept`` by ``forward``: per layer one batched product for the weight's
-        gradient, one for the input's (but the first layer's), one sum for the bias's.
+        The backward pass of the actor and the critic written out (Tanh or ReLU layers: ``BACKWARDS``) from their layers'
+        inputs ``kept`` by ``forward``: per layer one batched product for the weight's gradient and one sum for the
+        bias's, each written into its view of ``self.grad``, and one product for the input's (but the first layer's).
         """
         n_pi, n_vf = len(self.pi), len(self.vf)
         heads = 2 * (n_pi + n_vf)
-        for layers, derivatives, inputs, upstream, indices in (
-                ([*self.pi, self.action], self.pi_derivatives, kept[0], logits_grad, [*range(0, 2 * n_pi, 2), heads]),
-                ([*self.vf, self.value], self.vf_derivatives, kept[1], values_grad,
-                 [*range(2 * n_pi, heads, 2), heads + 2])):
+        for layers, backwards, inputs, upstream, indices in (
+                ([*self.pi, self.action], self.pi_backwards, kept[0], logits_grad, [*range(0, 2 * n_pi, 2), heads]),
+                ([*self.vf, self.value], self.vf_backwards, kept[1], values_grad, [*range(2 * n_pi, heads, 2), heads + 2])):
             for i in range(len(layers) - 1, -1, -1):
-                self.grads[indices[i]].copy_(th.bmm(inputs[i].mT, upstream))
-                self.grads[indices[i] + 1].copy_(upstream.sum(dim=1, keepdim=True))
+                th.bmm(inputs[i].mT, upstream, out=self.grads[indices[i]])
+                th.sum(upstream, dim=1, keepdim=True, out=self.grads[indices[i] + 1])
                 if i:
-                    upstream = th.bmm(upstream, layers[i][0].mT).mul_(derivatives[i - 1](inputs[i]))  # type: ignore[misc]
+                    upstream = backwards[i - 1](th.bmm(upstream, layers[i][0].mT), inputs[i])  # type: ignore[misc]
 
     def set_learning_rate(self, learning_rate: float) -> None:
         self.learning_rate = float(learning_rate)
@@ -268,11 +267,15 @@ class StackedRollout:
     """
     The rollout buffers of S seeds in one set of arrays ``(S, n_steps, E)``, SB3's ``RolloutBuffer`` per seed (its
     arrays, GAE and minibatches); ``release`` writes each seed's rollout into its model's buffer.
+
+    :param obs_dtype: the observations' array: SB3's float32, or ``uint8`` for ``uint8`` observations (the same
+        numbers, a quarter of the bytes for the minibatches' gathers to read)
     """
 
-    def __init__(self, n_seeds: int, rows: int, n_envs: int, obs_shape: tuple[int, ...]) -> None:
+    def __init__(self, n_seeds: int, rows: int, n_envs: int, obs_shape: tuple[int, ...],
+                 obs_dtype: type[np.floating] | type[np.uint8] = np.float32) -> None:
         self.rows, self.n_envs = rows, n_envs
-        self.observations = np.zeros((n_seeds, rows, n_envs, *obs_shape), dtype=np.float32)
+        self.observations = np.zeros((n_seeds, rows, n_envs, *obs_shape), dtype=obs_dtype)
         self.actions = np.zeros((n_seeds, rows, n_envs), dtype=np.int64)
         self.rewards, self.episode_starts, self.values, self.log_probs, self.advantages, self.returns = (
             np.zeros((n_seeds, rows, n_envs), dtype=np.float32) for _ in range(6))
@@ -531,7 +534,8 @@ class LockstepPPO:
         self.episode_starts = np.stack([fields.last_episode_starts for fields in self.fields]).astype(np.float32)
         self.stack = StackedActorCritic(models)
         first = models[0]
-        self.rollout = StackedRollout(self.n_seeds, first.n_steps, self.n_envs, first.observation_space.shape or ())
+        self.rollout = StackedRollout(self.n_seeds, first.n_steps, self.n_envs, first.observation_space.shape or (),
+                                      np.uint8 if first.observation_space.dtype == np.uint8 else np.float32)
         iteration = 0
         try:
             while not self.frozen.all() and models[self._live()[0]].num_timesteps < total:

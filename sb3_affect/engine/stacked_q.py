@@ -27,7 +27,7 @@ batched product sums in another order than one network's ``addmm``).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 import torch as th
@@ -57,8 +57,10 @@ def network_layers(q_net: nn.Module) -> tuple[list[nn.Linear], list[nn.Module]]:
     return linears, activations
 
 
-#: the activations whose derivative the fused step writes out, from the layer's output ``y``
-DERIVATIVES = {nn.ReLU: lambda y: y > 0, nn.Tanh: lambda y: 1 - y * y}
+#: the activations whose backward the fused steps write out: the gradient by the layer's input from the gradient by its
+#: output ``y``, by the kernel autograd runs (one pass, where ``grad * (1 - y * y)`` takes three)
+BACKWARDS: dict[type[nn.Module], Callable[[th.Tensor, th.Tensor], th.Tensor]] = {
+    nn.ReLU: lambda grad, y: th.ops.aten.threshold_backward(grad, y, 0), nn.Tanh: th.ops.aten.tanh_backward}
 
 
 def _column(values: Sequence[float]) -> float | th.Tensor:
@@ -96,8 +98,8 @@ class StackedQ:
         self.weights, self.biases = self._views(self.flat)
         self.target_weights, self.target_biases = self._views(self.target_flat)
         self.grad_weights, self.grad_biases = self._views(self.grad)
-        self.derivatives = [DERIVATIVES.get(type(a)) for a in self.activations]
-        self.fused = all(d is not None for d in self.derivatives)
+        self.backwards = [BACKWARDS.get(type(a)) for a in self.activations]
+        self.fused = all(b is not None for b in self.backwards)
         self.gamma = _column([m.gamma for m in models])
         self.max_grad_norm = _column([m.max_grad_norm for m in models])
         self.tau = _column([m.tau for m in models])
@@ -200,7 +202,7 @@ class StackedQ:
                 else self.grad_weights[i].copy_(th.bmm(upstream.transpose(1, 2), layers[i]))
             self.grad_biases[i].copy_(upstream.sum(dim=1, keepdim=True))
             if i > 0:
-                upstream = th.bmm(upstream, self.weights[i]).mul_(self.derivatives[i - 1](layers[i]))  # type: ignore[misc]
+                upstream = self.backwards[i - 1](th.bmm(upstream, self.weights[i]), layers[i])  # type: ignore[misc]
         return losses
 
     def _autograd_gradient(self, x: th.Tensor, actions: th.Tensor, target_q_values: th.Tensor) -> th.Tensor:
