@@ -428,9 +428,10 @@ class LockstepPPO:
 
     def _collect(self, callbacks: dict[int, BaseCallback], n_steps: int) -> None:
         """``collect_rollouts`` of every live seed (``n_steps`` VecEnv steps, then GAE)."""
-        models, live = self.models, self._live()
-        for index in live:
-            models[index].policy.set_training_mode(False)
+        models = self.models
+        for index in self._live():
+            if models[index].policy.training:  # set once: nothing here sets it back (each call walks the modules)
+                models[index].policy.set_training_mode(False)
         self.rollout.pos = 0
         for callback in callbacks.values():
             callback.on_rollout_start()
