@@ -62,8 +62,8 @@ class StackedActorCritic:
     Every seed's parameters are one row of an ``(S, P)`` tensor; each layer's weight is a view of it ``(S, in, out)``
     (the transpose of ``Linear``'s, so that a forward pass multiplies by it as it lies in memory: measured at S = 32,
     a forward and backward pass 8% faster on a minibatch of 64 than by a transposed view, 40% on a VecEnv step's 4) and
-    its bias ``(S, 1, out)``. The gradient lands in one ``(S, P)`` tensor too, so that
-    clipping and Adam are one operation each (``stacked_adam``).
+    its bias ``(S, 1, out)``. The gradient lands in one ``(S, P)`` tensor too (written out for Tanh and ReLU layers,
+    by autograd for others), so that clipping and Adam are one operation each (``stacked_adam``).
 
     :param models: S SB3 PPO models of one architecture (``write_back`` copies the weights and Adam's state back)
     """
@@ -207,7 +207,7 @@ class StackedActorCritic:
         """
         The gradient of each seed's loss by its logits ``(S, B, n)``, as autograd takes it: the clipped surrogate's
         through ``min`` (half to each side of a tie) and ``clamp`` (passing inside its closed range), the entropy
-        term's, then ``log_softmax``'s backward.
+        term's, then the backward of ``logits - logsumexp(logits)``.
         """
         size = log_probs.shape[1]
         unclipped = advantages * ratio
