@@ -16,13 +16,7 @@ product per layer (``torch.baddbmm``) for all S seeds. The gradient step is SB3'
 The step is fused: every seed's parameters live in one ``(S, P)`` tensor (each layer's weight and bias a view of
 it), the backward pass of an MLP of ReLU or Tanh layers is written out (one batched product per layer and
 operand, no autograd graph), and the norm, the clipping and Adam are each one operation on the whole ``(S, P)``
-gradient. Adam's square root is taken of ``v + 1e-30`` (``v`` the second moment): torch's CPU ``sqrt`` is about ten
-times slower on exact zeros, which a MiniGrid network's second moments are full of (the never-seen inputs); the
-change is below float32's resolution of ``sqrt(v) / sqrt(1 - beta2^t) + eps``. Adam runs with denormal floats flushed
-to zero (``torch.set_flush_denormal``, the earlier setting restored after): the first moment of an input a seed saw
-once decays by ``beta1`` each step into denormals (a quarter of a MiniGrid network's entries after 20,000 steps), and
-arithmetic on them is about ten times slower on x86; an entry below ``2**-126`` moves a weight by less than
-``1e-30 * lr``. Other activations run torch's
+gradient (Adam: ``stacked_adam``, torch's fused kernel with denormals flushed). Other activations run torch's
 autograd through the same views; optimizers other than plain Adam (``AdamW``, ``RMSprop``, ``SGD``, Adam with
 ``amsgrad``) run torch's own on the ``(S, P)`` tensor.
 
@@ -33,13 +27,15 @@ batched product sums in another order than one network's ``addmm``).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 import torch as th
 import torch.nn.functional as F
 from stable_baselines3 import DQN
 from torch import nn
+
+from sb3_affect.engine.stacked_adam import adam, clip_rows
 
 #: optimizers whose update is element-wise, so stacking the seeds changes nothing
 ELEMENTWISE_OPTIMIZERS = (th.optim.Adam, th.optim.AdamW, th.optim.RMSprop, th.optim.SGD)
@@ -61,12 +57,10 @@ def network_layers(q_net: nn.Module) -> tuple[list[nn.Linear], list[nn.Module]]:
     return linears, activations
 
 
-#: the activations whose derivative the fused step writes out, from the layer's output ``y``
-_DERIVATIVES = {nn.ReLU: lambda y: y > 0, nn.Tanh: lambda y: 1 - y * y}
-#: added to Adam's second moment before its square root (see the module docstring)
-SQRT_FLOOR = 1e-30
-#: a denormal float32 (half the smallest normal one): it reads as 0 where denormals are flushed
-DENORMAL = 2.0**-127
+#: the activations whose backward the fused steps write out: the gradient by the layer's input from the gradient by its
+#: output ``y``, by the kernel autograd runs (one pass, where ``grad * (1 - y * y)`` takes three)
+BACKWARDS: dict[type[nn.Module], Callable[[th.Tensor, th.Tensor], th.Tensor]] = {
+    nn.ReLU: lambda grad, y: th.ops.aten.threshold_backward(grad, y, 0), nn.Tanh: th.ops.aten.tanh_backward}
 
 
 def _column(values: Sequence[float]) -> float | th.Tensor:
@@ -104,8 +98,8 @@ class StackedQ:
         self.weights, self.biases = self._views(self.flat)
         self.target_weights, self.target_biases = self._views(self.target_flat)
         self.grad_weights, self.grad_biases = self._views(self.grad)
-        self.derivatives = [_DERIVATIVES.get(type(a)) for a in self.activations]
-        self.fused = all(d is not None for d in self.derivatives)
+        self.backwards = [BACKWARDS.get(type(a)) for a in self.activations]
+        self.fused = all(b is not None for b in self.backwards)
         self.gamma = _column([m.gamma for m in models])
         self.max_grad_norm = _column([m.max_grad_norm for m in models])
         self.tau = _column([m.tau for m in models])
@@ -208,7 +202,7 @@ class StackedQ:
                 else self.grad_weights[i].copy_(th.bmm(upstream.transpose(1, 2), layers[i]))
             self.grad_biases[i].copy_(upstream.sum(dim=1, keepdim=True))
             if i > 0:
-                upstream = th.bmm(upstream, self.weights[i]).mul_(self.derivatives[i - 1](layers[i]))  # type: ignore[misc]
+                upstream = self.backwards[i - 1](th.bmm(upstream, self.weights[i]), layers[i])  # type: ignore[misc]
         return losses
 
     def _autograd_gradient(self, x: th.Tensor, actions: th.Tensor, target_q_values: th.Tensor) -> th.Tensor:
@@ -223,38 +217,18 @@ class StackedQ:
 
     def _clip_gradients(self) -> None:
         """``clip_grad_norm_`` per seed: each seed's gradient scaled to at most ``max_grad_norm``."""
-        total = th.linalg.vector_norm(self.grad, 2, dim=1, keepdim=True)
-        self.grad.mul_(th.clamp(self.max_grad_norm / (total + 1e-6), max=1.0))
+        clip_rows(self.grad, self.max_grad_norm)
 
     def _optimizer_step(self) -> None:
-        """The policy's optimizer on the ``(S, P)`` parameters: Adam written out (see the module docstring), or torch's."""
+        """The policy's optimizer on the ``(S, P)`` parameters: Adam (``stacked_adam``), or torch's own."""
         with th.no_grad():
             if self.optimizer is not None:
                 self.flat.grad = self.grad
                 self.optimizer.step()
                 return
-            flushing = th.tensor(DENORMAL).item() == 0.0
-            th.set_flush_denormal(True)
-            try:
-                self._adam_step()
-            finally:
-                th.set_flush_denormal(flushing)
-
-    def _adam_step(self) -> None:
-        """Adam's update of ``self.flat`` by ``self.grad`` (torch's ``_single_tensor_adam``, the square root floored)."""
-        with th.no_grad():
-            beta1, beta2 = self.betas
-            self.steps += 1
-            grad = self.grad if not self.weight_decay else self.grad.add(self.flat, alpha=self.weight_decay)
-            self.exp_avg.lerp_(grad, 1 - beta1)
-            self.exp_avg_sq.mul_(beta2).addcmul_(grad, grad, value=1 - beta2)
-            bias_correction1 = 1 - beta1 ** self.steps
-            bias_correction2_sqrt = (1 - beta2 ** self.steps) ** 0.5
-            denominator = th.add(self.exp_avg_sq, SQRT_FLOOR).sqrt_().div_(bias_correction2_sqrt).add_(self.eps)
-            if isinstance(self.learning_rate, float):
-                self.flat.addcdiv_(self.exp_avg, denominator, value=-self.learning_rate / bias_correction1)
-            else:
-                self.flat.addcdiv_(self.exp_avg * (self.learning_rate / bias_correction1), denominator, value=-1.0)
+        self.steps += 1
+        adam(self.flat, self.grad, self.exp_avg, self.exp_avg_sq, self.steps, self.betas, self.eps, self.learning_rate,
+             self.weight_decay)
 
     def update_target(self) -> None:
         """SB3's ``polyak_update`` of the target networks with ``tau``."""

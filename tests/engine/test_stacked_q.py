@@ -1,6 +1,6 @@
 """
 The fused gradient step of ``StackedQ`` against SB3's ``DQN.train``: the written-out backward pass (ReLU, Tanh), torch's
-autograd (other activations), Adam on the ``(S, P)`` tensor with its square root floored, per-seed settings.
+autograd (other activations), Adam on the ``(S, P)`` tensor (``stacked_adam``), per-seed settings.
 """
 
 from __future__ import annotations
@@ -100,7 +100,7 @@ def test_settings_per_seed_equal_each_seeds_dqn_train() -> None:
 
 @pytest.mark.parametrize("flushing", [False, True])
 def test_adam_flushes_denormals_and_restores_the_callers_setting(flushing: bool) -> None:
-    """Adam runs with denormals flushed to zero (see ``stacked_q``), still within 1e-6 of ``DQN.train``; the caller's
+    """Adam runs with denormals flushed to zero (see ``stacked_adam``), still within 1e-6 of ``DQN.train``; the caller's
     setting of ``torch.set_flush_denormal`` is what it was after every step."""
     before = th.tensor(2.0**-127).item() == 0.0
     th.set_flush_denormal(flushing)
