@@ -141,7 +141,8 @@ def _override_path(assignment: str, data: dict[str, Any]) -> tuple[list[Any], An
     _check_size(value, f"--set {assignment!r}")
 
     def unknown(key: str, allowed: list[str], where: str) -> SweepError:
-        close = [MOVED[key]] if where in KINDS.values() and key in MOVED else difflib.get_close_matches(key, allowed, n=1)
+        moved = MOVED.get(key, "").partition(".")[0] in allowed  # an old key of this kind: its new path
+        close = [MOVED[key]] if moved else difflib.get_close_matches(key, allowed, n=1)
         hint = f"; did you mean {close[0]!r}?" if close else ""
         return SweepError(
             f"--set {assignment!r}: {key!r} is not a key of {where}{hint} (allowed: {', '.join(allowed)})"

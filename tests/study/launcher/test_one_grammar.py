@@ -170,6 +170,8 @@ def test_set_reaches_the_keys_of_every_section(tmp_path: Path) -> None:
     with pytest.raises(SweepError, match=r"'eval_every' is not a key of a deep study \(a sweep with a trainer\); did you "
                                          r"mean 'evaluation.every'\?"):
         load_sweep_file(ROOT / "experiments" / "deep_smoke.yaml", ["eval_every=1000"], build=False)
+    with pytest.raises(SweepError, match=r"'reps' is not a key of a sweep of runs \(allowed: name, env, tasks, "):
+        load_sweep_file(ROOT / "experiments" / "smoke.yaml", ["reps=3"], build=False)  # (no forensics.reps: not its key)
     with pytest.raises(SweepError, match=r"'trainer.n_envs' is a single value; use --set trainer.n_envs=VALUE"):
         load_sweep_file(ROOT / "experiments" / "deep_smoke.yaml", ["trainer.n_envs.x=1"], build=False)
 
