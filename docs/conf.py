@@ -61,7 +61,7 @@ nitpick_ignore_regex = [
     # the Q-table the loop reads and writes while ``learn`` runs (``TabularQAlgorithm.loop_table``; private module)
     (r"py:class", r"(sb3_affect\.agents\.qtable\.)?LoopTable"),
     # the launcher's units of work and the deep and forensics study models, named in the launcher's signatures
-    (r"py:class", r"sb3_affect\.study\.launcher\.(batches\.(Batch|Single)|deep_schema\.DeepStudy|schema\.ForensicsStudy)"),
+    (r"py:class", r"sb3_affect\.study\.launcher\.(batches\.(Batch|Single))"),
     (r"py:.*", r"(collections\.abc|typing|pathlib|enum|types|os|argparse|io|random)\..*"),
     (r"py:.*", r"(GymEnv|Schedule|MaybeCallback|BaseCallback|BaseAlgorithm|BasePolicy|VecEnv|Env|Logger|Path|Figure|"
      r"Axes|DataFrame|Series|ndarray|NDArray|Tensor|Callable|Mapping|Sequence|Iterable|Iterator|Any|Self|TypeAlias|"

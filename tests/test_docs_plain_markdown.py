@@ -72,7 +72,7 @@ def docstring_block(module: str) -> str:
 def _type_name(annotation: Any) -> str:
     text = getattr(annotation, "__name__", None) if not getattr(annotation, "__args__", None) else None
     text = text or str(annotation).replace("typing.", "")
-    text = text.replace("sb3_affect.study.launcher.schema.", "")
+    text = text.replace("sb3_affect.study.launcher.schema.", "").replace("sb3_affect.study.launcher.deep_schema.", "")
     return text.replace("NoneType", "None")
 
 
@@ -101,14 +101,17 @@ def schema_block(which: str | None) -> str:
     """One table per section of an experiment file: top-level keys, ``env``, an item of ``agents`` (or a study's)."""
     from pydantic_core import PydanticUndefined
 
-    from sb3_affect.study.launcher.schema import AgentSpec, EnvSpec, ForensicsStudy, MemberSpec, ProtocolSpec, Sweep
+    from sb3_affect.study.launcher.deep_schema import EvaluationSpec, TrainerSpec, TunedSpec
+    from sb3_affect.study.launcher.schema import AgentSpec, EnvSpec, ForensicsSpec, MemberSpec, ProtocolSpec, Sweep
 
     sections: tuple[tuple[str, Any], ...] = (
         ("Top-level keys", Sweep), ("`env`", EnvSpec), ("Each item of `agents`", AgentSpec),
         ("Each item of an agent's `team`", MemberSpec),
     )
     if which == "forensics":
-        sections = (("Top-level keys of a forensics study file", ForensicsStudy), ("`protocol`", ProtocolSpec))
+        sections = (("`forensics`", ForensicsSpec), ("`forensics.protocol`", ProtocolSpec))
+    if which == "deep":
+        sections = (("`trainer`", TrainerSpec), ("`evaluation`", EvaluationSpec), ("A task's `tuned`", TunedSpec))
     lines: list[str] = []
     for title, model in sections:
         properties = model.model_json_schema()["properties"]

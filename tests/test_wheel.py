@@ -115,7 +115,7 @@ assert "site-packages" in replicate.__file__
 replicate.PARTS = (("paper", "the paper's protocol, at toy size"), *(p for p in replicate.PARTS if p[0] == "forensics"))
 replicate.LARGE_SEEDS = replicate.ABLATION_SEEDS = replicate.BEYOND_SEEDS = 1
 replicate.ENGINE_EPISODES = 5
-replicate.OVERRIDES = {"forensics": ["leaders=1", "reps=2"]}  # the forensics run, with one leader replicated twice
+replicate.OVERRIDES = {"forensics": ["forensics.leaders=1", "forensics.reps=2"]}  # one leader replicated twice
 from sb3_affect.study.launcher import sweep_file
 load = sweep_file.load_sweep
 toy = ("seeds=1", "episodes=5")  # the tabular sweeps at toy size (the forensics file has its own sizes, above)

@@ -67,7 +67,7 @@ class AgentEntry(NamedTuple):
     exports: tuple[str, ...] = ()
     #: rl-zoo3 (``sb3_affect.integrations.zoo``): its hyperparameters and sampler. None: not in the zoo
     zoo: ZooRecipe | None = None
-    #: a DQN of the deep study (``study: deep``), which the lockstep trainer (``train_many``) trains
+    #: a DQN of the deep study (a sweep file with a ``trainer``), which the lockstep trainer (``train_many``) trains
     deep: bool = False
     #: a control's row of the controls' table: (the control, what it is); how to run it is the class with ``zoo``'s
     #: MiniGrid keywords

@@ -10,8 +10,8 @@ Both come from the agents' registry entries (``sb3_affect.core.registry.AGENT_EN
 zoo the package's hyperparameters (``hyperparams``: for the tabular agents their files
 ``sb3_affect/integrations/zoo_hyperparams/<algo>.yml``, on the package's envs, FrozenLake, CliffWalking and Taxi; for
 the deep agents and for ``dqn`` MiniGrid's Empty-8x8, DoorKey-5x5 and Empty-6x6: DQN's settings, each task's keys of
-``dqn.yml`` with the deep study's ``network``, and each agent's own keywords from its recipe, written to a temporary
-file the zoo reads as its ``--conf-file``; the deep study's settings, which do not make every agent solve them:
+``dqn.yml`` with the deep study's ``trainer.algo_kwargs``, and each agent's own keywords from its recipe, written to a
+temporary file the zoo reads as its ``--conf-file``; the deep study's settings, which do not make every agent solve them:
 trained through the zoo with ``--seed 0``, ``dqn``'s greedy policy reached the goal of Empty-8x8 in 20 of 20 episodes
 and ``affectdqn``'s in none, see docs/deep_agents.md) unless ``--conf-file`` is given; for ``dqn``, whose file the zoo
 has, only on the envs ``dqn.yml`` lists. The zoo's ``enjoy`` acts stochastically on MiniGrid (as on Atari)
@@ -142,7 +142,7 @@ def sampler(entry: AgentEntry) -> Callable[..., dict[str, Any]]:
 
 #: Each zoo name's Optuna sampler (from its registry entry's recipe).
 SAMPLERS = {entry.name.lower(): sampler(entry) for entry in AGENT_ENTRIES if entry.zoo is not None}
-#: The deep study's sweep file whose ``network`` every MiniGrid task of ``dqn.yml`` takes (the one place of DQN's
+#: The deep study's sweep file whose ``trainer.algo_kwargs`` every MiniGrid task of ``dqn.yml`` takes (the one place of DQN's
 #: shared MiniGrid settings: the study trains with them, the zoo's DQN and the agents that share them too).
 STUDY_NETWORK = ("sb3_affect.sweeps", "minigrid_dqn.yaml")
 
@@ -154,9 +154,9 @@ def _read_yaml(path: Any) -> Any:
 
 
 def _dqn_minigrid() -> dict[str, dict[str, Any]]:
-    """DQN's MiniGrid settings: each task's keys of ``dqn.yml`` with the deep study's ``network`` (``STUDY_NETWORK``),
-    a copy of it for each task (the table written for the zoo then holds no YAML aliases)."""
-    network = _read_yaml(resources.files(STUDY_NETWORK[0]) / STUDY_NETWORK[1])["network"]
+    """DQN's MiniGrid settings: each task's keys of ``dqn.yml`` with the deep study's ``trainer.algo_kwargs``
+    (``STUDY_NETWORK``), a copy of it for each task (the table written for the zoo then holds no YAML aliases)."""
+    network = _read_yaml(resources.files(STUDY_NETWORK[0]) / STUDY_NETWORK[1])["trainer"]["algo_kwargs"]
     return {task: {**keys, **copy.deepcopy(network)} for task, keys in _read_yaml(HYPERPARAMS_FOLDER / "dqn.yml").items()}
 
 

@@ -71,7 +71,7 @@ def _add_forensics_parser(sub: Any) -> None:
         "numbers of Tables IV and V and the 27.35 episodes under each, rank the candidates (docs/forensics.md). "
         "Writes DIR/forensics.md (tables and a figure); rerun the same command to resume. The study of the shipped "
         "sweep file experiments/forensics.yaml with the sizes and grid below: the same as `sb3-affect run forensics "
-        "--out DIR --set reps=100 ...`.",
+        "--out DIR --set forensics.reps=100 ...`.",
     )
     parser.add_argument("--out", required=True, help="results folder, e.g. runs/forensics")
     _executor_arguments(parser, "2", default=2)

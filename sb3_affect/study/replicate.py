@@ -27,7 +27,6 @@ from sb3_affect.study.launcher import run_sweep
 from sb3_affect.study.launcher.epsilon_tuning import round_values, tune, tuning_grid
 from sb3_affect.study.launcher.folder_files import MAX_SWEEP_FILE_BYTES
 from sb3_affect.study.launcher.regular_files import UnreadableFile, read_json, write_file
-from sb3_affect.study.launcher.schema import ForensicsStudy
 from sb3_affect.study.launcher.store import KIND_NAMES, ResultsStore, StoreError, folder_kind
 from sb3_affect.study.launcher.sweep_file import load_sweep, load_sweep_file
 from sb3_affect.study.report import build_report
@@ -51,7 +50,7 @@ LARGE_SEEDS: int | None = None
 ABLATION_SEEDS: int | None = None
 BEYOND_SEEDS: int | None = None
 ENGINE_EPISODES: int | None = None
-#: Further ``--set`` overrides of a part by name, for quick checks (e.g. ``{"forensics": ["reps=2"]}``).
+#: Further ``--set`` overrides of a part by name, for quick checks (e.g. ``{"forensics": ["forensics.reps=2"]}``).
 OVERRIDES: dict[str, list[str]] = {}
 
 
@@ -164,7 +163,7 @@ def _run_part(
     """
 
     study = load_sweep_file(path, overrides, build=False)
-    if isinstance(study, ForensicsStudy):  # no progress bars of its own in the log: a heartbeat instead
+    if study.kind == "forensics":  # no progress bars of its own in the log: a heartbeat instead
         with _heartbeat(key):
             result = run_study(path, folder, overrides, progress=False, **executor)
         print(f"   {result.simulated} replications now, {result.reused} already done, {result.seconds:.1f} s", flush=True)

@@ -17,7 +17,7 @@ from pydantic import ValidationError
 from sb3_affect.study import replicate, sweep_commands
 from sb3_affect.study.forensics.section import report_section
 from sb3_affect.study.forensics.study_run import run_study, summary_lines
-from sb3_affect.study.launcher.schema import ForensicsStudy
+from sb3_affect.study.launcher.schema import Sweep
 from sb3_affect.study.launcher.signals import stop_on_sigterm
 from sb3_affect.study.launcher.sweep_file import load_sweep_file
 from sb3_affect.study.report import build_report
@@ -69,14 +69,14 @@ def forensics(args: argparse.Namespace) -> int:
     given = {"screen_reps": args.screen_reps, "leaders": args.leaders, "reps": args.reps}
     given.update({key: list(getattr(args, key)) for key in ("alphas", "gammas") if getattr(args, key)})
     try:
-        study = ForensicsStudy.model_validate({**shipped.model_dump(), **given})
+        study = Sweep.validate_saved({**shipped.model_dump(), "forensics": {**shipped.model_dump()["forensics"], **given}})
     except ValidationError as error:
         first = error.errors()[0]
-        option = f"--{str(first['loc'][0]).replace('_', '-')}={first['input']!r}: " if first["loc"] else ""
+        option = f"--{str(first['loc'][-1]).replace('_', '-')}={first['input']!r}: " if first["loc"] else ""
         raise SystemExit(f"sb3-affect forensics: error: {option}{first['msg'].removeprefix('Value error, ')}") from None
     stop_on_sigterm()  # `kill`: stop like Ctrl-C (the pool's workers first), exit 143
     executor = {"backend": args.backend, "ray_address": args.ray_address}
-    overrides = [f"{key}={value}" for key, value in given.items()]  # the same as `sb3-affect run forensics --set ...`
+    overrides = [f"forensics.{key}={value}" for key, value in given.items()]  # as `sb3-affect run forensics --set ...`
     result = run_study(path, args.out, overrides, workers=args.workers, progress=not args.no_progress, **executor)
     print("\n".join(summary_lines(study, result, args.out)))
     return 0

@@ -46,9 +46,10 @@ STUDIES: tuple[Study, ...] = (
     Study("long", "long runs: both paper agents, runs of 2,000 episodes ({runs} runs)", size="long"),
     Study("joy_trace", "joy trace: the paper's affective agent, each decision's emotion and act recorded ({runs} runs)"),
     Study("minigrid", "the tabular agents on MiniGrid ({runs} runs)", extra=("minigrid", "minigrid")),
-    Study("deep_smoke", "the deep study at smoke size: {name}, greedy policies evaluated every {eval_every} env steps",
+    Study("deep_smoke", "the deep study at smoke size: {name}, greedy policies evaluated every {evaluation_every} env steps",
           extra=("minigrid", "minigrid")),
-    Study("forensics", "replication forensics: {screen_reps} screen, {leaders} leaders x {reps} replications"),
+    Study("forensics", "replication forensics: {forensics_screen_reps} screen, {forensics_leaders} leaders x "
+          "{forensics_reps} replications"),
     Study("tuning", "ε of ε-greedy and speed-matched ε-greedy tuned on each task beyond the paper: the grid ({runs} runs) "
           "in round0/, then one value further out where the best sits at an edge (round1/, ...)", size="large", tuned=True),
     Study("beyond", "static grid, moving and evading prey, mazes, with the tuned ε ({runs} runs)", size="beyond", tuned=True),
@@ -105,8 +106,8 @@ def sweep_runs(path: Path) -> int | None:
 def part_description(name: str, description: str, experiments: Path | None = None) -> str:
     """
     A part's description with its sizes read from its sweep file in ``experiments`` (default: the shipped ones; one
-    source for those numbers): ``{runs}`` (a sweep's run count) and any top-level key of the file (a study's
-    ``{reps}``); "?" where the file can not be read.
+    source for those numbers): ``{runs}`` (a sweep's run count), any top-level key of the file and any key of its
+    sections as ``{section_key}`` (the forensics' ``{forensics_reps}``); "?" where the file can not be read.
     """
     if "{" not in description:
         return description
@@ -115,6 +116,8 @@ def part_description(name: str, description: str, experiments: Path | None = Non
     try:
         data = None if yaml is None else yaml.safe_load(path.read_text())  # (without the experiments extra: no sizes)
         values.update(data if isinstance(data, dict) else {})
+        values.update({f"{name}_{key}": value for name, section in values.copy().items() if isinstance(section, dict)
+                       for key, value in section.items()})  # fmt: skip
     except (OSError, ValueError):
         pass
     if "{runs}" in description:

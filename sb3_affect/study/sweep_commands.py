@@ -13,9 +13,9 @@ from pathlib import Path
 
 from sb3_affect.study.launcher import ResultsStore, run_sweep
 from sb3_affect.study.launcher.ray_errors import ClusterLost, RayClusterError
-from sb3_affect.study.launcher.schema import ForensicsStudy, SweepError
+from sb3_affect.study.launcher.schema import Sweep, SweepError, kind_of
 from sb3_affect.study.launcher.signals import Terminated, stop_on_sigterm
-from sb3_affect.study.launcher.store import StoreError, folder_kind, old_layout, study_kind
+from sb3_affect.study.launcher.store import StoreError, folder_kind, old_layout
 from sb3_affect.study.launcher.sweep_file import load_sweep_file
 
 
@@ -71,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
     check_out(args.out)
     study = load_sweep_file(args.file, args.set or (), build=False)
     stop_on_sigterm()
-    if isinstance(study, ForensicsStudy):
+    if study.kind == "forensics":
         return _run_forensics(study, args)  # (its stages through run_sweep, then its analysis)
     summary = run_sweep(
         args.file,
@@ -93,8 +93,8 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _run_forensics(study: ForensicsStudy, args: argparse.Namespace) -> int:
-    """``sb3-affect run`` of a forensics study file (``study: forensics``) on the launcher's executor."""
+def _run_forensics(study: Sweep, args: argparse.Namespace) -> int:
+    """``sb3-affect run`` of a forensics study file (a sweep with ``forensics``) on the launcher's executor."""
     from sb3_affect.study.forensics.study_run import run_study, summary_lines  # (report extra: a forensics study only)
 
     if args.logs:
@@ -144,12 +144,12 @@ def status(args: argparse.Namespace) -> int:
 
 
 def _kind(folder: Path) -> str | None:
-    """The kind of study a folder holds (``store.folder_kind``; a sweep.json of ``study: forensics``: ``forensics``)."""
+    """The kind of study a folder holds (``store.folder_kind``; a sweep.json of the forensics: ``forensics``)."""
     held = folder_kind(folder)
     if held is None or held[0] != "sweep":
         return None if held is None else held[0]
     saved = ResultsStore(folder).saved_sweep()
-    return "forensics" if saved is not None and study_kind(saved) == "forensics" else "sweep"
+    return "forensics" if saved is not None and kind_of(saved["sweep"]) == "forensics" else "sweep"
 
 
 def _print_forensics_status(root: Path) -> None:

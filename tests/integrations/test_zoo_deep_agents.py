@@ -1,7 +1,8 @@
 """
 rl-zoo3 with the deep agents and the deep controls: the zoo's own train and enjoy of AffectDQN on MiniGrid with the
 package's hyperparameters (a small budget on the command line), every deep agent's table (DQN's settings, the deep
-study's network, its own keywords), the Optuna samplers and the zoo's hyperparameter search with AffectDQN's sampler.
+study's trainer.algo_kwargs, its own keywords), the Optuna samplers and the zoo's hyperparameter search with
+AffectDQN's sampler.
 """
 
 from __future__ import annotations
@@ -55,7 +56,8 @@ def test_zoo_trains_affect_dqn_on_minigrid_with_the_shipped_file_and_enjoy_repla
 
 
 def test_every_deep_agent_has_the_minigrid_tasks_dqns_settings_and_the_studys_network() -> None:
-    dqn, network = hyperparams("dqn"), yaml.safe_load((ROOT / "experiments" / "minigrid_dqn.yaml").read_text())["network"]
+    study = yaml.safe_load((ROOT / "experiments" / "minigrid_dqn.yaml").read_text())
+    dqn, network = hyperparams("dqn"), study["trainer"]["algo_kwargs"]
     assert set(dqn) == set(TASKS) and {"affectdqn", "affectqrdqn", "ezgreedydqn", "speedepsilongreedydqn"} <= set(DEEP)
     assert all(task.items() >= network.items() for task in dqn.values())  # the study trains with the same network
     assert dqn["MiniGrid-Empty-8x8-v0"]["learning_rate"] == 0.0005 and dqn["MiniGrid-Empty-6x6-v0"]["n_timesteps"] == 50_000

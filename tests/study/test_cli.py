@@ -112,7 +112,7 @@ def test_set_typo_is_blamed_on_the_set_option(tmp_path: Path, capsys: pytest.Cap
                                              "--set", "agents.dqn.kwargs.gamma=1"])
     # the forensics study file: its own keys, and no SB3 logs
     message = error(capsys, ["run", "forensics", "--out", str(tmp_path / "o"), "--set", "seeds=3"])
-    assert "'seeds' is not a key of a forensics study file" in message and "(allowed: name, study, " in message
+    assert "'seeds' is not a key of the forensics (a sweep with forensics) (allowed: name, forensics)" in message
     message = error(capsys, ["run", "forensics", "--out", str(tmp_path / "o"), "--logs", "csv"])
     no_logs = "--logs csv: the forensics study runs on the compiled engine and writes no SB3 logs"
     assert message.strip() == f"sb3-affect: error: {no_logs}"

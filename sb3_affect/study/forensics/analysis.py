@@ -38,7 +38,7 @@ from sb3_affect.study.forensics.scoring import (
 from sb3_affect.study.forensics.section import write_standalone
 from sb3_affect.study.forensics.stages import Replications, Stages
 from sb3_affect.study.forensics.statistics import STATISTICS
-from sb3_affect.study.launcher.schema import ForensicsStudy
+from sb3_affect.study.launcher.schema import ForensicsSpec
 from sb3_affect.study.launcher.store import ResultsStore, store_error, write_atomic
 
 
@@ -69,7 +69,7 @@ class ForensicsResult:
 
 
 def analyse(
-    study: ForensicsStudy, out: str | Path, printed: np.ndarray | None = None, launched: float = 0.0
+    study: ForensicsSpec, out: str | Path, printed: np.ndarray | None = None, launched: float = 0.0
 ) -> ForensicsResult:
     """
     Score the printed numbers on the replications stored in ``out`` (every stage of ``study``), write the tables and

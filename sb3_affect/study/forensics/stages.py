@@ -28,7 +28,7 @@ from sb3_affect.study.forensics.statistics import STATISTICS, candidate_statisti
 from sb3_affect.study.forensics.units import ForensicsBatch, Unit
 from sb3_affect.study.launcher.batches import Job, batch_size, split_cell
 from sb3_affect.study.launcher.forensics_candidates import STANDARD, STEP_UNITS, Candidate, Simulation
-from sb3_affect.study.launcher.schema import PRESCREEN, REPLICATIONS, Cell, ForensicsStudy
+from sb3_affect.study.launcher.schema import PRESCREEN, REPLICATIONS, Cell, ForensicsSpec, Sweep
 from sb3_affect.study.launcher.store import ResultsStore, StoreError
 
 #: Pre-screen: a simulation whose mean steps per episode (one replication) is more than this factor from its agent's
@@ -106,7 +106,7 @@ class Stages:
     :param printed: the numbers to explain, one per ``STATISTICS`` entry (default: the paper's)
     """
 
-    def __init__(self, study: ForensicsStudy, stored: Replications, printed: np.ndarray | None = None) -> None:
+    def __init__(self, study: ForensicsSpec, stored: Replications, printed: np.ndarray | None = None) -> None:
         self.study, self.stored = study, stored
         self.space, self.protocol = study.space(), study.paper_protocol()
         self.observed = printed_numbers() if printed is None else np.asarray(printed, dtype=float)
@@ -189,7 +189,7 @@ class Stages:
 
 
 def plan_stages(
-    study: ForensicsStudy,
+    study: Sweep,
     cells: list[Cell],
     cell_ids: list[list[str]],
     store: ResultsStore,
@@ -202,8 +202,9 @@ def plan_stages(
     yet (nor ``tried``: a failed unit waits for the next launch), as batches of one simulation each; [] when every
     stage is stored or the first one missing can not run now. ``printed``: the numbers the stages score (``Stages``).
     """
+    assert study.forensics is not None  # (a forensics study: the launcher binds it)
     stored = Replications(store)
-    stages = Stages(study, stored, printed)
+    stages = Stages(study.forensics, stored, printed)
     cell_of = {(c.base["agent"], c.base["labels"]["stage"]): (c, ids) for c, ids in zip(cells, cell_ids)}
     missing = [u for u in stages.prescreen_units if not stored.prescreened(u[0])]
     stage = PRESCREEN

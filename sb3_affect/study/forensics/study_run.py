@@ -1,5 +1,5 @@
 """
-The forensics a sweep file states (``study: forensics``, ``launcher.schema.ForensicsStudy``): its stages run by the
+The forensics a sweep file states (its ``forensics`` section, ``launcher.schema.ForensicsSpec``): its stages run by the
 launcher (``run_sweep`` with ``stages.plan_stages``, on its executor, stored by its ``ResultsStore``), then scored
 (``analysis.analyse``). ``sb3-affect run FILE``, ``sb3-affect forensics`` and the main job all run it through
 ``run_study``.
@@ -16,7 +16,7 @@ from sb3_affect.study.forensics.analysis import analyse
 from sb3_affect.study.forensics.stages import plan_stages
 from sb3_affect.study.launcher import run_sweep
 from sb3_affect.study.launcher.forensics_candidates import Simulation
-from sb3_affect.study.launcher.schema import ForensicsStudy
+from sb3_affect.study.launcher.schema import ForensicsSpec, Sweep
 from sb3_affect.study.launcher.store import StoreError
 from sb3_affect.study.launcher.sweep_file import load_sweep_file
 
@@ -44,22 +44,22 @@ def run_study(
     paper's). StoreError when some replications failed (the others are kept; a rerun retries them).
     """
     study = load_sweep_file(path, overrides, build=False)
-    if not isinstance(study, ForensicsStudy):
-        raise ValueError(f"{path} is not a forensics study file (study: forensics)")
+    if study.forensics is None:
+        raise ValueError(f"{path} is not a forensics study file (a sweep with a forensics section)")
     if backend == "local":
-        _warm_up(study)
+        _warm_up(study.forensics)
     stages = functools.partial(plan_stages, printed=printed)
     summary = run_sweep(path, out, workers=workers, backend=backend, ray_address=ray_address, ray_timeout=ray_timeout,
                         overrides=overrides, progress=progress, stages=stages)  # fmt: skip
     if summary.failed:
         raise StoreError(f"{summary.failed} replications failed (the others are kept; tracebacks in {Path(out) / 'failed'});"
                          " rerun the same command to retry them")  # fmt: skip
-    result = analyse(study, out, printed, summary.seconds)
+    result = analyse(study.forensics, out, printed, summary.seconds)
     result.simulated, result.reused = summary.finished, summary.skipped
     return result
 
 
-def _warm_up(study: ForensicsStudy) -> None:
+def _warm_up(study: ForensicsSpec) -> None:
     """One one-episode run of each agent in the driver: compiled code is loaded once, and every stage's forked workers
     share it."""
     space, protocol = study.space(), study.paper_protocol()
@@ -70,7 +70,7 @@ def _warm_up(study: ForensicsStudy) -> None:
         simulate(simulation.algo, simulation.algo_kwargs(0.5), protocol.env_id, protocol.env_kwargs, [0], 1)
 
 
-def summary_lines(study: ForensicsStudy, result: ForensicsResult, out: str | Path) -> list[str]:
+def summary_lines(study: Sweep, result: ForensicsResult, out: str | Path) -> list[str]:
     """What a run of the study prints: what it simulated, the best candidate, the unreached numbers, the section."""
     best = result.leaders.iloc[0]
     return [

@@ -1,6 +1,6 @@
 """
 The forensics' unit of work, a batch kind of the launcher (``launcher.plan_jobs`` with ``stages.plan_stages``): some
-replications of one simulation under the protocol (a cell of ``ForensicsStudy.cells``), each a ``cell_summary`` per ε,
+replications of one simulation under the protocol (a cell of ``ForensicsSpec.cells``), each a ``cell_summary`` per ε,
 stored as one chunk of summaries (``chunks.encode_summaries``). It runs on the launcher's one executor, a long-lived
 local worker or one Ray task; its rows depend only on the simulation, the protocol and the replication: the same on
 either backend, and in any batch.
@@ -57,7 +57,7 @@ def simulate_unit(
 
 
 def base_simulation(base: dict[str, Any]) -> Simulation:
-    """The simulation of a forensics cell's base config (``ForensicsStudy.cells``)."""
+    """The simulation of a forensics cell's base config (``ForensicsSpec.cells``)."""
     return Simulation(**base["simulation"])
 
 

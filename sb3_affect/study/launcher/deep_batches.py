@@ -1,7 +1,7 @@
 """
 The deep study's unit of work, a batch kind of the launcher (``launcher.plan_jobs``): some seeds of one cell (task x
-agent, ``DeepStudy.cells``) trained together by the public trainer ``sb3_affect.train_many`` and evaluated every
-``eval_every`` env steps (``deep_training``, ``deep_recording``), stored as one chunk of evaluations
+agent, ``Sweep.deep_cells``) trained together by the public trainer ``sb3_affect.train_many`` and evaluated every
+``evaluation.every`` env steps (``deep_training``, ``deep_recording``), stored as one chunk of evaluations
 (``chunks.encode_evaluations``). It runs on the launcher's one executor, a long-lived local worker or one Ray task; its
 rows depend only on the cell and its seeds: the same on either backend, and in any batch.
 
@@ -45,7 +45,7 @@ def replayed_epsilons(source: dict[str, Any]) -> list[float]:
 
 @dataclass(frozen=True)
 class DeepBatch(Batch):
-    """A ``Batch`` of a deep cell (its ``base``: ``DeepStudy.cells``), with the ε a replaying agent takes."""
+    """A ``Batch`` of a deep cell (its ``base``: ``Sweep.deep_cells``), with the ε a replaying agent takes."""
 
     epsilons: tuple[float, ...] | None = None
 

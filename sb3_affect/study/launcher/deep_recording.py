@@ -5,9 +5,10 @@ What the deep study records while ``sb3_affect.train_many`` trains a batch of se
   reached the goal, the env step of the first that reached it, each env step's emotion (``AffectDQN``), and ε summed
   over the steps after ``learning_starts`` (SB3's DQN); the share of random decisions of an ``ActionRepeat`` agent is
   read from its own counters (which only ``dump_logs`` resets: the study trains with a ``log_interval`` no run reaches);
-* ``GreedyEvaluation`` (``train_many(every=eval_every, on_models=...)``): every seed's greedy policy for one episode on
-  each of its evaluation envs, all seeds' Q-networks in one batched matrix product per layer, the weights read from the
-  models (what each model's ``predict(obs, deterministic=True)`` computes, batched).
+* ``GreedyEvaluation`` (``train_many(every=..., on_models=...)``, every ``evaluation.every`` env steps): every seed's
+  greedy policy for one episode on each of its evaluation envs, all seeds' Q-networks in one batched matrix product
+  per layer, the weights read from the models (what each model's ``predict(obs, deterministic=True)`` computes,
+  batched).
 """
 
 from __future__ import annotations

@@ -1,7 +1,7 @@
 """
 One batch of the deep study trained and evaluated (``deep_batches.DeepBatch`` runs it in a worker): its seeds of one
 cell trained together by the public trainer ``sb3_affect.train_many`` with one torch thread, and evaluated every
-``eval_every`` env steps (``deep_recording``).
+``evaluation.every`` env steps (``deep_recording``).
 
 A batch's record, per seed and evaluation (arrays ``(seeds, evaluations)``, NaN where a part had no decision or
 emotion): the greedy policy's success rate and mean return on its evaluation envs, and over the env steps since the
@@ -15,7 +15,7 @@ from __future__ import annotations
 import os
 import time
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import torch as th
@@ -27,7 +27,10 @@ from sb3_affect.engine.seed_envs import seed_vec_env
 from sb3_affect.study.launcher.chunks import EVALUATION_ROWS
 from sb3_affect.study.launcher.count_bonus import CountBonus
 from sb3_affect.study.launcher.deep_recording import GreedyEvaluation, TrainingRecorder
-from sb3_affect.study.launcher.deep_schema import EVAL_SEED_OFFSET, DeepStudy
+from sb3_affect.study.launcher.deep_schema import EVAL_SEED_OFFSET
+
+if TYPE_CHECKING:
+    from sb3_affect.study.launcher.schema import Sweep
 
 #: ``train_many``'s ``log_interval`` in the study: no run ends this many episodes, so no ``dump_logs`` resets the
 #: random-decision counters of an ``ActionRepeat`` agent, which ``deep_recording`` reads.
@@ -38,22 +41,23 @@ NO_LOGS = 2**62
 PROBE_BUFFER = 100
 
 
-def check_study(study: DeepStudy, batches_at_once: int) -> None:
+def check_study(study: Sweep, batches_at_once: int) -> None:
     """
     Before a deep study claims its folder: every agent built once, on the first task's env (Farama's, one env, a small
     buffer), so that an argument its algorithm refuses is refused now; and the memory of ``batches_at_once`` batches
     estimated from those models (each seed's replay buffer, its Q-network, target network and Adam's two moments) and
     refused when it exceeds this machine's. A ``ValueError`` of one line naming the agent, or the figure.
     """
+    assert study.tasks is not None and study.trainer is not None and study.evaluation is not None  # (a deep study)
     name, spec = next(iter(study.tasks.items()))
-    env = seed_vec_env(spec.id, 1, 0, study.obs, False)
+    env = seed_vec_env(spec.id, 1, 0, study.trainer.obs, False)
     seed_bytes = 0.0
     for index, (agent, cell) in enumerate(zip(study.agents, study.cells())):
-        epsilons = [1.0] * (spec.budget // study.eval_every) if agent.replays is not None else None
+        epsilons = [1.0] * ((spec.total_timesteps or 0) // study.evaluation.every) if agent.replays is not None else None
         kwargs = {**cell.base["algo_kwargs"], **({} if epsilons is None else {"epsilons": epsilons}),
                   "buffer_size": PROBE_BUFFER}  # fmt: skip
         try:
-            model = resolve_class(agent.algo)("MlpPolicy", env, seed=0, device="cpu", **kwargs)
+            model = resolve_class(agent.algo or "")("MlpPolicy", env, seed=0, device="cpu", **kwargs)
         except (ValueError, TypeError, KeyError, AssertionError) as error:
             raise ValueError(f"agents[{index}] ({agent.name}) on {name}: {' '.join(str(error).split())}") from None
         buffer = model.replay_buffer
@@ -62,7 +66,7 @@ def check_study(study: DeepStudy, batches_at_once: int) -> None:
         parameters = sum(p.numel() for p in model.q_net.parameters())
         buffer_size = int(cell.base["algo_kwargs"].get("buffer_size", 1_000_000))
         seed_bytes = max(seed_bytes, transition * buffer_size + 16 * parameters)
-    size = study.seeds_per_batch or len(study.seeds)
+    size = study.trainer.seeds_per_batch or len(study.seeds if isinstance(study.seeds, list) else [])
     need = seed_bytes * size * batches_at_once
     have = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
     if need > have:
@@ -75,7 +79,7 @@ def check_study(study: DeepStudy, batches_at_once: int) -> None:
 
 def run_batch(base: dict[str, Any], seeds: Sequence[int], epsilons: Sequence[float] | None = None) -> dict[str, Any]:
     """
-    Train and evaluate ``seeds`` of the cell whose base run config is ``base`` (``DeepStudy.cells``) through
+    Train and evaluate ``seeds`` of the cell whose base run config is ``base`` (``Sweep.deep_cells``) through
     ``train_many``: the batch's record. With one torch thread (the stacked networks are small: more threads only wait
     on each other); the caller's count is restored.
     """

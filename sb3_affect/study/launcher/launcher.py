@@ -2,12 +2,13 @@
 Run a sweep: skip finished runs, execute the rest on a backend, store each result as it arrives.
 
 The runs are cut into jobs (``batches``): tabular runs of this package's agents on its envs go in batches of one
-cell each (one ``engine.simulate`` call, stored as one Parquet chunk), the deep study's runs (``study: deep``) in deep
-batches of one cell each (``deep_batches``: seeds trained together by ``train_many``, their evaluations stored as one
-chunk), the forensics' replications (``study: forensics``) in the batches its ``stages`` plan (``forensics.stages``:
-stage after stage, each a wave), any other run is a job of its own (one JSON file). Import and scheduling costs are
-paid once per job, the fork once per worker. A cell whose agent replays another's random share waits for that agent's
-cell on the same task: the jobs run in waves, each wave the jobs whose sources are done (``plan_jobs``).
+cell each (one ``engine.simulate`` call, stored as one Parquet chunk), the deep study's runs (a sweep with a
+``trainer``) in deep batches of one cell each (``deep_batches``: seeds trained together by ``train_many``, their
+evaluations stored as one chunk), the forensics' replications (a sweep with ``forensics``) in the batches its
+``stages`` plan (``forensics.stages``: stage after stage, each a wave), any other run is a job of its own (one JSON
+file). Import and scheduling costs are paid once per job, the fork once per worker. A cell whose agent replays
+another's random share waits for that agent's cell on the same task: the jobs run in waves, each wave the jobs whose
+sources are done (``plan_jobs``).
 
 Backends:
 
@@ -52,10 +53,9 @@ from sb3_affect.study.launcher.batches import (
     split_cell,
 )
 from sb3_affect.study.launcher.deep_batches import DeepBatch, replayed_epsilons, training
-from sb3_affect.study.launcher.deep_schema import DeepStudy
 from sb3_affect.study.launcher.local_pool import OnFailure, OnResult, W, run_local
 from sb3_affect.study.launcher.one_run import package_versions
-from sb3_affect.study.launcher.schema import Cell, ForensicsStudy, SweepError
+from sb3_affect.study.launcher.schema import Cell, SweepError
 from sb3_affect.study.launcher.store import SWEEP_SCHEMA, ResultsStore, cell_run_ids, store_error
 from sb3_affect.study.launcher.sweep_file import load_sweep
 
@@ -175,7 +175,7 @@ def run_sweep(
         raise ValueError(f"workers={workers} must be >= 1")
     start = time.perf_counter()
     sweep = load_sweep(sweep_path, tuple(overrides), deep=True)
-    if not isinstance(sweep, ForensicsStudy):
+    if sweep.kind != "forensics":
         stages = None  # (a sweep of runs, the deep study: planned by plan_jobs itself)
     elif stages is None:
         raise SweepError(f"{sweep_path}: the forensics runs in stages: pass stages=forensics.stages.plan_stages, or run "
@@ -186,11 +186,11 @@ def run_sweep(
     cell_ids = [cell_run_ids(cell) for cell in cells]
     total = sum(len(ids) for ids in cell_ids)
     resolved = {"schema": SWEEP_SCHEMA, "name": sweep.name, "sweep": sweep.model_dump(mode="json"), "total_runs": total}
-    if not isinstance(sweep, ForensicsStudy) and sweep.tasks:  # the file's order of the tasks (sweep.json sorts them)
+    if sweep.tasks:  # the file's order of the tasks (sweep.json sorts them)
         resolved["task_order"] = list(sweep.tasks)
     store = ResultsStore(out_dir)
     store.claim(resolved)  # (before the lock file: a folder of another kind is left as it was)
-    if isinstance(sweep, DeepStudy):  # every agent built once, the memory estimated: before the folder is claimed
+    if sweep.kind == "deep":  # every agent built once, the memory estimated: before the folder is claimed
         batches = sum(math.ceil(len(cell.seeds) / (cell.batch_size or 1)) for cell in cells)
         training().check_study(sweep, 1 if backend == "ray" else min(workers, batches))  # (Ray: one a node)
     try:

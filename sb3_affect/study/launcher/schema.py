@@ -22,6 +22,11 @@ A multi-agent env (``sb3_affect/HunterPursuit-v0``, one hunter per ``team`` memb
         team: [{algo: AffectQ}, {algo: QLearning, kwargs: {exploration_rate: $epsilon}}]
         grid: {epsilon: [0.1]}
 
+The same grammar states the package's two studies (``Sweep.kind``, from ``kind_of``): a file with a ``trainer`` is the
+deep study (``deep_schema``: DQN-family agents on MiniGrid tasks, ``Sweep.deep_cells``), a file with ``forensics`` the
+replication forensics (``ForensicsSpec``); each kind takes its own top-level keys (``KIND_KEYS``). Files and saved
+folders of the forms before this grammar: ``old_forms``.
+
 Reading a file, its ``--set`` overrides and the messages of a file that does not validate: ``sweep_file``.
 
 Validating a file imports the modules its ``algo`` and ``env.id`` paths name (as rl-zoo3's ``--gym-packages`` does):
@@ -39,6 +44,7 @@ import itertools
 import json
 import math
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Annotated, Any, Literal
 
@@ -57,16 +63,36 @@ from pydantic import (
 
 from sb3_affect.core.episode_log import TRACE_COLUMNS
 from sb3_affect.core.positions import POSITION_PRESETS
-from sb3_affect.core.registry import ENV_WRAPPERS, check_algo, check_wrapper, import_env_package, known_settings, resolve_class
+from sb3_affect.core.registry import (
+    AGENTS,
+    ENV_WRAPPERS,
+    check_algo,
+    check_wrapper,
+    import_env_package,
+    known_settings,
+    resolve_class,
+)
 from sb3_affect.core.settings import AffectQSettings
 from sb3_affect.envs import PARALLEL_ENVS
+from sb3_affect.kernel.minigrid_world import MINIGRID_TASKS
+from sb3_affect.study.launcher.deep_schema import (
+    EVAL_SEED_OFFSET,
+    MAX_DEEP_SEEDS,
+    MAX_TOTAL_TIMESTEPS,
+    MINIGRID_ID,
+    TUNED,
+    EvaluationSpec,
+    TrainerSpec,
+    TunedSpec,
+    check_arguments,
+)
 from sb3_affect.study.launcher.forensics_candidates import CandidateSpace, Protocol
 from sb3_affect.study.launcher.run_ids import RESERVED_LABELS
 
 #: Wrapper names (the env section's and an agent's own), each checked against the registry's ``ENV_WRAPPERS``.
 WrapperNames = Annotated[list[str], AfterValidator(lambda names: [check_wrapper(name) for name in names])]
 
-__all__ = ["AgentSpec", "Cell", "EnvSpec", "MemberSpec", "Sweep", "SweepError"]
+__all__ = ["AgentSpec", "Cell", "EnvSpec", "ForensicsSpec", "MemberSpec", "Sweep", "SweepError", "kind_of"]
 
 KWARG_REFERENCE = re.compile(r"^\$([A-Za-z_][A-Za-z0-9_]*)$")
 #: Names of sweeps: they name files, so no leading dot (hidden files) and at most 64 characters.
@@ -132,6 +158,12 @@ class EnvSpec(BaseModel):
         f"agents, whose observation is the cell): {', '.join(POSITION_PRESETS)} or null (the observation)",
     )
 
+    total_timesteps: int | None = Field(
+        default=None, gt=0, le=MAX_TOTAL_TIMESTEPS,
+        description="a deep study's task: env steps per run (a multiple of evaluation.every)",
+    )
+    tuned: TunedSpec | None = Field(default=None, description="a deep study's task: the settings tuned for it (below)")
+
     @field_validator("position")
     @classmethod
     def _preset(cls, value: str | None) -> str | None:
@@ -142,7 +174,7 @@ class EnvSpec(BaseModel):
     @model_serializer(mode="wrap")
     def _dump(self, handler: SerializerFunctionWrapHandler) -> dict[str, Any]:
         """Without the wrappers and position when not given: a saved sweep of one env reads as before they existed."""
-        return _without_unset(handler(self), {"wrappers": [], "position": None})
+        return _without_unset(handler(self), {"wrappers": [], "position": None, "total_timesteps": None, "tuned": None})
 
     def config(self) -> dict[str, Any]:
         """The run config's env keys (the wrappers and position only when given: other run ids are unchanged)."""
@@ -296,10 +328,25 @@ class AgentSpec(BaseModel):
         f"per episode {', '.join(TRACE_COLUMNS)} beside the episode log",
     )
 
+    epsilon: Literal["tuned"] | None = Field(
+        default=None, description="a deep study's agent: tuned takes the task's exploration_fraction for SB3's linear ε "
+        "schedule"
+    )
+    count_bonus: Annotated[float, Field(gt=0, le=10)] | Literal["tuned"] | None = Field(
+        default=None, description="a deep study's agent: a count bonus β / sqrt(visits) added to the training reward: β, "
+        "or tuned (the task's)"
+    )
+    replays: str | None = Field(
+        default=None,
+        description="a deep study's agent: an earlier agent whose logged share of random decisions, averaged over its "
+        "seeds, becomes this agent's ε, part by part (algo ReplayedEpsilonDQN)",
+    )
+
     @model_serializer(mode="wrap")
     def _dump(self, handler: SerializerFunctionWrapHandler) -> dict[str, Any]:
         """Without the keys added later when not given: a saved sweep reads (and resumes) as before they existed."""
-        return _without_unset(handler(self), {"wrappers": [], "trace": False, "grid_by_task": None, "seeds_by": None})
+        return _without_unset(handler(self), {"wrappers": [], "trace": False, "grid_by_task": None, "seeds_by": None,
+                                              "epsilon": None, "count_bonus": None, "replays": None})  # fmt: skip
 
     @model_validator(mode="after")
     def _traced_affectq(self) -> AgentSpec:
@@ -411,8 +458,162 @@ class AgentSpec(BaseModel):
         return [{"algo": m.algo, "kwargs": self.kwargs_at(point, m.kwargs)} for m in self.team or []]
 
 
+#: Replications of one simulation of the forensics (``ForensicsSpec``).
+MAX_REPS = 10_000
+#: The forensics' stages as cell labels: the pre-screen's replication 0 (maybe stopped early), then every replication.
+PRESCREEN, REPLICATIONS = "prescreen", "replications"
+
+
+def _check_range(values: list[float] | None, what: str, low_open: bool) -> None:
+    """
+    Each value in [0, 1] (``low_open``: in (0, 1]) and given once (a value twice would be one simulation counted as
+    two), or a one-line error naming the first that is not.
+    """
+    for index, value in enumerate(values or []):
+        if not (0 < value <= 1 if low_open else 0 <= value <= 1):
+            raise ValueError(f"{value!r} is not {what}; each is in {'(0, 1]' if low_open else '[0, 1]'}")
+        if value in (values or [])[:index]:
+            raise ValueError(f"{value!r} is given twice; give each {what.removeprefix('an ').removeprefix('a ')} once")
+
+
+class ProtocolSpec(BaseModel):
+    """The forensics' ``protocol``: what one replication of a simulation runs (a key left out: the paper's)."""
+
+    model_config = ConfigDict(extra="forbid")
+    epsilons: list[float] | None = Field(
+        default=None,
+        min_length=2,
+        description="the ε values, each in [0, 1]; the affective agent runs once per value (null: the paper's 0.1, "
+        "0.2, ..., 0.9)",
+    )
+    seeds: int | None = Field(
+        default=None, gt=0, le=MAX_SEEDS, description="simulations per ε and agent (null: the paper's 20)"
+    )
+    episodes: int | None = Field(
+        default=None, gt=0, le=MAX_EPISODES, description="episodes per simulation (null: the paper's 200)"
+    )
+
+    @field_validator("epsilons")
+    @classmethod
+    def _epsilons(cls, value: list[float] | None) -> list[float] | None:
+        _check_range(value, "an ε", low_open=False)
+        return value
+
+
+class ForensicsSpec(BaseModel):
+    """
+    The ``forensics`` section: the replication forensics, its sizes and its candidate grid.
+
+    Which candidate implementation could have printed the paper's numbers: its runs are (simulation, replication)
+    units (``cells``), run in stages by the launcher (``plan_jobs`` with the forensics' ``stages``)::
+
+        name: forensics
+        forensics:
+          screen_reps: 2          # replications of every simulation in the screen
+          leaders: 4              # affective simulations replicated in full
+          reps: 30                # replications of each leader
+          alphas: [0.5, 1.0]      # the candidate grid's learning rates
+          gammas: [0.7, 0.8, 0.9] # and discounts
+    """
+
+    model_config = ConfigDict(extra="forbid")
+    screen_reps: int = Field(
+        ge=2, le=MAX_REPS, description="replications of every simulation in the screen (a spread needs two)"
+    )
+    leaders: int = Field(ge=1, description="affective simulations, best first after the screen, replicated in full")
+    reps: int = Field(
+        ge=2, le=MAX_REPS, description=f"replications of each leader, at least screen_reps (at most {MAX_REPS:,})"
+    )
+    alphas: list[float] = Field(min_length=1, description="the learning rates of the candidate grid, each in (0, 1]")
+    gammas: list[float] = Field(min_length=1, description="the discounts of the candidate grid, each in [0, 1]")
+    protocol: ProtocolSpec = Field(
+        default_factory=ProtocolSpec, description="what one replication runs (below; default: the paper's protocol)"
+    )
+
+    def space(self) -> CandidateSpace:
+        """The candidate space of the file: the default space with the file's alphas and gammas."""
+        return dataclasses.replace(CandidateSpace.default(), alphas=tuple(self.alphas), gammas=tuple(self.gammas))
+
+    def paper_protocol(self) -> Protocol:
+        """The protocol of the file: the paper's, with the keys its ``protocol`` section gives."""
+        given = self.protocol.model_dump(exclude_none=True)
+        if "epsilons" in given:
+            given["epsilons"] = tuple(given["epsilons"])
+        return Protocol(**given)
+
+    def cells(self, name: str) -> list[Cell]:
+        """
+        The study ``name`` as the launcher's cells, two per simulation of the grid: its pre-screen (replication 0, which may
+        stop early) and its replications (``reps``; the stages ask for those they need). A replication is a run: its
+        ``seed`` and replicate are its index, its base the simulation and the protocol (its run id hashes them).
+        """
+        space, protocol = self.space(), self.paper_protocol()
+        cells = []
+        for stage, count in ((PRESCREEN, 1), (REPLICATIONS, self.reps)):
+            for sim in space.standard_simulations() + space.affective_simulations():
+                base = {"sweep": name, "study": "forensics", "agent": sim.key, "algo": sim.algo, "seed": None,
+                        "labels": {"stage": stage}, "simulation": dataclasses.asdict(sim), "algo_kwargs": {},
+                        "env_id": protocol.env_id, "env_kwargs": protocol.env_kwargs,
+                        "protocol": protocol.as_dict()}  # fmt: skip
+                cells.append(Cell(base, list(range(count))))
+        return cells
+
+    @field_validator("alphas")
+    @classmethod
+    def _alphas(cls, value: list[float]) -> list[float]:
+        _check_range(value, "a learning rate", low_open=True)
+        return value
+
+    @field_validator("gammas")
+    @classmethod
+    def _gammas(cls, value: list[float]) -> list[float]:
+        _check_range(value, "a discount", low_open=False)
+        return value
+
+    @field_validator("reps")
+    @classmethod
+    def _enough_reps(cls, value: int, info: ValidationInfo) -> int:
+        screen_reps = info.data.get("screen_reps")
+        if screen_reps is not None and value < screen_reps:
+            raise ValueError(f"fewer than screen_reps ({screen_reps}); give reps >= {screen_reps}")
+        return value
+
+
+#: The kinds of sweep file (``kind_of``): what a refusal calls each, the top-level keys it takes and those it needs.
+KINDS = {"sweep": "a sweep of runs", "deep": "a deep study (a sweep with a trainer)",
+         "forensics": "the forensics (a sweep with forensics)"}  # fmt: skip
+KIND_KEYS = {"sweep": ("name", "env", "tasks", "episodes", "seeds", "max_timesteps", "logs", "agents"),
+             "deep": ("name", "trainer", "evaluation", "tasks", "seeds", "agents"), "forensics": ("name", "forensics")}
+REQUIRED_KEYS = {"sweep": ("episodes", "seeds", "agents"), "deep": ("evaluation", "tasks", "seeds", "agents"),
+                 "forensics": ()}  # fmt: skip
+#: The keys of an agent and of a task that only a deep study takes, and those a deep study's do not take.
+DEEP_AGENT_KEYS, DEEP_TASK_KEYS = ("epsilon", "count_bonus", "replays"), ("total_timesteps", "tuned")
+TABULAR_AGENT_KEYS = ("grid", "team", "labels", "grid_by_task", "seeds_by", "seeds_from", "wrappers", "trace")
+TABULAR_TASK_KEYS = ("kwargs", "wrappers", "position")
+
+
+def kind_of(data: Any) -> str:
+    """
+    The kind of a sweep's data (a file's, a saved sweep's, a ``Sweep``'s fields): ``deep`` when it gives a
+    ``trainer``, ``forensics`` when it gives ``forensics``, else ``sweep`` (a sweep of runs).
+    """
+    if not isinstance(data, Mapping):
+        return "sweep"
+    return "deep" if data.get("trainer") is not None else "forensics" if data.get("forensics") is not None else "sweep"
+
+
+def _given(model: BaseModel, keys: tuple[str, ...]) -> list[str]:
+    """The ``keys`` of ``model`` whose value is not their default (those a file or a saved sweep gives)."""
+    fields = type(model).model_fields
+    return [key for key in keys if getattr(model, key) != fields[key].get_default(call_default_factory=True)]
+
+
 class Sweep(BaseModel):
-    """A whole experiment file (top-level keys)."""
+    """
+    A whole experiment file (top-level keys): a sweep of runs, a deep study or the forensics (``kind``).
+
+    A deep study gives a ``trainer`` (below), the forensics a ``forensics`` section (below); each takes its own keys.
+    """
 
     model_config = ConfigDict(extra="forbid")
     name: str = Field(
@@ -426,13 +627,16 @@ class Sweep(BaseModel):
         description="instead of env: several envs by task name (each an env section); every agent runs on each task "
         "with the same seeds, its runs labelled task",
     )
-    episodes: int = Field(
-        gt=0, le=MAX_EPISODES, description=f"episodes per run (1 to {MAX_EPISODES:,}); a run stops after this many"
+    episodes: int | None = Field(
+        default=None, gt=0, le=MAX_EPISODES,
+        description=f"episodes per run (1 to {MAX_EPISODES:,}); a run stops after this many (a sweep of runs needs it)",
     )
-    seeds: int | list[int] = Field(
+    seeds: int | list[int] | None = Field(
+        default=None,
         description=f"a count N (1 to {MAX_SEEDS:,}; seeds derived by sha256 of sweep, agent, grid point and replicate) "
         f"or an explicit list of distinct integers in [0, 2**32 - 1], the same for every grid point; at most "
-        f"{MAX_RUNS:,} runs in all (grid points x seeds over the agents)"
+        f"{MAX_RUNS:,} runs in all (grid points x seeds over the agents); a deep study: a list, each below "
+        f"{EVAL_SEED_OFFSET:,}",
     )
     max_timesteps: int | None = Field(
         default=None,
@@ -444,11 +648,36 @@ class Sweep(BaseModel):
         default_factory=list,
         description="SB3 logger formats written per run under DIR/logs/<run>/: csv, tensorboard, stdout, json, log",
     )
-    agents: list[AgentSpec] = Field(min_length=1, description="one or more agents (below)")
+    agents: list[AgentSpec] = Field(default_factory=list, description="one or more agents (below)")
+    trainer: TrainerSpec | None = Field(
+        default=None, description="makes the file a deep study: DQN-family agents, many seeds of each trained together"
+    )
+    evaluation: EvaluationSpec | None = Field(
+        default=None, description="a deep study's greedy evaluations: every (env steps) and episodes"
+    )
+    forensics: ForensicsSpec | None = Field(
+        default=None, description="makes the file the replication forensics (its only other key: name)"
+    )
+
+    @property
+    def kind(self) -> str:
+        """``sweep``, ``deep`` or ``forensics`` (``kind_of``)."""
+        return kind_of(self.__dict__)
+
+    @field_validator("seeds", mode="before")
+    @classmethod
+    def _no_flags(cls, value: Any) -> Any:
+        """true/false is no seed (pydantic would take it for 1/0)."""
+        flags = [i for i, seed in enumerate(value if isinstance(value, list) else [value]) if isinstance(seed, bool)]
+        if flags:
+            where = f"seeds[{flags[0]}]" if isinstance(value, list) else "seeds"
+            raise ValueError(f"{where}={(value[flags[0]] if isinstance(value, list) else value)!r} is not an integer; "
+                             "seeds are integers in [0, 2**32 - 1]")
+        return value
 
     @field_validator("seeds")
     @classmethod
-    def _some_seeds(cls, value: int | list[int]) -> int | list[int]:
+    def _some_seeds(cls, value: int | list[int] | None) -> int | list[int] | None:
         if isinstance(value, int) and value <= 0:
             raise ValueError(f"seeds={value} must be a positive count or a non-empty list of integers")
         if isinstance(value, int) and value > MAX_SEEDS:
@@ -467,6 +696,14 @@ class Sweep(BaseModel):
         """Validate a results folder's saved sweep without importing any module it names (no algo or env check)."""
         return cls.model_validate(data, context=SAVED)
 
+    @classmethod
+    def validate_file(cls, data: Any) -> Sweep:
+        """
+        Validate a sweep file's data: a sweep of runs imports the modules its algo and env ids name; a deep study or
+        the forensics names none (its algos are the registry's, its tasks MiniGrid's: checked by name).
+        """
+        return cls.model_validate(data, context=None if kind_of(data) == "sweep" else SAVED)
+
     @field_validator("logs")
     @classmethod
     def _formats(cls, value: list[str]) -> list[str]:
@@ -477,15 +714,38 @@ class Sweep(BaseModel):
 
     @model_validator(mode="after")
     def _unique_agents(self) -> Sweep:
+        kind = self.kind
+        given = _given(self, tuple(type(self).model_fields))
+        stray = [key for key in given if key not in KIND_KEYS[kind]]
+        if stray:
+            raise ValueError(f"{stray[0]} is not a key of {KINDS[kind]}; its keys are {', '.join(KIND_KEYS[kind])}")
+        missing = [key for key in REQUIRED_KEYS[kind] if key not in given]
+        if missing:
+            what = "missing or empty" if missing[0] == "agents" else "missing"
+            raise ValueError(f"{missing[0]} is {what}: {KINDS[kind]} needs {', '.join(REQUIRED_KEYS[kind])}")
+        if kind == "forensics":
+            return self
         names = [a.name for a in self.agents]
         if len(set(names)) != len(names):
             raise ValueError(f"agents: names must be unique, got {names}")
         if self.tasks is not None:
             self._check_tasks()
+        if kind == "deep":
+            self._check_deep()
+            return self
         for i, agent in enumerate(self.agents):
+            deep_keys = _given(agent, DEEP_AGENT_KEYS)
+            if deep_keys:
+                raise ValueError(f"agents[{i}] ({agent.name}): {deep_keys[0]} is a key of a deep study's agents (a sweep "
+                                 "with a trainer), not of a sweep of runs'")
             if self.tasks is None and (agent.grid_by_task is not None or "task" in (agent.seeds_by or [])):
                 key = "grid_by_task" if agent.grid_by_task is not None else "seeds_by: [task]"
                 raise ValueError(f"agents[{i}] ({agent.name}): {key} needs tasks (several envs by name) instead of env")
+        for task, env in (self.tasks or {}).items():
+            deep_keys = _given(env, DEEP_TASK_KEYS)
+            if deep_keys:
+                raise ValueError(f"tasks.{task}.{deep_keys[0]} is a key of a deep study's tasks (a sweep with a trainer), "
+                                 "not of a sweep of runs'")
         multi = is_multi_agent(self.env.id)
         for i, agent in enumerate(self.agents):
             if multi and agent.team is None:
@@ -495,11 +755,59 @@ class Sweep(BaseModel):
         if multi and self.max_timesteps is not None:
             raise ValueError("max_timesteps is not supported for teams: their runs are counted in episodes")
         self._check_label_types()
-        replicates = self.seeds if isinstance(self.seeds, int) else len(self.seeds)
+        replicates = self.seeds if isinstance(self.seeds, int) else len(self.seeds or [])
         runs = sum(agent.point_count(len(self.tasks or [None])) for agent in self.agents) * replicates
         if runs > MAX_RUNS:
             raise ValueError(f"the sweep has {runs:,} runs (grid points x seeds), more than the {MAX_RUNS:,} allowed")
         return self
+
+    def _check_deep(self) -> None:
+        """A deep study's seeds (a list, below ``EVAL_SEED_OFFSET``), its MiniGrid tasks and its DQN-family agents."""
+        assert self.trainer is not None and self.evaluation is not None and self.tasks is not None
+        if not isinstance(self.seeds, list) or len(self.seeds) > MAX_DEEP_SEEDS:
+            given = f"{len(self.seeds):,} seeds" if isinstance(self.seeds, list) else f"seeds={self.seeds!r}"
+            raise ValueError(f"{given}: a deep study takes an explicit list of at most {MAX_DEEP_SEEDS:,} seeds (e.g. [0, "
+                             "1, 2]), not a count")
+        if max(self.seeds) >= EVAL_SEED_OFFSET:
+            raise ValueError(f"seeds: {max(self.seeds)} is too large; seeds go from 0 to {EVAL_SEED_OFFSET - 1} (the "
+                             f"evaluation envs are seeded from {EVAL_SEED_OFFSET:,} on)")
+        every = self.evaluation.every
+        for name, task in self.tasks.items():
+            stray = _given(task, TABULAR_TASK_KEYS)
+            if not re.fullmatch(NAME_PATTERN, name):
+                raise ValueError(f"task name {name!r} must be letters, digits, _ . + - (at most 64 characters)")
+            if stray:
+                raise ValueError(f"tasks.{name}.{stray[0]} is not a key of a deep study's task (id, total_timesteps, tuned)")
+            if not re.fullmatch(MINIGRID_ID, task.id):
+                raise ValueError(f"tasks.{name}.id={task.id!r} is not a MiniGrid env id (e.g. MiniGrid-Empty-8x8-v0)")
+            if self.trainer.vec_env == "compiled" and task.id not in MINIGRID_TASKS:
+                compiled = ", ".join(MINIGRID_TASKS)
+                raise ValueError(f"tasks.{name}.id={task.id!r} is not compiled ({compiled}): give trainer.vec_env: farama")
+            if task.total_timesteps is None or task.total_timesteps % every:
+                raise ValueError(f"tasks.{name}.total_timesteps={task.total_timesteps} is not a multiple of "
+                                 f"evaluation.every={every}")
+        names = [agent.name for agent in self.agents]
+        deep = [name for name in AGENTS if name.endswith("DQN")]
+        for index, agent in enumerate(self.agents):
+            where, stray = f"agents[{index}] ({agent.name})", _given(agent, TABULAR_AGENT_KEYS)
+            if not re.fullmatch(NAME_PATTERN, agent.name):
+                raise ValueError(f"agents[{index}].name={agent.name!r} must be letters, digits, _ . + - (at most 64)")
+            if stray:
+                raise ValueError(f"{where}: {stray[0]} is not a key of a deep study's agent (name, algo, kwargs, "
+                                 f"{', '.join(DEEP_AGENT_KEYS)})")
+            if agent.algo not in deep:
+                raise ValueError(f"{where}: algo={agent.algo!r} is not one of {', '.join(deep)}")
+            check_arguments(f"{where}.kwargs", agent.kwargs)
+            if (agent.replays is None) != (agent.algo != "ReplayedEpsilonDQN"):
+                raise ValueError(f"{where}: replays=<earlier agent> goes with algo ReplayedEpsilonDQN")
+            if agent.replays is not None and agent.replays not in names[:index]:
+                earlier = ", ".join(names[:index])
+                raise ValueError(f"agents[{index}].replays={agent.replays!r} is not an earlier agent ({earlier})")
+            for field, wanted in (("exploration_fraction", agent.epsilon), ("count_bonus", agent.count_bonus)):
+                missing = [task for task, spec in self.tasks.items()
+                           if wanted == TUNED and getattr(spec.tuned, field, None) is None]  # fmt: skip
+                if missing:
+                    raise ValueError(f"{where} takes the tuned {field}: tasks.{missing[0]}.tuned has none")
 
     def _check_label_types(self) -> None:
         """
@@ -522,8 +830,14 @@ class Sweep(BaseModel):
 
     @model_serializer(mode="wrap")
     def _dump(self, handler: SerializerFunctionWrapHandler) -> dict[str, Any]:
-        """Without ``tasks`` when not given: a saved sweep of one env reads (and resumes) as before tasks existed."""
-        return _without_unset(handler(self), {"tasks": None})
+        """
+        A sweep of runs without ``tasks`` when not given (a saved sweep of one env reads, and resumes, as before tasks
+        existed) nor the other kinds' keys; a deep study or the forensics: the keys it gives only.
+        """
+        dumped = handler(self)
+        if self.kind != "sweep":
+            return {key: dumped[key] for key in _given(self, KIND_KEYS[self.kind]) if key in dumped}
+        return _without_unset(dumped, {"tasks": None, "trainer": None, "evaluation": None, "forensics": None})
 
     def _check_tasks(self) -> None:
         """``tasks`` instead of ``env``: named tasks of single-agent envs, agents without a grid label ``task``."""
@@ -554,15 +868,19 @@ class Sweep(BaseModel):
         """
         The sweep as cells: one per (task,) agent and grid point, holding every replicate's seed (see ``Cell``). The
         seeds do not depend on the task (each task runs an agent on the same seeds) unless the agent's ``seeds_by``
-        names it.
+        names it. A deep study: ``deep_cells``; the forensics: ``ForensicsSpec.cells``.
         """
+        if self.forensics is not None:
+            return self.forensics.cells(self.name)
+        if self.trainer is not None:
+            return self.deep_cells()
         cells = []
         envs: list[tuple[str | None, EnvSpec]] = list(self.tasks.items()) if self.tasks else [(None, self.env)]
         for task, env in envs:
             for agent in self.agents:
                 grid = agent.grid_on(task)
                 for point in agent.points(grid) if grid is not None else []:
-                    count = self.seeds if isinstance(self.seeds, int) else len(self.seeds)
+                    count = self.seeds if isinstance(self.seeds, int) else len(self.seeds or [])
                     named = agent.seeds_from or self.name
                     at = agent.seed_point(point, task)
                     seeds = list(self.seeds) if isinstance(self.seeds, list) else derive_seeds(named, agent.name, at, count)
@@ -585,6 +903,33 @@ class Sweep(BaseModel):
                     if agent.trace:  # only traced runs carry the key: other run ids are unchanged
                         base["trace"] = True
                     cells.append(Cell(base, seeds))
+        return cells
+
+    def deep_cells(self) -> list[Cell]:
+        """
+        A deep study as the launcher's cells, one per task and agent (tasks first, agents in the file's order): its base
+        run config holds all a run's training and evaluation depends on (its run ids hash it), its seeds the study's.
+        A ``replays`` agent's cell waits for the cell of the agent it replays on the same task (``launcher.plan_jobs``).
+        """
+        trainer, evaluation, seeds = self.trainer, self.evaluation, self.seeds
+        assert trainer is not None and evaluation is not None and isinstance(seeds, list)  # (``_check_deep``)
+        cells = []
+        for task, spec in (self.tasks or {}).items():
+            tuned = spec.tuned or TunedSpec()
+            for agent in self.agents:
+                kwargs: dict[str, Any] = dict(trainer.algo_kwargs)  # the study's, the task's tuned, the agent's own
+                if tuned.learning_rate is not None:
+                    kwargs["learning_rate"] = tuned.learning_rate
+                if agent.epsilon == TUNED:
+                    kwargs["exploration_fraction"] = tuned.exploration_fraction
+                kwargs.update(agent.kwargs)
+                bonus = tuned.count_bonus if agent.count_bonus == TUNED else agent.count_bonus
+                base = {"sweep": self.name, "study": "deep", "agent": agent.name, "algo": agent.algo, "seed": None,
+                        "labels": {"task": task}, "env_id": spec.id, "env": trainer.vec_env, "obs": trainer.obs,
+                        "n_envs": trainer.n_envs, "budget": spec.total_timesteps, "eval_every": evaluation.every,
+                        "eval_episodes": evaluation.episodes, "algo_kwargs": kwargs, "count_bonus": bonus,
+                        "replays": agent.replays}  # fmt: skip
+                cells.append(Cell(base, seeds, trainer.seeds_per_batch or len(seeds)))
         return cells
 
     def run_configs(self) -> list[dict[str, Any]]:
@@ -636,134 +981,3 @@ def derive_seeds(sweep: str, agent: str, point: dict[str, Any], count: int) -> l
         int.from_bytes(hashlib.sha256(f"{head}{replicate}]".encode()).digest()[:4], "big") & 0x7FFFFFFF
         for replicate in range(count)
     ]
-
-
-#: Replications of one simulation of the forensics (``ForensicsStudy``).
-MAX_REPS = 10_000
-#: The forensics' stages as cell labels: the pre-screen's replication 0 (maybe stopped early), then every replication.
-PRESCREEN, REPLICATIONS = "prescreen", "replications"
-
-
-def _check_range(values: list[float] | None, what: str, low_open: bool) -> None:
-    """
-    Each value in [0, 1] (``low_open``: in (0, 1]) and given once (a value twice would be one simulation counted as
-    two), or a one-line error naming the first that is not.
-    """
-    for index, value in enumerate(values or []):
-        if not (0 < value <= 1 if low_open else 0 <= value <= 1):
-            raise ValueError(f"{value!r} is not {what}; each is in {'(0, 1]' if low_open else '[0, 1]'}")
-        if value in (values or [])[:index]:
-            raise ValueError(f"{value!r} is given twice; give each {what.removeprefix('an ').removeprefix('a ')} once")
-
-
-class ProtocolSpec(BaseModel):
-    """The forensics' ``protocol``: what one replication of a simulation runs (a key left out: the paper's)."""
-
-    model_config = ConfigDict(extra="forbid")
-    epsilons: list[float] | None = Field(
-        default=None,
-        min_length=2,
-        description="the ε values, each in [0, 1]; the affective agent runs once per value (null: the paper's 0.1, "
-        "0.2, ..., 0.9)",
-    )
-    seeds: int | None = Field(
-        default=None, gt=0, le=MAX_SEEDS, description="simulations per ε and agent (null: the paper's 20)"
-    )
-    episodes: int | None = Field(
-        default=None, gt=0, le=MAX_EPISODES, description="episodes per simulation (null: the paper's 200)"
-    )
-
-    @field_validator("epsilons")
-    @classmethod
-    def _epsilons(cls, value: list[float] | None) -> list[float] | None:
-        _check_range(value, "an ε", low_open=False)
-        return value
-
-
-class ForensicsStudy(BaseModel):
-    """
-    A sweep file of the replication forensics (top-level keys).
-
-    Which candidate implementation could have printed the paper's numbers: its runs are (simulation, replication)
-    units (``cells``), run in stages by the launcher (``plan_jobs`` with the forensics' ``stages``)::
-
-        name: forensics
-        study: forensics
-        screen_reps: 2          # replications of every simulation in the screen
-        leaders: 4              # affective simulations replicated in full
-        reps: 30                # replications of each leader
-        alphas: [0.5, 1.0]      # the candidate grid's learning rates
-        gammas: [0.7, 0.8, 0.9] # and discounts
-    """
-
-    model_config = ConfigDict(extra="forbid")
-    name: str = Field(pattern=NAME_PATTERN, description="the study's name (letters, digits, _ . + -, at most 64 characters)")
-    study: Literal["forensics"] = Field(
-        description="marks the file as the replication forensics: which candidate implementation could have printed "
-        "the paper's numbers"
-    )
-    screen_reps: int = Field(
-        ge=2, le=MAX_REPS, description="replications of every simulation in the screen (a spread needs two)"
-    )
-    leaders: int = Field(ge=1, description="affective simulations, best first after the screen, replicated in full")
-    reps: int = Field(
-        ge=2, le=MAX_REPS, description=f"replications of each leader, at least screen_reps (at most {MAX_REPS:,})"
-    )
-    alphas: list[float] = Field(min_length=1, description="the learning rates of the candidate grid, each in (0, 1]")
-    gammas: list[float] = Field(min_length=1, description="the discounts of the candidate grid, each in [0, 1]")
-    protocol: ProtocolSpec = Field(
-        default_factory=ProtocolSpec, description="what one replication runs (below; default: the paper's protocol)"
-    )
-
-    @property
-    def logs(self) -> list[str]:
-        """No SB3 logs: the forensics runs on the compiled engine (a sweep's ``logs``)."""
-        return []
-
-    def space(self) -> CandidateSpace:
-        """The candidate space of the file: the default space with the file's alphas and gammas."""
-        return dataclasses.replace(CandidateSpace.default(), alphas=tuple(self.alphas), gammas=tuple(self.gammas))
-
-    def paper_protocol(self) -> Protocol:
-        """The protocol of the file: the paper's, with the keys its ``protocol`` section gives."""
-        given = self.protocol.model_dump(exclude_none=True)
-        if "epsilons" in given:
-            given["epsilons"] = tuple(given["epsilons"])
-        return Protocol(**given)
-
-    def cells(self) -> list[Cell]:
-        """
-        The study as the launcher's cells, two per simulation of the grid: its pre-screen (replication 0, which may
-        stop early) and its replications (``reps``; the stages ask for those they need). A replication is a run: its
-        ``seed`` and replicate are its index, its base the simulation and the protocol (its run id hashes them).
-        """
-        space, protocol = self.space(), self.paper_protocol()
-        cells = []
-        for stage, count in ((PRESCREEN, 1), (REPLICATIONS, self.reps)):
-            for sim in space.standard_simulations() + space.affective_simulations():
-                base = {"sweep": self.name, "study": "forensics", "agent": sim.key, "algo": sim.algo, "seed": None,
-                        "labels": {"stage": stage}, "simulation": dataclasses.asdict(sim), "algo_kwargs": {},
-                        "env_id": protocol.env_id, "env_kwargs": protocol.env_kwargs,
-                        "protocol": protocol.as_dict()}  # fmt: skip
-                cells.append(Cell(base, list(range(count))))
-        return cells
-
-    @field_validator("alphas")
-    @classmethod
-    def _alphas(cls, value: list[float]) -> list[float]:
-        _check_range(value, "a learning rate", low_open=True)
-        return value
-
-    @field_validator("gammas")
-    @classmethod
-    def _gammas(cls, value: list[float]) -> list[float]:
-        _check_range(value, "a discount", low_open=False)
-        return value
-
-    @field_validator("reps")
-    @classmethod
-    def _enough_reps(cls, value: int, info: ValidationInfo) -> int:
-        screen_reps = info.data.get("screen_reps")
-        if screen_reps is not None and value < screen_reps:
-            raise ValueError(f"fewer than screen_reps ({screen_reps}); give reps >= {screen_reps}")
-        return value

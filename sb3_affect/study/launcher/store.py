@@ -32,11 +32,11 @@ from pydantic import ValidationError
 from sb3_affect.core.episode_log import EPISODE_COLUMNS
 from sb3_affect.study.launcher import folder_lock
 from sb3_affect.study.launcher.chunks import chunk_records, evaluation_cells, summary_cells
-from sb3_affect.study.launcher.deep_schema import DeepStudy
 from sb3_affect.study.launcher.folder_files import MAX_SWEEP_FILE_BYTES, FolderFiles, guarded, sort_files
+from sb3_affect.study.launcher.old_forms import new_form
 from sb3_affect.study.launcher.regular_files import read_json, write_file, write_files
 from sb3_affect.study.launcher.run_ids import base_run_ids
-from sb3_affect.study.launcher.schema import ForensicsStudy, Sweep
+from sb3_affect.study.launcher.schema import Sweep, kind_of
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -89,7 +89,7 @@ def store_error(folder: Path, error: OSError) -> StoreError:
 IDENTITY_COPIES = ("chunks/.sweep", "runs/.sweep")
 #: The record that marks each kind of results folder, and how a refusal names it: a folder holds one kind of study
 #: (``deep``, ``forensics``: a study of the layout before its runs went into the store, refused; such a study's folder
-#: now holds a sweep.json whose sweep says ``study: deep`` or ``study: forensics``, ``study_kind``).
+#: now holds a sweep.json whose sweep is of that kind, ``schema.kind_of``).
 KIND_FILES = {"sweep": "sweep.json", "deep": "deep_study.json", "forensics": "forensics.json"}
 KIND_NAMES = {"sweep": "a sweep", "deep": "a deep study", "forensics": "the replication forensics",
               "replication": "a replication"}  # fmt: skip
@@ -155,15 +155,27 @@ class ResultsStore:
 
     # -- the sweep's identity ----------------------------------------------------------------------------------
     def saved_sweep(self) -> dict[str, Any] | None:
-        """The resolved sweep run here: ``sweep.json``, or a copy of it when it was deleted; None when none is left."""
+        """
+        The resolved sweep run here: ``sweep.json``, or a copy of it when it was deleted, its sweep in the new form
+        (``old_forms.new_form``); None when none is left.
+        """
         for path in (self.root / "sweep.json", *(self.root / copy for copy in IDENTITY_COPIES)):
             try:
                 saved = read_json(path, MAX_SWEEP_FILE_BYTES)
             except (OSError, ValueError):  # (DamagedFile: a ValueError)
                 continue
             if isinstance(saved, dict) and isinstance(saved.get("sweep"), dict):
-                return saved
+                try:
+                    return {**saved, "sweep": new_form(saved["sweep"])}
+                except ValidationError as error:
+                    raise self._invalid(error) from None
         return None
+
+    def _invalid(self, error: ValidationError) -> StoreError:
+        """The one line saying the saved sweep does not validate (its first error)."""
+        first = error.errors()[0]
+        where = ".".join(str(part) for part in first["loc"])
+        return StoreError(f"{self.root / 'sweep.json'}: the saved sweep is not valid ({where}: {first['msg']})")
 
     # -- set-up ------------------------------------------------------------------------------------------------
     def prepare(self, resolved_sweep: dict[str, Any], run_ids: Collection[str] = ()) -> list[str]:
@@ -216,12 +228,12 @@ class ResultsStore:
     def claim(self, resolved_sweep: dict[str, Any]) -> None:
         """
         Refuse (``StoreError``, one line) a folder of another kind of study (``claim_kind``), or whose saved sweep is of
-        another kind than ``resolved_sweep`` (``study_kind``: a deep study, a sweep of runs). Writes nothing.
+        another kind than ``resolved_sweep`` (``schema.kind_of``: a deep study, a sweep of runs). Writes nothing.
         """
         claim_kind(self.root, "sweep", resolved_sweep["name"])
         previous = self.saved_sweep()
-        if previous is not None and study_kind(previous) != study_kind(resolved_sweep):
-            held, kind = KIND_NAMES[study_kind(previous)], KIND_NAMES[study_kind(resolved_sweep)]
+        if previous is not None and kind_of(previous["sweep"]) != kind_of(resolved_sweep["sweep"]):
+            held, kind = KIND_NAMES[kind_of(previous["sweep"])], KIND_NAMES[kind_of(resolved_sweep["sweep"])]
             raise StoreError(f"{self.root} holds {held} (sweep.json), which {kind} run into it would mix with; give the "
                              f"{kind.split(' ', 1)[1]} a folder of its own, e.g. --out {self.root / resolved_sweep['name']}")
 
@@ -317,15 +329,9 @@ class ResultsStore:
             return {rid: c["agent"] for rid, c in resolved["runs"].items()}
 
         try:
-            kind, saved = study_kind(resolved), resolved["sweep"]
-            sweep: Sweep | DeepStudy | ForensicsStudy = (
-                DeepStudy.model_validate(saved) if kind == "deep"
-                else ForensicsStudy.model_validate(saved) if kind == "forensics" else Sweep.validate_saved(saved)
-            )  # fmt: skip
+            sweep = Sweep.validate_saved(resolved["sweep"])
         except ValidationError as error:
-            first = error.errors()[0]
-            where = ".".join(str(part) for part in first["loc"])
-            raise StoreError(f"{self.root / 'sweep.json'}: the saved sweep is not valid ({where}: {first['msg']})") from None
+            raise self._invalid(error) from None
         runs: dict[str, str] = {}
         for cell in sweep.cells():
             runs.update(dict.fromkeys(cell_run_ids(cell), cell.base["agent"]))
@@ -492,13 +498,6 @@ class ResultsStore:
     def episodes_frame(self, columns: Sequence[str] | None = None) -> pd.DataFrame:
         """The episode table of ``results``."""
         return self.results(columns)[1]
-
-
-def study_kind(resolved: dict[str, Any]) -> str:
-    """The kind of study a resolved sweep (``sweep.json``) runs: ``deep``, ``forensics`` (its ``study``) or ``sweep``."""
-    sweep = resolved.get("sweep")
-    study = sweep.get("study") if isinstance(sweep, dict) else None
-    return study if study in ("deep", "forensics") else "sweep"
 
 
 def replication_parts(root: Path) -> list[str]:

@@ -1,7 +1,7 @@
 """
 Reading a sweep file: ``load_sweep_file`` parses the YAML, applies ``--set key.path=value`` overrides (each checked
-against the schema of ``schema``, or of a study's model (``ForensicsStudy``, ``DeepStudy``) for a file with ``study:``,
-naming the keys allowed where one is unknown), validates the result and turns every problem into one ``SweepError`` that
+against the schema of ``schema``, nested sections too, e.g. ``--set evaluation.every=1000``, naming the keys allowed
+where one is unknown), validates the result and turns every problem into one ``SweepError`` that
 names the file, the key (agents by name) and whether the file or an override caused it; for a sweep of runs
 (``load_sweep``) it then builds the env and each agent once, so that a bad kwarg is reported before anything runs.
 
@@ -19,18 +19,22 @@ from pathlib import Path
 from typing import Any
 
 import yaml
-from pydantic import ValidationError
+from pydantic import BaseModel, ValidationError
 
-from sb3_affect.study.launcher.deep_schema import DeepStudy
+from sb3_affect.study.launcher.deep_schema import EvaluationSpec, TrainerSpec
+from sb3_affect.study.launcher.old_forms import MOVED, old_key
 from sb3_affect.study.launcher.one_run import check_configs_in_child
 from sb3_affect.study.launcher.schema import (
+    KIND_KEYS,
+    KINDS,
     KWARG_REFERENCE,
     AgentSpec,
     EnvSpec,
-    ForensicsStudy,
+    ForensicsSpec,
     ProtocolSpec,
     Sweep,
     SweepError,
+    kind_of,
 )
 from sb3_affect.study.studies import shipped_sweeps_folder
 
@@ -112,11 +116,11 @@ def _check_size(data: Any, where: str) -> None:
             stack.extend((v, f"{key}[{i}]", depth + 1) for i, v in enumerate(value))
 
 
-def _model_of(data: dict[str, Any]) -> type[Sweep] | type[ForensicsStudy] | type[DeepStudy]:
-    """The model a file's data is validated with: a study's (``study:``) or a sweep of runs'."""
-    if data.get("study") == "deep":
-        return DeepStudy
-    return ForensicsStudy if "study" in data else Sweep
+#: The sections of a sweep file whose keys an override's path is checked against, and their keys that hold more keys.
+SECTIONS: dict[str, type[BaseModel]] = {
+    "env": EnvSpec, "trainer": TrainerSpec, "evaluation": EvaluationSpec, "forensics": ForensicsSpec
+}
+NESTED = ("kwargs", "algo_kwargs", "wrappers", "protocol", "tuned")
 
 
 def _override_path(assignment: str, data: dict[str, Any]) -> tuple[list[Any], Any]:
@@ -137,24 +141,27 @@ def _override_path(assignment: str, data: dict[str, Any]) -> tuple[list[Any], An
     _check_size(value, f"--set {assignment!r}")
 
     def unknown(key: str, allowed: list[str], where: str) -> SweepError:
-        close = difflib.get_close_matches(key, allowed, n=1)
+        moved = MOVED.get(key, "").partition(".")[0] in allowed  # an old key of this kind: its new path
+        close = [MOVED[key]] if moved else difflib.get_close_matches(key, allowed, n=1)
         hint = f"; did you mean {close[0]!r}?" if close else ""
         return SweepError(
             f"--set {assignment!r}: {key!r} is not a key of {where}{hint} (allowed: {', '.join(allowed)})"
         )
 
-    model = _model_of(data)
-    top = list(model.model_fields)
+    top = list(KIND_KEYS[kind_of(data)])
     if keys[0] not in top:
-        raise unknown(keys[0], top, "a sweep file" if model is Sweep else "a forensics study file")
-    if model is ForensicsStudy:
-        if keys[0] == "protocol" and len(keys) > 1 and keys[1] not in ProtocolSpec.model_fields:
-            raise unknown(keys[1], list(ProtocolSpec.model_fields), "protocol")
-        if keys[0] != "protocol" and len(keys) > 1:
-            raise SweepError(f"--set {assignment!r}: {keys[0]!r} is a single value; use --set {keys[0]}=VALUE")
-        return keys, value
-    if keys[0] == "env" and len(keys) > 1 and keys[1] not in EnvSpec.model_fields:
-        raise unknown(keys[1], list(EnvSpec.model_fields), "env")
+        raise unknown(keys[0], top, KINDS[kind_of(data)])
+    section: type[BaseModel] | None = SECTIONS.get(keys[0]) if keys[0] != "tasks" else EnvSpec
+    at = 2 if keys[0] == "tasks" else 1  # (tasks.<name>.<key>)
+    if section is not None and len(keys) > at:
+        where = ".".join(keys[:at])
+        if keys[at] not in section.model_fields:
+            raise unknown(keys[at], list(section.model_fields), where)
+        if keys[at] == "protocol" and len(keys) > at + 1 and keys[at + 1] not in ProtocolSpec.model_fields:
+            raise unknown(keys[at + 1], list(ProtocolSpec.model_fields), f"{where}.protocol")
+        if keys[at] not in NESTED and len(keys) > at + 1:
+            single = ".".join(keys[: at + 1])
+            raise SweepError(f"--set {assignment!r}: {single!r} is a single value; use --set {single}=VALUE")
     if keys[0] in ("name", "episodes", "seeds", "max_timesteps", "logs") and len(keys) > 1:
         raise SweepError(f"--set {assignment!r}: {keys[0]!r} is a single value; use --set {keys[0]}=VALUE")
     if keys[0] == "agents" and len(keys) > 1:
@@ -268,29 +275,28 @@ def _key_path(location: tuple[Any, ...], data: dict[str, Any]) -> str:
 
 def load_sweep(
     path: str | Path, overrides: tuple[str, ...] | list[str] = (), *, build: bool = True, deep: bool = False
-) -> Sweep | DeepStudy | ForensicsStudy:
+) -> Sweep:
     """
     Read, override and validate a sweep file of runs; every problem is a ``SweepError`` naming the file and the key.
 
     :param build: also build the env and each agent once (without training, in a short-lived child process), so
         that an unknown or impossible kwarg is reported now rather than by every run of the sweep
-    :param deep: a study's file the launcher runs too (``study: deep`` or ``study: forensics``) is one too
+    :param deep: a study's file the launcher runs too (a deep study, the forensics: ``Sweep.kind``) is one too
     """
     sweep = load_sweep_file(path, overrides, build=build)
-    if not isinstance(sweep, Sweep) and not (deep and isinstance(sweep, (DeepStudy, ForensicsStudy))):
+    if sweep.kind != "sweep" and not deep:
         raise SweepError(
-            f"{resolve_sweep_path(path)}: the {sweep.study} study has no runs of its own; run it with "
+            f"{resolve_sweep_path(path)}: the {sweep.kind} study has no runs of its own; run it with "
             f"`sb3-affect run {path} --out DIR`"
         )
     return sweep
 
 
-def load_sweep_file(
-    path: str | Path, overrides: tuple[str, ...] | list[str] = (), *, build: bool = True
-) -> Sweep | ForensicsStudy | DeepStudy:
+def load_sweep_file(path: str | Path, overrides: tuple[str, ...] | list[str] = (), *, build: bool = True) -> Sweep:
     """
-    Read, override and validate a sweep file: a sweep of runs (``Sweep``) or a study (``study: forensics``, a
-    ``ForensicsStudy``); every problem is a ``SweepError`` naming the file and the key.
+    Read, override and validate a sweep file (a sweep of runs, a deep study or the forensics: ``Sweep.kind``); every
+    problem is a ``SweepError`` naming the file and the key. A file in an old form (``study: deep``, ...) is refused
+    with the key to write instead (``old_forms.old_key``).
 
     :param build: for a sweep of runs, also build the env and each agent once (``load_sweep``)
     """
@@ -321,6 +327,9 @@ def load_sweep_file(
     if not isinstance(data, dict):
         raise SweepError(f"{path}: a sweep file must be a YAML mapping with name, episodes, seeds and agents")
     _check_size(data, str(path))
+    old = old_key(data)
+    if old is not None:
+        raise SweepError(f"{path}: {old}")
     overridden: list[tuple[str, list[Any]]] = []
     for assignment in overrides:
         bound = _bound_kwargs(data)
@@ -332,9 +341,8 @@ def load_sweep_file(
             raise SweepError(f"--set {assignment!r} does not apply to {path} ({error})") from None
         _check_still_bound(bound, data, assignment, path)
     _check_size(data, str(path))
-    model = _model_of(data)
     try:
-        sweep = model.model_validate(data)
+        sweep = Sweep.validate_file(data)
     except ValidationError as error:
         lines, from_file = [], False
         for item in error.errors():
@@ -347,10 +355,10 @@ def load_sweep_file(
             setters = [a for a, keys in overridden if _overlaps(location, keys)]
             from_file = from_file or not setters
             lines.append(f"  {key}: {message}{shown}" + (f" [from --set {setters[-1]}]" if setters else ""))
-        allowed = "allowed top-level keys: " + ", ".join(model.model_fields)
+        allowed = f"allowed top-level keys of {KINDS[kind_of(data)]}: " + ", ".join(KIND_KEYS[kind_of(data)])
         what = "invalid sweep file" if from_file else "invalid --set value"
         raise SweepError(f"{path}: {what}\n" + "\n".join(lines) + f"\n  ({allowed})") from None
-    if build and isinstance(sweep, Sweep):
+    if build and sweep.kind == "sweep":
         index = {agent.name: i for i, agent in enumerate(sweep.agents)}
         problems = check_configs_in_child([cell.config(0) for cell in sweep.cells()])
         if problems:

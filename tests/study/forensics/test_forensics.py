@@ -42,7 +42,7 @@ from sb3_affect.study.forensics.stages import REJECT_FACTOR, steps_ratio
 from sb3_affect.study.forensics.statistics import candidate_statistics, cell_summary
 from sb3_affect.study.forensics.units import ForensicsBatch, simulate_unit
 from sb3_affect.study.launcher import ResultsStore, run_sweep
-from sb3_affect.study.launcher.schema import PRESCREEN, ForensicsStudy, SweepError
+from sb3_affect.study.launcher.schema import PRESCREEN, ForensicsSpec, SweepError
 from sb3_affect.study.launcher.store import StoreError
 from sb3_affect.study.launcher.sweep_file import load_sweep_file
 from sb3_affect.study.report import build_report
@@ -190,9 +190,8 @@ def test_cli_parses_forensics() -> None:
 def test_the_shipped_sweep_file_is_the_main_jobs_forensics() -> None:
     """experiments/forensics.yaml: the main job's sizes, the default candidate space and the paper's protocol, so the
     forensics run from it is the one run before with those sizes."""
-    study = load_sweep_file("forensics")  # by name: the file shipped with the package
-    assert isinstance(study, ForensicsStudy)
-    assert (study.screen_reps, study.leaders, study.reps) == (2, 4, 30)
+    study = load_sweep_file("forensics").forensics  # by name: the file shipped with the package
+    assert study is not None and (study.screen_reps, study.leaders, study.reps) == (2, 4, 30)
     assert study.space() == CandidateSpace.default() and study.paper_protocol() == Protocol()
 
 
@@ -239,11 +238,11 @@ def test_self_check_recovers_the_candidate_that_printed_the_numbers(tmp_path: Pa
         steps=("decisions",),
         table_v=("sum", "mean"),
     )
-    monkeypatch.setattr(ForensicsStudy, "space", lambda study: space)
-    (tmp_path / "tiny.yaml").write_text(TINY_STUDY.replace("leaders: 1\nreps: 2", "leaders: 2\nreps: 12").replace(
+    monkeypatch.setattr(ForensicsSpec, "space", lambda study: space)
+    (tmp_path / "tiny.yaml").write_text(TINY_STUDY.replace("leaders: 1\n  reps: 2", "leaders: 2\n  reps: 12").replace(
         "seeds: 2, episodes: 10", "seeds: 4, episodes: 25"))  # fmt: skip
-    study = load_sweep_file(tmp_path / "tiny.yaml", build=False)
-    assert isinstance(study, ForensicsStudy)
+    study = load_sweep_file(tmp_path / "tiny.yaml", build=False).forensics
+    assert study is not None and study.reps == 12
     protocol = study.paper_protocol()
     wanted = Reading("greedy", "decisions", "mean")
     truth = next(c for c in space.candidates() if c.reading == wanted and c.affective == AFFECTIVE)
@@ -272,7 +271,7 @@ def test_self_check_recovers_the_candidate_that_printed_the_numbers(tmp_path: Pa
     again = run_study(tmp_path / "tiny.yaml", tmp_path / "f", workers=1, progress=False, printed=printed)
     assert again.simulated == 0 and again.reused == result.simulated
     with pytest.raises(StoreError, match="already holds the results of a different sweep"):
-        run_study(tmp_path / "tiny.yaml", tmp_path / "f", ["protocol.seeds=5"], workers=1, progress=False)
+        run_study(tmp_path / "tiny.yaml", tmp_path / "f", ["forensics.protocol.seeds=5"], workers=1, progress=False)
 
 
 def test_the_sensitivity_row_gives_each_printed_number_beside_the_leaders_mean(tmp_path: Path) -> None:
@@ -294,13 +293,13 @@ def test_the_sensitivity_row_gives_each_printed_number_beside_the_leaders_mean(t
 
 TINY_STUDY = """\
 name: tiny-forensics
-study: forensics
-screen_reps: 2
-leaders: 1
-reps: 2
-alphas: [1.0]
-gammas: [0.8]
-protocol: {epsilons: [0.2, 0.6], seeds: 2, episodes: 10}
+forensics:
+  screen_reps: 2
+  leaders: 1
+  reps: 2
+  alphas: [1.0]
+  gammas: [0.8]
+  protocol: {epsilons: [0.2, 0.6], seeds: 2, episodes: 10}
 """
 
 

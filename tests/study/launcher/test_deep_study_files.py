@@ -1,4 +1,4 @@
-"""The deep study's sweep files (study: deep): the shipped ones, and what the schema refuses, one line each."""
+"""The deep study's sweep files (a sweep with a trainer): the shipped ones, and what the schema refuses, one line each."""
 
 from __future__ import annotations
 
@@ -8,27 +8,29 @@ from pathlib import Path
 import pytest
 import yaml
 
-from sb3_affect.study.launcher.deep_schema import STUDY_EVAL_EPISODES, DeepStudy
-from sb3_affect.study.launcher.schema import SweepError
+from sb3_affect.study.launcher.deep_schema import STUDY_EVAL_EPISODES
+from sb3_affect.study.launcher.schema import Sweep, SweepError
 from sb3_affect.study.launcher.sweep_file import load_sweep_file
 from sb3_affect.study.report.sections.deep_minigrid import STUDY_SEEDS, seeds_needed
 
 ROOT = Path(__file__).resolve().parents[3]
 
 
-def load(name: str) -> DeepStudy:
+def load(name: str) -> Sweep:
     study = load_sweep_file(ROOT / "experiments" / f"{name}.yaml", build=False)
-    assert isinstance(study, DeepStudy)
+    assert study.kind == "deep" and study.evaluation is not None and study.tasks is not None
     return study
 
 
 def test_the_study_has_its_design_and_its_tuning_pass_runs_on_other_seeds() -> None:
     study, tuning, smoke = load("minigrid_dqn"), load("minigrid_dqn_tuning"), load("deep_smoke")
-    assert len(study.seeds) >= max(STUDY_SEEDS, seeds_needed()) and study.eval_episodes >= STUDY_EVAL_EPISODES
-    assert study.eval_every == 10_000 and {"Empty-8x8", "DoorKey-5x5"} < set(study.tasks) and len(study.tasks) == 3
+    assert study.evaluation is not None and study.tasks is not None and tuning.tasks is not None
+    assert isinstance(study.seeds, list) and isinstance(tuning.seeds, list) and isinstance(smoke.seeds, list)
+    assert len(study.seeds) >= max(STUDY_SEEDS, seeds_needed()) and study.evaluation.episodes >= STUDY_EVAL_EPISODES
+    assert study.evaluation.every == 10_000 and {"Empty-8x8", "DoorKey-5x5"} < set(study.tasks) and len(study.tasks) == 3
     assert not set(study.seeds) & set(tuning.seeds)
     assert set(tuning.tasks) == set(study.tasks)
-    assert all(tuning.tasks[name].budget == task.budget for name, task in study.tasks.items())
+    assert all(tuning.tasks[name].total_timesteps == task.total_timesteps for name, task in study.tasks.items())
     by_name = {agent.name: agent for agent in study.agents}
     assert by_name["matched-randomness"].replays == "affective"
     assert {by_name[f"ez-greedy-{cap}"].kwargs["max_duration"] for cap in (10, 100)} == {10, 100}
@@ -41,26 +43,49 @@ def test_the_study_has_its_design_and_its_tuning_pass_runs_on_other_seeds() -> N
 
 
 def write(tmp_path: Path, **changes: object) -> Path:
+    """deep_smoke.yaml with ``changes`` (a key path with dots: a key of a section, e.g. ``evaluation.every``)."""
     data = yaml.safe_load((ROOT / "experiments" / "deep_smoke.yaml").read_text())
-    data.update(changes)
+    for path, value in changes.items():
+        *sections, key = path.split(".")
+        target = data
+        for section in sections:
+            target = target[section]
+        target[key] = value
     path = tmp_path / "study.yaml"
     path.write_text(yaml.safe_dump(data))
     return path
 
 
 @pytest.mark.parametrize(("changes", "message"), [
-    ({"eval_every": 3000}, ".budget=4000 is not a multiple of eval_every=3000"),
-    ({"seeds": [0, 0]}, "seeds must be distinct integers >= 0"),
+    ({"evaluation.every": 3000}, ".total_timesteps=4000 is not a multiple of evaluation.every=3000"),
+    ({"seeds": [0, 0]}, "seeds must be a non-empty list of distinct integers"),
+    ({"seeds": -1}, "seeds=-1 must be a positive count or a non-empty list of integers"),
+    ({"seeds": 3}, "(top level): seeds=3: a deep study takes an explicit list of at most 10,000 seeds (e.g. [0, 1, 2]), "
+                   "not a count"),
     ({"agents": [{"name": "m", "algo": "ReplayedEpsilonDQN", "replays": "affective"}]}, "is not an earlier agent"),
     ({"agents": [{"name": "m", "algo": "ReplayedEpsilonDQN"}]}, "replays=<earlier agent> goes with algo ReplayedEpsilonDQN"),
-    ({"agents": [{"name": "a", "algo": "QLearning"}]}, "algo='QLearning' is not one of"),
+    ({"agents": [{"name": "a", "algo": "QLearning"}]}, "agents[0] (a): algo='QLearning' is not one of "),
+    ({"agents": [{"name": "a", "algo": "DQN", "grid": {"e": [1]}}]},
+     "agents[0] (a): grid is not a key of a deep study's agent (name, algo, kwargs, epsilon, count_bonus, replays)"),
+    ({"agents": [{"name": "a b", "algo": "DQN"}]}, "agents[0].name='a b' must be letters, digits, _ . + -"),
+    ({"episodes": 5}, "(top level): episodes is not a key of a deep study (a sweep with a trainer); its keys are name, "
+                      "trainer, evaluation, tasks, seeds, agents"),
+    ({"evaluation": None}, "(top level): evaluation is missing: a deep study (a sweep with a trainer) needs evaluation, "
+                           "tasks, seeds, agents"),
+    ({"tasks.Empty-8x8.kwargs": {"size": 5}}, "tasks.Empty-8x8.kwargs is not a key of a deep study's task (id, "
+                                              "total_timesteps, tuned)"),
+    ({"tasks.Empty-8x8.id": "Empty-8x8"}, "tasks.Empty-8x8.id='Empty-8x8' is not a MiniGrid env id"),
+    ({"tasks.Empty-8x8.total_timesteps": None}, "tasks.Empty-8x8.total_timesteps=None is not a multiple of "
+                                                "evaluation.every=2000"),
     ({"agents": [{"name": "a", "algo": "DQN", "kwargs": {"seed": 3}}]}, "kwargs.seed is the study's own"),
-    ({"tasks": {"E": {"id": "MiniGrid-Empty-8x8-v0", "budget": 4000}}}, "takes the tuned exploration_fraction: tasks.E"),
-    ({"env": "compiled", "tasks": {"K": {"id": "MiniGrid-KeyCorridorS3R1-v0", "budget": 4000, "exploration_fraction": 0.5,
-                                         "count_bonus": 0.1}}}, "tasks.K.id='MiniGrid-KeyCorridorS3R1-v0' is not compiled"),
-    ({"seeds_per_batch": 0}, "seeds_per_batch"),
-    ({"obs": "image"}, "obs: obs='image' is minigrid_vec_env's 7x7x3 image; the flat 147 entries of the agent's view are "
-                       "obs: view"),
+    ({"tasks": {"E": {"id": "MiniGrid-Empty-8x8-v0", "total_timesteps": 4000}}},
+     "agents[0] (dqn-linear) takes the tuned exploration_fraction: tasks.E.tuned has none"),
+    ({"trainer.vec_env": "compiled", "tasks": {"K": {"id": "MiniGrid-KeyCorridorS3R1-v0", "total_timesteps": 4000,
+                                                     "tuned": {"exploration_fraction": 0.5, "count_bonus": 0.1}}}},
+     "tasks.K.id='MiniGrid-KeyCorridorS3R1-v0' is not compiled"),
+    ({"trainer.seeds_per_batch": 0}, "trainer.seeds_per_batch: Input should be greater than or equal to 1 (got 0)"),
+    ({"trainer.obs": "image"}, "trainer.obs: obs='image' is minigrid_vec_env's 7x7x3 image; the flat 147 entries of the "
+                               "agent's view are obs: view"),
 ])  # fmt: skip
 def test_the_schema_refuses_a_bad_file_naming_the_key(tmp_path: Path, changes: dict, message: str) -> None:
     with pytest.raises(SweepError, match="invalid sweep file") as error:
@@ -68,24 +93,27 @@ def test_the_schema_refuses_a_bad_file_naming_the_key(tmp_path: Path, changes: d
     assert message in str(error.value)
 
 
-NETWORK = yaml.safe_load((ROOT / "experiments" / "deep_smoke.yaml").read_text())["network"]
+NETWORK = yaml.safe_load((ROOT / "experiments" / "deep_smoke.yaml").read_text())["trainer"]["algo_kwargs"]
 AFFECTIVE = {"name": "a", "algo": "AffectDQN", "kwargs": {"position": "minigrid", "wait_action": 6}}
 
 
 @pytest.mark.parametrize(("changes", "message"), [
-    *[({"network": {**NETWORK, key: 1}}, f"network.{key} is the study's own") for key in ("seed", "policy", "device", "env")],
-    ({"network": {**NETWORK, "buffer_size": "x"}}, "network.buffer_size='x' must be an integer from 1 to 100,000,000"),
-    ({"network": {**NETWORK, "train_freq": 0}}, "network.train_freq=0 must be an integer from 1 to 1,000,000"),
-    ({"network": {**NETWORK, "train_freq": -1}}, "network.train_freq=-1 must be an integer from 1"),
-    ({"network": {**NETWORK, "policy_kwargs": {"net_arch": [60000, 60000]}}},
-     "network.policy_kwargs.net_arch=[60000, 60000] must be a list of at most 16 layer widths from 1 to 4096"),
+    *[({"trainer.algo_kwargs": {**NETWORK, key: 1}}, f"trainer.algo_kwargs: algo_kwargs.{key} is the study's own")
+      for key in ("seed", "policy", "device", "env")],
+    ({"trainer.algo_kwargs": {**NETWORK, "buffer_size": "x"}},
+     "algo_kwargs.buffer_size='x' must be an integer from 1 to 100,000,000"),
+    ({"trainer.algo_kwargs": {**NETWORK, "train_freq": 0}}, "algo_kwargs.train_freq=0 must be an integer from 1 to 1,000,000"),
+    ({"trainer.algo_kwargs": {**NETWORK, "train_freq": -1}}, "algo_kwargs.train_freq=-1 must be an integer from 1"),
+    ({"trainer.algo_kwargs": {**NETWORK, "policy_kwargs": {"net_arch": [60000, 60000]}}},
+     "algo_kwargs.policy_kwargs.net_arch=[60000, 60000] must be a list of at most 16 layer widths from 1 to 4096"),
     ({"agents": [{**AFFECTIVE, "kwargs": {"wait_action": 99}}]}, "kwargs.wait_action=99 must be an integer from 0 to 6"),
     ({"agents": [{"name": "e", "algo": "EzGreedyDQN", "kwargs": {"mu": -1}}]}, "kwargs.mu=-1 must be a finite number > 0"),
     ({"agents": [{"name": "b", "algo": "DQN", "count_bonus": -1}]},
      "agents[0] (b).count_bonus.constrained-float: Input should be greater than 0 (got -1)"),
-    ({"seeds": [4294967296]}, "seeds: 4294967296 is too large; seeds go from 0 to 999999"),
-    ({"seeds": [True]}, "seeds[0]: Input should be a valid integer (got True)"),
-    ({"seeds": list(range(10_001))}, "seeds: List should have at most 10000 items"),
+    ({"seeds": [1_000_000]}, "seeds: 1000000 is too large; seeds go from 0 to 999999"),
+    ({"seeds": [4294967296]}, "seeds: 4294967296 is not a seed; seeds are integers in [0, 2**32 - 1]"),
+    ({"seeds": [True]}, "seeds: seeds[0]=True is not an integer; seeds are integers in [0, 2**32 - 1]"),
+    ({"seeds": list(range(10_001))}, "(top level): 10,001 seeds: a deep study takes an explicit list of at most 10,000 seeds"),
 ])  # fmt: skip
 def test_the_deep_fields_are_refused_in_one_line_naming_field_and_value(tmp_path: Path, changes: dict, message: str) -> None:
     with pytest.raises(SweepError, match="invalid sweep file") as error:
@@ -112,7 +140,7 @@ def test_what_an_agent_refuses_is_refused_before_the_folder_is_claimed(
 def test_a_study_larger_than_the_machines_memory_is_refused_saying_the_figure(tmp_path: Path) -> None:
     from sb3_affect.study.launcher import run_sweep
 
-    path = write(tmp_path, seeds=list(range(10_000)), network={**NETWORK, "buffer_size": 10**6})
+    path = write(tmp_path, **{"seeds": list(range(10_000)), "trainer.algo_kwargs": {**NETWORK, "buffer_size": 10**6}})
     with pytest.raises(ValueError, match=r"^the deep study needs about [0-9.]+ GiB \(10000 seeds a batch x 1 batches .*"
                                          r"more than this machine's [0-9.]+ GiB"):
         run_sweep(path, tmp_path / "out", workers=1, progress=False)
@@ -147,7 +175,7 @@ def test_a_folder_of_one_study_kind_refuses_another_in_one_line(tmp_path: Path, 
     assert sorted(p.name for p in sweep.iterdir()) == ["sweep.json"]
     deep = tmp_path / "new-deep"
     deep.mkdir()
-    (deep / "sweep.json").write_text(json.dumps({"name": "deep-smoke", "sweep": {"name": "deep-smoke", "study": "deep"}}))
+    (deep / "sweep.json").write_text((Path(__file__).parent / "old_sweeps" / "deep_smoke.json").read_text())  # old form
     with pytest.raises(StoreError, match=rf"^{deep} holds a deep study \(sweep.json\), which a sweep run into it would mix "
                                          rf"with; give the sweep a folder of its own, e.g. --out {deep}/smoke$"):
         run_sweep(ROOT / "experiments" / "smoke.yaml", deep, workers=1, progress=False)

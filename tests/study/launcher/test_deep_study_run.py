@@ -27,11 +27,12 @@ from sb3_affect.study.launcher.deep_schema import EVAL_SEED_OFFSET
 from sb3_affect.study.launcher.store import ResultsStore, StoreError
 
 TOY = {
-    "name": "toy", "study": "deep", "env": "compiled", "seeds": [0, 1], "n_envs": 2, "eval_every": 200, "eval_episodes": 2,
-    "network": {"buffer_size": 2000, "learning_starts": 100, "batch_size": 16, "target_update_interval": 100,
-                "policy_kwargs": {"net_arch": [16]}},
-    "tasks": {"Empty-5x5": {"id": "MiniGrid-Empty-5x5-v0", "budget": 400, "learning_rate": 0.001,
-                            "exploration_fraction": 0.5, "count_bonus": 0.05}},
+    "name": "toy", "seeds": [0, 1], "evaluation": {"every": 200, "episodes": 2},
+    "trainer": {"vec_env": "compiled", "n_envs": 2,
+                "algo_kwargs": {"buffer_size": 2000, "learning_starts": 100, "batch_size": 16, "target_update_interval": 100,
+                                "policy_kwargs": {"net_arch": [16]}}},
+    "tasks": {"Empty-5x5": {"id": "MiniGrid-Empty-5x5-v0", "total_timesteps": 400,
+                            "tuned": {"learning_rate": 0.001, "exploration_fraction": 0.5, "count_bonus": 0.05}}},
     "agents": [
         {"name": "dqn-linear", "algo": "DQN", "epsilon": "tuned"},
         {"name": "affective", "algo": "AffectDQN", "kwargs": {"position": "minigrid", "wait_action": 6}},
@@ -43,10 +44,11 @@ TOY = {
 ROWS = ("success", "return", "random_share", "train_episodes", "train_successes", "first_success", "seeds")
 
 
-def toy(tmp_path: Path, **changes: object) -> Path:
-    """The toy study's file (``toy.yaml``), with ``changes``."""
+def toy(tmp_path: Path, seeds_per_batch: int | None = None, **changes: object) -> Path:
+    """The toy study's file (``toy.yaml``), with ``changes`` (and the trainer's ``seeds_per_batch``)."""
     path = tmp_path / "toy.yaml"
-    path.write_text(yaml.safe_dump({**TOY, **changes}))
+    trainer = {**TOY["trainer"], **({} if seeds_per_batch is None else {"seeds_per_batch": seeds_per_batch})}  # type: ignore[dict-item]
+    path.write_text(yaml.safe_dump({**TOY, **changes, "trainer": trainer}))
     return path
 
 

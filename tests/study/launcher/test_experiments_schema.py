@@ -8,7 +8,7 @@ import pytest
 
 from sb3_affect.study.cli import main
 from sb3_affect.study.launcher import SweepError, load_sweep
-from sb3_affect.study.launcher.schema import ForensicsStudy, derive_seed
+from sb3_affect.study.launcher.schema import derive_seed
 from sb3_affect.study.launcher.sweep_file import load_sweep_file
 
 EXPERIMENTS = Path(__file__).resolve().parents[3] / "experiments"
@@ -94,8 +94,9 @@ def test_good_file_resolves_runs(tmp_path: Path) -> None:
         (GOOD.replace("  - name: affective", "  - name: q"), "agents", "unique"),
         (GOOD.replace("max_timesteps", "x") + "max_timesteps: 0\n", "max_timesteps", "greater than 0"),
         (GOOD + "logs: [csv, excel]\n", "logs", "excel"),
-        ("name: x\nepisodes: 5\nseeds: 1\n", "agents", "Field required"),
-        ("name: x\nepisodes: 5\nseeds: 1\nagents: []\n", "agents", "at least 1"),
+        ("name: x\nepisodes: 5\nseeds: 1\n", "agents", "agents is missing or empty: a sweep of runs needs episodes, "),
+        ("name: x\nepisodes: 5\nseeds: 1\nagents: []\n", "agents", "agents is missing or empty"),
+        ("name: x\nseeds: 1\nagents: [{name: q, algo: QLearning}]\n", "episodes", "episodes is missing: a sweep of "),
     ],
 )
 def test_schema_errors_name_the_key(tmp_path: Path, text: str, key: str, hint: str) -> None:
@@ -265,23 +266,24 @@ def test_a_grid_per_task_and_seeds_by_task(tmp_path: Path) -> None:
 
 FORENSICS = """\
 name: tiny-forensics
-study: forensics
-screen_reps: 2
-leaders: 1
-reps: 3
-alphas: [1.0]
-gammas: [0.8]
+forensics:
+  screen_reps: 2
+  leaders: 1
+  reps: 3
+  alphas: [1.0]
+  gammas: [0.8]
 """
 
 
 def test_a_forensics_study_file_validates_and_is_no_sweep_of_runs(tmp_path: Path) -> None:
     study = load_sweep_file(write(tmp_path, FORENSICS))
-    assert isinstance(study, ForensicsStudy)
-    assert (study.screen_reps, study.leaders, study.reps, study.alphas, study.gammas) == (2, 1, 3, [1.0], [0.8])
-    assert study.protocol.model_dump() == {"epsilons": None, "seeds": None, "episodes": None}  # the paper's
-    overridden = load_sweep_file(write(tmp_path, FORENSICS), ["reps=5", "protocol.seeds=2", "gammas=[0.7, 0.9]"])
-    assert isinstance(overridden, ForensicsStudy)
-    assert (overridden.reps, overridden.protocol.seeds, overridden.gammas) == (5, 2, [0.7, 0.9])
+    assert study.kind == "forensics" and study.forensics is not None
+    block = study.forensics
+    assert (block.screen_reps, block.leaders, block.reps, block.alphas, block.gammas) == (2, 1, 3, [1.0], [0.8])
+    assert block.protocol.model_dump() == {"epsilons": None, "seeds": None, "episodes": None}  # the paper's
+    sets = ["forensics.reps=5", "forensics.protocol.seeds=2", "forensics.gammas=[0.7, 0.9]"]
+    overridden = load_sweep_file(write(tmp_path, FORENSICS), sets).forensics
+    assert overridden is not None and (overridden.reps, overridden.protocol.seeds, overridden.gammas) == (5, 2, [0.7, 0.9])
     with pytest.raises(SweepError, match=r"the forensics study has no runs of its own; run it with `sb3-affect run"):
         load_sweep(write(tmp_path, FORENSICS))
 
@@ -289,13 +291,15 @@ def test_a_forensics_study_file_validates_and_is_no_sweep_of_runs(tmp_path: Path
 @pytest.mark.parametrize(
     "change, overrides, expected",
     [
-        (("reps: 3", "reps: 1"), (), "  reps: Input should be greater than or equal to 2 (got 1)\n"),
-        (("study: forensics", "study: forensic"), (), "  study: Input should be 'forensics' (got 'forensic')\n"),
-        (("alphas: [1.0]", "alphas: [0.0]"), (), "  alphas: 0.0 is not a learning rate; each is in (0, 1]\n"),
-        (("reps: 3", "reps: 3\nepisodes: 5"), (), "  episodes: Extra inputs are not permitted (got 5)\n"),
-        (("", ""), ("screen_reps=4",), "  reps: fewer than screen_reps (4); give reps >= 4 (got 3)\n"),
-        (("", ""), ("protocol.epsilons=[0.5]",), "  protocol.epsilons: List should have at least 2 items after validation"),
-        (("", ""), ("protocol.epsilons=[0.5, 1.5]",), "  protocol.epsilons: 1.5 is not an ε; each is in [0, 1] [from --set"),
+        (("reps: 3", "reps: 1"), (), "  forensics.reps: Input should be greater than or equal to 2 (got 1)\n"),
+        (("alphas: [1.0]", "alphas: [0.0]"), (), "  forensics.alphas: 0.0 is not a learning rate; each is in (0, 1]\n"),
+        (("  gammas: [0.8]", "  gammas: [0.8]\nepisodes: 5"), (),
+         "  (top level): episodes is not a key of the forensics (a sweep with forensics); its keys are name, forensics\n"),
+        (("", ""), ("forensics.screen_reps=4",), "  forensics.reps: fewer than screen_reps (4); give reps >= 4 (got 3)\n"),
+        (("", ""), ("forensics.protocol.epsilons=[0.5]",),
+         "  forensics.protocol.epsilons: List should have at least 2 items after validation"),
+        (("", ""), ("forensics.protocol.epsilons=[0.5, 1.5]",),
+         "  forensics.protocol.epsilons: 1.5 is not an ε; each is in [0, 1] [from --set"),
     ],
 )
 def test_a_bad_forensics_field_is_one_line_naming_it_its_value_and_what_is_allowed(
@@ -303,13 +307,19 @@ def test_a_bad_forensics_field_is_one_line_naming_it_its_value_and_what_is_allow
 ) -> None:
     message = error_of(tmp_path, FORENSICS.replace(*change), overrides)
     assert expected in message, message
-    allowed = "  (allowed top-level keys: name, study, screen_reps, leaders, reps, alphas, gammas, protocol)"
+    allowed = "  (allowed top-level keys of the forensics (a sweep with forensics): name, forensics)"
     assert message.splitlines()[-1] == allowed
     assert len(message.splitlines()) == 3, message  # the file, the one bad field, the keys allowed
 
 
 def test_a_forensics_set_typo_names_the_keys_allowed(tmp_path: Path) -> None:
-    message = error_of(tmp_path, FORENSICS, ("rep=3",))
-    assert "'rep' is not a key of a forensics study file; did you mean 'reps'? (allowed: name, study, " in message
-    assert "'seed' is not a key of protocol; did you mean 'seeds'?" in error_of(tmp_path, FORENSICS, ("protocol.seed=2",))
-    assert "'reps' is a single value; use --set reps=VALUE" in error_of(tmp_path, FORENSICS, ("reps.x=2",))
+    message = error_of(tmp_path, FORENSICS, ("forensics.rep=3",))
+    assert "'rep' is not a key of forensics; did you mean 'reps'? (allowed: screen_reps, leaders, reps, " in message
+    seed = error_of(tmp_path, FORENSICS, ("forensics.protocol.seed=2",))
+    assert "'seed' is not a key of forensics.protocol; did you mean 'seeds'?" in seed
+    single = error_of(tmp_path, FORENSICS, ("forensics.reps.x=2",))
+    assert "'forensics.reps' is a single value; use --set forensics.reps=VALUE" in single
+    old = "'reps' is not a key of the forensics (a sweep with forensics); did you mean 'forensics.reps'? (allowed: name, "
+    assert old in error_of(tmp_path, FORENSICS, ("reps=3",))
+    deep = "'episodes' is not a key of the forensics (a sweep with forensics) (allowed: name, forensics)"
+    assert deep in error_of(tmp_path, FORENSICS, ("episodes=3",))

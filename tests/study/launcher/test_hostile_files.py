@@ -39,13 +39,13 @@ SMOKE = ROOT / "experiments" / "smoke.yaml"
 #: The smallest forensics of the default candidate space: one alpha and gamma, a tiny protocol.
 TINY = """\
 name: tiny-forensics
-study: forensics
-screen_reps: 2
-leaders: 1
-reps: 3
-alphas: [1.0]
-gammas: [0.8]
-protocol: {epsilons: [0.2, 0.6], seeds: 2, episodes: 10}
+forensics:
+  screen_reps: 2
+  leaders: 1
+  reps: 3
+  alphas: [1.0]
+  gammas: [0.8]
+  protocol: {epsilons: [0.2, 0.6], seeds: 2, episodes: 10}
 """
 
 
@@ -193,8 +193,8 @@ def test_a_full_disk_or_a_read_only_folder_during_the_analysis_is_one_line(
 
 
 def test_duplicated_protocol_epsilons_are_refused_at_validation() -> None:
-    with pytest.raises(SweepError, match=r"protocol.epsilons: 0.1 is given twice"):
-        load_sweep_file(ROOT / "experiments" / "forensics.yaml", ["protocol.epsilons=[0.1, 0.1]"])
+    with pytest.raises(SweepError, match=r"forensics.protocol.epsilons: 0.1 is given twice"):
+        load_sweep_file(ROOT / "experiments" / "forensics.yaml", ["forensics.protocol.epsilons=[0.1, 0.1]"])
 
 
 def test_forensics_folders_are_locked_and_never_mixed(copy: Path, tmp_path: Path, tiny: Path) -> None:

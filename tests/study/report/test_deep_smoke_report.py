@@ -17,7 +17,6 @@ from rliable import metrics as rmetrics
 from test_deep_study_report import section
 
 from sb3_affect.study.launcher import run_sweep
-from sb3_affect.study.launcher.deep_schema import DeepStudy
 from sb3_affect.study.launcher.sweep_file import load_sweep_file
 from sb3_affect.study.report.sections import deep_minigrid as deep
 
@@ -26,11 +25,12 @@ SMOKE = Path(__file__).resolve().parents[3] / "experiments" / "deep_smoke.yaml"
 
 def test_the_section_of_a_smoke_folder_has_curves_profile_iqm_censoring_power_and_a_sentence(tmp_path: Path) -> None:
     data = yaml.safe_load(SMOKE.read_text())
-    data.update(seeds=[0, 1], eval_every=1000, tasks={"Empty-8x8": {**data["tasks"]["Empty-8x8"], "budget": 2000}},
+    data.update(seeds=[0, 1], evaluation={**data["evaluation"], "every": 1000},
+                tasks={"Empty-8x8": {**data["tasks"]["Empty-8x8"], "total_timesteps": 2000}},
                 agents=data["agents"][:3])  # DQN, AffectDQN and the control replaying its random share
     (tmp_path / "small.yaml").write_text(yaml.safe_dump(data))
     study = load_sweep_file(tmp_path / "small.yaml", build=False)
-    assert isinstance(study, DeepStudy)
+    assert study.kind == "deep"
     run_sweep(tmp_path / "small.yaml", tmp_path / "deep_smoke", workers=1, progress=False)
     text, ctx = section(tmp_path, tmp_path / "out")
     assert "## Deep agents on MiniGrid, greedy policies (smoke size): deep_smoke/" in text

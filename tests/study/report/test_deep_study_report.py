@@ -10,7 +10,7 @@ import pytest
 from scipy import stats as sps
 
 from sb3_affect.study.launcher.chunks import encode_evaluations
-from sb3_affect.study.launcher.deep_schema import DeepStudy
+from sb3_affect.study.launcher.schema import Sweep
 from sb3_affect.study.launcher.store import SWEEP_SCHEMA, ResultsStore, cell_run_ids
 from sb3_affect.study.report.reading.context import ReportContext
 from sb3_affect.study.report.rendering.document import Document
@@ -28,16 +28,17 @@ def write_folder(folder: Path, curves: dict[str, np.ndarray], first: dict[str, l
     curves ``(seeds, evaluations)`` and first successes, one chunk of evaluations per agent.
     """
     seeds = list(range(next(iter(curves.values())).shape[0]))
-    study = DeepStudy.model_validate({
-        "name": "synthetic", "study": "deep", "env": "compiled", "obs": "view", "n_envs": 4, "seeds": seeds,
-        "eval_every": EVERY, "eval_episodes": eval_episodes, "network": {},
-        "tasks": {"Empty-8x8": {"id": "MiniGrid-Empty-8x8-v0", "budget": BUDGET}}, "agents": AGENTS})  # fmt: skip
+    study = Sweep.validate_file({
+        "name": "synthetic", "seeds": seeds, "trainer": {"vec_env": "compiled", "obs": "view", "n_envs": 4, "algo_kwargs": {}},
+        "evaluation": {"every": EVERY, "episodes": eval_episodes},
+        "tasks": {"Empty-8x8": {"id": "MiniGrid-Empty-8x8-v0", "total_timesteps": BUDGET}}, "agents": AGENTS})  # fmt: skip
     cells = study.cells()
     ids = [cell_run_ids(cell) for cell in cells]
     store = ResultsStore(folder)
     folder.mkdir(parents=True)
-    store.prepare({"schema": SWEEP_SCHEMA, "name": study.name, "sweep": study.model_dump(mode="json"),
-                   "total_runs": sum(map(len, ids)), "task_order": list(study.tasks)}, [rid for run in ids for rid in run])
+    resolved = {"schema": SWEEP_SCHEMA, "name": study.name, "sweep": study.model_dump(mode="json"),
+                "total_runs": sum(map(len, ids)), "task_order": list(study.tasks or {})}
+    store.prepare(resolved, [rid for run in ids for rid in run])
     for cell, run_ids in zip(cells, ids):
         agent = cell.base["agent"]
         success = curves[agent]

@@ -1,7 +1,7 @@
 """
 MiniGrid through the launcher and the report: sweep files naming MiniGrid envs, the registry's wrappers and tasks, a
 tiny real sweep of tabular and deep agents run by the launcher, and the report's MiniGrid section on the tabular folder
-(the deep study, ``study: deep``, has its own section: test_deep_study_report.py).
+(the deep study, a sweep with a ``trainer``, has its own section: test_deep_study_report.py).
 """
 
 from __future__ import annotations

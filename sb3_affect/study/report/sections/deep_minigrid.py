@@ -1,10 +1,10 @@
 """
-The deep study's section (``study: deep``, run by the launcher, ``launcher.deep_batches``): read through the results
-store (``ResultsStore.evaluations``) from each deep-study folder present (``FOLDERS`` of a replicate folder, or the
-report's folder itself), never run.
+The deep study's section (a sweep file with a ``trainer``, run by the launcher, ``launcher.deep_batches``): read
+through the results store (``ResultsStore.evaluations``) from each deep-study folder present (``FOLDERS`` of a
+replicate folder, or the report's folder itself), never run.
 
-The primary metric is the greedy policy's: each seed's Q-network, every ``eval_every`` env steps, acting greedily for
-one episode on each of ``eval_episodes`` evaluation envs seeded apart from its training envs; its success rate and
+The primary metric is the greedy policy's: each seed's Q-network, every ``evaluation.every`` env steps, acting greedily
+for one episode on each of ``evaluation.episodes`` evaluation envs seeded apart from its training envs; its success rate and
 mean return. Per run they are summarised as the area under the curve (the mean of its evaluations: the area under the
 step curve divided by the budget) and the final value; per agent and task as the IQM over runs with a 95% bootstrap CI
 (rliable's IQM, the percentile bootstrap of ``report.estimation.bootstrap``). Steps to the first training episode that
@@ -32,7 +32,8 @@ from scipy import stats as sps
 
 from sb3_affect.core.emotions import EMOTION_NAMES
 from sb3_affect.study.launcher.deep_schema import STUDY_EVAL_EPISODES
-from sb3_affect.study.launcher.store import ResultsStore, study_kind
+from sb3_affect.study.launcher.schema import kind_of
+from sb3_affect.study.launcher.store import ResultsStore
 from sb3_affect.study.report.estimation.bootstrap import (
     BETTER,
     EXPLORATORY_RULE,
@@ -73,7 +74,7 @@ class DeepResults:
     @property
     def smoke(self) -> bool:
         """Fewer evaluation episodes than the study's: a check of the pipeline (the main job's version)."""
-        return self.study["eval_episodes"] < STUDY_EVAL_EPISODES
+        return self.study["evaluation"]["episodes"] < STUDY_EVAL_EPISODES
 
     @property
     def few_seeds(self) -> bool:
@@ -82,9 +83,9 @@ class DeepResults:
 
 
 def is_deep_folder(folder: Path) -> bool:
-    """Whether ``folder`` holds a deep study's results (its saved sweep says ``study: deep``)."""
+    """Whether ``folder`` holds a deep study's results (its saved sweep has a ``trainer``: ``schema.kind_of``)."""
     saved = ResultsStore(folder).saved_sweep() if folder.is_dir() else None
-    return saved is not None and study_kind(saved) == "deep"
+    return saved is not None and kind_of(saved["sweep"]) == "deep"
 
 
 def load_deep(folder: Path) -> DeepResults:
@@ -323,7 +324,7 @@ def deep_minigrid_section(ctx: ReportContext) -> None:
 
 def deep_section(ctx: ReportContext, results: DeepResults) -> None:
     study, name = results.study, results.folder.name
-    n, n_eval = len(study["seeds"]), study["eval_episodes"]
+    n, n_eval, trainer = len(study["seeds"]), study["evaluation"]["episodes"], study["trainer"]
     ctx.doc.h(f"Deep agents on MiniGrid, greedy policies{' (smoke size)' if results.smoke else ''}: {name}/")
     if results.smoke:
         ctx.doc.p(
@@ -336,10 +337,11 @@ def deep_section(ctx: ReportContext, results: DeepResults) -> None:
     if not results.cells:
         ctx.doc.p(f"Skipped: {results.folder} holds no finished cells.")
         return
-    budgets = ", ".join(f"{task} {fmt(spec['budget'])}" for task, spec in study["tasks"].items())
+    budgets = ", ".join(f"{task} {fmt(spec['total_timesteps'])}" for task, spec in study["tasks"].items())
     ctx.doc.p(
-        f"{len(results.cells)} cells (task x agent) of {n} seeds, {study['n_envs']} training envs per seed, "
-        f"{study['obs']} observations, {study['env']} envs; budgets in env steps: {budgets}. Every {fmt(study['eval_every'])} "
+        f"{len(results.cells)} cells (task x agent) of {n} seeds, {trainer['n_envs']} training envs per seed, "
+        f"{trainer['obs']} observations, {trainer['vec_env']} envs; budgets in env steps: {budgets}. Every "
+        f"{fmt(study['evaluation']['every'])} "
         f"env steps each seed's greedy policy plays one episode on each of {n_eval} evaluation envs of its own; success "
         "is reaching the goal, return is MiniGrid's (1 - 0.9 x steps / max steps at the goal, else 0), without any "
         "exploration bonus. AUC: the mean of a run's evaluations; IQM (rliable's interquartile mean) over runs with a "
