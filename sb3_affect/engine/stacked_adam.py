@@ -15,6 +15,7 @@ arithmetic on them is about ten times slower on x86; an entry below ``2**-126`` 
 from __future__ import annotations
 
 import torch as th
+from torch.optim.adam import adam as fused_adam
 
 #: a denormal float32 (half the smallest normal one): it reads as 0 where denormals are flushed
 DENORMAL = 2.0**-127
@@ -45,8 +46,8 @@ def adam(param: th.Tensor, grad: th.Tensor, exp_avg: th.Tensor, exp_avg_sq: th.T
     try:
         with th.no_grad():
             for rate, params, grads, moments, squares in groups:
-                steps = [th.tensor(float(step))] * len(params)  # the kernel reads the step, it does not count it
-                th._fused_adam_(params, grads, moments, squares, [], steps, lr=rate, beta1=betas[0], beta2=betas[1],
-                                weight_decay=weight_decay, eps=eps, amsgrad=False, maximize=False)
+                steps = [th.tensor(float(step - 1)) for _ in params]  # (the functional counts each one up)
+                fused_adam(params, grads, moments, squares, [], steps, fused=True, lr=rate, beta1=betas[0],
+                           beta2=betas[1], weight_decay=weight_decay, eps=eps, amsgrad=False, maximize=False)
     finally:
         th.set_flush_denormal(flushing)
