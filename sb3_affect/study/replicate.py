@@ -10,27 +10,24 @@ local processes or Ray.
 
 from __future__ import annotations
 
-import contextlib
 import json
 import sys
-import threading
 import time
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
 import yaml
 
 from sb3_affect.study.forensics.section import report_section
-from sb3_affect.study.forensics.study_run import run_study
 from sb3_affect.study.launcher import run_sweep
 from sb3_affect.study.launcher.epsilon_tuning import round_values, tune, tuning_grid
 from sb3_affect.study.launcher.folder_files import MAX_SWEEP_FILE_BYTES
 from sb3_affect.study.launcher.regular_files import UnreadableFile, read_json, write_file
 from sb3_affect.study.launcher.store import KIND_NAMES, ResultsStore, StoreError, folder_kind
-from sb3_affect.study.launcher.sweep_file import load_sweep, load_sweep_file
+from sb3_affect.study.launcher.sweep_file import load_sweep
 from sb3_affect.study.report import build_report
 from sb3_affect.study.report.reading.study_tables import folder_study
+from sb3_affect.study.running import run_file
 from sb3_affect.study.studies import (
     PARTS,
     SIZED,
@@ -100,7 +97,6 @@ def main(
     record = _Record(out_dir)
     timings: dict[str, float] = {}
     executor: dict[str, Any] = {"workers": workers, "backend": backend, "ray_address": ray_address}
-    extra = []
     for name, description in PARTS:
         if name == "forensics" and not forensics:
             continue
@@ -116,8 +112,7 @@ def main(
             description += f" [{', '.join(overrides)}]"
         print(f"== {description}: {path} -> {out_dir / name}", flush=True)
         key = f"{name} ({description})"
-        timings[key], section = _run_part(path, out_dir / name, overrides, key, record, executor)
-        extra.extend([section] if section is not None else [])
+        timings[key] = _run_part(path, out_dir / name, overrides, key, record, executor)
     tuning, beyond = (experiments / f"{name}.yaml" for name, _ in TUNED_PARTS)
     tuning_sized = _capped(tuning, large_seeds, engine_episodes)
     beyond_sized = _capped(beyond, beyond_seeds, engine_episodes)
@@ -143,7 +138,9 @@ def main(
     )
     print(f"   {summary.total} runs, {summary.skipped} already done, {summary.seconds:.1f} s", flush=True)
     start = time.perf_counter()
-    report = build_report(out_dir, timings=timings, extra_sections=extra, command=command or " ".join(sys.argv))
+    extra = report_section(out_dir / "forensics")  # the forensics' section, when the folder holds its results
+    report = build_report(out_dir, timings=timings, extra_sections=[extra] if extra is not None else [],
+                          command=command or " ".join(sys.argv))
     timings["report"] = time.perf_counter() - start
     total = record.finish(timings["report"])
     print("wall time: " + ", ".join(f"{name} {seconds:.1f} s" for name, seconds in timings.items()))
@@ -152,28 +149,16 @@ def main(
     return report
 
 
-def _run_part(
-    path: Path, folder: Path, overrides: list[str], key: str, record: _Record, executor: dict[str, Any]
-) -> tuple[float, Any]:
+def _run_part(path: Path, folder: Path, overrides: list[str], key: str, record: _Record, executor: dict[str, Any]) -> float:
     """
-    Run one part's sweep file into ``folder`` on ``executor`` (``run_sweep``'s workers, backend, ray_address): a sweep
-    of runs through the launcher, the forensics study on the launcher's executor. Prints what it did.
+    Run one part's study file into ``folder`` on ``executor`` (``run_sweep``'s workers, backend, ray_address), as
+    ``sb3-affect run`` runs it (``running.run_file``). Prints what it did.
 
-    :return: the part's time as ``record`` keeps it under ``key``, and the report section it adds (None: none)
+    :return: the part's time as ``record`` keeps it under ``key``
     """
-
-    study = load_sweep_file(path, overrides, build=False)
-    if study.kind == "forensics":  # no progress bars of its own in the log: a heartbeat instead
-        with _heartbeat(key):
-            result = run_study(path, folder, overrides, progress=False, **executor)
-        print(f"   {result.simulated} replications now, {result.reused} already done, {result.seconds:.1f} s", flush=True)
-        return record.part(key, result.seconds, done_before=result.reused, todo=result.simulated), report_section(folder)
-    summary = run_sweep(path, folder, overrides=overrides, **executor)
-    print(
-        f"   {summary.finished} runs now, {summary.skipped} already done, {summary.failed} failed, {summary.seconds:.1f} s",
-        flush=True,
-    )
-    return record.part(key, summary.seconds, done_before=summary.skipped, todo=summary.total - summary.skipped), None
+    done = run_file(path, folder, overrides, **executor)
+    print(f"   {done.finished} runs now, {done.skipped} already done, {done.failed} failed, {done.seconds:.1f} s", flush=True)
+    return record.part(key, done.seconds, done_before=done.skipped, todo=done.finished + done.failed)
 
 
 def tune_rounds(
@@ -257,30 +242,6 @@ def _sized(
     size = next((study.size for study in STUDIES if study.name == name), None)
     cap = ablation_seeds if size == "ablation" else large_seeds
     return _capped(path, cap, None if episodes is None else episodes * (10 if size == "long" else 1))
-
-
-#: Seconds between the lines an engine study prints while it runs (it has no progress bar of its own).
-HEARTBEAT_SECONDS = 15.0
-
-
-@contextlib.contextmanager
-def _heartbeat(what: str, every: float | None = None) -> Iterator[None]:
-    """Print ``still running: <what>, N s`` every ``every`` seconds while the block runs (a long silent step)."""
-    interval = HEARTBEAT_SECONDS if every is None else every
-    stop = threading.Event()
-    start = time.perf_counter()
-
-    def beat() -> None:
-        while not stop.wait(interval):
-            print(f"   still running: {what}, {time.perf_counter() - start:.0f} s", flush=True)
-
-    thread = threading.Thread(target=beat, name="sb3-affect:heartbeat", daemon=True)
-    thread.start()
-    try:
-        yield
-    finally:
-        stop.set()
-        thread.join()
 
 
 def _refuse_a_sweep_folder(out_dir: Path) -> None:

@@ -11,12 +11,12 @@ import sys
 from collections.abc import Callable, Mapping
 from pathlib import Path
 
-from sb3_affect.study.launcher import ResultsStore, run_sweep
+from sb3_affect.study.launcher import ResultsStore
 from sb3_affect.study.launcher.ray_errors import ClusterLost, RayClusterError
-from sb3_affect.study.launcher.schema import Sweep, SweepError, kind_of
+from sb3_affect.study.launcher.schema import SweepError, kind_of
 from sb3_affect.study.launcher.signals import Terminated, stop_on_sigterm
 from sb3_affect.study.launcher.store import StoreError, folder_kind, old_layout
-from sb3_affect.study.launcher.sweep_file import load_sweep_file
+from sb3_affect.study.running import run_file
 
 
 class UsageError(Exception):
@@ -67,50 +67,22 @@ def existing_folder(directory: str, command: str) -> Path:
 
 
 def run(args: argparse.Namespace) -> int:
-    """``sb3-affect run FILE --out DIR``: a sweep of runs (the deep study's too) or a forensics study, resumed."""
+    """``sb3-affect run FILE --out DIR``: a study file of any kind (``running.run_file``), resumed."""
     check_out(args.out)
-    study = load_sweep_file(args.file, args.set or (), build=False)
     stop_on_sigterm()
-    if study.kind == "forensics":
-        return _run_forensics(study, args)  # (its stages through run_sweep, then its analysis)
-    summary = run_sweep(
-        args.file,
-        args.out,
-        workers=args.workers,
-        backend=args.backend,
-        ray_address=args.ray_address,
-        ray_timeout=args.ray_timeout,
-        overrides=[*(args.set or ()), *([f"logs=[{args.logs}]"] if args.logs else [])],
-        progress=not args.no_progress,
-    )
-    print(
-        f"{summary.name}: {summary.total} runs, {summary.skipped} already done, {summary.finished} finished now, "
-        f"{summary.failed} failed, {summary.seconds:.1f} s -> {summary.out_dir}"
-    )
-    if summary.failed:
-        print(f"failed runs and their tracebacks: {summary.out_dir / 'failed'}; rerun the same command to retry them")
-        return 1
-    return 0
-
-
-def _run_forensics(study: Sweep, args: argparse.Namespace) -> int:
-    """``sb3-affect run`` of a forensics study file (a sweep with ``forensics``) on the launcher's executor."""
-    from sb3_affect.study.forensics.study_run import run_study, summary_lines  # (report extra: a forensics study only)
-
-    if args.logs:
-        raise UsageError(f"--logs {args.logs}: the forensics study runs on the compiled engine and writes no SB3 logs")
-    result = run_study(
+    done = run_file(
         args.file,
         args.out,
         args.set or (),
+        args.logs,
         workers=args.workers,
         backend=args.backend,
         ray_address=args.ray_address,
         ray_timeout=args.ray_timeout,
         progress=not args.no_progress,
     )
-    print("\n".join(summary_lines(study, result, args.out)))
-    return 0
+    print("\n".join(done.lines))
+    return 1 if done.failed else 0
 
 
 def status(args: argparse.Namespace) -> int:

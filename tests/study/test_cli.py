@@ -207,15 +207,6 @@ def test_resumed_replicate_keeps_the_times_of_its_runs_and_refuses_a_sweep(
     assert not (runs / "sweep.json").exists() and not (runs / "chunks").exists()
 
 
-def test_heartbeat_prints_while_a_silent_step_runs(capsys: pytest.CaptureFixture[str]) -> None:
-    import time
-
-    with replicate._heartbeat("a silent study", every=0.05):
-        time.sleep(0.3)
-    lines = capsys.readouterr().out.splitlines()
-    assert len(lines) >= 3 and all(line.startswith("   still running: a silent study, ") for line in lines)
-
-
 def test_replicate_into_a_folder_holding_a_sweep_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """The reverse of a sweep into a replication: the sweep's runs would be reported as the replication's."""
     runs = tmp_path / "runs"

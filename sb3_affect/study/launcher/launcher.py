@@ -201,10 +201,12 @@ def run_sweep(
         for line in store.prepare(resolved, [rid for ids in cell_ids for rid in ids]):
             print(f"sb3-affect: {line}", file=sys.stderr, flush=True)
         done = store.done_ids()
-        todo = total - len(done)
         jobs = plan_jobs(cells, cell_ids, store, workers, sweep.logs, done=done, stages=stages)
+        # A study run in stages runs the runs its stages ask for, not every run its cells could hold (the forensics
+        # replicates its leaders only): its total is the runs done and those of each wave planned so far.
+        planned = total if stages is None else len(done) + sum(job.size for job in jobs)
         counts = {"finished": 0, "failed": 0}
-        bar = _progress(total, total - todo, sweep.name, progress)
+        bar = _progress(planned, len(done), sweep.name, progress)
         tried: set[str] = set()  # the runs of this launch's jobs: a failed one waits for the next launch
 
         def on_result(job: Job, result: dict[str, Any]) -> None:
@@ -233,10 +235,14 @@ def run_sweep(
                     run_ray(jobs, workers, on_result, on_failure, ray_address, cap=cap, timeout=ray_timeout)
                 waves = stages is not None or any(cell.base.get("replays") for cell in cells)  # (a sweep of runs: one)
                 jobs = plan_jobs(cells, cell_ids, store, workers, sweep.logs, tried, stages=stages) if waves else []
+                if stages is not None:
+                    planned += sum(job.size for job in jobs)
+                    bar.total = planned
+                    bar.refresh()
         finally:
             bar.close()
     seconds = time.perf_counter() - start
-    return SweepSummary(sweep.name, total, total - todo, counts["finished"], counts["failed"], seconds, Path(out_dir))
+    return SweepSummary(sweep.name, planned, len(done), counts["finished"], counts["failed"], seconds, Path(out_dir))
 
 
 def _ids(job: Job) -> list[str]:
@@ -291,7 +297,9 @@ def plan_jobs(
 
 
 class _NoProgress:
-    """The progress bar's methods, doing nothing (``--no-progress``: tqdm is not even imported)."""
+    """The progress bar's methods, doing nothing (``--no-progress``)."""
+
+    total = 0
 
     def update(self, n: int = 1) -> None:
         pass
@@ -300,6 +308,9 @@ class _NoProgress:
         pass
 
     def close(self) -> None:
+        pass
+
+    def refresh(self) -> None:
         pass
 
 

@@ -384,3 +384,19 @@ def _pages(report: Path) -> str:
     main = report.read_text()
     linked = re.findall(r"^- \[[^\]]+\]\(([\w-]+\.md)\)$", main, re.M)
     return "\n".join([main, *((report.parent / name).read_text() for name in linked)])
+
+
+def test_a_staged_run_counts_the_runs_its_stages_ask_for(tmp_path: Path) -> None:
+    """
+    The forensics' cells could hold every replication of every simulation; its stages run a share of them. The run's
+    total (and its progress bar's) is what the stages planned: the runs done, then each wave's; a rerun does none.
+    """
+    from sb3_affect.study.forensics.stages import plan_stages
+
+    (tmp_path / "tiny.yaml").write_text(TINY_STUDY)
+    cells = load_sweep_file(tmp_path / "tiny.yaml", build=False).cells()
+    first = run_sweep(tmp_path / "tiny.yaml", tmp_path / "f", workers=1, progress=False, stages=plan_stages)
+    stored = len(ResultsStore(tmp_path / "f").done_ids())
+    assert first.failed == 0 and first.total == first.finished == stored < sum(len(cell.seeds) for cell in cells)
+    again = run_sweep(tmp_path / "tiny.yaml", tmp_path / "f", workers=1, progress=True, stages=plan_stages)
+    assert (again.total, again.skipped, again.finished) == (stored, stored, 0)
