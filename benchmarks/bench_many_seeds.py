@@ -147,12 +147,10 @@ def gradient_step(n_seeds: int, steps: int, repeats: int = 100) -> tuple[float, 
     models = train_many("DQN", ENV_ID, list(range(n_seeds)), N_ENVS, total_timesteps=steps, obs="view",
                         **_settings("DQN"))
     stack = StackedQ(models)
-    with th.no_grad():
-        for index, model in enumerate(models):
-            state = [model.policy.optimizer.state[p] for p in model.q_net.parameters()]
-            stack.exp_avg[index] = th.cat([s["exp_avg"].reshape(-1) for s in state])
-            stack.exp_avg_sq[index] = th.cat([s["exp_avg_sq"].reshape(-1) for s in state])
-        stack.steps = int(state[0]["step"])
+    states = [[model.policy.optimizer.state[p] for p in model.q_net.parameters()] for model in models]
+    stack.exp_avg = stack.rows([[s["exp_avg"] for s in state] for state in states])
+    stack.exp_avg_sq = stack.rows([[s["exp_avg_sq"] for s in state] for state in states])
+    stack.steps = int(states[0][0]["step"])
     magnitude = stack.exp_avg.abs()
     denormal = float(((magnitude > 0) & (magnitude < th.finfo(th.float32).tiny)).float().mean())
     arrays = _batch(n_seeds, models[0].observation_space.shape[0])  # type: ignore[index]
