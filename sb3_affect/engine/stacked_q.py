@@ -65,6 +65,11 @@ BACKWARDS: dict[type[nn.Module], Callable[[th.Tensor, th.Tensor], th.Tensor]] = 
     nn.ReLU: lambda grad, y: th.ops.aten.threshold_backward(grad, y, 0), nn.Tanh: th.ops.aten.tanh_backward}
 
 
+#: the activations the fused steps apply in place, on the fresh output of the layer's product (their backward reads the
+#: output only), without a module call
+IN_PLACE: dict[type[nn.Module], Callable[[th.Tensor], th.Tensor]] = {nn.ReLU: th.relu_, nn.Tanh: th.tanh_}
+
+
 def _column(values: Sequence[float]) -> float | th.Tensor:
     """One number if every seed has it, else an ``(S, 1)`` column."""
     return float(values[0]) if len(set(values)) == 1 else th.tensor(values, dtype=th.float32).reshape(-1, 1)
@@ -103,6 +108,7 @@ class StackedQ:
         self.grad_weights, self.grad_biases = self._views(self.grad)
         self.backwards = [BACKWARDS.get(type(a)) for a in self.activations]
         self.fused = all(b is not None for b in self.backwards)
+        self.apply = [IN_PLACE[type(a)] for a in self.activations] if self.fused else self.activations
         self.gamma = _column([m.gamma for m in models])
         self.max_grad_norm = _column([m.max_grad_norm for m in models])
         self.tau = _column([m.tau for m in models])
@@ -157,7 +163,7 @@ class StackedQ:
                 layers.append(x)
             x = th.baddbmm(bias, x, weight)
             if i < last:
-                x = self.activations[i](x)
+                x = self.apply[i](x)
         return x
 
     def q_values(self, observations: np.ndarray | th.Tensor, target: bool = False) -> th.Tensor:
