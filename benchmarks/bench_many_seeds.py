@@ -10,7 +10,9 @@ the 7x7x3 view flattened (``obs="view"``), 4 envs per seed (needs the ``[minigri
   state a run of the same steps leaves them (Adam's moments with their zeros and denormals),
   beside its arithmetic bound: its matrix products' FLOPs over the GFLOP/s this core measures on one large product; then
   the JAX rows, a vmapped JAX DQN on NAVIX's Empty-8x8 (``benchmarks/jax_dqn.py``: the same network, batch and train
-  ratio, one XLA thread) at S = 8 and 32, its compile timed apart, where ``jax``, ``navix`` and ``optax`` are installed
+  ratio, one XLA thread) at S = 8 and 32, its compile timed apart, and its own update step
+  (``jax.jit(jax.vmap(update))`` on the seeds' state its run leaves, the same batch) beside the stacked gradient step of
+  the same S, where ``jax``, ``navix`` and ``optax`` are installed
   (``pip install "sb3-affect[jax]"``; a line says so otherwise). ``--rows`` runs some of them only: ``sb3`` (SB3's
   ``learn``), ``many`` (``train_many``), ``gradient`` (the gradient step), ``jax``; ``--agents`` the algorithms.
 * ``--equivalence [--algo PPO]``: 20 seeds of SB3's ``learn`` and of ``train_many`` with the same seeds and settings
