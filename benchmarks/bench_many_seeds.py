@@ -10,7 +10,9 @@ the 7x7x3 view flattened (``obs="view"``), 4 envs per seed (needs the ``[minigri
   state a run of the same steps leaves them (Adam's moments with their zeros and denormals),
   beside its arithmetic bound: its matrix products' FLOPs over the GFLOP/s this core measures on one large product; then
   the JAX rows, a vmapped JAX DQN on NAVIX's Empty-8x8 (``benchmarks/jax_dqn.py``: the same network, batch and train
-  ratio, one XLA thread) at S = 8 and 32, its compile timed apart, where ``jax``, ``navix`` and ``optax`` are installed
+  ratio, one XLA thread) at S = 8 and 32, its compile timed apart, and its own update step
+  (``jax.jit(jax.vmap(update))`` on the seeds' state its run leaves, the same batch) beside the stacked gradient step of
+  the same S, where ``jax``, ``navix`` and ``optax`` are installed
   (``pip install "sb3-affect[jax]"``; a line says so otherwise). ``--rows`` runs some of them only: ``sb3`` (SB3's
   ``learn``), ``many`` (``train_many``), ``gradient`` (the gradient step), ``jax``; ``--agents`` the algorithms.
 * ``--equivalence [--algo PPO]``: 20 seeds of SB3's ``learn`` and of ``train_many`` with the same seeds and settings
@@ -147,21 +149,15 @@ def gradient_step(n_seeds: int, steps: int, repeats: int = 100) -> tuple[float, 
     models = train_many("DQN", ENV_ID, list(range(n_seeds)), N_ENVS, total_timesteps=steps, obs="view",
                         **_settings("DQN"))
     stack = StackedQ(models)
-    with th.no_grad():
-        for index, model in enumerate(models):
-            state = [model.policy.optimizer.state[p] for p in model.q_net.parameters()]
-            stack.exp_avg[index] = th.cat([s["exp_avg"].reshape(-1) for s in state])
-            stack.exp_avg_sq[index] = th.cat([s["exp_avg_sq"].reshape(-1) for s in state])
-        stack.steps = int(state[0]["step"])
+    states = [[model.policy.optimizer.state[p] for p in model.q_net.parameters()] for model in models]
+    stack.exp_avg = stack.rows([[s["exp_avg"] for s in state] for state in states])
+    stack.exp_avg_sq = stack.rows([[s["exp_avg_sq"] for s in state] for state in states])
+    stack.steps = int(states[0][0]["step"])
     magnitude = stack.exp_avg.abs()
     denormal = float(((magnitude > 0) & (magnitude < th.finfo(th.float32).tiny)).float().mean())
-    rng = np.random.default_rng(0)
-    size, n_obs = SETTINGS["batch_size"], models[0].observation_space.shape[0]  # type: ignore[index]
-    views = rng.integers(0, 11, size=(2, n_seeds, size, n_obs), dtype=np.uint8)
-    views[:, :, :, ::3] = 0
-    batch = (th.as_tensor(views[0]), th.as_tensor(rng.integers(7, size=(n_seeds, size, 1))), th.as_tensor(views[1]),
-             th.zeros(n_seeds, size, 1), th.as_tensor(rng.random((n_seeds, size, 1), dtype=np.float32)))
-    observations = views[0][:, :N_ENVS]
+    arrays = _batch(n_seeds, models[0].observation_space.shape[0])  # type: ignore[index]
+    batch = tuple(th.as_tensor(array) for array in arrays)
+    observations = arrays[0][:, :N_ENVS]
     return (_cpu_ms(lambda: stack.train_step(*batch), repeats), _cpu_ms(lambda: stack.greedy(observations), repeats),
             denormal)
 
@@ -172,8 +168,11 @@ def _jax_available() -> bool:
     return all(importlib.util.find_spec(name) is not None for name in ("jax", "navix", "optax"))
 
 
-def jax_rate(n_seeds: int, steps: int) -> tuple[Rate, float]:
-    """Env steps per second (all seeds') of the vmapped JAX DQN, its compile apart, and the compile's CPU seconds."""
+def jax_rate(n_seeds: int, steps: int) -> tuple[Rate, float, Any]:
+    """
+    Env steps per second (all seeds') of the vmapped JAX DQN, its compile apart, the compile's CPU seconds, and the
+    seeds' networks and optax states the timed run leaves.
+    """
     from jax_dqn import dqn_many
 
     run = dqn_many(n_seeds, N_ENVS, steps, {**SETTINGS, **EPSILON})
@@ -182,7 +181,49 @@ def jax_rate(n_seeds: int, steps: int) -> tuple[Rate, float]:
     cpu = time.process_time()
     jax.block_until_ready(run(0))  # the first call compiles
     compile_cpu = time.process_time() - cpu
-    return _timed(lambda: (jax.block_until_ready(run(1)), n_seeds * (steps // N_ENVS) * N_ENVS)[1]), compile_cpu
+    trained: list[Any] = []
+    rate = _timed(lambda: (trained.append(jax.block_until_ready(run(1))), n_seeds * (steps // N_ENVS) * N_ENVS)[1])
+    return rate, compile_cpu, trained[0]
+
+
+def _batch(n_seeds: int, n_obs: int) -> tuple[np.ndarray, ...]:
+    """
+    The gradient steps' batch of 32 per seed, for the stacked step and JAX's alike: random uint8 views with a third
+    of the inputs 0, random actions, no episode ended, random rewards: (obs, actions, next_obs, dones, rewards).
+    """
+    rng = np.random.default_rng(0)
+    size = SETTINGS["batch_size"]
+    views = rng.integers(0, 11, size=(2, n_seeds, size, n_obs), dtype=np.uint8)
+    views[:, :, :, ::3] = 0
+    return (views[0], rng.integers(7, size=(n_seeds, size, 1)), views[1], np.zeros((n_seeds, size, 1), np.float32),
+            rng.random((n_seeds, size, 1), dtype=np.float32))
+
+
+def jax_update_step(n_seeds: int, trained: Any, repeats: int = 100) -> float:
+    """
+    CPU milliseconds of ``jax.jit(jax.vmap(update))``, ``jax_dqn.py``'s own gradient step (the target's and the
+    online network's forward passes, the Huber loss, its gradient, clipping and Adam as one XLA program) of
+    ``n_seeds`` seeds in the state the JAX run left them, on the stacked step's batch; the compile excluded, each
+    step waited for (``block_until_ready``).
+    """
+    import jax
+    import jax.numpy as jnp
+    from jax_dqn import dqn_update
+
+    from sb3_affect.kernel.minigrid_view import VIEW_SIZE
+
+    _, _, _, update = dqn_update({**SETTINGS, **EPSILON})
+    step = jax.jit(jax.vmap(update))
+    obs, actions, next_obs, dones, rewards = _batch(n_seeds, VIEW_SIZE)
+    batch = (jnp.asarray(obs), jnp.asarray(actions[..., 0], jnp.int32), jnp.asarray(rewards[..., 0]),
+             jnp.asarray(next_obs), jnp.asarray(dones[..., 0]))
+    state = {"params": trained["params"], "opt": trained["opt"]}
+
+    def once() -> None:
+        state["params"], state["opt"] = jax.block_until_ready(step(state["params"], trained["target"], state["opt"], *batch))
+
+    once()  # compiles
+    return _cpu_ms(once, repeats)
 
 
 #: the row groups ``--rows`` picks
@@ -208,11 +249,13 @@ def speed(steps: int, sizes: list[int], out: Path, groups: tuple[str, ...] = ROW
         for n_seeds in sizes if "many" in groups else []:
             row(agent, f"train_many, S={n_seeds}", trainer_rate(agent, n_seeds, steps))
     jax_compiles = []
+    jax_steps: dict[int, float] = {}  # JAX's update step's CPU ms by S
     if "jax" in groups and "DQN" in agents and _jax_available():
         for n_seeds in sorted({min(8, sizes[-1]), min(32, sizes[-1])}):
-            rate, compile_cpu = jax_rate(n_seeds, steps)
+            rate, compile_cpu, trained = jax_rate(n_seeds, steps)
             row("DQN", f"JAX vmapped, NAVIX, S={n_seeds} (compile apart)", rate)
             jax_compiles.append(f"S={n_seeds} {compile_cpu:.0f} CPU s")
+            jax_steps[n_seeds] = jax_update_step(n_seeds, trained)
     print(f"{ENV_ID}, obs=view, {N_ENVS} envs per seed, {steps:,} env steps per seed, 1 torch thread, "
           f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.1f} (a shared machine: CPU seconds are the measure)")
     header = ["algo", "run", "env_steps_per_cpu_s", "env_steps_per_wall_s", "cpu_x_sb3_1_env", "cpu_x_sb3_4_envs"]
@@ -250,6 +293,11 @@ def speed(steps: int, sizes: list[int], out: Path, groups: tuple[str, ...] = ROW
               f"({step_ms / bound_ms:.1f}x the bound); a greedy pass {greedy_ms:.2f} ms; one step and "
               f"{SETTINGS['train_freq']} greedy passes per {per_step} env steps of each seed cap any trainer at "
               f"{cap:,.0f} env steps per CPU second; load average {os.getloadavg()[0]:.1f}")
+        if n_seeds in jax_steps:
+            print(f"  JAX's update step, S={n_seeds}, same network and batch (jax.jit(jax.vmap(update)) of jax_dqn.py's "
+                  f"own, after its run, compile excluded, block_until_ready): {jax_steps[n_seeds]:.2f} ms of CPU "
+                  f"({jax_steps[n_seeds] / bound_ms:.1f}x the bound); the stacked step / JAX's: "
+                  f"{step_ms / jax_steps[n_seeds]:.2f}")
 
 
 def _evaluate(model: Any, seed: int, episodes: int) -> float:

@@ -27,24 +27,17 @@ def single_thread() -> None:
     os.environ.setdefault("XLA_FLAGS", "--xla_cpu_multi_thread_eigen=false intra_op_parallelism_threads=1")
 
 
-def dqn_many(n_seeds: int, n_envs: int, total_timesteps: int, settings: dict[str, Any]) -> Any:
+def dqn_update(settings: dict[str, Any]) -> tuple[Any, Any, Any, Any]:
     """
-    The jitted run of ``n_seeds`` DQNs (``run(seed)`` trains them from ``seed`` and returns each seed's parameters and
-    the episodes each ended); ``total_timesteps`` env steps per seed, ``settings`` SB3's DQN keyword arguments above.
+    The DQN's network and its gradient step, as ``dqn_many`` runs them: ``(init_params, q_values, optimiser, update)``,
+    ``update(params, target, opt, obs, action, reward, next_obs, terminated) -> (params, opt)`` one step of one seed on
+    one batch (the target's and the online network's forward passes, the Huber loss, its gradient, clipping, Adam).
     """
     single_thread()
     import jax
     import jax.numpy as jnp
-    import navix as nx
     import optax
 
-    env = nx.make("Navix-Empty-8x8-v0", max_steps=256, observation_fn=nx.observations.symbolic_first_person)
-    steps = total_timesteps // n_envs  # VecEnv steps
-    capacity = max(settings["buffer_size"] // n_envs, 1)
-    train_every, batch = settings["train_freq"], settings["batch_size"]
-    starts = settings["learning_starts"] // n_envs
-    target_every = max(settings["target_update_interval"] // n_envs, 1)
-    explore = settings["exploration_fraction"] * total_timesteps
     gamma = settings.get("gamma", 0.99)
     optimiser = optax.chain(optax.clip_by_global_norm(10.0), optax.adam(settings["learning_rate"]))
 
@@ -63,6 +56,41 @@ def dqn_many(n_seeds: int, n_envs: int, total_timesteps: int, settings: dict[str
             x = jax.nn.relu(x @ w + b)
         w, b = params[-1]
         return x @ w + b
+
+    def loss(params: Any, target: Any, obs: Any, action: Any, reward: Any, next_obs: Any, terminated: Any) -> Any:
+        following = jnp.max(q_values(target, next_obs), axis=-1)
+        aim = jax.lax.stop_gradient(reward + (1.0 - terminated) * gamma * following)
+        chosen = jnp.take_along_axis(q_values(params, obs), action[:, None], axis=-1)[:, 0]
+        return jnp.mean(optax.huber_loss(chosen, aim))
+
+    def update(params: Any, target: Any, opt: Any, obs: Any, action: Any, reward: Any, next_obs: Any,
+               terminated: Any) -> tuple[Any, Any]:
+        grads = jax.grad(loss)(params, target, obs, action, reward, next_obs, terminated)
+        updates, opt = optimiser.update(grads, opt, params)
+        return optax.apply_updates(params, updates), opt
+
+    return init_params, q_values, optimiser, update
+
+
+def dqn_many(n_seeds: int, n_envs: int, total_timesteps: int, settings: dict[str, Any]) -> Any:
+    """
+    The jitted run of ``n_seeds`` DQNs (``run(seed)`` trains them from ``seed`` and returns the seeds' stacked
+    ``params``, ``target``, ``opt`` (optax's state) and the ``episodes`` each ended); ``total_timesteps`` env steps per
+    seed, ``settings`` SB3's DQN keyword arguments above.
+    """
+    single_thread()
+    import jax
+    import jax.numpy as jnp
+    import navix as nx
+
+    env = nx.make("Navix-Empty-8x8-v0", max_steps=256, observation_fn=nx.observations.symbolic_first_person)
+    steps = total_timesteps // n_envs  # VecEnv steps
+    capacity = max(settings["buffer_size"] // n_envs, 1)
+    train_every, batch = settings["train_freq"], settings["batch_size"]
+    starts = settings["learning_starts"] // n_envs
+    target_every = max(settings["target_update_interval"] // n_envs, 1)
+    explore = settings["exploration_fraction"] * total_timesteps
+    init_params, q_values, optimiser, update = dqn_update(settings)
 
     def env_step(timestep: Any, action: Any) -> tuple[Any, Any, Any, Any]:
         """One step and SB3's reset of an ended episode: (next timestep, its view to store, reward, terminated)."""
@@ -95,20 +123,13 @@ def dqn_many(n_seeds: int, n_envs: int, total_timesteps: int, settings: dict[str
                 "reward": state["reward"].at[row].set(reward), "terminated": state["terminated"].at[row].set(terminated),
                 "episodes": state["episodes"] + jnp.sum(timesteps.t == 0)}
 
-    def loss(params: Any, target: Any, obs: Any, action: Any, reward: Any, next_obs: Any, terminated: Any) -> Any:
-        following = jnp.max(q_values(target, next_obs), axis=-1)
-        aim = jax.lax.stop_gradient(reward + (1.0 - terminated) * gamma * following)
-        chosen = jnp.take_along_axis(q_values(params, obs), action[:, None], axis=-1)[:, 0]
-        return jnp.mean(optax.huber_loss(chosen, aim))
-
     def train(state: dict[str, Any], i: Any) -> dict[str, Any]:
         key, row_key, env_key = jax.random.split(state["key"], 3)
         rows = jax.random.randint(row_key, (batch,), 0, jnp.minimum(i + 1, capacity))
         envs = jax.random.randint(env_key, (batch,), 0, n_envs)
         sample = [state[name][rows, envs] for name in ("obs", "action", "reward", "next", "terminated")]
-        grads = jax.grad(loss)(state["params"], state["target"], sample[0], sample[1], sample[2], sample[3], sample[4])
-        updates, opt = optimiser.update(grads, state["opt"], state["params"])
-        return {**state, "key": key, "params": optax.apply_updates(state["params"], updates), "opt": opt}
+        params, opt = update(state["params"], state["target"], state["opt"], *sample)
+        return {**state, "key": key, "params": params, "opt": opt}
 
     def vec_step(states: dict[str, Any], i: Any) -> tuple[dict[str, Any], None]:
         states = jax.vmap(act, in_axes=(0, None))(states, i)
@@ -118,9 +139,9 @@ def dqn_many(n_seeds: int, n_envs: int, total_timesteps: int, settings: dict[str
         return states, None
 
     @jax.jit
-    def run(seed: Any) -> tuple[Any, Any]:
+    def run(seed: Any) -> dict[str, Any]:
         states = jax.vmap(init)(jax.random.split(jax.random.PRNGKey(seed), n_seeds))
         states, _ = jax.lax.scan(vec_step, states, jnp.arange(steps))
-        return states["params"], states["episodes"]
+        return {name: states[name] for name in ("params", "target", "opt", "episodes")}
 
     return run

@@ -83,6 +83,17 @@ def random_actions(space: spaces.Space, count: int) -> np.ndarray:
     return np.array([space.sample() for _ in range(count)])
 
 
+def random_sampler(space: spaces.Space, count: int) -> Callable[[], np.ndarray]:
+    """
+    ``lambda: random_actions(space, count)``, a ``Discrete`` space's generator and bounds looked up once (bound when
+    training starts: the same draws from the same generator, without the per-call lookups).
+    """
+    if type(space) is spaces.Discrete:
+        integers, start, n = space.np_random.integers, space.start, space.n
+        return lambda: start + integers(n, size=count)
+    return lambda: random_actions(space, count)
+
+
 def idle(callback: BaseCallback) -> bool:
     """Whether SB3's callback is its stand-in for none (an empty list, or ``ConvertCallback(None)``)."""
     return (isinstance(callback, CallbackList) and not callback.callbacks) or (
@@ -176,17 +187,17 @@ class Lockstep:
     def _sample_actions(self, learning_starts: int) -> tuple[np.ndarray, np.ndarray]:
         """Each seed's ``_sample_action``: its own where its class has one, else DQN's ``predict`` batched."""
         self._greedy = None
-        models, n_envs = self.models, self.n_envs
+        n_envs = self.n_envs
         if self.own_actions:
             pairs = [fields.sample_action(learning_starts, n_envs) for fields in self.fields]
             return np.stack([np.asarray(p[0]).reshape(n_envs) for p in pairs]), np.stack([p[1] for p in pairs])
         if self.num_timesteps < learning_starts:
-            actions = np.stack([random_actions(m.action_space, n_envs) for m in models])
+            actions = np.stack([sample() for sample in self.samplers])
             return actions, actions
         explore = np.array([rng.rand() for rng in self.rngs]) < self.exploration
         actions = self.greedy().copy() if not explore.all() else np.zeros((self.n_seeds, n_envs), dtype=np.int64)
-        for index in np.flatnonzero(explore):
-            actions[index] = random_actions(models[index].action_space, n_envs)
+        for index in np.flatnonzero(explore).tolist():
+            actions[index] = self.samplers[index]()
         return actions, actions
 
     def _store(self, buffer_actions: np.ndarray, new_obs: np.ndarray, rewards: np.ndarray, dones: np.ndarray,
@@ -275,6 +286,7 @@ class Lockstep:
                                         "log_interval": log_interval}, globals())
             callbacks.append(callback)
         self.num_timesteps, self.total_timesteps = first.num_timesteps, total
+        self.samplers = [random_sampler(model.action_space, self.n_envs) for model in models]
         active = {i: c for i, c in enumerate(callbacks) if not idle(c)}
         self.obs = np.stack([fields.last_obs for fields in self.fields])
         self.stack = StackedQ(models)

@@ -2,8 +2,10 @@
 The Q-networks of many SB3 DQN models stacked along a first "seed" axis, and DQN's gradient step on all of them at once.
 
 Each layer of SB3's ``QNetwork`` (an MLP: ``Linear`` layers with an element-wise activation between them) becomes one
-weight tensor of shape ``(S, out, in)`` and one bias of shape ``(S, 1, out)``, and a forward pass is one batched matrix
-product per layer (``torch.baddbmm``) for all S seeds. The gradient step is SB3's ``DQN.train`` per seed:
+weight tensor of shape ``(S, in, out)`` (each seed's ``Linear.weight`` transposed, so that the forward pass's product
+reads it in its own layout: a transposed view makes the batched product about 1.4x slower at this size) and one bias
+of shape ``(S, 1, out)``, and a forward pass is one batched matrix product per layer (``torch.baddbmm``) for all S
+seeds. The gradient step is SB3's ``DQN.train`` per seed:
 
 * the TD target from the target network, ``r + (1 - done) * gamma * max_a Q_target(s', a)``;
 * the Huber loss (``smooth_l1_loss``, the mean over the batch) of each seed; the sum over seeds is differentiated, so
@@ -63,6 +65,11 @@ BACKWARDS: dict[type[nn.Module], Callable[[th.Tensor, th.Tensor], th.Tensor]] = 
     nn.ReLU: lambda grad, y: th.ops.aten.threshold_backward(grad, y, 0), nn.Tanh: th.ops.aten.tanh_backward}
 
 
+#: the activations the fused steps apply in place, on the fresh output of the layer's product (their backward reads the
+#: output only), without a module call
+IN_PLACE: dict[type[nn.Module], Callable[[th.Tensor], th.Tensor]] = {nn.ReLU: th.relu_, nn.Tanh: th.tanh_}
+
+
 def _column(values: Sequence[float]) -> float | th.Tensor:
     """One number if every seed has it, else an ``(S, 1)`` column."""
     return float(values[0]) if len(set(values)) == 1 else th.tensor(values, dtype=th.float32).reshape(-1, 1)
@@ -89,17 +96,19 @@ class StackedQ:
         first = models[0]
         linears, self.activations = network_layers(first.q_net)
         self.n_seeds = len(models)
-        self.shapes = [shape for layer in linears for shape in (tuple(layer.weight.shape), (1, layer.bias.shape[0]))]
+        # each layer's weight as (in, out), its bias as (1, out)
+        self.shapes = [shape for layer in linears for shape in (tuple(layer.weight.shape)[::-1], (1, layer.bias.shape[0]))]
         sizes = [int(np.prod(shape)) for shape in self.shapes]
         self.offsets = np.concatenate([[0], np.cumsum(sizes)]).tolist()
-        self.flat = self._stack([list(m.q_net.parameters()) for m in models])
-        self.target_flat = self._stack([list(m.q_net_target.parameters()) for m in models])
+        self.flat = self.rows([list(m.q_net.parameters()) for m in models])
+        self.target_flat = self.rows([list(m.q_net_target.parameters()) for m in models])
         self.grad = th.zeros_like(self.flat)
         self.weights, self.biases = self._views(self.flat)
         self.target_weights, self.target_biases = self._views(self.target_flat)
         self.grad_weights, self.grad_biases = self._views(self.grad)
         self.backwards = [BACKWARDS.get(type(a)) for a in self.activations]
         self.fused = all(b is not None for b in self.backwards)
+        self.apply = [IN_PLACE[type(a)] for a in self.activations] if self.fused else self.activations
         self.gamma = _column([m.gamma for m in models])
         self.max_grad_norm = _column([m.max_grad_norm for m in models])
         self.tau = _column([m.tau for m in models])
@@ -117,13 +126,21 @@ class StackedQ:
             self.optimizer = policy.optimizer_class([self.flat], lr=first.lr_schedule(1), **kwargs)  # type: ignore[call-arg]
         self.learning_rate: float | th.Tensor = first.lr_schedule(1)
 
-    def _stack(self, per_model: list[list[th.Tensor]]) -> th.Tensor:
+    def rows(self, per_model: list[list[th.Tensor]]) -> th.Tensor:
+        """
+        The ``(S, P)`` rows of per-parameter tensors in ``q_net.parameters()``' order and layout, one list per seed (the
+        parameters, or their optimizer's moments): each weight stored transposed.
+        """
         with th.no_grad():
-            return th.cat([th.stack([p[i].detach().reshape(-1) for p in per_model]) for i in range(len(self.shapes))],
-                          dim=1).contiguous()
+            return th.cat([th.stack([(p[i].detach().t() if i % 2 == 0 else p[i].detach()).reshape(-1) for p in per_model])
+                           for i in range(len(self.shapes))], dim=1).contiguous()
+
+    def _torch_layout(self, i: int, row: th.Tensor) -> th.Tensor:
+        """Parameter ``i``'s slice of a row as torch's ``Linear`` holds it (a weight ``(out, in)``, a bias ``(out,)``)."""
+        return row.reshape(self.shapes[i]).t() if i % 2 == 0 else row.reshape(-1)
 
     def _views(self, flat: th.Tensor) -> tuple[list[th.Tensor], list[th.Tensor]]:
-        """Each layer's weight ``(S, out, in)`` and bias ``(S, 1, out)``, views of ``flat``."""
+        """Each layer's weight ``(S, in, out)`` and bias ``(S, 1, out)``, views of ``flat``."""
         views = [flat[:, a:b].view(self.n_seeds, *shape) for a, b, shape in zip(self.offsets, self.offsets[1:], self.shapes)]
         return views[0::2], views[1::2]
 
@@ -144,9 +161,9 @@ class StackedQ:
         for i, (weight, bias) in enumerate(zip(weights, biases)):
             if layers is not None:
                 layers.append(x)
-            x = th.baddbmm(bias, x, weight.transpose(1, 2))
+            x = th.baddbmm(bias, x, weight)
             if i < last:
-                x = self.activations[i](x)
+                x = self.apply[i](x)
         return x
 
     def q_values(self, observations: np.ndarray | th.Tensor, target: bool = False) -> th.Tensor:
@@ -198,11 +215,11 @@ class StackedQ:
         losses = th.where(size < 1.0, 0.5 * difference * difference, size - 0.5).mean(dim=(1, 2))
         upstream = th.zeros_like(q_values).scatter_(2, actions, difference.clamp(-1.0, 1.0) / batch)
         for i in range(len(self.weights) - 1, -1, -1):
-            th.bmm(upstream.transpose(1, 2), layers[i], out=self.grad_weights[i]) if self.grad_weights[i].is_contiguous() \
-                else self.grad_weights[i].copy_(th.bmm(upstream.transpose(1, 2), layers[i]))
+            th.bmm(layers[i].transpose(1, 2), upstream, out=self.grad_weights[i]) if self.grad_weights[i].is_contiguous() \
+                else self.grad_weights[i].copy_(th.bmm(layers[i].transpose(1, 2), upstream))
             self.grad_biases[i].copy_(upstream.sum(dim=1, keepdim=True))
             if i > 0:
-                upstream = self.backwards[i - 1](th.bmm(upstream, self.weights[i]), layers[i])  # type: ignore[misc]
+                upstream = self.backwards[i - 1](th.bmm(upstream, self.weights[i].transpose(1, 2)), layers[i])  # type: ignore[misc]
         return losses
 
     def _autograd_gradient(self, x: th.Tensor, actions: th.Tensor, target_q_values: th.Tensor) -> th.Tensor:
@@ -240,7 +257,7 @@ class StackedQ:
                 self.target_flat.addcmul_(self.flat, self.tau)
 
     def _optimizer_state(self, index: int) -> list[dict[str, th.Tensor]]:
-        """Seed ``index``'s optimizer state per parameter, in torch's layout."""
+        """Seed ``index``'s optimizer state per parameter, in torch's layout (each weight's moments ``(out, in)``)."""
         if self.optimizer is None:
             if not self.steps:
                 return []
@@ -249,8 +266,8 @@ class StackedQ:
             state = self.optimizer.state.get(self.flat, {})
             if not state:
                 return []
-        return [{key: value.clone() if value.dim() == 0 else value[index, a:b].clone()
-                 for key, value in state.items()} for a, b in zip(self.offsets, self.offsets[1:])]
+        return [{key: value.clone() if value.dim() == 0 else self._torch_layout(i, value[index, a:b]).contiguous()
+                 for key, value in state.items()} for i, (a, b) in enumerate(zip(self.offsets, self.offsets[1:]))]
 
     def write_back(self, models: Sequence[DQN], indices: Sequence[int] | None = None) -> None:
         """Copy each seed's online and target weights and its optimizer state into its model (``indices``: those only)."""
@@ -259,8 +276,8 @@ class StackedQ:
                 model = models[s]
                 for flat, layers in ((self.flat, list(model.q_net.parameters())),
                                      (self.target_flat, list(model.q_net_target.parameters()))):
-                    for a, b, param in zip(self.offsets, self.offsets[1:], layers):
-                        param.copy_(flat[s, a:b].reshape(param.shape))
+                    for i, (a, b, param) in enumerate(zip(self.offsets, self.offsets[1:], layers)):
+                        param.copy_(self._torch_layout(i, flat[s, a:b]).reshape(param.shape))
                 optimizer = model.policy.optimizer
                 rate = self.learning_rate
                 optimizer.param_groups[0]["lr"] = rate if isinstance(rate, float) else float(rate[s, 0])
