@@ -147,12 +147,6 @@ def draw_table(ctx: ReportContext) -> pd.DataFrame | None:
     return ctx.cache["protocol draw"]
 
 
-def rare_draws(table: pd.DataFrame) -> str:
-    """The statistics whose protocol value is a rare draw, with their rank among the blocks ("" when none)."""
-    rare = table[table[CAUSE].str.startswith("the draw")]
-    return "; ".join(f"{label}: {row[VALUE]}, rank {row[RANK].split(' (')[0]}" for label, row in rare.iterrows())
-
-
 def protocol_draw_section(ctx: ReportContext) -> None:
     """The protocol's statistics among the disjoint 20-seed blocks of the large-N study (appendix)."""
     table = draw_table(ctx)
