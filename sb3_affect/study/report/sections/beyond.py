@@ -78,7 +78,8 @@ def baselines_section(
     return text
 
 
-def _ci(values: np.ndarray, digits: int = 1) -> str:
+def ci_text(values: np.ndarray, digits: int = 1) -> str:
+    """``values``' mean and bootstrap 95% CI, ``mean [low, high]`` ("" when there are none)."""
     point, low, high = bootstrap_ci(values)
     return "" if math.isnan(point) else f"{fmt(point, digits)} [{fmt(low, digits)}, {fmt(high, digits)}]"
 
@@ -97,12 +98,12 @@ def beyond_table(m: pd.DataFrame) -> pd.DataFrame:
     for (task, agent), g in m.groupby(["task", "agent"], sort=False):
         rows[(task, agent)] = {
             "runs": len(g),
-            "decisions per episode [95% CI]": _ci(g.decisions_per_episode.to_numpy(float)),
+            "decisions per episode [95% CI]": ci_text(g.decisions_per_episode.to_numpy(float)),
             "cells per episode": g.cells_per_episode.mean(),
             "first optimal episode (mean of found)": g.first_optimal.mean(),
             "never optimal": int(g.censored.sum()),
             "truncated episodes": int(g.truncated.sum()),
-            "decisions before optimal [95% CI]": _ci(g.decisions_before_optimal.to_numpy(float), 0),
+            "decisions before optimal [95% CI]": ci_text(g.decisions_before_optimal.to_numpy(float), 0),
             "joy share of decisions, episodes 181-200": g.joy_181_200_weighted.mean(),
         }
     table = pd.DataFrame.from_dict(rows, orient="index")

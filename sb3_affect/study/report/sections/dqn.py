@@ -7,12 +7,12 @@ import math
 import numpy as np
 import pandas as pd
 
-from sb3_affect.study.report.estimation.bootstrap import bootstrap_ci
 from sb3_affect.study.report.reading.context import AFFECTIVE, STANDARD, ReportContext
 from sb3_affect.study.report.reading.episode_scan import curve_quantiles, merge_curves, paper_scan
 from sb3_affect.study.report.reading.run_tables import load_results, plain_labels, run_metrics
 from sb3_affect.study.report.rendering import figures
 from sb3_affect.study.report.rendering.document import fmt
+from sb3_affect.study.report.sections.beyond import ci_text
 
 
 def learning_curves_section(ctx: ReportContext) -> None:
@@ -41,11 +41,6 @@ def learning_curves_section(ctx: ReportContext) -> None:
     )
 
 
-def _ci_text(values: np.ndarray, digits: int = 1) -> str:
-    point, low, high = bootstrap_ci(values)
-    return "" if math.isnan(point) else f"{fmt(point, digits)} [{fmt(low, digits)}, {fmt(high, digits)}]"
-
-
 def _label(agent: str, eps: object) -> str:
     return agent + (f" ε={fmt(float(eps), 1)}" if isinstance(eps, float) and not math.isnan(eps) else "")
 
@@ -72,10 +67,10 @@ def dqn_section(ctx: ReportContext) -> None:
         rows[_label(str(agent), eps)] = {
             "runs": len(g),
             "episodes finished (mean)": g.episodes.mean(),
-            "decisions per episode [95% CI]": _ci_text(g.decisions_per_episode.to_numpy(float)),
+            "decisions per episode [95% CI]": ci_text(g.decisions_per_episode.to_numpy(float)),
             "first optimal episode (mean of found)": g.first_optimal.mean(),
             "never optimal": int(g.censored.sum()),
-            "decisions before optimal [95% CI]": _ci_text(g.decisions_before_optimal.to_numpy(float), 0),
+            "decisions before optimal [95% CI]": ci_text(g.decisions_before_optimal.to_numpy(float), 0),
             "total decisions (mean)": g.total_decisions.mean(),
             "wall s per run": g.wall_seconds.mean(),
         }
