@@ -18,7 +18,7 @@ from sb3_affect.study.report.reading.study_tables import SPEED_AGENT
 from sb3_affect.study.report.rendering.document import fmt, pval
 from sb3_affect.study.report.sections.project_checks import with_speed_matched
 from sb3_affect.study.report.verdicts.censoring import censored_mean, restricted_means
-from sb3_affect.study.report.verdicts.inference import Estimate, Z, welch
+from sb3_affect.study.report.verdicts.inference import Z, welch
 
 COLUMN = "decisions_before_optimal"
 #: Bootstrap resamples of the probability of improvement (the project's checks use the same count).
@@ -33,7 +33,7 @@ class Comparison:
     :param runs: runs of each
     :param censored: runs that never found the optimal path
     :param mean: the plain mean of decisions before it, ``>=`` where a censored run enters it
-    :param difference: affective minus speed-matched on the plain means (Welch CI) and its ``welch_p``
+    :param welch_p: the Welch t-test's p-value, affective against speed-matched on the plain means
     :param horizon: the restricted means' horizon (decisions)
     :param restricted: the Kaplan-Meier restricted means to it
     :param restricted_difference: affective minus speed-matched restricted mean, with its normal 95% CI
@@ -44,7 +44,6 @@ class Comparison:
     runs: tuple[int, int]
     censored: tuple[int, int]
     mean: tuple[str, str]
-    difference: Estimate
     welch_p: float
     horizon: float
     restricted: tuple[float, float]
@@ -57,7 +56,7 @@ def comparison(aff: pd.DataFrame, speed: pd.DataFrame) -> Comparison:
     """The numbers of the main finding (affective against the speed-matched ε-greedy)."""
     a, s = aff[COLUMN].to_numpy(float), speed[COLUMN].to_numpy(float)
     ca, cs = aff.censored.to_numpy(bool), speed.censored.to_numpy(bool)
-    diff, p = welch(a, s)
+    _, p = welch(a, s)
     horizon, rm = restricted_means({"a": (a, ca), "s": (s, cs)})
     rdiff = rm["a"][0] - rm["s"][0]
     rse = math.sqrt(rm["a"][1] + rm["s"][1])
@@ -65,7 +64,6 @@ def comparison(aff: pd.DataFrame, speed: pd.DataFrame) -> Comparison:
         runs=(len(a), len(s)),
         censored=(int(ca.sum()), int(cs.sum())),
         mean=(censored_mean(a, ca), censored_mean(s, cs)),
-        difference=diff,
         welch_p=p,
         horizon=horizon,
         restricted=(rm["a"][0], rm["s"][0]),
