@@ -337,8 +337,8 @@ class ResultsStore:
             runs.update(dict.fromkeys(cell_run_ids(cell), cell.base["agent"]))
         return runs
 
-    def _checked(self) -> FolderFiles:
-        """The files that count; StoreError naming the first that does not (a rerun sets them aside)."""
+    def checked_files(self) -> FolderFiles:
+        """The files that count, for ``results_parts``; StoreError naming the first that does not (a rerun sets it aside)."""
         runs = self._sweep_runs()
         files = self._check_files(None if runs is None else lambda rid, agent: runs.get(rid) == agent)
         if files.rejected:
@@ -383,8 +383,8 @@ class ResultsStore:
 
     def load_runs(self) -> list[dict[str, Any]]:
         """Every finished run as a record of the JSON layout (``run_id``, ``config``, ``episodes`` lists, ...): for
-        small folders; large ones read ``runs_frame`` and ``episodes_frame``."""
-        files = self._checked()
+        small folders; large ones read ``runs_frame`` and ``results``."""
+        files = self.checked_files()
         records = [{**guarded(p, read_json), "run_id": files.run_ids[p]} for p in files.run_files]
         for path, meta in files.episode_chunks().items():
             records.extend(guarded(path, lambda p, meta=meta: chunk_records(p, meta)))  # type: ignore[misc]
@@ -396,7 +396,7 @@ class ResultsStore:
         order), in the order of the study's tasks, then agents, from the files that count; StoreError naming the first
         that does not (a rerun sets it aside).
         """
-        cells = evaluation_cells(self._checked().chunk_files)
+        cells = evaluation_cells(self.checked_files().chunk_files)
         saved = self.saved_sweep() or {"sweep": {}}
         tasks, agents = saved.get("task_order") or list(saved["sweep"].get("tasks", {})), saved["sweep"].get("agents", [])
         return {(task, agent["name"]): cells[task, agent["name"]] for task in tasks for agent in agents
@@ -407,7 +407,7 @@ class ResultsStore:
         The forensics' finished replications ``(simulation, stage, replication) -> (rows by ε, complete)``
         (``chunks.summary_cells``), from the files that count; StoreError naming the first that does not.
         """
-        return summary_cells(self._checked().chunk_files)
+        return summary_cells(self.checked_files().chunk_files)
 
     def runs_frame(self) -> pd.DataFrame:
         """
@@ -431,10 +431,6 @@ class ResultsStore:
         """
         return next(self.results_parts(columns, seed))
 
-    def checked_files(self) -> FolderFiles:
-        """The files that count (``results_parts`` takes them, so a reader checks the folder once)."""
-        return self._checked()
-
     def results_parts(
         self,
         columns: Sequence[str] | None = None,
@@ -442,7 +438,6 @@ class ResultsStore:
         agent: str | None = None,
         runs_per_part: int | None = None,
         files: FolderFiles | None = None,
-        labels: dict[str, Any] | None = None,
         ordered: bool = False,
     ) -> Iterator[tuple[pd.DataFrame, pd.DataFrame]]:
         """
@@ -451,12 +446,11 @@ class ResultsStore:
         run id order). A reader that reduces run by run holds one part at a time.
 
         :param files: the folder's files (``checked_files``), to check the folder once over several reads
-        :param labels: read only the chunks of cells with these label values (run files: all; a reader filters rows)
         :param ordered: parts one after the other in run id order (``reading.ordered_file_parts``): the rows of all
             parts, in the order read, are the rows of one whole read
         """
         wanted = EPISODE_COLUMNS if columns is None else tuple(columns)
-        for runs, episodes in self._read(wanted, seed, agent, runs_per_part, files, labels, ordered):
+        for runs, episodes in self._read(wanted, seed, agent, runs_per_part, files, ordered):
             assert episodes is not None
             yield runs, episodes
 
@@ -467,7 +461,6 @@ class ResultsStore:
         agent: str | None = None,
         runs_per_part: int | None = None,
         files: FolderFiles | None = None,
-        labels: dict[str, Any] | None = None,
         ordered: bool = False,
     ) -> Iterator[tuple[pd.DataFrame, pd.DataFrame | None]]:
         """
@@ -476,13 +469,10 @@ class ResultsStore:
         """
         from sb3_affect.study.launcher import folder_reading  # (pandas: not on the launcher's path)
 
-        files = self._checked() if files is None else files
+        files = self.checked_files() if files is None else files
         run_files = [path for path, owner in files.run_files.items() if agent is None or owner == agent]
         chunk_files = {
-            p: meta
-            for p, meta in files.episode_chunks().items()
-            if (agent is None or meta["base"]["agent"] == agent)
-            and all(meta["base"]["labels"].get(k) == v for k, v in (labels or {}).items())
+            p: meta for p, meta in files.episode_chunks().items() if agent is None or meta["base"]["agent"] == agent
         }
         split = folder_reading.ordered_file_parts if ordered else folder_reading.file_parts
         for json_part, chunk_part in split(run_files, chunk_files, runs_per_part):
@@ -494,10 +484,6 @@ class ResultsStore:
                 continue
             named = [c for c in runs.columns if c not in folder_reading.RUN_COLUMNS]
             yield runs, folder_reading.episode_table(runs, data, ["run_id", "agent", *(["seed"] if seed else []), *named])
-
-    def episodes_frame(self, columns: Sequence[str] | None = None) -> pd.DataFrame:
-        """The episode table of ``results``."""
-        return self.results(columns)[1]
 
 
 def replication_parts(root: Path) -> list[str]:

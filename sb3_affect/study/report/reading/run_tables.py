@@ -82,19 +82,17 @@ class Results:
         columns: Sequence[str],
         agent: str | None = None,
         runs_per_part: int | None = None,
-        labels: dict[str, Any] | None = None,
         ordered: bool = False,
     ) -> Iterator[tuple[pd.DataFrame, pd.DataFrame]]:
         """
-        ``(runs, episodes)`` of ``agent``'s runs (None: every run), about ``runs_per_part`` runs at a time (``labels``:
-        at least the runs with these label values; their chunks only; ``ordered``: the parts one after the other in
-        run id order, ``ResultsStore.results_parts``).
+        ``(runs, episodes)`` of ``agent``'s runs (None: every run), about ``runs_per_part`` runs at a time (``ordered``:
+        the parts one after the other in run id order, ``ResultsStore.results_parts``).
         """
 
         store = ResultsStore(self.folder)
         if self.files is None:
             self.files = store.checked_files()
-        yield from store.results_parts(columns, False, agent, runs_per_part, self.files, labels, ordered)
+        yield from store.results_parts(columns, False, agent, runs_per_part, self.files, ordered)
 
     def agent_episodes(
         self,
@@ -102,23 +100,19 @@ class Results:
         columns: Sequence[str],
         first: int | None = None,
         last: int | None = None,
-        labels: dict[str, Any] | None = None,
     ) -> pd.DataFrame:
         """
         The rows of ``episodes`` of ``agent``'s runs whose episode is within ``first..last`` (None: no bound), with
         ``run_id``, ``agent``, the labels and ``columns`` only, in the same order; read ``RUNS_PER_PART`` runs at a
         time, so only the rows kept are held (``run_id``: a categorical of the runs kept, in run id order).
-        ``labels``: only the runs with these label values.
         """
         wanted = tuple(dict.fromkeys(("episode", *columns)))
         pieces: list[dict[str, Any]] = []
-        for _, part in self.parts(wanted, agent, RUNS_PER_PART, labels):
+        for _, part in self.parts(wanted, agent, RUNS_PER_PART):
             episode = part.episode.to_numpy()
             keep = np.ones(len(part), bool) if first is None else episode >= first
             if last is not None:
                 keep &= episode <= last
-            for key, value in (labels or {}).items():
-                keep &= np.asarray(part[key] == value) if key in part.columns else False
             rows = None if keep.all() else np.flatnonzero(keep)
             piece: dict[str, Any] = {}
             for name in part.columns:
