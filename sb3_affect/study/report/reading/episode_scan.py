@@ -142,7 +142,7 @@ def scan(
         settled = (window, per_run, _joined([p[1] for p in pieces]), _joined([p[2] for p in pieces]))
     del pieces
     profile = first_pass.second_pass(results, agent) if first_pass.groups else None
-    merged = {key: _merge(parts) for key, parts in curves.items()}
+    merged = {key: merge_curves(parts) for key, parts in curves.items()}
     return Scan(table, windows_table, last, merged, settled, profile)
 
 
@@ -197,16 +197,12 @@ def _counted(episode: np.ndarray, decisions: np.ndarray) -> tuple[np.ndarray, np
     return keys, counts.astype(np.int64)
 
 
-def _merge(parts: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
-    keys = np.concatenate([k for k, _ in parts])
-    counts = np.concatenate([c for _, c in parts])
-    unique, inverse = np.unique(keys, return_inverse=True)
-    return unique, np.bincount(inverse, weights=counts, minlength=len(unique)).astype(np.int64)
-
-
 def merge_curves(curves: Sequence[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
     """Learning-curve counts of several groups as one (their rows pooled)."""
-    return _merge(list(curves))
+    keys = np.concatenate([k for k, _ in curves])
+    counts = np.concatenate([c for _, c in curves])
+    unique, inverse = np.unique(keys, return_inverse=True)
+    return unique, np.bincount(inverse, weights=counts, minlength=len(unique)).astype(np.int64)
 
 
 def _part_curves(agent: str, part: pd.DataFrame) -> list[tuple[tuple[str, Any], tuple[np.ndarray, np.ndarray]]]:

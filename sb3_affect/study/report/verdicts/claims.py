@@ -410,6 +410,5 @@ def _decide(j: Judgement) -> Judgement:
     return j
 
 
-def verdict_word(verdict: str) -> str:
-    """The verdict's first words (``reproduced``, ``partly``, ``not reproduced`` ...), for compact tables."""
-    return first_words(verdict)
+#: The verdict's first words, for compact tables.
+verdict_word = first_words
