@@ -181,12 +181,12 @@ _EXTRA_OF = {"report": "report", "replicate": "report", "forensics": "report"}
 
 def _dispatch(args: argparse.Namespace) -> int:
     """Run the command: the module of its extra holds it, imported here only (not on ``--help``)."""
+    from sb3_affect.study import sweep_commands  # (experiments extra: not on --help)
+
     if _EXTRA_OF.get(args.command) == "report":
         from sb3_affect.study import report_commands  # (report extra: not on --help)
 
-        return report_commands.dispatch(args)
-    from sb3_affect.study import sweep_commands  # (experiments extra: not on --help)
-
+        return sweep_commands.dispatch(args, report_commands.COMMANDS)
     return sweep_commands.dispatch(args)
 
 

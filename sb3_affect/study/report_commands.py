@@ -14,7 +14,7 @@ from pathlib import Path
 
 from pydantic import ValidationError
 
-from sb3_affect.study import replicate, sweep_commands
+from sb3_affect.study import replicate
 from sb3_affect.study.forensics.section import report_section
 from sb3_affect.study.forensics.study_run import run_study, summary_lines
 from sb3_affect.study.launcher.schema import Sweep
@@ -86,8 +86,3 @@ def forensics(args: argparse.Namespace) -> int:
 COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {
     "report": report, "replicate": replicate_command, "forensics": forensics,
 }
-
-
-def dispatch(args: argparse.Namespace) -> int:
-    """Run the command ``args`` names, its errors ending as every command's do (``sweep_commands.dispatch``)."""
-    return sweep_commands.dispatch(args, COMMANDS)
