@@ -299,8 +299,6 @@ def plan_jobs(
 class _NoProgress:
     """The progress bar's methods, doing nothing (``--no-progress``)."""
 
-    total = 0
-
     def update(self, n: int = 1) -> None:
         pass
 
