@@ -310,15 +310,11 @@ class ResultsStore:
         )
 
     # -- reading -----------------------------------------------------------------------------------------------
-    def _json_files(self) -> list[Path]:
-        return sorted(p for p in self.runs.glob("*.json") if not p.name.startswith("."))
-
-    def _chunk_files(self) -> list[Path]:
-        return sorted(p for p in self.chunks.glob("*.parquet") if not p.name.startswith("."))
-
     def _check_files(self, belongs: Callable[[str, str], bool] | None) -> FolderFiles:
         """Every run file and chunk, read and sorted out (``folder_files.sort_files``)."""
-        return sort_files(self._json_files(), self._chunk_files(), belongs)
+        json_files = sorted(p for p in self.runs.glob("*.json") if not p.name.startswith("."))
+        chunk_files = sorted(p for p in self.chunks.glob("*.parquet") if not p.name.startswith("."))
+        return sort_files(json_files, chunk_files, belongs)
 
     def _sweep_runs(self) -> dict[str, str] | None:
         """Run id -> agent of every run of the saved sweep (its file validated without importing anything)."""
