@@ -280,8 +280,13 @@ def train_many(
             generators.append(th.random.get_rng_state())  # what the model's learn samples its actions from
         return LockstepPPO(ppo_models, seed_list, generators).learn(
             total_timesteps, log_interval=log_interval, every=every, on_models=on_models, user_callbacks=callbacks)
-    models: list[DQN] = [cls(policy, env, seed=seed, device="cpu", **algo_kwargs, **kwargs)
+    # each model's replay buffer is built of one row (its arrays would be written only to be replaced): the trainer gives
+    # it its ``buffer_size // n_envs`` rows (``StackedReplay``)
+    buffer_size = algo_kwargs.pop("buffer_size", _default(cls, "buffer_size"))
+    models: list[DQN] = [cls(policy, env, seed=seed, device="cpu", buffer_size=1, **algo_kwargs, **kwargs)
                          for env, seed, kwargs in zip(envs, seed_list, own_kwargs)]
+    for model in models:
+        model.buffer_size = buffer_size
     _check_model(models[0])
     return Lockstep(models, seed_list).learn(total_timesteps, log_interval=log_interval, every=every, on_models=on_models,
                                              user_callbacks=callbacks)

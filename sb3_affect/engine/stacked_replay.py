@@ -85,15 +85,17 @@ class StackedReplay:
     The replay buffers of ``models`` stacked (see the module docstring); ``pos`` and ``full`` are shared (the seeds step
     in lockstep).
 
-    :param models: the models, one per seed, whose buffers become views of the stacked arrays
+    :param models: the models, one per seed, whose buffers become views of the stacked arrays, of the rows of the
+        models' ``buffer_size`` (``max(buffer_size // n_envs, 1)``, as SB3's ``ReplayBuffer``), whatever the rows their
+        buffers were built with
     :param rows: the rows training can reach (the slices' rows where the buffers' own size cannot be mapped)
     """
 
     def __init__(self, models: Sequence[DQN], rows: int) -> None:
         self.models = list(models)
         first: Any = self.models[0].replay_buffer
-        self.size = first.buffer_size
         self.n_envs = first.n_envs
+        self.size = max(self.models[0].buffer_size // self.n_envs, 1)
         try:
             self.rows, self.pages = self.size, self._map(self.size)
         except (OSError, OverflowError):  # more than the system maps: the rows training reaches
@@ -102,10 +104,8 @@ class StackedReplay:
         self.arrays = {name: self.pages.array((len(self.models), self.rows, *getattr(first, name).shape[1:]),
                                               getattr(first, name).dtype) for name in ARRAYS}
         self.released: set[int] = set()
-        self.own: list[dict[str, np.ndarray]] = []  # each buffer's own arrays, given back by ``release``
         for index, model in enumerate(self.models):
             buffer: Any = model.replay_buffer
-            self.own.append({name: getattr(buffer, name) for name in ARRAYS})
             for name, array in self.arrays.items():
                 setattr(buffer, name, array[index])
             buffer.buffer_size = self.rows
@@ -168,11 +168,11 @@ class StackedReplay:
         Give seed ``index`` its buffer's own arrays back now, holding its transitions so far, and free its slice of the
         stacked arrays (a seed that stops early; the others store on).
         """
-        model: Any = self.models[index]
-        buffer, own = model.replay_buffer, self.own[index]
+        buffer: Any = self.models[index].replay_buffer
         for name, array in self.arrays.items():
-            own[name][: self.rows] = array[index]
-            setattr(buffer, name, own[name])
+            own = np.zeros((self.size, *array.shape[2:]), dtype=array.dtype)  # SB3's ``ReplayBuffer`` arrays
+            own[: self.rows] = array[index]
+            setattr(buffer, name, own)
             self.pages.free(array[index])
         buffer.buffer_size = self.size
         buffer.pos, buffer.full = self.pos, self.full
@@ -192,4 +192,4 @@ class StackedReplay:
                 continue
             buffer: Any = self.models[index].replay_buffer
             buffer.pos, buffer.full = self.pos, self.full
-        self.arrays, self.own = {}, []
+        self.arrays = {}

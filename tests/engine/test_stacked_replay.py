@@ -27,8 +27,10 @@ SCRIPT = textwrap.dedent("""
             return mapped(replay, count)
         StackedReplay._map = refuse_full_size
     space = spaces.Box(0, 255, (1000,), np.uint8)
-    models = [types.SimpleNamespace(replay_buffer=ReplayBuffer(2 * rows if short else rows, space, spaces.Discrete(7),
-                                                               n_envs=1)) for _ in range(seeds)]
+    size = 2 * rows if short else rows
+    # buffers built of one row, as train_many builds them: the stacked arrays give them the models' buffer_size
+    models = [types.SimpleNamespace(buffer_size=size, replay_buffer=ReplayBuffer(1, space, spaces.Discrete(7), n_envs=1))
+              for _ in range(seeds)]
     replay = StackedReplay(models, rows + 1)  # the rows reached and one more, as a trainer gives them
     assert replay.rows == (rows + 1 if short else rows)
     for row in range(rows):
@@ -39,7 +41,7 @@ SCRIPT = textwrap.dedent("""
     replay.release()
     after = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     buffers = [m.replay_buffer for m in models]
-    assert all(b.buffer_size == (2 * rows if short else rows) and len(b.observations) == b.buffer_size for b in buffers)
+    assert all(b.buffer_size == size and len(b.observations) == size for b in buffers)
     assert all((b.full, b.pos) == ((False, rows) if short else (True, 0)) for b in buffers)
     assert all((b.observations[:rows, 0, 0] == np.arange(rows) % 251).all() for b in buffers)
     assert all((b.actions[:rows, 0, 0] == np.arange(rows) % 7).all() for b in buffers)
