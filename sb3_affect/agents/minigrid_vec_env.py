@@ -567,7 +567,7 @@ class MiniGridBatch:
         rows = np.flatnonzero(self.arrays[8])
         if ended_only:
             ended: list[list[dict[str, Any]]] = [[] for _ in self.envs]
-            for owner in np.unique(self._owner[rows]).tolist():
+            for owner in sorted(set(self._owner[rows].tolist())):
                 ended[owner] = self.envs[owner].step_infos()
             return ended
         infos: list[dict[str, Any]] = [{"TimeLimit.truncated": False} for _ in range(self.offsets[-1])]
