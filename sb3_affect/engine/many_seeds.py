@@ -332,8 +332,8 @@ def _default(cls: type, name: str) -> Any:
 def _check_memory(cls: type, env: VecEnv, n_seeds: int, total_timesteps: int, kwargs: dict[str, Any]) -> None:
     """
     Refuse, before any model is built, a run whose replay buffers and networks need more than the machine's available
-    memory: the stacked buffers hold the rows training reaches (``StackedReplay``), one seed's more while they are
-    given back, and each seed's networks a few copies of their weights.
+    memory: the stacked buffers touch the rows training reaches (``StackedReplay``), one seed's more where they are
+    copied back, and each seed's networks a few copies of their weights.
     """
     if issubclass(cls, PPO):  # the stacked rollout and each model's: float32 observations and seven numbers a row
         rows = kwargs.get("n_steps", _default(cls, "n_steps"))
