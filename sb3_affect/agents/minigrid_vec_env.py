@@ -559,10 +559,19 @@ class MiniGridBatch:
                 self.envs[owner].record_episodes([row - self.offsets[owner]])
         return self._seen, self.arrays[5], dones
 
-    def infos(self) -> list[list[dict[str, Any]]]:
-        """Each env's infos of the last step, as its ``step`` gives them."""
+    def infos(self, ended_only: bool = False) -> list[list[dict[str, Any]]]:
+        """
+        Each env's infos of the last step, as its ``step`` gives them; ``ended_only``: those of the VecEnvs where an
+        episode ended only, the others' lists empty (for a trainer that reads the infos of ended episodes only).
+        """
+        rows = np.flatnonzero(self.arrays[8])
+        if ended_only:
+            ended: list[list[dict[str, Any]]] = [[] for _ in self.envs]
+            for owner in sorted(set(self._owner[rows].tolist())):
+                ended[owner] = self.envs[owner].step_infos()
+            return ended
         infos: list[dict[str, Any]] = [{"TimeLimit.truncated": False} for _ in range(self.offsets[-1])]
-        for row in np.flatnonzero(self.arrays[8]).tolist():
+        for row in rows.tolist():
             owner = int(self._owner[row])
             infos[row] = self.envs[owner].ended_info(row - self.offsets[owner])
         return [infos[start:stop] for start, stop in zip(self.offsets, self.offsets[1:])]

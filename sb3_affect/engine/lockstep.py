@@ -210,12 +210,14 @@ class Lockstep:
             self.replay.follow(self._live()[0])
             return
         next_obs = new_obs.copy()
+        timeouts = np.zeros(dones.shape, dtype=bool)  # a VecEnv's TimeLimit.truncated is False where no episode ended
         for s, e in zip(*np.nonzero(dones)):
-            terminal = infos[s][e].get("terminal_observation")
+            info = infos[s][e]
+            terminal = info.get("terminal_observation")
             if terminal is not None:
                 next_obs[s, e] = terminal
-        timeouts = [[info.get("TimeLimit.truncated", False) for info in seed_infos] for seed_infos in infos]
-        self.replay.add(self.obs, next_obs, buffer_actions, rewards, dones, np.array(timeouts))
+            timeouts[s, e] = info.get("TimeLimit.truncated", False)
+        self.replay.add(self.obs, next_obs, buffer_actions, rewards, dones, timeouts)
         if self.ends_repeats:
             for index in self._live():
                 self.models[index].end_repeats(dones[index])  # type: ignore[attr-defined]
@@ -305,7 +307,7 @@ class Lockstep:
                 collected = 0
                 while collected < frequency and not self.frozen.all():
                     actions, buffer_actions = self._sample_actions(first.learning_starts)
-                    new_obs, rewards, dones, infos = self.envs.step(actions)
+                    new_obs, rewards, dones, infos = self.envs.step(actions, all_infos=self.own_storage or bool(active))
                     self.num_timesteps += n_envs
                     collected += 1
                     if every_step:

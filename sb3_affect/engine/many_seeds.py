@@ -280,8 +280,13 @@ def train_many(
             generators.append(th.random.get_rng_state())  # what the model's learn samples its actions from
         return LockstepPPO(ppo_models, seed_list, generators).learn(
             total_timesteps, log_interval=log_interval, every=every, on_models=on_models, user_callbacks=callbacks)
-    models: list[DQN] = [cls(policy, env, seed=seed, device="cpu", **algo_kwargs, **kwargs)
+    # each model's replay buffer is built of one row (its arrays would be written only to be replaced): the trainer gives
+    # it its ``buffer_size // n_envs`` rows (``StackedReplay``)
+    buffer_size = algo_kwargs.pop("buffer_size", _default(cls, "buffer_size"))
+    models: list[DQN] = [cls(policy, env, seed=seed, device="cpu", buffer_size=1, **algo_kwargs, **kwargs)
                          for env, seed, kwargs in zip(envs, seed_list, own_kwargs)]
+    for model in models:
+        model.buffer_size = buffer_size
     _check_model(models[0])
     return Lockstep(models, seed_list).learn(total_timesteps, log_interval=log_interval, every=every, on_models=on_models,
                                              user_callbacks=callbacks)
@@ -327,8 +332,8 @@ def _default(cls: type, name: str) -> Any:
 def _check_memory(cls: type, env: VecEnv, n_seeds: int, total_timesteps: int, kwargs: dict[str, Any]) -> None:
     """
     Refuse, before any model is built, a run whose replay buffers and networks need more than the machine's available
-    memory: the stacked buffers hold the rows training reaches (``StackedReplay``), one seed's more while they are
-    given back, and each seed's networks a few copies of their weights.
+    memory: the stacked buffers touch the rows training reaches (``StackedReplay``), one seed's more where they are
+    copied back, and each seed's networks a few copies of their weights.
     """
     if issubclass(cls, PPO):  # the stacked rollout and each model's: float32 observations and seven numbers a row
         rows = kwargs.get("n_steps", _default(cls, "n_steps"))

@@ -76,13 +76,17 @@ class SeedEnvs:
         one_task = len(compiled) == len(self.envs) and len({(env.env_id, env.obs) for env in compiled}) == 1
         self.batch = MiniGridBatch(compiled) if one_task else None
 
-    def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[list[dict[str, Any]]]]:
-        """Every seed's ``VecEnv.step`` with its row of ``actions`` ``(S, E)``."""
+    def step(self, actions: np.ndarray, all_infos: bool = True
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[list[dict[str, Any]]]]:
+        """
+        Every seed's ``VecEnv.step`` with its row of ``actions`` ``(S, E)``; without ``all_infos``, the compiled
+        batch's infos are those of the seeds where an episode ended only (the other seeds' lists empty).
+        """
         if self.batch is not None:
             obs, rewards, dones = self.batch.step(np.ascontiguousarray(actions, dtype=np.int64).reshape(-1))
             shape = actions.shape
             return (obs.reshape(*shape, -1).copy(), rewards.reshape(shape).copy(), dones.reshape(shape).copy(),
-                    self.batch.infos())
+                    self.batch.infos(ended_only=not all_infos))
         results = [env.step(a) for env, a in zip(self.envs, actions)]
         obs = np.stack([r[0] for r in results])  # type: ignore[misc]
         rewards = np.stack([r[1] for r in results])

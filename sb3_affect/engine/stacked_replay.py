@@ -3,12 +3,14 @@ The replay buffers of S seeds in one set of arrays, ``(S, rows, E, ...)``, each 
 its slice while training, so a step's transitions of all seeds are stored by one write per array and a gradient step's
 batches of all seeds are gathered by one read per array.
 
-``rows`` is the buffer's own ``buffer_size // n_envs`` when training fills it, else the rows training can reach
-(the VecEnv steps of ``total_timesteps`` plus one rollout): a buffer that never wraps samples from ``[0, pos)`` whatever
-its size, so SB3's sampling is unchanged, and a short run of many seeds does not reserve a million rows per seed.
-``release`` gives each model back a buffer of its full size holding its transitions, freeing each seed's slice of the
-stacked arrays (their pages, which are the process's own anonymous memory) as it copies it, so that the process never
-holds much more than the stacked arrays while it gives them back.
+Each seed's slice has the buffer's own ``buffer_size // n_envs`` rows, in one anonymous memory map whose pages the
+system provides only as they are first written: a run touches the rows training reaches (the VecEnv steps of
+``total_timesteps`` plus one rollout), and ``release`` hands each model its slice, a buffer of its full size holding its
+transitions, without copying anything. Where the system refuses to map that much (the rows no run reaches counted too),
+the slices hold only the rows training can reach (a buffer that never wraps samples from ``[0, pos)`` whatever its size,
+so SB3's sampling is unchanged) and ``release`` copies each seed's into its model's own arrays, freeing its slice
+(their pages, the process's own anonymous memory) as it copies it, so that the process never holds much more than the
+stacked arrays while it gives them back; a seed that stops early is copied out so (the others store on).
 """
 
 from __future__ import annotations
@@ -83,31 +85,40 @@ class StackedReplay:
     The replay buffers of ``models`` stacked (see the module docstring); ``pos`` and ``full`` are shared (the seeds step
     in lockstep).
 
-    :param models: the models, one per seed, whose buffers become views of the stacked arrays until ``release``
-    :param rows: the rows training can reach (capped at the buffers' own size)
+    :param models: the models, one per seed, whose buffers become views of the stacked arrays, of the rows of the
+        models' ``buffer_size`` (``max(buffer_size // n_envs, 1)``, as SB3's ``ReplayBuffer``), whatever the rows their
+        buffers were built with
+    :param rows: the rows training can reach (the slices' rows where the buffers' own size cannot be mapped)
     """
 
     def __init__(self, models: Sequence[DQN], rows: int) -> None:
         self.models = list(models)
         first: Any = self.models[0].replay_buffer
-        self.size = first.buffer_size
-        self.rows = min(rows, self.size)
         self.n_envs = first.n_envs
-        shapes = {name: ((len(self.models), self.rows, *getattr(first, name).shape[1:]), getattr(first, name).dtype)
-                  for name in ARRAYS}
-        pages = sum(-(-int(np.prod(shape)) * dtype.itemsize // mmap.PAGESIZE) for shape, dtype in shapes.values())
-        self.pages = _Pages(pages * mmap.PAGESIZE)
-        self.arrays = {name: self.pages.array(shape, dtype) for name, (shape, dtype) in shapes.items()}
+        self.size = max(self.models[0].buffer_size // self.n_envs, 1)
+        try:
+            self.rows, self.pages = self.size, self._map(self.size)
+        except (OSError, OverflowError):  # more than the system maps: the rows training reaches
+            self.rows = min(rows, self.size)
+            self.pages = self._map(self.rows)
+        self.arrays = {name: self.pages.array((len(self.models), self.rows, *getattr(first, name).shape[1:]),
+                                              getattr(first, name).dtype) for name in ARRAYS}
         self.released: set[int] = set()
-        self.own: list[dict[str, np.ndarray]] = []  # each buffer's own arrays, given back by ``release``
         for index, model in enumerate(self.models):
             buffer: Any = model.replay_buffer
-            self.own.append({name: getattr(buffer, name) for name in ARRAYS})
             for name, array in self.arrays.items():
                 setattr(buffer, name, array[index])
             buffer.buffer_size = self.rows
         self.handle_timeout_termination = first.handle_timeout_termination
         self.pos, self.full = first.pos, first.full
+
+    def _map(self, rows: int) -> _Pages:
+        """The memory map of the stacked arrays at ``rows`` rows per seed."""
+        first: Any = self.models[0].replay_buffer
+        arrays = [getattr(first, name) for name in ARRAYS]
+        size = sum(-(-len(self.models) * rows * int(np.prod(a.shape[1:])) * a.dtype.itemsize // mmap.PAGESIZE)
+                   for a in arrays)
+        return _Pages(size * mmap.PAGESIZE)
 
     def add(self, obs: np.ndarray, next_obs: np.ndarray, actions: np.ndarray, rewards: np.ndarray, dones: np.ndarray,
             timeouts: np.ndarray) -> None:
@@ -157,11 +168,11 @@ class StackedReplay:
         Give seed ``index`` its buffer's own arrays back now, holding its transitions so far, and free its slice of the
         stacked arrays (a seed that stops early; the others store on).
         """
-        model: Any = self.models[index]
-        buffer, own = model.replay_buffer, self.own[index]
+        buffer: Any = self.models[index].replay_buffer
         for name, array in self.arrays.items():
-            own[name][: self.rows] = array[index]
-            setattr(buffer, name, own[name])
+            own = np.zeros((self.size, *array.shape[2:]), dtype=array.dtype)  # SB3's ``ReplayBuffer`` arrays
+            own[: self.rows] = array[index]
+            setattr(buffer, name, own)
             self.pages.free(array[index])
         buffer.buffer_size = self.size
         buffer.pos, buffer.full = self.pos, self.full
@@ -169,10 +180,16 @@ class StackedReplay:
 
     def release(self) -> None:
         """
-        Give each model its buffer's own arrays back (``buffer_size // n_envs`` rows), holding its transitions, freeing
-        each seed's slice as it copies it; then the stacked arrays are gone.
+        Give each model its buffer of ``buffer_size // n_envs`` rows holding its transitions: its slice of the stacked
+        arrays, theirs from now on, or (where the slices are shorter) its own arrays, each seed's slice freed as it is
+        copied; then the trainer holds no stacked arrays.
         """
         for index in range(len(self.models)):
-            if index not in self.released:
+            if index in self.released:
+                continue
+            if self.rows < self.size:
                 self.release_one(index)
+                continue
+            buffer: Any = self.models[index].replay_buffer
+            buffer.pos, buffer.full = self.pos, self.full
         self.arrays = {}

@@ -36,13 +36,17 @@ def test_batch_steps_as_each_vec_env_alone(env_id: str) -> None:
     for _ in range(600):
         actions = rng.integers(7, size=sum(sizes))
         obs, rewards, dones = batch.step(actions)
-        infos = batch.infos()
+        infos, ended_infos = batch.infos(), batch.infos(ended_only=True)
         for index, (env, start, stop) in enumerate(zip(alone, batch.offsets, batch.offsets[1:])):
             want = env.step(actions[start:stop])
             np.testing.assert_array_equal(obs[start:stop], want[0])
             np.testing.assert_array_equal(rewards[start:stop], want[1])
             np.testing.assert_array_equal(dones[start:stop], want[2])
             _assert_same_infos(infos[index], want[3])
+            if want[2].any():
+                _assert_same_infos(ended_infos[index], want[3])
+            else:
+                assert ended_infos[index] == []
         ended += int(dones.sum())
     assert ended > 10
     for env, own in zip(alone, joined):

@@ -176,6 +176,20 @@ def test_returned_models_are_sb3_models(tmp_path) -> None:
     assert loaded.num_timesteps == 400 and "predict" not in vars(models[1])
 
 
+def test_returned_buffers_are_each_models_own() -> None:
+    """Each returned model's buffer has SB3's rows (``buffer_size // n_envs``, more than the run reached) and keeps
+    training past them, wrapping as SB3's does, while the other seeds' buffers stay as the run left them."""
+    models = train_many("DQN", ENV_ID, [0, 1], 2, total_timesteps=400, obs="view", **{**SETTINGS, "buffer_size": 1000})
+    buffers = [m.replay_buffer for m in models]
+    assert [(b.buffer_size, len(b.observations), b.pos, b.full) for b in buffers] == [(500, 500, 200, False)] * 2
+    kept = {name: getattr(buffers[0], name).copy() for name in ("observations", "next_observations", "actions")}
+    models[1].learn(800, reset_num_timesteps=False)
+    assert models[1].replay_buffer is buffers[1] and (buffers[1].pos, buffers[1].full) == (100, True)
+    assert (buffers[1].observations[200:500] != 0).any()
+    for name, array in kept.items():
+        np.testing.assert_array_equal(getattr(buffers[0], name), array)
+
+
 @pytest.mark.parametrize(("algo", "kwargs", "message"), [
     ("NoSuchAgent", {}, "not a known algorithm"),
     (A2C, {}, "algo=A2C is on-policy but not PPO"),
