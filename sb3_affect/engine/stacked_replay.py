@@ -61,7 +61,8 @@ class _Pages:
     """An anonymous memory map holding arrays, whose pages can be given back to the system a range at a time."""
 
     def __init__(self, nbytes: int) -> None:
-        self.map = mmap.mmap(-1, max(nbytes, 1))
+        # private: a shared anonymous map keeps a page ``free`` gives back (it is the system's shared memory's)
+        self.map = mmap.mmap(-1, max(nbytes, 1), flags=mmap.MAP_PRIVATE | mmap.MAP_ANONYMOUS)
         self.used = 0
 
     def array(self, shape: tuple[int, ...], dtype: np.dtype) -> np.ndarray:
