@@ -443,7 +443,7 @@ class LockstepPPO:
                 actions = self._sample(log_probs, draws[:, self.rollout.pos])
                 chosen = log_probs.gather(2, actions.unsqueeze(2)).squeeze(2)
             action_array = actions.numpy()
-            new_obs, rewards, dones, infos = self.envs.step(action_array)
+            new_obs, rewards, dones, infos = self.envs.step(action_array, all_infos=bool(callbacks))
             live = self._live()
             for index in live:
                 models[index].num_timesteps += self.n_envs

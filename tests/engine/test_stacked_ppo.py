@@ -105,6 +105,8 @@ def _assert_same_run(ours: PPO, theirs: PPO) -> None:
     assert _max_difference(ours, theirs) < 1e-5
     assert (ours.num_timesteps, ours._n_updates) == (theirs.num_timesteps, theirs._n_updates)
     assert len(ours.ep_info_buffer) == len(theirs.ep_info_buffer) > 0
+    episodes = [[(info["r"], info["l"]) for info in model.ep_info_buffer] for model in (ours, theirs)]
+    assert episodes[0] == episodes[1]
     assert sorted(ours.logger.name_to_value) == sorted(theirs.logger.name_to_value)
 
 
