@@ -123,8 +123,9 @@ def build_parser() -> argparse.ArgumentParser:
     status = sub.add_parser(
         "status",
         help="show how far a results folder is",
-        description="Count finished and failed runs per agent (each sweep of a `replicate` folder), and whether a "
-        "launcher is using the folder; a deep study's runs are its task x agent x seed.",
+        description="Count finished and failed runs per agent (each study of a `replicate` folder), and whether a "
+        "launcher is using the folder; a deep study's runs are its task x agent x seed, the forensics' the replications "
+        "its stages planned so far.",
     )
     status.add_argument("dir", metavar="DIR", help="a results folder (the --out of `run` or `replicate`)")
     report = sub.add_parser(

@@ -23,7 +23,7 @@ from sb3_affect.study.launcher import run_sweep
 from sb3_affect.study.launcher.epsilon_tuning import round_values, tune, tuning_grid
 from sb3_affect.study.launcher.folder_files import MAX_SWEEP_FILE_BYTES
 from sb3_affect.study.launcher.regular_files import UnreadableFile, read_json, write_file
-from sb3_affect.study.launcher.store import KIND_NAMES, ResultsStore, StoreError, folder_kind
+from sb3_affect.study.launcher.store import StoreError, claim_kind
 from sb3_affect.study.launcher.sweep_file import load_sweep
 from sb3_affect.study.report import build_report
 from sb3_affect.study.report.reading.study_tables import folder_study
@@ -93,7 +93,7 @@ def main(
     beyond_seeds = beyond_seeds or BEYOND_SEEDS
     engine_episodes = engine_episodes or ENGINE_EPISODES
     out_dir = Path(out_dir)
-    _refuse_a_sweep_folder(out_dir)
+    claim_kind(out_dir, "replication", "replication")  # (its studies go in sub-folders: one in out_dir is a mix)
     record = _Record(out_dir)
     timings: dict[str, float] = {}
     executor: dict[str, Any] = {"workers": workers, "backend": backend, "ray_address": ray_address}
@@ -242,25 +242,6 @@ def _sized(
     size = next((study.size for study in STUDIES if study.name == name), None)
     cap = ablation_seeds if size == "ablation" else large_seeds
     return _capped(path, cap, None if episodes is None else episodes * (10 if size == "long" else 1))
-
-
-def _refuse_a_sweep_folder(out_dir: Path) -> None:
-    """A replication's folder holds its studies in sub-folders: one that holds a study itself is refused (a mix)."""
-    held = folder_kind(out_dir)
-    results = ResultsStore(out_dir)
-    saved = results.saved_sweep()
-    if saved is not None:
-        what = f"the results of sweep {saved.get('name', '?')!r}"
-    elif held is not None and held[0] != "replication":
-        what = f"{KIND_NAMES[held[0]]} ({held[1]})"
-    elif any(results.chunks.glob("[!.]*.parquet")) or any(results.runs.glob("[!.]*.json")):
-        what = "the results of sweep '?'"
-    else:
-        return
-    raise StoreError(
-        f"{out_dir} holds {what}, which a replication would mix with; give the replication a folder of its own, "
-        f"e.g. --out {out_dir / 'replication'}"
-    )
 
 
 class _Record:

@@ -13,9 +13,9 @@ from pathlib import Path
 
 from sb3_affect.study.launcher import ResultsStore
 from sb3_affect.study.launcher.ray_errors import ClusterLost, RayClusterError
-from sb3_affect.study.launcher.schema import SweepError, kind_of
+from sb3_affect.study.launcher.schema import SweepError
 from sb3_affect.study.launcher.signals import Terminated, stop_on_sigterm
-from sb3_affect.study.launcher.store import StoreError, folder_kind, old_layout
+from sb3_affect.study.launcher.store import StoreError, folder_kind
 from sb3_affect.study.running import run_file
 
 
@@ -86,54 +86,28 @@ def run(args: argparse.Namespace) -> int:
 
 
 def status(args: argparse.Namespace) -> int:
-    """``sb3-affect status DIR``: how far a sweep, a forensics study, a deep study or a `replicate` folder is."""
+    """``sb3-affect status DIR``: how far the study in a folder is, or each study of a `replicate` folder."""
     root = existing_folder(args.dir, "status")
-    kind = _kind(root)
-    if kind is not None and kind != "replication":
-        STATUS[kind](root)
-        return 0
-    # A `replicate` folder: one folder per part (paper/, dqn/, ..., the forensics' and the deep study's).
-    parts: dict[str, list[Path]] = {name: [] for name in STATUS}
-    for folder in sorted(root.iterdir()):
-        held = _kind(folder) if folder.is_dir() else None
-        if held is not None and held in parts:
-            parts[held].append(folder)
-    if not any(parts.values()):
+    held = folder_kind(root)  # (a study of an earlier layout: refused, in one line)
+    if held is not None and held[0] == "sweep":
+        folders = [root]
+    else:  # a `replicate` folder: one study per sub-folder (paper/, dqn/, ..., the forensics', the deep study's)
+        folders = [sub for sub in sorted(root.iterdir()) if sub.is_dir() and (folder_kind(sub) or ("",))[0] == "sweep"]
+    if not folders:
         print(
             f"{root}: no sweep has been run here (no sweep.json, nor sub-folders with one); "
             "start one with `sb3-affect run FILE --out DIR`",
             file=sys.stderr,
         )
         return 2
-    print(f"{root}: {len(parts['sweep'])} sweeps" + (" and the forensics" if parts["forensics"] else ""))
-    for name, folders in parts.items():
-        for folder in folders:
-            STATUS[name](folder)
-    report = root / "report.html"
-    if report.exists():
-        print(f"report: {report}")
+    if folders != [root]:
+        print(f"{root}: {len(folders)} {'study' if len(folders) == 1 else 'studies'}")
+    for folder in folders:
+        _print_status(folder)
+    for name in REPORTS:
+        if (root / name).exists():
+            print(f"report: {root / name}")
     return 0
-
-
-def _kind(folder: Path) -> str | None:
-    """The kind of study a folder holds (``store.folder_kind``; a sweep.json of the forensics: ``forensics``)."""
-    held = folder_kind(folder)
-    if held is None or held[0] != "sweep":
-        return None if held is None else held[0]
-    saved = ResultsStore(folder).saved_sweep()
-    return "forensics" if saved is not None and kind_of(saved["sweep"]) == "forensics" else "sweep"
-
-
-def _print_forensics_status(root: Path) -> None:
-    from sb3_affect.study.forensics.folder_status import folder_status  # (no analysis: the store's files only)
-
-    if folder_kind(root) == ("forensics", "forensics.json"):  # the layout before its replications went into the store
-        raise UsageError(old_layout(root, "forensics"))
-    print(folder_status(root))
-
-
-def _refuse_old_deep(root: Path) -> None:
-    raise UsageError(old_layout(root, "deep"))
 
 
 def _print_status(root: Path) -> None:
@@ -145,7 +119,13 @@ def _print_status(root: Path) -> None:
     total, done, failed = (sum(counts[i] for counts in per_agent.values()) for i in range(3))
     print(f"sweep {name!r} in {store.root}: {done}/{total} runs done, {failed} failed")
     for agent, (runs, done_agent, failed_agent) in per_agent.items():
-        print(f"  {agent:24s} {done_agent:5d}/{runs:<5d} done  {failed_agent} failed")
+        if runs:
+            print(f"  {agent:24s} {done_agent:5d}/{runs:<5d} done  {failed_agent} failed")
+    if failed:
+        print(f"  failed runs: their tracebacks are in {store.failed}; the next run retries them")
+    plan = store.plan()
+    if plan is not None and not plan[1]:
+        print("  a study in stages: the runs of its next stage are planned once these are done (rerun the same command)")
     for path, why in rejected:
         print(f"  not counted: {path} {why}; the next run moves it to damaged/ and runs its runs again")
     owner = store.lock_owner()
@@ -153,8 +133,7 @@ def _print_status(root: Path) -> None:
         print(f"  in use by launcher pid {owner} (running)")
 
 
-#: How ``status`` shows a folder of each kind of study (``store.folder_kind``).
-STATUS: dict[str, Callable[[Path], None]] = {"sweep": _print_status, "forensics": _print_forensics_status,
-                                             "deep": _refuse_old_deep}  # fmt: skip
+#: The reports ``status`` names when a folder holds them (``sb3-affect report``'s, the forensics' own section).
+REPORTS = ("report.html", "forensics.md")
 #: The commands this module runs, by name.
 COMMANDS: dict[str, Callable[[argparse.Namespace], int]] = {"run": run, "status": status}

@@ -1,7 +1,7 @@
 """Replication forensics: which candidate implementation could have produced the paper's printed numbers.
 
-The names below are imported on first use (PEP 562), so that importing a module of this package (``sb3-affect status``
-reads ``forensics.folder_status``) does not import the analysis (SciPy, the report's statistics).
+The names below are imported on first use (PEP 562), so that importing one module of this package (the launcher's
+``forensics.stages``) does not import the analysis (SciPy, the report's statistics).
 """
 
 from __future__ import annotations

@@ -10,7 +10,6 @@ import numpy as np
 import pandas as pd
 
 from sb3_affect.core.settings import AffectQSettings
-from sb3_affect.study.forensics.folder_status import MAX_RUN_BYTES
 from sb3_affect.study.forensics.scoring import MIN_REACH_REPS, NOT_REACHED, NOT_RULED_OUT, REACHED, transform
 from sb3_affect.study.forensics.statistics import LOG_SCALE, STATISTICS, candidate_statistics, cell_summary
 from sb3_affect.study.launcher.forensics_candidates import Reading
@@ -21,6 +20,9 @@ from sb3_affect.study.report.reading.study_tables import AFFECT_DEFAULT, COMMON
 from sb3_affect.study.report.rendering.document import fmt, md_table
 
 FACTORS = ("comparison", "act", "units", "tie_break", "multi_cell", "alpha", "gamma", "optimal", "step", "table_v")
+
+#: The largest ``run.json`` read (the analysis' sizes and findings: a few kB).
+MAX_RUN_BYTES = 2**20
 
 
 class ForensicsSection(NamedTuple):

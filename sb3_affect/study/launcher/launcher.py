@@ -205,6 +205,8 @@ def run_sweep(
         # A study run in stages runs the runs its stages ask for, not every run its cells could hold (the forensics
         # replicates its leaders only): its total is the runs done and those of each wave planned so far.
         planned = total if stages is None else len(done) + sum(job.size for job in jobs)
+        if stages is not None:
+            store.record_plan((rid for job in jobs for rid in _ids(job)), final=not jobs)
         counts = {"finished": 0, "failed": 0}
         bar = _progress(planned, len(done), sweep.name, progress)
         tried: set[str] = set()  # the runs of this launch's jobs: a failed one waits for the next launch
@@ -235,7 +237,8 @@ def run_sweep(
                     run_ray(jobs, workers, on_result, on_failure, ray_address, cap=cap, timeout=ray_timeout)
                 waves = stages is not None or any(cell.base.get("replays") for cell in cells)  # (a sweep of runs: one)
                 jobs = plan_jobs(cells, cell_ids, store, workers, sweep.logs, tried, stages=stages) if waves else []
-                if stages is not None:
+                if stages is not None:  # (no wave left: every stage is planned, unless a failed unit holds one back)
+                    store.record_plan((rid for job in jobs for rid in _ids(job)), final=not jobs and not counts["failed"])
                     planned += sum(job.size for job in jobs)
                     bar.total = planned
                     bar.refresh()

@@ -12,6 +12,8 @@ Layout of a results folder ``DIR``::
     DIR/failed/<id>.json    a run that raised or whose worker died: config and traceback (retried on resume)
     DIR/damaged/            files set aside by the launcher (unreadable, of another sweep, copies); their runs rerun
     DIR/logs/<id>/          per-run SB3 logger output, when the sweep asks for it
+    DIR/plan.json           a study run in stages (the forensics): the runs its stages planned so far, and whether
+                            its last stage is among them (what ``progress`` counts)
     DIR/.lock, .lock.owner  the launcher's lock (``folder_lock``) and its pid
 
 A run counts as done only when the file holding it reads back whole (``folder_files``).
@@ -87,34 +89,36 @@ def store_error(folder: Path, error: OSError) -> StoreError:
 
 
 IDENTITY_COPIES = ("chunks/.sweep", "runs/.sweep")
-#: The record that marks each kind of results folder, and how a refusal names it: a folder holds one kind of study
-#: (``deep``, ``forensics``: a study of the layout before its runs went into the store, refused; such a study's folder
-#: now holds a sweep.json whose sweep is of that kind, ``schema.kind_of``).
-KIND_FILES = {"sweep": "sweep.json", "deep": "deep_study.json", "forensics": "forensics.json"}
+#: How a refusal names each kind of study: of a saved sweep (``schema.kind_of``), and a ``replicate`` folder of them.
 KIND_NAMES = {"sweep": "a sweep", "deep": "a deep study", "forensics": "the replication forensics",
               "replication": "a replication"}  # fmt: skip
-#: The per-run folders of the studies' earlier layouts (``old_layout``).
-OLD_FOLDERS = {"deep": "cells/", "forensics": "summaries/"}
+#: The record and the per-run folder of a deep study's and a forensics' folder of the layout before their runs went
+#: into the store (refused, ``old_layout``).
+OLD_LAYOUTS = {"deep": ("deep_study.json", "cells/"), "forensics": ("forensics.json", "summaries/")}
 
 
 def folder_kind(root: Path) -> tuple[str, str] | None:
     """
-    The kind of study ``root`` holds and the file that says so (its record; for a sweep, a copy of it; for a
-    ``replicate`` folder, its sweep sub-folders), or None when it holds none. Reads no file.
+    What ``root`` holds and the file that says so: ``"sweep"`` (every study: its sweep.json, a copy of it, or its runs'
+    folder) or ``"replication"`` (a ``replicate`` folder: its sweep sub-folders), None when nothing; StoreError
+    (``old_layout``) for a study of an earlier layout. Reads no file.
     """
-    for kind, name in KIND_FILES.items():
-        if os.path.lexists(root / name):
-            return kind, name
-    copies = [copy for copy in IDENTITY_COPIES if os.path.lexists(root / copy)]
+    for kind, (record, _) in OLD_LAYOUTS.items():
+        if os.path.lexists(root / record):
+            raise StoreError(old_layout(root, kind))
+    copies = [copy for copy in ("sweep.json", *IDENTITY_COPIES) if os.path.lexists(root / copy)]
     if copies:
         return "sweep", copies[0]
+    for folder, pattern in (("chunks", "[!.]*.parquet"), ("runs", "[!.]*.json")):  # a sweep whose records are all gone
+        if any((root / folder).glob(pattern)):
+            return "sweep", f"{folder}/"
     parts = replication_parts(root)
     return ("replication", ", ".join(parts)) if parts else None
 
 
 def old_layout(root: Path, kind: str) -> str:
     """The one line that refuses a deep study's or a forensics' folder of the layout before its runs went into the store."""
-    return (f"{root} holds {KIND_NAMES[kind]} of an earlier layout ({KIND_FILES[kind]}, {OLD_FOLDERS[kind]}), which is "
+    return (f"{root} holds {KIND_NAMES[kind]} of an earlier layout ({', '.join(OLD_LAYOUTS[kind])}), which is "
             f"no longer read: rerun the study into a new folder, e.g. --out {root.parent / (root.name + '-new')}")
 
 
@@ -124,8 +128,6 @@ def claim_kind(root: Path, kind: str, suggestion: str) -> None:
     (``folder_kind``); ``suggestion``: the sub-folder the line proposes instead.
     """
     held = folder_kind(root)
-    if held is not None and held[0] in OLD_FOLDERS:
-        raise StoreError(old_layout(root, held[0]))
     if held is not None and held[0] != kind:
         what = KIND_NAMES[kind].split(" ", 1)[1]
         raise StoreError(
@@ -170,6 +172,12 @@ class ResultsStore:
                 except ValidationError as error:
                     raise self._invalid(error) from None
         return None
+
+    def study_kind(self) -> str | None:
+        """The kind of study the saved sweep is (``schema.kind_of``: a sweep of runs, a deep study, the forensics); None
+        when the folder holds no saved sweep (or is not a folder)."""
+        saved = self.saved_sweep() if self.root.is_dir() else None
+        return None if saved is None else kind_of(saved["sweep"])
 
     def _invalid(self, error: ValidationError) -> StoreError:
         """The one line saying the saved sweep does not validate (its first error)."""
@@ -231,9 +239,9 @@ class ResultsStore:
         another kind than ``resolved_sweep`` (``schema.kind_of``: a deep study, a sweep of runs). Writes nothing.
         """
         claim_kind(self.root, "sweep", resolved_sweep["name"])
-        previous = self.saved_sweep()
-        if previous is not None and kind_of(previous["sweep"]) != kind_of(resolved_sweep["sweep"]):
-            held, kind = KIND_NAMES[kind_of(previous["sweep"])], KIND_NAMES[kind_of(resolved_sweep["sweep"])]
+        previous = self.study_kind()
+        if previous is not None and previous != kind_of(resolved_sweep["sweep"]):
+            held, kind = KIND_NAMES[previous], KIND_NAMES[kind_of(resolved_sweep["sweep"])]
             raise StoreError(f"{self.root} holds {held} (sweep.json), which {kind} run into it would mix with; give the "
                              f"{kind.split(' ', 1)[1]} a folder of its own, e.g. --out {self.root / resolved_sweep['name']}")
 
@@ -301,6 +309,23 @@ class ResultsStore:
                 (self.failed / f"{rid}.json").unlink()
             self._failed.discard(rid)
 
+    def record_plan(self, run_ids: Iterable[str], final: bool) -> None:
+        """
+        ``plan.json`` of a study run in stages: ``run_ids`` (a wave just planned) beside the runs recorded before, and
+        whether no stage is left to plan (``final``).
+        """
+        planned = self.plan()
+        runs = set(run_ids) | (planned[0] if planned is not None else set())
+        write_atomic(self.root / "plan.json", {"schema": SCHEMA, "runs": sorted(runs), "final": final})
+
+    def plan(self) -> tuple[set[str], bool] | None:
+        """The runs ``record_plan`` recorded and whether the plan is final; None when none is (a sweep of runs: all)."""
+        try:
+            record = read_json(self.root / "plan.json", MAX_SWEEP_FILE_BYTES)
+            return set(record["runs"]), bool(record["final"])
+        except (OSError, ValueError, KeyError, TypeError):  # none, or not readable: every run of the sweep counts
+            return None
+
     def write_failure(self, rid: str, config: dict[str, Any], error: str) -> None:
         if self._failed is not None:
             self._failed.add(rid)
@@ -349,25 +374,28 @@ class ResultsStore:
     def progress(self) -> tuple[str, dict[str, tuple[int, int, int]], list[tuple[Path, str]]]:
         """
         The saved sweep's name; per agent ``(runs, finished, failed)`` (failed: recorded and not finished since),
-        counting only the runs of files that count; and ``(path, why)`` of each file that does not. Reads the chunks'
-        footers and the run files, imports nothing the folder names. ``FileNotFoundError`` when no sweep was run here.
+        counting only the runs of files that count (of a study run in stages: the runs its ``plan`` holds, beside those
+        done); and ``(path, why)`` of each file that does not. Reads the chunks' footers and the run files, imports
+        nothing the folder names. ``FileNotFoundError`` when no sweep was run here.
         """
         resolved = self.saved_sweep()
         if resolved is None:
             raise FileNotFoundError(f"{self.root / 'sweep.json'}: no sweep was run here")
         runs = self._sweep_runs() or {}
-        totals = {agent: 0 for agent in _agent_names(resolved)}
-        for agent in runs.values():
-            totals[agent] = totals.get(agent, 0) + 1
         files = self._check_files(lambda rid, agent: runs.get(rid) == agent)
         done_ids = files.done_ids()
+        plan = self.plan()
+        counted = runs if plan is None else {rid: agent for rid, agent in runs.items() if rid in plan[0] | done_ids}
+        totals = {agent: 0 for agent in _agent_names(resolved)}
+        for agent in counted.values():
+            totals[agent] = totals.get(agent, 0) + 1
         done = {name: 0 for name in totals}
         for rid in done_ids:
             done[runs[rid]] += 1
         failed = {name: 0 for name in totals}
         for path in self.failed.glob("[!.]*.json"):
-            if path.stem not in done_ids and path.stem in runs:
-                failed[runs[path.stem]] += 1
+            if path.stem not in done_ids and path.stem in counted:
+                failed[counted[path.stem]] += 1
         return resolved["name"], {name: (totals[name], done[name], failed[name]) for name in totals}, files.rejected
 
     def done_ids(self) -> set[str]:

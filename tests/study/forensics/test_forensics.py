@@ -337,10 +337,9 @@ def test_units_on_the_launchers_executor_store_what_one_process_stores(
     run = json.loads((out / "run.json").read_text())
     assert (run["screen_reps"], run["leaders"], run["reps"]) == (2, 1, 2) and (out / "forensics.md").exists()
     assert main(["status", str(out)]) == 0
-    status = capsys.readouterr().out
-    complete = sum(done for _, done in stored.values())
-    assert status.startswith(f"forensics in {out}: {complete} replications stored ")
-    assert "analysis of 2 screen, 1 leaders x 2 replications" in status
+    status = capsys.readouterr().out  # the runs its stages planned, all done (not every run its cells could hold)
+    assert status.startswith(f"sweep 'tiny-forensics' in {out}: {len(stored)}/{len(stored)} runs done, 0 failed\n")
+    assert "stages" not in status and f"report: {out / 'forensics.md'}" in status
 
 
 def test_a_failed_or_damaged_replication_is_run_again_and_the_numbers_hold(
@@ -364,7 +363,10 @@ def test_a_failed_or_damaged_replication_is_run_again_and_the_numbers_hold(
     failed = sorted(p.name for p in (out / "failed").glob("*.json"))
     assert failed and all(name.startswith("affective_") and "stagereplications" in name for name in failed)
     assert main(["status", str(out)]) == 0
-    assert f", {len(failed)} failed (in {out / 'failed'}; the next run retries them)" in capsys.readouterr().out
+    status = capsys.readouterr().out
+    assert f" runs done, {len(failed)} failed\n" in status
+    assert f"tracebacks are in {out / 'failed'}; the next run retries" in status
+    assert "the runs of its next stage are planned once these are done" in status
     monkeypatch.setattr(ForensicsBatch, "execute", execute)
     resumed = run_study(tmp_path / "tiny.yaml", out, workers=2, progress=False)
     assert not list((out / "failed").glob("*.json")) and resumed.reused > 0

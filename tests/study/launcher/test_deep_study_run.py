@@ -121,7 +121,7 @@ def test_an_interrupted_study_keeps_its_finished_batches_and_gives_the_cells_of_
     assert len(chunks(tmp_path / "out")) == 1 and "1/2 runs done" in status(tmp_path / "out", capsys)
     shutil.copytree(tmp_path / "out", tmp_path / "replicate" / "minigrid_dqn")
     printed = status(tmp_path / "replicate", capsys)  # a replicate folder lists its deep study as one of its sweeps
-    assert "1 sweeps" in printed and "sweep 'toy' in " in printed and "1/2 runs done" in printed
+    assert f"{tmp_path / 'replicate'}: 1 study\n" in printed and "sweep 'toy' in " in printed and "1/2 runs done" in printed
     done = run(study, tmp_path / "out")
     assert (done.skipped, done.finished) == (1, 1) and len(chunks(tmp_path / "out")) == 2
     merged, one = cell(tmp_path / "out"), cell(tmp_path / "whole")

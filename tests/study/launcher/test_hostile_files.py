@@ -23,14 +23,13 @@ import yaml
 
 from sb3_affect.study.cli import main
 from sb3_affect.study.forensics import run_study
-from sb3_affect.study.forensics.folder_status import folder_status
 from sb3_affect.study.forensics.section import forensics_section
 from sb3_affect.study.launcher import ResultsStore, SweepError, folder_lock, load_sweep, run_sweep
 from sb3_affect.study.launcher.batches import batchable
 from sb3_affect.study.launcher.regular_files import UnreadableFile, read_bytes
-from sb3_affect.study.launcher.store import StoreError
+from sb3_affect.study.launcher.store import StoreError, claim_kind
 from sb3_affect.study.launcher.sweep_file import load_sweep_file
-from sb3_affect.study.replicate import _Record, _refuse_a_sweep_folder
+from sb3_affect.study.replicate import _Record
 from sb3_affect.study.report.rendering.document import Document
 from sb3_affect.study.report.sections.reproducibility import replicate_runs, run_tables, sha256
 
@@ -142,13 +141,16 @@ def test_a_chunk_of_replications_that_is_not_one_is_one_line_naming_it(
 
 
 @pytest.mark.parametrize("kind", ["fifo", "device"])
-def test_forensics_records_that_are_not_regular_are_named_never_opened(copy: Path, tmp_path: Path, kind: str) -> None:
-    run = (copy / "run.json").read_bytes()
-    _hostile(copy / "run.json", kind, tmp_path / "x")
-    assert "no analysis written yet" in folder_status(copy)  # status: never blocks
+def test_forensics_records_that_are_not_regular_are_named_never_opened(
+    copy: Path, tmp_path: Path, kind: str, capsys: pytest.CaptureFixture[str]
+) -> None:
     assert main(["status", str(copy)]) == 0
-    (copy / "run.json").unlink()
-    (copy / "run.json").write_bytes(run)
+    whole = capsys.readouterr().out
+    _hostile(copy / "plan.json", kind, tmp_path / "x")  # status: never blocks, counts every run of the sweep instead
+    assert main(["status", str(copy)]) == 0
+    shown = capsys.readouterr().out
+    done = re.search(r"(\d+)/(\d+) runs done", whole)
+    assert done and done[1] == done[2] and f"{done[1]}/" in shown and f"/{done[2]} runs" not in shown
     _hostile(copy / "leaders.csv", kind, tmp_path / "x")
     with pytest.raises(ValueError) as error:
         forensics_section(copy)
@@ -204,8 +206,8 @@ def test_forensics_folders_are_locked_and_never_mixed(copy: Path, tmp_path: Path
     with pytest.raises(StoreError, match=r"holds the replication forensics \(sweep.json\), which a sweep run into it"):
         run_sweep(SMOKE, copy, workers=1, progress=False, overrides=["episodes=2"])
     assert (copy / "sweep.json").read_bytes() == saved
-    with pytest.raises(StoreError, match=r"holds the results of sweep 'tiny-forensics', which a replication would mix"):
-        _refuse_a_sweep_folder(copy)
+    with pytest.raises(StoreError, match=r"holds a sweep \(sweep.json\), which a replication run into it would mix with"):
+        claim_kind(copy, "replication", "replication")
 
 
 def _sweep(tmp_path: Path, env: dict[str, Any], algo: str = "QLearning") -> Path:

@@ -132,10 +132,11 @@ def test_an_old_form_deep_folder_resumes_with_nothing_run_again(tmp_path: Path, 
     again = run_sweep(tmp_path / "toy.yaml", out, workers=1, progress=False)
     assert (again.total, again.skipped, again.finished) == (2, 2, 0)
     assert main(["status", str(out)]) == 0 and "2/2 runs done, 0 failed" in capsys.readouterr().out
-    from sb3_affect.study.report.sections.deep_minigrid import is_deep_folder, load_deep
+    from sb3_affect.study.report.sections.deep_minigrid import load_deep
 
     results = load_deep(out)
-    assert is_deep_folder(out) and results.study["evaluation"] == {"every": 200, "episodes": 2} and len(results.cells) == 1
+    assert ResultsStore(out).study_kind() == "deep" and len(results.cells) == 1
+    assert results.study["evaluation"] == {"every": 200, "episodes": 2}
     assert results.study["tasks"]["Empty-5x5"]["total_timesteps"] == 400
 
 

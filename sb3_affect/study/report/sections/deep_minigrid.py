@@ -32,7 +32,6 @@ from scipy import stats as sps
 
 from sb3_affect.core.emotions import EMOTION_NAMES
 from sb3_affect.study.launcher.deep_schema import STUDY_EVAL_EPISODES
-from sb3_affect.study.launcher.schema import kind_of
 from sb3_affect.study.launcher.store import ResultsStore
 from sb3_affect.study.report.estimation.bootstrap import (
     BETTER,
@@ -82,19 +81,13 @@ class DeepResults:
         return len(self.study["seeds"]) < STUDY_SEEDS
 
 
-def is_deep_folder(folder: Path) -> bool:
-    """Whether ``folder`` holds a deep study's results (its saved sweep has a ``trainer``: ``schema.kind_of``)."""
-    saved = ResultsStore(folder).saved_sweep() if folder.is_dir() else None
-    return saved is not None and kind_of(saved["sweep"]) == "deep"
-
-
 def load_deep(folder: Path) -> DeepResults:
     """
     The study and its finished cells (``ResultsStore.evaluations``), in the order of tasks, then agents; ``StoreError``
     naming the first file that does not count (a rerun sets it aside).
     """
     store = ResultsStore(folder)
-    saved: dict[str, Any] = store.saved_sweep() or {}  # (is_deep_folder: there is one)
+    saved: dict[str, Any] = store.saved_sweep() or {}  # (deep_folders: there is one)
     tasks = saved["sweep"]["tasks"]  # (sweep.json sorts a mapping's keys: the file's order is its task_order)
     study = {**saved["sweep"], "tasks": {task: tasks[task] for task in saved.get("task_order") or tasks}}
     return DeepResults(folder, study, list(store.evaluations().values()))
@@ -102,9 +95,9 @@ def load_deep(folder: Path) -> DeepResults:
 
 def deep_folders(root: Path) -> list[Path]:
     """The deep-study folders a report of ``root`` shows: ``root`` itself, or those of ``FOLDERS`` in it."""
-    if is_deep_folder(root):
+    if ResultsStore(root).study_kind() == "deep":
         return [root]
-    return [root / name for name in FOLDERS if is_deep_folder(root / name)]
+    return [root / name for name in FOLDERS if ResultsStore(root / name).study_kind() == "deep"]
 
 
 # -- numbers -------------------------------------------------------------------------------------------------------------

@@ -18,6 +18,7 @@ import pandas as pd
 from rliable import metrics as rmetrics
 
 from sb3_affect.core.emotions import EMOTION_NAMES
+from sb3_affect.study.launcher.store import ResultsStore
 from sb3_affect.study.report.estimation.bootstrap import (
     BETTER,
     EXPLORATORY_RULE,
@@ -30,7 +31,6 @@ from sb3_affect.study.report.estimation.bootstrap import (
 from sb3_affect.study.report.reading.context import ReportContext
 from sb3_affect.study.report.reading.run_tables import load_results
 from sb3_affect.study.report.rendering.document import fmt
-from sb3_affect.study.report.sections.deep_minigrid import is_deep_folder
 
 #: The results folders of the sections: (folder, title, what it holds).
 FOLDERS = (
@@ -163,7 +163,7 @@ def minigrid_sections(ctx: ReportContext) -> None:
     for name, title, holds in FOLDERS:
         if name in ctx.folders:
             minigrid_section(ctx, name, title, holds)
-    if "minigrid" in ctx.folders and not is_deep_folder(ctx.root / "minigrid_dqn"):
+    if "minigrid" in ctx.folders and ResultsStore(ctx.root / "minigrid_dqn").study_kind() != "deep":
         ctx.doc.p(
             "The deep study (DQN, AffectDQN and their controls on MiniGrid) is not part of this folder: "
             "`make replicate` runs it at smoke size only. `sb3-affect run experiments/minigrid_dqn.yaml --out "
