@@ -136,8 +136,8 @@ Job = Batch | Single
 
 class Work(Protocol):
     """
-    A unit of work the executors run (``local_pool.run_local``, ``launcher.run_ray``): a ``Batch`` (of any kind: a deep
-    study's, the forensics'), a ``Single``. Only a ``Single`` gets a fresh process of its own; anything else
+    A unit of work the executor runs (``launcher.executor``: ``local_pool.run_local`` or Ray tasks): a ``Batch`` (of
+    any kind: a deep study's, the forensics'), a ``Single``. Only a ``Single`` gets a fresh process of its own; anything else
     runs in a long-lived worker, one unit after the other. ``execute`` returns the unit's result, with ``versions``
     and ``timings`` (``host``) for the Ray backend's check of a node's package versions.
     """

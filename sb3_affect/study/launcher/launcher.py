@@ -28,13 +28,14 @@ same per-episode records on either backend.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import math
 import os
 import sys
 import time
 import traceback
-from collections.abc import Callable, Collection, Sequence
+from collections.abc import Callable, Collection, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -53,7 +54,7 @@ from sb3_affect.study.launcher.batches import (
     split_cell,
 )
 from sb3_affect.study.launcher.deep_batches import DeepBatch, replayed_epsilons, training
-from sb3_affect.study.launcher.local_pool import OnFailure, OnResult, W, run_local
+from sb3_affect.study.launcher.local_pool import OnFailure, OnResult, run_local
 from sb3_affect.study.launcher.one_run import package_versions
 from sb3_affect.study.launcher.schema import Cell, SweepError
 from sb3_affect.study.launcher.store import SWEEP_SCHEMA, ResultsStore, cell_run_ids, store_error
@@ -85,21 +86,24 @@ def _ray_batch(job: Work) -> tuple[str, Any]:
         return "error", traceback.format_exc()
 
 
-def run_ray(
-    jobs: Sequence[W],
-    workers: int,
-    on_result: OnResult[W],
-    on_failure: OnFailure[W],
-    address: str | None = None,
-    cap: int | None = None,
-    timeout: float = 60.0,
-) -> None:
+#: An executor's one call: run ``jobs``, handing each outcome to ``on_result`` or ``on_failure`` (``executor``).
+Execute = Callable[[Sequence[Job], OnResult[Job], OnFailure[Job]], None]
+
+
+@contextlib.contextmanager
+def executor(
+    backend: str, workers: int, address: str | None = None, cap: int | None = None, timeout: float = 60.0
+) -> Iterator[Execute]:
     """
-    Run ``jobs`` as Ray core tasks on the cluster at ``address`` (at most ``cap`` at a time), or on a private instance
-    of ``workers`` CPUs started and stopped here; connection, shipping the code, version checks and a lost cluster are
-    handled in :mod:`sb3_affect.study.launcher.ray_cluster`. A batch (or any other ``Work``) is one task (its
-    ``execute``), a lone run one ``ray_cluster.execute_task``.
+    The one executor of a launch, started once for all its waves: ``local`` (``local_pool.run_local``: at most
+    ``workers`` forked workers a wave) or ``ray``: the jobs as Ray core tasks on the cluster at ``address`` (at most
+    ``cap`` at a time), or on a private instance of ``workers`` CPUs started here and stopped on leaving; connection,
+    shipping the code, version checks and a lost cluster are handled in :mod:`sb3_affect.study.launcher.ray_cluster`.
+    A batch (or any other ``Work``) is one task (its ``execute``), a lone run one ``ray_cluster.execute_task``.
     """
+    if backend == "local":
+        yield lambda jobs, on_result, on_failure: run_local(jobs, workers, on_result, on_failure)
+        return
     require_extra("ray", "the ray backend")
     os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
     if not address:
@@ -114,30 +118,32 @@ def run_ray(
         remote = session.ray.remote(num_cpus=1, max_retries=1)(ray_cluster.execute_task)
         remote_batch = session.ray.remote(num_cpus=1, max_retries=1)(_ray_batch)
 
-        def submit(job: W) -> Any:
-            if isinstance(job, Single):
-                return remote.remote(job.config, job.log_dir, job.formats)
-            return remote_batch.remote(job)
+        def execute(jobs: Sequence[Job], on_result: OnResult[Job], on_failure: OnFailure[Job]) -> None:
+            def submit(job: Job) -> Any:
+                if isinstance(job, Single):
+                    return remote.remote(job.config, job.log_dir, job.formats)
+                return remote_batch.remote(job)
 
-        def on_value(job: W, value: tuple[Any, ...]) -> None:
-            if value[0] != "ok":
-                on_failure(job, value[1])
-                return
-            result = value[1]
-            differences = ray_cluster.version_differences(ours, result["versions"]) if ours else []
-            if differences:  # a node that joined after the check
-                host = result["timings"].get("host")
-                on_failure(job, f"ran on {host} with other package versions: {', '.join(differences)}")
-                return
-            if isinstance(job, Single) and job.log_dir is not None:
-                ray_cluster.write_logs(job.log_dir, value[2])
-            on_result(job, result)
+            def on_value(job: Job, value: tuple[Any, ...]) -> None:
+                if value[0] != "ok":
+                    on_failure(job, value[1])
+                    return
+                result = value[1]
+                differences = ray_cluster.version_differences(ours, result["versions"]) if ours else []
+                if differences:  # a node that joined after the check
+                    host = result["timings"].get("host")
+                    on_failure(job, f"ran on {host} with other package versions: {', '.join(differences)}")
+                    return
+                if isinstance(job, Single) and job.log_dir is not None:
+                    ray_cluster.write_logs(job.log_dir, value[2])
+                on_result(job, result)
 
-        def on_error(job: W, error: BaseException) -> None:  # the worker died (after Ray's retry), or Ray failed
-            text = ray_cluster.plain_text(str(error))
-            on_failure(job, f"the Ray task failed: {type(error).__name__}: {text}")
+            def on_error(job: Job, error: BaseException) -> None:  # the worker died (after Ray's retry), or Ray failed
+                on_failure(job, f"the Ray task failed: {type(error).__name__}: {ray_cluster.plain_text(str(error))}")
 
-        session.run(list(jobs), submit, on_value, on_error, cap=cap)
+            session.run(list(jobs), submit, on_value, on_error, cap=cap)
+
+        yield execute
 
 
 def run_sweep(
@@ -228,20 +234,21 @@ def run_sweep(
             bar.update(job.size)
             bar.set_postfix(failed=counts["failed"])
 
+        execute: Execute | None = None
         try:
-            while jobs:  # (nothing to do: no workers, nor a Ray instance, started)
-                tried.update(rid for job in jobs for rid in _ids(job))
-                if backend == "local":
-                    run_local(jobs, workers, on_result, on_failure)
-                else:
-                    run_ray(jobs, workers, on_result, on_failure, ray_address, cap=cap, timeout=ray_timeout)
-                waves = stages is not None or any(cell.base.get("replays") for cell in cells)  # (a sweep of runs: one)
-                jobs = plan_jobs(cells, cell_ids, store, workers, sweep.logs, tried, stages=stages) if waves else []
-                if stages is not None:  # (no wave left: every stage is planned, unless a failed unit holds one back)
-                    store.record_plan((rid for job in jobs for rid in _ids(job)), final=not jobs and not counts["failed"])
-                    planned += sum(job.size for job in jobs)
-                    bar.total = planned
-                    bar.refresh()
+            with contextlib.ExitStack() as started:
+                while jobs:  # (nothing to do: no workers, nor a Ray instance, started)
+                    tried.update(rid for job in jobs for rid in _ids(job))
+                    if execute is None:  # (the first wave: one executor, one Ray instance, for every wave)
+                        execute = started.enter_context(executor(backend, workers, ray_address, cap, ray_timeout))
+                    execute(jobs, on_result, on_failure)
+                    waves = stages is not None or any(cell.base.get("replays") for cell in cells)  # (a sweep of runs: one)
+                    jobs = plan_jobs(cells, cell_ids, store, workers, sweep.logs, tried, stages=stages) if waves else []
+                    if stages is not None:  # (no wave left: every stage planned, unless a failed unit holds one back)
+                        store.record_plan((rid for job in jobs for rid in _ids(job)), final=not jobs and not counts["failed"])
+                        planned += sum(job.size for job in jobs)
+                        bar.total = planned
+                        bar.refresh()
         finally:
             bar.close()
     seconds = time.perf_counter() - start

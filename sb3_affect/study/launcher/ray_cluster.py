@@ -3,7 +3,7 @@ The Ray side of the ``ray`` backend: connect, ship the code, check versions, run
 
 * Without an address: a private instance on this machine (``address="local"``, so neither ``RAY_ADDRESS`` nor a
   cluster recorded by an earlier ``ray start`` can redirect it), dashboard off, every process on 127.0.0.1 (the
-  environment Ray reads when it is imported is set by ``launcher.run_ray``, which imports this module).
+  environment Ray reads when it is imported is set by ``launcher.executor``, which imports this module).
 * With an address (``HOST:PORT`` or ``ray://HOST:PORT``): the address is tried first and ``ray.init`` is given
   ``timeout`` seconds (:mod:`sb3_affect.study.launcher.ray_connect`), so a wrong address or a missing token fails with a
   message instead of retrying forever;

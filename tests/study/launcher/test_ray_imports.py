@@ -1,5 +1,5 @@
 """
-The Ray backend imports Ray in one place (``launcher.run_ray``, after setting the environment Ray reads when it is first
+The Ray backend imports Ray in one place (``launcher.executor``, after setting the environment Ray reads when it is first
 imported): no other module of the study imports Ray or the backend's modules, and without the ``ray`` extra the backend
 says which extra to install.
 """
@@ -17,9 +17,9 @@ import pytest
 
 import sb3_affect.study as study
 from sb3_affect.core.extras import MissingExtraError
-from sb3_affect.study.launcher.launcher import run_ray
+from sb3_affect.study.launcher.launcher import executor
 
-#: The modules of the Ray backend, which import Ray at their top (``run_ray`` imports them).
+#: The modules of the Ray backend, which import Ray at their top (``executor`` imports them).
 RAY_BACKEND = ("ray_cluster", "ray_connect")
 #: Who may import Ray or the backend's modules: ``module -> what it imports`` (the launcher after setting the environment).
 ALLOWED = {
@@ -66,5 +66,6 @@ def test_no_module_of_the_study_but_the_ray_backends_imports_ray() -> None:
 
 def test_without_the_ray_extra_the_backend_names_it(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setitem(sys.modules, "ray", None)  # `import ray` now raises ImportError
-    with pytest.raises(MissingExtraError, match=r"the ray backend needs the 'ray' extra \(missing: ray\): pip install"):
-        run_ray([], 1, lambda job, result: None, lambda job, error: None)
+    refused = pytest.raises(MissingExtraError, match=r"the ray backend needs the 'ray' extra \(missing: ray\): pip install")
+    with refused, executor("ray", 1):
+        pass
