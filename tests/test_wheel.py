@@ -115,7 +115,9 @@ assert "site-packages" in replicate.__file__
 replicate.PARTS = (("paper", "the paper's protocol, at toy size"), *(p for p in replicate.PARTS if p[0] == "forensics"))
 replicate.LARGE_SEEDS = replicate.ABLATION_SEEDS = replicate.BEYOND_SEEDS = 1
 replicate.ENGINE_EPISODES = 5
-replicate.OVERRIDES = {"forensics": ["forensics.leaders=1", "forensics.reps=2"]}  # one leader replicated twice
+# the grid of one alpha and one gamma, its one leader replicated twice
+replicate.OVERRIDES = {"forensics": ["forensics.alphas=[1.0]", "forensics.gammas=[0.8]", "forensics.leaders=1",
+                                     "forensics.reps=2"]}
 from sb3_affect.study.launcher import sweep_file
 load = sweep_file.load_sweep
 toy = ("seeds=1", "episodes=5")  # the tabular sweeps at toy size (the forensics file has its own sizes, above)
