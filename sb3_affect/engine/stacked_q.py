@@ -18,9 +18,14 @@ seeds. The gradient step is SB3's ``DQN.train`` per seed:
 The step is fused: every seed's parameters live in one ``(S, P)`` tensor (each layer's weight and bias a view of
 it), the backward pass of an MLP of ReLU or Tanh layers is written out (one batched product per layer and
 operand, no autograd graph), and the norm, the clipping and Adam are each one operation on the whole ``(S, P)``
-gradient (Adam: ``stacked_adam``, torch's fused kernel with denormals flushed). Other activations run torch's
-autograd through the same views; optimizers other than plain Adam (``AdamW``, ``RMSprop``, ``SGD``, Adam with
-``amsgrad``) run torch's own on the ``(S, P)`` tensor.
+gradient (Adam: ``stacked_adam``, torch's fused kernel with denormals flushed). The output layer's weight gradient is
+computed in torch's layout (the upstream gradient's transpose times the layer's input, as autograd computes a
+``Linear``'s) and copied transposed: with 7 actions that product is about 4x faster than the ``(in, out)`` one (36 µs
+against 154 µs for 32 seeds) and equal to autograd's bit for bit; the wider layers' are faster in the stored layout.
+(Its forward pass stays a 7-wide product: one padded to 8 or 16 columns is 1.5-3x faster but not equal to SB3's
+``addmm``, and after 100 steps at a learning rate of 1e-2 the weights then differ by 1.8e-5 instead of 3.5e-6.)
+Other activations run torch's autograd through the same views; optimizers other than plain Adam (``AdamW``,
+``RMSprop``, ``SGD``, Adam with ``amsgrad``) run torch's own on the ``(S, P)`` tensor.
 
 Per-seed settings (each model's own): ``gamma``, ``tau``, ``max_grad_norm`` and the learning rate (with Adam) are
 ``(S, 1)`` columns where the seeds differ. The results differ from SB3's only by floating-point summation order (a
@@ -214,9 +219,12 @@ class StackedQ:
         batch = difference.shape[1]
         losses = th.where(size < 1.0, 0.5 * difference * difference, size - 0.5).mean(dim=(1, 2))
         upstream = th.zeros_like(q_values).scatter_(2, actions, difference.clamp(-1.0, 1.0) / batch)
-        for i in range(len(self.weights) - 1, -1, -1):
-            th.bmm(layers[i].transpose(1, 2), upstream, out=self.grad_weights[i]) if self.grad_weights[i].is_contiguous() \
-                else self.grad_weights[i].copy_(th.bmm(layers[i].transpose(1, 2), upstream))
+        last = len(self.weights) - 1
+        for i in range(last, -1, -1):
+            if i == last:  # torch's layout, (out, in), as autograd computes it: see the module docstring
+                self.grad_weights[i].copy_(th.bmm(upstream.transpose(1, 2), layers[i]).transpose(1, 2))
+            else:
+                self.grad_weights[i].copy_(th.bmm(layers[i].transpose(1, 2), upstream))
             self.grad_biases[i].copy_(upstream.sum(dim=1, keepdim=True))
             if i > 0:
                 upstream = self.backwards[i - 1](th.bmm(upstream, self.weights[i].transpose(1, 2)), layers[i])  # type: ignore[misc]
