@@ -6,7 +6,9 @@ the 7x7x3 view flattened (``obs="view"``), 4 envs per seed (needs the ``[minigri
   per wall second of SB3's ``DQN.learn`` and ``PPO.learn`` on Farama's env with 1 env (as a user runs it) and with 4,
   the same on the compiled MiniGrid with 4 (the compiled env inside SB3's own loop), and ``train_many`` DQN and PPO at
   S = 8, 32 and 128 seeds (all seeds' env steps, on the compiled MiniGrid, set-up included), each with its ratios to
-  SB3's same algorithm with 1 env and with 4; then the DQN gradient step of S = 32 (and 128) stacked networks, in the
+  SB3's same algorithm with 1 env and with 4, and for SB3's ``learn`` the compiled env's gain with the share of that
+  run its VecEnv's own steps take (random actions, timed alone) and the gain a VecEnv that cost nothing would give;
+  then the DQN gradient step of S = 32 (and 128) stacked networks, in the
   state a run of the same steps leaves them (Adam's moments with their zeros and denormals),
   beside its arithmetic bound: its matrix products' FLOPs over the GFLOP/s this core measures on one large product; then
   the JAX rows, a vmapped JAX DQN on NAVIX's Empty-8x8 (``benchmarks/jax_dqn.py``: the same network, batch and train
@@ -88,6 +90,19 @@ def sb3_rate(agent: str, steps: int, n_envs: int = N_ENVS, compiled: bool = Fals
     cls = resolve_class(agent)
     model = cls("MlpPolicy", seed_vec_env(ENV_ID, n_envs, 0, "view", compiled), seed=0, device="cpu", **_settings(agent))
     return _timed(lambda: model.learn(steps).num_timesteps)
+
+
+def vec_env_cpu(steps: int, n_envs: int = N_ENVS, compiled: bool = True) -> float:
+    """CPU seconds of the VecEnv alone for ``steps`` env steps of random actions (what ``learn`` pays for the env)."""
+    from sb3_affect.engine.seed_envs import seed_vec_env
+
+    env = seed_vec_env(ENV_ID, n_envs, 0, "view", compiled)
+    actions = np.random.default_rng(0).integers(env.action_space.n, size=(steps // n_envs, n_envs))  # type: ignore[attr-defined]
+    env.reset()
+    cpu = time.process_time()
+    for action in actions:
+        env.step(action)
+    return time.process_time() - cpu
 
 
 def trainer_rate(agent: str, n_seeds: int, steps: int) -> Rate:
@@ -275,7 +290,11 @@ def speed(steps: int, sizes: list[int], out: Path, groups: tuple[str, ...] = ROW
     for agent in agents if "sb3" in groups else ():
         farama = next(r for a, n, r in rows if a == agent and n == f"SB3 learn, Farama, n_envs={N_ENVS}")
         compiled = next(r for a, n, r in rows if a == agent and n == f"SB3 learn, compiled, n_envs={N_ENVS}")
-        print(f"SB3 {agent}.learn with {N_ENVS} envs, compiled MiniGrid / Farama's: {compiled.cpu / farama.cpu:.2f}x (CPU)")
+        env_cpu = vec_env_cpu(steps)
+        ceiling = (steps / farama.cpu) / (steps / compiled.cpu - env_cpu)
+        print(f"SB3 {agent}.learn with {N_ENVS} envs, compiled MiniGrid / Farama's: {compiled.cpu / farama.cpu:.2f}x (CPU); "
+              f"the compiled VecEnv's own steps are {env_cpu * compiled.cpu / steps:.0%} of that run's CPU: a VecEnv "
+              f"that cost nothing would make it {ceiling:.2f}x")
     if jax_compiles:
         print(f"JAX DQN compiles (once per S and step count, not in its rows): {', '.join(jax_compiles)}")
     elif "jax" in groups and "DQN" in agents:
