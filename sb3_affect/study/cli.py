@@ -163,6 +163,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)  # --help, --version and usage errors end here, having imported little
+    args.argv = list(sys.argv[1:] if argv is None else argv)  # (the ray backend's driver runs them again as a child)
 
     try:
         require_extra(_EXTRA_OF.get(args.command, "experiments"), f"sb3-affect {args.command}")

@@ -12,6 +12,7 @@ from collections.abc import Callable, Mapping
 from pathlib import Path
 
 from sb3_affect.study.launcher import ResultsStore
+from sb3_affect.study.launcher.driver_process import is_driver, run_as_child
 from sb3_affect.study.launcher.ray_errors import ClusterLost, RayClusterError
 from sb3_affect.study.launcher.schema import SweepError
 from sb3_affect.study.launcher.signals import Terminated, stop_on_sigterm
@@ -69,6 +70,8 @@ def existing_folder(directory: str, command: str) -> Path:
 def run(args: argparse.Namespace) -> int:
     """``sb3-affect run FILE --out DIR``: a study file of any kind (``running.run_file``), resumed."""
     check_out(args.out)
+    if args.backend == "ray" and not is_driver():  # Ray may end its driver abruptly: a child drives it (driver_process)
+        return run_as_child(args.argv, args.out, args.ray_address)
     stop_on_sigterm()
     done = run_file(
         args.file,

@@ -36,14 +36,12 @@ import sb3_affect.envs
 from sb3_affect.study.launcher.one_run import execute_run, package_versions
 from sb3_affect.study.launcher.ray_connect import (
     handshake,
-    host_port,
     init_with_timeout,
     plain_text,
-    reachable,
     shutdown_within,
     working_directory,
 )
-from sb3_affect.study.launcher.ray_errors import ClusterLost, RayClusterError
+from sb3_affect.study.launcher.ray_errors import ClusterLost, RayClusterError, head_stopped_answering, host_port, reachable
 from sb3_affect.study.launcher.regular_files import write_file
 from sb3_affect.study.launcher.signals import sigint_ignored
 
@@ -140,16 +138,7 @@ class RaySession:
         if self.gcs is None:
             return None
         time.sleep(settle)
-        for attempt in range(4):
-            why = reachable(*self.gcs, timeout=2.0)
-            if why is None:
-                return None
-            if attempt < 3:
-                time.sleep(1.0)
-        return f"its head node at {self.gcs[0]}:{self.gcs[1]} stopped answering ({why})"
-
-    def _lost_error(self, why: str) -> ClusterLost:
-        return ClusterLost(f"the Ray cluster at {self.address} was lost mid-sweep: {why}")
+        return head_stopped_answering(*self.gcs)
 
     def run(
         self,
@@ -173,11 +162,11 @@ class RaySession:
             try:
                 done, _ = ray.wait(list(pending), num_returns=1, timeout=2.0)
             except Exception as error:  # a ray:// client whose server went away, or a driver cut off from its raylet
-                raise self._lost_error(f"{type(error).__name__}: {plain_text(str(error))}") from None
+                raise ClusterLost.of(self.address, f"{type(error).__name__}: {plain_text(str(error))}") from None
             if not done:
                 why = self.lost()
                 if why:
-                    raise self._lost_error(why)
+                    raise ClusterLost.of(self.address, why)
                 continue
             item = pending.pop(done[0])
             try:
@@ -186,7 +175,7 @@ class RaySession:
                 # (the run's own exception is the run's failure; a worker, node or object lost may be the cluster going)
                 why = self.lost(settle=0.0 if isinstance(error, ray.exceptions.RayTaskError) else SETTLE_SECONDS)
                 if why:
-                    raise self._lost_error(why) from None
+                    raise ClusterLost.of(self.address, why) from None
                 on_error(item, error)
             else:
                 on_value(item, value)

@@ -10,7 +10,6 @@ import contextlib
 import logging
 import os
 import re
-import socket
 import threading
 from collections.abc import Iterator
 from pathlib import Path
@@ -25,20 +24,6 @@ from sb3_affect.study.launcher.ray_errors import RayClusterError
 def plain_text(text: str) -> str:
     """Ray's error messages without their terminal colour codes."""
     return re.sub(r"\x1b\[[0-9;]*m", "", text)
-
-
-def host_port(address: str) -> tuple[str, int] | None:
-    match = re.fullmatch(r"(?:ray://)?\[?([^\]]+?)\]?:(\d+)", address.strip())
-    return (match.group(1), int(match.group(2))) if match else None
-
-
-def reachable(host: str, port: int, timeout: float) -> str | None:
-    """``None`` if a TCP connection to ``host:port`` opens within ``timeout`` seconds, else why not."""
-    try:
-        socket.create_connection((host, port), timeout=timeout).close()
-    except OSError as error:
-        return error.strerror or type(error).__name__ if not isinstance(error, socket.timeout) else "timed out"
-    return None
 
 
 def _auth_hint(address: str) -> str:

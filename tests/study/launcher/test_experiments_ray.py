@@ -24,6 +24,7 @@ from typing import Any
 import pytest
 
 from sb3_affect.study.launcher import ResultsStore, run_sweep
+from sb3_affect.study.launcher.folder_lock import is_locked
 
 pytestmark = [
     pytest.mark.ray,
@@ -223,5 +224,46 @@ def test_ctrl_c_on_ray_backend_stops_the_instance_and_leaves_no_partial_files(tm
     assert left == [], f"processes of the launcher's Ray instance left running: {left}"
     assert not (out / ".lock.owner").exists()  # the lock released (its file stays)
     assert [p for p in out.rglob(".tmp-*")] == []
+    done = ResultsStore(out).load_runs()
+    assert 5 <= len(done) < 1800 and all(r["status"] == "ok" for r in done)
+
+
+def test_a_driver_that_ray_ends_abruptly_is_reported_in_one_line_and_its_name_taken_off_the_lock(tmp_path: Path) -> None:
+    # Ray's core worker ends its driver at once when the raylet it is connected to dies (exit 1, no Python exception):
+    # SIGKILL on the driver stands for that here. The command is the driver's parent: it says so in one line, takes the
+    # dead driver's name off the folder's lock and exits 130, as for a lost cluster; the finished runs are kept.
+    out = tmp_path / "ray"
+    paper = SMOKE.parent / "paper.yaml"
+    command = [sys.executable, "-m", "sb3_affect", "run", str(paper), "--out", str(out), "--backend", "ray", "--workers", "2"]
+    command += ["--set", "seeds=100", "--no-progress"]
+    env = {**os.environ, "RAY_USAGE_STATS_ENABLED": "0"}
+    pipe = subprocess.PIPE
+    proc = subprocess.Popen(command, env=env, stdout=pipe, stderr=pipe, text=True, start_new_session=True,
+                            preexec_fn=_terminal_sigint)
+    try:
+        deadline = time.monotonic() + 240  # a first batch of 100 runs on a busy machine
+        while not (out / "chunks").exists() or len(ResultsStore(out).done_ids()) < 5:
+            assert time.monotonic() < deadline and proc.poll() is None, "the sweep did not start"
+            time.sleep(0.1)
+        driver = int((out / ".lock.owner").read_text().split()[0])
+        assert driver != proc.pid and driver in descendants(proc.pid)
+        os.kill(driver, signal.SIGKILL)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 130, err
+    assert (f"sb3-affect: the Ray driver (process {driver}) ended with exit code -9 while it held {out}; finished runs are "
+            "kept, rerun the same command to resume") in err
+    assert "Traceback" not in err
+    deadline = time.monotonic() + 15
+    while session_members(proc.pid) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    left = session_members(proc.pid)
+    for pid in left:
+        os.kill(pid, 9)
+    assert left == [], f"processes of the dead driver's Ray instance left running: {left}"
+    assert not (out / ".lock.owner").exists() and not is_locked(out)
     done = ResultsStore(out).load_runs()
     assert 5 <= len(done) < 1800 and all(r["status"] == "ok" for r in done)
