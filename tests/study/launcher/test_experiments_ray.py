@@ -90,6 +90,25 @@ def session_members(session: int) -> list[int]:
     return members
 
 
+def left_in_session(session: int) -> list[int]:
+    """The processes of ``session`` still there after up to 15 s (then killed, so that the next test starts clean)."""
+    deadline = time.monotonic() + 15
+    while session_members(session) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    left = session_members(session)
+    for pid in left:
+        os.kill(pid, 9)
+    return left
+
+
+def wait_for_runs(out: Path, proc: subprocess.Popen[str], runs: int) -> None:
+    """Until ``runs`` runs of the launcher ``proc`` are stored in ``out`` (a first batch of 100 on a busy machine)."""
+    deadline = time.monotonic() + 240
+    while not (out / "chunks").exists() or len(ResultsStore(out).done_ids()) < runs:
+        assert time.monotonic() < deadline and proc.poll() is None, "the sweep did not start"
+        time.sleep(0.1)
+
+
 @pytest.fixture(scope="module")
 def ray_instance() -> Iterator[Any]:
     """One local Ray instance for this module's in-process tests; its workers can import the fault-injecting agent."""
@@ -183,12 +202,7 @@ def test_cli_ray_backend_starts_and_stops_its_own_instance(tmp_path: Path) -> No
     run_sweep(SMOKE, tmp_path / "local", workers=2, overrides=OVERRIDES, progress=False)
     assert contents(tmp_path / "ray") == contents(tmp_path / "local")
 
-    deadline = time.monotonic() + 15
-    while session_members(proc.pid) and time.monotonic() < deadline:
-        time.sleep(0.2)
-    left = session_members(proc.pid)
-    for pid in left:
-        os.kill(pid, 9)
+    left = left_in_session(proc.pid)
     assert left == [], f"processes of the launcher's Ray instance left running: {left}"
 
 
@@ -203,10 +217,7 @@ def test_ctrl_c_on_ray_backend_stops_the_instance_and_leaves_no_partial_files(tm
         preexec_fn=_terminal_sigint,
     )
     try:
-        deadline = time.monotonic() + 240  # a first batch of 100 runs on a busy machine
-        while not (out / "chunks").exists() or len(ResultsStore(out).done_ids()) < 5:
-            assert time.monotonic() < deadline and proc.poll() is None, "the sweep did not start"
-            time.sleep(0.1)
+        wait_for_runs(out, proc, 5)
         os.killpg(proc.pid, signal.SIGINT)  # Ctrl-C: SIGINT to the launcher and every process of its group
         _, err = proc.communicate(timeout=30)
     finally:
@@ -215,12 +226,7 @@ def test_ctrl_c_on_ray_backend_stops_the_instance_and_leaves_no_partial_files(tm
             proc.wait()
     assert proc.returncode == 130, err
     assert "interrupted" in err
-    deadline = time.monotonic() + 15
-    while session_members(proc.pid) and time.monotonic() < deadline:
-        time.sleep(0.2)
-    left = session_members(proc.pid)
-    for pid in left:
-        os.kill(pid, 9)
+    left = left_in_session(proc.pid)
     assert left == [], f"processes of the launcher's Ray instance left running: {left}"
     assert not (out / ".lock.owner").exists()  # the lock released (its file stays)
     assert [p for p in out.rglob(".tmp-*")] == []
@@ -241,10 +247,7 @@ def test_a_driver_that_ray_ends_abruptly_is_reported_in_one_line_and_its_name_ta
     proc = subprocess.Popen(command, env=env, stdout=pipe, stderr=pipe, text=True, start_new_session=True,
                             preexec_fn=_terminal_sigint)
     try:
-        deadline = time.monotonic() + 240  # a first batch of 100 runs on a busy machine
-        while not (out / "chunks").exists() or len(ResultsStore(out).done_ids()) < 5:
-            assert time.monotonic() < deadline and proc.poll() is None, "the sweep did not start"
-            time.sleep(0.1)
+        wait_for_runs(out, proc, 5)
         driver = int((out / ".lock.owner").read_text().split()[0])
         assert driver != proc.pid and driver in descendants(proc.pid)
         os.kill(driver, signal.SIGKILL)
@@ -257,12 +260,7 @@ def test_a_driver_that_ray_ends_abruptly_is_reported_in_one_line_and_its_name_ta
     assert (f"sb3-affect: the Ray driver (process {driver}) ended with exit code -9 while it held {out}; finished runs are "
             "kept, rerun the same command to resume") in err
     assert "Traceback" not in err
-    deadline = time.monotonic() + 15
-    while session_members(proc.pid) and time.monotonic() < deadline:
-        time.sleep(0.2)
-    left = session_members(proc.pid)
-    for pid in left:
-        os.kill(pid, 9)
+    left = left_in_session(proc.pid)
     assert left == [], f"processes of the dead driver's Ray instance left running: {left}"
     assert not (out / ".lock.owner").exists() and not is_locked(out)
     done = ResultsStore(out).load_runs()
