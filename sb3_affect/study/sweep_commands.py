@@ -27,9 +27,12 @@ class UsageError(Exception):
 def dispatch(args: argparse.Namespace, commands: Mapping[str, Callable[[argparse.Namespace], int]] | None = None) -> int:
     """
     Run the command ``args`` names, from ``commands`` (default: this module's ``COMMANDS``); its errors end in one line
-    on stderr (exit 2), an interruption in 130 or 143.
+    on stderr (exit 2), an interruption in 130 or 143. On the ray backend the command runs in a child process
+    (``driver_process``).
     """
     try:
+        if getattr(args, "backend", "local") == "ray" and not is_driver():  # Ray may end its driver abruptly: a child
+            return run_as_child(args.argv, args.out, args.ray_address)  # drives it (run, forensics, replicate)
         return int((commands or COMMANDS)[args.command](args))
     except (SweepError, StoreError, UsageError, RayClusterError) as error:
         print(f"sb3-affect: error: {error}", file=sys.stderr)
@@ -70,8 +73,6 @@ def existing_folder(directory: str, command: str) -> Path:
 def run(args: argparse.Namespace) -> int:
     """``sb3-affect run FILE --out DIR``: a study file of any kind (``running.run_file``), resumed."""
     check_out(args.out)
-    if args.backend == "ray" and not is_driver():  # Ray may end its driver abruptly: a child drives it (driver_process)
-        return run_as_child(args.argv, args.out, args.ray_address)
     stop_on_sigterm()
     done = run_file(
         args.file,

@@ -1,6 +1,7 @@
 """
-How the Ray backend fails, importable without Ray (the CLI reports these, and importing Ray before the backend has set
-the environment Ray reads on import would bind a private instance beyond 127.0.0.1: ``launcher.executor``).
+How the Ray backend fails, and whether a cluster's head still answers (a TCP connection to its GCS port), importable
+without Ray (the CLI reports these, and importing Ray before the backend has set the environment Ray reads on import
+would bind a private instance beyond 127.0.0.1: ``launcher.executor``).
 """
 
 from __future__ import annotations

@@ -234,21 +234,26 @@ def test_ctrl_c_on_ray_backend_stops_the_instance_and_leaves_no_partial_files(tm
     assert 5 <= len(done) < 1800 and all(r["status"] == "ok" for r in done)
 
 
-def test_a_driver_that_ray_ends_abruptly_is_reported_in_one_line_and_its_name_taken_off_the_lock(tmp_path: Path) -> None:
+@pytest.mark.parametrize("part", ["", "paper"], ids=["run", "replicate"])
+def test_a_driver_that_ray_ends_abruptly_is_reported_in_one_line_and_its_name_taken_off_the_lock(
+    tmp_path: Path, part: str
+) -> None:
     # Ray's core worker ends its driver at once when the raylet it is connected to dies (exit 1, no Python exception):
     # SIGKILL on the driver stands for that here. The command is the driver's parent: it says so in one line, takes the
-    # dead driver's name off the folder's lock and exits 130, as for a lost cluster; the finished runs are kept.
+    # dead driver's name off the lock of the folder it held (a replication's part: OUT/paper) and exits 130, as for a
+    # lost cluster; the finished runs are kept.
     out = tmp_path / "ray"
+    held = out / part
     paper = SMOKE.parent / "paper.yaml"
-    command = [sys.executable, "-m", "sb3_affect", "run", str(paper), "--out", str(out), "--backend", "ray", "--workers", "2"]
-    command += ["--set", "seeds=100", "--no-progress"]
+    what = ["replicate"] if part else ["run", str(paper), "--set", "seeds=100", "--no-progress"]
+    command = [sys.executable, "-m", "sb3_affect", *what, "--out", str(out), "--backend", "ray", "--workers", "2"]
     env = {**os.environ, "RAY_USAGE_STATS_ENABLED": "0"}
     pipe = subprocess.PIPE
     proc = subprocess.Popen(command, env=env, stdout=pipe, stderr=pipe, text=True, start_new_session=True,
                             preexec_fn=_terminal_sigint)
     try:
-        wait_for_runs(out, proc, 5)
-        driver = int((out / ".lock.owner").read_text().split()[0])
+        wait_for_runs(held, proc, 5)
+        driver = int((held / ".lock.owner").read_text().split()[0])
         assert driver != proc.pid and driver in descendants(proc.pid)
         os.kill(driver, signal.SIGKILL)
         _, err = proc.communicate(timeout=60)
@@ -257,11 +262,13 @@ def test_a_driver_that_ray_ends_abruptly_is_reported_in_one_line_and_its_name_ta
             proc.kill()
             proc.wait()
     assert proc.returncode == 130, err
-    assert (f"sb3-affect: the Ray driver (process {driver}) ended with exit code -9 while it held {out}; finished runs are "
-            "kept, rerun the same command to resume") in err
+    assert (f"sb3-affect: the Ray driver (process {driver}) ended with exit code -9 while it held {held}; finished runs "
+            "are kept, rerun the same command to resume") in err
     assert "Traceback" not in err
     left = left_in_session(proc.pid)
     assert left == [], f"processes of the dead driver's Ray instance left running: {left}"
-    assert not (out / ".lock.owner").exists() and not is_locked(out)
-    done = ResultsStore(out).load_runs()
-    assert 5 <= len(done) < 1800 and all(r["status"] == "ok" for r in done)
+    assert not (held / ".lock.owner").exists() and not is_locked(held)
+    done = ResultsStore(held).load_runs()
+    _, agents, _ = ResultsStore(held).progress()
+    assert 5 <= len(done) < sum(runs for runs, _, _ in agents.values())  # stopped mid-sweep, the finished runs kept
+    assert all(r["status"] == "ok" for r in done)
